@@ -1,0 +1,1 @@
+"""Controllers that act in the environments, the evaluation runner and the ``mrmt`` command."""

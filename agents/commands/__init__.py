@@ -1,0 +1,1 @@
+"""Subcommands of the ``mrmt`` command line (see :mod:`agents.cli`)."""

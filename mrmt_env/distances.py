@@ -1,0 +1,70 @@
+"""Breadth-first-search distance fields on a 4-neighbour grid.
+
+One field per source cell: ``field[r, c]`` is the number of unit moves from
+the source to ``(r, c)`` through free cells, or :data:`UNREACHABLE` (-1).
+The queue loop is compiled with numba (``cache=True``), so a 10x10 field
+costs about a microsecond after the first call of a process.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields"]
+
+UNREACHABLE = -1
+
+#: Unit moves in action order 1..4 (action 0 is "stay"): up, down, left, right.
+MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bfs_many(grid: np.ndarray, sources: np.ndarray, out: np.ndarray) -> None:
+    h, w = grid.shape
+    queue = np.empty(h * w, dtype=np.int64)
+    dr = (-1, 1, 0, 0)
+    dc = (0, 0, -1, 1)
+    for k in range(sources.shape[0]):
+        field = out[k]
+        field[:, :] = -1
+        sr, sc = sources[k, 0], sources[k, 1]
+        if grid[sr, sc]:
+            continue
+        field[sr, sc] = 0
+        head = 0
+        tail = 0
+        queue[tail] = sr * w + sc
+        tail += 1
+        while head < tail:
+            cur = queue[head]
+            head += 1
+            r = cur // w
+            c = cur % w
+            nd = field[r, c] + 1
+            for m in range(4):
+                nr = r + dr[m]
+                nc = c + dc[m]
+                if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] and field[nr, nc] < 0:
+                    field[nr, nc] = nd
+                    queue[tail] = nr * w + nc
+                    tail += 1
+
+
+def bfs_distance_fields(grid: np.ndarray, sources) -> np.ndarray:
+    """``(K, H, W)`` int32 distance fields from each of ``K`` source cells.
+
+    A source on an obstacle gets an all-:data:`UNREACHABLE` field; bounds are
+    the caller's business (the :class:`~mrmt_env.world.World` validates them).
+    """
+    grid = np.ascontiguousarray(grid, dtype=np.bool_)
+    src = np.asarray(sources, dtype=np.int64).reshape(-1, 2)
+    out = np.empty((src.shape[0],) + grid.shape, dtype=np.int32)
+    if src.shape[0]:
+        _bfs_many(grid, np.ascontiguousarray(src), out)
+    return out
+
+
+def bfs_distance_field(grid: np.ndarray, source) -> np.ndarray:
+    """``(H, W)`` int32 distance field from one source cell."""
+    return bfs_distance_fields(grid, [source])[0]

@@ -1,0 +1,116 @@
+"""The three planning-layer interfaces and their result types.
+
+Every planning method (classical or Ising) implements exactly one of these
+protocols, so a pipeline can combine any sharing, tour and path method
+(paper section 2.3: target sharing -> tour construction -> pathfinding).
+
+Node conventions (see :mod:`mrmt_env.world`): ``world.distance_matrix`` is
+``(R+N, R+N)`` over robots then targets.  A tour solver sees a local matrix
+``dist`` of shape ``(n+1, n+1)`` whose node 0 is the robot start and nodes
+``1..n`` are its assigned targets; it returns an open route (no return).
+
+Each result carries a :class:`~planners.compute.ComputeReport` with the
+*accelerator* counts of that layer (chip calls, batches, logical calls, chip
+time, accelerator energy).  ``cpu_s`` is measured by the pipeline around each
+layer call, so a layer never needs to time itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from mrmt_env.world import World
+from planners.compute import ComputeReport
+
+__all__ = [
+    "PathResult",
+    "TourResult",
+    "SharingResult",
+    "PathPlanner",
+    "TourSolver",
+    "SharingPlanner",
+]
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """A path from start to goal, or a failure.
+
+    ``path`` is ``(L+1, 2)`` int cells from start to goal inclusive, or
+    ``None`` on failure (then ``failure`` says why).  Never an invalid path.
+    """
+
+    path: np.ndarray | None
+    compute: ComputeReport = field(default_factory=ComputeReport)
+    failure: str | None = None
+    stats: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def success(self) -> bool:
+        return self.path is not None
+
+    @property
+    def length(self) -> int | None:
+        return None if self.path is None else len(self.path) - 1
+
+
+@dataclass(frozen=True)
+class TourResult:
+    """An open route over local nodes ``1..n`` starting from node 0.
+
+    ``order`` is a permutation of ``1..n`` (local node indices); ``cost`` is
+    the route cost under the ``dist`` the solver was given.
+    """
+
+    order: tuple[int, ...]
+    cost: float
+    compute: ComputeReport = field(default_factory=ComputeReport)
+    stats: dict = field(default_factory=dict, compare=False)
+
+
+@dataclass(frozen=True)
+class SharingResult:
+    """Targets assigned to robots: ``assignment[k]`` lists target indices (0..N-1)
+    for robot ``k`` (order not meaningful; the tour layer orders them)."""
+
+    assignment: tuple[tuple[int, ...], ...]
+    compute: ComputeReport = field(default_factory=ComputeReport)
+    stats: dict = field(default_factory=dict, compare=False)
+
+
+@runtime_checkable
+class PathPlanner(Protocol):
+    name: str
+
+    def find_path(self, world: World, start, goal, rng: np.random.Generator | None = None) -> PathResult:
+        """A 4-neighbour path on ``world.grid`` from ``start`` to ``goal``."""
+        ...
+
+
+@runtime_checkable
+class TourSolver(Protocol):
+    name: str
+
+    def solve(self, dist: np.ndarray, rng: np.random.Generator | None = None) -> TourResult:
+        """Order nodes ``1..n`` of ``dist`` (``(n+1, n+1)``) into an open route from node 0."""
+        ...
+
+
+@runtime_checkable
+class SharingPlanner(Protocol):
+    name: str
+
+    def assign(
+        self,
+        dist: np.ndarray,
+        n_robots: int,
+        tour: TourSolver,
+        rng: np.random.Generator | None = None,
+    ) -> SharingResult:
+        """Split targets among robots.  ``dist`` is ``world.distance_matrix``;
+        ``tour`` is the downstream tour solver (for methods that price a
+        bundle by its tour cost, e.g. Ising robotless-bundle assignment)."""
+        ...

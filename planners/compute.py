@@ -1,0 +1,103 @@
+"""Compute accounting for one planning call (paper section 6.1, plus the honest total).
+
+Rules:
+
+* classical / host work: measured CPU wall seconds x 15 W per core
+  (:data:`CPU_WATTS_PER_CORE`, the paper's i7-12700 TDP normalised per core);
+* physical chip: calls x 50 us and calls x 0.45 uJ (the chip spec's numbers,
+  carried in from the :mod:`ising_backend` call ledger); with parallel dispatch
+  latency is counted per batch of up to 8 programs;
+* logical Ising (tour layer): each logical call is projected as one chip call.
+
+The paper reports accelerator energy only for the Ising methods; this report
+also carries the host CPU time and energy of the classical glue (decomposition,
+mapping, decode, scoring) so the system total is never hidden:
+``total_energy_j = accelerator_energy_j + host_energy_j``.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, fields
+
+__all__ = ["ComputeReport", "CPU_WATTS_PER_CORE", "stopwatch"]
+
+#: Paper 6.1: "a 15 W per-core power estimate obtained by normalizing the CPU TDP".
+CPU_WATTS_PER_CORE = 15.0
+
+
+@dataclass(frozen=True)
+class ComputeReport:
+    """What one planning call cost.  Reports add with ``+``.
+
+    Attributes:
+        cpu_s: measured host wall seconds of the planning call (all layers,
+            including the Ising pipeline's classical glue).
+        chip_calls: physical chip calls (one program on one core each).
+        chip_batches: chip submissions (a batch holds up to ``cores`` programs).
+        logical_calls: logical Ising calls, each projected as one chip call.
+        chip_time_s: accelerator time with calls run one after another
+            (physical + projected logical calls x 50 us: the paper's figure).
+        chip_time_parallel_s: accelerator time with parallel dispatch over
+            the chip's cores (per batch of up to 8 programs).
+        accelerator_energy_j: (physical + projected) calls x 0.45 uJ.
+    """
+
+    cpu_s: float = 0.0
+    chip_calls: int = 0
+    chip_batches: int = 0
+    logical_calls: int = 0
+    chip_time_s: float = 0.0
+    chip_time_parallel_s: float = 0.0
+    accelerator_energy_j: float = 0.0
+
+    @property
+    def host_energy_j(self) -> float:
+        """Host CPU energy proxy: ``cpu_s`` x 15 W (one core)."""
+        return self.cpu_s * CPU_WATTS_PER_CORE
+
+    @property
+    def total_energy_j(self) -> float:
+        """Accelerator energy plus host CPU energy (the system total)."""
+        return self.accelerator_energy_j + self.host_energy_j
+
+    def __add__(self, other: "ComputeReport") -> "ComputeReport":
+        if not isinstance(other, ComputeReport):
+            return NotImplemented
+        return ComputeReport(**{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)})
+
+    def replace(self, **changes) -> "ComputeReport":
+        data = asdict(self)
+        data.update(changes)
+        return ComputeReport(**data)
+
+    def to_dict(self) -> dict:
+        """The ``compute`` object of ``mrmt plan`` output (derived energies included)."""
+        d = asdict(self)
+        d["host_energy_j"] = self.host_energy_j
+        return {
+            "cpu_s": d["cpu_s"],
+            "host_energy_j": d["host_energy_j"],
+            "chip_calls": d["chip_calls"],
+            "chip_batches": d["chip_batches"],
+            "logical_calls": d["logical_calls"],
+            "chip_time_s": d["chip_time_s"],
+            "chip_time_parallel_s": d["chip_time_parallel_s"],
+            "accelerator_energy_j": d["accelerator_energy_j"],
+        }
+
+
+@contextmanager
+def stopwatch():
+    """``with stopwatch() as t: ...; t()`` -> elapsed wall seconds (perf_counter)."""
+    start = time.perf_counter()
+    end: list[float] = []
+
+    def elapsed() -> float:
+        return (end[0] if end else time.perf_counter()) - start
+
+    try:
+        yield elapsed
+    finally:
+        end.append(time.perf_counter())

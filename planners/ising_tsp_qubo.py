@@ -1,0 +1,193 @@
+"""QUBO builders, decoders and scorers for the clustered Ising tour (paper 5.2).
+
+Pure numpy, no solver: the method itself lives in :mod:`planners.ising_tour`.
+
+A QUBO here is the triple ``(q, Q, offset)`` with energy
+``E(x) = x @ Q @ x + q @ x + offset`` for ``x`` in ``{0, 1}^n`` and ``Q``
+strictly upper triangular (the convention of :class:`ising_backend.QuboModel`).
+
+Two model families:
+
+* :func:`maxcut_qubo` -- the distance-Ising split of eq. (7):
+  ``cut(x) = sum_{i<j} w_ij (x_i + x_j - 2 x_i x_j)``, maximised, so the QUBO
+  energy is ``-cut(x)``.
+* :func:`open_path_qubo` -- the position-indexed one-hot open-path model of
+  eq. (1) with soft boundary costs, used for cluster ordering, local TSP and
+  patch refinement.  Variable ``v = i * s + p`` means "item ``i`` at position
+  ``p``" (row-major ``(item, position)`` matrix)::
+
+      E = A * sum_i (1 - sum_p x_ip)^2          (each item exactly once)
+        + A * sum_p (1 - sum_i x_ip)^2          (each position exactly once)
+        + B * ( sum_i entry_i x_i0               (from the previous waypoint)
+              + sum_p sum_{i != j} d_ij x_ip x_j,p+1
+              + sum_i exit_i x_i,s-1 )           (toward the next waypoint)
+
+  On a valid permutation ``E = B * (entry + internal + exit cost)`` exactly
+  (the offset ``2 s A`` is included), so the energy ranks valid candidates
+  like the original objective.
+
+Penalty weight: :func:`onehot_penalty` gives ``A = B * (margin_factor * w_max
++ 1)`` with ``w_max`` the largest route coefficient (any ``d_ij``, entry or
+exit value) of the subproblem.  Lucas (2014) shows ``A > B * w_max`` makes
+every ground state a valid permutation for the closed tour; in the open path
+with boundary costs, emptying one position and dropping one item raises the
+penalty by ``2A`` and saves at most two route terms (``<= 2 B w_max``), so
+``A > B w_max`` still suffices.  The ``+1`` keeps a strict margin when all
+distances are equal (or zero); a larger ``margin_factor`` makes invalid
+states costlier but flattens the route landscape for the sampler.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "maxcut_qubo",
+    "cut_value",
+    "open_path_qubo",
+    "onehot_penalty",
+    "decode_onehot",
+    "decode_onehot_batch",
+    "path_cost",
+    "qubo_energy",
+]
+
+
+def qubo_energy(q: np.ndarray, Q: np.ndarray, offset: float, x: np.ndarray) -> np.ndarray:
+    """``x @ Q @ x + q @ x + offset`` vectorised over leading axes of ``x``."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.einsum("...i,ij,...j->...", x, Q, x) + x @ q + offset
+
+
+# --------------------------------------------------------------------------- max-cut (eq. 7)
+
+
+def maxcut_qubo(w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """QUBO whose energy is ``-cut(x)`` for the symmetric weight matrix ``w``.
+
+    ``cut(x) = sum_{i<j} w_ij (x_i + x_j - 2 x_i x_j)``: linear ``-sum_j w_ij``,
+    quadratic ``+2 w_ij`` (upper triangle).
+    """
+    w = np.asarray(w, dtype=np.float64)
+    if w.ndim != 2 or w.shape[0] != w.shape[1]:
+        raise ValueError(f"weight matrix must be square, got shape {w.shape}")
+    if not np.all(np.isfinite(w)):
+        raise ValueError("weight matrix has non-finite entries (targets in different components?)")
+    ws = 0.5 * (w + w.T)
+    np.fill_diagonal(ws, 0.0)
+    q = -ws.sum(axis=1)
+    Q = np.triu(2.0 * ws, k=1)
+    return q, Q, 0.0
+
+
+def cut_value(w: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``cut(x)`` of eq. (7), vectorised over leading axes of ``x``."""
+    w = np.asarray(w, dtype=np.float64)
+    ws = 0.5 * (w + w.T)
+    np.fill_diagonal(ws, 0.0)
+    x = np.asarray(x, dtype=np.float64)
+    # sum_{i<j} w_ij [x_i != x_j] = 1/2 sum_{i,j} w_ij (x_i + x_j - 2 x_i x_j)
+    deg = ws.sum(axis=1)
+    return x @ deg - np.einsum("...i,ij,...j->...", x, ws, x)
+
+
+# --------------------------------------------------------------------------- one-hot open path
+
+
+def onehot_penalty(d: np.ndarray, entry: np.ndarray, exit_: np.ndarray, B: float = 1.0,
+                   margin_factor: float = 1.0) -> float:
+    """The one-hot penalty ``A`` for a route model (see the module docstring)."""
+    vals = [np.max(np.abs(d)) if d.size else 0.0]
+    if entry.size:
+        vals.append(np.max(np.abs(entry)))
+    if exit_.size:
+        vals.append(np.max(np.abs(exit_)))
+    w_max = float(max(vals))
+    return float(B * (margin_factor * w_max + 1.0))
+
+
+def open_path_qubo(
+    d: np.ndarray,
+    entry: np.ndarray | None = None,
+    exit_: np.ndarray | None = None,
+    A: float | None = None,
+    B: float = 1.0,
+    margin_factor: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """One-hot position QUBO of an open path over ``s`` items.
+
+    Args:
+        d: ``(s, s)`` item-to-item costs (``d[i, j]`` = cost of ``i`` then ``j``).
+        entry: ``(s,)`` cost from the previous waypoint into each item
+            (zeros = free start).
+        exit_: ``(s,)`` cost from each item toward the next waypoint
+            (zeros = open end).
+        A: one-hot penalty; ``None`` = :func:`onehot_penalty`.
+        B: route weight.
+
+    Returns:
+        ``(q, Q, offset, A)`` with ``s*s`` variables, ``v = i * s + p``.
+    """
+    d = np.asarray(d, dtype=np.float64)
+    if d.ndim != 2 or d.shape[0] != d.shape[1]:
+        raise ValueError(f"cost matrix must be square, got shape {d.shape}")
+    s = d.shape[0]
+    if s < 1:
+        raise ValueError("an open path needs at least one item")
+    entry = np.zeros(s) if entry is None else np.asarray(entry, dtype=np.float64).reshape(-1)
+    exit_ = np.zeros(s) if exit_ is None else np.asarray(exit_, dtype=np.float64).reshape(-1)
+    if entry.shape != (s,) or exit_.shape != (s,):
+        raise ValueError(f"entry/exit must have shape ({s},), got {entry.shape} and {exit_.shape}")
+    for name, arr in (("cost matrix", d), ("entry", entry), ("exit", exit_)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} has non-finite entries (unreachable targets?)")
+    if A is None:
+        A = onehot_penalty(d, entry, exit_, B, margin_factor)
+    n = s * s
+    idx = np.arange(n).reshape(s, s)  # idx[i, p]
+    q = np.full(n, -2.0 * A)
+    q[idx[:, 0]] += B * entry
+    q[idx[:, s - 1]] += B * exit_
+    # C symmetric: the quadratic part is sum_{a<b} C_ab x_a x_b
+    C = np.zeros((n, n))
+    for k in range(s):
+        r = idx[k]  # item k at every position
+        C[np.ix_(r, r)] += 2.0 * A
+        c = idx[:, k]  # every item at position k
+        C[np.ix_(c, c)] += 2.0 * A
+    dd = d.copy()
+    np.fill_diagonal(dd, 0.0)
+    for p in range(s - 1):
+        block = B * dd  # item i at p (rows), item j at p+1 (columns)
+        C[np.ix_(idx[:, p], idx[:, p + 1])] += block
+        C[np.ix_(idx[:, p + 1], idx[:, p])] += block.T
+    Q = np.triu(C, k=1)
+    offset = 2.0 * s * A
+    return q, Q, float(offset), float(A)
+
+
+def decode_onehot(x: np.ndarray, s: int) -> tuple[int, ...] | None:
+    """Permutation ``order[p] = item at position p`` or ``None`` if one-hot is violated."""
+    m = np.asarray(x).reshape(s, s) != 0
+    if not (np.all(m.sum(axis=0) == 1) and np.all(m.sum(axis=1) == 1)):
+        return None
+    return tuple(int(i) for i in np.argmax(m, axis=0))
+
+
+def decode_onehot_batch(x: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised decode of ``(m, s*s)`` bit rows: ``(orders (m, s) int, valid (m,) bool)``."""
+    m = np.asarray(x).reshape(-1, s, s) != 0
+    valid = np.all(m.sum(axis=1) == 1, axis=1) & np.all(m.sum(axis=2) == 1, axis=1)
+    orders = np.argmax(m, axis=1)
+    return orders, valid
+
+
+def path_cost(d: np.ndarray, order, entry: np.ndarray | None = None, exit_: np.ndarray | None = None) -> float:
+    """``entry[o0] + sum d[o_k, o_k+1] + exit[o_last]`` of an item order."""
+    order = np.asarray(order, dtype=np.int64)
+    c = float(np.sum(d[order[:-1], order[1:]])) if len(order) > 1 else 0.0
+    if entry is not None and len(order):
+        c += float(entry[order[0]])
+    if exit_ is not None and len(order):
+        c += float(exit_[order[-1]])
+    return c

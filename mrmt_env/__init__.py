@@ -1,6 +1,11 @@
-"""Grid worlds for multi-robot multi-target planning (world model, envs, metrics)."""
+"""Grid worlds for multi-robot multi-target planning (world model, envs, metrics).
 
-from mrmt_env.distances import UNREACHABLE, bfs_distance_field, bfs_distance_fields
+Importing the package registers the Gymnasium ids in :data:`GYM_IDS`
+(``gymnasium.make("mrmt_env/MRMT-v0")``) and, when the installed PettingZoo
+has a registry, the PettingZoo ids ``mrmt_env/mrmt_v0`` (AEC and parallel).
+"""
+
+from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_distance_fields
 from mrmt_env.generation import generate_world
 from mrmt_env.world import World, WorldError
 
@@ -11,4 +16,53 @@ __all__ = [
     "bfs_distance_field",
     "bfs_distance_fields",
     "UNREACHABLE",
+    "MOVES",
+    "MRMTEnv",
+    "MRMTParallelEnv",
+    "parallel_env",
+    "env",
+    "world_from_observation",
+    "GYM_IDS",
 ]
+
+#: Registered Gymnasium ids -> (kwargs, max_episode_steps).
+GYM_IDS = {
+    "mrmt_env/MRMT-v0": (
+        dict(height=10, width=10, obstacle_density=0.2, n_robots=3, n_targets=10, placement="uniform"),
+        200,
+    ),
+    "mrmt_env/MRMT-Centre-v0": (
+        dict(height=10, width=10, obstacle_density=0.2, n_robots=3, n_targets=10, placement="centre"),
+        200,
+    ),
+    "mrmt_env/MRMT-5x5-v0": (
+        dict(height=5, width=5, obstacle_density=0.04, n_robots=2, n_targets=3, placement="uniform"),
+        50,
+    ),
+}
+
+
+def _register() -> None:
+    import gymnasium
+
+    for env_id, (kwargs, steps) in GYM_IDS.items():
+        if env_id not in gymnasium.registry:
+            # the passive env checker stays enabled (gymnasium's default)
+            gymnasium.register(
+                id=env_id, entry_point="mrmt_env.gym_env:MRMTEnv", kwargs=kwargs, max_episode_steps=steps
+            )
+    try:
+        from pettingzoo.env_registry.registration import aec_registry, parallel_registry, register
+    except ImportError:  # older PettingZoo: no registry
+        return
+    if "mrmt_env/mrmt_v0" not in aec_registry:
+        register("aec", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:env")
+    if "mrmt_env/mrmt_v0" not in parallel_registry:
+        register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:parallel_env")
+
+
+_register()
+
+from mrmt_env.gym_env import MRMTEnv  # noqa: E402
+from mrmt_env.observation import world_from_observation  # noqa: E402
+from mrmt_env.pz_env import MRMTParallelEnv, env, parallel_env  # noqa: E402

@@ -1,0 +1,285 @@
+"""The simulator core: the one copy of the dynamics both environments use.
+
+:class:`MRMTCore` holds one episode's state (robot cells, visited targets,
+counters and the observation buffer) and advances it by one joint action.
+The Gymnasium env (:mod:`mrmt_env.gym_env`) and the PettingZoo env
+(:mod:`mrmt_env.pz_env`) only validate actions, wrap the results in their
+API and handle the step limit.
+
+Dynamics (paper section 3 leaves inter-robot interaction open; it has no
+collision model):
+
+* all robots move at once; action ``0`` stays, ``1..4`` move up, down, left,
+  right (:data:`mrmt_env.distances.MOVES` order);
+* a move into an obstacle or off the grid leaves the robot where it is and
+  counts as an *invalid move*; it is not a move for ``route_cost``;
+* robots may share cells; after each step the core counts *vertex
+  conflicts* (pairs of robots on one cell) and *swap conflicts* (pairs that
+  exchanged cells), so users can see what a collision model would forbid;
+* a target is visited as soon as a robot stands on it, also at reset.
+
+Speed: the state is kept in plain Python ints and lists over flat cell
+indices ``r * W + c`` with a precomputed successor table, because numpy
+calls on 3-element arrays cost more than the whole step.  The observation
+buffer is updated in place (two writes per moving robot) and copied once
+per step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrmt_env.distances import MOVES
+from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
+from mrmt_env.world import World
+
+__all__ = ["MRMTCore", "WorldSource", "N_ACTIONS", "ACTION_NAMES", "successor_table"]
+
+N_ACTIONS = 5
+ACTION_NAMES = ("stay", "up", "down", "left", "right")
+
+
+def successor_table(grid: np.ndarray) -> list[tuple[int, ...]]:
+    """``table[p][a]``: flat cell reached from flat cell ``p`` by action ``a``.
+
+    A move off the grid or into an obstacle gives ``p`` itself (blocked).
+    """
+    h, w = grid.shape
+    table: list[tuple[int, ...]] = []
+    for r in range(h):
+        for c in range(w):
+            p = r * w + c
+            row = [p]
+            for dr, dc in MOVES.tolist():
+                nr, nc = r + dr, c + dc
+                row.append(nr * w + nc if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] else p)
+            table.append(tuple(row))
+    return table
+
+
+class MRMTCore:
+    """One episode of the multi-robot multi-target grid world.
+
+    Args:
+        target_reward: reward per newly visited target; ``None`` gives
+            ``2 * H * W`` for each world (see :meth:`default_target_reward`).
+
+    Reward of a step: ``target_reward`` per target first visited in that
+    step, minus 1 per robot that attempted a move (action ``1..4``), whether
+    the move was made or blocked.  Staying costs nothing.
+    """
+
+    def __init__(self, target_reward: float | None = None) -> None:
+        if target_reward is not None and not (np.isfinite(target_reward) and target_reward > 0):
+            raise ValueError(f"target_reward must be a finite number > 0 or None, got {target_reward!r}")
+        self.target_reward_arg = target_reward
+        self.world: World | None = None
+        self._grid_key: bytes | None = None
+
+    @staticmethod
+    def default_target_reward(height: int, width: int) -> float:
+        """``2 * H * W``: more than any shortest way to one more target costs.
+
+        A robot can walk to every cell of its free component along a
+        depth-first traversal of a spanning tree in fewer than ``2 * H * W``
+        moves, so the cheapest completion of any partial visit costs less
+        than one target's reward: visiting every target always beats leaving
+        one out, and among complete visits the return is highest for the
+        fewest moves.
+        """
+        return float(2 * height * width)
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, world: World) -> None:
+        """Start an episode on ``world`` (robots at their start cells)."""
+        h, w = world.shape
+        key = world.grid.tobytes() + bytes(f"{h}x{w}", "ascii")
+        if key != self._grid_key:
+            self._nxt = successor_table(world.grid)
+            self._grid_key = key
+        self.world = world
+        self.height, self.width, self.hw = h, w, h * w
+        self.n_robots = world.n_robots
+        self.n_targets = world.n_targets
+        self.target_reward = (
+            self.default_target_reward(h, w) if self.target_reward_arg is None else float(self.target_reward_arg)
+        )
+        self.pos = [int(r) * w + int(c) for r, c in world.robots.tolist()]
+        tgt_at = [-1] * self.hw
+        for i, (r, c) in enumerate(world.targets.tolist()):
+            tgt_at[r * w + c] = i
+        self._tgt_at = tgt_at
+        self.visited = [False] * self.n_targets
+        self.n_visited = 0
+        for p in self.pos:
+            t = tgt_at[p]
+            if t >= 0 and not self.visited[t]:
+                self.visited[t] = True
+                self.n_visited += 1
+        self.obs = encode_observation(world, visited=self.visited)
+        self._obs_flat = self.obs.reshape(-1)  # a view: writes go to self.obs
+        self.steps = 0
+        self.route_cost = 0
+        self.robot_moves = [0] * self.n_robots
+        self.invalid_moves = 0
+        self.vertex_conflicts = 0
+        self.swap_conflicts = 0
+        self.last_new_targets = 0
+
+    # ------------------------------------------------------------------- step
+    def step(self, actions: list[int]) -> float:
+        """Apply one joint action (a list of ``R`` ints in ``0..4``, already
+        validated by the caller) and return the step's reward."""
+        pos = self.pos
+        nxt = self._nxt
+        obs = self._obs_flat
+        tgt_at = self._tgt_at
+        visited = self.visited
+        hw = self.hw
+        attempted = 0
+        made = 0
+        new = 0
+        moved = None
+        for k, a in enumerate(actions):
+            if a:
+                attempted += 1
+                p = pos[k]
+                q = nxt[p][a]
+                if q == p:
+                    continue
+                pos[k] = q
+                made += 1
+                self.robot_moves[k] += 1
+                base = (ROBOT_CHANNEL0 + k) * hw
+                obs[base + p] = 0
+                obs[base + q] = 1
+                if moved is None:
+                    moved = [(p, q)]
+                else:
+                    moved.append((p, q))
+                t = tgt_at[q]
+                if t >= 0 and not visited[t]:
+                    visited[t] = True
+                    new += 1
+                    obs[TARGET_CHANNEL * hw + q] = 0
+        self.steps += 1
+        self.route_cost += made
+        self.invalid_moves += attempted - made
+        if new:
+            self.n_visited += new
+        self.last_new_targets = new
+        n = self.n_robots
+        if n > 1:
+            if len(set(pos)) < n:
+                counts: dict[int, int] = {}
+                for p in pos:
+                    counts[p] = counts.get(p, 0) + 1
+                self.vertex_conflicts += sum(c * (c - 1) // 2 for c in counts.values() if c > 1)
+            if made > 1:
+                edges: dict[tuple[int, int], int] = {}
+                for e in moved:
+                    edges[e] = edges.get(e, 0) + 1
+                self.swap_conflicts += sum(c * edges.get((q, p), 0) for (p, q), c in edges.items() if p < q)
+        return new * self.target_reward - attempted
+
+    # ---------------------------------------------------------------- queries
+    @property
+    def all_visited(self) -> bool:
+        return self.n_visited == self.n_targets
+
+    def observation(self) -> np.ndarray:
+        """A copy of the global observation ``(2 + R, H, W)`` uint8."""
+        return self.obs.copy()
+
+    def positions(self) -> np.ndarray:
+        """``(R, 2)`` int64 current robot cells ``[row, col]``."""
+        w = self.width
+        return np.array([divmod(p, w) for p in self.pos], dtype=np.int64).reshape(-1, 2)
+
+    def info(self) -> dict:
+        """Flat, deterministic episode metrics so far (no wall-clock values)."""
+        return {
+            "route_cost": self.route_cost,
+            "makespan": max(self.robot_moves),
+            "steps": self.steps,
+            "targets_visited": self.n_visited,
+            "n_targets": self.n_targets,
+            "is_success": self.n_visited == self.n_targets,
+            "invalid_moves": self.invalid_moves,
+            "conflicts": self.vertex_conflicts + self.swap_conflicts,
+            "vertex_conflicts": self.vertex_conflicts,
+            "swap_conflicts": self.swap_conflicts,
+        }
+
+    def current_world(self) -> World:
+        """The world as it is now: current robot cells, unvisited targets
+        in their original order."""
+        keep = [i for i, v in enumerate(self.visited) if not v]
+        return self.world.replace(robots=self.positions(), targets=self.world.targets[keep])
+
+
+class WorldSource:
+    """Where an env's worlds come from: one fixed world, or a fresh
+    :func:`~mrmt_env.generation.generate_world` draw per reset.
+
+    Args:
+        world: a :class:`World`, a path to a world file (JSON, or JSON Lines
+            holding exactly one world), or ``None`` to generate worlds.
+        height, width, obstacle_density, n_robots, n_targets, placement:
+            generator arguments (defaults 10, 10, 0.2, 3, 10, ``"uniform"``).
+            With a fixed world, sizes given here must agree with it.
+    """
+
+    DEFAULTS = {"height": 10, "width": 10, "obstacle_density": 0.2, "n_robots": 3, "n_targets": 10,
+                "placement": "uniform"}
+
+    def __init__(self, world=None, **params) -> None:
+        given = {k: v for k, v in params.items() if v is not None}
+        unknown = sorted(set(given) - set(self.DEFAULTS))
+        if unknown:
+            raise TypeError(f"unknown world argument(s) {unknown}; allowed: {sorted(self.DEFAULTS)}")
+        if world is not None:
+            if not isinstance(world, World):
+                from mrmt_env.io import read_worlds
+
+                worlds = read_worlds(world)
+                if len(worlds) != 1:
+                    raise ValueError(f"world file {world} holds {len(worlds)} worlds; an env takes exactly one")
+                world = worlds[0]
+            actual = {"height": world.height, "width": world.width, "n_robots": world.n_robots,
+                      "n_targets": world.n_targets}
+            for key, value in given.items():
+                if key in actual and value != actual[key]:
+                    raise ValueError(f"{key}={value!r} contradicts the given world, which has {key}={actual[key]}")
+                if key not in actual:
+                    raise ValueError(f"{key}={value!r} only applies to generated worlds, not a fixed world")
+            self.fixed: World | None = world
+            self.params = dict(actual)
+        else:
+            from mrmt_env.generation import generate_world
+
+            self.fixed = None
+            self.params = {**self.DEFAULTS, **given}
+            generate_world(0, **self.params)  # validates the arguments now, with clear errors
+        self.height = int(self.params["height"])
+        self.width = int(self.params["width"])
+        self.n_robots = int(self.params["n_robots"])
+
+    def draw(self, rng: np.random.Generator) -> World:
+        """The fixed world, or a new world drawn from ``rng`` (advanced in place)."""
+        if self.fixed is not None:
+            return self.fixed
+        from mrmt_env.generation import generate_world
+
+        return generate_world(rng, **self.params)
+
+    def check(self, world) -> World:
+        """Validate a world passed through ``reset(options={"world": ...})``."""
+        if not isinstance(world, World):
+            raise TypeError(f"options['world'] must be a World, got {type(world).__name__}")
+        if world.shape != (self.height, self.width) or world.n_robots != self.n_robots:
+            raise ValueError(
+                f"options['world'] is {world.height}x{world.width} with {world.n_robots} robots; this env's "
+                f"spaces need {self.height}x{self.width} with {self.n_robots} robots"
+            )
+        return world

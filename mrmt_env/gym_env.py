@@ -1,0 +1,257 @@
+"""The Gymnasium environment: centralised control of all robots."""
+
+from __future__ import annotations
+
+import numpy as np
+import gymnasium as gym
+from gymnasium import spaces
+
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource
+from mrmt_env.observation import observation_space
+from mrmt_env.render import render_ansi, render_rgb
+from mrmt_env.world import World
+
+__all__ = ["MRMTEnv", "check_joint_action"]
+
+
+def check_joint_action(action, n_robots: int) -> list[int]:
+    """Validate a joint action and return it as a list of Python ints.
+
+    Accepts an integer array-like of shape ``(R,)`` with values in ``0..4``.
+
+    Raises:
+        ValueError: wrong shape, non-integer dtype or a value outside ``0..4``
+            (the message names the value and the robot).  Nothing is clipped.
+    """
+    a = np.asarray(action)
+    if a.shape != (n_robots,):
+        raise ValueError(f"action must have shape ({n_robots},) (one move per robot), got shape {a.shape}")
+    if a.dtype.kind not in "iu":
+        raise ValueError(f"action must hold integers 0..{N_ACTIONS - 1}, got dtype {a.dtype}")
+    acts = a.tolist()
+    for k, v in enumerate(acts):
+        if not 0 <= v < N_ACTIONS:
+            raise ValueError(
+                f"action for robot {k} is {v}; valid moves are 0..{N_ACTIONS - 1} "
+                "(0 stay, 1 up, 2 down, 3 left, 4 right)"
+            )
+    return acts
+
+
+class MRMTEnv(gym.Env):
+    """
+    ## Description
+
+    Multi-robot multi-target planning on a grid (paper "Ising Acceleration for
+    Multi-Robot Multi-Target Planning", sections 3 and 6.1): ``R`` robots on an
+    ``H x W`` grid with obstacles must visit ``N`` target cells between them.
+    A target is visited when any robot stands on it.  The paper's objective is
+    the total route length (``info["route_cost"]``); its longest route is
+    ``info["makespan"]``.  One agent controls every robot (centralised
+    control), so stable-baselines3 can train on it unchanged.
+
+    Robots have no collision model (the paper has none): they may share a cell.
+    Pairs of robots sharing a cell (vertex conflicts) and pairs exchanging
+    cells (swap conflicts) are counted in ``info`` so users can see them.
+
+    ## Action Space
+
+    ``MultiDiscrete([5] * R)``: one move per robot, applied simultaneously.
+
+    - 0: stay
+    - 1: up (row - 1)
+    - 2: down (row + 1)
+    - 3: left (col - 1)
+    - 4: right (col + 1)
+
+    (``mrmt_env.distances.MOVES`` lists moves 1..4 in this order.)  A move
+    into an obstacle or off the grid leaves the robot in place and is counted
+    in ``info["invalid_moves"]``.  An action of the wrong shape, a non-integer
+    dtype or a value outside 0..4 raises ``ValueError``; nothing is clipped.
+
+    ## Observation Space
+
+    ``Box(0, 1, (2 + R, H, W), uint8)``, channel first:
+
+    | Channel | Meaning                                    |
+    |---------|--------------------------------------------|
+    | 0       | obstacle cells                             |
+    | 1       | targets not yet visited                    |
+    | 2 + k   | robot k's current cell (exactly one 1)     |
+
+    The observation holds the whole world:
+    ``mrmt_env.observation.world_from_observation(obs)`` rebuilds a ``World``
+    (robots at their current cells, unvisited targets in row-major order).
+
+    ## Rewards
+
+    Per step: ``target_reward`` for each target visited for the first time in
+    that step, minus 1 for each robot whose action is a move (1..4), whether the
+    move is made or blocked.  Staying costs 0, so an idle robot is not punished.
+    The default ``target_reward = 2 * H * W`` exceeds the cost of reaching any
+    further target (a robot can walk its whole free component in fewer moves),
+    so the episode return
+
+        ``target_reward * (targets visited after reset) - route_cost - invalid_moves``
+
+    is maximised exactly by visiting every target with the fewest total moves
+    and no blocked moves.  Targets under a robot at reset give no reward.
+
+    ## Starting State
+
+    Without a fixed ``world``, each ``reset(seed=...)`` draws a new world with
+    ``mrmt_env.generate_world`` from the env's random generator (the paper's
+    set-up: exactly ``round(density * H * W)`` obstacles, robots and targets on
+    distinct cells of one 4-connected free component).  With a fixed world,
+    every episode starts from it.  ``reset(options={"world": w})`` starts one
+    episode from the ``World`` ``w`` (same ``H, W, R`` as the env).  Targets
+    under a robot at reset are visited at once.
+
+    ## Episode End
+
+    1. Termination: every target has been visited (``info["is_success"]``).
+       A world whose targets are all visited at reset terminates on the
+       first step.
+    2. Truncation: the step limit.  Registered ids get it from
+       ``gymnasium.make`` (``TimeLimit``, ``max_episode_steps`` below); a
+       directly constructed env truncates itself if ``max_episode_steps`` is
+       given.  Truncation never sets ``terminated``.
+
+    ## Info
+
+    Every ``reset`` and ``step`` returns the flat keys ``route_cost`` (moves
+    actually made by all robots so far; blocked moves are not moves),
+    ``makespan`` (most moves made by one robot), ``steps``,
+    ``targets_visited``, ``n_targets``, ``is_success``, ``invalid_moves``,
+    ``conflicts`` (= ``vertex_conflicts + swap_conflicts``, summed over steps:
+    each step adds the number of robot pairs sharing a cell after it and the
+    number of pairs that exchanged cells in it), ``vertex_conflicts`` and
+    ``swap_conflicts``.  No wall-clock values.
+
+    ## Arguments
+
+    ```python
+    >>> import gymnasium as gym
+    >>> import mrmt_env
+    >>> env = gym.make("mrmt_env/MRMT-v0", render_mode="ansi")
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape
+    (5, 10, 10)
+
+    ```
+
+    | Parameter          | Type                 | Default     | Description                                        |
+    |--------------------|----------------------|-------------|----------------------------------------------------|
+    | `height`           | int                  | 10          | grid rows (generated worlds)                       |
+    | `width`            | int                  | 10          | grid columns (generated worlds)                    |
+    | `obstacle_density` | float                | 0.2         | fraction of obstacle cells (generated worlds)      |
+    | `n_robots`         | int                  | 3           | robots R                                           |
+    | `n_targets`        | int                  | 10          | targets N                                          |
+    | `placement`        | str                  | `"uniform"` | `"uniform"` or `"centre"` robot spawn              |
+    | `world`            | World, path or None  | None        | fixed world (or world file) for every episode      |
+    | `max_episode_steps`| int or None          | None        | self-truncation for direct construction            |
+    | `target_reward`    | float or None        | `2 * H * W` | reward per newly visited target                    |
+    | `render_mode`      | str or None          | None        | `"ansi"`, `"rgb_array"` or `"human"` (prints text) |
+
+    Registered ids: ``mrmt_env/MRMT-v0`` (10x10, density 0.2, 3 robots, 10
+    targets, uniform placement, 200 steps), ``mrmt_env/MRMT-Centre-v0`` (the
+    same with the paper's centre spawn), ``mrmt_env/MRMT-5x5-v0`` (5x5, 1
+    obstacle, 2 robots, 3 targets, 50 steps; for quick RL training).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 4}
+
+    def __init__(
+        self,
+        height: int | None = None,
+        width: int | None = None,
+        obstacle_density: float | None = None,
+        n_robots: int | None = None,
+        n_targets: int | None = None,
+        world: World | str | None = None,
+        placement: str | None = None,
+        max_episode_steps: int | None = None,
+        target_reward: float | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
+        self.render_mode = render_mode
+        self.max_episode_steps = max_episode_steps
+        self.source = WorldSource(
+            world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
+            n_targets=n_targets, placement=placement,
+        )
+        self.n_robots = self.source.n_robots
+        self.action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)
+        self.observation_space = observation_space(self.n_robots, self.source.height, self.source.width)
+        self.core = MRMTCore(target_reward)
+        self._ashape = (self.n_robots,)
+        self.world: World | None = None
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if options and "world" in options:
+            world = self.source.check(options["world"])
+        else:
+            world = self.source.draw(self.np_random)
+        self.world = world
+        self.core.reset(world)
+        if self.render_mode == "human":
+            self.render()
+        return self.core.observation(), self.core.info()
+
+    def step(self, action):
+        core = self.core
+        if core.world is None:
+            raise RuntimeError("call reset() before step()")
+        # fast path for the common case (an integer ndarray of the right shape)
+        if type(action) is np.ndarray and action.shape == self._ashape and action.dtype.kind in "iu":
+            acts = action.tolist()
+            if min(acts) < 0 or max(acts) >= N_ACTIONS:
+                acts = check_joint_action(action, self.n_robots)  # raises, naming the robot
+        else:
+            acts = check_joint_action(action, self.n_robots)
+        reward = core.step(acts)
+        terminated = core.n_visited == core.n_targets
+        truncated = (
+            not terminated and self.max_episode_steps is not None and core.steps >= self.max_episode_steps
+        )
+        if self.render_mode == "human":
+            self.render()
+        return core.observation(), float(reward), terminated, truncated, core.info()
+
+    def render(self):
+        core = self.core
+        if core.world is None:
+            raise RuntimeError("call reset() before render()")
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'")
+            return None
+        if self.render_mode == "rgb_array":
+            return render_rgb(core.world.grid, core.world.targets, core.visited, core.positions())
+        info = core.info()
+        header = (
+            f"step {info['steps']}  targets {info['targets_visited']}/{info['n_targets']}  "
+            f"route_cost {info['route_cost']}  makespan {info['makespan']}"
+        )
+        text = render_ansi(core.world.grid, core.world.targets, core.visited, core.positions(), header)
+        if self.render_mode == "human":
+            print(text, end="")
+            return None
+        return text
+
+    # -------------------------------------------------------------- helpers
+    def current_world(self) -> World:
+        """The world now: robots at their current cells, unvisited targets in
+        their original order (``world_from_observation`` gives row-major order)."""
+        if self.core.world is None:
+            raise RuntimeError("call reset() first")
+        return self.core.current_world()

@@ -1,0 +1,192 @@
+"""Classical grid pathfinding baselines (paper section 6.1): BFS, A*, GBFS.
+
+All three search the 4-neighbour grid of ``world.grid`` (unit move cost, the
+paper's motion model) from ``start`` to ``goal`` and return the cell-by-cell
+path, start and goal included.
+
+``BFSPath``
+    breadth-first search; returns a shortest path.
+``AStarPath``
+    A* (Hart, Nilsson and Raphael 1968) with the Manhattan-distance heuristic,
+    which is admissible and consistent on a unit-cost 4-neighbour grid, so the
+    path is shortest and no node is re-expanded.
+``GreedyBestFirstPath``
+    greedy best-first search: expands the open node of smallest Manhattan
+    distance to the goal; complete on a finite grid but not optimal.
+
+Choices the paper leaves open (stated here, the same for all three):
+
+* neighbours are generated in the action order of :data:`mrmt_env.distances.MOVES`
+  (up, down, left, right);
+* A* breaks ties on ``f`` by preferring the larger ``g`` (deeper node), then
+  first-in order; GBFS breaks ties on ``h`` first-in;
+* the search stops when the goal is *expanded* (A*, GBFS) or *discovered*
+  (BFS, where discovery order is distance order);
+* the priority queue is a binary heap (numba-compiled ``heapq``), the open/closed
+  bookkeeping flat arrays of ``H * W`` cells: one search on a 10x10 grid costs a
+  few microseconds, so the measured CPU time is the algorithm's, not Python's.
+
+An unreachable goal, or a start/goal off the grid or on an obstacle, gives a
+failure :class:`~planners.base.PathResult` (``path=None`` and a message naming
+the cells), never an invalid path.  ``stats["expanded"]`` counts expanded cells.
+"""
+
+from __future__ import annotations
+
+import heapq
+
+import numba
+import numpy as np
+
+from mrmt_env.world import World
+from planners.base import PathResult
+
+__all__ = ["BFSPath", "AStarPath", "GreedyBestFirstPath", "grid_search"]
+
+_BFS, _ASTAR, _GBFS = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def _search(grid, sr, sc, gr, gc, mode):
+    """Search from (sr, sc) to (gr, gc).  Returns (path (L+1, 2) int64, expanded).
+
+    ``path`` has zero rows when the goal is unreachable.
+    """
+    h, w = grid.shape
+    n = h * w
+    parent = np.full(n, -1, dtype=np.int64)
+    g = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, dtype=np.bool_)
+    dr = (-1, 1, 0, 0)
+    dc = (0, 0, -1, 1)
+    start = sr * w + sc
+    goal = gr * w + gc
+    g[start] = 0
+    expanded = 0
+    found = start == goal
+    if mode == _BFS:
+        queue = np.empty(n, dtype=np.int64)
+        head = 0
+        tail = 1
+        queue[0] = start
+        while head < tail and not found:
+            cur = queue[head]
+            head += 1
+            expanded += 1
+            r = cur // w
+            c = cur % w
+            for m in range(4):
+                nr = r + dr[m]
+                nc = c + dc[m]
+                if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
+                    nxt = nr * w + nc
+                    if g[nxt] < 0:
+                        g[nxt] = g[cur] + 1
+                        parent[nxt] = cur
+                        if nxt == goal:
+                            found = True
+                            break
+                        queue[tail] = nxt
+                        tail += 1
+    else:
+        # heap entries: (primary key, secondary key, insertion counter, cell)
+        counter = 0
+        hs = abs(sr - gr) + abs(sc - gc)
+        heap = [(hs, 0, counter, start)]
+        while len(heap) > 0 and not found:
+            item = heapq.heappop(heap)
+            cur = item[3]
+            if closed[cur]:
+                continue
+            closed[cur] = True
+            expanded += 1
+            if cur == goal:
+                found = True
+                break
+            r = cur // w
+            c = cur % w
+            for m in range(4):
+                nr = r + dr[m]
+                nc = c + dc[m]
+                if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
+                    nxt = nr * w + nc
+                    if closed[nxt]:
+                        continue
+                    ng = g[cur] + 1
+                    if g[nxt] >= 0 and (mode == _GBFS or ng >= g[nxt]):
+                        continue  # GBFS: first discovery fixes the parent
+                    g[nxt] = ng
+                    parent[nxt] = cur
+                    hn = abs(nr - gr) + abs(nc - gc)
+                    counter += 1
+                    if mode == _ASTAR:
+                        heapq.heappush(heap, (ng + hn, -ng, counter, nxt))
+                    else:
+                        heapq.heappush(heap, (hn, 0, counter, nxt))
+    if not found:
+        return np.empty((0, 2), dtype=np.int64), expanded
+    length = g[goal]
+    path = np.empty((length + 1, 2), dtype=np.int64)
+    cur = goal
+    for i in range(length, -1, -1):
+        path[i, 0] = cur // w
+        path[i, 1] = cur % w
+        cur = parent[cur]
+    return path, expanded
+
+
+def _cell(x) -> tuple[int, int]:
+    return int(x[0]), int(x[1])
+
+
+def grid_search(grid: np.ndarray, start, goal, mode: int) -> PathResult:
+    """Run one search on a bool obstacle grid (shared by the three classes)."""
+    h, w = grid.shape
+    (sr, sc), (gr, gc) = _cell(start), _cell(goal)
+    for name, (r, c) in (("start", (sr, sc)), ("goal", (gr, gc))):
+        if not (0 <= r < h and 0 <= c < w):
+            return PathResult(None, failure=f"{name} cell [{r}, {c}] is off the {h}x{w} grid")
+        if grid[r, c]:
+            return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
+    path, expanded = _search(grid, sr, sc, gr, gc, mode)
+    stats = {"expanded": int(expanded)}
+    if len(path) == 0:
+        return PathResult(
+            None,
+            failure=f"no 4-neighbour path from [{sr}, {sc}] to [{gr}, {gc}] (goal unreachable)",
+            stats=stats,
+        )
+    return PathResult(path, stats=stats)
+
+
+class _GridSearch:
+    name = ""
+    _mode = _BFS
+
+    def find_path(self, world: World, start, goal, rng: np.random.Generator | None = None) -> PathResult:
+        """A 4-neighbour path on ``world.grid`` from ``start`` to ``goal`` (``rng`` unused)."""
+        return grid_search(world.grid, start, goal, self._mode)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+class BFSPath(_GridSearch):
+    """Breadth-first search: a shortest path (see module docstring)."""
+
+    name = "bfs"
+    _mode = _BFS
+
+
+class AStarPath(_GridSearch):
+    """A* with the Manhattan heuristic: a shortest path (see module docstring)."""
+
+    name = "astar"
+    _mode = _ASTAR
+
+
+class GreedyBestFirstPath(_GridSearch):
+    """Greedy best-first search on Manhattan distance: valid, not always shortest."""
+
+    name = "gbfs"
+    _mode = _GBFS

@@ -1,0 +1,477 @@
+"""The evaluation runner: episodes x controllers x seeds on the same worlds.
+
+Paper section 6: "episode metrics record cost, latency and energy".  Every
+episode gives one row: the env's deterministic route metrics (``route_cost``,
+``makespan``, ``steps``, ``targets_visited``, ``n_targets``, ``is_success``,
+``invalid_moves``, ``conflicts``) joined with the controller's compute for that
+episode (:func:`compute_record`):
+
+``cpu_s``
+    measured host wall seconds of the controller (planning calls, or a
+    learned agent's inference over the whole episode);
+``chip_calls``, ``chip_batches``, ``logical_calls``
+    physical chip calls, chip submissions, projected logical Ising calls;
+``chip_time_s`` / ``chip_time_parallel_s``
+    accelerator latency with calls run one after another (the paper's
+    figure) / with parallel dispatch over the chip's 8 cores;
+``latency_s`` / ``latency_parallel_s``
+    ``cpu_s`` plus the sequential / parallel chip time (the system latency);
+``accelerator_energy_j``
+    (physical + projected) chip calls x 0.45 uJ (the paper's Ising energy);
+``host_energy_j``
+    ``cpu_s`` x 15 W per core (the paper's classical energy, and the host
+    glue of the Ising pipeline); ``total_energy_j`` is their sum.
+
+Worlds: episode ``i`` of every controller and seed resets the env with
+``seed=world_seed + i``, so all controllers see the same worlds.  Seeds:
+``seeds`` are the controllers' own seeds (a planner's plan seed); each
+(world, seed) pair is one episode.  Route metrics and chip counts are
+deterministic given the seeds; ``cpu_s`` and what derives from it are
+measured wall-clock time and vary from run to run.
+
+Controllers are named by a spec string (:func:`make_controller`): a pipeline
+preset (``fast``, ``strong``, ``ising``), a layer triple
+``sharing+tour+path`` (e.g. ``ssa+brute+astar``), or ``ppo:PATH`` for a saved
+stable-baselines3 PPO model (:mod:`agents.learned`).
+
+Episodes run on a process pool (``n_jobs`` workers, default 2; ``n_jobs=1``
+runs inline) with a tqdm progress bar on stderr; each worker builds each
+controller and env once.  Note that ``cpu_s`` measured by parallel workers
+includes contention with other processes on the machine.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+import zipfile
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planners.compute import ComputeReport
+
+__all__ = [
+    "ControllerError",
+    "DEFAULT_ENV_ID",
+    "PIPELINE_PRESETS",
+    "ROUTE_KEYS",
+    "COMPUTE_KEYS",
+    "compute_record",
+    "parse_controllers",
+    "validate_controller_spec",
+    "make_controller",
+    "run_episode",
+    "EvaluationResult",
+    "evaluate",
+]
+
+DEFAULT_ENV_ID = "mrmt_env/MRMT-v0"
+
+#: Pipeline presets of :func:`planners.pipeline.make_pipeline`.
+PIPELINE_PRESETS = ("fast", "strong", "ising")
+
+#: Route metrics copied from the env's final ``info``.
+ROUTE_KEYS = (
+    "route_cost",
+    "makespan",
+    "steps",
+    "targets_visited",
+    "n_targets",
+    "is_success",
+    "invalid_moves",
+    "conflicts",
+)
+
+#: Compute columns of every row (see the module docstring).
+COMPUTE_KEYS = (
+    "cpu_s",
+    "chip_calls",
+    "chip_batches",
+    "logical_calls",
+    "chip_time_s",
+    "chip_time_parallel_s",
+    "latency_s",
+    "latency_parallel_s",
+    "accelerator_energy_j",
+    "host_energy_j",
+    "total_energy_j",
+)
+
+
+class ControllerError(ValueError):
+    """A controller spec that names no known controller, or a model file that cannot be used."""
+
+
+def compute_record(report: ComputeReport) -> dict:
+    """The compute columns (:data:`COMPUTE_KEYS`) of one episode's report."""
+    return {
+        "cpu_s": float(report.cpu_s),
+        "chip_calls": int(report.chip_calls),
+        "chip_batches": int(report.chip_batches),
+        "logical_calls": int(report.logical_calls),
+        "chip_time_s": float(report.chip_time_s),
+        "chip_time_parallel_s": float(report.chip_time_parallel_s),
+        "latency_s": float(report.cpu_s + report.chip_time_s),
+        "latency_parallel_s": float(report.cpu_s + report.chip_time_parallel_s),
+        "accelerator_energy_j": float(report.accelerator_energy_j),
+        "host_energy_j": float(report.host_energy_j),
+        "total_energy_j": float(report.total_energy_j),
+    }
+
+
+# ------------------------------------------------------------------ controllers
+def _layer_names() -> dict[str, tuple[str, ...]]:
+    try:
+        from planners import registry
+
+        out = {}
+        for layer in ("sharing", "tour", "path"):
+            fn = getattr(registry, f"{layer}_names", None) or getattr(registry, f"available_{layer}", None)
+            if fn is not None:
+                out[layer] = tuple(fn())
+        return out
+    except ImportError:  # pragma: no cover - planners always ship the registry
+        return {}
+
+
+def validate_controller_spec(spec: str) -> str:
+    """Check a controller spec without building it; return it normalised.
+
+    Raises:
+        ControllerError: an unknown name, a malformed layer triple, or a
+            ``ppo:`` path that does not exist or is not a model zip file.
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise ControllerError(f"controller spec must be a non-empty string, got {spec!r}")
+    spec = spec.strip()
+    if spec.startswith("ppo:"):
+        path = spec[4:]
+        if not path:
+            raise ControllerError("controller 'ppo:' needs a model path, e.g. ppo:model.zip")
+        if not os.path.isfile(path):
+            raise ControllerError(f"PPO model file {path!r} does not exist")
+        if not zipfile.is_zipfile(path):
+            raise ControllerError(f"PPO model file {path!r} is not a stable-baselines3 .zip model")
+        return spec
+    if spec in PIPELINE_PRESETS:
+        return spec
+    if "+" in spec:
+        parts = spec.split("+")
+        if len(parts) != 3 or not all(parts):
+            raise ControllerError(f"layer triple {spec!r} must be sharing+tour+path, e.g. ssa+3opt+astar")
+        names = _layer_names()
+        for layer, name in zip(("sharing", "tour", "path"), parts):
+            known = names.get(layer)
+            if known is not None and name not in known:
+                raise ControllerError(
+                    f"unknown {layer} method {name!r} in controller {spec!r}; known: {', '.join(known)}"
+                )
+        return spec
+    raise ControllerError(
+        f"unknown controller {spec!r}; expected one of {', '.join(PIPELINE_PRESETS)}, "
+        "a layer triple sharing+tour+path (e.g. ssa+3opt+astar), or ppo:PATH"
+    )
+
+
+def parse_controllers(text: str) -> list[str]:
+    """Split ``"fast,strong,ppo:model.zip"`` into validated specs (duplicates refused)."""
+    specs = [validate_controller_spec(s) for s in str(text).split(",") if s.strip()]
+    if not specs:
+        raise ControllerError(f"no controller named in {text!r}")
+    dup = {s for s in specs if specs.count(s) > 1}
+    if dup:
+        raise ControllerError(f"controller {sorted(dup)[0]!r} is listed twice")
+    return specs
+
+
+def make_controller(spec: str, seed: int = 0):
+    """Build the controller a spec names (see :func:`validate_controller_spec`).
+
+    Planners become :class:`agents.policy.PlannerPolicy`; ``ppo:PATH`` becomes
+    :class:`agents.learned.LearnedPolicy`.  Every controller has
+    ``predict(obs, state, episode_start, deterministic)`` and
+    ``episode_compute(index)``.
+    """
+    spec = validate_controller_spec(spec)
+    if spec.startswith("ppo:"):
+        from agents.learned import load_policy
+
+        return load_policy(spec[4:], seed=seed)
+    from agents.policy import PlannerPolicy
+
+    if "+" in spec:
+        from planners.pipeline import make_pipeline
+
+        sharing, tour, path = spec.split("+")
+        pipe = make_pipeline(sharing=sharing, tour=tour, path=path)
+        policy = PlannerPolicy(pipe, seed=seed)
+        policy.name = spec
+        return policy
+    return PlannerPolicy(spec, seed=seed)
+
+
+# --------------------------------------------------------------------- episodes
+def run_episode(env, controller, world_seed: int | None, index: int = 0) -> dict:
+    """Run one episode of ``controller`` in ``env``; return its row (without labels).
+
+    The env is reset with ``seed=world_seed``; the controller is told the
+    episode starts.  The row has :data:`ROUTE_KEYS`, ``truncated``,
+    ``episode_return`` and the compute columns of the controller's
+    ``episode_compute(index)``.
+    """
+    obs, info = env.reset(seed=world_seed)
+    start = True
+    total = 0.0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        action, _ = controller.predict(obs, episode_start=start, deterministic=True)
+        start = False
+        obs, reward, terminated, truncated, info = env.step(action)
+        total += float(reward)
+    row = {k: info[k] for k in ROUTE_KEYS if k in info}
+    for k in ROUTE_KEYS:
+        v = row.get(k)
+        if isinstance(v, (np.bool_, bool)):
+            row[k] = bool(v)
+        elif isinstance(v, (np.integer,)):
+            row[k] = int(v)
+    row["truncated"] = bool(truncated and not terminated)
+    row["episode_return"] = total
+    report = controller.episode_compute(index)
+    plans = controller.episode_plans(index) if hasattr(controller, "episode_plans") else []
+    row["n_plans"] = len(plans)
+    row["plan_route_cost"] = plans[0].route_cost if plans else None
+    row["plan_success"] = bool(plans[0].success) if plans else None
+    row.update(compute_record(report))
+    return row
+
+
+# worker-side caches: one env and one controller per (spec, seed, env) in each process
+_ENVS: dict = {}
+_CONTROLLERS: dict = {}
+
+
+def _env_for(env_id: str, env_kwargs: dict):
+    key = (env_id, json.dumps(env_kwargs, sort_keys=True, default=str))
+    env = _ENVS.get(key)
+    if env is None:
+        import gymnasium as gym
+
+        import mrmt_env  # noqa: F401  (registers the ids)
+
+        env = _ENVS[key] = gym.make(env_id, **env_kwargs)
+    return env
+
+
+def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict) -> dict:
+    env = _env_for(env_id, env_kwargs)
+    name, factory = (spec, None) if isinstance(spec, str) else spec
+    ckey = (name, seed)
+    ctrl = _CONTROLLERS.get(ckey)
+    if ctrl is None:
+        ctrl = _CONTROLLERS[ckey] = make_controller(name, seed=seed) if factory is None else factory(seed)
+    row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
+    row.update(run_episode(env, ctrl, world_seed))
+    return row
+
+
+@dataclass
+class EvaluationResult:
+    """Rows of an evaluation (one dict per episode) with writers and a summary."""
+
+    rows: list[dict]
+    controllers: list[str] = field(default_factory=list)
+    config: dict = field(default_factory=dict)
+
+    def by_controller(self, spec: str) -> list[dict]:
+        return [r for r in self.rows if r["controller"] == spec]
+
+    def columns(self) -> list[str]:
+        cols: list[str] = []
+        for r in self.rows:
+            for k in r:
+                if k not in cols:
+                    cols.append(k)
+        return cols
+
+    def to_csv(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        cols = self.columns()
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=cols)
+            w.writeheader()
+            for r in self.rows:
+                w.writerow({k: r.get(k) for k in cols})
+        return path
+
+    def to_json(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w") as f:
+            json.dump({"config": self.config, "rows": self.rows, "summary": self.summary()}, f, indent=1, default=float)
+        return path
+
+    def summary(self) -> list[dict]:
+        """Per controller: episodes, success rate and medians of cost, latency and energy."""
+        out = []
+        for spec in self.controllers or sorted({r["controller"] for r in self.rows}):
+            rows = self.by_controller(spec)
+            if not rows:
+                continue
+
+            def med(key, rows=rows):
+                vals = [float(r[key]) for r in rows if r.get(key) is not None]
+                return float(np.median(vals)) if vals else math.nan
+
+            out.append(
+                {
+                    "controller": spec,
+                    "episodes": len(rows),
+                    "success_rate": float(np.mean([bool(r.get("is_success")) for r in rows])),
+                    "route_cost": med("route_cost"),
+                    "makespan": med("makespan"),
+                    "cpu_s": med("cpu_s"),
+                    "chip_calls": med("chip_calls"),
+                    "logical_calls": med("logical_calls"),
+                    "chip_time_s": med("chip_time_s"),
+                    "chip_time_parallel_s": med("chip_time_parallel_s"),
+                    "latency_s": med("latency_s"),
+                    "accelerator_energy_j": med("accelerator_energy_j"),
+                    "host_energy_j": med("host_energy_j"),
+                    "total_energy_j": med("total_energy_j"),
+                }
+            )
+        return out
+
+    def format_summary(self) -> str:
+        """The summary as a fixed-width text table (medians over episodes)."""
+        head = (
+            ("controller", "{:<18}", lambda s: s["controller"][:18]),
+            ("eps", "{:>5}", lambda s: s["episodes"]),
+            ("success", "{:>8}", lambda s: f"{100 * s['success_rate']:.0f}%"),
+            ("cost", "{:>6}", lambda s: _fmt(s["route_cost"], "{:.1f}")),
+            ("makespan", "{:>8}", lambda s: _fmt(s["makespan"], "{:.1f}")),
+            ("cpu", "{:>9}", lambda s: _si(s["cpu_s"], "s")),
+            ("chip(seq)", "{:>9}", lambda s: _si(s["chip_time_s"], "s")),
+            ("chip(8c)", "{:>9}", lambda s: _si(s["chip_time_parallel_s"], "s")),
+            ("accel E", "{:>9}", lambda s: _si(s["accelerator_energy_j"], "J")),
+            ("host E", "{:>9}", lambda s: _si(s["host_energy_j"], "J")),
+        )
+        lines = [" ".join(fmt.format(name) for name, fmt, _ in head)]
+        for s in self.summary():
+            lines.append(" ".join(fmt.format(get(s)) for _, fmt, get in head))
+        lines.append("(medians over episodes; cpu = measured host time, chip = emulated chip time, E = energy)")
+        return "\n".join(lines)
+
+
+def _fmt(v, pattern):
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else pattern.format(v)
+
+
+def _si(v: float, unit: str) -> str:
+    if v is None or math.isnan(v):
+        return "-"
+    if v == 0:
+        return f"0 {unit}"
+    for scale, prefix in ((1, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n")):
+        if abs(v) >= scale:
+            return f"{v / scale:.3g} {prefix}{unit}"
+    return f"{v:.2e} {unit}"
+
+
+def _custom_entry(entry):
+    try:
+        name, factory = entry
+    except (TypeError, ValueError):
+        raise ControllerError(
+            f"controller {entry!r} must be a spec string or a (name, factory) pair with factory(seed) -> controller"
+        ) from None
+    if not isinstance(name, str) or not callable(factory):
+        raise ControllerError(f"custom controller {entry!r} must be (name: str, factory: callable)")
+    return (name, factory)
+
+
+def evaluate(
+    controllers,
+    n_worlds: int = 10,
+    seeds=(0,),
+    world_seed: int = 0,
+    env_id: str = DEFAULT_ENV_ID,
+    env_kwargs: dict | None = None,
+    n_jobs: int = 2,
+    progress: bool = True,
+) -> EvaluationResult:
+    """Run every controller on worlds ``world_seed .. world_seed + n_worlds - 1`` for each seed.
+
+    Args:
+        controllers: spec strings or one comma-separated string (see
+            :func:`make_controller`); an entry may also be a ``(name,
+            factory)`` pair with ``factory(seed) -> controller`` (picklable,
+            e.g. a module-level function or ``functools.partial``, when
+            ``n_jobs > 1``).
+        n_worlds: episodes per controller and seed (one world each).
+        seeds: controller seeds.
+        world_seed: first env reset seed.
+        env_id, env_kwargs: the Gymnasium env (``gymnasium.make(env_id, **env_kwargs)``).
+        n_jobs: worker processes; 1 runs inline in this process.
+        progress: show a tqdm bar on stderr.
+
+    Returns:
+        :class:`EvaluationResult` with rows ordered by controller, seed, world.
+    """
+    if isinstance(controllers, str):
+        entries = parse_controllers(controllers)
+    else:
+        entries = [validate_controller_spec(c) if isinstance(c, str) else _custom_entry(c) for c in controllers]
+    specs = [e if isinstance(e, str) else e[0] for e in entries]
+    if len(set(specs)) != len(specs):
+        raise ControllerError(f"controller names must be unique, got {specs}")
+    if int(n_worlds) < 1:
+        raise ValueError(f"n_worlds must be >= 1, got {n_worlds}")
+    seeds = [int(s) for s in (seeds if np.iterable(seeds) else [seeds])]
+    if not seeds:
+        raise ValueError("seeds must name at least one seed")
+    if int(n_jobs) < 1:
+        raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
+    env_kwargs = dict(env_kwargs or {})
+    tasks = [
+        (entry, s, int(world_seed) + i, env_id, env_kwargs)
+        for entry in entries
+        for s in seeds
+        for i in range(int(n_worlds))
+    ]
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
+    rows: list[dict] = []
+    try:
+        if int(n_jobs) == 1:
+            for t in tasks:
+                rows.append(_episode_task(*t))
+                bar.update(1)
+        else:
+            with ProcessPoolExecutor(max_workers=int(n_jobs)) as pool:
+                futures = [pool.submit(_episode_task, *t) for t in tasks]
+                for fut in as_completed(futures):
+                    rows.append(fut.result())
+                    bar.update(1)
+    finally:
+        bar.close()
+    order = {s: i for i, s in enumerate(specs)}
+    rows.sort(key=lambda r: (order[r["controller"]], r["seed"], r["world_seed"]))
+    config = {
+        "controllers": specs,
+        "n_worlds": int(n_worlds),
+        "seeds": seeds,
+        "world_seed": int(world_seed),
+        "env_id": env_id,
+        "env_kwargs": env_kwargs,
+    }
+    return EvaluationResult(rows=rows, controllers=specs, config=config)

@@ -182,6 +182,17 @@ class MRMTCore:
                 self.swap_conflicts += sum(c * edges.get((q, p), 0) for (p, q), c in edges.items() if p < q)
         return new * self.target_reward - attempted
 
+    # ------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state.pop("_obs_flat", None)  # a view of self.obs: rebuilt on load
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if "obs" in state:
+            self._obs_flat = self.obs.reshape(-1)
+
     # ---------------------------------------------------------------- queries
     @property
     def all_visited(self) -> bool:

@@ -1,0 +1,69 @@
+"""``mrmt reproduce``: every experiment of paper section 6, its figures and ``summary.md``.
+
+    mrmt reproduce --out results/            # paper sizes: 1000 path queries, 100 tour/sharing/end-to-end
+    mrmt reproduce --quick --out /tmp/quick  # a small version for CI (under a minute)
+
+Writes, into ``--out``: ``path|tour|sharing|endtoend.csv`` and ``.json`` (one
+row per instance and method), ``fig_path|tour|sharing|endtoend.png``
+(boxplots of cost, time and energy per method), ``mapping.csv``/``.json``
+(paper Table 5), ``summary.json`` and ``summary.md`` (each measured statistic
+beside the paper's number).  See :mod:`agents.experiments`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+NAME = "reproduce"
+HELP = "run the paper's section-6 experiments and write CSV/JSON, PNG figures and summary.md"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--quick", action="store_true", help="small sizes (CI): under a minute")
+    parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes; 1 = inline (default 2)")
+    parser.add_argument(
+        "--only",
+        default=None,
+        help="comma-separated subset of experiments: path,tour,sharing,endtoend (default all)",
+    )
+    for name in ("path", "tour", "sharing", "endtoend"):
+        parser.add_argument(f"--{name}", type=int, default=None, metavar="N", help=f"instances of the {name} experiment")
+    parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
+
+
+def run(args) -> int:
+    from agents.experiments import PAPER_SIZES, reproduce
+
+    if args.jobs < 1:
+        print(f"mrmt reproduce: error: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+        return 2
+    names = tuple(PAPER_SIZES)
+    if args.only:
+        names = tuple(s.strip() for s in args.only.split(",") if s.strip())
+        bad = [s for s in names if s not in PAPER_SIZES]
+        if bad or not names:
+            print(
+                f"mrmt reproduce: error: unknown experiment {bad[0] if bad else args.only!r}; "
+                f"known: {', '.join(PAPER_SIZES)}",
+                file=sys.stderr,
+            )
+            return 2
+    sizes = {}
+    for name in PAPER_SIZES:
+        v = getattr(args, name)
+        if v is not None:
+            if v < 1:
+                print(f"mrmt reproduce: error: --{name} must be >= 1, got {v}", file=sys.stderr)
+                return 2
+            sizes[name] = v
+    out = reproduce(
+        args.out, quick=args.quick, seed=args.seed, n_jobs=args.jobs, progress=not args.no_progress,
+        sizes=sizes, experiments=names,
+    )
+    from pathlib import Path
+
+    print(Path(args.out, "summary.md").read_text())
+    print(f"wrote {len(out['files'])} files to {args.out}", file=sys.stderr)
+    return 0

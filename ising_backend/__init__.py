@@ -1,4 +1,26 @@
 """The emulated CMOS Ising chip, the logical Ising solver and the mapping toolkit.
 
 Knows Ising models and hardware, not robots: imports no other project package.
+
+Energy convention everywhere (paper eq. 2):
+``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``, ``J`` strictly upper triangular.
 """
+
+from .ledger import CallLedger
+from .models import IsingModel, ModelError, QuboModel, from_bqm
+from .spec import SCHEDULES, ChipSpec
+from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
+
+__all__ = [
+    "CallLedger",
+    "ChipProgramError",
+    "ChipSpec",
+    "EmulatedChip",
+    "IsingModel",
+    "ModelError",
+    "QuboModel",
+    "SCHEDULES",
+    "check_program",
+    "from_bqm",
+    "stack_programs",
+]

@@ -1,0 +1,254 @@
+"""The emulated CMOS Ising chip (paper sections 2.2, 3 and 6.1).
+
+:class:`EmulatedChip` is a :class:`dimod.Sampler` (``sample``, ``sample_ising``,
+``sample_qubo``; ``parameters``; ``properties`` with ``h_range`` / ``j_range`` like
+D-Wave samplers) and offers a vectorised entry point,
+:meth:`EmulatedChip.anneal_batch`, for planners that issue tens of thousands of
+small programs.
+
+It **refuses** any program that does not fit its :class:`~ising_backend.spec.ChipSpec`
+(too many spins, a non-integer, out-of-range, NaN or infinite coefficient) with a
+:class:`ChipProgramError` naming the spin or coupling, its value and the limit.
+It never clips or rescales: that is a mapping rule's job
+(:mod:`ising_backend.quantize`, :mod:`ising_backend.merge`).
+
+Every call is charged to :attr:`EmulatedChip.ledger` (a
+:class:`~ising_backend.ledger.CallLedger`); a ``SampleSet``'s ``info["ledger"]``
+holds the charge of that call.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import dimod
+import numpy as np
+
+from .anneal import anneal_kernel
+from .ledger import CallLedger
+from .models import IsingModel
+from .spec import ChipSpec
+
+__all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs"]
+
+
+class ChipProgramError(ValueError):
+    """A program does not fit the chip (names the spin/coupling, value and limit)."""
+
+
+def _first(mask: np.ndarray) -> tuple[int, ...]:
+    return tuple(int(v) for v in np.argwhere(mask)[0])
+
+
+def _where(prog: tuple, batched: bool) -> str:
+    return f" in program {prog[0]}" if batched else ""
+
+
+def check_program(h, J, spec: ChipSpec = ChipSpec()) -> tuple[np.ndarray, np.ndarray]:
+    """Validate one program (``h (n,)``, ``J (n, n)``) or a stack (``(B, n)``, ``(B, n, n)``).
+
+    Returns float64 C-contiguous copies shaped ``(B, n)`` and ``(B, n, n)``.
+    Raises :class:`ChipProgramError` on the first violation (and counts the rest).
+    """
+    h = np.asarray(h)
+    J = np.asarray(J)
+    batched = h.ndim == 2
+    if h.ndim not in (1, 2):
+        raise ChipProgramError(f"h must be (n,) or (B, n), got shape {h.shape}")
+    if not batched:
+        h = h[None]
+        J = J[None] if J.ndim == 2 else J
+    B, n = h.shape
+    if J.shape == (B, 0) or (J.size == 0 and n <= 1):
+        J = np.zeros((B, n, n))
+    if J.shape != (B, n, n):
+        raise ChipProgramError(f"J must have shape {(B, n, n) if batched else (n, n)} to match h, got {J.shape if batched else J.shape[1:]}")
+    for arr, name in ((h, "h"), (J, "J")):
+        if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or np.iscomplexobj(arr):
+            raise ChipProgramError(f"{name} has dtype {arr.dtype}; the chip takes real integer coefficients")
+    if n > spec.n_spins:
+        raise ChipProgramError(
+            f"program{' 0' if batched else ''} has {n} spins; the chip has {spec.n_spins} (spec.n_spins). "
+            "Use spin-budget branching or a larger chip spec"
+        )
+    hf = np.ascontiguousarray(h, dtype=np.float64)
+    Jf = np.ascontiguousarray(J, dtype=np.float64)
+    for arr, name, (lo, hi), kind in ((hf, "h", spec.h_range, "field"), (Jf, "J", spec.j_range, "coupling")):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            idx = _first(bad)
+            raise ChipProgramError(
+                f"{kind} {name}{list(idx[1:])} = {arr[idx]!r}{_where(idx, batched)} is not finite "
+                f"({int(bad.sum())} non-finite coefficient(s)); the chip takes integers in [{lo}, {hi}]"
+            )
+        bad = arr != np.round(arr)
+        if bad.any():
+            idx = _first(bad)
+            raise ChipProgramError(
+                f"{kind} {name}{list(idx[1:])} = {arr[idx]!r}{_where(idx, batched)} is not an integer "
+                f"({int(bad.sum())} non-integer coefficient(s)); the chip takes integers in [{lo}, {hi}]: "
+                "quantize or merge the model first"
+            )
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            idx = _first(bad)
+            raise ChipProgramError(
+                f"{kind} {name}{list(idx[1:])} = {arr[idx]:g}{_where(idx, batched)} is outside "
+                f"{name.lower()}_range [{lo}, {hi}] ({int(bad.sum())} out-of-range coefficient(s)); "
+                "the chip never clips: quantize, merge or saturate the model first"
+            )
+    if n > 1:
+        low = np.tril(np.ones((n, n), dtype=bool))
+        bad = (Jf != 0) & low[None]
+        if bad.any():
+            idx = _first(bad)
+            raise ChipProgramError(
+                f"J{list(idx[1:])} = {Jf[idx]:g}{_where(idx, batched)} is on or below the diagonal; "
+                "programs take strictly upper triangular J (J[i, j] for i < j)"
+            )
+    return hf, Jf
+
+
+def stack_programs(models: Sequence[IsingModel], n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Stack models into ``h (B, n)``, ``J (B, n, n)``, zero-padding smaller ones.
+
+    Padding spins have no field and no coupling, so they change no energy; their
+    returned values are meaningless and should be dropped (``spins[..., :m]``).
+    """
+    size = max((m.n for m in models), default=0) if n is None else int(n)
+    B = len(models)
+    h = np.zeros((B, size))
+    J = np.zeros((B, size, size))
+    for b, m in enumerate(models):
+        if m.n > size:
+            raise ValueError(f"model {b} has {m.n} spins > stack size {size}")
+        h[b, : m.n] = m.h
+        J[b, : m.n, : m.n] = m.J
+    return h, J
+
+
+def _mismatch_matrices(spec: ChipSpec) -> np.ndarray:
+    if spec.coupling_mismatch == 0.0:
+        return np.zeros((0, 0, 0))
+    rng = np.random.default_rng(spec.seed)
+    N = spec.n_spins
+    out = np.empty((spec.n_cores, N, N))
+    for c in range(spec.n_cores):
+        g = np.triu(rng.standard_normal((N, N)), 1)
+        out[c] = 1.0 + spec.coupling_mismatch * (g + g.T)
+    return out
+
+
+class EmulatedChip(dimod.Sampler):
+    """An emulated multi-core CMOS Ising chip.
+
+    Args:
+        spec: hardware limits, accounting numbers and emulation knobs.
+        seed: seed of the sampling randomness.  Calls without their own ``seed``
+            draw one from this generator, so a chip built with the same seed
+            replays the same sequence of calls identically.
+
+    Example:
+        >>> chip = EmulatedChip(seed=1)
+        >>> sampleset = chip.sample_ising({0: 1, 1: -1}, {(0, 1): -2}, num_reads=4)
+        >>> sampleset.first.energy
+        -2.0
+    """
+
+    def __init__(self, spec: ChipSpec | None = None, seed: int | None = None):
+        self.spec = ChipSpec() if spec is None else spec
+        self._rng = np.random.default_rng(seed)
+        self.ledger = CallLedger()
+        self._mismatch = _mismatch_matrices(self.spec)
+        self._parameters = {"num_reads": [], "seed": []}
+        self._properties = {
+            "h_range": list(self.spec.h_range),
+            "j_range": list(self.spec.j_range),
+            "num_spins": self.spec.n_spins,
+            "num_cores": self.spec.n_cores,
+            "solve_time_s": self.spec.solve_time_s,
+            "energy_per_call_j": self.spec.energy_per_call_j,
+            "spec": self.spec.to_dict(),
+        }
+
+    @property
+    def parameters(self) -> dict:
+        return self._parameters
+
+    @property
+    def properties(self) -> dict:
+        return self._properties
+
+    def check_program(self, h, J) -> tuple[np.ndarray, np.ndarray]:
+        """Validate a program or stack against this chip's spec (see :func:`check_program`)."""
+        return check_program(h, J, self.spec)
+
+    def _draw_seed(self, seed) -> int:
+        if seed is None:
+            return int(self._rng.integers(0, 2**63 - 1))
+        seed = int(seed)
+        if seed < 0 or seed >= 2**64:
+            raise ValueError(f"seed = {seed} must be in [0, 2**64)")
+        return seed
+
+    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Anneal a stack of programs.
+
+        Args:
+            h: ``(B, n)`` integer fields (a single ``(n,)`` program is accepted too).
+            J: ``(B, n, n)`` integer couplings, strictly upper triangular.
+            num_reads: reads per program (each read is one physical chip call).
+            seed: sampling seed; ``None`` draws one from the chip's generator.
+
+        Returns:
+            ``spins`` int8 ``(B, num_reads, n)`` and ``energies`` float64
+            ``(B, num_reads)`` (programmed coefficients; single program: leading
+            axis dropped).  Charges ``B * num_reads`` calls to :attr:`ledger`.
+        """
+        single = np.ndim(h) == 1
+        if int(num_reads) != num_reads or num_reads < 1:
+            raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
+        num_reads = int(num_reads)
+        hf, Jf = check_program(h, J, self.spec)
+        seed = self._draw_seed(seed)
+        B, n = hf.shape
+        spins = np.empty((B, num_reads, n), dtype=np.int8)
+        energies = np.empty((B, num_reads), dtype=np.float64)
+        if self.spec.beta_range is None:
+            hot, cold = -1.0, -1.0
+        else:
+            hot, cold = self.spec.beta_range
+        if B:
+            anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
+                          hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
+        self.last_call = self.ledger.record_physical(B * num_reads, self.spec)
+        if single:
+            return spins[0], energies[0]
+        return spins, energies
+
+    def anneal_models(self, models: Sequence[IsingModel], num_reads: int = 1, seed: int | None = None):
+        """Anneal chip-legal :class:`IsingModel` s in one batch.
+
+        Returns a list of ``(spins (reads, n_b) int8, energies (reads,))`` with each
+        model's offset added to its energies.
+        """
+        h, J = stack_programs(models)
+        spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
+
+    def sample(self, bqm: dimod.BinaryQuadraticModel, num_reads: int = 1, seed: int | None = None,
+               **kwargs) -> dimod.SampleSet:
+        """Sample a BQM that fits the chip (after exact conversion to SPIN).
+
+        Raises:
+            ChipProgramError: the program does not fit the spec (nothing is clipped).
+        """
+        kwargs = self.remove_unknown_kwargs(**kwargs)
+        variables = list(bqm.variables)
+        model = IsingModel.from_bqm(bqm.spin if bqm.vartype is dimod.BINARY else bqm, variables)
+        spins, _ = self.anneal_batch(model.h[None], model.J[None], num_reads=num_reads, seed=seed)
+        samples = spins[0]
+        if bqm.vartype is dimod.BINARY:
+            samples = ((samples + 1) // 2).astype(np.int8)
+        info = {"ledger": self.last_call.to_dict(), "spec": self.spec.to_dict()}
+        return dimod.SampleSet.from_samples_bqm((samples, variables), bqm, info=info)

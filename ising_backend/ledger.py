@@ -1,0 +1,103 @@
+"""Call ledger: physical chip calls, logical (projected) calls, time and energy.
+
+Accounting (paper section 6.1; ARCHITECTURE.md "Chip call accounting"):
+
+* one ``anneal_batch`` of ``B`` programs x ``r`` reads is ``B * r`` physical
+  calls dispatched in ``ceil(B * r / n_cores)`` batches;
+* ``chip_time_s += calls * solve_time_s`` (calls run one after another: the
+  paper's figure), ``chip_time_parallel_s += batches * solve_time_s`` (parallel
+  dispatch over the cores), ``energy_j += calls * energy_per_call_j``;
+* a logical Ising call (coefficient range not enforced) is *projected* as one
+  chip call: it adds to ``logical_calls`` (never to ``physical_calls``) and to
+  time and energy with the same numbers; a group of ``k`` logical calls issued
+  together counts ``ceil(k / n_cores)`` ``logical_batches`` for the parallel
+  time.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+from .spec import ChipSpec
+
+__all__ = ["CallLedger"]
+
+
+@dataclass
+class CallLedger:
+    """Running totals of accelerator use.  Ledgers add with ``+``.
+
+    ``snapshot()`` freezes the current totals; ``since(snapshot)`` returns the
+    ledger of what happened after it (handy to charge one planning layer).
+    """
+
+    physical_calls: int = 0
+    batches: int = 0
+    logical_calls: int = 0
+    logical_batches: int = 0
+    chip_time_s: float = 0.0
+    chip_time_parallel_s: float = 0.0
+    energy_j: float = 0.0
+
+    def record_physical(self, calls: int, spec: ChipSpec) -> "CallLedger":
+        """Charge ``calls`` physical calls dispatched together; returns this call's ledger."""
+        calls = int(calls)
+        if calls < 0:
+            raise ValueError(f"calls = {calls} must be >= 0")
+        batches = math.ceil(calls / spec.n_cores)
+        delta = CallLedger(
+            physical_calls=calls,
+            batches=batches,
+            chip_time_s=calls * spec.solve_time_s,
+            chip_time_parallel_s=batches * spec.solve_time_s,
+            energy_j=calls * spec.energy_per_call_j,
+        )
+        self._add_in_place(delta)
+        return delta
+
+    def record_logical(self, calls: int, spec: ChipSpec) -> "CallLedger":
+        """Charge ``calls`` logical calls issued together, each projected as one chip call."""
+        calls = int(calls)
+        if calls < 0:
+            raise ValueError(f"calls = {calls} must be >= 0")
+        batches = math.ceil(calls / spec.n_cores)
+        delta = CallLedger(
+            logical_calls=calls,
+            logical_batches=batches,
+            chip_time_s=calls * spec.solve_time_s,
+            chip_time_parallel_s=batches * spec.solve_time_s,
+            energy_j=calls * spec.energy_per_call_j,
+        )
+        self._add_in_place(delta)
+        return delta
+
+    def _add_in_place(self, other: "CallLedger") -> None:
+        for f in fields(self):
+            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
+
+    def __add__(self, other: "CallLedger") -> "CallLedger":
+        if not isinstance(other, CallLedger):
+            return NotImplemented
+        return CallLedger(**{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)})
+
+    def __sub__(self, other: "CallLedger") -> "CallLedger":
+        if not isinstance(other, CallLedger):
+            return NotImplemented
+        return CallLedger(**{f.name: getattr(self, f.name) - getattr(other, f.name) for f in fields(self)})
+
+    def snapshot(self) -> "CallLedger":
+        """A copy of the current totals."""
+        return CallLedger(**asdict(self))
+
+    def since(self, snapshot: "CallLedger") -> "CallLedger":
+        """What was charged after ``snapshot`` was taken."""
+        return self - snapshot
+
+    @property
+    def total_calls(self) -> int:
+        """Physical plus projected logical calls."""
+        return self.physical_calls + self.logical_calls
+
+    def to_dict(self) -> dict:
+        return asdict(self)

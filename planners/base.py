@@ -62,23 +62,39 @@ class TourResult:
     """An open route over local nodes ``1..n`` starting from node 0.
 
     ``order`` is a permutation of ``1..n`` (local node indices); ``cost`` is
-    the route cost under the ``dist`` the solver was given.
+    the route cost under the ``dist`` the solver was given.  A solver that
+    gives up returns ``failure`` (a message), an empty ``order`` and
+    ``cost = inf``; the pipeline turns it into a failed plan.
     """
 
     order: tuple[int, ...]
     cost: float
     compute: ComputeReport = field(default_factory=ComputeReport)
     stats: dict = field(default_factory=dict, compare=False)
+    failure: str | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.failure is None
 
 
 @dataclass(frozen=True)
 class SharingResult:
     """Targets assigned to robots: ``assignment[k]`` lists target indices (0..N-1)
-    for robot ``k`` (order not meaningful; the tour layer orders them)."""
+    for robot ``k`` (order not meaningful; the tour layer orders them).
+
+    A planner that gives up sets ``failure`` (or, equivalently for the
+    pipeline, ``stats["failure"]``); the pipeline turns it into a failed plan.
+    """
 
     assignment: tuple[tuple[int, ...], ...]
     compute: ComputeReport = field(default_factory=ComputeReport)
     stats: dict = field(default_factory=dict, compare=False)
+    failure: str | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.failure is None and not self.stats.get("failure")
 
 
 @runtime_checkable

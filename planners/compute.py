@@ -17,6 +17,7 @@ mapping, decode, scoring) so the system total is never hidden:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
@@ -65,12 +66,10 @@ class ComputeReport:
     def __add__(self, other: "ComputeReport") -> "ComputeReport":
         if not isinstance(other, ComputeReport):
             return NotImplemented
-        return ComputeReport(**{f.name: getattr(self, f.name) + getattr(other, f.name) for f in fields(self)})
+        return ComputeReport(*[getattr(self, name) + getattr(other, name) for name in _FIELDS])
 
     def replace(self, **changes) -> "ComputeReport":
-        data = asdict(self)
-        data.update(changes)
-        return ComputeReport(**data)
+        return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
         """The ``compute`` object of ``mrmt plan`` output (derived energies included)."""
@@ -86,6 +85,9 @@ class ComputeReport:
             "chip_time_parallel_s": d["chip_time_parallel_s"],
             "accelerator_energy_j": d["accelerator_energy_j"],
         }
+
+
+_FIELDS = tuple(f.name for f in fields(ComputeReport))
 
 
 @contextmanager

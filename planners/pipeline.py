@@ -1,0 +1,355 @@
+"""Composable planning pipelines: target sharing -> tour construction -> pathfinding.
+
+The paper's decomposition (section 2.3, evaluated end to end in 6.2):
+
+1. **sharing** splits the targets among the robots
+   (``sharing.assign(world.distance_matrix, R, tour, rng)``);
+2. **tour** orders each robot's targets into an open route from its start
+   (``tour.solve(local_dist, rng)``, local node 0 = the robot's start);
+3. **path** joins consecutive stops with 4-neighbour paths
+   (``path.find_path(world, a, b, rng)``), concatenated into the robot's route
+   (start cell first).
+
+Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
+SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the three
+Ising methods.  Any other triple is built by name from :mod:`planners.registry`
+or from layer objects::
+
+    make_pipeline("strong")
+    make_pipeline(sharing="exact", tour="brute", path="bfs")
+    make_pipeline("ising", chip=my_chip, tour_options={"num_reads": 2})
+    make_pipeline("strong", tour=ThreeOptTour(moves="7"))
+
+Options: ``sharing_options`` / ``tour_options`` / ``path_options`` go to that
+layer's factory (an option it does not take is an error); any other keyword
+(e.g. ``chip``) is *shared*: passed to every layer factory that takes it (so
+the three Ising layers can share one chip), and an error if none does.
+
+Accounting.  Each layer call is timed with :func:`~planners.compute.stopwatch`;
+its measured wall seconds become that call's ``cpu_s`` (replacing whatever the
+layer reported) and are added, with the layer's accelerator counts, to that
+layer's :class:`~planners.compute.ComputeReport` in ``plan.stats["layers"]``
+(``"sharing"``, ``"tour"``, ``"path"``).  The remaining host time of the call
+(reading the distance matrix -- computed on first use, one BFS per node --,
+slicing it, concatenating legs) is ``plan.stats["glue_cpu_s"]``.
+``plan.compute`` = the three layer reports + the glue time, so its ``cpu_s``
+is the whole :meth:`Pipeline.plan` call.
+
+Layer statistics (``result.stats``) are merged into ``plan.stats`` over all
+calls: numbers add, booleans or, dicts merge recursively, lists concatenate,
+anything else keeps the last value (so Ising layers' ``"mapping"`` counts
+accumulate).  A ``"failure"`` entry is not merged; it fails the plan.
+
+Shortcuts (so a layer is charged only for work it really does): with one
+robot the sharing layer is not called (every target goes to robot 0); a robot
+with fewer than two targets does not call the tour layer.  So a world with one
+robot and one target exercises the path layer alone; one robot and N targets,
+tour and path.
+
+Failures.  A layer that gives up (``failure`` on its result, or a sharing /
+tour result that is not a valid assignment / permutation, or a path that is
+not a legal 4-neighbour path between the requested cells) never raises and
+never yields an invalid plan: the plan gets ``success=False`` and
+``failure="robot k leg j: ..."`` (or ``"sharing: ..."``, ``"robot k tour:
+..."``; several are joined with ``"; "``), and each robot's route keeps the
+legs planned before its failure, listing only the targets it reaches.  The
+other robots are still planned.  Exceptions a layer raises (for example
+``brute`` refusing 14 targets) propagate: they are configuration errors.
+
+Randomness: ``plan(world, seed)`` builds one ``np.random.default_rng(seed)``
+and hands it to every layer call in a fixed order, so a seed fixes the plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from mrmt_env.world import World
+from planners import registry
+from planners.base import PathResult, SharingResult, TourResult
+from planners.compute import ComputeReport, stopwatch
+from planners.plan import Plan, RobotRoute
+
+__all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
+
+#: Preset name -> (sharing, tour, path) registry names.
+PRESETS: dict[str, tuple[str, str, str]] = {
+    "fast": ("psa", "nn", "astar"),
+    "strong": ("ssa", "3opt", "astar"),
+    "ising": ("ising", "ising", "ising"),
+}
+
+_METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
+
+_ZERO = ComputeReport()
+
+
+class _Account:
+    """Per-layer accumulator: measured seconds plus the layers' accelerator counts."""
+
+    __slots__ = ("cpu_s", "report")
+
+    def __init__(self) -> None:
+        self.cpu_s = 0.0
+        self.report = _ZERO
+
+    def add(self, compute: ComputeReport, seconds: float) -> None:
+        self.cpu_s += seconds
+        if compute != _ZERO:
+            self.report = self.report + compute.replace(cpu_s=0.0)
+
+    def total(self) -> ComputeReport:
+        return self.report.replace(cpu_s=self.cpu_s)
+
+
+def merge_stats(into: dict, new: dict) -> dict:
+    """Merge layer ``new`` stats into ``into`` in place (rules in the module docstring)."""
+    for key, value in new.items():
+        if key == "failure":
+            continue
+        old = into.get(key)
+        if isinstance(value, dict):
+            into[key] = merge_stats(old if isinstance(old, dict) else {}, value)
+        elif isinstance(value, list):
+            into[key] = (list(old) if isinstance(old, list) else []) + list(value)
+        elif isinstance(value, (bool, np.bool_)) and isinstance(old, (bool, np.bool_)):
+            into[key] = bool(old or value)
+        elif (
+            isinstance(value, (int, float, np.integer, np.floating))
+            and not isinstance(value, (bool, np.bool_))
+            and isinstance(old, (int, float, np.integer, np.floating))
+            and not isinstance(old, (bool, np.bool_))
+        ):
+            into[key] = old + value
+        else:
+            into[key] = value
+    return into
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_ok(grid, p, ar, ac, br, bc):
+    h, w = grid.shape
+    n = p.shape[0]
+    if p[0, 0] != ar or p[0, 1] != ac or p[n - 1, 0] != br or p[n - 1, 1] != bc:
+        return False
+    for i in range(n):
+        r = p[i, 0]
+        c = p[i, 1]
+        if r < 0 or r >= h or c < 0 or c >= w or grid[r, c]:
+            return False
+        if i > 0 and abs(r - p[i - 1, 0]) + abs(c - p[i - 1, 1]) > 1:
+            return False
+    return True
+
+
+def _path_problem(world: World, path, a, b) -> str | None:
+    """Why ``path`` is not a legal path from ``a`` to ``b`` (None if it is)."""
+    p = np.asarray(path)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
+        return f"path layer returned an array of shape {p.shape}, not (L+1, 2) cells"
+    if p.dtype == np.int64 and _path_ok(world.grid, p, a[0], a[1], b[0], b[1]):
+        return None
+    if not np.array_equal(p[0], a) or not np.array_equal(p[-1], b):
+        return f"path layer returned a path from {p[0].tolist()} to {p[-1].tolist()}, not {list(a)} to {list(b)}"
+    h, w = world.shape
+    inside = (p[:, 0] >= 0) & (p[:, 0] < h) & (p[:, 1] >= 0) & (p[:, 1] < w)
+    if not inside.all():
+        return f"path layer returned cell {p[~inside][0].tolist()} off the {h}x{w} grid"
+    blocked = world.grid[p[:, 0], p[:, 1]]
+    if blocked.any():
+        return f"path layer returned a path through obstacle {p[blocked][0].tolist()}"
+    steps = np.abs(np.diff(p, axis=0)).sum(axis=1)
+    if (steps > 1).any():
+        i = int(np.flatnonzero(steps > 1)[0])
+        return f"path layer returned a jump from {p[i].tolist()} to {p[i + 1].tolist()}"
+    if p.dtype.kind not in "iu":
+        return f"path layer returned {p.dtype} cells, not integers"
+    return None
+
+
+def _assignment_problem(assignment, n_robots: int, n_targets: int) -> str | None:
+    if len(assignment) != n_robots:
+        return f"assignment has {len(assignment)} groups for {n_robots} robots"
+    owner: dict[int, int] = {}
+    for k, group in enumerate(assignment):
+        for t in group:
+            if not (0 <= t < n_targets):
+                return f"robot {k} got target index {t}, outside 0..{n_targets - 1}"
+            if t in owner:
+                return f"target {t} assigned to robots {owner[t]} and {k}"
+            owner[t] = k
+    missed = [t for t in range(n_targets) if t not in owner]
+    if missed:
+        return f"targets {missed} assigned to no robot"
+    return None
+
+
+@dataclass
+class Pipeline:
+    """A (sharing, tour, path) triple of layer objects; :meth:`plan` runs it on a world."""
+
+    sharing: object
+    tour: object
+    path: object
+    name: str | None = None
+
+    def __post_init__(self) -> None:
+        for layer in ("sharing", "tour", "path"):
+            obj = getattr(self, layer)
+            if not callable(getattr(obj, _METHOD[layer], None)):
+                raise TypeError(f"{layer} layer {obj!r} has no {_METHOD[layer]}() method")
+        if self.name is None:
+            self.name = "+".join(getattr(getattr(self, layer), "name", type(getattr(self, layer)).__name__)
+                                 for layer in ("sharing", "tour", "path"))
+
+    def plan(self, world: World, seed=None) -> Plan:
+        """Plan every robot's route on ``world`` (see the module docstring)."""
+        with stopwatch() as total:
+            rng = np.random.default_rng(seed)
+            acc = {"sharing": _Account(), "tour": _Account(), "path": _Account()}
+            stats: dict = {}
+            failures: list[str] = []
+            dist = world.distance_matrix
+            r, n = world.n_robots, world.n_targets
+
+            # ---- 1. target sharing
+            assignment: tuple = (tuple(range(n)),)
+            if r > 1:
+                with stopwatch() as t:
+                    res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
+                acc["sharing"].add(res.compute, t())
+                merge_stats(stats, res.stats)
+                problem = getattr(res, "failure", None) or res.stats.get("failure")
+                if not problem:
+                    assignment = tuple(tuple(int(x) for x in g) for g in res.assignment)
+                    problem = _assignment_problem(assignment, r, n)
+                if problem:
+                    failures.append(f"sharing: {problem}")
+                    assignment = tuple(() for _ in range(r))
+
+            # ---- 2./3. per robot: tour, then path legs
+            routes = []
+            for k in range(r):
+                group = assignment[k]
+                start = world.robots[k]
+                ordered = list(group)
+                if len(group) >= 2:
+                    idx = np.concatenate([[k], r + np.asarray(group, dtype=np.int64)])
+                    local = dist[np.ix_(idx, idx)]
+                    with stopwatch() as t:
+                        tres: TourResult = self.tour.solve(local, rng)
+                    acc["tour"].add(tres.compute, t())
+                    merge_stats(stats, tres.stats)
+                    problem = getattr(tres, "failure", None) or tres.stats.get("failure")
+                    if not problem and sorted(tres.order) != list(range(1, len(group) + 1)):
+                        problem = f"tour layer returned order {list(tres.order)}, not a permutation of 1..{len(group)}"
+                    if problem:
+                        failures.append(f"robot {k} tour: {problem}")
+                        ordered = []
+                    else:
+                        ordered = [group[i - 1] for i in tres.order]
+                cells = [start] + [world.targets[t] for t in ordered]
+                pieces = [start.reshape(1, 2)]
+                reached: list[int] = []
+                for j in range(len(ordered)):
+                    a, b = cells[j], cells[j + 1]
+                    with stopwatch() as t:
+                        pres: PathResult = self.path.find_path(world, a, b, rng)
+                    acc["path"].add(pres.compute, t())
+                    if pres.stats:
+                        merge_stats(stats, pres.stats)
+                    if pres.path is None:
+                        problem = pres.failure or "path layer gave no path"
+                    else:
+                        problem = _path_problem(world, pres.path, a, b)
+                    if problem:
+                        failures.append(
+                            f"robot {k} leg {j} ({a.tolist()} -> target {ordered[j]} at {b.tolist()}): {problem}"
+                        )
+                        break
+                    pieces.append(np.asarray(pres.path, dtype=np.int64)[1:])
+                    reached.append(ordered[j])
+                routes.append(RobotRoute(tuple(reached), np.concatenate(pieces, axis=0)))
+        reports = {layer: a.total() for layer, a in acc.items()}
+        layers_cpu = sum(rep.cpu_s for rep in reports.values())
+        glue = max(total() - layers_cpu, 0.0)
+        stats["layers"] = reports
+        stats["glue_cpu_s"] = glue
+        stats["pipeline"] = self.name
+        compute = reports["sharing"] + reports["tour"] + reports["path"] + ComputeReport(cpu_s=glue)
+        return Plan(
+            routes=tuple(routes),
+            compute=compute,
+            success=not failures,
+            failure="; ".join(failures) if failures else None,
+            stats=stats,
+        )
+
+    def __repr__(self) -> str:
+        return f"Pipeline(sharing={self.sharing!r}, tour={self.tour!r}, path={self.path!r})"
+
+
+def make_pipeline(
+    preset: str | None = None,
+    *,
+    sharing=None,
+    tour=None,
+    path=None,
+    sharing_options: dict | None = None,
+    tour_options: dict | None = None,
+    path_options: dict | None = None,
+    **shared,
+) -> Pipeline:
+    """Build a :class:`Pipeline` from a preset and/or layer names or objects.
+
+    Args:
+        preset: ``"fast"``, ``"strong"``, ``"ising"`` (:data:`PRESETS`) or None.
+        sharing, tour, path: a registry name or a layer object; overrides the
+            preset's layer.  Without a preset all three are required.
+        sharing_options, tour_options, path_options: keyword options for that
+            layer's factory (only with a name).
+        **shared: keywords passed to every layer factory that accepts them
+            (e.g. ``chip=``); one no factory accepts is an error.
+
+    Raises:
+        ValueError: unknown preset, missing layer, options given with a layer object.
+        registry.UnknownPlannerError: unknown or unavailable layer name.
+        TypeError: an option a factory does not take.
+    """
+    chosen = {"sharing": sharing, "tour": tour, "path": path}
+    if preset is not None:
+        if preset not in PRESETS:
+            raise ValueError(f"unknown pipeline preset {preset!r}; presets: {', '.join(PRESETS)}")
+        for layer, default in zip(("sharing", "tour", "path"), PRESETS[preset]):
+            if chosen[layer] is None:
+                chosen[layer] = default
+    missing = [layer for layer, v in chosen.items() if v is None]
+    if missing:
+        raise ValueError(
+            f"make_pipeline needs a preset ({', '.join(PRESETS)}) or all of sharing, tour, path; missing {missing}"
+        )
+    options = {"sharing": sharing_options, "tour": tour_options, "path": path_options}
+    used: set[str] = set()
+    layers = {}
+    for layer, spec in chosen.items():
+        if isinstance(spec, str):
+            factory = registry.get_factory(layer, spec)
+            used.update(key for key in shared if registry.accepts(factory, key))
+            layers[layer] = registry.create(layer, spec, options[layer], shared)
+        else:
+            if options[layer]:
+                raise ValueError(f"{layer}_options given with a {layer} layer object {spec!r}; configure the object instead")
+            layers[layer] = spec
+    unused = sorted(set(shared) - used)
+    if unused:
+        raise TypeError(
+            f"make_pipeline option(s) {unused} are accepted by no layer factory of "
+            f"{'+'.join(str(chosen[k]) for k in ('sharing', 'tour', 'path'))}"
+        )
+    name = preset if preset is not None and all(
+        chosen[layer] == d for layer, d in zip(("sharing", "tour", "path"), PRESETS[preset])
+    ) else None
+    return Pipeline(layers["sharing"], layers["tour"], layers["path"], name=name)

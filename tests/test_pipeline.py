@@ -1,0 +1,263 @@
+"""Pipelines: presets, composition by name, accounting, failures, registry."""
+
+import numpy as np
+import pytest
+
+from mrmt_env import World, generate_world
+from planners import registry
+from planners.base import PathResult, SharingResult, TourResult
+from planners.compute import ComputeReport
+from planners.paths_classical import AStarPath, BFSPath
+from planners.pipeline import PRESETS, Pipeline, make_pipeline, merge_stats
+from planners.plan import validate_plan
+from planners.sharing_classical import ExactSharing, PSASharing, SSASharing
+from planners.tours_classical import BruteTour, NearestNeighbourTour, ThreeOptTour
+
+
+@pytest.mark.parametrize("preset", ["fast", "strong"])
+@pytest.mark.parametrize("seed", range(8))
+def test_presets_give_valid_complete_plans(preset, seed):
+    world = generate_world(seed, n_robots=1 + seed % 3, n_targets=3 + seed, placement=("uniform", "centre")[seed % 2])
+    plan = make_pipeline(preset).plan(world, seed=seed)
+    assert plan.success and plan.failure is None
+    validate_plan(world, plan)
+    layers = plan.stats["layers"]
+    assert set(layers) == {"sharing", "tour", "path"}
+    assert plan.compute.cpu_s == pytest.approx(sum(r.cpu_s for r in layers.values()) + plan.stats["glue_cpu_s"])
+    assert layers["path"].cpu_s > 0
+    assert plan.compute.chip_calls == 0 and plan.compute.accelerator_energy_j == 0
+    assert plan.stats["pipeline"] == preset
+
+
+@pytest.mark.parametrize("sharing", ["round_robin", "psa", "ssa", "exact"])
+@pytest.mark.parametrize("tour", ["nn", "2opt", "3opt", "brute"])
+@pytest.mark.parametrize("path", ["bfs", "astar", "gbfs"])
+def test_every_classical_triple(sharing, tour, path):
+    world = generate_world(7, n_robots=3, n_targets=8)
+    plan = make_pipeline(sharing=sharing, tour=tour, path=path).plan(world, seed=1)
+    assert plan.success
+    validate_plan(world, plan)
+
+
+def test_exact_brute_bfs_reaches_the_optimum():
+    world = generate_world(11, n_robots=3, n_targets=9)
+    opt = ExactSharing().assign(world.distance_matrix, 3, BruteTour()).stats["optimum"]
+    plan = make_pipeline(sharing="exact", tour="brute", path="bfs").plan(world)
+    assert plan.route_cost == opt
+    for p in ("fast", "strong"):
+        assert make_pipeline(p).plan(world).route_cost >= opt
+
+
+def test_route_cost_equals_tour_costs_with_shortest_paths():
+    world = generate_world(5, n_robots=2, n_targets=7)
+    pipe = make_pipeline("strong")
+    plan = pipe.plan(world)
+    d = world.distance_matrix
+    for k, route in enumerate(plan.routes):
+        nodes = [k] + [2 + t for t in route.targets]
+        assert route.length == sum(d[a, b] for a, b in zip(nodes[:-1], nodes[1:]))
+
+
+def test_same_seed_same_plan():
+    world = generate_world(3)
+    a = make_pipeline("strong").plan(world, seed=4)
+    b = make_pipeline("strong").plan(world, seed=4)
+    assert [r.targets for r in a.routes] == [r.targets for r in b.routes]
+    assert all(np.array_equal(x.path, y.path) for x, y in zip(a.routes, b.routes))
+
+
+# ------------------------------------------------------------ fake layers
+class Counting:
+    """Wrap a layer, count calls, optionally add accelerator counts and stats."""
+
+    def __init__(self, inner, chip_calls=0, stats=None):
+        self.inner, self.calls, self.chip_calls, self.extra = inner, 0, chip_calls, stats or {}
+        self.name = inner.name
+
+    def _wrap(self, res):
+        self.calls += 1
+        compute = ComputeReport(cpu_s=123.0, chip_calls=self.chip_calls)  # cpu_s must be replaced
+        return type(res)(**{**res.__dict__, "compute": compute, "stats": {**res.stats, **self.extra}})
+
+    def assign(self, *a, **k):
+        return self._wrap(self.inner.assign(*a, **k))
+
+    def solve(self, *a, **k):
+        return self._wrap(self.inner.solve(*a, **k))
+
+    def find_path(self, *a, **k):
+        return self._wrap(self.inner.find_path(*a, **k))
+
+
+def test_single_robot_single_target_uses_only_the_path_layer():
+    world = generate_world(2, n_robots=1, n_targets=1)
+    s, t, p = Counting(SSASharing()), Counting(ThreeOptTour()), Counting(AStarPath())
+    plan = Pipeline(s, t, p).plan(world)
+    assert (s.calls, t.calls, p.calls) == (0, 0, 1)
+    assert plan.stats["layers"]["sharing"].cpu_s == 0 and plan.stats["layers"]["tour"].cpu_s == 0
+    assert plan.route_cost == world.distance_matrix[0, 1]
+
+
+def test_single_robot_many_targets_uses_tour_and_path():
+    world = generate_world(2, n_robots=1, n_targets=6)
+    s, t, p = Counting(SSASharing()), Counting(ThreeOptTour()), Counting(AStarPath())
+    Pipeline(s, t, p).plan(world)
+    assert (s.calls, t.calls, p.calls) == (0, 1, 6)
+
+
+def test_layer_accounting_and_stats_merge():
+    world = generate_world(9, n_robots=3, n_targets=10)
+    s = Counting(PSASharing(), chip_calls=2, stats={"mapping": {"sharing": {"valid": 1}}})
+    t = Counting(NearestNeighbourTour(), chip_calls=5)
+    p = Counting(BFSPath(), chip_calls=1, stats={"mapping": {"path": {"valid": 1}}, "tag": ["x"]})
+    plan = Pipeline(s, t, p).plan(world)
+    layers = plan.stats["layers"]
+    assert layers["sharing"].chip_calls == 2
+    assert layers["tour"].chip_calls == 5 * t.calls
+    assert layers["path"].chip_calls == 10 == p.calls
+    assert plan.compute.chip_calls == 2 + 5 * t.calls + 10
+    assert all(r.cpu_s < 100 for r in layers.values())  # the layers' own cpu_s is replaced by the measurement
+    assert plan.stats["mapping"] == {"sharing": {"valid": 1}, "path": {"valid": 10}}
+    assert plan.stats["tag"] == ["x"] * 10
+    assert plan.stats["expanded"] > 0
+
+
+def test_merge_stats_rules():
+    acc = merge_stats({}, {"n": 1, "f": True, "d": {"a": 1.5}, "l": [1], "s": "a", "failure": "x"})
+    merge_stats(acc, {"n": 2, "f": False, "d": {"a": 1.0, "b": 2}, "l": [2], "s": "b"})
+    assert acc == {"n": 3, "f": True, "d": {"a": 2.5, "b": 2}, "l": [1, 2], "s": "b"}
+
+
+class FailingPath:
+    """Fails on the given (call index); returns an illegal path on another."""
+
+    name = "failing"
+
+    def __init__(self, fail_at=(), jump_at=()):
+        self.fail_at, self.jump_at, self.calls = set(fail_at), set(jump_at), 0
+        self.inner = BFSPath()
+
+    def find_path(self, world, a, b, rng=None):
+        i = self.calls
+        self.calls += 1
+        if i in self.fail_at:
+            return PathResult(None, failure="patch solver gave up")
+        res = self.inner.find_path(world, a, b)
+        if i in self.jump_at and res.length >= 2:
+            return PathResult(np.delete(res.path, 1, axis=0))
+        return res
+
+
+def test_path_failure_gives_failed_but_legal_partial_plan():
+    world = generate_world(4, n_robots=1, n_targets=5)
+    plan = Pipeline(PSASharing(), NearestNeighbourTour(), FailingPath(fail_at={2})).plan(world)
+    assert not plan.success
+    assert plan.failure.startswith("robot 0 leg 2 (") and "patch solver gave up" in plan.failure
+    assert len(plan.routes[0].targets) == 2
+    validate_plan(world, plan, require_complete=False)
+    assert plan.to_dict()["failure"] == plan.failure and plan.to_dict()["success"] is False
+
+
+def test_illegal_path_from_a_layer_is_a_failure_not_an_invalid_plan():
+    world = generate_world(6, n_robots=2, n_targets=6)
+    plan = Pipeline(PSASharing(), NearestNeighbourTour(), FailingPath(jump_at={0, 1, 2, 3, 4, 5})).plan(world)
+    assert not plan.success and "jump" in plan.failure
+    validate_plan(world, plan, require_complete=False)
+
+
+def test_unreachable_target_with_round_robin_is_a_failure():
+    grid = np.zeros((3, 5), dtype=bool)
+    grid[:, 2] = True
+    world = World(grid, [[0, 0], [0, 4]], [[2, 4], [2, 0]])  # target 0 only reachable by robot 1
+    plan = make_pipeline(sharing="round_robin", tour="nn", path="astar").plan(world)
+    assert not plan.success and "robot 0 leg 0" in plan.failure and "unreachable" in plan.failure
+    validate_plan(world, plan, require_complete=False)
+    assert make_pipeline("fast").plan(world).success
+
+
+class BadSharing:
+    name = "bad"
+
+    def assign(self, dist, n_robots, tour, rng=None):
+        return SharingResult(assignment=((0, 1),) * n_robots)
+
+
+class GivingUpTour:
+    name = "giveup"
+
+    def solve(self, dist, rng=None):
+        return TourResult(order=(), cost=np.inf, failure="no valid candidate")
+
+
+def test_sharing_and_tour_failures():
+    world = generate_world(1, n_robots=2, n_targets=4)
+    plan = Pipeline(BadSharing(), NearestNeighbourTour(), BFSPath()).plan(world)
+    assert not plan.success and plan.failure.startswith("sharing: target 0 assigned to robots 0 and 1")
+    validate_plan(world, plan, require_complete=False)
+    plan = Pipeline(PSASharing(), GivingUpTour(), BFSPath()).plan(world)
+    assert not plan.success and "tour: no valid candidate" in plan.failure
+    validate_plan(world, plan, require_complete=False)
+
+
+# ------------------------------------------------------------- construction
+def test_make_pipeline_presets_and_overrides():
+    assert PRESETS == {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"),
+                       "ising": ("ising", "ising", "ising")}
+    p = make_pipeline("strong")
+    assert isinstance(p.sharing, SSASharing) and isinstance(p.tour, ThreeOptTour) and isinstance(p.path, AStarPath)
+    p = make_pipeline("strong", tour_options={"moves": "7"}, sharing_options={"bid": "tour"}, path="bfs")
+    assert p.tour.moves == "7" and p.sharing.bid == "tour" and isinstance(p.path, BFSPath)
+    assert p.name == "ssa+3opt+bfs"
+    obj = ThreeOptTour("7")
+    assert make_pipeline("fast", tour=obj).tour is obj
+
+
+def test_make_pipeline_errors():
+    with pytest.raises(ValueError, match="unknown pipeline preset 'quick'; presets: fast, strong, ising"):
+        make_pipeline("quick")
+    with pytest.raises(ValueError, match="missing"):
+        make_pipeline(sharing="psa", tour="nn")
+    with pytest.raises(registry.UnknownPlannerError, match="valid tour planners: nn, 2opt, 3opt, brute, ising"):
+        make_pipeline(sharing="psa", tour="4opt", path="bfs")
+    with pytest.raises(TypeError, match="takes no option 'movez'"):
+        make_pipeline("strong", tour_options={"movez": "7"})
+    with pytest.raises(TypeError, match=r"option\(s\) \['chip'\] are accepted by no layer"):
+        make_pipeline("strong", chip=object())
+    with pytest.raises(ValueError, match="configure the object"):
+        make_pipeline("fast", tour=ThreeOptTour(), tour_options={"moves": "7"})
+    with pytest.raises(TypeError, match="no solve"):
+        Pipeline(PSASharing(), BFSPath(), BFSPath())
+
+
+def test_registry_names_custom_and_shared_options():
+    assert registry.sharing_names() == ("round_robin", "psa", "ssa", "exact", "ising")
+    assert registry.tour_names() == ("nn", "2opt", "3opt", "brute", "ising")
+    assert registry.path_names() == ("bfs", "astar", "gbfs", "ising")
+    seen = {}
+
+    class ChipTour(NearestNeighbourTour):
+        def __init__(self, chip=None):
+            seen["chip"] = chip
+
+    registry.register_tour("test_chip_nn", ChipTour)
+    try:
+        with pytest.raises(ValueError, match="already registered"):
+            registry.register_tour("test_chip_nn", ChipTour)
+        chip = object()
+        pipe = make_pipeline(sharing="psa", tour="test_chip_nn", path="bfs", chip=chip)
+        assert seen["chip"] is chip and isinstance(pipe.tour, ChipTour)
+        assert "test_chip_nn" in registry.tour_names()
+    finally:
+        registry._REGISTRY["tour"].pop("test_chip_nn")
+
+
+def test_unavailable_lazy_factory_is_a_clear_error():
+    registry.register_path("test_missing", "planners.no_such_module:Nope")
+    try:
+        with pytest.raises(registry.UnknownPlannerError, match=r"path planner 'test_missing' .* is unavailable: "
+                                                                r"ModuleNotFoundError.*valid path planners: bfs"):
+            make_pipeline(sharing="psa", tour="nn", path="test_missing")
+    finally:
+        registry._REGISTRY["path"].pop("test_missing")
+    with pytest.raises(ValueError, match="module:attr"):
+        registry.register_path("x", "nocolon")

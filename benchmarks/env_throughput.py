@@ -88,7 +88,7 @@ def bench_aec(env, actions: np.ndarray) -> float:
     return len(actions) / (time.perf_counter() - t0)
 
 
-def run(steps: int, repeats: int) -> dict[str, float]:
+def run(steps: int, repeats: int) -> dict[str, tuple[float, float, float]]:
     rng = np.random.default_rng(0)
     actions = rng.integers(0, 5, size=(steps, KW["n_robots"]), dtype=np.int64)
     makers = {
@@ -105,12 +105,12 @@ def run(steps: int, repeats: int) -> dict[str, float]:
     out = {}
     for name, fn in makers.items():
         fn_runs = [fn() for _ in range(repeats)]
-        out[name] = float(np.median(fn_runs))
-        print(f"{name:45s} median {out[name]:>10,.0f} steps/s   runs {[round(x) for x in fn_runs]}", flush=True)
+        out[name] = (float(np.median(fn_runs)), float(min(fn_runs)), float(max(fn_runs)))
+        print(f"{name:45s} median {out[name][0]:>10,.0f} steps/s   runs {[round(x) for x in fn_runs]}", flush=True)
     return out
 
 
-def write_section(results: dict[str, float], steps: int, repeats: int) -> None:
+def write_section(results: dict[str, tuple[float, float, float]], steps: int, repeats: int) -> None:
     cpu = platform.processor() or platform.machine()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -129,12 +129,13 @@ def write_section(results: dict[str, float], steps: int, repeats: int) -> None:
         "World: 10x10, obstacle density 0.2, 3 robots, 10 targets. Goal: >= 50,000 steps/s for the "
         "Gymnasium env (POGEMA reports about 15,000).",
         "",
-        "| env | env steps / s |",
-        "|---|---:|",
+        "| env | env steps / s (median) | min .. max of runs |",
+        "|---|---:|---:|",
     ]
-    for name, v in results.items():
-        lines.append(f"| {name} | {v:,.0f} |")
+    for name, (med, lo, hi) in results.items():
+        lines.append(f"| {name} | {med:,.0f} | {lo:,.0f} .. {hi:,.0f} |")
     lines += [
+        "The machine's 2 cores are shared with other jobs, so runs vary; the median is reported.",
         "",
         "Reproduce: `flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/env_throughput.py --write-results`",
         "",

@@ -1,0 +1,515 @@
+"""Patch-sliding Ising pathfinding (paper section 5.1, Algorithm 1).
+
+PLACEHOLDER HEADER -- the full docstring is written below once the design is fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+FORMS = ("pair", "degree")
+
+#: Default weights per formulation (see the module docstring for the reasons).
+DEFAULT_WEIGHTS = {
+    "pair": {"C": 1.0, "B": 1.375, "Dg": 0.25, "A_end": 0.5},
+    "degree": {"A": 1.0, "A_end": 1.0, "B": 0.25},
+}
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass(frozen=True)
+class PatchFrame:
+    """Fixed local structure of a ``size x size`` patch (cells row-major, ``size**2`` of them).
+
+    ``adj4[i, j]``: cells i and j are 4-neighbours; ``diag[i, j]``: diagonal
+    neighbours; ``ring``: cells on the patch boundary (Chebyshev radius
+    ``size // 2`` from the centre); ``offsets``: ``(size**2, 2)`` offset of each
+    cell from the centre.
+    """
+
+    size: int
+    adj4: np.ndarray
+    diag: np.ndarray
+    ring: np.ndarray
+    offsets: np.ndarray
+    neighbours: tuple  # per cell, tuple of 4-neighbour cell indices
+
+    @property
+    def radius(self) -> int:
+        return self.size // 2
+
+    @property
+    def n(self) -> int:
+        return self.size * self.size
+
+
+@lru_cache(maxsize=8)
+def patch_frame(size: int) -> PatchFrame:
+    if int(size) != size or size < 3 or size % 2 == 0:
+        raise ValueError(f"patch_size must be an odd integer >= 3, got {size!r}")
+    size = int(size)
+    rad = size // 2
+    rr, cc = np.divmod(np.arange(size * size), size)
+    dr = np.abs(rr[:, None] - rr[None, :])
+    dc = np.abs(cc[:, None] - cc[None, :])
+    adj4 = (dr + dc) == 1
+    diag = (dr == 1) & (dc == 1)
+    offsets = np.stack([rr - rad, cc - rad], axis=1).astype(np.int64)
+    ring = np.maximum(np.abs(offsets[:, 0]), np.abs(offsets[:, 1])) == rad
+    neighbours = tuple(tuple(int(j) for j in np.flatnonzero(adj4[i])) for i in range(size * size))
+    for a in (adj4, diag, ring, offsets):
+        a.setflags(write=False)
+    return PatchFrame(size, adj4, diag, ring, offsets, neighbours)
+
+
+def component_of(frame: PatchFrame, allowed: np.ndarray, start: int) -> np.ndarray:
+    """Cells of the patch 4-connected to ``start`` through ``allowed`` cells (a label, not a path)."""
+    reach = np.zeros(frame.n, dtype=bool)
+    if not allowed[start]:
+        return reach
+    reach[start] = True
+    stack = [start]
+    nb = frame.neighbours
+    while stack:
+        i = stack.pop()
+        for j in nb[i]:
+            if allowed[j] and not reach[j]:
+                reach[j] = True
+                stack.append(j)
+    return reach
+
+
+# --------------------------------------------------------------------------- QUBO
+@dataclass(frozen=True)
+class PatchQubo:
+    """A patch problem with the two endpoints substituted (pinned, not variables).
+
+    Energy of variable assignment ``x`` (0/1, one per entry of ``cells``):
+    ``offset + q @ x + sum_{i<j} Q[i, j] x_i x_j`` (``Q`` strictly upper triangular).
+    """
+
+    cells: np.ndarray  # (n,) patch-frame indices of the variables
+    q: np.ndarray  # (n,)
+    Q: np.ndarray  # (n, n) strictly upper triangular
+    offset: float
+    start: int  # patch-frame index of the robot cell
+    goal: int  # patch-frame index of the local target
+
+    @property
+    def n(self) -> int:
+        return int(len(self.cells))
+
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        """Original-objective energy of ``x`` (``(..., n)`` 0/1), vectorised over leading axes."""
+        x = np.asarray(x, dtype=np.float64)
+        return self.offset + x @ self.q + np.einsum("...i,ij,...j->...", x, self.Q, x)
+
+
+def _add_form(q: np.ndarray, W: np.ndarray, M: np.ndarray, scale: float) -> None:
+    """Add ``scale * x^T M x`` (``M`` symmetric) to (linear ``q``, symmetric pair matrix ``W``).
+
+    Pair convention: energy = ``q @ x + sum_{i<j} W[i, j] x_i x_j``.
+    """
+    q += scale * np.diag(M)
+    off = M - np.diag(np.diag(M))
+    W += 2.0 * scale * off
+
+
+def build_patch_qubo(
+    frame: PatchFrame,
+    allowed: np.ndarray,
+    start: int,
+    goal: int,
+    form: str = "pair",
+    weights: dict | None = None,
+) -> PatchQubo:
+    """The cell-based patch QUBO (paper eq. 6) over ``allowed`` patch cells, endpoints pinned.
+
+    ``allowed`` (bool, ``frame.n``) marks the free patch cells that may carry the
+    path; ``start`` and ``goal`` must be allowed and distinct.  The energy is
+    built on the whole frame with the endpoints as ordinary 0/1 cells and then
+    the endpoints are substituted with ``x = 1`` (their terms fold into the
+    linear coefficients of their neighbours and into the offset).
+    """
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+    w = dict(DEFAULT_WEIGHTS[form])
+    if weights:
+        unknown = set(weights) - set(w)
+        if unknown:
+            raise ValueError(f"unknown weights {sorted(unknown)} for form {form!r} (known: {sorted(w)})")
+        w.update(weights)
+    if start == goal:
+        raise ValueError("start and goal of a patch problem must differ")
+    allowed = np.asarray(allowed, dtype=bool)
+    if not (allowed[start] and allowed[goal]):
+        raise ValueError("start and goal of a patch problem must be allowed cells")
+    n = frame.n
+    A4 = (frame.adj4 & allowed[:, None] & allowed[None, :]).astype(np.float64)
+    q = np.zeros(n)
+    W = np.zeros((n, n))
+    pinned = np.zeros(n, dtype=bool)
+    pinned[[start, goal]] = True
+    free_var = allowed & ~pinned
+    if form == "pair":
+        DG = (frame.diag & allowed[:, None] & allowed[None, :]).astype(np.float64)
+        W += -w["C"] * A4 + w["Dg"] * DG
+        q += w["B"] * free_var
+        # endpoint terms: A_end * (deg(e) - 1)^2 for each pinned endpoint e
+        for e in (start, goal):
+            a = A4[e]
+            _add_form(q, W, np.outer(a, a), w["A_end"])
+            q += -2.0 * w["A_end"] * a
+        offset = 2.0 * w["A_end"]
+    else:  # degree form: A_end*E_end + A*sum_i (d_i - 2 x_i)^2 + B*sum x
+        D = A4 * free_var[:, None]  # rows: free variable cells i, columns: their neighbours
+        _add_form(q, W, D.T @ D, w["A"])  # sum_i d_i^2
+        K = D  # -4 x_i d_i
+        W += -4.0 * w["A"] * (K + K.T)
+        q += 4.0 * w["A"] * free_var + w["B"] * free_var
+        for e in (start, goal):
+            a = A4[e]
+            _add_form(q, W, np.outer(a, a), w["A_end"])
+            q += -2.0 * w["A_end"] * a
+        offset = 2.0 * w["A_end"]
+    np.fill_diagonal(W, 0.0)
+    var = np.flatnonzero(free_var)
+    pins = np.array([start, goal])
+    # substitute x_pin = 1
+    qv = q[var] + W[np.ix_(var, pins)].sum(axis=1)
+    offset += q[pins].sum() + W[start, goal]
+    Qv = np.triu(W[np.ix_(var, var)], k=1)
+    for a in (var, qv, Qv):
+        a.setflags(write=False)
+    return PatchQubo(var, qv, Qv, float(offset), int(start), int(goal))
+
+
+# --------------------------------------------------------------------------- decode
+def decode_paths(frame: PatchFrame, problem: PatchQubo, x: np.ndarray) -> list:
+    """Decode 0/1 assignments ``x`` (``(S, n)``) into local paths.
+
+    Returns, per sample, the ordered patch-frame cell indices from ``start`` to
+    ``goal`` if the selected cells plus the two endpoints form exactly one
+    simple 4-connected path (induced: every selected cell has exactly two
+    selected 4-neighbours, each endpoint exactly one, and everything is
+    reached walking from ``start``), else ``None``.
+    """
+    x = np.asarray(x).astype(bool)
+    x = x.reshape(x.shape[0] if x.ndim > 1 else 1, problem.n)
+    S = x.shape[0]
+    sel = np.zeros((S, frame.n), dtype=bool)
+    sel[:, problem.cells] = x
+    sel[:, [problem.start, problem.goal]] = True
+    deg = (sel.astype(np.int16) @ frame.adj4.astype(np.int16)) * sel
+    want = np.where(sel, 2, 0)
+    want[:, [problem.start, problem.goal]] = 1
+    ok = (deg == want).all(axis=1)
+    out: list = [None] * S
+    nb = frame.neighbours
+    for s in np.flatnonzero(ok):
+        row = sel[s]
+        path = [problem.start]
+        prev, cur = -1, problem.start
+        while cur != problem.goal:
+            nxt = -1
+            for j in nb[cur]:
+                if row[j] and j != prev:
+                    nxt = j
+                    break
+            if nxt < 0:  # cannot happen after the degree check, kept for safety
+                break
+            prev, cur = cur, nxt
+            path.append(cur)
+        if cur == problem.goal and len(path) == int(row.sum()):
+            out[s] = path
+    return out
+
+
+# --------------------------------------------------------------------------- planner
+def cut_loops(cells: list) -> list:
+    """Remove every closed loop from a walk (cells as ``(r, c)`` tuples): a simple path.
+
+    Walking the robot's own committed walk, a revisit of cell ``c`` drops the
+    cells between the two visits.  Every step of the result is a step of the
+    walk, so no new move is invented (bookkeeping, not repair).
+    """
+    out: list = []
+    where: dict = {}
+    for cell in cells:
+        if cell in where:
+            k = where[cell]
+            for dropped in out[k + 1:]:
+                del where[dropped]
+            del out[k + 1:]
+        else:
+            where[cell] = len(out)
+            out.append(cell)
+    return out
+
+
+_FAIL_NONE = None
+
+
+class IsingPath:
+    """Patch-sliding Ising pathfinder (paper Algorithm 1); see the module docstring.
+
+    Args:
+        chip: the :class:`ising_backend.EmulatedChip` that runs every patch
+            program (default: a fresh ``EmulatedChip(ChipSpec())``).
+        patch_size: side of the square patch centred on the robot (odd, >= 3).
+        form: patch QUBO, ``"pair"`` (default) or ``"degree"``.
+        weights: overrides of :data:`DEFAULT_WEIGHTS` ``[form]``.
+        styles: spin-merging styles of the portfolio (default all of
+            ``ising_backend.MERGE_STYLES``).
+        num_reads: reads per mapped program (each read is one chip call).
+        targets_per_call: ranked local targets whose programs share one
+            anneal submission (``len(styles) * targets_per_call`` programs).
+        interior_targets: after the boundary cells, fall back to interior
+            patch cells as local targets.
+        backtrack: when no local target is left, step back along the robot's
+            own committed walk to the previous segment end.
+        cut_loops: remove loops from the committed walk (see the module docstring).
+        max_attempts: budget of local-target attempts (patch problems sent to the chip).
+        max_chip_calls: budget of physical chip calls per query.
+    """
+
+    name = "ising"
+
+    def __init__(
+        self,
+        chip=None,
+        patch_size: int = 5,
+        form: str = "pair",
+        weights: dict | None = None,
+        styles=None,
+        num_reads: int = 1,
+        targets_per_call: int = 1,
+        interior_targets: bool = True,
+        backtrack: bool = True,
+        cut_loops: bool = True,
+        max_attempts: int = 64,
+        max_chip_calls: int = 512,
+        target_order: str = "boundary_first",
+    ):
+        self.target_order = target_order
+        from ising_backend import ChipSpec, EmulatedChip, MERGE_STYLES
+
+        self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        self.frame = patch_frame(patch_size)
+        if form not in FORMS:
+            raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+        self.form = form
+        w = dict(DEFAULT_WEIGHTS[form])
+        if weights:
+            unknown = set(weights) - set(w)
+            if unknown:
+                raise ValueError(f"unknown weights {sorted(unknown)} for form {form!r} (known: {sorted(w)})")
+            for k, v in weights.items():
+                if not np.isfinite(v):
+                    raise ValueError(f"weight {k} = {v!r} must be finite")
+            w.update(weights)
+        self.weights = w
+        styles = tuple(MERGE_STYLES if styles is None else styles)
+        bad = [s for s in styles if s not in MERGE_STYLES]
+        if not styles or bad:
+            raise ValueError(f"styles must be a non-empty subset of {MERGE_STYLES}, got {styles!r}")
+        self.styles = styles
+        for name, value in (("num_reads", num_reads), ("targets_per_call", targets_per_call),
+                            ("max_attempts", max_attempts), ("max_chip_calls", max_chip_calls)):
+            if int(value) != value or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        self.num_reads = int(num_reads)
+        self.targets_per_call = int(targets_per_call)
+        self.interior_targets = bool(interior_targets)
+        self.backtrack = bool(backtrack)
+        self.cut_loops = bool(cut_loops)
+        self.max_attempts = int(max_attempts)
+        self.max_chip_calls = int(max_chip_calls)
+        n_spins = self.chip.spec.n_spins
+        if self.frame.n - 2 > n_spins:
+            raise ValueError(
+                f"patch_size = {patch_size} gives up to {self.frame.n - 2} patch variables; "
+                f"the chip has {n_spins} spins (spec.n_spins)"
+            )
+
+    def __repr__(self) -> str:
+        return (f"IsingPath(patch_size={self.frame.size}, form={self.form!r}, styles={self.styles}, "
+                f"num_reads={self.num_reads}, targets_per_call={self.targets_per_call})")
+
+    # ------------------------------------------------------------------ mapping
+    def _programs(self, problem: PatchQubo):
+        """The portfolio of one patch problem: ``[(style, MergedModel)]``."""
+        from ising_backend import QuboModel, merge_spins
+
+        logical = QuboModel(problem.q, problem.Q, problem.offset).to_ising()
+        return [(style, merge_spins(logical, style, self.chip.spec)) for style in self.styles]
+
+    # ------------------------------------------------------------------ ranking
+    def _ranked_targets(self, pos, goal, comp, excluded) -> list:
+        fr = self.frame
+        idx = np.flatnonzero(comp)
+        idx = idx[idx != fr.n // 2]
+        cells = fr.offsets[idx] + np.asarray(pos)
+        keep = np.array([(int(r), int(c)) not in excluded for r, c in cells], dtype=bool)
+        idx, cells = idx[keep], cells[keep]
+        if len(idx) == 0:
+            return []
+        is_goal = (cells == np.asarray(goal)).all(axis=1)
+        ring = fr.ring[idx]
+        cls = np.where(is_goal, 0, np.where(ring, 1, 2))
+        if not self.interior_targets:
+            sel = cls < 2
+            idx, cells, cls = idx[sel], cells[sel], cls[sel]
+        to_goal = np.abs(cells - np.asarray(goal)).sum(axis=1)
+        from_pos = np.abs(fr.offsets[idx]).sum(axis=1)
+        if self.target_order == "merged":  # interior cells compete on distance, boundary wins ties
+            order = np.lexsort((idx, from_pos, cls, to_goal, cls != 0))
+        else:
+            order = np.lexsort((idx, from_pos, to_goal, cls))
+        return [(int(idx[k]), (int(cells[k, 0]), int(cells[k, 1]))) for k in order]
+
+    # ------------------------------------------------------------------ main loop
+    def find_path(self, world, start, goal, rng: np.random.Generator | None = None):
+        """A 4-neighbour path from ``start`` to ``goal`` built from chip-generated patch segments."""
+        from planners.base import PathResult
+        from planners.compute import ComputeReport
+
+        grid = world.grid
+        h, w = grid.shape
+        s = (int(start[0]), int(start[1]))
+        g = (int(goal[0]), int(goal[1]))
+        for name, (r, c) in (("start", s), ("goal", g)):
+            if not (0 <= r < h and 0 <= c < w):
+                return PathResult(None, failure=f"{name} cell [{r}, {c}] is off the {h}x{w} grid")
+            if grid[r, c]:
+                return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
+        rng = np.random.default_rng() if rng is None else rng
+        fr = self.frame
+        rad = fr.radius
+        centre = fr.n // 2
+        padded = np.pad(np.asarray(grid, dtype=bool), rad, constant_values=True)
+        ledger0 = self.chip.ledger.snapshot()
+        mapping = {st: {"programs": 0, "valid": 0, "wins": 0} for st in self.styles}
+        counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
+
+        per_target = len(self.styles) * self.num_reads  # chip calls of one local-target attempt
+        pos = s
+        walk = [s]
+        visited = {s}
+        stack: list = []  # committed segments (lists of cells), most recent last
+        failed: set = set()  # (position, local target) pairs that gave no valid candidate
+        failure = None
+
+        while pos != g:
+            used = self.chip.ledger.since(ledger0).physical_calls
+            if counts["patch_solves"] >= self.max_attempts or used + per_target > self.max_chip_calls:
+                failure = (f"gave up at [{pos[0]}, {pos[1]}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
+                           f"({counts['patch_solves']} patch solves of max_attempts={self.max_attempts}, "
+                           f"{used} chip calls of max_chip_calls={self.max_chip_calls})")
+                break
+            allowed = ~padded[pos[0]:pos[0] + fr.size, pos[1]:pos[1] + fr.size].reshape(-1)
+            comp = component_of(fr, allowed, centre)
+            excluded = visited | {t for (p, t) in failed if p == pos}
+            ranked = self._ranked_targets(pos, g, comp, excluded)
+            if not ranked:
+                if self.backtrack and stack:
+                    seg = stack.pop()
+                    walk.extend(reversed(seg[:-1]))
+                    pos = seg[0]
+                    counts["backtracks"] += 1
+                    continue
+                failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
+                           f"reachable from [{pos[0]}, {pos[1]}] was visited or failed"
+                           + (" and backtracking is exhausted" if self.backtrack else " (backtrack=False)")
+                           + " (the goal may be unreachable)")
+                break
+            # calls left in the budget limit how many targets share this submission
+            room = max(1, (self.max_chip_calls - used) // per_target)
+            room = min(room, self.max_attempts - counts["patch_solves"])
+            batch = ranked[: min(self.targets_per_call, room)]
+            problems = [build_patch_qubo(fr, comp, centre, li, self.form, self.weights) for li, _ in batch]
+            # a problem without variables (the target is the robot's only patch neighbour) needs no chip
+            results: list = [None] * len(batch)
+            programs = []  # (target k, style, merged)
+            for k, pr in enumerate(problems):
+                if pr.n == 0:
+                    path = decode_paths(fr, pr, np.zeros((1, 0)))[0]
+                    results[k] = [] if path is None else [(pr.energy(np.zeros(0)), None, path)]
+                    counts["direct_moves"] += 1
+                else:
+                    results[k] = []
+                    programs.extend((k, st, m) for st, m in self._programs(pr))
+            if programs:
+                from ising_backend import stack_programs
+
+                hs, Js = stack_programs([m.physical for _, _, m in programs])
+                spins, _ = self.chip.anneal_batch(hs, Js, num_reads=self.num_reads,
+                                                  seed=int(rng.integers(0, 2**63 - 1)))
+                counts["anneal_calls"] += 1
+                spins = np.asarray(spins)
+                if spins.shape[:2] != (len(programs), self.num_reads) or not np.isin(spins, (-1, 1)).all():
+                    failure = (f"the chip returned malformed samples (shape {spins.shape}, expected "
+                               f"({len(programs)}, {self.num_reads}, >= n) spins in {{-1, +1}})")
+                    break
+                counts["patch_solves"] += sum(1 for pr in problems if pr.n)
+                for b, (k, st, m) in enumerate(programs):
+                    logical, _ = m.decode(spins[b, :, : m.physical.n])
+                    x = (np.asarray(logical).reshape(self.num_reads, -1) > 0).astype(np.int8)
+                    paths = decode_paths(fr, problems[k], x)
+                    energies = problems[k].energy(x)
+                    mapping[st]["programs"] += self.num_reads
+                    for path, e in zip(paths, energies):
+                        if path is not None:
+                            mapping[st]["valid"] += 1
+                            results[k].append((float(e), st, path))
+            chosen = None
+            for k, (li, target) in enumerate(batch):
+                cands = results[k]
+                if not cands:
+                    failed.add((pos, target))
+                    continue
+                best = min(e for e, _, _ in cands)
+                tied = [c for c in cands if c[0] <= best + 1e-9]
+                chosen = tied[int(rng.integers(len(tied)))] if len(tied) > 1 else tied[0]
+                break
+            if chosen is None:
+                continue
+            _, st, path = chosen
+            if st is not None:
+                mapping[st]["wins"] += 1
+            seg = [(pos[0] + int(fr.offsets[i, 0]), pos[1] + int(fr.offsets[i, 1])) for i in path]
+            walk.extend(seg[1:])
+            visited.update(seg)
+            stack.append(seg)
+            counts["segments"] += 1
+            pos = seg[-1]
+
+        delta = self.chip.ledger.since(ledger0)
+        compute = ComputeReport(
+            chip_calls=int(delta.physical_calls),
+            chip_batches=int(delta.batches),
+            chip_time_s=float(delta.chip_time_s),
+            chip_time_parallel_s=float(delta.chip_time_parallel_s),
+            accelerator_energy_j=float(delta.energy_j),
+        )
+        stats = {
+            "chip_calls": int(delta.physical_calls),
+            "chip_batches": int(delta.batches),
+            **counts,
+            "walk_length": len(walk) - 1,
+            "mapping": {"path": mapping},
+        }
+        if failure is not None:
+            return PathResult(None, compute=compute, failure=failure, stats=stats)
+        cells = cut_loops(walk) if self.cut_loops else walk
+        path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+        # final check (never hand out an invalid path)
+        steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
+        if (steps != 1).any() or grid[path[:, 0], path[:, 1]].any() or tuple(path[0]) != s or tuple(path[-1]) != g:
+            return PathResult(None, compute=compute, stats=stats,
+                              failure="internal error: the stitched walk is not a valid 4-neighbour path")
+        stats["path_length"] = len(path) - 1
+        return PathResult(path, compute=compute, stats=stats)

@@ -1,0 +1,185 @@
+"""``mrmt plan``: plan every world of a file, one JSON object per world.
+
+    mrmt plan WORLDS --pipeline strong                    # fast | strong | ising
+    mrmt plan WORLDS --sharing ssa --tour 3opt --path astar
+    mrmt plan WORLDS --pipeline fast --out plans.jsonl --keep-going
+    mrmt plan WORLDS --pipeline strong --option tour.moves=7
+
+``WORLDS`` is a world JSON file (one object, may span lines) or a JSON Lines
+file of worlds (:mod:`mrmt_env.io` format: ``grid`` strings, ``robots`` and
+``targets`` as ``[row, col]``).  Output: one JSON object per world, in input
+order, on stdout or ``--out`` -- :meth:`planners.plan.Plan.to_dict`
+(``robots``, ``route_cost``, ``makespan``, ``imbalance``, ``success``,
+``compute`` and, for a failed plan, ``failure``).  Each line is written as
+soon as its world is planned.
+
+Layers: ``--pipeline`` picks a preset (default ``strong``); ``--sharing``,
+``--tour``, ``--path`` override its layers; ``--option LAYER.KEY=VALUE``
+(repeatable; VALUE parsed as JSON, else taken as a string) passes a factory
+option to a layer.  An unknown name or option is a one-line error listing
+the valid ones, exit code 2, before any world is read.
+
+Bad input (unreadable file, a line that is not JSON, an invalid world, a world
+the chosen planners refuse, e.g. ``brute`` with more than 13 targets on one
+robot) is a one-line error on stderr naming the file, the line and the
+problem, and exit code 2.  The plans of earlier worlds are already written.
+With ``--keep-going`` planning continues past bad lines; each bad line gets,
+in its place in the output, an error object ``{"error": MESSAGE, "line": N}``
+(so output line *i* still belongs to input world *i*), and the exit code is
+still 2 at the end.  A plan that fails (``"success": false``, e.g. a target no
+assigned robot can reach) is a result, not an input error: exit code 0.
+
+Seeds: world on input line ``N`` is planned with ``seed=[--seed, N]``, so a
+plan does not depend on the other lines of the file.  A progress bar (tqdm,
+stderr) is shown for files with 20 or more worlds (``--no-progress`` hides it).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+NAME = "plan"
+HELP = "plan worlds from a JSON / JSON Lines file; one plan (JSON) per world"
+
+#: Files with at least this many worlds get a progress bar.
+PROGRESS_MIN_WORLDS = 20
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("worlds", metavar="WORLDS", help="world JSON file or JSON Lines file of worlds")
+    parser.add_argument("--pipeline", default=None, help="preset: fast, strong (default) or ising")
+    parser.add_argument("--sharing", default=None, help="sharing layer: round_robin, psa, ssa, exact, ising")
+    parser.add_argument("--tour", default=None, help="tour layer: nn, 2opt, 3opt, brute, ising")
+    parser.add_argument("--path", default=None, help="path layer: bfs, astar, gbfs, ising")
+    parser.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="LAYER.KEY=VALUE",
+        help="layer factory option, e.g. tour.moves=7 or sharing.bid=tour (repeatable)",
+    )
+    parser.add_argument("--out", default=None, help="write the plans here (JSON Lines) instead of stdout")
+    parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
+    parser.add_argument("--keep-going", action="store_true", help="continue past bad lines (still exit 2)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def _error(message: str) -> None:
+    print(f"mrmt plan: error: {message}", file=sys.stderr)
+
+
+def _parse_options(items: list[str]) -> dict[str, dict]:
+    options: dict[str, dict] = {"sharing": {}, "tour": {}, "path": {}}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        layer, dot, name = key.partition(".")
+        if not sep or not dot or not name:
+            raise ValueError(f"--option {item!r} must look like LAYER.KEY=VALUE (e.g. tour.moves=7)")
+        if layer not in options:
+            raise ValueError(f"--option {item!r}: layer {layer!r} is not one of sharing, tour, path")
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        options[layer][name] = value
+    return options
+
+
+def build_pipeline(args):
+    """The pipeline the arguments ask for (raises ValueError / TypeError with a clear message)."""
+    from planners.pipeline import make_pipeline
+
+    options = _parse_options(args.option)
+    preset = args.pipeline
+    if preset is None and not (args.sharing and args.tour and args.path):
+        preset = "strong"
+    return make_pipeline(
+        preset,
+        sharing=args.sharing,
+        tour=args.tour,
+        path=args.path,
+        sharing_options=options["sharing"],
+        tour_options=options["tour"],
+        path_options=options["path"],
+    )
+
+
+def _iter_worlds(path: Path, text: str):
+    """Yield (line_number, World | Exception) for a one-object file or JSON Lines."""
+    from mrmt_env.io import iter_world_lines, world_from_dict
+    from mrmt_env.world import WorldError
+
+    try:
+        whole = json.loads(text)
+    except json.JSONDecodeError:
+        whole = None
+    if isinstance(whole, dict):
+        try:
+            yield 1, world_from_dict(whole)
+        except WorldError as exc:
+            yield 1, WorldError(f"{path} line 1: {exc}")
+        return
+    if isinstance(whole, list):
+        yield 1, WorldError(f"{path} line 1: a JSON array is not a world file; use one object or JSON Lines")
+        return
+    yield from iter_world_lines(path)
+
+
+def run(args) -> int:
+    try:
+        pipeline = build_pipeline(args)
+    except (ValueError, TypeError, ImportError) as exc:
+        _error(str(exc))
+        return 2
+    path = Path(args.worlds)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        _error(f"{path}: cannot read ({exc})")
+        return 2
+    n_lines = sum(1 for line in text.splitlines() if line.strip())
+    if n_lines == 0:
+        _error(f"{path}: no worlds (the file is empty)")
+        return 2
+
+    from tqdm import tqdm
+
+    out = sys.stdout
+    if args.out:
+        try:
+            out = open(args.out, "w", encoding="utf-8")
+        except OSError as exc:
+            _error(f"{args.out}: cannot write ({exc})")
+            return 2
+    bad = 0
+    try:
+        progress = tqdm(
+            total=n_lines,
+            unit="world",
+            file=sys.stderr,
+            disable=args.no_progress or n_lines < PROGRESS_MIN_WORLDS,
+            desc="mrmt plan",
+        )
+        with progress:
+            for line, item in _iter_worlds(path, text):
+                progress.update(1)
+                if not isinstance(item, Exception):
+                    try:
+                        record = pipeline.plan(item, seed=[args.seed, line]).to_dict()
+                    except (ValueError, TypeError, RuntimeError) as exc:
+                        item = ValueError(f"{path} line {line}: planning failed: {exc}")
+                if isinstance(item, Exception):
+                    bad += 1
+                    message = str(item).replace("\n", " ")
+                    progress.write(f"mrmt plan: error: {message}", file=sys.stderr)
+                    if not args.keep_going:
+                        return 2
+                    record = {"error": message, "line": line}
+                out.write(json.dumps(record) + "\n")
+                out.flush()
+    finally:
+        if out is not sys.stdout:
+            out.close()
+    return 2 if bad else 0

@@ -1,0 +1,144 @@
+"""``mrmt plan``: round trip on small files, bad lines, exit codes."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agents.cli import main
+from mrmt_env import generate_world
+from mrmt_env.io import read_worlds, world_to_dict, write_world, write_worlds
+from planners.plan import Plan, RobotRoute, validate_plan
+
+
+def _as_plan(d):
+    return Plan(tuple(RobotRoute(r["targets"], r["path"]) for r in d["robots"]), success=d["success"])
+
+
+@pytest.fixture
+def worlds():
+    return [generate_world(s, n_robots=1 + s % 3, n_targets=2 + s) for s in range(4)]
+
+
+def test_round_trip_jsonl(tmp_path, worlds, capsys):
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds, src)
+    assert main(["plan", str(src), "--pipeline", "strong", "--no-progress"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(worlds)
+    for world, line in zip(read_worlds(src), lines):
+        d = json.loads(line)
+        assert set(d) == {"robots", "route_cost", "makespan", "imbalance", "success", "compute"}
+        assert d["success"] is True
+        plan = _as_plan(d)
+        validate_plan(world, plan)
+        assert (plan.route_cost, plan.makespan, plan.imbalance) == (d["route_cost"], d["makespan"], d["imbalance"])
+        assert d["compute"]["cpu_s"] > 0 and d["compute"]["chip_calls"] == 0
+        assert d["compute"]["host_energy_j"] == pytest.approx(15 * d["compute"]["cpu_s"])
+
+
+def test_layer_flags_single_world_file_and_out(tmp_path, worlds):
+    src = tmp_path / "one.json"
+    write_world(worlds[2], src)
+    out = tmp_path / "plans.jsonl"
+    rc = main(["plan", str(src), "--sharing", "exact", "--tour", "brute", "--path", "bfs", "--out", str(out)])
+    assert rc == 0
+    (line,) = out.read_text().splitlines()
+    validate_plan(worlds[2], _as_plan(json.loads(line)))
+
+
+def test_same_seed_same_output(tmp_path, worlds, capsys):
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds, src)
+    outs = []
+    for _ in range(2):
+        main(["plan", str(src), "--pipeline", "fast", "--seed", "3"])
+        outs.append([json.loads(x)["robots"] for x in capsys.readouterr().out.splitlines()])
+    assert outs[0] == outs[1]
+
+
+def _bad_file(tmp_path, worlds):
+    good = [json.dumps(world_to_dict(w)) for w in worlds[:3]]
+    bad_world = dict(world_to_dict(worlds[0]), robots=[[0, 99]])
+    src = tmp_path / "bad.jsonl"
+    src.write_text("\n".join([good[0], "{not json", good[1], json.dumps(bad_world), good[2]]) + "\n")
+    return src
+
+
+def test_bad_line_stops_with_exit_2_keeping_earlier_plans(tmp_path, worlds, capsys):
+    src = _bad_file(tmp_path, worlds)
+    assert main(["plan", str(src), "--pipeline", "fast"]) == 2
+    captured = capsys.readouterr()
+    assert len(captured.out.splitlines()) == 1
+    (err,) = [x for x in captured.err.splitlines() if "error" in x]
+    assert f"{src} line 2: not valid JSON" in err
+
+
+def test_keep_going_emits_error_objects_in_place(tmp_path, worlds, capsys):
+    src = _bad_file(tmp_path, worlds)
+    assert main(["plan", str(src), "--pipeline", "fast", "--keep-going"]) == 2
+    captured = capsys.readouterr()
+    records = [json.loads(x) for x in captured.out.splitlines()]
+    assert len(records) == 5
+    assert records[1]["line"] == 2 and "not valid JSON" in records[1]["error"]
+    assert records[3]["line"] == 4 and "robot 0 cell [0, 99] is out of bounds" in records[3]["error"]
+    for i, w in zip((0, 2, 4), worlds[:3]):
+        validate_plan(w, _as_plan(records[i]))
+    assert len([x for x in captured.err.splitlines() if "error" in x]) == 2
+
+
+def test_planning_refusal_is_reported_with_line(tmp_path, capsys):
+    src = tmp_path / "big.jsonl"
+    write_worlds([generate_world(0, n_robots=1, n_targets=14)], src)
+    assert main(["plan", str(src), "--sharing", "psa", "--tour", "brute", "--path", "bfs"]) == 2
+    assert f"{src} line 1: planning failed: brute tour: 14 targets exceeds the limit of 13" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--tour", "4opt"], "unknown tour planner '4opt'; valid tour planners: nn, 2opt, 3opt, brute, ising"),
+        (["--pipeline", "quick"], "unknown pipeline preset 'quick'"),
+        (["--option", "tour.movez=7"], "takes no option 'movez'"),
+        (["--option", "moves=7"], "must look like LAYER.KEY=VALUE"),
+    ],
+)
+def test_bad_planner_arguments(tmp_path, worlds, capsys, argv, message):
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds[:1], src)
+    assert main(["plan", str(src), *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+def test_missing_and_empty_files(tmp_path, capsys):
+    assert main(["plan", str(tmp_path / "nope.jsonl")]) == 2
+    assert "nope.jsonl: cannot read" in capsys.readouterr().err
+    (tmp_path / "empty.jsonl").write_text("\n\n")
+    assert main(["plan", str(tmp_path / "empty.jsonl")]) == 2
+    assert "no worlds" in capsys.readouterr().err
+
+
+def test_option_reaches_the_layer(tmp_path, worlds, capsys):
+    from agents.commands.plan import build_pipeline
+
+    class Args:
+        pipeline, sharing, tour, path = "strong", None, None, None
+        option = ["tour.moves=7", "sharing.bid=tour"]
+
+    pipe = build_pipeline(Args)
+    assert pipe.tour.moves == "7" and pipe.sharing.bid == "tour"
+
+
+def test_console_script_subprocess(tmp_path, worlds):
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds[:2], src)
+    script = Path(sys.executable).parent / "mrmt"
+    cmd = [str(script)] if script.exists() else [sys.executable, "-m", "agents.cli"]
+    proc = subprocess.run([*cmd, "plan", str(src), "--pipeline", "fast"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 2
+    validate_plan(worlds[1], _as_plan(json.loads(lines[1])))

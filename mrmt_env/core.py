@@ -30,6 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from mrmt_env.distances import MOVES
+from mrmt_env.generation import generate_world
+from mrmt_env.io import read_worlds
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
 from mrmt_env.world import World
 
@@ -251,8 +253,6 @@ class WorldSource:
             raise TypeError(f"unknown world argument(s) {unknown}; allowed: {sorted(self.DEFAULTS)}")
         if world is not None:
             if not isinstance(world, World):
-                from mrmt_env.io import read_worlds
-
                 worlds = read_worlds(world)
                 if len(worlds) != 1:
                     raise ValueError(f"world file {world} holds {len(worlds)} worlds; an env takes exactly one")
@@ -267,8 +267,6 @@ class WorldSource:
             self.fixed: World | None = world
             self.params = dict(actual)
         else:
-            from mrmt_env.generation import generate_world
-
             self.fixed = None
             self.params = {**self.DEFAULTS, **given}
             generate_world(0, **self.params)  # validates the arguments now, with clear errors
@@ -280,8 +278,6 @@ class WorldSource:
         """The fixed world, or a new world drawn from ``rng`` (advanced in place)."""
         if self.fixed is not None:
             return self.fixed
-        from mrmt_env.generation import generate_world
-
         return generate_world(rng, **self.params)
 
     def check(self, world) -> World:

@@ -24,6 +24,7 @@ MovingAI benchmark files (https://movingai.com/benchmarks/formats.html):
 from __future__ import annotations
 
 import json
+import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,7 +113,7 @@ def _cells(d: dict, key: str) -> list:
         if (
             not isinstance(cell, (list, tuple))
             or len(cell) != 2
-            or not all(isinstance(v, int) and not isinstance(v, bool) for v in cell)
+            or not all(isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) for v in cell)
         ):
             raise WorldError(f"{key!r} entry {i} must be an integer [row, col] pair, got {cell!r}")
     return [list(c) for c in value]
@@ -145,7 +146,7 @@ def read_world(path) -> World:
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise WorldError(f"{path}: not valid JSON ({exc})") from exc
+        raise WorldError(f"{path}: not valid JSON ({exc}); for JSON Lines use read_worlds") from exc
     try:
         return world_from_dict(d)
     except WorldError as exc:

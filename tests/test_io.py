@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mrmt_env import World, WorldError, generate_world
 from mrmt_env.io import (
@@ -197,3 +199,17 @@ def test_world_from_movingai(tmp_path):
         world_from_movingai(m, s, n_robots=4)
     with pytest.raises(ValueError, match="need 20 distinct cells"):
         world_from_movingai(m, n_robots=2, n_targets=18)
+
+
+def test_numpy_integer_cells_accepted():
+    d = {"grid": ["..."], "robots": [[np.int64(0), np.int32(0)]], "targets": [[0, np.int64(2)]]}
+    assert world_from_dict(d).targets.tolist() == [[0, 2]]
+    with pytest.raises(WorldError, match="'robots' entry 0"):
+        world_from_dict({"grid": ["..."], "robots": [[True, 0]], "targets": []})
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), h=st.integers(2, 9), w=st.integers(2, 9), placement=st.sampled_from(["uniform", "centre"]))
+def test_json_round_trip_property(seed, h, w, placement):
+    world = generate_world(seed, height=h, width=w, n_robots=1, n_targets=min(3, h * w // 3), placement=placement)
+    assert world_from_dict(json.loads(json.dumps(world_to_dict(world)))) == world

@@ -24,3 +24,6 @@ __all__ = [
     "from_bqm",
     "stack_programs",
 ]
+from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
+
+__all__ += ["LOGICAL_METHODS", "LogicalIsingSolver", "LogicalResult"]

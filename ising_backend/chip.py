@@ -78,14 +78,14 @@ def check_program(h, J, spec: ChipSpec = ChipSpec()) -> tuple[np.ndarray, np.nda
         if bad.any():
             idx = _first(bad)
             raise ChipProgramError(
-                f"{kind} {name}{list(idx[1:])} = {arr[idx]!r}{_where(idx, batched)} is not finite "
+                f"{kind} {name}{list(idx[1:])} = {float(arr[idx]):g}{_where(idx, batched)} is not finite "
                 f"({int(bad.sum())} non-finite coefficient(s)); the chip takes integers in [{lo}, {hi}]"
             )
         bad = arr != np.round(arr)
         if bad.any():
             idx = _first(bad)
             raise ChipProgramError(
-                f"{kind} {name}{list(idx[1:])} = {arr[idx]!r}{_where(idx, batched)} is not an integer "
+                f"{kind} {name}{list(idx[1:])} = {float(arr[idx]):g}{_where(idx, batched)} is not an integer "
                 f"({int(bad.sum())} non-integer coefficient(s)); the chip takes integers in [{lo}, {hi}]: "
                 "quantize or merge the model first"
             )

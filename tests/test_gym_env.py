@@ -288,3 +288,69 @@ def test_sb3_check_env():
 def test_package_exports():
     assert mrmt_env.MRMTEnv is MRMTEnv
     assert callable(mrmt_env.parallel_env) and callable(mrmt_env.env)
+
+
+def _min_sum_cost(world: World) -> int:
+    """Brute force: fewest total moves for the robots to visit every target
+    (each robot walks an ordered subset along BFS shortest paths)."""
+    import itertools
+
+    d = world.distance_matrix
+    r, n = world.n_robots, world.n_targets
+    best = np.inf
+    for owner in itertools.product(range(r), repeat=n):
+        total = 0
+        for k in range(r):
+            mine = [r + i for i in range(n) if owner[i] == k]
+            total += min(
+                (sum(d[a, b] for a, b in zip((k,) + order, order)) for order in itertools.permutations(mine)),
+                default=0,
+            )
+        best = min(best, total)
+    return int(best)
+
+
+@pytest.mark.parametrize(
+    "robots, targets",
+    [
+        ([[0, 0], [2, 2]], [[0, 2], [2, 0], [0, 1]]),
+        ([[0, 0]], [[2, 2], [0, 2]]),
+        ([[0, 1], [0, 1]], [[2, 1], [1, 0], [1, 2]]),
+    ],
+)
+def test_max_return_is_visiting_all_targets_with_fewest_moves(robots, targets):
+    """Exact dynamic programming over the env's own transitions: the best
+    return over a long enough horizon is target_reward * N - (min total moves)."""
+    import itertools
+    from functools import lru_cache
+
+    from mrmt_env.core import MRMTCore
+
+    grid = np.zeros((3, 3), dtype=bool)
+    grid[1, 1] = True
+    world = World(grid, robots, targets)
+    n_r = world.n_robots
+    joint = list(itertools.product(range(5), repeat=n_r))
+    core = MRMTCore()
+
+    @lru_cache(maxsize=None)
+    def transition(pos, left, a):
+        core.reset(World(grid, list(pos), list(left)))  # no robot stands on a target of `left`
+        reward = core.step(list(a))
+        cw = core.current_world()
+        return tuple(map(tuple, cw.robots.tolist())), tuple(map(tuple, cw.targets.tolist())), reward
+
+    @lru_cache(maxsize=None)
+    def value(pos, left, t):
+        if not left or t == 0:
+            return 0.0
+        best = -np.inf
+        for a in joint:
+            p2, l2, rew = transition(pos, left, a)
+            best = max(best, rew + value(p2, l2, t - 1))
+        return best
+
+    start_left = tuple(tuple(c) for c in targets if c not in robots)
+    v = value(tuple(map(tuple, robots)), start_left, 8)
+    bonus = MRMTCore.default_target_reward(3, 3)
+    assert v == bonus * len(start_left) - _min_sum_cost(world)

@@ -8,9 +8,10 @@
 * ``+`` two or more robots on one cell.
 
 ``rgb_array``: ``(H * cell, W * cell, 3)`` uint8; obstacles dark grey, free
-cells white with a light grid line, unvisited targets as orange squares, visited targets pale green, robots as coloured squares
-(a fixed 10-colour palette by robot index; shared cells show the lowest
-index with a black centre dot).
+cells white with a light grid line, unvisited targets as dark gold rings,
+visited targets as pale green cells, robots as filled squares (tab10 colours
+by robot index; a cell shared by robots shows the lowest index with a black
+centre dot).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ PALETTE = np.array(
 _FREE = np.array([255, 255, 255], np.uint8)
 _LINE = np.array([220, 220, 220], np.uint8)
 _OBSTACLE = np.array([60, 60, 60], np.uint8)
-_TARGET = np.array([255, 165, 0], np.uint8)
+_TARGET = np.array([120, 90, 0], np.uint8)
 _VISITED = np.array([200, 235, 200], np.uint8)
 
 
@@ -67,12 +68,17 @@ def render_rgb(grid: np.ndarray, targets: np.ndarray, visited, positions: np.nda
     lines[::cell, :] = True
     lines[:, ::cell] = True
     img[lines & ~np.repeat(np.repeat(grid, cell, axis=0), cell, axis=1)] = _LINE
-    m = max(1, cell // 4)
+    m = max(1, cell // 8)
+    t = max(1, cell // 8)
     for (r, c), v in zip(np.asarray(targets).tolist(), visited):
         y, x = r * cell, c * cell
-        img[y + m: y + cell - m + 1, x + m: x + cell - m + 1] = _VISITED if v else _TARGET
+        if v:  # visited: pale green cell
+            img[y + 1: y + cell, x + 1: x + cell] = _VISITED
+        else:  # unvisited: a gold ring around the cell's centre
+            img[y + m: y + cell - m, x + m: x + cell - m] = _TARGET
+            img[y + m + t: y + cell - m - t, x + m + t: x + cell - m - t] = _FREE
     seen: set[tuple[int, int]] = set()
-    q = max(1, cell // 6)
+    q = cell // 4
     for k, (r, c) in enumerate(np.asarray(positions).tolist()):
         y, x = r * cell, c * cell
         if (r, c) in seen:
@@ -81,5 +87,5 @@ def render_rgb(grid: np.ndarray, targets: np.ndarray, visited, positions: np.nda
             img[y + mid - d: y + mid + d, x + mid - d: x + mid + d] = 0
             continue
         seen.add((r, c))
-        img[y + q + 1: y + cell - q, x + q + 1: x + cell - q] = PALETTE[k % len(PALETTE)]
+        img[y + q: y + cell - q, x + q: x + cell - q] = PALETTE[k % len(PALETTE)]
     return img

@@ -35,7 +35,7 @@ from mrmt_env.io import read_worlds
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
 from mrmt_env.world import World
 
-__all__ = ["MRMTCore", "WorldSource", "N_ACTIONS", "ACTION_NAMES", "successor_table"]
+__all__ = ["MRMTCore", "WorldSource", "action_between", "actions_from_path", "N_ACTIONS", "ACTION_NAMES", "successor_table"]
 
 N_ACTIONS = 5
 ACTION_NAMES = ("stay", "up", "down", "left", "right")
@@ -57,6 +57,32 @@ def successor_table(grid: np.ndarray) -> list[tuple[int, ...]]:
                 row.append(nr * w + nc if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] else p)
             table.append(tuple(row))
     return table
+
+
+_DELTA_TO_ACTION = {(0, 0): 0, **{(int(dr), int(dc)): a for a, (dr, dc) in enumerate(MOVES.tolist(), start=1)}}
+
+
+def action_between(cell, next_cell) -> int:
+    """The action (0 stay, 1 up, 2 down, 3 left, 4 right) taking a robot from
+    ``cell`` to ``next_cell``.
+
+    Raises:
+        ValueError: the cells are neither equal nor 4-neighbours.
+    """
+    delta = (int(next_cell[0]) - int(cell[0]), int(next_cell[1]) - int(cell[1]))
+    try:
+        return _DELTA_TO_ACTION[delta]
+    except KeyError:
+        raise ValueError(
+            f"cells {[int(cell[0]), int(cell[1])]} -> {[int(next_cell[0]), int(next_cell[1])]} are not "
+            "equal or 4-neighbours; one step moves by at most one row or one column"
+        ) from None
+
+
+def actions_from_path(path) -> list[int]:
+    """Actions that walk a cell-by-cell path ``[[r, c], ...]`` (``len(path) - 1`` actions)."""
+    cells = [tuple(int(v) for v in c) for c in path]
+    return [action_between(a, b) for a, b in zip(cells, cells[1:])]
 
 
 class MRMTCore:

@@ -354,3 +354,20 @@ def test_max_return_is_visiting_all_targets_with_fewest_moves(robots, targets):
     v = value(tuple(map(tuple, robots)), start_left, 8)
     bonus = MRMTCore.default_target_reward(3, 3)
     assert v == bonus * len(start_left) - _min_sum_cost(world)
+
+
+def test_action_helpers():
+    from mrmt_env.core import action_between, actions_from_path
+
+    assert [action_between((2, 2), c) for c in [(2, 2), (1, 2), (3, 2), (2, 1), (2, 3)]] == [0, 1, 2, 3, 4]
+    assert actions_from_path([[0, 0], [0, 1], [1, 1], [1, 1]]) == [4, 2, 0]
+    assert actions_from_path([[0, 0]]) == []
+    with pytest.raises(ValueError, match=r"cells \[0, 0\] -> \[1, 1\] are not equal or 4-neighbours"):
+        action_between((0, 0), (1, 1))
+    # the helper agrees with the env's dynamics
+    env = MRMTEnv(world=World(OPEN, [[0, 0]], [[2, 3]]))
+    env.reset(seed=0)
+    path = [[0, 0], [1, 0], [2, 0], [2, 1], [2, 2], [2, 3]]
+    for a in actions_from_path(path):
+        *_, term, _, info = env.step(np.array([a]))
+    assert term and info["route_cost"] == 5

@@ -22,6 +22,9 @@ __all__ = [
     "parallel_env",
     "env",
     "world_from_observation",
+    "action_between",
+    "actions_from_path",
+    "ACTION_NAMES",
     "GYM_IDS",
 ]
 
@@ -63,6 +66,7 @@ def _register() -> None:
 
 _register()
 
+from mrmt_env.core import ACTION_NAMES, action_between, actions_from_path  # noqa: E402
 from mrmt_env.gym_env import MRMTEnv  # noqa: E402
 from mrmt_env.observation import world_from_observation  # noqa: E402
 from mrmt_env.pz_env import MRMTParallelEnv, env, parallel_env  # noqa: E402

@@ -27,3 +27,14 @@ __all__ = [
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 
 __all__ += ["LOGICAL_METHODS", "LogicalIsingSolver", "LogicalResult"]
+from .quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
+from .merge import MERGE_STYLES, MergedModel, MergeError, merge_spins, saturate_mapping
+from .branching import Branch, BranchError, branch, freeze_order, reduce_model
+from .blocks import pack_blocks, plan_packs, unpack_blocks
+
+__all__ += [
+    "QUANTIZE_RULES", "QuantizeError", "quantize", "saturate",
+    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",
+    "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
+    "pack_blocks", "plan_packs", "unpack_blocks",
+]

@@ -1,0 +1,111 @@
+"""Coefficient quantization to the chip's integer range (paper section 4.2).
+
+Distance-based objectives give real-valued Ising coefficients; the chip takes
+integers in ``h_range`` / ``j_range``.  The paper generates several quantized
+mappings and keeps the best decoded candidate (a portfolio), so each rule
+preserves a different view of the coefficient structure:
+
+``linear``
+    one common factor so the largest coefficient (relative to its range) lands
+    on the range limit; then round.  Keeps ratios, crushes small terms.
+``clip95``
+    like ``linear`` but the factor puts the 95th percentile of the non-zero
+    relative magnitudes on the limit; the top 5 % saturate at the limit.
+    Keeps resolution for the bulk, sacrifices the outliers.
+``rank``
+    magnitudes replaced by their rank among the distinct non-zero magnitudes,
+    spread evenly over ``1 .. limit`` (ties share a level).  Keeps only order.
+``sqrt``
+    ``linear`` applied to ``sign(c) * sqrt(|c|)``: compresses large values,
+    spreads small ones.
+
+Common rules (the paper is silent; our choices):
+
+* ``h`` and ``J`` are scaled *together* (one factor, each relative to its own
+  range limit), since a field and a coupling of the same size must stay the
+  same size; the symmetric limit of a range ``(lo, hi)`` is ``min(-lo, hi)``.
+* zeros stay zero; signs are kept; with ``keep_sign=True`` (default) a non-zero
+  coefficient that would round to 0 becomes +-1 (so the coupling graph and every
+  sign survive); results are integers inside the range.
+* the returned model's offset is 0 (quantized energies are in chip units and
+  only rank candidates; candidates are re-scored on the original objective).
+
+:func:`saturate` is the authors' baseline rule (COBI host code): a *fixed* scale
+factor, round, and saturate at the range limits.  It clips by design, so it is
+an explicit, separately named rule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .models import IsingModel
+
+__all__ = ["QUANTIZE_RULES", "quantize", "saturate", "QuantizeError"]
+
+QUANTIZE_RULES = ("linear", "clip95", "rank", "sqrt")
+
+
+class QuantizeError(ValueError):
+    """A quantization request cannot be met (bad rule or range)."""
+
+
+def _limit(rng, name) -> int:
+    lo, hi = int(rng[0]), int(rng[1])
+    lim = min(-lo, hi)
+    if lim < 1:
+        raise QuantizeError(f"{name} = {tuple(rng)} has no symmetric integer range (need low <= -1 and high >= 1)")
+    return lim
+
+
+def quantize(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7), *, keep_sign: bool = True,
+             percentile: float = 95.0) -> IsingModel:
+    """Integer, in-range copy of ``model`` under ``rule`` (see the module docstring).
+
+    Args:
+        model: the logical Ising model (real coefficients).
+        rule: one of :data:`QUANTIZE_RULES`.
+        h_range, j_range: the chip ranges (e.g. ``spec.h_range``).
+        keep_sign: non-zero coefficients never round to 0.
+        percentile: the clip point of ``clip95``.
+    """
+    if rule not in QUANTIZE_RULES:
+        raise QuantizeError(f"rule = {rule!r} not in {QUANTIZE_RULES} (saturate() is the fixed-scale rule)")
+    Lh, Lj = _limit(h_range, "h_range"), _limit(j_range, "j_range")
+    n = model.n
+    iu = np.triu_indices(n, 1)
+    c = np.concatenate([model.h, model.J[iu]])
+    lim = np.concatenate([np.full(n, float(Lh)), np.full(iu[0].size, float(Lj))])
+    q = np.zeros_like(c)
+    nz = c != 0
+    if nz.any():
+        if rule == "rank":
+            rel = np.abs(c[nz]) / lim[nz]
+            uniq, inv = np.unique(rel, return_inverse=True)
+            frac = inv / (uniq.size - 1) if uniq.size > 1 else np.ones(inv.size)
+            q[nz] = np.sign(c[nz]) * np.rint(1 + (lim[nz] - 1) * frac)
+        else:
+            v = np.sign(c) * np.sqrt(np.abs(c)) if rule == "sqrt" else c
+            rel = np.abs(v[nz]) / lim[nz]
+            a = np.percentile(rel, percentile) if rule == "clip95" else rel.max()
+            q = np.clip(np.rint(v / a), -lim, lim)
+        if keep_sign:
+            small = nz & (q == 0)
+            q[small] = np.sign(c[small])
+    h = q[:n]
+    J = np.zeros((n, n))
+    J[iu] = q[n:]
+    return IsingModel(h, J, 0.0, model.labels)
+
+
+def saturate(model: IsingModel, scale: float, h_range=(-7, 7), j_range=(-7, 7)) -> IsingModel:
+    """Fixed-scale, saturating mapping (the authors' baseline): ``clip(rint(scale * c), range)``.
+
+    Coefficients beyond the range are clipped (that is this rule's definition);
+    small ones may round to zero.  The offset is scaled too.
+    """
+    if not (np.isfinite(scale) and scale > 0):
+        raise QuantizeError(f"scale = {scale!r} must be a positive finite number")
+    h = np.clip(np.rint(model.h * scale), h_range[0], h_range[1])
+    J = np.clip(np.rint(model.J * scale), j_range[0], j_range[1])
+    return IsingModel(h, J, model.offset * scale, model.labels)

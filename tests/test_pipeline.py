@@ -261,3 +261,16 @@ def test_unavailable_lazy_factory_is_a_clear_error():
         registry._REGISTRY["path"].pop("test_missing")
     with pytest.raises(ValueError, match="module:attr"):
         registry.register_path("x", "nocolon")
+
+
+def test_no_targets_and_robot_on_target():
+    grid = np.zeros((4, 4), dtype=bool)
+    world = World(grid, [[0, 0], [3, 3]], np.zeros((0, 2)))
+    plan = make_pipeline("strong").plan(world)
+    assert plan.success and plan.route_cost == 0
+    assert [r.path.tolist() for r in plan.routes] == [[[0, 0]], [[3, 3]]]
+    world = World(grid, [[0, 0], [3, 3]], [[0, 0], [3, 2], [1, 1]])
+    for preset in ("fast", "strong"):
+        plan = make_pipeline(preset).plan(world)
+        validate_plan(world, plan)
+        assert plan.route_cost == 1 + 2

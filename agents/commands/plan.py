@@ -130,8 +130,9 @@ def _iter_worlds(path: Path, text: str):
 def run(args) -> int:
     try:
         pipeline = build_pipeline(args)
-    except (ValueError, TypeError, ImportError) as exc:
-        _error(str(exc))
+    except (ValueError, TypeError, ImportError, RuntimeError) as exc:
+        _error(f"cannot build the pipeline: {type(exc).__name__}: {exc}" if isinstance(exc, (ImportError, RuntimeError))
+               else str(exc))
         return 2
     path = Path(args.worlds)
     try:

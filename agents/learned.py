@@ -69,6 +69,7 @@ def train_ppo(
     n_envs: int = 1,
     verbose: int = 0,
     progress: bool = False,
+    torch_threads: int | None = 1,
     **ppo_kwargs,
 ):
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save to ``out`` if given.
@@ -80,6 +81,9 @@ def train_ppo(
         env_id, env_kwargs: the env to train on.
         seed: seeds PPO, torch and the envs.
         n_envs: parallel envs (``DummyVecEnv``: in-process).
+        torch_threads: ``torch.set_num_threads`` for training (default 1: the
+            networks are tiny and extra threads only contend for the cores;
+            ``None`` leaves torch's setting alone).
         **ppo_kwargs: override PPO's hyper-parameters.
 
     Returns:
@@ -89,9 +93,12 @@ def train_ppo(
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
     if int(n_envs) < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 
+    if torch_threads is not None:
+        torch.set_num_threads(int(torch_threads))
     env_kwargs = dict(env_kwargs or {})
     _make_env(env_id, env_kwargs, seed).close()  # validates the id and kwargs with a clear error
     venv = make_vec_env(env_id, n_envs=int(n_envs), seed=int(seed), env_kwargs=env_kwargs)

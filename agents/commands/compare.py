@@ -19,11 +19,13 @@ HELP = "compare planners and learned agents episode by episode on the same world
 
 def add_arguments(parser) -> None:
     parser.add_argument("--worlds", type=int, default=20, help="worlds (episodes) per controller and seed (default 20)")
-    parser.add_argument("--robots", type=int, default=3, help="robots per world (default 3)")
-    parser.add_argument("--targets", type=int, default=10, help="targets per world (default 10)")
-    parser.add_argument("--height", type=int, default=10, help="grid height (default 10)")
-    parser.add_argument("--width", type=int, default=10, help="grid width (default 10)")
-    parser.add_argument("--density", type=float, default=0.2, help="obstacle density (default 0.2)")
+    parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
+    parser.add_argument("--robots", type=int, default=None, help="robots per world (default: the env id's, 3)")
+    parser.add_argument("--targets", type=int, default=None, help="targets per world (default: the env id's, 10)")
+    parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
+    parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
+    parser.add_argument("--density", type=float, default=None, help="obstacle density (default: the env id's, 0.2)")
+    parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
     parser.add_argument(
         "--controllers",
         default="fast,strong,ising",
@@ -45,22 +47,34 @@ def run(args) -> int:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)
         return 2
     for name in ("worlds", "robots", "targets", "height", "width", "jobs", "seeds"):
-        if getattr(args, name) < 1:
-            print(f"mrmt compare: error: --{name} must be >= 1, got {getattr(args, name)}", file=sys.stderr)
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            print(f"mrmt compare: error: --{name} must be >= 1, got {value}", file=sys.stderr)
             return 2
-    env_kwargs = {
+    import gymnasium as gym
+
+    import mrmt_env  # noqa: F401  (registers the ids)
+
+    if args.env_id not in gym.registry:
+        known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
+        print(f"mrmt compare: error: unknown env id {args.env_id!r}; registered: {known}", file=sys.stderr)
+        return 2
+    given = {
         "n_robots": args.robots,
         "n_targets": args.targets,
         "height": args.height,
         "width": args.width,
         "obstacle_density": args.density,
+        "placement": args.placement,
     }
+    env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:
         result = evaluate(
             specs,
             n_worlds=args.worlds,
             seeds=range(args.seeds),
             world_seed=args.seed,
+            env_id=args.env_id,
             env_kwargs=env_kwargs,
             n_jobs=args.jobs,
             progress=not args.no_progress,

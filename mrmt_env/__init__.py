@@ -30,14 +30,11 @@ __all__ = [
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
 GYM_IDS = {
-    "mrmt_env/MRMT-v0": (
-        dict(height=10, width=10, obstacle_density=0.2, n_robots=3, n_targets=10, placement="uniform"),
-        200,
-    ),
-    "mrmt_env/MRMT-Centre-v0": (
-        dict(height=10, width=10, obstacle_density=0.2, n_robots=3, n_targets=10, placement="centre"),
-        200,
-    ),
+    # no kwargs: the class defaults are the paper's set-up (10x10, density 0.2,
+    # 3 robots, 10 targets, uniform placement), so gym.make(id, world=...) also
+    # accepts a fixed world of any size
+    "mrmt_env/MRMT-v0": ({}, 200),
+    "mrmt_env/MRMT-Centre-v0": (dict(placement="centre"), 200),  # the paper's set-up with centre spawn
     "mrmt_env/MRMT-5x5-v0": (
         dict(height=5, width=5, obstacle_density=0.04, n_robots=2, n_targets=3, placement="uniform"),
         50,

@@ -371,3 +371,20 @@ def test_action_helpers():
     for a in actions_from_path(path):
         *_, term, _, info = env.step(np.array([a]))
     assert term and info["route_cost"] == 5
+
+
+def test_make_with_a_fixed_world_of_any_size(tmp_path):
+    w = generate_world(0, height=6, width=7, n_robots=2, n_targets=4)
+    env = gym.make("mrmt_env/MRMT-v0", world=w)
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (4, 6, 7) and env.action_space.shape == (2,) and info["n_targets"] == 4
+    p = tmp_path / "w.jsonl"
+    from mrmt_env.io import write_worlds
+
+    write_worlds([w], p)
+    assert gym.make("mrmt_env/MRMT-v0", world=p).reset(seed=1)[0].shape == (4, 6, 7)
+    write_worlds([w, generate_world(1)], p)
+    with pytest.raises(ValueError, match="holds 2 worlds; an env takes exactly one"):
+        MRMTEnv(world=p)
+    with pytest.raises(ValueError, match="placement='centre' only applies to generated worlds"):
+        gym.make("mrmt_env/MRMT-Centre-v0", world=w)

@@ -106,14 +106,15 @@ class MRMTCore:
 
     @staticmethod
     def default_target_reward(height: int, width: int) -> float:
-        """``2 * H * W``: more than any shortest way to one more target costs.
+        """``2 * H * W``: more than the fewest total moves that visit every target.
 
-        A robot can walk to every cell of its free component along a
-        depth-first traversal of a spanning tree in fewer than ``2 * H * W``
-        moves, so the cheapest completion of any partial visit costs less
-        than one target's reward: visiting every target always beats leaving
-        one out, and among complete visits the return is highest for the
-        fewest moves.
+        Each robot can reach every cell of its free component along a
+        depth-first walk of a spanning tree (fewer than 2 x component size
+        moves), so the robots together can visit all targets in
+        ``C* < 2 * H * W`` moves.  Hence a complete visit in ``C*`` moves
+        returns ``target_reward * N - C* > target_reward * (N - 1)``, more than
+        any incomplete episode, and among complete episodes fewer moves give
+        a higher return (provided the step limit leaves time to finish).
         """
         return float(2 * height * width)
 

@@ -38,3 +38,25 @@ __all__ += [
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
     "pack_blocks", "plan_packs", "unpack_blocks",
 ]
+from .portfolio import (
+    BranchMapping,
+    IdentityMapping,
+    MappedProgram,
+    Mapping,
+    MappingOutcome,
+    MergeMapping,
+    PortfolioResult,
+    PortfolioStats,
+    QuantizeMapping,
+    SaturateMapping,
+    merge_portfolio,
+    quantize_portfolio,
+    run_portfolio,
+    run_portfolio_batch,
+)
+
+__all__ += [
+    "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
+    "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",
+    "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
+]

@@ -166,7 +166,6 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
     degree = (absC != 0).sum(axis=1)
     strength = absC.sum(axis=1)
     a = np.ones(n, dtype=np.int64)
-    iu = np.triu_indices(n, 1)
 
     while True:
         cap_h = Lh * a
@@ -221,12 +220,14 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
     mode = _SPLIT[style]
     hp = np.zeros(N)
     Jp = np.zeros((N, N))
-    for i in range(n):
+    single = a == 1
+    hp[:n] = np.where(single, H, 0)
+    Jp[:n, :n] = np.where(np.outer(single, single), C, 0)
+    for i in np.flatnonzero(~single):
         for p, v in zip(copies[i], _split(H[i], a[i], Lh, mode)):
             hp[p] = v
-    for i, j in zip(*iu):
-        if C[i, j] == 0:
-            continue
+    multi = ~np.outer(single, single) & (C != 0)
+    for i, j in zip(*np.nonzero(np.triu(multi, 1))):
         pairs = [(p, q) for p in copies[i] for q in copies[j]]
         for (p, q), v in zip(pairs, _split(C[i, j], len(pairs), Lj, mode)):
             lo, hi = (p, q) if p < q else (q, p)

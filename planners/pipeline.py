@@ -25,7 +25,8 @@ layer's factory (an option it does not take is an error); any other keyword
 (e.g. ``chip``) is *shared*: passed to every layer factory that takes it (so
 the three Ising layers can share one chip), and an error if none does.
 
-Accounting.  Each layer call is timed with :func:`~planners.compute.stopwatch`;
+Accounting.  Each layer call is timed with the clock of
+:func:`~planners.compute.stopwatch` (``time.perf_counter``);
 its measured wall seconds become that call's ``cpu_s`` (replacing whatever the
 layer reported) and are added, with the layer's accelerator counts, to that
 layer's :class:`~planners.compute.ComputeReport` in ``plan.stats["layers"]``
@@ -62,6 +63,7 @@ and hands it to every layer call in a fixed order, so a seed fixes the plan.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numba
@@ -86,6 +88,10 @@ _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
 
 _ZERO = ComputeReport()
 
+#: The clock of :func:`~planners.compute.stopwatch`, called directly around each
+#: layer call (a context manager per path leg would cost more than a leg of A*).
+_clock = time.perf_counter
+
 
 class _Account:
     """Per-layer accumulator: measured seconds plus the layers' accelerator counts."""
@@ -98,19 +104,25 @@ class _Account:
 
     def add(self, compute: ComputeReport, seconds: float) -> None:
         self.cpu_s += seconds
-        if compute != _ZERO:
+        if compute is not _ZERO and compute != _ZERO:
             self.report = self.report + compute.replace(cpu_s=0.0)
 
     def total(self) -> ComputeReport:
+        if self.report is _ZERO:
+            return ComputeReport(cpu_s=self.cpu_s)
         return self.report.replace(cpu_s=self.cpu_s)
 
 
 def merge_stats(into: dict, new: dict) -> dict:
     """Merge layer ``new`` stats into ``into`` in place (rules in the module docstring)."""
     for key, value in new.items():
+        old = into.get(key)
+        tv, to = type(value), type(old)
+        if (tv is int or tv is float) and (to is int or to is float):  # fast path: counters
+            into[key] = old + value
+            continue
         if key == "failure":
             continue
-        old = into.get(key)
         if isinstance(value, dict):
             into[key] = merge_stats(old if isinstance(old, dict) else {}, value)
         elif isinstance(value, list):
@@ -150,7 +162,7 @@ def _path_problem(world: World, path, a, b) -> str | None:
     p = np.asarray(path)
     if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
         return f"path layer returned an array of shape {p.shape}, not (L+1, 2) cells"
-    if p.dtype == np.int64 and _path_ok(world.grid, p, a[0], a[1], b[0], b[1]):
+    if p.dtype == np.int64 and _path_ok(world.grid, p, int(a[0]), int(a[1]), int(b[0]), int(b[1])):
         return None
     if not np.array_equal(p[0], a) or not np.array_equal(p[-1], b):
         return f"path layer returned a path from {p[0].tolist()} to {p[-1].tolist()}, not {list(a)} to {list(b)}"
@@ -218,9 +230,9 @@ class Pipeline:
             # ---- 1. target sharing
             assignment: tuple = (tuple(range(n)),)
             if r > 1:
-                with stopwatch() as t:
-                    res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
-                acc["sharing"].add(res.compute, t())
+                t0 = _clock()
+                res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
+                acc["sharing"].add(res.compute, _clock() - t0)
                 merge_stats(stats, res.stats)
                 problem = getattr(res, "failure", None) or res.stats.get("failure")
                 if not problem:
@@ -239,10 +251,11 @@ class Pipeline:
                 if len(group) >= 2:
                     idx = np.concatenate([[k], r + np.asarray(group, dtype=np.int64)])
                     local = dist[np.ix_(idx, idx)]
-                    with stopwatch() as t:
-                        tres: TourResult = self.tour.solve(local, rng)
-                    acc["tour"].add(tres.compute, t())
-                    merge_stats(stats, tres.stats)
+                    t0 = _clock()
+                    tres: TourResult = self.tour.solve(local, rng)
+                    acc["tour"].add(tres.compute, _clock() - t0)
+                    if tres.stats:
+                        merge_stats(stats, tres.stats)
                     problem = getattr(tres, "failure", None) or tres.stats.get("failure")
                     if not problem and sorted(tres.order) != list(range(1, len(group) + 1)):
                         problem = f"tour layer returned order {list(tres.order)}, not a permutation of 1..{len(group)}"
@@ -256,9 +269,9 @@ class Pipeline:
                 reached: list[int] = []
                 for j in range(len(ordered)):
                     a, b = cells[j], cells[j + 1]
-                    with stopwatch() as t:
-                        pres: PathResult = self.path.find_path(world, a, b, rng)
-                    acc["path"].add(pres.compute, t())
+                    t0 = _clock()
+                    pres: PathResult = self.path.find_path(world, a, b, rng)
+                    acc["path"].add(pres.compute, _clock() - t0)
                     if pres.stats:
                         merge_stats(stats, pres.stats)
                     if pres.path is None:

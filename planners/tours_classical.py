@@ -255,6 +255,44 @@ def _three_opt_kernel(d, t, full):
 
 
 @numba.njit(cache=True, nogil=True)
+def _three_opt_open(d, full):
+    """NN route, closed with the dummy end node, 3-opt, reopened.  Returns (route, passes).
+
+    ``route[0] != 0`` would flag a dummy node that left the route end (cannot
+    happen with ``M`` above any open route; checked by the caller).
+    """
+    m = d.shape[0]
+    n = m - 1
+    route = _nn_kernel(d)
+    big = 1.0
+    for i in range(m):
+        for j in range(m):
+            if d[i, j] > big:
+                big = d[i, j]
+    big = 1.0 + big * (n + 1)
+    ext = np.full((m + 1, m + 1), big)
+    ext[:m, :m] = d
+    ext[0, m] = 0.0
+    ext[m, 0] = 0.0
+    ext[m, m] = 0.0
+    cycle = np.empty(m + 1, dtype=np.int64)
+    cycle[:m] = route
+    cycle[m] = m
+    passes = _three_opt_kernel(ext, cycle, full)
+    z = 0
+    while cycle[z] != 0:
+        z += 1
+    out = np.empty(m, dtype=np.int64)
+    # walk away from the dummy node D = m
+    step = 1 if cycle[(z - 1) % (m + 1)] == m else -1
+    for i in range(m):
+        out[i] = cycle[(z + step * i) % (m + 1)]
+    if cycle[(z + step * m) % (m + 1)] != m:
+        out[0] = -1
+    return out, passes
+
+
+@numba.njit(cache=True, nogil=True)
 def _held_karp(d):
     """Exact open route from node 0 over nodes 1..n.  Returns (route, cost)."""
     m = d.shape[0]
@@ -424,24 +462,10 @@ class ThreeOptTour:
         done = _trivial(d) or _infeasible(d)
         if done is not None:
             return done
-        n = d.shape[0] - 1
-        route = _nn_kernel(d)
-        # close the open route with a dummy end node D = n + 1 (module docstring)
-        big = 1.0 + float(d.max()) * (n + 1)
-        ext = np.full((n + 2, n + 2), big)
-        ext[: n + 1, : n + 1] = d
-        ext[0, n + 1] = ext[n + 1, 0] = 0.0
-        ext[n + 1, n + 1] = 0.0
-        cycle = np.concatenate([route, [n + 1]])
-        passes = _three_opt_kernel(ext, cycle, self.moves == "7")
-        # rotate so node 0 comes first, walking away from D
-        z = int(np.flatnonzero(cycle == 0)[0])
-        cycle = np.roll(cycle, -z)
-        if cycle[1] == n + 1:
-            cycle = np.concatenate([[0], cycle[1:][::-1]])
-        if cycle[-1] != n + 1:  # pragma: no cover - guaranteed by the choice of big
+        route, passes = _three_opt_open(d, self.moves == "7")
+        if route[0] != 0:  # pragma: no cover - guaranteed by the choice of M
             raise RuntimeError("3-opt dummy end node left the route end")
-        return _result(d, cycle[:-1], passes=int(passes))
+        return _result(d, route, passes=int(passes))
 
     def __repr__(self) -> str:
         return f"ThreeOptTour(moves={self.moves!r})"

@@ -284,10 +284,11 @@ def _tour_instance(i: int, seed: int, methods, n_targets: int, placement: str) -
     for m in methods:
         res, cpu = out[m]
         cost = float(res.cost)
-        row = {"instance": i, "world_seed": seed + i, "method": m, "success": bool(np.isfinite(cost))}
+        ok = bool(np.isfinite(cost)) and getattr(res, "failure", None) is None and not (res.stats or {}).get("failure")
+        row = {"instance": i, "world_seed": seed + i, "method": m, "success": ok}
         row["tour_cost"] = cost
         row["optimal_cost"] = opt
-        row["cost"] = 100.0 * (cost - opt) / opt if opt > 0 else 0.0
+        row["cost"] = (100.0 * (cost - opt) / opt if opt > 0 else 0.0) if ok else math.nan
         row.update(_compute_columns(res.compute, cpu, _is_accelerated(res.compute) or m == "ising"))
         row["mapping"] = _mapping_of(res.stats)
         rows.append(row)
@@ -312,7 +313,8 @@ def _sharing_instance(i: int, seed: int, methods, n_robots: int, n_targets: int,
         cpu = t()
         lengths = []
         assigned = sorted(t_ for group in res.assignment for t_ in group)
-        ok = assigned == list(range(world.n_targets)) and not (res.stats or {}).get("failure")
+        ok = (assigned == list(range(world.n_targets)) and getattr(res, "failure", None) is None
+              and not (res.stats or {}).get("failure"))
         for k, group in enumerate(res.assignment):
             nodes = [k] + [n_robots + int(t_) for t_ in group]
             sub = dist[np.ix_(nodes, nodes)]
@@ -489,7 +491,8 @@ def mapping_table(path: ExperimentResult | None, sharing: ExperimentResult | Non
     """Paper Table 5 from the Ising rows' mapping statistics.
 
     Pathfinding (per spin-merging style): valid-decode rate = valid /
-    candidates; win share = wins / all wins.  Sharing (per quantization
+    decoded reads (``programs`` in the path layer's counts); win share =
+    wins / all wins.  Sharing (per quantization
     rule): candidate share = candidates / all candidates; win share = wins /
     all wins.  Counts are summed over every instance.
     """
@@ -500,8 +503,10 @@ def mapping_table(path: ExperimentResult | None, sharing: ExperimentResult | Non
         acc: dict = {}
         for r in result.method_rows("ising"):
             _merge_counts(acc, r.get("mapping"), layer)
-        total_c = sum(v.get("candidates", 0) for v in acc.values())
         total_w = sum(v.get("wins", 0) for v in acc.values())
+        for v in acc.values():  # the path layer counts decoded reads as "programs"
+            v.setdefault("candidates", v.get("programs", 0))
+        total_c = sum(v.get("candidates", 0) for v in acc.values())
         for choice, v in acc.items():
             c, ok, w = v.get("candidates", 0), v.get("valid", 0), v.get("wins", 0)
             paper = PAPER["mapping"].get((layer, choice), (None, None))

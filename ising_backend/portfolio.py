@@ -302,6 +302,9 @@ def run_portfolio_batch(models: Sequence[IsingModel], mappings: Sequence[Mapping
     if len(set(names)) != len(names):
         raise ValueError(f"mapping names must be distinct, got {names}")
     spec: ChipSpec = solver.spec
+    budget = getattr(solver, "budget", spec.n_spins)  # the logical solver's budget may differ
+    if budget != spec.n_spins:
+        spec = spec.replace(n_spins=budget)
     results = [PortfolioResult(outcomes={name: MappingOutcome() for name in names}) for _ in models]
     jobs: list[tuple[int, str, MappedProgram]] = []
     for k, model in enumerate(models):

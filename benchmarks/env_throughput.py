@@ -135,6 +135,7 @@ def write_section(results: dict[str, tuple[float, float, float]], steps: int, re
     for name, (med, lo, hi) in results.items():
         lines.append(f"| {name} | {med:,.0f} | {lo:,.0f} .. {hi:,.0f} |")
     lines += [
+        "",
         "The machine's 2 cores are shared with other jobs, so runs vary; the median is reported.",
         "",
         "Reproduce: `flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/env_throughput.py --write-results`",

@@ -24,7 +24,8 @@ layer then orders each robot's targets.  Each target is assigned exactly once.
     * ``"insertion"`` (default): the cheapest insertion cost of the target
       into the robot's current path (between two consecutive stops, or
       appended at the end; the start stays first), and the target is
-      inserted at that position;
+      inserted at that position (ties: appending at the end, then the
+      earliest position);
     * ``"tour"``: the marginal cost of the robot's optimal-by-``tour`` route,
       ``cost(tour(T + t)) - cost(tour(T))``, with the downstream tour solver
       (as in the first author's course project: with ``tour = brute`` this is

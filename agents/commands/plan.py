@@ -62,7 +62,7 @@ def add_arguments(parser) -> None:
     )
     parser.add_argument("--out", default=None, help="write the plans here (JSON Lines) instead of stdout")
     parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
-    parser.add_argument("--keep-going", action="store_true", help="continue past bad lines (still exit 2)")
+    parser.add_argument("--keep-going", action="store_true", help='continue past bad lines: each gets {"error": ..., "line": N} in its output place (still exit 2)')
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 

@@ -11,11 +11,15 @@ from functools import lru_cache
 import numpy as np
 
 FORMS = ("pair", "degree")
+TARGET_ORDERS = ("boundary_first", "merged")
+
+#: Chip units per QUBO weight unit before the merge styles round (see the module docstring).
+DEFAULT_SCALE = {"pair": 16.0, "degree": 2.0}
 
 #: Default weights per formulation (see the module docstring for the reasons).
 DEFAULT_WEIGHTS = {
     "pair": {"C": 1.0, "B": 1.375, "Dg": 0.25, "A_end": 0.5},
-    "degree": {"A": 1.0, "A_end": 1.0, "B": 0.25},
+    "degree": {"A": 1.0, "A_end": 1.0, "B": 0.5},
 }
 
 
@@ -250,7 +254,32 @@ def cut_loops(cells: list) -> list:
     return out
 
 
-_FAIL_NONE = None
+class _ChipOutputError(RuntimeError):
+    """The chip's answer is not a (programs, reads, spins) array of +-1."""
+
+
+class _CheckedChip:
+    """Pass-through to the chip that checks the shape and values of every answer."""
+
+    def __init__(self, chip):
+        from ising_backend import CallLedger
+
+        self.chip = chip
+        self.spec = chip.spec
+        self.charged = CallLedger()  # this query's share of the chip's ledger, call by call
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        before = self.chip.ledger.snapshot()
+        spins, energies = self.chip.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        # the call's own charge (EmulatedChip.last_call) adds up exactly; a ledger difference
+        # of running float totals would depend on what ran on the chip before
+        last = getattr(self.chip, "last_call", None)
+        self.charged = self.charged + (last if last is not None else self.chip.ledger.since(before))
+        spins = np.asarray(spins)
+        want = (np.shape(h)[0], num_reads, np.shape(h)[1])
+        if spins.shape != want or not np.isin(spins, (-1, 1)).all():
+            raise _ChipOutputError(f"got shape {spins.shape}, expected {want} spins in {{-1, +1}}")
+        return spins, energies
 
 
 class IsingPath:
@@ -293,8 +322,16 @@ class IsingPath:
         max_attempts: int = 64,
         max_chip_calls: int = 512,
         target_order: str = "boundary_first",
+        scale: float | None = None,
+        pack: bool = False,
     ):
+        if target_order not in TARGET_ORDERS:
+            raise ValueError(f"target_order must be one of {TARGET_ORDERS}, got {target_order!r}")
         self.target_order = target_order
+        self.scale = float(DEFAULT_SCALE[form] if scale is None and form in DEFAULT_SCALE else (scale or 1.0))
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
+        self.pack = bool(pack)
         from ising_backend import ChipSpec, EmulatedChip, MERGE_STYLES
 
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
@@ -340,12 +377,27 @@ class IsingPath:
                 f"num_reads={self.num_reads}, targets_per_call={self.targets_per_call})")
 
     # ------------------------------------------------------------------ mapping
-    def _programs(self, problem: PatchQubo):
-        """The portfolio of one patch problem: ``[(style, MergedModel)]``."""
-        from ising_backend import QuboModel, merge_spins
+    def _solve(self, solver, problems: list, rng: np.random.Generator) -> list:
+        """One portfolio submission: every problem x every merge style, ``num_reads`` reads each."""
+        from ising_backend import MergeMapping, QuboModel, run_portfolio_batch
 
-        logical = QuboModel(problem.q, problem.Q, problem.offset).to_ising()
-        return [(style, merge_spins(logical, style, self.chip.spec)) for style in self.styles]
+        models = [QuboModel(pr.q, pr.Q, pr.offset).to_ising() for pr in problems]
+        fr = self.frame
+
+        def decoder(pr):
+            def decode(spins):
+                return decode_paths(fr, pr, (np.asarray(spins) > 0)[None])[0]
+            return decode
+
+        mappings = [MergeMapping(st, scale=self.scale) for st in self.styles]
+        try:
+            return run_portfolio_batch(models, mappings, solver, decode=[decoder(p) for p in problems],
+                                       num_reads=self.num_reads, seed=int(rng.integers(0, 2**63 - 1)),
+                                       pack=self.pack)
+        except _ChipOutputError:
+            raise
+        except (ValueError, IndexError) as exc:  # a chip answer the decoders cannot read
+            raise _ChipOutputError(str(exc)) from exc
 
     # ------------------------------------------------------------------ ranking
     def _ranked_targets(self, pos, goal, comp, excluded) -> list:
@@ -391,8 +443,8 @@ class IsingPath:
         rad = fr.radius
         centre = fr.n // 2
         padded = np.pad(np.asarray(grid, dtype=bool), rad, constant_values=True)
-        ledger0 = self.chip.ledger.snapshot()
-        mapping = {st: {"programs": 0, "valid": 0, "wins": 0} for st in self.styles}
+        solver = _CheckedChip(self.chip)
+        mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in self.styles}
         counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
 
         per_target = len(self.styles) * self.num_reads  # chip calls of one local-target attempt
@@ -404,7 +456,7 @@ class IsingPath:
         failure = None
 
         while pos != g:
-            used = self.chip.ledger.since(ledger0).physical_calls
+            used = solver.charged.physical_calls
             if counts["patch_solves"] >= self.max_attempts or used + per_target > self.max_chip_calls:
                 failure = (f"gave up at [{pos[0]}, {pos[1]}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
                            f"({counts['patch_solves']} patch solves of max_attempts={self.max_attempts}, "
@@ -432,54 +484,46 @@ class IsingPath:
             batch = ranked[: min(self.targets_per_call, room)]
             problems = [build_patch_qubo(fr, comp, centre, li, self.form, self.weights) for li, _ in batch]
             # a problem without variables (the target is the robot's only patch neighbour) needs no chip
-            results: list = [None] * len(batch)
-            programs = []  # (target k, style, merged)
+            results: list = [[] for _ in batch]
+            on_chip = []
             for k, pr in enumerate(problems):
                 if pr.n == 0:
                     path = decode_paths(fr, pr, np.zeros((1, 0)))[0]
-                    results[k] = [] if path is None else [(pr.energy(np.zeros(0)), None, path)]
-                    counts["direct_moves"] += 1
+                    if path is not None:
+                        results[k].append((pr.offset, None, path))
                 else:
-                    results[k] = []
-                    programs.extend((k, st, m) for st, m in self._programs(pr))
-            if programs:
-                from ising_backend import stack_programs
-
-                hs, Js = stack_programs([m.physical for _, _, m in programs])
-                spins, _ = self.chip.anneal_batch(hs, Js, num_reads=self.num_reads,
-                                                  seed=int(rng.integers(0, 2**63 - 1)))
-                counts["anneal_calls"] += 1
-                spins = np.asarray(spins)
-                if spins.shape[:2] != (len(programs), self.num_reads) or not np.isin(spins, (-1, 1)).all():
-                    failure = (f"the chip returned malformed samples (shape {spins.shape}, expected "
-                               f"({len(programs)}, {self.num_reads}, >= n) spins in {{-1, +1}})")
+                    on_chip.append(k)
+            if on_chip:
+                try:
+                    outs = self._solve(solver, [problems[k] for k in on_chip], rng)
+                except _ChipOutputError as exc:
+                    failure = f"the chip returned malformed samples: {exc}"
                     break
-                counts["patch_solves"] += sum(1 for pr in problems if pr.n)
-                for b, (k, st, m) in enumerate(programs):
-                    logical, _ = m.decode(spins[b, :, : m.physical.n])
-                    x = (np.asarray(logical).reshape(self.num_reads, -1) > 0).astype(np.int8)
-                    paths = decode_paths(fr, problems[k], x)
-                    energies = problems[k].energy(x)
-                    mapping[st]["programs"] += self.num_reads
-                    for path, e in zip(paths, energies):
-                        if path is not None:
-                            mapping[st]["valid"] += 1
-                            results[k].append((float(e), st, path))
+                counts["anneal_calls"] += 1
+                counts["patch_solves"] += len(on_chip)
+                for k, res in zip(on_chip, outs):
+                    for st, o in res.outcomes.items():
+                        mapping[st]["programs"] += o.reads
+                        mapping[st]["valid"] += o.valid
+                        mapping[st]["map_errors"] += int(o.error is not None)
+                    if res.success:
+                        tol = 1e-9 * max(1.0, abs(res.best_score))
+                        winners = [st for st in self.styles if res.outcomes[st].best_score <= res.best_score + tol]
+                        results[k].append((res.best_score, winners, res.best))
             chosen = None
             for k, (li, target) in enumerate(batch):
-                cands = results[k]
-                if not cands:
-                    failed.add((pos, target))
-                    continue
-                best = min(e for e, _, _ in cands)
-                tied = [c for c in cands if c[0] <= best + 1e-9]
-                chosen = tied[int(rng.integers(len(tied)))] if len(tied) > 1 else tied[0]
-                break
+                if results[k]:
+                    chosen = results[k][0]
+                    break
+                failed.add((pos, target))
             if chosen is None:
                 continue
-            _, st, path = chosen
-            if st is not None:
-                mapping[st]["wins"] += 1
+            _, winners, path = chosen
+            if winners:  # equal-scoring styles: one win, to a style drawn by rng (no order bias)
+                win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
+                mapping[win]["wins"] += 1
+            else:
+                counts["direct_moves"] += 1
             seg = [(pos[0] + int(fr.offsets[i, 0]), pos[1] + int(fr.offsets[i, 1])) for i in path]
             walk.extend(seg[1:])
             visited.update(seg)
@@ -487,7 +531,7 @@ class IsingPath:
             counts["segments"] += 1
             pos = seg[-1]
 
-        delta = self.chip.ledger.since(ledger0)
+        delta = solver.charged
         compute = ComputeReport(
             chip_calls=int(delta.physical_calls),
             chip_batches=int(delta.batches),

@@ -144,3 +144,167 @@ def test_cut_loops_removes_revisits_only():
     assert cut_loops(simple) == simple
     back_and_forth = [(0, 0), (0, 1), (0, 2), (0, 1), (0, 0), (1, 0)]
     assert cut_loops(back_and_forth) == [(0, 0), (1, 0)]
+
+
+# --------------------------------------------------------------------------- the planner
+from mrmt_env.generation import generate_world  # noqa: E402
+from mrmt_env.world import World  # noqa: E402
+from planners.base import PathPlanner  # noqa: E402
+from planners.plan import Plan, RobotRoute, validate_plan  # noqa: E402
+
+ising_backend = pytest.importorskip("ising_backend")
+from ising_backend import MERGE_STYLES, ChipSpec, EmulatedChip  # noqa: E402
+from planners.ising_path import IsingPath  # noqa: E402
+
+
+def _check_path(world, start, goal, path):
+    """Valid for the world (validator of the classical issue) and simple."""
+    w1 = World(world.grid, [start], [goal])
+    validate_plan(w1, Plan((RobotRoute((0,), path),)))
+    assert tuple(path[-1]) == tuple(goal)
+    assert len({tuple(c) for c in path}) == len(path)  # simple: no cell twice
+
+
+def _queries(n, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        w = generate_world(int(rng.integers(1 << 31)), n_robots=1, n_targets=1)
+        out.append((w, w.robots[0], w.targets[0]))
+    return out
+
+
+def test_is_a_path_planner():
+    assert isinstance(IsingPath(), PathPlanner)
+    assert IsingPath.name == "ising"
+
+
+@pytest.mark.parametrize("form", ["pair", "degree"])
+def test_valid_paths_on_random_worlds(form):
+    planner = IsingPath(form=form)
+    ok = 0
+    for k, (w, s, g) in enumerate(_queries(25, seed=11)):
+        res = planner.find_path(w, s, g, np.random.default_rng(k))
+        if res.path is None:
+            assert res.failure
+            continue
+        ok += 1
+        _check_path(w, s, g, res.path)
+        assert res.length >= w.distance_matrix[0, 1]
+        st = res.stats
+        assert res.compute.chip_calls == st["chip_calls"] > 0 or res.length <= 1
+        mp = st["mapping"]["path"]
+        assert set(mp) == set(MERGE_STYLES)
+        assert sum(v["programs"] for v in mp.values()) == st["chip_calls"]
+        assert all(0 <= v["valid"] <= v["programs"] for v in mp.values())
+        assert sum(v["wins"] for v in mp.values()) == st["segments"] - st["direct_moves"]
+        assert res.compute.accelerator_energy_j == pytest.approx(st["chip_calls"] * 0.45e-6)
+    assert ok >= (25 if form == "pair" else 20)
+
+
+def test_deterministic_under_a_seed():
+    planner = IsingPath()
+    w, s, g = _queries(1, seed=5)[0]
+    a = planner.find_path(w, s, g, np.random.default_rng(42))
+    b = planner.find_path(w, s, g, np.random.default_rng(42))
+    c = IsingPath().find_path(w, s, g, np.random.default_rng(42))
+    assert np.array_equal(a.path, b.path) and np.array_equal(a.path, c.path)
+    assert a.stats == b.stats == c.stats
+    assert a.compute == b.compute
+
+
+def test_straight_corridor_is_walked_exactly():
+    grid = np.ones((5, 10), dtype=bool)
+    grid[2, :] = False
+    w = World(grid, [[2, 0]], [[2, 9]])
+    res = IsingPath().find_path(w, (2, 0), (2, 9), np.random.default_rng(0))
+    assert res.path is not None
+    assert res.path.tolist() == [[2, c] for c in range(10)]
+
+
+def test_open_grid_gives_a_shortest_path():
+    grid = np.zeros((6, 6), dtype=bool)
+    w = World(grid, [[0, 0]], [[5, 5]])
+    for seed in range(3):
+        res = IsingPath().find_path(w, (0, 0), (5, 5), np.random.default_rng(seed))
+        assert res.length == 10
+        _check_path(w, (0, 0), (5, 5), res.path)
+
+
+def test_start_equals_goal():
+    w = generate_world(0, n_robots=1, n_targets=1)
+    s = w.robots[0]
+    res = IsingPath().find_path(w, s, s, np.random.default_rng(0))
+    assert res.path.tolist() == [s.tolist()]
+    assert res.compute.chip_calls == 0
+
+
+def test_unreachable_goal_fails_cleanly():
+    grid = np.zeros((6, 6), dtype=bool)
+    grid[:, 3] = True  # a wall splits the grid
+    w = World(grid, [[0, 0]], [[0, 1]])
+    res = IsingPath().find_path(w, (0, 0), (5, 5), np.random.default_rng(0))
+    assert res.path is None and res.success is False
+    assert "goal" in res.failure
+    assert res.compute.chip_calls == res.stats["chip_calls"] <= 512
+
+
+def test_off_grid_and_obstacle_endpoints_are_failures():
+    grid = np.zeros((4, 4), dtype=bool)
+    grid[1, 1] = True
+    w = World(grid, [[0, 0]], [[3, 3]])
+    assert "off the 4x4 grid" in IsingPath().find_path(w, (0, 0), (9, 0)).failure
+    assert "obstacle" in IsingPath().find_path(w, (1, 1), (3, 3)).failure
+
+
+def test_budget_exhaustion_is_a_clear_failure():
+    w = World(np.zeros((10, 10), dtype=bool), [[0, 0]], [[9, 9]])
+    res = IsingPath(max_chip_calls=8).find_path(w, (0, 0), (9, 9), np.random.default_rng(0))
+    assert res.path is None
+    assert "budget" in res.failure and "max_chip_calls=8" in res.failure
+    assert res.compute.chip_calls <= 8
+
+
+class _GarbageChip(EmulatedChip):
+    """Returns uniformly random spins (charged like real calls)."""
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        spins, energies = super().anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        rng = np.random.default_rng(seed)
+        return rng.choice(np.array([-1, 1], dtype=np.int8), size=spins.shape), energies
+
+
+class _MalformedChip(EmulatedChip):
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        spins, energies = super().anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        return np.full(spins.shape[:2] + (1,), 3, dtype=np.int8), energies
+
+
+def test_garbage_chip_never_gives_an_invalid_path():
+    planner = IsingPath(chip=_GarbageChip(), max_chip_calls=200)
+    for k, (w, s, g) in enumerate(_queries(6, seed=2)):
+        res = planner.find_path(w, s, g, np.random.default_rng(k))
+        if res.path is None:
+            assert res.failure
+        else:
+            _check_path(w, s, g, res.path)
+        assert res.compute.chip_calls <= 200
+
+
+def test_malformed_chip_output_is_a_failure():
+    w = World(np.zeros((8, 8), dtype=bool), [[0, 0]], [[7, 7]])
+    res = IsingPath(chip=_MalformedChip()).find_path(w, (0, 0), (7, 7), np.random.default_rng(0))
+    assert res.path is None and "malformed" in res.failure
+
+
+def test_bad_options_are_named():
+    with pytest.raises(ValueError, match="patch_size"):
+        IsingPath(patch_size=6)
+    with pytest.raises(ValueError, match="form"):
+        IsingPath(form="edge")
+    with pytest.raises(ValueError, match="styles"):
+        IsingPath(styles=("nope",))
+    with pytest.raises(ValueError, match="num_reads"):
+        IsingPath(num_reads=0)
+    with pytest.raises(ValueError, match="spins"):
+        IsingPath(patch_size=9)

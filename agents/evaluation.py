@@ -319,12 +319,21 @@ class EvaluationResult:
         return path
 
     def summary(self) -> list[dict]:
-        """Per controller: episodes, success rate and medians of cost, latency and energy."""
+        """Per controller: episodes, success rate and medians of cost, latency and energy.
+
+        ``route_cost`` and ``makespan`` are medians over the *successful*
+        episodes (a truncated episode's cost is not a route cost);
+        ``route_cost_all`` is over every episode and ``targets_visited_frac``
+        the mean fraction of targets visited.  Compute medians are over every
+        episode.
+        """
         out = []
         for spec in self.controllers or sorted({r["controller"] for r in self.rows}):
             rows = self.by_controller(spec)
             if not rows:
                 continue
+
+            ok_rows = [r for r in rows if r.get("is_success")]
 
             def med(key, rows=rows):
                 vals = [float(r[key]) for r in rows if r.get(key) is not None]
@@ -335,8 +344,12 @@ class EvaluationResult:
                     "controller": spec,
                     "episodes": len(rows),
                     "success_rate": float(np.mean([bool(r.get("is_success")) for r in rows])),
-                    "route_cost": med("route_cost"),
-                    "makespan": med("makespan"),
+                    "route_cost": med("route_cost", ok_rows),
+                    "makespan": med("makespan", ok_rows),
+                    "route_cost_all": med("route_cost"),
+                    "targets_visited_frac": float(
+                        np.mean([r["targets_visited"] / max(r["n_targets"], 1) for r in rows])
+                    ) if all("targets_visited" in r and "n_targets" in r for r in rows) else math.nan,
                     "cpu_s": med("cpu_s"),
                     "chip_calls": med("chip_calls"),
                     "logical_calls": med("logical_calls"),
@@ -353,9 +366,10 @@ class EvaluationResult:
     def format_summary(self) -> str:
         """The summary as a fixed-width text table (medians over episodes)."""
         head = (
-            ("controller", "{:<18}", lambda s: s["controller"][:18]),
+            ("controller", "{:<18}", lambda s: _short(s["controller"], 18)),
             ("eps", "{:>5}", lambda s: s["episodes"]),
             ("success", "{:>8}", lambda s: f"{100 * s['success_rate']:.0f}%"),
+            ("visited", "{:>8}", lambda s: _fmt(100 * s["targets_visited_frac"], "{:.0f}%")),
             ("cost", "{:>6}", lambda s: _fmt(s["route_cost"], "{:.1f}")),
             ("makespan", "{:>8}", lambda s: _fmt(s["makespan"], "{:.1f}")),
             ("cpu", "{:>9}", lambda s: _si(s["cpu_s"], "s")),
@@ -367,8 +381,15 @@ class EvaluationResult:
         lines = [" ".join(fmt.format(name) for name, fmt, _ in head)]
         for s in self.summary():
             lines.append(" ".join(fmt.format(get(s)) for _, fmt, get in head))
-        lines.append("(medians over episodes; cpu = measured host time, chip = emulated chip time, E = energy)")
+        lines.append(
+            "(cost, makespan: medians over successful episodes; visited: mean share of targets visited; "
+            "others: medians over all episodes;\n cpu = measured host time, chip = emulated chip time, E = energy)"
+        )
         return "\n".join(lines)
+
+
+def _short(name: str, width: int) -> str:
+    return name if len(name) <= width else "..." + name[-(width - 3):]
 
 
 def _fmt(v, pattern):

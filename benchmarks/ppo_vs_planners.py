@@ -50,6 +50,15 @@ def main(argv=None) -> int:
         "ppo_mean_targets_visited": sum(r["targets_visited"] for r in ppo_rows) / len(ppo_rows),
         "ppo_mean_steps": sum(r["steps"] for r in ppo_rows) / len(ppo_rows),
     }
+    strong = {r["world_seed"]: r for r in res.by_controller("strong")} if "strong" in specs else {}
+    paired = [r["route_cost"] - strong[r["world_seed"]]["route_cost"] for r in ppo_rows
+              if r["is_success"] and r["world_seed"] in strong and strong[r["world_seed"]]["is_success"]]
+    if paired:
+        import numpy as np
+
+        out["ppo_minus_strong_cost_on_ppo_successes"] = {
+            "n": len(paired), "median": float(np.median(paired)), "mean": float(np.mean(paired)),
+        }
     print(json.dumps(out, default=float))
     Path(args.model).with_suffix(".eval.json").write_text(json.dumps(out, indent=1, default=float))
     return 0

@@ -175,13 +175,19 @@ class LogicalIsingSolver(dimod.Sampler):
         spec: chip spec whose time/energy numbers price each projected call.
         method: ``"tabu"`` (compiled, default) or ``"dwave-tabu"``.
         restarts, iterations: ``"tabu"`` effort per read (``iterations=None``: ``50 * n``).
-        tenure: ``"tabu"`` tenure (``None``: ``max(1, min(20, 2n // 3))``).
+        tenure: ``"tabu"`` tenure (``None``: ``max(1, min(max_tenure, 2n // 3))``).
+        max_tenure: cap of the default tenure (20).  One-hot permutation
+            models (the tour layer) search better with a cap near 10-12: a
+            permutation move flips four spins, and a tenure of 20 on 36-45
+            spins blocks most of them (measured: optimum of random 6-target
+            patch QUBOs found on 150/150 with cap 10 vs 45/60 with 20).
         timeout_ms: ``"dwave-tabu"`` timeout per read.
         seed: seed of the generator that seeds calls made without their own seed.
     """
 
     def __init__(self, budget: int | None = None, spec: ChipSpec | None = None, method: str = "tabu",
-                 restarts: int = 4, iterations: int | None = None, tenure: int | None = None, timeout_ms: int = 5, seed: int | None = None):
+                 restarts: int = 4, iterations: int | None = None, tenure: int | None = None, timeout_ms: int = 5, seed: int | None = None,
+                 max_tenure: int = 20):
         self.spec = ChipSpec() if spec is None else spec
         self.budget = self.spec.n_spins if budget is None else int(budget)
         if self.budget < 1:
@@ -199,6 +205,9 @@ class LogicalIsingSolver(dimod.Sampler):
         if tenure is not None and tenure < 1:
             raise ValueError(f"tenure = {tenure!r} must be >= 1")
         self.tenure = tenure
+        if int(max_tenure) != max_tenure or max_tenure < 1:
+            raise ValueError(f"max_tenure = {max_tenure!r} must be an integer >= 1")
+        self.max_tenure = int(max_tenure)
         self._rng = np.random.default_rng(seed)
         self.ledger = CallLedger()
         self.last_call = CallLedger()
@@ -276,7 +285,7 @@ class LogicalIsingSolver(dimod.Sampler):
         return spins, energies
 
     def _tenure(self, n: int) -> int:
-        return self.tenure if self.tenure is not None else max(1, min(20, (2 * n) // 3))
+        return self.tenure if self.tenure is not None else max(1, min(self.max_tenure, (2 * n) // 3))
 
     def _dwave(self, h, J, num_reads, seed, spins, energies):
         from dwave.samplers import TabuSampler

@@ -5,6 +5,7 @@ PLACEHOLDER HEADER -- the full docstring is written below once the design is fix
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -254,6 +255,42 @@ def cut_loops(cells: list) -> list:
     return out
 
 
+class _LRU(OrderedDict):
+    """A small least-recently-used cache (host-side memo of deterministic mapping work)."""
+
+    def __init__(self, size: int):
+        super().__init__()
+        self.size = size
+
+    def get_or(self, key, make):
+        hit = self.get(key)
+        if hit is None:
+            hit = make()
+            self[key] = hit
+            if len(self) > self.size:
+                self.popitem(last=False)
+        else:
+            self.move_to_end(key)
+        return hit
+
+
+def _cached_merge_mapping(style: str, scale: float, cache: _LRU):
+    """A :class:`ising_backend.MergeMapping` whose results are memoised per logical model.
+
+    Merging is a deterministic function of (model, style, scale, spec); patch
+    problems recur (the same local obstacle pattern and local target), so the
+    host maps each distinct one once.
+    """
+    from ising_backend import MergeMapping
+
+    class _Cached(MergeMapping):
+        def map(self, model, spec):
+            key = (style, model.h.tobytes(), model.J.tobytes(), spec)
+            return cache.get_or(key, lambda: MergeMapping.map(self, model, spec))
+
+    return _Cached(style, scale=scale)
+
+
 class _ChipOutputError(RuntimeError):
     """The chip's answer is not a (programs, reads, spins) array of +-1."""
 
@@ -332,6 +369,9 @@ class IsingPath:
         if not (np.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"scale must be a positive finite number, got {scale!r}")
         self.pack = bool(pack)
+        self._problem_cache = _LRU(4096)
+        self._merge_cache = _LRU(4 * 4096)
+        self._mappings = None
         from ising_backend import ChipSpec, EmulatedChip, MERGE_STYLES
 
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
@@ -379,9 +419,10 @@ class IsingPath:
     # ------------------------------------------------------------------ mapping
     def _solve(self, solver, problems: list, rng: np.random.Generator) -> list:
         """One portfolio submission: every problem x every merge style, ``num_reads`` reads each."""
-        from ising_backend import MergeMapping, QuboModel, run_portfolio_batch
+        from ising_backend import run_portfolio_batch
 
-        models = [QuboModel(pr.q, pr.Q, pr.offset).to_ising() for pr in problems]
+        models = [m for _, m in problems]
+        problems = [pr for pr, _ in problems]
         fr = self.frame
 
         def decoder(pr):
@@ -389,7 +430,9 @@ class IsingPath:
                 return decode_paths(fr, pr, (np.asarray(spins) > 0)[None])[0]
             return decode
 
-        mappings = [MergeMapping(st, scale=self.scale) for st in self.styles]
+        if self._mappings is None:
+            self._mappings = [_cached_merge_mapping(st, self.scale, self._merge_cache) for st in self.styles]
+        mappings = self._mappings
         try:
             return run_portfolio_batch(models, mappings, solver, decode=[decoder(p) for p in problems],
                                        num_reads=self.num_reads, seed=int(rng.integers(0, 2**63 - 1)),
@@ -398,6 +441,17 @@ class IsingPath:
             raise
         except (ValueError, IndexError) as exc:  # a chip answer the decoders cannot read
             raise _ChipOutputError(str(exc)) from exc
+
+    def _problem(self, comp: np.ndarray, target: int):
+        """The patch problem (and its logical Ising model) for a free-cell mask and local target, memoised."""
+        from ising_backend import QuboModel
+
+        def make():
+            pr = build_patch_qubo(self.frame, comp, self.frame.n // 2, target, self.form, self.weights)
+            model = QuboModel(pr.q, pr.Q, pr.offset).to_ising() if pr.n else None
+            return pr, model
+
+        return self._problem_cache.get_or((np.packbits(comp).tobytes(), target), make)
 
     # ------------------------------------------------------------------ ranking
     def _ranked_targets(self, pos, goal, comp, excluded) -> list:
@@ -482,11 +536,11 @@ class IsingPath:
             room = max(1, (self.max_chip_calls - used) // per_target)
             room = min(room, self.max_attempts - counts["patch_solves"])
             batch = ranked[: min(self.targets_per_call, room)]
-            problems = [build_patch_qubo(fr, comp, centre, li, self.form, self.weights) for li, _ in batch]
+            problems = [self._problem(comp, li) for li, _ in batch]
             # a problem without variables (the target is the robot's only patch neighbour) needs no chip
             results: list = [[] for _ in batch]
             on_chip = []
-            for k, pr in enumerate(problems):
+            for k, (pr, _) in enumerate(problems):
                 if pr.n == 0:
                     path = decode_paths(fr, pr, np.zeros((1, 0)))[0]
                     if path is not None:
@@ -525,6 +579,8 @@ class IsingPath:
             else:
                 counts["direct_moves"] += 1
             seg = [(pos[0] + int(fr.offsets[i, 0]), pos[1] + int(fr.offsets[i, 1])) for i in path]
+            if g in seg:  # the segment passes the goal: the robot stops there
+                seg = seg[: seg.index(g) + 1]
             walk.extend(seg[1:])
             visited.update(seg)
             stack.append(seg)

@@ -308,3 +308,12 @@ def test_bad_options_are_named():
         IsingPath(num_reads=0)
     with pytest.raises(ValueError, match="spins"):
         IsingPath(patch_size=9)
+
+
+def test_segment_through_the_goal_stops_at_the_goal():
+    # regression: a chip segment toward another local target ran through the goal;
+    # the goal then counted as visited and the search exhausted the map
+    w = generate_world(782, n_robots=1, n_targets=1, placement="centre")
+    res = IsingPath().find_path(w, w.robots[0], w.targets[0], np.random.default_rng(782))
+    assert res.path is not None, res.failure
+    _check_path(w, w.robots[0], w.targets[0], res.path)

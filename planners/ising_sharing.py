@@ -10,96 +10,119 @@ distance-weighted cut of eq. (8),
 i.e. the chip minimises the QUBO ``E(x) = -cut(x)``.  Groups with more than
 one robot are split first (one *stage* per round: every group that needs a
 split in that round is split at once), until every group holds at most one
-robot.  Then optional *refinement* stages split large groups further; the
-robot's side of a refined one-robot group stays that robot's base set and
-every robotless side becomes a *bundle*.  Finally each bundle goes to the
-robot whose tour cost (by the downstream ``tour`` solver handed to
-:meth:`IsingSharing.assign`) grows least -- classically, as in the paper.
+robot.  Then *refinement* stages split groups further; the robot's side of a
+refined one-robot group stays that robot's base set and every robotless side
+becomes a *bundle*.  Finally each bundle goes to the robot whose tour cost
+(by the downstream ``tour`` solver handed to :meth:`IsingSharing.assign`)
+grows least -- classically, as in the paper.  No auction, no local search:
+the host only decomposes, decodes, scores and prices whole bundles.
 
 Per split (the paper's anchored split):
 
 * **anchors** -- two nodes fixed to opposite sides: the farthest robot pair
   (group with several robots), that robot and the target farthest from it
   (one robot), the farthest target pair (no robot).  Ties go to the lowest
-  node index.  The anchors are *substituted* into the QUBO (not penalised):
-  anchor ``a`` is fixed to side 0 (x=0) and anchor ``b`` to side 1 (x=1), so
-  a group of ``m`` nodes has ``m - 2`` free spins, and every spin assignment
-  is a partition with both anchors on different sides.
+  node indices.  The anchors are *substituted* into the QUBO (not
+  penalised): anchor ``a`` is fixed to side 0 (x=0) and ``b`` to side 1
+  (x=1), so a group of ``m`` nodes has ``m - 2`` free spins and every spin
+  assignment is a partition with the anchors on different sides.  A split
+  with no free spin (a group of two nodes) has one partition and needs no
+  chip call.
 * **mapping** -- the reduced QUBO is converted exactly to Ising form
   (``x = (1 + s) / 2``) and quantized to the chip's integer range by each of
   the four rules of :data:`ising_backend.QUANTIZE_RULES` (linear, clip95,
-  rank, sqrt): one chip program per rule.
-* **batching** -- the splits of one stage are independent; for each rule
-  they are packed block-diagonally (:func:`ising_backend.pack_blocks`, zero
-  cross-block couplings) into as few programs of at most ``chip.spec.n_spins``
-  spins as first-fit packing allows, and all programs of the stage (every
-  rule) go to the emulated physical chip in ONE ``anneal_batch`` submission.
-  With 3 robots x 10 targets every stage fits one 45-spin program per rule,
-  so a stage costs 4 chip calls.
+  rank, sqrt): one mapped program per (split, rule).
+* **batching** -- the mapped programs of one stage are independent, so
+  :func:`ising_backend.run_portfolio_batch` (``pack=True``) places them on
+  disjoint blocks of as few 45-spin chip programs as first-fit decreasing
+  packing finds (zero cross-block couplings, :func:`ising_backend.plan_packs`)
+  and sends the whole stage to the emulated physical chip in ONE
+  ``anneal_batch`` submission.  Unlike the paper (one program per rule, 4
+  calls per stage) the rules of a split share programs too, so 3 robots x 10
+  targets need about one chip call per stage.  A stage whose blocks exceed
+  45 spins simply uses several programs.
 * **decode, validate, score** -- each returned spin block is decoded into a
-  partition, checked, and scored on the *unquantized* cut; the best valid
-  candidate over all rules and reads wins (ties: first rule in
-  ``rules`` order).
+  partition, checked, and scored on the *unquantized* eq. (8) cut (with the
+  weights below); the best valid candidate over all rules and reads wins.
+  Win counts per rule: ties between rules (several rules finding the same
+  best cut) are broken uniformly at random with the ``rng`` of
+  :meth:`~IsingSharing.assign`, so integer counts stay unbiased.
 
-Choices the paper leaves open (each a constructor parameter):
+Choices the paper leaves open (each a constructor parameter), tuned on
+100 centre-placement worlds (3 robots x 10 targets, seeds 0..99, exact
+tours) where SSA gives median total 29 and the exact optimum 28.5:
 
-``balance`` (default 0.0)
-    weight of an optional balance term added to the split QUBO of
-    multi-robot groups: ``balance * mean_w * (R*T1 - N*R1)^2 / R^2``
-    (``T1``/``R1`` targets/robots on side 1 of a group with ``N`` targets
-    and ``R`` robots) -- it asks each side for targets in proportion to its
-    robots.  0 keeps the paper's pure eq. (8).  It is still an Ising term:
-    the chip, not the host, finds the balanced split.
-``refine_stages`` (default 3) and ``refine_above`` (default 2)
-    number of refinement stages after the robot splits, and the size rule:
-    in each refinement stage every group (robot base or bundle) holding more
-    than ``refine_above`` targets is split.  The paper reports a median of
-    20 chip calls in 5 batches for 3 robots x 10 targets: 2 robot stages +
-    3 refinement stages of 4 rule programs each, which these defaults
-    reproduce.  ``refine_stages=0`` disables refinement (pure recursive
-    split; each one-robot group is then that robot's set).
-``bundle_order`` (default ``"far_first"``)
-    order in which bundles are assigned (each to the robot whose tour cost
-    grows least given the bundles already placed): ``"far_first"`` (bundle
-    whose nearest robot is farthest first), ``"near_first"``,
-    ``"largest_first"``, ``"creation"`` (order the splits made them).
+``weight_shift`` (default 0.5)
+    the split weights are ``w_ij = d_ij ** weight_power - weight_shift *
+    mean``, ``mean`` the mean pairwise ``d ** weight_power`` of the whole
+    instance.  Pure distances (shift 0, the paper's literal eq. 8) make
+    max-cut favour equal-size sides, while min-sum routes favour uneven
+    ones (one robot often serves a long chain); subtracting a constant
+    charges every cut edge, so unbalanced splits of clustered targets win.
+    Measured: median total 30 (mean 29.6) with 0, 29 (mean 29.1) with 0.5.
+``weight_power`` (1.0), ``robot_weight`` (1.0: factor on robot-target edges)
+    other weight shapes tried, no better than the defaults.
+``balance`` (0.0)
+    weight of an optional balance term added to multi-robot splits:
+    ``balance * mean_w * (R*T1 - N*R1)^2 / R^2`` (``T1``/``R1`` targets and
+    robots on side 1 of a group with ``N`` targets and ``R`` robots) --
+    targets in proportion to robots.  It is still an Ising term (the chip
+    finds the balanced split).  Off by default: min-sum routes do not want
+    balance.
+``base_max`` (default 0), ``refine_above`` (default 3), ``refine_stages`` (8)
+    refinement rule: a one-robot group is split while it holds more than
+    ``base_max`` targets, a robotless bundle while it holds more than
+    ``refine_above``; at most ``refine_stages`` stages (a cap; refinement
+    stops as soon as nothing qualifies).  ``base_max=0`` peels every target
+    off the robots, so each robot's final set is built only from chip-made
+    bundles (robot-anchored splits peel the far side off first); bundles of
+    at most 3 targets keep the chip's clusters intact (bundles of 1 would
+    turn the last step into plain greedy insertion).  With these defaults
+    3 x 10 takes a median of 5 stages (2 robot + 3 refinement; the paper's 5
+    batches).  ``refine_stages=0`` gives the unrefined recursive split.
+``bundle_order`` (default ``"creation"``)
+    order in which bundles are placed, each on the robot whose tour cost
+    grows least given the bundles already placed: ``"creation"`` (the order
+    of the split tree, side 0 before side 1), ``"far_first"`` (bundle whose
+    nearest robot is farthest first), ``"near_first"``, ``"largest_first"``.
+    All four measured within 0.2 of each other in mean total.
 ``reads`` (default 1)
-    chip reads per mapped program (each read is one physical call).
+    chip reads per program (each read of each program is one physical call).
 ``rules`` (default all four quantization rules).
 
-Validity rule.  A candidate is *invalid* (rejected, counted in
-``stats["mapping"]["sharing"][rule]["candidates"]`` but not ``valid``) if
-its spin block is not a vector of +-1 values of the right length (a broken
-or garbage chip), or -- only for ``reject_empty_robot_side=True`` (default
-False) -- if in a multi-robot split one side gets robots but no target.  The
-default accepts such a side because a min-sum optimum may leave a robot idle.
-Because the anchors are substituted, both sides are never empty.  If every
-candidate of some split is invalid the split is retried up to ``retries``
-times (new chip submission, counted); after that :meth:`assign` returns a
-failure result (``stats["failure"]`` names the split; ``assignment`` is all
+Validity rule.  A candidate is *invalid* (counted in
+``stats["mapping"]["sharing"][rule]["candidates"]`` but not in ``valid``)
+if its spin block is not a vector of +-1 of the right length (a broken or
+garbage chip), or -- only with ``reject_empty_robot_side=True`` (default
+False) -- if in a multi-robot split a side gets robots but no target.  The
+default accepts that side because a min-sum optimum may leave a robot idle.
+Both sides are never empty (the anchors are substituted).  If every
+candidate of a split is invalid the stage's failed splits are re-submitted
+up to ``retries`` times (counted); after that :meth:`assign` returns a
+failure result (``stats["failure"]`` says which split; ``assignment`` all
 empty) instead of inventing a split.
 
-Size limit.  The free spins of one split are ``group size - 2``.  A group
-with more free spins than the chip has spins cannot be mapped without a
-decomposition the paper does not describe, so :meth:`assign` refuses it
-with a failure result naming the size and the limit (with the default
-45-spin chip: at most 47 robots + targets in the root group).  Splits of
-one stage whose total exceeds the chip size are spread over several
-programs (first-fit, in group order).
+Size limit.  A split has ``group size - 2`` free spins.  A group with more
+free spins than the chip has spins cannot be mapped without a decomposition
+the paper does not describe, so :meth:`assign` refuses it with a failure
+result naming the size and the limit (default chip: at most 47 robots +
+targets in the root group).
 
-Accounting: ``compute`` carries the chip ledger of the sharing calls plus
+Accounting.  ``compute`` carries the chip ledger of the sharing calls plus
 the compute reports of every downstream tour solve used for bundle pricing
 (e.g. projected logical calls of an Ising tour solver), so nothing is
-hidden.  ``stats`` holds ``"mapping"`` (counts per rule: candidates, valid,
-wins), ``"stages"``, ``"splits"``, ``"bundles"`` and ``"tour_solves"``.
+hidden.  ``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),
+``"stages"``, ``"splits"``, ``"bundles"`` and ``"tour_solves"``.
+One robot, or no target, needs no split and no chip call.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from ising_backend import QUANTIZE_RULES, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 
@@ -113,7 +136,7 @@ __all__ = [
     "BUNDLE_ORDERS",
 ]
 
-BUNDLE_ORDERS = ("far_first", "near_first", "largest_first", "creation")
+BUNDLE_ORDERS = ("creation", "far_first", "near_first", "largest_first")
 
 
 # --------------------------------------------------------------------------
@@ -248,17 +271,20 @@ class IsingSharing:
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:
-        chip: an :class:`ising_backend.EmulatedChip` (default: a fresh one
-            with the paper's ``ChipSpec()``).
+        chip: an :class:`ising_backend.EmulatedChip` or anything with its
+            ``spec``, ``ledger`` and ``anneal_batch`` (default: a fresh
+            ``EmulatedChip(ChipSpec())``).
         rules: quantization rules used as the mapping portfolio.
-        reads: chip reads per mapped program.
-        refine_stages: refinement stages after the robot splits (0 = none).
-        refine_above: in a refinement stage, groups with more targets than
-            this are split.
+        reads: chip reads per program.
+        refine_stages: cap on refinement stages after the robot splits (0 = none).
+        refine_above: a robotless bundle with more targets than this is split.
+        base_max: a one-robot group with more targets than this is split
+            (``None``: same as ``refine_above``).
         balance: weight of the optional balance term of multi-robot splits.
         bundle_order: see :data:`BUNDLE_ORDERS`.
+        weight_shift, weight_power, robot_weight: split weights (module docstring).
         reject_empty_robot_side: validity rule variant (module docstring).
-        retries: chip re-submissions of a split whose candidates were all invalid.
+        retries: re-submissions of splits whose candidates were all invalid.
     """
 
     name = "ising"
@@ -268,21 +294,18 @@ class IsingSharing:
         chip=None,
         rules=None,
         reads: int = 1,
-        refine_stages: int = 3,
-        refine_above: int = 2,
+        refine_stages: int = 8,
+        refine_above: int = 3,
+        base_max: int | None = 0,
         balance: float = 0.0,
-        bundle_order: str = "far_first",
-        reject_empty_robot_side: bool = False,
-        retries: int = 2,
+        bundle_order: str = "creation",
+        weight_shift: float = 0.5,
         weight_power: float = 1.0,
         robot_weight: float = 1.0,
-        weight_shift: float = 0.0,
+        reject_empty_robot_side: bool = False,
+        retries: int = 2,
     ) -> None:
-        from ising_backend import QUANTIZE_RULES
-
         if chip is None:
-            from ising_backend import ChipSpec, EmulatedChip
-
             chip = EmulatedChip(ChipSpec())
         self.chip = chip
         rules = tuple(QUANTIZE_RULES if rules is None else rules)
@@ -301,6 +324,9 @@ class IsingSharing:
         if int(refine_above) < 1:
             raise ValueError(f"refine_above must be >= 1, got {refine_above}")
         self.refine_above = int(refine_above)
+        self.base_max = self.refine_above if base_max is None else int(base_max)
+        if self.base_max < 0:
+            raise ValueError(f"base_max must be >= 0, got {base_max}")
         if not np.isfinite(balance) or balance < 0:
             raise ValueError(f"balance must be a finite number >= 0, got {balance}")
         self.balance = float(balance)
@@ -319,6 +345,13 @@ class IsingSharing:
         if not np.isfinite(weight_shift):
             raise ValueError(f"weight_shift must be finite, got {weight_shift}")
         self.weight_shift = float(weight_shift)
+
+    def __repr__(self) -> str:
+        return (
+            f"IsingSharing(rules={self.rules}, reads={self.reads}, refine_stages={self.refine_stages}, "
+            f"refine_above={self.refine_above}, base_max={self.base_max}, weight_shift={self.weight_shift}, "
+            f"bundle_order={self.bundle_order!r})"
+        )
 
     # ------------------------------------------------------------------ api
 
@@ -403,7 +436,11 @@ class IsingSharing:
                 break
             groups = self._stage(dist, R, groups, todo, "robots", rng, stats)
         for _ in range(self.refine_stages):
-            todo = [i for i, g in enumerate(groups) if int((g >= R).sum()) > self.refine_above]
+            todo = [
+                i
+                for i, g in enumerate(groups)
+                if int((g >= R).sum()) > (self.base_max if (g < R).any() else self.refine_above)
+            ]
             if not todo:
                 break
             groups = self._stage(dist, R, groups, todo, "refine", rng, stats)
@@ -448,67 +485,53 @@ class IsingSharing:
         return True
 
     def _solve(self, dist, R, problems, rng, stats) -> None:
-        """One chip submission for all mapped programs of ``problems``."""
-        from ising_backend import QuboModel, pack_blocks, quantize, unpack_blocks
+        """One chip submission for every mapped program of ``problems``.
 
-        spec = self.chip.spec
-        capacity = int(spec.n_spins)
-        # first-fit packing of the splits into programs (same for every rule)
-        bins: list[list[int]] = []
-        loads: list[int] = []
-        for k, p in enumerate(problems):
-            size = len(p.free)
-            for bi in range(len(bins)):
-                if loads[bi] + size <= capacity:
-                    bins[bi].append(k)
-                    loads[bi] += size
-                    break
-            else:
-                bins.append([k])
-                loads.append(size)
-        ising = [QuboModel(p.q, p.Q, p.offset).to_ising() for p in problems]
-        programs = []  # (rule, bin index, slices)
-        hs, Js = [], []
-        for rule in self.rules:
-            quantized = [quantize(m, rule, spec.h_range, spec.j_range) for m in ising]
-            for bi, members in enumerate(bins):
-                packed, slices = pack_blocks([quantized[k] for k in members])
-                programs.append((rule, bi, slices))
-                hs.append(np.asarray(packed.h))
-                Js.append(np.asarray(packed.J))
-        n = max(len(h) for h in hs)
-        H = np.zeros((len(hs), n))
-        J = np.zeros((len(hs), n, n))
-        for k, (h, j) in enumerate(zip(hs, Js)):
-            H[k, : len(h)] = h
-            J[k, : len(h), : len(h)] = j
-        seed = int(rng.integers(2**31 - 1))
-        spins, _ = self.chip.anneal_batch(H, J, num_reads=self.reads, seed=seed)
-        spins = np.asarray(spins)
-        # candidates per problem: (cut, side0, side1, rule)
-        cands: list[list] = [[] for _ in problems]
+        Each split's reduced QUBO is converted to Ising form and mapped by
+        every quantization rule; :func:`ising_backend.run_portfolio_batch`
+        block-packs all programs of the stage into as few chip programs as fit
+        (first-fit decreasing, ``pack=True``), dispatches them in one
+        ``anneal_batch``, decodes, filters and scores each split's candidates
+        on the unquantized cut (objective ``-cut``: lower is better).
+        """
+        models = [QuboModel(p.q, p.Q, p.offset).to_ising() for p in problems]
+        mappings = [QuantizeMapping(rule) for rule in self.rules]
+
+        def decoder(p):
+            return lambda spins: decode_split(p, spins)
+
+        def validator(p):
+            return lambda cand: self._valid(R, cand[0], cand[1], p.kind)
+
+        def objective(cand):
+            return -cut_value(dist, cand[0], cand[1])
+
+        results = run_portfolio_batch(
+            models,
+            mappings,
+            self.chip,
+            decode=[decoder(p) for p in problems],
+            is_valid=[validator(p) for p in problems],
+            objective=objective,
+            num_reads=self.reads,
+            seed=int(rng.integers(2**63 - 1)),
+            pack=True,
+        )
         mapping = stats["mapping"]["sharing"]
-        for k, (rule, bi, slices) in enumerate(programs):
-            members = bins[bi]
-            size = loads[bi]
-            for r in range(spins.shape[1]):
-                blocks = unpack_blocks(spins[k, r, :size], slices)
-                for pk, block in zip(members, blocks):
-                    p = problems[pk]
-                    mapping[rule]["candidates"] += 1
-                    dec = decode_split(p, block)
-                    if dec is None or not self._valid(R, dec[0], dec[1], p.kind):
-                        continue
-                    mapping[rule]["valid"] += 1
-                    cands[pk].append((cut_value(dist, dec[0], dec[1]), dec[0], dec[1], rule))
-        for p, cs in zip(problems, cands):
-            if not cs:
+        for p, res in zip(problems, results):
+            for rule in self.rules:
+                out = res.outcomes[rule]
+                mapping[rule]["candidates"] += int(out.reads)
+                mapping[rule]["valid"] += int(out.valid)
+            if res.best is None:
                 continue
-            best = max(c[0] for c in cs)
-            top = [c for c in cs if c[0] >= best - 1e-9]
-            pick = top[int(rng.integers(len(top)))] if len(top) > 1 else top[0]
-            p.best = pick
-            mapping[pick[3]]["wins"] += 1
+            winners = [rule for rule in self.rules if res.outcomes[rule].win > 0]
+            # ties between rules (common: several rules find the same split) are
+            # broken at random so integer win counts stay unbiased
+            win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
+            mapping[win]["wins"] += 1
+            side0, side1 = res.best
+            p.best = (-float(res.best_score), side0, side1, win)
 
     def _assign_bundles(self, dist, R, groups, tour, tour_compute, stats, rng):
         base: list[list[int]] = [[] for _ in range(R)]

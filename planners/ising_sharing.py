@@ -112,7 +112,9 @@ Accounting.  ``compute`` carries the chip ledger of the sharing calls plus
 the compute reports of every downstream tour solve used for bundle pricing
 (e.g. projected logical calls of an Ising tour solver), so nothing is
 hidden.  ``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),
-``"stages"``, ``"splits"``, ``"bundles"`` and ``"tour_solves"``.
+``"stages"``, ``"splits"``, ``"trivial_splits"`` (no free spin, no chip
+call), ``"bundles"`` and ``"tour_solves"``.  A failure is reported in both
+``failure`` and ``stats["failure"]``.
 One robot, or no target, needs no split and no chip call.
 """
 
@@ -366,12 +368,20 @@ class IsingSharing:
             rng = np.random.default_rng()
         N = dist.shape[0] - R
         mapping = {r: {"candidates": 0, "valid": 0, "wins": 0} for r in self.rules}
-        stats: dict = {"mapping": {"sharing": mapping}, "stages": 0, "splits": 0, "bundles": 0, "tour_solves": 0}
+        stats: dict = {
+            "mapping": {"sharing": mapping},
+            "stages": 0,
+            "splits": 0,
+            "trivial_splits": 0,
+            "bundles": 0,
+            "tour_solves": 0,
+        }
         empty = tuple(() for _ in range(R))
         if not np.all(np.isfinite(dist)):
             i, j = np.argwhere(~np.isfinite(dist))[0]
-            stats["failure"] = f"node {i} cannot reach node {j} (distance {dist[i, j]}); sharing needs one connected component"
-            return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats)
+            msg = f"node {i} cannot reach node {j} (distance {dist[i, j]}); sharing needs one connected component"
+            stats["failure"] = msg
+            return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats, failure=msg)
         if N == 0:
             return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats)
         if R == 1:
@@ -384,7 +394,9 @@ class IsingSharing:
             assignment = self._assign_bundles(dist, R, groups, tour, tour_compute, stats, rng)
         except SharingFailure as exc:
             stats["failure"] = str(exc)
-            return SharingResult(assignment=empty, compute=self._compute(snap) + tour_compute[0], stats=stats)
+            return SharingResult(
+                assignment=empty, compute=self._compute(snap) + tour_compute[0], stats=stats, failure=str(exc)
+            )
         return SharingResult(assignment=assignment, compute=self._compute(snap) + tour_compute[0], stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int) -> np.ndarray:
@@ -453,6 +465,7 @@ class IsingSharing:
         pending = [p for p in problems if len(p.free) > 0]
         for p in problems:
             if len(p.free) == 0:  # one partition only: nothing to solve
+                stats["trivial_splits"] += 1
                 side0, side1 = decode_split(p, np.zeros(0, dtype=np.int8))
                 p.best = (cut_value(dist, side0, side1), side0, side1, None)
         attempts = 0

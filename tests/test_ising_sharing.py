@@ -91,3 +91,185 @@ def test_decode_rejects_malformed_spins():
     assert decode_split(p, np.array([1, 0, 1])) is None
     assert decode_split(p, np.array([1, 1])) is None
     assert decode_split(p, np.array([1, np.nan, 1])) is None
+
+
+# ----------------------------------------------------------------- planner
+
+TOUR = BruteTour()
+
+
+def _totals(dist, R, assignment):
+    lengths = []
+    for k, group in enumerate(assignment):
+        nodes = [k] + [R + t for t in group]
+        lengths.append(TOUR.solve(dist[np.ix_(nodes, nodes)]).cost if group else 0.0)
+    return lengths
+
+
+def _check_partition(assignment, R, N):
+    assert len(assignment) == R
+    flat = sorted(t for g in assignment for t in g)
+    assert flat == list(range(N))
+
+
+@pytest.mark.parametrize("placement", ["uniform", "centre"])
+@pytest.mark.parametrize("seed", range(6))
+def test_valid_assignment_on_random_worlds(seed, placement):
+    world = generate_world(seed, n_robots=3, n_targets=10, placement=placement)
+    res = IsingSharing().assign(world.distance_matrix, world.n_robots, TOUR, np.random.default_rng(seed))
+    assert isinstance(res, SharingResult)
+    assert "failure" not in res.stats
+    _check_partition(res.assignment, 3, 10)
+    c = res.compute
+    assert c.chip_calls >= 1 and c.chip_batches >= 1
+    assert c.accelerator_energy_j == pytest.approx(c.chip_calls * 0.45e-6)
+    assert c.chip_time_s == pytest.approx(c.chip_calls * 50e-6)
+    m = res.stats["mapping"]["sharing"]
+    assert set(m) == {"linear", "clip95", "rank", "sqrt"}
+    assert sum(v["wins"] for v in m.values()) == res.stats["splits"] - res.stats.get("trivial_splits", 0)
+    for v in m.values():
+        assert v["valid"] <= v["candidates"]
+
+
+@pytest.mark.parametrize("shape", [(2, 5), (4, 12), (5, 20), (1, 6), (3, 1), (3, 0)])
+def test_other_sizes(shape):
+    R, N = shape
+    world = generate_world(7, n_robots=R, n_targets=N, placement="uniform")
+    res = IsingSharing().assign(world.distance_matrix, R, TOUR, np.random.default_rng(0))
+    assert "failure" not in res.stats
+    _check_partition(res.assignment, R, N)
+    if R == 1 or N == 0:
+        assert res.compute.chip_calls == 0
+
+
+def test_deterministic_under_seed():
+    world = generate_world(3, placement="centre")
+    d = world.distance_matrix
+    a = IsingSharing().assign(d, 3, TOUR, np.random.default_rng(42))
+    b = IsingSharing().assign(d, 3, TOUR, np.random.default_rng(42))
+    assert a.assignment == b.assignment
+    assert a.compute == b.compute
+    assert a.stats == b.stats
+
+
+def test_two_separated_clusters_go_to_their_robots():
+    # a corridor: robot 0 at x=0 with targets at 1,2,3; robot 1 at x=30 with targets at 27,28,29
+    pos = np.array([0, 30, 1, 2, 3, 27, 28, 29], dtype=float)
+    d = np.abs(pos[:, None] - pos[None, :])
+    res = IsingSharing().assign(d, 2, TOUR, np.random.default_rng(0))
+    assert res.assignment == ((0, 1, 2), (3, 4, 5))
+    assert sum(_totals(d, 2, res.assignment)) == 6.0
+
+
+def test_three_targets_on_a_line_single_robot_gets_all():
+    pos = np.array([0, 1, 2, 3], dtype=float)
+    d = np.abs(pos[:, None] - pos[None, :])
+    res = IsingSharing().assign(d, 1, TOUR, np.random.default_rng(0))
+    assert res.assignment == ((0, 1, 2),)
+
+
+def test_quality_close_to_exact_on_centre_worlds():
+    """Few worlds, loose bound: the mean total stays within 10% of the min-sum optimum."""
+    ising, exact = [], []
+    for seed in range(8):
+        world = generate_world(seed, placement="centre")
+        d = world.distance_matrix
+        res = IsingSharing().assign(d, 3, TOUR, np.random.default_rng(seed))
+        ising.append(sum(_totals(d, 3, res.assignment)))
+        ex = ExactSharing().assign(d, 3, TOUR)
+        exact.append(sum(_totals(d, 3, ex.assignment)))
+    assert all(i >= e for i, e in zip(ising, exact))
+    assert np.mean(ising) <= 1.10 * np.mean(exact)
+
+
+def test_unrefined_split_has_one_group_per_robot_and_no_bundles():
+    world = generate_world(5, placement="centre")
+    res = IsingSharing(refine_stages=0).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert res.stats["bundles"] == 0 and res.stats["tour_solves"] == 0
+    assert res.stats["stages"] == 2  # 3 robots: two robot stages
+    _check_partition(res.assignment, 3, 10)
+
+
+# ----------------------------------------------------------------- failures
+
+
+class GarbageChip:
+    """A chip that returns zeros (not +-1) for every spin: nothing decodes."""
+
+    def __init__(self):
+        from ising_backend import CallLedger, ChipSpec
+
+        self.spec = ChipSpec()
+        self.ledger = CallLedger()
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        h = np.asarray(h)
+        self.ledger.record_physical(h.shape[0] * num_reads, self.spec)
+        return np.zeros((h.shape[0], num_reads, h.shape[1]), dtype=np.int8), np.zeros((h.shape[0], num_reads))
+
+
+def test_garbage_chip_gives_a_clear_failure():
+    world = generate_world(1, placement="centre")
+    chip = GarbageChip()
+    res = IsingSharing(chip=chip, retries=1).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert "invalid" in res.stats["failure"]
+    assert res.assignment == ((), (), ())
+    assert res.compute.chip_calls == chip.ledger.physical_calls > 0
+    m = res.stats["mapping"]["sharing"]
+    assert all(v["valid"] == 0 and v["candidates"] > 0 for v in m.values())
+
+
+def test_unreachable_node_gives_a_clear_failure():
+    world = generate_world(2)
+    d = world.distance_matrix.copy()
+    d[0, 5] = d[5, 0] = np.inf
+    res = IsingSharing().assign(d, 3, TOUR, np.random.default_rng(0))
+    assert "cannot reach" in res.stats["failure"]
+
+
+def test_group_over_the_spin_limit_is_refused_with_size_and_limit():
+    from ising_backend import ChipSpec, EmulatedChip
+
+    world = generate_world(4, n_robots=3, n_targets=10)
+    chip = EmulatedChip(ChipSpec(n_spins=8))
+    res = IsingSharing(chip=chip).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert "11 free spins" in res.stats["failure"] and "8 spins" in res.stats["failure"]
+    assert res.compute.chip_calls == 0
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        ({"reads": 0}, "reads"),
+        ({"rules": ("linear", "bogus")}, "bogus"),
+        ({"bundle_order": "random"}, "bundle_order"),
+        ({"refine_above": 0}, "refine_above"),
+        ({"weight_power": -1.0}, "weight_power"),
+        ({"balance": float("nan")}, "balance"),
+    ],
+)
+def test_bad_options_are_refused(kw, match):
+    with pytest.raises(ValueError, match=match):
+        IsingSharing(**kw)
+
+
+def test_bad_inputs_are_refused():
+    with pytest.raises(ValueError, match="square"):
+        IsingSharing().assign(np.zeros((3, 4)), 1, TOUR)
+    with pytest.raises(ValueError, match="n_robots"):
+        IsingSharing().assign(np.zeros((3, 3)), 4, TOUR)
+
+
+def test_in_a_pipeline_plans_are_valid_and_mapping_counts_merge():
+    from planners.pipeline import make_pipeline
+    from planners.plan import validate_plan
+
+    world = generate_world(11, placement="centre")
+    pipe = make_pipeline(sharing="ising", tour="brute", path="astar")
+    plan = pipe.plan(world, seed=3)
+    assert plan.success
+    validate_plan(world, plan)
+    assert plan.stats["layers"]["sharing"].chip_calls >= 1
+    assert set(plan.stats["mapping"]["sharing"]) == {"linear", "clip95", "rank", "sqrt"}
+    again = make_pipeline(sharing="ising", tour="brute", path="astar").plan(world, seed=3)
+    assert [r.targets for r in again.routes] == [r.targets for r in plan.routes]

@@ -61,40 +61,29 @@ def _next(state):
 
 @numba.njit(cache=True)
 def _auto_range(h_b, Js, n):
-    """Automatic beta range of one program (hot, cold); see the module docstring."""
-    max_sum = 0.0
+    """Automatic beta range of one program (hot, cold); see the module docstring (one pass)."""
+    max_sq = 0.0
     min_eff = np.inf
-    for i in range(n):
-        sa = abs(h_b[i])
-        mn = abs(h_b[i]) if h_b[i] != 0.0 else np.inf
-        for j in range(n):
-            a = abs(Js[i, j])
-            sa += a
-            if a != 0.0 and a < mn:
-                mn = a
-        if sa > max_sum:
-            max_sum = sa
-        if mn < min_eff:
-            min_eff = mn
-    if max_sum == 0.0:
-        return 0.1, 1.0
-    msq = 0.0
-    for i in range(n):
-        sq = h_b[i] * h_b[i]
-        for j in range(n):
-            sq += Js[i, j] * Js[i, j]
-        if sq > msq:
-            msq = sq
-    hot = np.log(2.0) / (2.0 * np.sqrt(msq))
     count = 0
     for i in range(n):
-        mn = abs(h_b[i]) if h_b[i] != 0.0 else np.inf
+        hi = h_b[i]
+        sq = hi * hi
+        mn = abs(hi) if hi != 0.0 else np.inf
         for j in range(n):
             a = abs(Js[i, j])
+            sq += a * a
             if a != 0.0 and a < mn:
                 mn = a
-        if mn == min_eff:
+        if sq > max_sq:
+            max_sq = sq
+        if mn < min_eff:
+            min_eff = mn
+            count = 1
+        elif mn == min_eff:
             count += 1
+    if max_sq == 0.0:
+        return 0.1, 1.0
+    hot = np.log(2.0) / (2.0 * np.sqrt(max_sq))
     cold = np.log(count / 0.01) / (2.0 * min_eff)
     if cold < hot:
         cold = hot
@@ -129,12 +118,16 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
             hot, cold = _auto_range(h[b], Js, n)
         else:
             hot, cold = beta_hot, beta_cold
-        for k in range(sweeps):
-            t = k / (sweeps - 1) if sweeps > 1 else 1.0
-            if geometric:
-                betas[k] = hot * (cold / hot) ** t
-            else:
-                betas[k] = hot + (cold - hot) * t
+        if sweeps == 1:
+            betas[0] = cold
+        elif geometric:
+            ratio = (cold / hot) ** (1.0 / (sweeps - 1))
+            betas[0] = hot
+            for k in range(1, sweeps):
+                betas[k] = betas[k - 1] * ratio
+        else:
+            for k in range(sweeps):
+                betas[k] = hot + (cold - hot) * (k / (sweeps - 1))
         for r in range(num_reads):
             state = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
             if state == np.uint64(0):

@@ -152,8 +152,7 @@ from mrmt_env.world import World  # noqa: E402
 from planners.base import PathPlanner  # noqa: E402
 from planners.plan import Plan, RobotRoute, validate_plan  # noqa: E402
 
-ising_backend = pytest.importorskip("ising_backend")
-from ising_backend import MERGE_STYLES, ChipSpec, EmulatedChip  # noqa: E402
+from ising_backend import MERGE_STYLES, EmulatedChip  # noqa: E402
 from planners.ising_path import IsingPath  # noqa: E402
 
 

@@ -316,3 +316,28 @@ def test_segment_through_the_goal_stops_at_the_goal():
     res = IsingPath().find_path(w, w.robots[0], w.targets[0], np.random.default_rng(782))
     assert res.path is not None, res.failure
     _check_path(w, w.robots[0], w.targets[0], res.path)
+
+
+def test_options_pack_raw_walk_and_several_targets_per_call_stay_valid():
+    queries = _queries(8, seed=21)
+    for opts in ({"pack": True}, {"cut_loops": False}, {"targets_per_call": 2}, {"target_order": "merged"}):
+        planner = IsingPath(**opts)
+        for k, (w, s, g) in enumerate(queries):
+            res = planner.find_path(w, s, g, np.random.default_rng(k))
+            assert res.path is not None, (opts, res.failure)
+            w1 = World(w.grid, [s], [g])
+            validate_plan(w1, Plan((RobotRoute((0,), res.path),)))  # a legal walk in every mode
+            progs = sum(v["programs"] for v in res.stats["mapping"]["path"].values())
+            if opts.get("pack"):
+                assert res.compute.chip_calls < progs or progs == 0  # two programs per chip program
+            else:
+                assert res.compute.chip_calls == progs
+            if opts.get("cut_loops") is False:
+                assert res.length == res.stats["walk_length"]
+
+
+def test_attempt_budget_is_a_clear_failure():
+    w = World(np.zeros((10, 10), dtype=bool), [[0, 0]], [[9, 9]])
+    res = IsingPath(max_attempts=2).find_path(w, (0, 0), (9, 9), np.random.default_rng(0))
+    assert res.path is None and "max_attempts=2" in res.failure
+    assert res.stats["patch_solves"] <= 2

@@ -269,13 +269,19 @@ def _env_for(env_id: str, env_kwargs: dict):
     return env
 
 
-def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict) -> dict:
+#: Reset seed of the untimed warm-up episode (outside any evaluated range in practice).
+WARMUP_WORLD_SEED = 2**31 - 1
+
+
+def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict, warmup: bool = True) -> dict:
     env = _env_for(env_id, env_kwargs)
     name, factory = (spec, None) if isinstance(spec, str) else spec
     ckey = (name, seed)
     ctrl = _CONTROLLERS.get(ckey)
     if ctrl is None:
         ctrl = _CONTROLLERS[ckey] = make_controller(name, seed=seed) if factory is None else factory(seed)
+        if warmup:  # first use in this process pays numba/torch start-up: not part of any episode
+            run_episode(env, ctrl, WARMUP_WORLD_SEED)
     row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
     row.update(run_episode(env, ctrl, world_seed))
     return row
@@ -428,6 +434,7 @@ def evaluate(
     env_kwargs: dict | None = None,
     n_jobs: int = 2,
     progress: bool = True,
+    warmup: bool = True,
 ) -> EvaluationResult:
     """Run every controller on worlds ``world_seed .. world_seed + n_worlds - 1`` for each seed.
 
@@ -443,6 +450,10 @@ def evaluate(
         env_id, env_kwargs: the Gymnasium env (``gymnasium.make(env_id, **env_kwargs)``).
         n_jobs: worker processes; 1 runs inline in this process.
         progress: show a tqdm bar on stderr.
+        warmup: before a controller's first timed episode in a process, run
+            one untimed episode (reset seed :data:`WARMUP_WORLD_SEED`) so
+            numba compilation/cache loading and torch start-up are not
+            charged to the first evaluated episode.
 
     Returns:
         :class:`EvaluationResult` with rows ordered by controller, seed, world.
@@ -463,7 +474,7 @@ def evaluate(
         raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
     env_kwargs = dict(env_kwargs or {})
     tasks = [
-        (entry, s, int(world_seed) + i, env_id, env_kwargs)
+        (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup))
         for entry in entries
         for s in seeds
         for i in range(int(n_worlds))

@@ -714,8 +714,8 @@ def _fmt(v) -> str:
         return v
     if isinstance(v, float) and not math.isfinite(v):
         return "n/a"
-    if isinstance(v, (int, np.integer)) or float(v).is_integer() and abs(v) >= 10:
-        return f"{int(v)}" if float(v).is_integer() else f"{v:.3g}"
+    if isinstance(v, (int, np.integer)) or float(v).is_integer():
+        return f"{int(v)}"
     av = abs(float(v))
     if av >= 100:
         return f"{v:.0f}"

@@ -632,6 +632,7 @@ class IsingPath:
         stack: list = []  # committed segments (lists of cells), most recent last
         failed: set = set()  # (position, local target) pairs that gave no valid candidate
         failure = None
+        first_map_error = None
 
         while pos != g:
             used = solver.charged.physical_calls
@@ -684,6 +685,8 @@ class IsingPath:
                         mapping[st]["programs"] += o.reads
                         mapping[st]["valid"] += o.valid
                         mapping[st]["map_errors"] += int(o.error is not None)
+                        if o.error is not None and first_map_error is None:
+                            first_map_error = f"{st}: {o.error}"
                     if res.success:
                         tol = 1e-9 * max(1.0, abs(res.best_score))
                         winners = [st for st in self.styles if res.outcomes[st].best_score <= res.best_score + tol]
@@ -727,6 +730,12 @@ class IsingPath:
             "mapping": {"path": mapping},
         }
         if failure is not None:
+            n_err = sum(m["map_errors"] for m in mapping.values())
+            if n_err and not any(m["programs"] for m in mapping.values()):
+                failure = (f"no patch program could be mapped onto the chip ({n_err} mapping errors; "
+                           f"first: {first_map_error}); search state: {failure}")
+            elif n_err:
+                failure += f"; {n_err} patch program(s) could not be mapped onto the chip, first: {first_map_error}"
             return PathResult(None, compute=compute, failure=failure, stats=stats)
         cells = cut_loops(walk) if self.cut_loops else walk
         path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)

@@ -152,7 +152,7 @@ from mrmt_env.world import World  # noqa: E402
 from planners.base import PathPlanner  # noqa: E402
 from planners.plan import Plan, RobotRoute, validate_plan  # noqa: E402
 
-from ising_backend import MERGE_STYLES, EmulatedChip  # noqa: E402
+from ising_backend import MERGE_STYLES, ChipSpec, EmulatedChip  # noqa: E402
 from planners.ising_path import IsingPath  # noqa: E402
 
 
@@ -341,3 +341,14 @@ def test_attempt_budget_is_a_clear_failure():
     res = IsingPath(max_attempts=2).find_path(w, (0, 0), (9, 9), np.random.default_rng(0))
     assert res.path is None and "max_attempts=2" in res.failure
     assert res.stats["patch_solves"] <= 2
+
+
+def test_a_chip_that_cannot_hold_the_programs_fails_with_the_reason():
+    # coefficients in [-1, 1]: the adjacency couplings (-4 at scale 16) need so many merged
+    # copies that no patch program fits 45 spins
+    chip = EmulatedChip(ChipSpec(h_range=(-1, 1), j_range=(-1, 1)))
+    w = World(np.zeros((10, 10), dtype=bool), [[0, 0]], [[9, 9]])
+    res = IsingPath(chip=chip).find_path(w, (4, 4), (9, 9), np.random.default_rng(0))
+    assert res.path is None
+    assert res.failure.startswith("no patch program could be mapped onto the chip") and "spins" in res.failure
+    assert sum(v["map_errors"] for v in res.stats["mapping"]["path"].values()) > 0

@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mrmt_env.distances import MOVES
+from mrmt_env.core import action_between, actions_from_path
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, world_from_observation
 from mrmt_env.world import World
 from planners.compute import ComputeReport
@@ -62,19 +62,8 @@ __all__ = ["PlannerPolicy", "move_action", "DEFAULT_MAX_REPLANS"]
 DEFAULT_MAX_REPLANS = 3
 
 
-def move_action(src, dst) -> int:
-    """The action (0 stay, 1 up, 2 down, 3 left, 4 right) moving ``src`` to ``dst``.
-
-    Raises:
-        ValueError: ``dst`` is not ``src`` or one of its 4 neighbours.
-    """
-    d = np.asarray(dst, dtype=np.int64) - np.asarray(src, dtype=np.int64)
-    if not d.any():
-        return 0
-    hits = np.flatnonzero((MOVES == d).all(axis=1))
-    if len(hits) != 1:
-        raise ValueError(f"step from {list(map(int, src))} to {list(map(int, dst))} is not a 4-neighbour move")
-    return int(hits[0]) + 1
+#: The action taking a robot from one cell to the next (the env's own helper).
+move_action = action_between
 
 
 @dataclass
@@ -82,6 +71,7 @@ class _Episode:
     """Per-env-index state: the current plan and where the robots are in it."""
 
     plan: Plan | None = None
+    actions: list = field(default_factory=list)
     world: World | None = None
     t: int = 0
     n_plans: int = 0
@@ -175,6 +165,7 @@ class PlannerPolicy:
         world = world_from_observation(obs)
         plan = self.pipeline.plan(world, seed=self.seed + ep.n_plans)
         ep.plan, ep.world, ep.t = plan, world, 0
+        ep.actions = [actions_from_path(r.path) for r in plan.routes]
         ep.n_plans += 1
         ep.plans.append(plan)
         ep.compute = ep.compute + plan.compute
@@ -202,9 +193,9 @@ class PlannerPolicy:
                 ep.replans += 1
                 self._plan(ep, obs)
         action = np.zeros(n_robots, dtype=np.int64)
-        for k, route in enumerate(ep.plan.routes):
-            if ep.t < len(route.path) - 1:
-                action[k] = move_action(route.path[ep.t], route.path[ep.t + 1])
+        for k, moves in enumerate(ep.actions):
+            if ep.t < len(moves):
+                action[k] = moves[ep.t]
         ep.t += 1
         return action
 

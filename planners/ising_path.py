@@ -100,9 +100,11 @@ repair (no new move is invented, nothing is searched).  ``cut_loops=False``
 returns the raw walk (valid 4-neighbour, possibly with loops).
 
 Failures never raise: a start/goal off the grid or on an obstacle, an
-unreachable goal (the search exhausts the component), a spent budget, or
-malformed chip answers (wrong shape, values other than +-1) give
-``PathResult(path=None, failure=...)``.  Randomness comes only from ``rng``
+unreachable goal (the search exhausts the component), a spent budget,
+malformed chip answers (wrong shape, values other than +-1), or a chip no
+merge style can fit (the message quotes the first merge error) give
+``PathResult(path=None, failure=...)``.  Bad constructor options raise
+``ValueError`` naming the option and its limit.  Randomness comes only from ``rng``
 (one chip seed per submission, tie breaks); the same seed gives the same path.
 
 Statistics (``result.stats``, counts so they add across calls): ``chip_calls``,
@@ -464,6 +466,12 @@ class IsingPath:
         cut_loops: remove loops from the committed walk (see the module docstring).
         max_attempts: budget of local-target attempts (patch problems sent to the chip).
         max_chip_calls: budget of physical chip calls per query.
+        target_order: ``"boundary_first"`` (goal, boundary cells, then interior
+            cells) or ``"merged"`` (boundary and interior ranked together).
+        scale: chip units per QUBO weight unit before merging
+            (default :data:`DEFAULT_SCALE` ``[form]``).
+        pack: block-pack the portfolio's programs into shared 45-spin chip
+            programs (fewer calls; off = one program per call, as in the paper).
     """
 
     name = "ising"
@@ -486,23 +494,23 @@ class IsingPath:
         scale: float | None = None,
         pack: bool = False,
     ):
+        from ising_backend import ChipSpec, EmulatedChip, MERGE_STYLES
+
+        if form not in FORMS:
+            raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+        self.form = form
         if target_order not in TARGET_ORDERS:
             raise ValueError(f"target_order must be one of {TARGET_ORDERS}, got {target_order!r}")
         self.target_order = target_order
-        self.scale = float(DEFAULT_SCALE[form] if scale is None and form in DEFAULT_SCALE else (scale or 1.0))
+        self.scale = float(DEFAULT_SCALE[form] if scale is None else scale)
         if not (np.isfinite(self.scale) and self.scale > 0):
             raise ValueError(f"scale must be a positive finite number, got {scale!r}")
         self.pack = bool(pack)
         self._problem_cache = _LRU(4096)
         self._merge_cache = _LRU(4 * 4096)
         self._mappings = None
-        from ising_backend import ChipSpec, EmulatedChip, MERGE_STYLES
-
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
         self.frame = patch_frame(patch_size)
-        if form not in FORMS:
-            raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-        self.form = form
         w = dict(DEFAULT_WEIGHTS[form])
         if weights:
             unknown = set(weights) - set(w)
@@ -557,14 +565,9 @@ class IsingPath:
         if self._mappings is None:
             self._mappings = [_cached_merge_mapping(st, self.scale, self._merge_cache) for st in self.styles]
         mappings = self._mappings
-        try:
-            return run_portfolio_batch(models, mappings, solver, decode=[decoder(p) for p in problems],
-                                       num_reads=self.num_reads, seed=int(rng.integers(0, 2**63 - 1)),
-                                       pack=self.pack)
-        except _ChipOutputError:
-            raise
-        except (ValueError, IndexError) as exc:  # a chip answer the decoders cannot read
-            raise _ChipOutputError(str(exc)) from exc
+        return run_portfolio_batch(models, mappings, solver, decode=[decoder(p) for p in problems],
+                                   num_reads=self.num_reads, seed=int(rng.integers(0, 2**63 - 1)),
+                                   pack=self.pack)
 
     def _problem(self, comp: np.ndarray, target: int):
         """The patch problem (and its logical Ising model) for a free-cell mask and local target, memoised."""

@@ -352,3 +352,13 @@ def test_a_chip_that_cannot_hold_the_programs_fails_with_the_reason():
     assert res.path is None
     assert res.failure.startswith("no patch program could be mapped onto the chip") and "spins" in res.failure
     assert sum(v["map_errors"] for v in res.stats["mapping"]["path"].values()) > 0
+
+
+def test_bad_scale_and_order_are_named():
+    for bad in (0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="scale"):
+            IsingPath(scale=bad)
+    with pytest.raises(ValueError, match="target_order"):
+        IsingPath(target_order="random")
+    with pytest.raises(ValueError, match="weight"):
+        IsingPath(weights={"B": float("inf")})

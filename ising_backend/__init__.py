@@ -4,40 +4,38 @@ Knows Ising models and hardware, not robots: imports no other project package.
 
 Energy convention everywhere (paper eq. 2):
 ``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``, ``J`` strictly upper triangular.
+
+Modules:
+
+* :mod:`.models` -- :class:`IsingModel`, :class:`QuboModel`, exact conversions, dimod BQMs;
+* :mod:`.spec` -- :class:`ChipSpec` (limits, accounting numbers, emulation knobs);
+* :mod:`.ledger` -- :class:`CallLedger` (physical / logical calls, time, energy);
+* :mod:`.anneal` / :mod:`.chip` -- :class:`EmulatedChip` (a ``dimod.Sampler`` with the
+  batched :meth:`EmulatedChip.anneal_batch`; refuses programs that do not fit);
+* :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
+* :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
+* :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics.
+
+Example::
+
+    >>> import numpy as np
+    >>> from ising_backend import EmulatedChip, IsingModel, merge_portfolio, run_portfolio
+    >>> model = IsingModel([12.0, -3.0, 1.0], [[0, -9.0, 2.0], [0, 0, 4.0], [0, 0, 0]])
+    >>> chip = EmulatedChip(seed=0)
+    >>> result = run_portfolio(model, merge_portfolio(), chip, num_reads=4, seed=1)
+    >>> float(result.best_score), chip.ledger.physical_calls
+    (-23.0, 16)
 """
 
 from .ledger import CallLedger
 from .models import IsingModel, ModelError, QuboModel, from_bqm
 from .spec import SCHEDULES, ChipSpec
 from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
-
-__all__ = [
-    "CallLedger",
-    "ChipProgramError",
-    "ChipSpec",
-    "EmulatedChip",
-    "IsingModel",
-    "ModelError",
-    "QuboModel",
-    "SCHEDULES",
-    "check_program",
-    "from_bqm",
-    "stack_programs",
-]
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
-
-__all__ += ["LOGICAL_METHODS", "LogicalIsingSolver", "LogicalResult"]
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_spins, saturate_mapping
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import pack_blocks, plan_packs, unpack_blocks
-
-__all__ += [
-    "QUANTIZE_RULES", "QuantizeError", "quantize", "saturate",
-    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",
-    "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
-    "pack_blocks", "plan_packs", "unpack_blocks",
-]
 from .portfolio import (
     BranchMapping,
     IdentityMapping,
@@ -55,7 +53,19 @@ from .portfolio import (
     run_portfolio_batch,
 )
 
-__all__ += [
+__all__ = [
+    # models, spec, ledger
+    "IsingModel", "QuboModel", "ModelError", "from_bqm", "ChipSpec", "SCHEDULES", "CallLedger",
+    # chip
+    "EmulatedChip", "ChipProgramError", "check_program", "stack_programs",
+    # logical solver
+    "LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS",
+    # mapping toolkit
+    "QUANTIZE_RULES", "QuantizeError", "quantize", "saturate",
+    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",
+    "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
+    "pack_blocks", "plan_packs", "unpack_blocks",
+    # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",
     "quantize_portfolio", "run_portfolio", "run_portfolio_batch",

@@ -174,7 +174,7 @@ class EmulatedChip(dimod.Sampler):
     Example:
         >>> chip = EmulatedChip(seed=1)
         >>> sampleset = chip.sample_ising({0: 1, 1: -1}, {(0, 1): -2}, num_reads=4)
-        >>> sampleset.first.energy
+        >>> float(sampleset.first.energy)
         -2.0
     """
 

@@ -73,3 +73,13 @@ def test_energy_vectorised_over_leading_axes():
     S = _states(2).reshape(2, 2, 2)
     assert m.energy(S).shape == (2, 2)
     assert m.energy([1, 1]) == 2.0
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    import ising_backend
+    import ising_backend.chip
+
+    for mod in (ising_backend, ising_backend.chip):
+        assert doctest.testmod(mod).failed == 0

@@ -48,10 +48,28 @@ Per split (the paper's anchored split):
   best cut) are broken uniformly at random with the ``rng`` of
   :meth:`~IsingSharing.assign`, so integer counts stay unbiased.
 
-Choices the paper leaves open (each a constructor parameter), tuned on
-100 centre-placement worlds (3 robots x 10 targets, seeds 0..99, exact
-tours) where SSA gives median total 29 and the exact optimum 28.5:
+Candidate beam (our addition; ``beam=1`` is the paper's greedy recursion).
+The portfolio returns several distinct valid partitions per split (the four
+rules x ``reads`` quantize the cut differently; about 2-3 distinct ones per
+robot split).  The robot stages keep the ``beam`` best of them by
+unquantized cut and expand every partial solution by them (at most
+``max_states`` partial solutions, ranked by the sum of their chosen cuts);
+each complete candidate is then refined and its bundles placed, and the one
+with the lowest total route cost under the downstream ``tour`` -- the
+sharing layer's original objective -- is returned.  This is candidate
+*selection* (decode-filter-score one level up), not repair: every group
+boundary still comes from a chip split.  The refinement stages of all
+partial solutions share their chip submissions.
 
+Choices the paper leaves open (each a constructor parameter), tuned on
+centre-placement worlds (3 robots x 10 targets, exact tours); figures are
+mean total route cost over worlds 0..999 (SSA 28.65, exact optimum 27.97,
+median 28 for SSA, exact and these defaults):
+
+``beam`` (3), ``max_states`` (9), ``reads`` (2)
+    beam 1 / reads 1: 29.11 (the paper's recursion with our weights); beam 3
+    / reads 1: 28.50; beam 3 / reads 2: 28.37 (14 chip calls in 4 batches
+    per instance, median); beam 4 / reads 4 / 16 states: 28.28 (36 calls).
 ``weight_shift`` (default 0.5)
     the split weights are ``w_ij = d_ij ** weight_power - weight_shift *
     mean``, ``mean`` the mean pairwise ``d ** weight_power`` of the whole
@@ -59,7 +77,8 @@ tours) where SSA gives median total 29 and the exact optimum 28.5:
     max-cut favour equal-size sides, while min-sum routes favour uneven
     ones (one robot often serves a long chain); subtracting a constant
     charges every cut edge, so unbalanced splits of clustered targets win.
-    Measured: median total 30 (mean 29.6) with 0, 29 (mean 29.1) with 0.5.
+    Measured (beam 1, worlds 0..99): mean 29.6 with 0, 29.1 with 0.5;
+    with the default beam 0.25 / 0.5 / 0.75 give 28.43 / 28.37 / 28.39.
 ``weight_power`` (1.0), ``robot_weight`` (1.0: factor on robot-target edges)
     other weight shapes tried, no better than the defaults.
 ``balance`` (0.0)
@@ -85,9 +104,7 @@ tours) where SSA gives median total 29 and the exact optimum 28.5:
     grows least given the bundles already placed: ``"creation"`` (the order
     of the split tree, side 0 before side 1), ``"far_first"`` (bundle whose
     nearest robot is farthest first), ``"near_first"``, ``"largest_first"``.
-    All four measured within 0.2 of each other in mean total.
-``reads`` (default 1)
-    chip reads per program (each read of each program is one physical call).
+    ``far_first`` measured 28.74 against ``creation``'s 28.37 (beam 3).
 ``rules`` (default all four quantization rules).
 
 Validity rule.  A candidate is *invalid* (counted in
@@ -113,14 +130,16 @@ the compute reports of every downstream tour solve used for bundle pricing
 (e.g. projected logical calls of an Ising tour solver), so nothing is
 hidden.  ``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),
 ``"stages"``, ``"splits"``, ``"trivial_splits"`` (no free spin, no chip
-call), ``"bundles"`` and ``"tour_solves"``.  A failure is reported in both
+call), ``"states"`` (complete candidates compared), ``"bundles"`` (summed
+over those candidates) and ``"tour_solves"``.  A failure is reported in both
 ``failure`` and ``stats["failure"]``.
 One robot, or no target, needs no split and no chip call.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -242,8 +261,7 @@ class SplitProblem:
     Q: np.ndarray
     offset: float
     kind: str  # "robots" | "refine"
-    best: tuple | None = None  # (cut, side0, side1, rule)
-    retries: int = 0
+    cands: list = field(default_factory=list)  # distinct valid (cut, side0, side1, _), best first
 
 
 def decode_split(problem: SplitProblem, spins) -> tuple[np.ndarray, np.ndarray] | None:
@@ -287,6 +305,8 @@ class IsingSharing:
         weight_shift, weight_power, robot_weight: split weights (module docstring).
         reject_empty_robot_side: validity rule variant (module docstring).
         retries: re-submissions of splits whose candidates were all invalid.
+        beam: distinct chip candidates kept per robot split (1 = paper's greedy recursion).
+        max_states: cap on partial solutions carried through the robot stages.
     """
 
     name = "ising"
@@ -295,7 +315,7 @@ class IsingSharing:
         self,
         chip=None,
         rules=None,
-        reads: int = 1,
+        reads: int = 2,
         refine_stages: int = 8,
         refine_above: int = 3,
         base_max: int | None = 0,
@@ -306,6 +326,8 @@ class IsingSharing:
         robot_weight: float = 1.0,
         reject_empty_robot_side: bool = False,
         retries: int = 2,
+        beam: int = 3,
+        max_states: int = 9,
     ) -> None:
         if chip is None:
             chip = EmulatedChip(ChipSpec())
@@ -339,6 +361,12 @@ class IsingSharing:
         if int(retries) < 0:
             raise ValueError(f"retries must be >= 0, got {retries}")
         self.retries = int(retries)
+        if int(beam) < 1:
+            raise ValueError(f"beam must be >= 1, got {beam}")
+        self.beam = int(beam)
+        if int(max_states) < 1:
+            raise ValueError(f"max_states must be >= 1, got {max_states}")
+        self.max_states = int(max_states)
         for name, v in (("weight_power", weight_power), ("robot_weight", robot_weight)):
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a finite number > 0, got {v}")
@@ -375,6 +403,7 @@ class IsingSharing:
             "trivial_splits": 0,
             "bundles": 0,
             "tour_solves": 0,
+            "states": 0,
         }
         empty = tuple(() for _ in range(R))
         if not np.all(np.isfinite(dist)):
@@ -389,9 +418,36 @@ class IsingSharing:
 
         snap = self.chip.ledger.snapshot()
         tour_compute = [ComputeReport()]
+        cache: dict = {}
+
+        def cost(k: int, targets) -> float:
+            """Route cost of robot ``k`` over global target nodes ``targets`` (downstream tour, cached)."""
+            key = (k, frozenset(targets))
+            if key not in cache:
+                if not targets:
+                    cache[key] = 0.0
+                else:
+                    nodes = [k] + sorted(targets)
+                    res = tour.solve(dist[np.ix_(nodes, nodes)], rng)
+                    tour_compute[0] = tour_compute[0] + res.compute
+                    stats["tour_solves"] += 1
+                    if getattr(res, "failure", None):
+                        raise SharingFailure(f"tour solver failed while pricing a bundle: {res.failure}")
+                    cache[key] = float(res.cost)
+            return cache[key]
+
         try:
-            groups = self._split_all(self.split_weights(dist, R), R, rng, stats)
-            assignment = self._assign_bundles(dist, R, groups, tour, tour_compute, stats, rng)
+            states = self._split_all(self.split_weights(dist, R), R, rng, stats)
+            best = None
+            for groups in states:
+                sets = self._assign_bundles(dist, R, groups, cost, stats)
+                if len(states) == 1:
+                    best = (0.0, sets)
+                    break
+                total = sum(cost(k, sets[k]) for k in range(R))
+                if best is None or total < best[0] - 1e-9:  # ties: the state with the larger cuts
+                    best = (total, sets)
+            assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in best[1])
         except SharingFailure as exc:
             stats["failure"] = str(exc)
             return SharingResult(
@@ -439,39 +495,81 @@ class IsingSharing:
         q, Q, offset = build_split_qubo(dist, free, a, b, R, self.balance if kind == "robots" else 0.0)
         return SplitProblem(nodes=np.asarray(nodes, dtype=int), a=a, b=b, free=free, q=q, Q=Q, offset=offset, kind=kind)
 
-    def _split_all(self, dist, R, rng, stats) -> list[np.ndarray]:
-        groups: list[np.ndarray] = [np.arange(dist.shape[0])]
-        # robot stages: split every group holding more than one robot
-        while True:
-            todo = [i for i, g in enumerate(groups) if int((g < R).sum()) >= 2]
+    def _split_all(self, w, R, rng, stats) -> list[list[np.ndarray]]:
+        """All candidate partial solutions (lists of groups) after the split stages.
+
+        Robot stages keep up to ``beam`` distinct valid chip candidates per
+        split (best unquantized cuts first) and expand every state by them
+        (at most ``max_states`` states, ranked by the sum of their chosen
+        cuts); refinement stages take each split's best candidate.  Every
+        stage is one chip submission for the splits of all states.
+        """
+        states: list[tuple[float, list[np.ndarray]]] = [(0.0, [np.arange(w.shape[0])])]
+        while True:  # robot stages: split every group holding more than one robot
+            todo = [(si, gi) for si, (_, st) in enumerate(states) for gi, g in enumerate(st) if int((g < R).sum()) >= 2]
             if not todo:
                 break
-            groups = self._stage(dist, R, groups, todo, "robots", rng, stats)
+            problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "robots", rng, stats)
+            expanded: list[tuple[float, list[np.ndarray]]] = []
+            for si, (score, st) in enumerate(states):
+                mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
+                if not mine:
+                    expanded.append((score, st))
+                    continue
+                keys = sorted(mine)
+                for combo in itertools.product(*[mine[gi].cands[: self.beam] for gi in keys]):
+                    chosen = dict(zip(keys, combo))
+                    groups: list[np.ndarray] = []
+                    for gi, g in enumerate(st):
+                        if gi in chosen:
+                            groups.extend([chosen[gi][1], chosen[gi][2]])
+                        else:
+                            groups.append(g)
+                    expanded.append((score + sum(c[0] for c in combo), groups))
+            order = sorted(range(len(expanded)), key=lambda i: (-expanded[i][0], i))
+            states = [expanded[i] for i in order[: self.max_states]]
         for _ in range(self.refine_stages):
             todo = [
-                i
-                for i, g in enumerate(groups)
+                (si, gi)
+                for si, (_, st) in enumerate(states)
+                for gi, g in enumerate(st)
                 if int((g >= R).sum()) > (self.base_max if (g < R).any() else self.refine_above)
             ]
             if not todo:
                 break
-            groups = self._stage(dist, R, groups, todo, "refine", rng, stats)
-        return groups
+            problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "refine", rng, stats)
+            new_states = []
+            for si, (score, st) in enumerate(states):
+                mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
+                groups = []
+                for gi, g in enumerate(st):
+                    if gi in mine:
+                        groups.extend([mine[gi].cands[0][1], mine[gi].cands[0][2]])
+                    else:
+                        groups.append(g)
+                new_states.append((score, groups))
+            states = new_states
+        stats["states"] += len(states)
+        return [st for _, st in states]
 
-    def _stage(self, dist, R, groups, todo, kind, rng, stats) -> list[np.ndarray]:
-        problems = [self._problem(dist, R, groups[i], kind) for i in todo]
+    def _stage(self, w, R, groups, kind, rng, stats) -> list[SplitProblem]:
+        """Solve the splits of ``groups`` (one chip submission, plus retries); each problem's
+        ``cands`` lists its distinct valid candidates, best unquantized cut first."""
+        problems = [self._problem(w, R, g, kind) for g in groups]
         stats["stages"] += 1
         stats["splits"] += len(problems)
-        pending = [p for p in problems if len(p.free) > 0]
+        pending = []
         for p in problems:
             if len(p.free) == 0:  # one partition only: nothing to solve
                 stats["trivial_splits"] += 1
                 side0, side1 = decode_split(p, np.zeros(0, dtype=np.int8))
-                p.best = (cut_value(dist, side0, side1), side0, side1, None)
+                p.cands = [(cut_value(w, side0, side1), side0, side1, None)]
+            else:
+                pending.append(p)
         attempts = 0
         while pending:
-            self._solve(dist, R, pending, rng, stats)
-            failed = [p for p in pending if p.best is None]
+            self._solve(w, R, pending, rng, stats)
+            failed = [p for p in pending if not p.cands]
             if failed and attempts >= self.retries:
                 p = failed[0]
                 raise SharingFailure(
@@ -480,15 +578,7 @@ class IsingSharing:
                 )
             attempts += 1
             pending = failed
-        new_groups: list[np.ndarray] = []
-        by_index = dict(zip(todo, problems))
-        for i, g in enumerate(groups):
-            if i in by_index:
-                _, side0, side1, _ = by_index[i].best
-                new_groups.extend([side0, side1])
-            else:
-                new_groups.append(g)
-        return new_groups
+        return problems
 
     def _valid(self, R, side0, side1, kind) -> bool:
         if self.reject_empty_robot_side and kind == "robots":
@@ -513,8 +603,16 @@ class IsingSharing:
         def decoder(p):
             return lambda spins: decode_split(p, spins)
 
-        def validator(p):
-            return lambda cand: self._valid(R, cand[0], cand[1], p.kind)
+        found: list[dict] = [{} for _ in problems]  # distinct valid partitions per split
+
+        def validator(k, p):
+            def check(cand) -> bool:
+                ok = self._valid(R, cand[0], cand[1], p.kind)
+                if ok:
+                    found[k].setdefault(cand[1].tobytes(), cand)
+                return ok
+
+            return check
 
         def objective(cand):
             return -cut_value(dist, cand[0], cand[1])
@@ -524,14 +622,14 @@ class IsingSharing:
             mappings,
             self.chip,
             decode=[decoder(p) for p in problems],
-            is_valid=[validator(p) for p in problems],
+            is_valid=[validator(k, p) for k, p in enumerate(problems)],
             objective=objective,
             num_reads=self.reads,
             seed=int(rng.integers(2**63 - 1)),
             pack=True,
         )
         mapping = stats["mapping"]["sharing"]
-        for p, res in zip(problems, results):
+        for k, (p, res) in enumerate(zip(problems, results)):
             for rule in self.rules:
                 out = res.outcomes[rule]
                 mapping[rule]["candidates"] += int(out.reads)
@@ -543,12 +641,15 @@ class IsingSharing:
             # broken at random so integer win counts stay unbiased
             win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
             mapping[win]["wins"] += 1
-            side0, side1 = res.best
-            p.best = (-float(res.best_score), side0, side1, win)
+            cands = [(cut_value(dist, c[0], c[1]), c[0], c[1], None) for c in found[k].values()]
+            order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
+            p.cands = [cands[i] for i in order]
 
-    def _assign_bundles(self, dist, R, groups, tour, tour_compute, stats, rng):
+    def _assign_bundles(self, dist, R, groups, cost, stats) -> list[list[int]]:
+        """Robot base sets plus every bundle placed on the robot whose route cost
+        (``cost(k, targets)``, the downstream tour) grows least.  Global node indices."""
         base: list[list[int]] = [[] for _ in range(R)]
-        bundles: list[np.ndarray] = []
+        bundles: list[list[int]] = []
         for g in groups:
             robots = g[g < R]
             targets = [int(t) for t in g[g >= R]]
@@ -556,41 +657,26 @@ class IsingSharing:
                 base[int(robots[0])].extend(targets)
             elif len(robots) == 0:
                 if targets:
-                    bundles.append(np.asarray(targets, dtype=int))
+                    bundles.append(targets)
             else:  # cannot happen: robot stages run until <= 1 robot per group
                 raise SharingFailure(f"group {g.tolist()} still holds {len(robots)} robots")
-        stats["bundles"] = len(bundles)
-        cache: dict = {}
-
-        def cost(k: int, targets) -> float:
-            key = (k, frozenset(targets))
-            if key not in cache:
-                if not targets:
-                    cache[key] = 0.0
-                else:
-                    nodes = [k] + sorted(targets)
-                    res = tour.solve(dist[np.ix_(nodes, nodes)], rng)
-                    tour_compute[0] = tour_compute[0] + res.compute
-                    stats["tour_solves"] += 1
-                    cache[key] = float(res.cost)
-            return cache[key]
-
-        if bundles:
-            robots = np.arange(R)
-            near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
-            if self.bundle_order == "far_first":
-                order = sorted(range(len(bundles)), key=lambda i: (-near[i], i))
-            elif self.bundle_order == "near_first":
-                order = sorted(range(len(bundles)), key=lambda i: (near[i], i))
-            elif self.bundle_order == "largest_first":
-                order = sorted(range(len(bundles)), key=lambda i: (-len(bundles[i]), i))
-            else:
-                order = list(range(len(bundles)))
-            current = [list(b) for b in base]
-            for i in order:
-                b = [int(t) for t in bundles[i]]
-                inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
-                k = int(np.argmin(inc))
-                current[k].extend(b)
-            base = current
-        return tuple(tuple(sorted(t - R for t in ts)) for ts in base)
+        stats["bundles"] += len(bundles)
+        if not bundles:
+            return base
+        robots = np.arange(R)
+        near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
+        if self.bundle_order == "far_first":
+            order = sorted(range(len(bundles)), key=lambda i: (-near[i], i))
+        elif self.bundle_order == "near_first":
+            order = sorted(range(len(bundles)), key=lambda i: (near[i], i))
+        elif self.bundle_order == "largest_first":
+            order = sorted(range(len(bundles)), key=lambda i: (-len(bundles[i]), i))
+        else:
+            order = list(range(len(bundles)))
+        current = [list(b) for b in base]
+        for i in order:
+            b = bundles[i]
+            inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
+            k = int(np.argmin(inc))
+            current[k].extend(b)
+        return current

@@ -274,3 +274,24 @@ def test_in_a_pipeline_plans_are_valid_and_mapping_counts_merge():
     assert set(plan.stats["mapping"]["sharing"]) == {"linear", "clip95", "rank", "sqrt"}
     again = make_pipeline(sharing="ising", tour="brute", path="astar").plan(world, seed=3)
     assert [r.targets for r in again.routes] == [r.targets for r in plan.routes]
+
+
+def test_pricing_tour_option_is_used_and_charged():
+    class CountingTour:
+        name = "counting"
+
+        def __init__(self):
+            self.calls = 0
+
+        def solve(self, dist, rng=None):
+            self.calls += 1
+            return TOUR.solve(dist, rng)
+
+    world = generate_world(2, placement="centre")
+    downstream, pricing = CountingTour(), CountingTour()
+    res = IsingSharing(pricing_tour=pricing).assign(world.distance_matrix, 3, downstream, np.random.default_rng(0))
+    assert downstream.calls == 0 and pricing.calls == res.stats["tour_solves"] > 0
+    by_name = IsingSharing(pricing_tour="brute").assign(world.distance_matrix, 3, downstream, np.random.default_rng(0))
+    assert by_name.assignment == res.assignment
+    with pytest.raises(ValueError, match="pricing_tour"):
+        IsingSharing(pricing_tour=42)

@@ -130,6 +130,10 @@ to target, default options): ``placement="centre"`` -- 1000/1000 solved, median
 length 6 = BFS median 6 (93 % of paths shortest), median 8 chip calls (3.6 uJ),
 valid rate ~72 % per style, win shares 24-27 %; ``placement="uniform"`` --
 1000/1000, median length 7 = BFS 7 (87 % shortest), median 12 calls (5.4 uJ).
+The remaining detours come from the greedy Manhattan ranking itself (an exact
+local solver gives the same shortest share).  With 5 % read-out bit flips the
+valid rate halves (~35 %) and the portfolio still solves 300/300 queries at
+~25 % more calls.  ``benchmarks/RESULTS.md`` has the table.
 """
 
 from __future__ import annotations

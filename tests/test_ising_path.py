@@ -362,3 +362,33 @@ def test_bad_scale_and_order_are_named():
         IsingPath(target_order="random")
     with pytest.raises(ValueError, match="weight"):
         IsingPath(weights={"B": float("inf")})
+
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_PLANNER = IsingPath()
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    h=st.integers(1, 8),
+    w=st.integers(1, 8),
+    density=st.floats(0.0, 0.5),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_any_grid_gives_a_valid_path_or_a_clear_failure(h, w, density, seed):
+    rng = np.random.default_rng(seed)
+    grid = rng.random((h, w)) < density
+    free = np.argwhere(~grid)
+    if len(free) == 0:
+        return
+    s, g = free[rng.integers(len(free))], free[rng.integers(len(free))]
+    world = World(grid, [s], [])
+    res = _PLANNER.find_path(world, s, g, np.random.default_rng(seed))
+    reachable = world.robot_fields[0][g[0], g[1]] >= 0
+    if res.path is None:
+        assert res.failure and not reachable or "budget" in res.failure
+    else:
+        assert reachable
+        _check_path(world, s, g, res.path)

@@ -50,7 +50,7 @@ Patch QUBO (paper eq. 6, ``A E_end + A E_conn + B sum x``; weights are ours):
     with ``B - C = 0.375`` every extra cell costs, so among paths the shortest
     has the lowest energy; ``B > C`` makes dangling stubs and islands cost
     more than nothing; ``Dg`` and ``B`` keep 2x2 blocks above the empty
-    selection.  Measured on 300 random patches (exact ground states): the
+    selection.  Measured on 150 random patches (exact ground states): the
     ground state is the shortest in-patch path for every local path of <= 4
     moves -- all boundary targets of an unobstructed 5x5 patch -- but not for
     5+ moves (those targets fail and the next-ranked target is tried).  We
@@ -61,8 +61,9 @@ Patch QUBO (paper eq. 6, ``A E_end + A E_conn + B sum x``; weights are ours):
     ``E = A_end E_end + A sum_i (d_i - 2 x_i)^2 + B sum_i x_i``, the literal
     reading of eq. 6 with a quadratic degree penalty (``d_i`` = selected
     4-neighbours of cell ``i``, pinned cells count as selected), ``A = A_end = 1,
-    B = 0.5``.  Its ground state is a valid path in only about half the patches
-    and it decodes valid on ~40 % of reads -- close to the paper's ~45 % per
+    B = 0.5``.  Its ground state is a valid path in only 42 % of 150 random
+    patches (all 2-move targets, few longer ones) and it decodes valid on ~40 %
+    of reads in the planner -- close to the paper's ~45 % per
     style -- so it is kept as the paper-like alternative.
 
 Scale (``scale``, chip units per QUBO weight unit, :data:`DEFAULT_SCALE`).
@@ -79,9 +80,10 @@ penalties are large; scale 4 needs ~7 copies and decodes valid on ~18 %).
 
 Termination (the paper's loop ``while p != t`` has no guard):
 
-* a segment may end only at a cell not yet on the walk, and a failed
-  (position, target) pair is never retried, so no position is re-entered by a
-  committed segment and the loop cannot oscillate;
+* a segment may end only at a cell not yet on the walk (segments may pass
+  over walked cells), and a failed (position, target) pair is never retried,
+  so no committed segment ends where the robot has been and the loop cannot
+  oscillate;
 * when no untried local target is left at ``p`` (``backtrack=True``) the robot
   steps back along its own last committed segment (reversed, no chip call, no
   new move) and ranks again from there -- a depth-first search over segment

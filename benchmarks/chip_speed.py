@@ -187,6 +187,14 @@ def main(argv=None) -> int:
         f"At {R} reads per dimod call (dwave amortizes its ~ms set-up over the reads): "
         f"{t_dwR[0] / t_defR[0]:.0f}x wall, {t_dwR[1] / t_defR[1]:.0f}x CPU (default spec).",
         "",
+        "Issue goal: <= 15 us per call and >= 50x faster than dwave-samplers at an equal or better hit rate. "
+        f"Measured: {min(t_defR[1], t_clnR[1]) * 1e6:.0f}-{max(t_def1[1], t_cln1[1]) * 1e6:.0f} us CPU per call "
+        f"({'meets' if max(t_def1[1], t_cln1[1]) <= 15e-6 else 'misses'} the 15 us goal on this shared VM); "
+        f"speed-up at one read per call {'meets' if t_dw1[1] / t_def1[1] >= 50 else 'misses'} the 50x goal; "
+        f"hit rate noise-free {hit(e_cln1):.3f} vs dwave {hit(e_dw1):.3f} at 1 read "
+        f"({'equal or better' if hit(e_cln1) >= hit(e_dw1) else 'lower'}); the default spec's 5 % coupling "
+        f"mismatch costs hit rate ({hit(e_def1):.3f}): it anneals a slightly different program than the one scored.",
+        "",
         f"JIT warm-up (first `anneal_batch` in a fresh process): {jit_cold:.2f} s with an empty numba cache "
         f"(compile), {jit_warm:.3f} s with the on-disk cache; package import {imp_warm:.2f} s.",
         "",

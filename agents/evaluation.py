@@ -127,17 +127,9 @@ def compute_record(report: ComputeReport) -> dict:
 
 # ------------------------------------------------------------------ controllers
 def _layer_names() -> dict[str, tuple[str, ...]]:
-    try:
-        from planners import registry
+    from planners import registry
 
-        out = {}
-        for layer in ("sharing", "tour", "path"):
-            fn = getattr(registry, f"{layer}_names", None) or getattr(registry, f"available_{layer}", None)
-            if fn is not None:
-                out[layer] = tuple(fn())
-        return out
-    except ImportError:  # pragma: no cover - planners always ship the registry
-        return {}
+    return {layer: registry.names(layer) for layer in registry.LAYERS}
 
 
 def validate_controller_spec(spec: str) -> str:

@@ -144,7 +144,6 @@ One robot, or no target, needs no split and no chip call.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -539,7 +538,12 @@ class IsingSharing:
                     expanded.append((score, st))
                     continue
                 keys = sorted(mine)
-                for combo in itertools.product(*[mine[gi].cands[: self.beam] for gi in keys]):
+                combos: list[tuple[float, tuple]] = [(0.0, ())]
+                for gi in keys:  # beam over the state's splits: at most max_states combinations
+                    combos = [(sc + c[0], combo + (c,)) for sc, combo in combos for c in mine[gi].cands[: self.beam]]
+                    order = sorted(range(len(combos)), key=lambda i: (-combos[i][0], i))
+                    combos = [combos[i] for i in order[: self.max_states]]
+                for _, combo in combos:
                     chosen = dict(zip(keys, combo))
                     groups: list[np.ndarray] = []
                     for gi, g in enumerate(st):

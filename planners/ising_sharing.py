@@ -125,11 +125,14 @@ up to ``retries`` times (counted); after that :meth:`assign` returns a
 failure result (``stats["failure"]`` says which split; ``assignment`` all
 empty) instead of inventing a split.
 
-Size limit.  A split has ``group size - 2`` free spins.  A group with more
-free spins than the chip has spins cannot be mapped without a decomposition
-the paper does not describe, so :meth:`assign` refuses it with a failure
-result naming the size and the limit (default chip: at most 47 robots +
-targets in the root group).
+Size limit.  A split has ``group size - 2`` free spins.  A split with more
+free spins than the chip has uses the backend's spin-budget branching
+(:class:`ising_backend.BranchMapping`, as the paper does for tours): the
+``k`` excess spins are frozen and all ``2^k`` reduced programs of every rule
+are solved, the best decoded candidate winning as usual.  ``k`` is capped by
+``max_frozen`` (default 4: the paper's 49-variable / 16-branch case); a
+larger group is refused with a failure result naming the size and the limit
+(default chip: at most 51 robots + targets in the root group).
 
 Accounting.  ``compute`` carries the chip ledger of the sharing calls plus
 the compute reports of every downstream tour solve used for bundle pricing
@@ -148,7 +151,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULES, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
+from ising_backend import QUANTIZE_RULES, BranchMapping, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 
@@ -312,6 +315,7 @@ class IsingSharing:
         retries: re-submissions of splits whose candidates were all invalid.
         beam: distinct chip candidates kept per robot split (1 = paper's greedy recursion).
         max_states: cap on partial solutions carried through the robot stages.
+        max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
         pricing_tour: tour solver that prices bundles and complete candidates:
             ``None`` (default) = the downstream ``tour`` given to :meth:`assign`
             (the paper's rule), or a registry name / :class:`TourSolver`.
@@ -337,6 +341,7 @@ class IsingSharing:
         beam: int = 3,
         max_states: int = 9,
         pricing_tour=None,
+        max_frozen: int = 4,
     ) -> None:
         if chip is None:
             chip = EmulatedChip(ChipSpec())
@@ -376,6 +381,9 @@ class IsingSharing:
         if int(max_states) < 1:
             raise ValueError(f"max_states must be >= 1, got {max_states}")
         self.max_states = int(max_states)
+        if not 0 <= int(max_frozen) <= 10:
+            raise ValueError(f"max_frozen must be in 0..10 (2^max_frozen branches), got {max_frozen}")
+        self.max_frozen = int(max_frozen)
         if isinstance(pricing_tour, str):
             from planners import registry
 
@@ -507,11 +515,12 @@ class IsingSharing:
     def _problem(self, dist, R, nodes, kind) -> SplitProblem:
         a, b = choose_anchors(dist, nodes, R)
         free = np.array([n for n in nodes if n != a and n != b], dtype=int)
-        limit = int(self.chip.spec.n_spins)
+        limit = int(self.chip.spec.n_spins) + self.max_frozen
         if len(free) > limit:
             raise SharingFailure(
                 f"a group of {len(nodes)} nodes needs {len(free)} free spins after anchor substitution; "
-                f"the chip has {limit} spins (at most {limit + 2} robots + targets per group)"
+                f"the chip has {self.chip.spec.n_spins} spins and spin-budget branching freezes at most "
+                f"max_frozen = {self.max_frozen} (at most {limit + 2} robots + targets per group)"
             )
         q, Q, offset = build_split_qubo(dist, free, a, b, R, self.balance if kind == "robots" else 0.0)
         return SplitProblem(nodes=np.asarray(nodes, dtype=int), a=a, b=b, free=free, q=q, Q=Q, offset=offset, kind=kind)
@@ -634,7 +643,11 @@ class IsingSharing:
         on the unquantized cut (objective ``-cut``: lower is better).
         """
         models = [QuboModel(p.q, p.Q, p.offset).to_ising() for p in problems]
-        mappings = [QuantizeMapping(rule) for rule in self.rules]
+        if max(len(p.free) for p in problems) > self.chip.spec.n_spins:
+            # spin-budget branching: freeze the excess spins, 2^k reduced programs per rule
+            mappings = [BranchMapping(None, QuantizeMapping(rule), name=rule) for rule in self.rules]
+        else:
+            mappings = [QuantizeMapping(rule) for rule in self.rules]
 
         def decoder(p):
             return lambda spins: decode_split(p, spins)

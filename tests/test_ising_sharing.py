@@ -228,13 +228,27 @@ def test_unreachable_node_gives_a_clear_failure():
     assert "cannot reach" in res.stats["failure"]
 
 
+def test_split_slightly_over_the_spin_limit_uses_branching():
+    from ising_backend import ChipSpec, EmulatedChip
+
+    world = generate_world(4, n_robots=3, n_targets=10, placement="centre")
+    chip = EmulatedChip(ChipSpec(n_spins=9))  # root split: 11 free spins -> 2 frozen, 4 branches per rule
+    res = IsingSharing(chip=chip).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert res.failure is None
+    _check_partition(res.assignment, 3, 10)
+    full = IsingSharing().assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert sum(_totals(world.distance_matrix, 3, res.assignment)) <= 1.1 * sum(
+        _totals(world.distance_matrix, 3, full.assignment))
+
+
 def test_group_over_the_spin_limit_is_refused_with_size_and_limit():
     from ising_backend import ChipSpec, EmulatedChip
 
     world = generate_world(4, n_robots=3, n_targets=10)
     chip = EmulatedChip(ChipSpec(n_spins=8))
-    res = IsingSharing(chip=chip).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    res = IsingSharing(chip=chip, max_frozen=2).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
     assert "11 free spins" in res.stats["failure"] and "8 spins" in res.stats["failure"]
+    assert "max_frozen = 2" in res.failure
     assert res.compute.chip_calls == 0
 
 

@@ -110,3 +110,11 @@ def test_compare_cli_writes_table_and_files(tmp_path, capsys):
     assert "strong" in out and "cost" in out
     assert (tmp_path / "episodes.csv").is_file() and (tmp_path / "episodes.json").is_file()
     assert len(json.loads((tmp_path / "episodes.json").read_text())["rows"]) == 4
+
+
+def test_ising_route_metrics_do_not_depend_on_workers():
+    pytest.importorskip("planners.ising_path")
+    a = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=1, progress=False)
+    b = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=2, progress=False)
+    assert _route_view(a.rows) == _route_view(b.rows)
+    assert [r["chip_calls"] for r in a.rows] == [r["chip_calls"] for r in b.rows]

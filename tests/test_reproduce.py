@@ -87,3 +87,12 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
     assert "unknown experiment 'warp'" in capsys.readouterr().err
     assert main(["reproduce", "--out", str(tmp_path), "--path", "0"]) == 2
     assert "--path must be >= 1" in capsys.readouterr().err
+
+
+def test_experiment_rows_deterministic_across_worker_counts():
+    from agents.experiments import sharing_experiment
+
+    keys = ("instance", "method", "success", "cost", "chip_calls", "chip_batches", "makespan")
+    a = sharing_experiment(3, n_jobs=1, progress=False)
+    b = sharing_experiment(3, n_jobs=2, progress=False)
+    assert [tuple(r[k] for k in keys) for r in a.rows] == [tuple(r[k] for k in keys) for r in b.rows]

@@ -307,11 +307,13 @@ def _notes(stats: dict, blocks: list[dict], variants: dict) -> list[str]:
         out.append(msg)
     ee = stats.get("endtoend")
     if ee and not (ee.get("energy ratio strong / ising") or 0) >= 100:
+        strong_mj = ee.get("strong median energy (mJ)") or math.nan
+        calls = math.floor(1e-5 * strong_mj / 0.45e-6) if math.isfinite(strong_mj) else math.nan
         msg = (f"End-to-end energy ratio strong / Ising = {_fmt(ee.get('energy ratio strong / ising'))}: the strong "
                f"classical pipeline is numba code at {_fmt(ee.get('strong median host cpu (ms)'))} ms "
                f"({_fmt(ee.get('strong median energy (mJ)'))} mJ), so 100x asks for "
-               f"<= {_fmt(10 * (ee.get('strong median energy (mJ)') or math.nan))} uJ, about "
-               f"{_fmt(math.floor(1e-5 * (ee.get("strong median energy (mJ)") or math.nan) / 0.45e-6))} chip calls "
+               f"<= {_fmt(10 * strong_mj)} uJ, about "
+               f"{_fmt(calls)} chip calls "
                f"for the whole plan; the Ising pipeline uses {_fmt(ee.get('ising median path chip calls'))} path "
                f"calls, {_fmt(ee.get('ising median sharing chip calls'))} sharing calls and "
                f"{_fmt(ee.get('ising median tour logical calls'))} tour logical calls, plus the logical calls of the "

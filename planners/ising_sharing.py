@@ -137,7 +137,10 @@ larger group is refused with a failure result naming the size and the limit
 Accounting.  ``compute`` carries the chip ledger of the sharing calls plus
 the compute reports of every downstream tour solve used for bundle pricing
 (e.g. projected logical calls of an Ising tour solver), so nothing is
-hidden.  ``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),
+hidden; the chip is charged around this planner's own submissions only, so
+a chip shared with other layers is not double counted.  A chip that refuses
+a mapped program (``ChipProgramError``) ends in a failure result.
+``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),
 ``"stages"``, ``"splits"``, ``"trivial_splits"`` (no free spin, no chip
 call), ``"states"`` (complete candidates compared), ``"bundles"`` (summed
 over those candidates) and ``"tour_solves"``.  A failure is reported in both
@@ -151,7 +154,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULES, BranchMapping, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
+from ising_backend import QUANTIZE_RULES, BranchMapping, ChipProgramError, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 
@@ -440,7 +443,7 @@ class IsingSharing:
         if R == 1:
             return SharingResult(assignment=(tuple(range(N)),), compute=ComputeReport(), stats=stats)
 
-        snap = self.chip.ledger.snapshot()
+        self._chip_compute = ComputeReport()  # charged around our own submissions only
         tour_compute = [ComputeReport()]
         cache: dict = {}
         if self.pricing_tour is not None:
@@ -480,9 +483,9 @@ class IsingSharing:
             self._memo = {}
             stats["failure"] = str(exc)
             return SharingResult(
-                assignment=empty, compute=self._compute(snap) + tour_compute[0], stats=stats, failure=str(exc)
+                assignment=empty, compute=self._chip_compute + tour_compute[0], stats=stats, failure=str(exc)
             )
-        return SharingResult(assignment=assignment, compute=self._compute(snap) + tour_compute[0], stats=stats)
+        return SharingResult(assignment=assignment, compute=self._chip_compute + tour_compute[0], stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power``,
@@ -666,17 +669,25 @@ class IsingSharing:
         def objective(cand):
             return -cut_value(dist, cand[0], cand[1])
 
-        results = run_portfolio_batch(
-            models,
-            mappings,
-            self.chip,
-            decode=[decoder(p) for p in problems],
-            is_valid=[validator(k, p) for k, p in enumerate(problems)],
-            objective=objective,
-            num_reads=self.reads,
-            seed=int(rng.integers(2**63 - 1)),
-            pack=True,
-        )
+        snap = self.chip.ledger.snapshot()
+        try:
+            results = run_portfolio_batch(
+                models,
+                mappings,
+                self.chip,
+                decode=[decoder(p) for p in problems],
+                is_valid=[validator(k, p) for k, p in enumerate(problems)],
+                objective=objective,
+                num_reads=self.reads,
+                seed=int(rng.integers(2**63 - 1)),
+                pack=True,
+            )
+        except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
+            self._chip_compute = self._chip_compute + self._compute(snap)
+            raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
+        # only this submission: a chip shared with other layers (or with a tour
+        # solver used for pricing, whose own report is added separately) is not double counted
+        self._chip_compute = self._chip_compute + self._compute(snap)
         mapping = stats["mapping"]["sharing"]
         for k, (p, res) in enumerate(zip(problems, results)):
             for rule in self.rules:

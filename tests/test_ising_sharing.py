@@ -309,3 +309,16 @@ def test_pricing_tour_option_is_used_and_charged():
     assert by_name.assignment == res.assignment
     with pytest.raises(ValueError, match="pricing_tour"):
         IsingSharing(pricing_tour=42)
+
+
+def test_chip_refusing_programs_gives_a_clear_failure():
+    from ising_backend import ChipProgramError
+
+    class RefusingChip(GarbageChip):
+        def anneal_batch(self, h, J, num_reads=1, seed=None):
+            raise ChipProgramError("h[0] = 9 is outside h_range (-7, 7)")
+
+    world = generate_world(1, placement="centre")
+    res = IsingSharing(chip=RefusingChip()).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert "refused" in res.failure and "h_range" in res.failure
+    assert res.assignment == ((), (), ())

@@ -477,6 +477,9 @@ def evaluate(
     rows: list[dict] = []
     try:
         if int(n_jobs) == 1:
+            # inline: start from fresh controllers and envs, as a new pool's workers do
+            _CONTROLLERS.clear()
+            _ENVS.clear()
             for t in tasks:
                 rows.append(_episode_task(*t))
                 bar.update(1)

@@ -322,3 +322,16 @@ def test_chip_refusing_programs_gives_a_clear_failure():
     res = IsingSharing(chip=RefusingChip()).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
     assert "refused" in res.failure and "h_range" in res.failure
     assert res.assignment == ((), (), ())
+
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(R=st.integers(1, 4), N=st.integers(0, 11), seed=st.integers(0, 10_000))
+def test_property_any_metric_instance_gives_a_partition(R, N, seed):
+    d = _random_dist(R + N, seed)  # Manhattan distances of random points (ties and zeros included)
+    res = IsingSharing().assign(d, R, TOUR, np.random.default_rng(seed))
+    assert res.failure is None
+    _check_partition(res.assignment, R, N)

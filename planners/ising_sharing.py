@@ -39,8 +39,9 @@ Per split (the paper's anchored split):
   and sends the whole stage to the emulated physical chip in ONE
   ``anneal_batch`` submission.  Unlike the paper (one program per rule, 4
   calls per stage) the rules of a split share programs too, so 3 robots x 10
-  targets need about one chip call per stage.  A stage whose blocks exceed
-  45 spins simply uses several programs.
+  targets need about one program per stage (x ``reads`` calls; median 12
+  calls in 4 batches per instance with the defaults, the paper 20 / 5).  A
+  stage whose blocks exceed 45 spins simply uses several programs.
 * **decode, validate, score** -- each returned spin block is decoded into a
   partition, checked, and scored on the *unquantized* eq. (8) cut (with the
   weights below); the best valid candidate over all rules and reads wins.

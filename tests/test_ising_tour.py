@@ -1,0 +1,251 @@
+"""Clustered Ising tour construction (planners.ising_tour, paper 5.2)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from ising_backend import ChipSpec, EmulatedChip, LogicalIsingSolver
+from mrmt_env.generation import generate_world
+from planners.base import TourResult, TourSolver
+from planners.ising_tour import IsingTour
+from planners.ising_tsp_qubo import (
+    cut_value,
+    decode_onehot,
+    decode_onehot_batch,
+    maxcut_qubo,
+    open_path_qubo,
+    path_cost,
+    qubo_energy,
+)
+from planners.pipeline import make_pipeline
+from planners.plan import validate_plan
+from planners.tours_classical import BruteTour, route_cost
+
+
+def _line_dist(positions) -> np.ndarray:
+    """Robot at 0 then targets at ``positions`` on a line (distance = |a - b|)."""
+    p = np.asarray([0, *positions], dtype=float)
+    return np.abs(p[:, None] - p[None, :])
+
+
+def _is_perm(order, n) -> bool:
+    return sorted(order) == list(range(1, n + 1))
+
+
+# ------------------------------------------------------------------ formulation (pure numpy)
+
+
+def _all_bits(n):
+    return np.array(list(itertools.product([0, 1], repeat=n)), dtype=np.int8)
+
+
+@pytest.mark.parametrize("s", [2, 3, 4])
+def test_open_path_qubo_ground_state_is_best_permutation(s):
+    rng = np.random.default_rng(s)
+    for _ in range(3):
+        pts = rng.integers(0, 10, (s, 2))
+        d = np.abs(pts[:, None] - pts[None]).sum(-1).astype(float)
+        entry = rng.integers(0, 10, s).astype(float)
+        ex = rng.integers(0, 10, s).astype(float)
+        q, Q, off, A = open_path_qubo(d, entry, ex)
+        assert A > max(d.max(), entry.max(), ex.max())
+        X = _all_bits(s * s)
+        E = qubo_energy(q, Q, off, X)
+        orders, valid = decode_onehot_batch(X, s)
+        # valid states: energy == original route cost exactly
+        for x, e in zip(X[valid], E[valid]):
+            assert e == pytest.approx(path_cost(d, decode_onehot(x, s), entry, ex))
+        best = min(path_cost(d, p, entry, ex) for p in itertools.permutations(range(s)))
+        assert E.min() == pytest.approx(best)
+        assert E[~valid].min() > best  # every ground state is a valid permutation
+
+
+def test_decode_onehot_rejects_violations():
+    x = np.eye(3, dtype=np.int8)[[2, 0, 1]]  # item i at position perm
+    assert decode_onehot(x.reshape(-1), 3) is not None
+    bad = x.copy()
+    bad[0, 0] = 1  # item 0 at two positions
+    assert decode_onehot(bad.reshape(-1), 3) is None
+    assert decode_onehot(np.zeros(9), 3) is None
+
+
+def test_maxcut_qubo_energy_is_minus_cut():
+    rng = np.random.default_rng(1)
+    w = rng.random((6, 6))
+    w = w + w.T
+    np.fill_diagonal(w, 0)
+    q, Q, off = maxcut_qubo(w)
+    X = _all_bits(6)
+    assert np.allclose(qubo_energy(q, Q, off, X), -cut_value(w, X))
+    # cut of a split = sum of weights across it
+    x = np.array([1, 0, 0, 1, 0, 1])
+    assert cut_value(w, x) == pytest.approx(w[np.ix_(x == 1, x == 0)].sum())
+
+
+# ------------------------------------------------------------------ the planner
+
+
+def test_protocol_and_trivial_sizes():
+    tour = IsingTour()
+    assert isinstance(tour, TourSolver)
+    r0 = tour.solve(np.zeros((1, 1)), np.random.default_rng(0))
+    assert r0.order == () and r0.cost == 0 and r0.success
+    r1 = tour.solve(_line_dist([4]), np.random.default_rng(0))
+    assert r1.order == (1,) and r1.cost == 4 and r1.compute.logical_calls == 0
+
+
+def test_three_targets_on_a_line():
+    tour = IsingTour()
+    r = tour.solve(_line_dist([1, 2, 3]), np.random.default_rng(0))
+    assert r.order == (1, 2, 3) and r.cost == 3
+    r = tour.solve(_line_dist([3, 1, 2]), np.random.default_rng(0))
+    assert r.order == (2, 3, 1) and r.cost == 3
+
+
+def test_two_separated_clusters_exact():
+    # four targets near the robot, four far away: go through the near group, then the far one
+    dist = _line_dist([3, 1, 4, 2, 22, 20, 23, 21])
+    r = IsingTour().solve(dist, np.random.default_rng(3))
+    assert r.order == (2, 4, 1, 3, 6, 8, 5, 7)
+    assert r.cost == 23
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6, 7])
+def test_small_tours_match_exact(n):
+    bt = BruteTour()
+    for seed in range(3):
+        world = generate_world(seed, n_robots=1, n_targets=n)
+        dist = world.distance_matrix
+        r = IsingTour().solve(dist, np.random.default_rng(seed))
+        assert _is_perm(r.order, n)
+        assert r.cost == pytest.approx(bt.solve(dist).cost)
+
+
+def test_random_worlds_valid_and_near_optimal():
+    bt = BruteTour()
+    tour = IsingTour()
+    gaps = []
+    for seed in range(8):
+        dist = generate_world(100 + seed, n_robots=1, n_targets=10).distance_matrix
+        r = tour.solve(dist, np.random.default_rng(seed))
+        assert r.success and _is_perm(r.order, 10)
+        assert r.cost == pytest.approx(route_cost(dist, r.order))
+        opt = bt.solve(dist).cost
+        assert r.cost >= opt - 1e-9
+        gaps.append((r.cost - opt) / opt)
+        st = r.stats
+        assert len(st["clusters"]) == 8 and sum(st["clusters"]) == 10  # refined up to 8 clusters
+        assert max(st["clusters"]) <= 7
+    assert np.median(gaps) == 0.0
+    assert np.mean(gaps) < 0.05
+
+
+def test_compute_report_and_branching():
+    spec = ChipSpec()
+    dist = generate_world(5, n_robots=1, n_targets=10).distance_matrix
+    r = IsingTour().solve(dist, np.random.default_rng(0))
+    c = r.compute
+    assert c.chip_calls == 0 and c.chip_batches == 0 and c.cpu_s == 0
+    assert c.logical_calls >= 16  # the 8-cluster ordering model (49 vars) is branched 16 ways
+    assert c.chip_time_s == pytest.approx(c.logical_calls * spec.solve_time_s)
+    assert c.accelerator_energy_j == pytest.approx(c.logical_calls * spec.energy_per_call_j)
+    assert c.chip_time_parallel_s < c.chip_time_s  # branches dispatched together
+    m = r.stats["mapping"]["tour"]
+    assert m["programs"] > m["subproblems"] > 0  # branches are programs of one subproblem
+    assert 0 < m["valid"] <= m["programs"] and m["valid_subproblems"] == m["subproblems"]
+    assert m["physical_programs"] == 0 and m["valid_physical"] == 0
+
+
+def test_deterministic_under_seed():
+    dist = generate_world(7, n_robots=1, n_targets=10).distance_matrix
+    a = IsingTour().solve(dist, np.random.default_rng(42))
+    b = IsingTour().solve(dist, np.random.default_rng(42))
+    assert a.order == b.order and a.cost == b.cost and a.compute == b.compute
+    assert a.stats == b.stats
+
+
+def test_unreachable_target_is_a_clear_failure():
+    dist = _line_dist([1, 2, 3])
+    dist[2, :] = dist[:, 2] = np.inf
+    dist[2, 2] = 0
+    r = IsingTour().solve(dist, np.random.default_rng(0))
+    assert not r.success and r.order == () and math.isinf(r.cost)
+    assert "infinite" in r.failure
+
+
+class _GarbageSolver:
+    """A logical solver that returns all spins +1 (never a valid one-hot or cut)."""
+
+    def __init__(self):
+        self.inner = LogicalIsingSolver()
+        self.ledger = self.inner.ledger
+
+    def solve_many(self, models, num_reads=1, seed=None):
+        res = self.inner.solve_many(models, num_reads=num_reads, seed=seed)
+        return [type(r)(np.ones_like(r.spins), r.energies) for r in res]
+
+
+class _NoisySolver(_GarbageSolver):
+    """Random spins: sometimes valid by chance, mostly not."""
+
+    def solve_many(self, models, num_reads=1, seed=None):
+        res = self.inner.solve_many(models, num_reads=num_reads, seed=seed)
+        g = np.random.default_rng(seed % 2**32)
+        return [type(r)(g.choice(np.array([-1, 1], dtype=np.int8), size=r.spins.shape), r.energies) for r in res]
+
+
+@pytest.mark.parametrize("n", [3, 10])
+def test_garbage_solver_ends_in_clear_failure(n):
+    dist = generate_world(3, n_robots=1, n_targets=n).distance_matrix
+    r = IsingTour(solver=_GarbageSolver(), max_retries=2).solve(dist, np.random.default_rng(0))
+    assert isinstance(r, TourResult)
+    assert not r.success and r.order == () and "degenerate" in r.failure
+    assert r.compute.logical_calls > 0
+
+
+def test_noisy_solver_never_gives_invalid_tour():
+    for seed in range(4):
+        dist = generate_world(seed, n_robots=1, n_targets=6).distance_matrix
+        r = IsingTour(solver=_NoisySolver()).solve(dist, np.random.default_rng(seed))
+        if r.success:
+            assert _is_perm(r.order, 6) and r.cost == pytest.approx(route_cost(dist, r.order))
+        else:
+            assert r.order == () and r.failure
+
+
+def test_chip_backend_reports_physical_validity():
+    chip = EmulatedChip(ChipSpec(), seed=0)
+    dist = generate_world(2, n_robots=1, n_targets=5).distance_matrix
+    r = IsingTour(chip=chip, backend="chip").solve(dist, np.random.default_rng(0))
+    m = r.stats["mapping"]["tour"]
+    assert m["physical_programs"] == m["programs"] > 0
+    assert 0 <= m["valid_physical"] <= m["physical_programs"]
+    assert r.compute.chip_calls > 0 and r.compute.chip_calls == chip.ledger.physical_calls
+    if r.success:
+        assert _is_perm(r.order, 5)
+    else:
+        assert r.order == () and "no valid permutation" in r.failure
+
+
+def test_bad_options_are_refused():
+    with pytest.raises(ValueError, match="backend"):
+        IsingTour(backend="quantum")
+    with pytest.raises(ValueError, match="64 variables"):
+        IsingTour(patch_size=8)
+    with pytest.raises(ValueError, match="penalty_factor"):
+        IsingTour(penalty_factor=0.5)
+    with pytest.raises(ValueError, match="dist"):
+        IsingTour().solve(np.zeros((2, 3)))
+
+
+def test_in_the_pipeline():
+    world = generate_world(11, n_robots=2, n_targets=8)
+    plan = make_pipeline(sharing="ssa", tour="ising", path="astar").plan(world, seed=0)
+    assert plan.success
+    validate_plan(world, plan)
+    assert plan.compute.logical_calls > 0
+    assert plan.stats["mapping"]["tour"]["programs"] > 0

@@ -53,9 +53,10 @@ Candidate beam (our addition; ``beam=1`` is the paper's greedy recursion).
 The portfolio returns several distinct valid partitions per split (the four
 rules x ``reads`` quantize the cut differently; about 2-3 distinct ones per
 robot split).  The robot stages keep the ``beam`` best of them by
-unquantized cut and expand every partial solution by them (at most
-``max_states`` partial solutions, ranked by the sum of their chosen cuts);
-each complete candidate is then refined and its bundles placed, and the one
+unquantized cut (refinement stages the ``refine_beam`` best) and expand
+every partial solution by them (at most ``max_states`` partial solutions,
+ranked by the sum of their chosen cuts); in each complete candidate the
+bundles are placed, and the one
 with the lowest total route cost under the downstream ``tour`` -- the
 sharing layer's original objective -- is returned.  This is candidate
 *selection* (decode-filter-score one level up), not repair: every group
@@ -65,13 +66,16 @@ partial solutions share their chip submissions.
 Choices the paper leaves open (each a constructor parameter), tuned on
 centre-placement worlds (3 robots x 10 targets, exact tours); figures are
 mean total route cost over worlds 0..999 (SSA 28.65, exact optimum 27.97,
-median 28 for SSA, exact and these defaults):
+median 28 for SSA, exact and these defaults; defaults 28.32):
 
-``beam`` (3), ``max_states`` (9), ``reads`` (2)
-    beam 1 / reads 1: 29.11 (the paper's recursion with our weights); beam 3
-    / reads 1: 28.50; beam 3 / reads 2: 28.38 (12 chip calls in 4 batches
-    per instance, median); beam 4 / reads 4 / 16 states: 28.28 (~36 calls).
-    A group met again (in another partial solution) reuses its solved split.
+``beam`` (3), ``refine_beam`` (2), ``max_states`` (9), ``reads`` (2)
+    ``beam`` / ``refine_beam`` candidates are kept per robot / refinement
+    split.  Beam 1 / reads 1: 29.11 (the paper's recursion with our
+    weights); beam 3 / reads 1: 28.50; beam 3 / reads 2: 28.38; + refine
+    beam 2: 28.32 (the defaults: median 12 chip calls in 4 batches and ~43
+    pricing tour solves per instance); beam 4 / reads 4 / 16 states: 28.28
+    (~36 calls).  A group met again (in another partial solution) reuses its
+    solved split.
 ``weight_shift`` (default 0.5)
     the split weights are ``w_ij = d_ij ** weight_power - weight_shift *
     mean``, ``mean`` the mean pairwise ``d ** weight_power`` of the whole
@@ -318,6 +322,7 @@ class IsingSharing:
         reject_empty_robot_side: validity rule variant (module docstring).
         retries: re-submissions of splits whose candidates were all invalid.
         beam: distinct chip candidates kept per robot split (1 = paper's greedy recursion).
+        refine_beam: distinct chip candidates kept per refinement split.
         max_states: cap on partial solutions carried through the robot stages.
         max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
         pricing_tour: tour solver that prices bundles and complete candidates:
@@ -346,6 +351,7 @@ class IsingSharing:
         max_states: int = 9,
         pricing_tour=None,
         max_frozen: int = 4,
+        refine_beam: int = 2,
     ) -> None:
         if chip is None:
             chip = EmulatedChip(ChipSpec())
@@ -382,6 +388,9 @@ class IsingSharing:
         if int(beam) < 1:
             raise ValueError(f"beam must be >= 1, got {beam}")
         self.beam = int(beam)
+        if int(refine_beam) < 1:
+            raise ValueError(f"refine_beam must be >= 1, got {refine_beam}")
+        self.refine_beam = int(refine_beam)
         if int(max_states) < 1:
             raise ValueError(f"max_states must be >= 1, got {max_states}")
         self.max_states = int(max_states)
@@ -532,11 +541,11 @@ class IsingSharing:
     def _split_all(self, w, R, rng, stats) -> list[list[np.ndarray]]:
         """All candidate partial solutions (lists of groups) after the split stages.
 
-        Robot stages keep up to ``beam`` distinct valid chip candidates per
-        split (best unquantized cuts first) and expand every state by them
-        (at most ``max_states`` states, ranked by the sum of their chosen
-        cuts); refinement stages take each split's best candidate.  Every
-        stage is one chip submission for the splits of all states.
+        Robot (refinement) stages keep up to ``beam`` (``refine_beam``)
+        distinct valid chip candidates per split (best unquantized cuts
+        first) and expand every state by them (at most ``max_states``
+        states, ranked by the sum of their chosen cuts).  Every stage is one
+        chip submission for the splits of all states.
         """
         states: list[tuple[float, list[np.ndarray]]] = [(0.0, [np.arange(w.shape[0])])]
         while True:  # robot stages: split every group holding more than one robot
@@ -544,29 +553,7 @@ class IsingSharing:
             if not todo:
                 break
             problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "robots", rng, stats)
-            expanded: list[tuple[float, list[np.ndarray]]] = []
-            for si, (score, st) in enumerate(states):
-                mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
-                if not mine:
-                    expanded.append((score, st))
-                    continue
-                keys = sorted(mine)
-                combos: list[tuple[float, tuple]] = [(0.0, ())]
-                for gi in keys:  # beam over the state's splits: at most max_states combinations
-                    combos = [(sc + c[0], combo + (c,)) for sc, combo in combos for c in mine[gi].cands[: self.beam]]
-                    order = sorted(range(len(combos)), key=lambda i: (-combos[i][0], i))
-                    combos = [combos[i] for i in order[: self.max_states]]
-                for _, combo in combos:
-                    chosen = dict(zip(keys, combo))
-                    groups: list[np.ndarray] = []
-                    for gi, g in enumerate(st):
-                        if gi in chosen:
-                            groups.extend([chosen[gi][1], chosen[gi][2]])
-                        else:
-                            groups.append(g)
-                    expanded.append((score + sum(c[0] for c in combo), groups))
-            order = sorted(range(len(expanded)), key=lambda i: (-expanded[i][0], i))
-            states = [expanded[i] for i in order[: self.max_states]]
+            states = self._expand(states, todo, problems, self.beam)
         for _ in range(self.refine_stages):
             todo = [
                 (si, gi)
@@ -577,19 +564,36 @@ class IsingSharing:
             if not todo:
                 break
             problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "refine", rng, stats)
-            new_states = []
-            for si, (score, st) in enumerate(states):
-                mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
-                groups = []
-                for gi, g in enumerate(st):
-                    if gi in mine:
-                        groups.extend([mine[gi].cands[0][1], mine[gi].cands[0][2]])
-                    else:
-                        groups.append(g)
-                new_states.append((score, groups))
-            states = new_states
+            states = self._expand(states, todo, problems, self.refine_beam)
         stats["states"] += len(states)
         return [st for _, st in states]
+
+    def _expand(self, states, todo, problems, width: int):
+        """Replace the split groups of every state by up to ``width`` candidate splits each
+        (a beam over the state's splits, then over all states: at most ``max_states``)."""
+        expanded: list[tuple[float, list[np.ndarray]]] = []
+        for si, (score, st) in enumerate(states):
+            mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
+            if not mine:
+                expanded.append((score, st))
+                continue
+            keys = sorted(mine)
+            combos: list[tuple[float, tuple]] = [(0.0, ())]
+            for gi in keys:
+                combos = [(sc + c[0], combo + (c,)) for sc, combo in combos for c in mine[gi].cands[:width]]
+                order = sorted(range(len(combos)), key=lambda i: (-combos[i][0], i))
+                combos = [combos[i] for i in order[: self.max_states]]
+            for _, combo in combos:
+                chosen = dict(zip(keys, combo))
+                groups: list[np.ndarray] = []
+                for gi, g in enumerate(st):
+                    if gi in chosen:
+                        groups.extend([chosen[gi][1], chosen[gi][2]])
+                    else:
+                        groups.append(g)
+                expanded.append((score + sum(c[0] for c in combo), groups))
+        order = sorted(range(len(expanded)), key=lambda i: (-expanded[i][0], i))
+        return [expanded[i] for i in order[: self.max_states]]
 
     def _stage(self, w, R, groups, kind, rng, stats) -> list[SplitProblem]:
         """Solve the splits of ``groups`` (one chip submission, plus retries); each problem's

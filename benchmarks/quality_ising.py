@@ -145,6 +145,57 @@ def variant_summary(rows: list[dict], strong_rows: list[dict]) -> dict:
     return s
 
 
+#: Sharing variants run beside the default (label -> IsingSharing keywords), to show what each choice buys.
+SHARING_VARIANTS = {
+    "greedy recursion (beam 1, refine_beam 1, reads 1)": {"beam": 1, "refine_beam": 1, "reads": 1},
+    "+ literal eq. 8 weights (weight_shift 0)": {"beam": 1, "refine_beam": 1, "reads": 1, "weight_shift": 0.0},
+    "+ no refinement (refine_stages 0)": {"beam": 1, "refine_beam": 1, "reads": 1, "weight_shift": 0.0,
+                                          "refine_stages": 0},
+}
+
+
+def run_sharing_variant(n: int, seed: int, label: str, options: dict) -> list[dict]:
+    """Sharing rows for ``IsingSharing(**options)`` on the sharing experiment's worlds
+    (centre, 3 x 10, bundles priced and allocations toured by ``brute``)."""
+    from mrmt_env.generation import generate_world
+    from planners.ising_sharing import IsingSharing
+    from planners.tours_classical import BruteTour
+
+    tour = BruteTour()
+    rows = []
+    for i in range(n):
+        world = generate_world(seed + i, n_robots=3, n_targets=10, placement="centre")
+        dist = world.distance_matrix
+        res = IsingSharing(**options).assign(dist, 3, tour, np.random.default_rng(seed + i))
+        ok = res.failure is None
+        lengths = []
+        for k, group in enumerate(res.assignment):
+            nodes = [k] + [3 + int(t) for t in group]
+            lengths.append(float(tour.solve(dist[np.ix_(nodes, nodes)]).cost) if group else 0.0)
+        rows.append({"instance": i, "method": label, "success": ok,
+                     "cost": float(sum(lengths)) if ok else math.nan,
+                     "makespan": float(max(lengths)) if ok else math.nan,
+                     "imbalance": float(max(lengths) - min(lengths)) if ok else math.nan,
+                     "chip_calls": res.compute.chip_calls, "chip_batches": res.compute.chip_batches})
+    return rows
+
+
+def sharing_variant_summary(rows: list[dict], exact_rows: list[dict]) -> dict:
+    exact = {r["instance"]: r["cost"] for r in exact_rows if r["method"] == "exact" and r["success"]}
+    ok = [r for r in rows if r["success"]]
+    med = ex._med
+    return {
+        "median total": med([r["cost"] for r in ok]),
+        "mean total": ex._mean([r["cost"] for r in ok]),
+        "median gap to exact (%)": med([100.0 * (r["cost"] - exact[r["instance"]]) / exact[r["instance"]]
+                                        for r in ok if r["instance"] in exact]),
+        "median makespan": med([r["makespan"] for r in ok]),
+        "median imbalance": med([r["imbalance"] for r in ok]),
+        "median chip calls": med([r["chip_calls"] for r in rows]),
+        "median chip batches": med([r["chip_batches"] for r in rows]),
+    }
+
+
 def _result(name: str, rows: list[dict]) -> ex.ExperimentResult:
     methods = tuple(dict.fromkeys(r["method"] for r in rows))
     return ex.ExperimentResult(name, rows, methods)
@@ -219,7 +270,7 @@ def _fmt(v) -> str:
 
 
 def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], goals: list[dict],
-           wall: dict, quick: bool, variants: dict | None = None) -> str:
+           wall: dict, quick: bool, variants: dict | None = None, sharing_variants: dict | None = None) -> str:
     lines = [SECTION, ""]
     lines += [
         "Paper section 6.2 on the same worlds for every method (`generate_world(seed + i)`, seed 0).  "
@@ -249,6 +300,13 @@ def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], go
         for key, mv in s.items():
             if key not in paper:
                 lines.append(f"| {key} | - | {_fmt(mv)} |")
+        lines.append("")
+    if sharing_variants:
+        keys = list(next(iter(sharing_variants.values())).keys())
+        lines += ["### Target sharing: what each choice buys (same worlds; `IsingSharing` options)", "",
+                  "| variant | " + " | ".join(keys) + " |", "|---|" + "---:|" * len(keys)]
+        for label, v in sharing_variants.items():
+            lines.append(f"| {label} | " + " | ".join(_fmt(v.get(k)) for k in keys) + " |")
         lines.append("")
     if variants:
         keys = list(next(iter(variants.values())).keys())
@@ -393,10 +451,17 @@ def main(argv=None) -> int:
             vrows = run_endtoend_variant(sizes["endtoend"], args.seed, label, options)
             variants[label] = variant_summary(vrows, rows["endtoend"])
             print(f"end-to-end variant {label!r}: {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    sharing_variants: dict = {}
+    if "sharing" in args.only:
+        own = [r for r in rows["sharing"] if r["method"] == "ising"]
+        sharing_variants["defaults"] = sharing_variant_summary(own, rows["sharing"])
+        for label, options in SHARING_VARIANTS.items():
+            vrows = run_sharing_variant(sizes["sharing"], args.seed, label, options)
+            sharing_variants[label] = sharing_variant_summary(vrows, rows["sharing"])
     stats = summaries(rows)
     mapping = mapping_rows(rows.get("path"), rows.get("sharing"))
     goals = goal_rows(stats, sizes)
-    block = render(stats, sizes, mapping, blocks, goals, wall, args.quick, variants)
+    block = render(stats, sizes, mapping, blocks, goals, wall, args.quick, variants, sharing_variants)
     print(block)
     if args.write_results:
         write_section(block)

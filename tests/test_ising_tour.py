@@ -114,8 +114,9 @@ def test_two_separated_clusters_exact():
     assert r.cost == 23
 
 
-@pytest.mark.parametrize("n", [2, 3, 4, 5, 6, 7])
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6])
 def test_small_tours_match_exact(n):
+    # n <= patch_size: the refinement patch is the whole tour (n^2 <= 36 spins, one call)
     bt = BruteTour()
     for seed in range(3):
         world = generate_world(seed, n_robots=1, n_targets=n)

@@ -309,6 +309,13 @@ def test_pricing_tour_option_is_used_and_charged():
     assert by_name.assignment == res.assignment
     with pytest.raises(ValueError, match="pricing_tour"):
         IsingSharing(pricing_tour=42)
+    # 'downstream' uses the tour handed to assign; 'auto' prices up to 13 targets exactly on the host
+    down = CountingTour()
+    IsingSharing(pricing_tour="downstream").assign(world.distance_matrix, 3, down, np.random.default_rng(0))
+    assert down.calls > 0
+    auto = CountingTour()
+    res_auto = IsingSharing().assign(world.distance_matrix, 3, auto, np.random.default_rng(0))
+    assert auto.calls == 0 and res_auto.assignment == res.assignment
 
 
 def test_chip_refusing_programs_gives_a_clear_failure():

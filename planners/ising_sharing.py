@@ -12,9 +12,11 @@ one robot are split first (one *stage* per round: every group that needs a
 split in that round is split at once), until every group holds at most one
 robot.  Then *refinement* stages split groups further; the robot's side of a
 refined one-robot group stays that robot's base set and every robotless side
-becomes a *bundle*.  Finally each bundle goes to the robot whose tour cost
-(by the downstream ``tour`` solver handed to :meth:`IsingSharing.assign`)
-grows least -- classically, as in the paper.  No auction, no local search:
+becomes a *bundle*.  Finally each bundle goes to the robot whose route cost
+grows least -- classically, as in the paper -- priced by ``pricing_tour``
+(default: exact Held-Karp on the host for sets of up to 13 targets, the
+downstream ``tour`` handed to :meth:`IsingSharing.assign` beyond; the paper's
+literal "downstream tour solver" is ``pricing_tour="downstream"``).  No auction, no local search:
 the host only decomposes, decodes, scores and prices whole bundles.
 
 Per split (the paper's anchored split):
@@ -57,8 +59,8 @@ unquantized cut (refinement stages the ``refine_beam`` best) and expand
 every partial solution by them (at most ``max_states`` partial solutions,
 ranked by the sum of their chosen cuts); in each complete candidate the
 bundles are placed, and the one
-with the lowest total route cost under the downstream ``tour`` -- the
-sharing layer's original objective -- is returned.  This is candidate
+with the lowest total route cost (priced as above) -- the sharing layer's
+original objective -- is returned.  This is candidate
 *selection* (decode-filter-score one level up), not repair: every group
 boundary still comes from a chip split.  The refinement stages of all
 partial solutions share their chip submissions.
@@ -148,9 +150,9 @@ larger group is refused with a failure result naming the size and the limit
 (default chip: at most 51 robots + targets in the root group).
 
 Accounting.  ``compute`` carries the chip ledger of the sharing calls plus
-the compute reports of every downstream tour solve used for bundle pricing
-(e.g. projected logical calls of an Ising tour solver), so nothing is
-hidden; the chip is charged around this planner's own submissions only, so
+the compute reports of every tour solve used for bundle pricing (e.g.
+projected logical calls of an Ising tour solver with ``"downstream"``), so
+nothing is hidden; the chip is charged around this planner's own submissions only, so
 a chip shared with other layers is not double counted.  A chip that refuses
 a mapped program (``ChipProgramError``) ends in a failure result.
 ``stats`` holds ``"mapping"`` (per rule: candidates, valid, wins),

@@ -321,25 +321,25 @@ class IsingSharing:
         chip: an :class:`ising_backend.EmulatedChip` or anything with its
             ``spec``, ``ledger`` and ``anneal_batch`` (default: a fresh
             ``EmulatedChip(ChipSpec())``).
-        rules: quantization rules used as the mapping portfolio.
+        rules: quantization rules used as the mapping portfolio (default all four).
         reads: chip reads per program.
+        beam: distinct chip candidates kept per robot split (1 = paper's greedy recursion).
+        refine_beam: distinct chip candidates kept per refinement split.
+        max_states: cap on candidate partial solutions carried along.
+        weight_shift, weight_power, robot_weight: split weights (module docstring).
+        balance: weight of the optional balance term of multi-robot splits.
         refine_stages: cap on refinement stages after the robot splits (0 = none).
         refine_above: a robotless bundle with more targets than this is split.
         base_max: a one-robot group with more targets than this is split
             (``None``: same as ``refine_above``).
-        balance: weight of the optional balance term of multi-robot splits.
         bundle_order: see :data:`BUNDLE_ORDERS`.
-        weight_shift, weight_power, robot_weight: split weights (module docstring).
-        reject_empty_robot_side: validity rule variant (module docstring).
-        retries: re-submissions of splits whose candidates were all invalid.
-        beam: distinct chip candidates kept per robot split (1 = paper's greedy recursion).
-        refine_beam: distinct chip candidates kept per refinement split.
-        max_states: cap on partial solutions carried through the robot stages.
-        max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
         pricing_tour: what prices bundles and complete candidates: ``"auto"``
             (default: exact Held-Karp on the host up to 13 targets, else the
             downstream tour), ``"downstream"`` (or ``None``: the ``tour`` given
             to :meth:`assign`), a tour registry name or a :class:`TourSolver`.
+        reject_empty_robot_side: validity rule variant (module docstring).
+        retries: re-submissions of splits whose candidates were all invalid.
+        max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
     """
 
     name = "ising"
@@ -347,23 +347,24 @@ class IsingSharing:
     def __init__(
         self,
         chip=None,
+        *,
         rules=None,
         reads: int = 2,
-        refine_stages: int = 8,
-        refine_above: int = 3,
-        base_max: int | None = 0,
-        balance: float = 0.0,
-        bundle_order: str = "creation",
+        beam: int = 3,
+        refine_beam: int = 2,
+        max_states: int = 9,
         weight_shift: float = 0.5,
         weight_power: float = 1.0,
         robot_weight: float = 1.0,
+        balance: float = 0.0,
+        refine_stages: int = 8,
+        refine_above: int = 3,
+        base_max: int | None = 0,
+        bundle_order: str = "creation",
+        pricing_tour="auto",
         reject_empty_robot_side: bool = False,
         retries: int = 2,
-        beam: int = 3,
-        max_states: int = 9,
-        pricing_tour="auto",
         max_frozen: int = 4,
-        refine_beam: int = 2,
     ) -> None:
         if chip is None:
             chip = EmulatedChip(ChipSpec())

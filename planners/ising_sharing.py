@@ -432,9 +432,10 @@ class IsingSharing:
 
     def __repr__(self) -> str:
         return (
-            f"IsingSharing(rules={self.rules}, reads={self.reads}, refine_stages={self.refine_stages}, "
-            f"refine_above={self.refine_above}, base_max={self.base_max}, weight_shift={self.weight_shift}, "
-            f"bundle_order={self.bundle_order!r})"
+            f"IsingSharing(rules={self.rules}, reads={self.reads}, beam={self.beam}, "
+            f"refine_beam={self.refine_beam}, max_states={self.max_states}, weight_shift={self.weight_shift}, "
+            f"refine_stages={self.refine_stages}, refine_above={self.refine_above}, base_max={self.base_max}, "
+            f"bundle_order={self.bundle_order!r}, pricing_tour={self.pricing_tour!r})"
         )
 
     # ------------------------------------------------------------------ api
@@ -520,8 +521,9 @@ class IsingSharing:
         return SharingResult(assignment=assignment, compute=self._chip_compute + tour_compute[0], stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int) -> np.ndarray:
-        """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power``,
-        with robot-target edges multiplied by ``robot_weight``."""
+        """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus
+        ``weight_shift`` x its mean over node pairs, robot-target edges then
+        multiplied by ``robot_weight`` (zero diagonal)."""
         w = np.asarray(dist, dtype=float) ** self.weight_power
         if self.weight_shift:
             n = w.shape[0]

@@ -342,3 +342,12 @@ def test_property_any_metric_instance_gives_a_partition(R, N, seed):
     res = IsingSharing().assign(d, R, TOUR, np.random.default_rng(seed))
     assert res.failure is None
     _check_partition(res.assignment, R, N)
+
+
+def test_three_targets_on_a_line_between_two_robots_match_the_exact_optimum():
+    pos = np.array([0, 10, 1, 2, 9], dtype=float)  # robots at 0 and 10, targets at 1, 2, 9
+    d = np.abs(pos[:, None] - pos[None, :])
+    res = IsingSharing().assign(d, 2, TOUR, np.random.default_rng(0))
+    assert res.assignment == ((0, 1), (2,))
+    ex = ExactSharing().assign(d, 2, TOUR)
+    assert sum(_totals(d, 2, res.assignment)) == sum(_totals(d, 2, ex.assignment)) == 3.0

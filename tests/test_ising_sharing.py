@@ -6,6 +6,8 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mrmt_env.generation import generate_world
 from planners.base import SharingResult
@@ -17,7 +19,7 @@ from planners.ising_sharing import (
     cut_value,
     decode_split,
 )
-from planners.sharing_classical import ExactSharing, SSASharing
+from planners.sharing_classical import ExactSharing
 from planners.tours_classical import BruteTour, ThreeOptTour
 
 
@@ -329,10 +331,6 @@ def test_chip_refusing_programs_gives_a_clear_failure():
     res = IsingSharing(chip=RefusingChip()).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
     assert "refused" in res.failure and "h_range" in res.failure
     assert res.assignment == ((), (), ())
-
-
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -115,12 +115,17 @@ Choices the paper leaves open (each a constructor parameter where reasonable):
   split is solved on ``budget`` members drawn at random and each other member
   joins the side of its nearest drawn member (decomposition by the host; the
   Ising sample decides the cut of the drawn members).
+* **Too many targets for one ordering model**: clusters of at most 7 targets
+  and an ordering model of at most ``(K-1)^2 <= 49`` variables cap one robot's
+  tour near ``8 * 7 = 56`` targets (the exact cap depends on the splits).  A
+  larger target set ends in a failure result naming the sizes (the paper is
+  silent; a hierarchical ordering is not implemented).
 * **Physical chip** (``backend="chip"``): the one-hot programs (and their
   branches) and the max-cut splits are quantized with ``chip_quantize``
   (``"linear"``) and annealed on the emulated chip (one read each, as
   ``num_reads``); the mapping statistic counts the one-hot programs.  Measured (20 worlds each, all four
   quantization rules): 3 targets (4-variable ordering) decode valid on
-  75-100 % of programs; from 5 targets on (16+ variables) on 0 %, so every
+  36-100 % of programs; from 5 targets on (16+ variables) on 0 %, so every
   construction fails -- the paper's finding, reproduced.  It is the range,
   not the annealer: the exact ground state of the quantized 16-variable
   ordering model is itself invalid in 20 of 20 cases under every rule.
@@ -454,6 +459,12 @@ class IsingTour:
         rest = [k for k in range(K) if k != first]
         if len(rest) <= 1:
             return [clusters[first]] + [clusters[k] for k in rest]
+        if len(rest) ** 2 > self._budget + self.max_branch_bits:
+            raise TourFailure(
+                f"{K} clusters of <= {self.local_limit} targets: the ordering model needs ({K}-1)^2 = "
+                f"{len(rest) ** 2} variables, over the spin budget {self._budget} + {self.max_branch_bits} "
+                f"branching bits (at most {(self.max_clusters) * self.local_limit} targets per robot with "
+                f"max_clusters={self.max_clusters}; hierarchical ordering is not implemented)")
         D = self._cluster_dist(dist, clusters)
         d = D[np.ix_(rest, rest)]
         entry = D[first, rest]

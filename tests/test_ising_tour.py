@@ -208,6 +208,12 @@ def test_garbage_solver_ends_in_clear_failure(n):
     assert r.compute.logical_calls > 0
 
 
+def test_too_many_targets_for_one_ordering_model_is_a_clear_failure():
+    dist = generate_world(1, height=20, width=20, n_robots=1, n_targets=70).distance_matrix
+    r = IsingTour(n_starts=1).solve(dist, np.random.default_rng(0))
+    assert not r.success and r.order == () and "ordering model needs" in r.failure
+
+
 def test_noisy_solver_never_gives_invalid_tour():
     for seed in range(4):
         dist = generate_world(seed, n_robots=1, n_targets=6).distance_matrix

@@ -115,11 +115,13 @@ Choices the paper leaves open (each a constructor parameter where reasonable):
   split is solved on ``budget`` members drawn at random and each other member
   joins the side of its nearest drawn member (decomposition by the host; the
   Ising sample decides the cut of the drawn members).
-* **Too many targets for one ordering model**: clusters of at most 7 targets
-  and an ordering model of at most ``(K-1)^2 <= 49`` variables cap one robot's
-  tour near ``8 * 7 = 56`` targets (the exact cap depends on the splits).  A
-  larger target set ends in a failure result naming the sizes (the paper is
-  silent; a hierarchical ordering is not implemented).
+* **More clusters than the ordering limit** (the paper is silent; happens
+  only above ~50 targets per robot, since clusters hold at most 7): the
+  clusters after the first are ordered hierarchically -- a max-cut split of
+  the clusters on the cluster distance, the part nearer to the previous
+  cluster first (the nearest-first rule one level up), each part ordered
+  recursively, parts of at most ``max_clusters - 1`` clusters by the one-hot
+  ordering model.
 * **Physical chip** (``backend="chip"``): the one-hot programs (and their
   branches) and the max-cut splits are quantized with ``chip_quantize``
   (``"linear"``) and annealed on the emulated chip (one read each, as
@@ -459,20 +461,35 @@ class IsingTour:
         rest = [k for k in range(K) if k != first]
         if len(rest) <= 1:
             return [clusters[first]] + [clusters[k] for k in rest]
-        if len(rest) ** 2 > self._budget + self.max_branch_bits:
-            raise TourFailure(
-                f"{K} clusters of <= {self.local_limit} targets: the ordering model needs ({K}-1)^2 = "
-                f"{len(rest) ** 2} variables, over the spin budget {self._budget} + {self.max_branch_bits} "
-                f"branching bits (at most {(self.max_clusters) * self.local_limit} targets per robot with "
-                f"max_clusters={self.max_clusters}; hierarchical ordering is not implemented)")
         D = self._cluster_dist(dist, clusters)
-        d = D[np.ix_(rest, rest)]
-        entry = D[first, rest]
-        order = self._solve_path(d, entry, np.zeros(len(rest)), run, "ordering")
-        if order is None:
-            raise TourFailure(f"cluster ordering ({len(rest)}^2 = {len(rest) ** 2} variables) gave no valid "
-                              f"permutation after {self.max_retries + 1} attempts")
-        return [clusters[first]] + [clusters[rest[i]] for i in order]
+        order = self._order_items(D, rest, first, run)
+        return [clusters[first]] + [clusters[k] for k in order]
+
+    def _order_items(self, D: np.ndarray, items: list[int], prev: int, run: _Run) -> list[int]:
+        """Open path over cluster indices ``items`` entered from cluster ``prev``.
+
+        Up to ``max_clusters - 1`` items: one one-hot ordering model.  More
+        (only when the clusters of at most ``local_limit`` targets number more
+        than ``max_clusters``): hierarchical -- a max-cut split of the items on
+        ``D``, the part nearer to ``prev`` first (the paper's nearest-first
+        rule one level up), each part ordered recursively.
+        """
+        if len(items) <= 1:
+            return list(items)
+        if len(items) <= self.max_clusters - 1:
+            d = D[np.ix_(items, items)]
+            entry = D[prev, items]
+            order = self._solve_path(d, entry, np.zeros(len(items)), run, "ordering")
+            if order is None:
+                raise TourFailure(f"cluster ordering ({len(items)}^2 = {len(items) ** 2} variables) gave no valid "
+                                  f"permutation after {self.max_retries + 1} attempts")
+            return [items[i] for i in order]
+        run.stats["ordering_splits"] += 1
+        a, b = self._split(D, list(items), run)
+        if D[prev, b].min() < D[prev, a].min():
+            a, b = b, a
+        left = self._order_items(D, a, prev, run)
+        return left + self._order_items(D, b, left[-1], run)
 
     # ------------------------------------------------------------------ 3. local TSPs
     def _local_tours(self, dist: np.ndarray, ordered: list[list[int]], run: _Run) -> list[int]:
@@ -563,6 +580,7 @@ class IsingTour:
             "failed_starts": 0,
             "splits": 0,
             "refinement_splits": 0,
+            "ordering_splits": 0,
             "patches": 0,
             "patches_accepted": 0,
             "patches_sideways": 0,

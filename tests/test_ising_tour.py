@@ -208,10 +208,13 @@ def test_garbage_solver_ends_in_clear_failure(n):
     assert r.compute.logical_calls > 0
 
 
-def test_too_many_targets_for_one_ordering_model_is_a_clear_failure():
+def test_many_targets_hierarchical_ordering():
+    # 70 targets: more clusters of <= 7 than the ordering limit, and a first split above the spin budget
     dist = generate_world(1, height=20, width=20, n_robots=1, n_targets=70).distance_matrix
     r = IsingTour(n_starts=1).solve(dist, np.random.default_rng(0))
-    assert not r.success and r.order == () and "ordering model needs" in r.failure
+    assert r.success and _is_perm(r.order, 70)
+    assert r.cost == pytest.approx(route_cost(dist, r.order))
+    assert r.stats["ordering_splits"] >= 1 and len(r.stats["clusters"]) > 8
 
 
 def test_noisy_solver_never_gives_invalid_tour():

@@ -143,27 +143,40 @@ def open_path_qubo(
             raise ValueError(f"{name} has non-finite entries (unreachable targets?)")
     if A is None:
         A = onehot_penalty(d, entry, exit_, B, margin_factor)
-    n = s * s
-    idx = np.arange(n).reshape(s, s)  # idx[i, p]
-    q = np.full(n, -2.0 * A)
-    q[idx[:, 0]] += B * entry
-    q[idx[:, s - 1]] += B * exit_
+    onehot, rows, cols, ii, jj, first, last = _layout(s)
+    q = np.full(s * s, -2.0 * A)
+    q[first] += B * entry
+    q[last] += B * exit_
     # C symmetric: the quadratic part is sum_{a<b} C_ab x_a x_b
-    C = np.zeros((n, n))
-    for k in range(s):
-        r = idx[k]  # item k at every position
-        C[np.ix_(r, r)] += 2.0 * A
-        c = idx[:, k]  # every item at position k
-        C[np.ix_(c, c)] += 2.0 * A
-    dd = d.copy()
-    np.fill_diagonal(dd, 0.0)
-    for p in range(s - 1):
-        block = B * dd  # item i at p (rows), item j at p+1 (columns)
-        C[np.ix_(idx[:, p], idx[:, p + 1])] += block
-        C[np.ix_(idx[:, p + 1], idx[:, p])] += block.T
+    C = (2.0 * A) * onehot  # same item twice, or two items at one position
+    route = B * d[ii, jj]  # item i at p, item j != i at p+1
+    C[rows, cols] += route
+    C[cols, rows] += route
     Q = np.triu(C, k=1)
     offset = 2.0 * s * A
     return q, Q, float(offset), float(A)
+
+
+_LAYOUTS: dict[int, tuple] = {}
+
+
+def _layout(s: int) -> tuple:
+    """Index tables of the ``s x s`` one-hot model (cached: they depend on ``s`` only)."""
+    lay = _LAYOUTS.get(s)
+    if lay is None:
+        idx = np.arange(s * s).reshape(s, s)  # idx[i, p]
+        item = np.repeat(np.arange(s), s)
+        pos = np.tile(np.arange(s), s)
+        onehot = ((item[:, None] == item[None, :]) | (pos[:, None] == pos[None, :])).astype(np.float64)
+        np.fill_diagonal(onehot, 0.0)
+        i, j, p = np.meshgrid(np.arange(s), np.arange(s), np.arange(s - 1), indexing="ij")
+        keep = i != j
+        ii, jj, pp = i[keep], j[keep], p[keep]
+        lay = (onehot, idx[ii, pp], idx[jj, pp + 1], ii, jj, idx[:, 0].copy(), idx[:, s - 1].copy())
+        for a in lay:
+            a.setflags(write=False)
+        _LAYOUTS[s] = lay
+    return lay
 
 
 def decode_onehot(x: np.ndarray, s: int) -> tuple[int, ...] | None:

@@ -140,6 +140,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ising_backend import QUANTIZE_RULES, ChipSpec, EmulatedChip, LogicalIsingSolver, QuboModel, branch, quantize
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising_tsp_qubo import (
@@ -183,17 +184,24 @@ class IsingTour:
         backend: ``"logical"`` (paper) or ``"chip"`` (quantized physical runs).
         local_limit: largest cluster solved as one local TSP (7).
         max_clusters: ordering limit ``K`` (8).
-        refine: which cluster a refinement split takes (``"largest"``).
-        cluster_distance: ``"min"``, ``"mean"`` or ``"medoid"``.
+        refine: which cluster a refinement split takes (``"largest"`` or
+            ``"spare_first"``).
+        cluster_distance: ``"min"`` (default), ``"mean"`` or ``"medoid"``.
         exit_cost: ``"min"`` or ``"mean"``; ``exit_weight`` scales it.
-        patch_size: most targets in a refinement patch (7).
+        patch_size: most targets in a refinement patch (6; at most 7 with
+            the default budget and branching).
         patience: consecutive non-improving patches before stopping (``None``:
             number of windows + 1).
         num_reads: reads per program.
         max_retries: re-issues of a program that gave no valid candidate.
         penalty_factor: ``A = penalty_factor * w_max + 1``.
         max_branch_bits: most frozen spins for spin-budget branching (4 -> 16).
-        chip_quantize: quantization rule for ``backend="chip"``.
+        chip_quantize: quantization rule for ``backend="chip"``
+            (one of :data:`ising_backend.QUANTIZE_RULES`).
+        n_starts: independent constructions, the cheapest final tour kept (4).
+        accept_equal: also accept equal-cost patch reorders (not the paper's
+            rule; default ``False``).
+        share_clusters: reuse the first start's clustering in later starts.
         solver_options: keyword options for the default
             :class:`ising_backend.LogicalIsingSolver` (e.g. ``restarts``).
         solver: a ready logical solver (anything with ``solve_many(models,
@@ -231,6 +239,8 @@ class IsingTour:
             raise ValueError(f"refine = {refine!r} not in {REFINE_RULES}")
         if cluster_distance not in CLUSTER_DISTANCES:
             raise ValueError(f"cluster_distance = {cluster_distance!r} not in {CLUSTER_DISTANCES}")
+        if chip_quantize not in QUANTIZE_RULES:
+            raise ValueError(f"chip_quantize = {chip_quantize!r} not in {QUANTIZE_RULES}")
         if exit_cost not in EXIT_COSTS:
             raise ValueError(f"exit_cost = {exit_cost!r} not in {EXIT_COSTS}")
         for nm, v, lo in (("local_limit", local_limit, 1), ("max_clusters", max_clusters, 1),
@@ -268,8 +278,6 @@ class IsingTour:
 
     # ------------------------------------------------------------------ backend glue
     def _init_backend(self, solver) -> None:
-        from ising_backend import ChipSpec, EmulatedChip, LogicalIsingSolver
-
         if self._chip is None:
             self._chip = EmulatedChip(ChipSpec())
         self.chip = self._chip
@@ -291,8 +299,6 @@ class IsingTour:
 
     def _sample(self, q, Q, off, run: _Run, onehot: bool) -> np.ndarray:
         """Bits ``(m, n)`` of every read of every branch of one QUBO program issue."""
-        from ising_backend import QuboModel, branch, quantize
-
         model = QuboModel(q, Q, off).to_ising()
         if model.n > self._budget:
             branches = branch(model, self._budget, max_frozen=self.max_branch_bits)

@@ -241,6 +241,25 @@ def test_chip_backend_reports_physical_validity():
         assert r.order == () and "no valid permutation" in r.failure
 
 
+class _GarbageChip:
+    """An emulated chip whose read-out is stuck at -1 (charges the calls, returns garbage)."""
+
+    def __init__(self):
+        self.inner = EmulatedChip(ChipSpec(), seed=0)
+        self.spec = self.inner.spec
+        self.ledger = self.inner.ledger
+
+    def anneal_models(self, models, num_reads=1, seed=None):
+        return [(-np.ones_like(sp), e) for sp, e in self.inner.anneal_models(models, num_reads=num_reads, seed=seed)]
+
+
+def test_garbage_chip_ends_in_clear_failure():
+    dist = generate_world(4, n_robots=1, n_targets=6).distance_matrix
+    r = IsingTour(chip=_GarbageChip(), backend="chip").solve(dist, np.random.default_rng(0))
+    assert not r.success and r.order == () and r.failure
+    assert r.compute.chip_calls > 0 and r.compute.logical_calls == 0
+
+
 def test_bad_options_are_refused():
     with pytest.raises(ValueError, match="backend"):
         IsingTour(backend="quantum")

@@ -93,7 +93,10 @@ Choices the paper leaves open (each a constructor parameter where reasonable):
   samples give different clusterings and so different local optima.  One
   start: mean gap 1.1-1.8 % depending on the seed range; four: 0.34-0.50 %.
   Starts do not share clusterings (``share_clusters=True`` reuses the first
-  one: cheaper, measured worse).
+  one: cheaper, measured worse).  ``start_patience=k`` stops after ``k``
+  starts in a row that did not improve the best tour (default ``None``: all
+  ``n_starts``); measured on seeds 100..499, ``n_starts=6, start_patience=2``
+  saves calls (median 89 instead of 117) but loses quality (0.51 % vs 0.38 %).
   With ``n <= patch_size`` the one patch is the whole tour, so only one start
   is made.
 * **Sampling**: ``num_reads`` reads per program (each read of a logical program
@@ -199,6 +202,8 @@ class IsingTour:
         chip_quantize: quantization rule for ``backend="chip"``
             (one of :data:`ising_backend.QUANTIZE_RULES`).
         n_starts: independent constructions, the cheapest final tour kept (4).
+        start_patience: stop after this many non-improving starts in a row
+            (``None``: run all ``n_starts``).
         accept_equal: also accept equal-cost patch reorders (not the paper's
             rule; default ``False``).
         share_clusters: reuse the first start's clustering in later starts.
@@ -228,6 +233,7 @@ class IsingTour:
         max_branch_bits: int = 4,
         chip_quantize: str = "linear",
         n_starts: int = 4,
+        start_patience: int | None = None,
         accept_equal: bool = False,
         share_clusters: bool = False,
         solver_options: dict | None = None,
@@ -265,6 +271,9 @@ class IsingTour:
         self.patch_size = int(patch_size)
         self.n_starts = int(n_starts)
         self.accept_equal = bool(accept_equal)
+        if start_patience is not None and (int(start_patience) != start_patience or start_patience < 1):
+            raise ValueError(f"start_patience = {start_patience!r} must be None or an integer >= 1")
+        self.start_patience = None if start_patience is None else int(start_patience)
         self.share_clusters = bool(share_clusters)
         self.patience = None if patience is None else int(patience)
         self.num_reads = int(num_reads)
@@ -358,7 +367,10 @@ class IsingTour:
         best, best_cost, failure = None, math.inf, None
         clusters = None
         starts = 1 if n <= self.patch_size else self.n_starts
+        stale = 0  # consecutive starts that did not improve the best tour
         for _start in range(starts):
+            if self.start_patience is not None and stale >= self.start_patience:
+                break
             try:
                 if clusters is None or not self.share_clusters:
                     clusters = self._cluster(dist, run)
@@ -374,6 +386,9 @@ class IsingTour:
             run.stats["start_costs"].append(cost)
             if cost < best_cost - 1e-9:
                 best, best_cost = tour, cost
+                stale = 0
+            else:
+                stale += 1
         if best is None:
             return self._result(run, snap, None, dist, failure)
         return self._result(run, snap, tuple(int(t) for t in best), dist)

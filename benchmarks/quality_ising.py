@@ -214,9 +214,11 @@ def summaries(rows_by_name: dict) -> dict:
         inst = sorted({r["instance"] for r in rows})
         ising = [cost.get(("ising", i)) for i in inst]
         exact = [cost.get(("exact", i)) for i in inst]
-        out["sharing"]["ising worlds at the exact optimum"] = f"{sum(a is not None and a == b for a, b in zip(ising, exact))}/{len(inst)}"
+        n_opt = sum(a is not None and a == b for a, b in zip(ising, exact))
+        out["sharing"]["ising worlds at the exact optimum"] = f"{n_opt}/{len(inst)}"
         for m, vals in (("ising", ising), ("ssa", [cost.get(("ssa", i)) for i in inst]), ("exact", exact)):
-            out["sharing"][f"{m} worlds with total <= 28"] = f"{sum(v is not None and v <= 28 for v in vals)}/{len(inst)}"
+            n_le = sum(v is not None and v <= 28 for v in vals)
+            out["sharing"][f"{m} worlds with total <= 28"] = f"{n_le}/{len(inst)}"
     return out
 
 

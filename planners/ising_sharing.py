@@ -169,7 +169,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULES, BranchMapping, ChipProgramError, ChipSpec, EmulatedChip, QuantizeMapping, QuboModel, run_portfolio_batch
+from ising_backend import (
+    QUANTIZE_RULES,
+    BranchMapping,
+    ChipProgramError,
+    ChipSpec,
+    EmulatedChip,
+    QuantizeMapping,
+    QuboModel,
+    run_portfolio_batch,
+)
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.tours_classical import MAX_BRUTE_TARGETS, BruteTour

@@ -400,7 +400,7 @@ def _si(v: float, unit: str) -> str:
     if v == 0:
         return f"0 {unit}"
     for scale, prefix in ((1, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n")):
-        if abs(v) >= scale:
+        if abs(v) >= scale * (1 - 1e-9):  # 0.001 computed as 0.000999... is still 1 ms
             return f"{v / scale:.3g} {prefix}{unit}"
     return f"{v:.2e} {unit}"
 

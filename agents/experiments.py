@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor

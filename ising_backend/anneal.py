@@ -5,10 +5,15 @@ anneals a whole stack of programs: ``h (B, n)``, ``J (B, n, n)`` upper triangula
 For each program and read it runs a fixed-schedule Metropolis single-spin-flip
 anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
 
-* local fields ``f_i = h_i + sum_j J_ij s_j`` are kept incrementally (an accepted
-  flip of spin ``i`` costs one row update), the flip energy is ``-2 s_i f_i``;
-* flips with ``beta * dE > 20`` are rejected without drawing (``exp(-20)`` ~ 2e-9),
-  downhill flips are accepted without drawing;
+* local fields ``f_i = h_i + sum_j J_ij s_j`` are kept incrementally in float32
+  (exact for the chip's integer coefficients; an accepted flip of spin ``i`` costs
+  one row update), the flip energy is ``dE = -2 s_i f_i``;
+* every spin visit draws one uniform ``u`` in (0, 1) and accepts iff
+  ``u < exp(-beta dE)`` and ``beta dE <= 20`` (``exp(-20)`` ~ 2e-9), evaluated as
+  ``s_i f_i > max(log u, -20) / (2 beta)``: the thresholds of a whole sweep are
+  drawn before it (a vectorised polynomial ``log``, error < 1e-8), so the serial
+  part of a visit is one compare and, on acceptance, the row update; downhill
+  flips (``dE <= 0``) are always accepted;
 * the inverse-temperature schedule is geometric (or linear) from ``beta_hot`` to
   ``beta_cold`` over ``sweeps`` sweeps, precomputed once per program.  The
   automatic range: cold end exactly dwave-samplers' default (the smallest
@@ -18,22 +23,27 @@ anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
   uses the worst-case field ``|h_i| + sum_j |J_ij|`` there, which on dense
   programs spends the first third of a 50-sweep anneal at random; the RMS rule
   measured a higher ground-state hit rate at 50 sweeps and fewer wasted flips;
-* the random numbers come from xorshift64* seeded by splitmix64 of
-  ``(seed, program index, read index)``: the same seed gives the same samples,
-  and a program's samples depend only on its own coefficients, its index in the
-  stack and the seed, never on the other programs of the batch (zero-padding a
-  program to a larger ``n`` does change its random stream);
+* each read has its own random stream, xorshift64* seeded by splitmix64 of
+  ``(seed, program index, read index)``, consumed in a fixed order (``n`` draws for
+  the random start, ``n`` per sweep, ``n`` for readout flips): the same seed gives
+  the same samples, and a read's samples depend only on its program's
+  coefficients, the program's index in the stack, the read index and the seed,
+  never on the other programs of the batch.  Reads are annealed ``_LANES`` at a
+  time side by side (interleaved in one loop so the core overlaps their
+  dependency chains); that grouping changes no result.  Zero-padding a program
+  to a larger ``n`` does change its random stream;
 * optional static coupling mismatch: read ``k = b * reads + r`` of the call runs
   on core ``k % n_cores`` whose fixed factor matrix multiplies the couplings while
   annealing; optional readout bit flips after the anneal;
-* the returned energy is that of the *programmed* coefficients (recomputed from
-  scratch, so it is exact for integer programs).
+* the returned energy is that of the *programmed* coefficients (recomputed in
+  float64 from scratch, so it is exact for integer programs).
 
-Speed: about 21 us of one thread per 45-spin, 50-sweep call on the shared
-2-vCPU development VM (``benchmarks/chip_speed.py``; dwave-samplers' SA takes
-~1.5 ms per single-read call through dimod).  Tried and measured no faster
-there: float32 fields, a tabulated exp, a branch-free acceptance, and a 16-lane
-SIMD layout across reads.
+Speed: see ``benchmarks/RESULTS.md`` "Issue 3: emulated chip"
+(``benchmarks/chip_speed.py``).  Measured no faster: float32 fields with the
+exp-on-the-critical-path loop, a tabulated exp, a branch-free always-update
+acceptance (the row update then costs every visit; ~22 % of visits accept), libm
+``log`` for the thresholds, and a 16-lane SIMD layout across reads (numba's
+vectoriser re-checks aliasing on every short inner loop).
 """
 
 from __future__ import annotations
@@ -70,18 +80,23 @@ def _next(state):
 @numba.njit(cache=True)
 def _auto_range(h_b, Js, n):
     """Automatic beta range of one program (hot, cold); see the module docstring (one pass)."""
+    sqs = np.empty(n)
+    mns = np.empty(n)
+    for j in range(n):
+        hj = h_b[j]
+        sqs[j] = hj * hj
+        mns[j] = abs(hj) if hj != 0.0 else np.inf
+    for i in range(n):
+        for j in range(n):
+            a = abs(Js[i, j])
+            sqs[j] += a * a
+            mns[j] = a if (a != 0.0 and a < mns[j]) else mns[j]
     max_sq = 0.0
     min_eff = np.inf
     count = 0
     for i in range(n):
-        hi = h_b[i]
-        sq = hi * hi
-        mn = abs(hi) if hi != 0.0 else np.inf
-        for j in range(n):
-            a = abs(Js[i, j])
-            sq += a * a
-            if a != 0.0 and a < mn:
-                mn = a
+        sq = sqs[i]
+        mn = mns[i]
         if sq > max_sq:
             max_sq = sq
         if mn < min_eff:
@@ -98,6 +113,17 @@ def _auto_range(h_b, Js, n):
     return hot, cold
 
 
+_LANES = 4  # reads annealed side by side (independent streams; the count changes no result)
+_ONE_BITS = np.uint64(0x3FF0000000000000)
+_MANT = np.uint64(0x000FFFFFFFFFFFFF)
+_LN2 = 0.6931471805599453
+_SQRT2 = 1.4142135623730951
+_U52 = 1.0 / 4503599627370496.0
+# log(1 + t) = t * P(t) on [sqrt(1/2) - 1, sqrt(2) - 1], least squares on Chebyshev nodes (|error| < 1e-8)
+_LOGC = (1.0000000000182157, -0.4999998829414175, 0.3333332402363801, -0.25001585123044273, 0.2000207167482409, -0.16609126504962715, 0.14180078717998598, -0.13240842692636628, 0.12914170328040778, -0.07638592458275842)
+_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8, _C9 = _LOGC
+
+
 @numba.njit(cache=True, nogil=True)
 def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                   mismatch, flip_prob, out_spins, out_energy):
@@ -108,88 +134,144 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     """
     B = h.shape[0]
     n = h.shape[1]
+    R = num_reads
+    npad = (n + 7) // 8 * 8
     n_cores = mismatch.shape[0]
-    Js = np.zeros((n, n))
-    Jeff = np.zeros((n, n))
-    f = np.zeros(n)
-    s = np.zeros(n)
-    betas = np.zeros(sweeps)
-    seed64 = np.uint64(seed)
+    # per program: symmetric couplings (float64, exact energies) and the beta schedule
+    Js = np.zeros((B, n, npad))
+    betas = np.zeros((B, sweeps))
     for b in range(B):
+        Jb = Js[b]
         for i in range(n):
-            Js[i, i] = 0.0
             for j in range(i + 1, n):
                 v = J[b, i, j] + J[b, j, i]
-                Js[i, j] = v
-                Js[j, i] = v
+                Jb[i, j] = v
+                Jb[j, i] = v
         if beta_hot <= 0.0:
-            hot, cold = _auto_range(h[b], Js, n)
+            hot, cold = _auto_range(h[b], Jb, n)
         else:
             hot, cold = beta_hot, beta_cold
         if sweeps == 1:
-            betas[0] = cold
+            betas[b, 0] = cold
         elif geometric:
             ratio = (cold / hot) ** (1.0 / (sweeps - 1))
-            betas[0] = hot
+            betas[b, 0] = hot
             for k in range(1, sweeps):
-                betas[k] = betas[k - 1] * ratio
+                betas[b, k] = betas[b, k - 1] * ratio
         else:
             for k in range(sweeps):
-                betas[k] = hot + (cold - hot) * (k / (sweeps - 1))
-        for r in range(num_reads):
+                betas[b, k] = hot + (cold - hot) * (k / (sweeps - 1))
+    # per lane (one read of one program): annealed couplings, fields, spins (float32)
+    W = np.zeros((_LANES, n, npad), dtype=np.float32)
+    f = np.zeros((_LANES, npad), dtype=np.float32)
+    s = np.zeros((_LANES, npad), dtype=np.float32)
+    st = np.zeros(_LANES, dtype=np.uint64)
+    bl = np.zeros(_LANES, dtype=np.int64)
+    cl = np.zeros(_LANES)
+    # one sweep's acceptance thresholds of all lanes, flat [i * L + l]
+    nq_max = n * _LANES
+    thr = np.zeros(nq_max, dtype=np.float32)
+    cq = np.zeros(nq_max)
+    uf = np.zeros(nq_max)
+    ub = uf.view(np.uint64)
+    mb = np.zeros(nq_max, dtype=np.uint64)
+    mf = mb.view(np.float64)
+    ex = np.zeros(nq_max)
+    g = np.zeros(npad)
+    seed64 = np.uint64(seed)
+    total = B * R
+    for g0 in range(0, total, _LANES):
+        L = min(_LANES, total - g0)
+        for l in range(L):
+            k = g0 + l
+            b = k // R
+            r = k - b * R
+            bl[l] = b
             state = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
             if state == np.uint64(0):
                 state = _GOLDEN
             if n_cores > 0:
-                core = (b * num_reads + r) % n_cores
+                core = k % n_cores
                 for i in range(n):
                     for j in range(n):
-                        Jeff[i, j] = Js[i, j] * mismatch[core, i, j]
-                Jr = Jeff
+                        W[l, i, j] = Js[b, i, j] * mismatch[core, i, j]
             else:
-                Jr = Js
+                for i in range(n):
+                    for j in range(npad):
+                        W[l, i, j] = Js[b, i, j]
             # random start
             for i in range(n):
                 state, x = _next(state)
-                s[i] = 1.0 if (x >> np.uint64(63)) == np.uint64(1) else -1.0
+                s[l, i] = 1.0 if (x >> np.uint64(63)) == np.uint64(1) else -1.0
+            for j in range(npad):
+                f[l, j] = 0.0
+            for j in range(n):
+                f[l, j] = h[b, j]
             for i in range(n):
-                acc = h[b, i]
-                for j in range(n):
-                    acc += Jr[i, j] * s[j]
-                f[i] = acc
-            for k in range(sweeps):
-                beta = betas[k]
+                si = s[l, i]
+                for j in range(npad):
+                    f[l, j] += si * W[l, i, j]
+            st[l] = state
+        for k in range(sweeps):
+            # thresholds t = max(log u, -20) / (2 beta): accept iff s_i f_i > t
+            for l in range(_LANES):
+                cl[l] = 0.5 / betas[bl[l], k]
+            for i in range(n):
+                for l in range(_LANES):
+                    state, x = _next(st[l])
+                    st[l] = state
+                    q = i * _LANES + l
+                    cq[q] = cl[l]
+                    uf[q] = (np.int64(x >> np.uint64(12)) + 0.5) * _U52
+            for q in range(nq_max):
+                bits = ub[q]
+                ex[q] = np.float64(np.int64(bits >> np.uint64(52)) - 1023)
+                mb[q] = (bits & _MANT) | _ONE_BITS
+            for q in range(nq_max):
+                m = mf[q]
+                e = ex[q]
+                big = m > _SQRT2
+                m = 0.5 * m if big else m
+                e = e + 1.0 if big else e
+                t = m - 1.0
+                lu = e * _LN2 + t * (_C0 + t * (_C1 + t * (_C2 + t * (_C3 + t * (_C4 + t * (
+                    _C5 + t * (_C6 + t * (_C7 + t * (_C8 + t * _C9)))))))))
+                lu = lu if lu > -20.0 else -20.0
+                thr[q] = np.float32(lu * cq[q])
+            for l in range(L, _LANES):  # idle lanes of the last group never flip
                 for i in range(n):
-                    dE = -2.0 * s[i] * f[i]
-                    accept = False
-                    if dE <= 0.0:
-                        accept = True
-                    else:
-                        bd = beta * dE
-                        if bd < 20.0:
-                            state, x = _next(state)
-                            u = np.int64(x >> np.uint64(11)) * _U53
-                            if u < np.exp(-bd):
-                                accept = True
-                    if accept:
-                        s[i] = -s[i]
-                        d = 2.0 * s[i]
-                        for j in range(n):
-                            f[j] += d * Jr[i, j]
+                    thr[i * _LANES + l] = np.inf
+            # the sweep: spins in order, the lanes interleaved
+            for i in range(n):
+                for l in range(_LANES):
+                    si = s[l, i]
+                    if si * f[l, i] > thr[i * _LANES + l]:
+                        s[l, i] = -si
+                        d = np.float32(-2.0) * si
+                        for j in range(npad):
+                            f[l, j] += d * W[l, i, j]
+        for l in range(L):
+            b = bl[l]
+            r = g0 + l - b * R
+            state = st[l]
             if flip_prob > 0.0:
                 for i in range(n):
                     state, x = _next(state)
                     u = np.int64(x >> np.uint64(11)) * _U53
                     if u < flip_prob:
-                        s[i] = -s[i]
+                        s[l, i] = -s[l, i]
+            # energy of the programmed coefficients: E = sum_i s_i (2 h_i + sum_j Js_ij s_j) / 2
+            for j in range(npad):
+                g[j] = 0.0
+            for i in range(n):
+                si = np.float64(s[l, i])
+                out_spins[b, r, i] = np.int8(si)
+                for j in range(npad):
+                    g[j] += si * Js[b, i, j]
             e = 0.0
             for i in range(n):
-                acc = h[b, i]
-                for j in range(i + 1, n):
-                    acc += Js[i, j] * s[j]
-                e += s[i] * acc
-                out_spins[b, r, i] = np.int8(s[i])
-            out_energy[b, r] = e
+                e += s[l, i] * (2.0 * h[b, i] + g[i])
+            out_energy[b, r] = 0.5 * e
 
 
 def beta_range_auto(h: np.ndarray, J: np.ndarray) -> tuple[float, float]:

@@ -47,27 +47,45 @@ def _where(prog: tuple, batched: bool) -> str:
 
 @numba.njit(cache=True, nogil=True)
 def _all_fit(h, J, hlo, hhi, jlo, jhi) -> bool:
-    """One compiled pass: every coefficient finite, integer, in range; J strictly upper."""
+    """One compiled pass: every coefficient finite, integer, in range; J strictly upper.
+
+    Counting loops without early exits (they vectorise); NaN fails every comparison.
+    The ranges hold 0 (:class:`ChipSpec` checks it), so the lower triangle only
+    needs its own zero test.
+    """
     B, n = h.shape
+    bad = 0
+    hv = h.reshape(-1)
+    for q in range(hv.size):
+        v = hv[q]
+        bad += np.int64(v >= hlo) * np.int64(v <= hhi) * np.int64(v == np.floor(v)) ^ 1
+    Jv = J.reshape(-1)
+    for q in range(Jv.size):
+        w = Jv[q]
+        bad += np.int64(w >= jlo) * np.int64(w <= jhi) * np.int64(w == np.floor(w)) ^ 1
     for b in range(B):
         for i in range(n):
-            v = h[b, i]
-            if not (v >= hlo and v <= hhi and v == np.floor(v)):  # NaN fails the comparisons
-                return False
-            for j in range(n):
-                w = J[b, i, j]
-                if j <= i:
-                    if w != 0.0:
-                        return False
-                elif not (w >= jlo and w <= jhi and w == np.floor(w)):
-                    return False
-    return True
+            for j in range(i + 1):
+                bad += np.int64(J[b, i, j] != 0)
+    return bad == 0
 
 
-def check_program(h, J, spec: ChipSpec = ChipSpec()) -> tuple[np.ndarray, np.ndarray]:
+def _native(h: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C-contiguous int64 arrays for integer (or bool) input, float64 otherwise (no copy when already so)."""
+    def fits_int64(dt):  # uint64 could wrap
+        return dt == np.bool_ or (np.issubdtype(dt, np.integer) and not (dt.kind == "u" and dt.itemsize >= 8))
+
+    if fits_int64(h.dtype) and fits_int64(J.dtype):
+        return np.ascontiguousarray(h, dtype=np.int64), np.ascontiguousarray(J, dtype=np.int64)
+    return np.ascontiguousarray(h, dtype=np.float64), np.ascontiguousarray(J, dtype=np.float64)
+
+
+def check_program(h, J, spec: ChipSpec = ChipSpec(), native: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Validate one program (``h (n,)``, ``J (n, n)``) or a stack (``(B, n)``, ``(B, n, n)``).
 
-    Returns float64 C-contiguous copies shaped ``(B, n)`` and ``(B, n, n)``.
+    Returns float64 C-contiguous copies shaped ``(B, n)`` and ``(B, n, n)`` (with
+    ``native=True``: int64 instead when both inputs have an integer dtype, which the
+    annealing kernel takes as is, saving the conversion).
     Raises :class:`ChipProgramError` on the first violation (and counts the rest).
     """
     h = np.asarray(h)
@@ -91,10 +109,13 @@ def check_program(h, J, spec: ChipSpec = ChipSpec()) -> tuple[np.ndarray, np.nda
             f"program{' 0' if batched else ''} has {n} spins; the chip has {spec.n_spins} (spec.n_spins). "
             "Use spin-budget branching or a larger chip spec"
         )
+    hf, Jf = _native(h, J)
+    if _all_fit(hf, Jf, *map(float, spec.h_range), *map(float, spec.j_range)):
+        if hf.dtype != np.float64 and not native:
+            hf, Jf = hf.astype(np.float64), Jf.astype(np.float64)
+        return hf, Jf
     hf = np.ascontiguousarray(h, dtype=np.float64)
     Jf = np.ascontiguousarray(J, dtype=np.float64)
-    if _all_fit(hf, Jf, *map(float, spec.h_range), *map(float, spec.j_range)):
-        return hf, Jf
     # slow path: find and name the first violation of each kind, in a fixed order
     for arr, name, (lo, hi), kind in ((hf, "h", spec.h_range, "field"), (Jf, "J", spec.j_range, "coupling")):
         bad = ~np.isfinite(arr)
@@ -232,7 +253,7 @@ class EmulatedChip(dimod.Sampler):
         if int(num_reads) != num_reads or num_reads < 1:
             raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
         num_reads = int(num_reads)
-        hf, Jf = check_program(h, J, self.spec)
+        hf, Jf = check_program(h, J, self.spec, native=True)
         seed = self._draw_seed(seed)
         B, n = hf.shape
         spins = np.empty((B, num_reads, n), dtype=np.int8)

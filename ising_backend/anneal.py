@@ -56,7 +56,6 @@ __all__ = ["anneal_kernel", "beta_range_auto"]
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
-_XS = np.uint64(0x2545F4914F6CDD1D)
 _U53 = 1.0 / 9007199254740992.0
 
 
@@ -66,15 +65,6 @@ def _splitmix(x):
     z = (z ^ (z >> np.uint64(30))) * _M1
     z = (z ^ (z >> np.uint64(27))) * _M2
     return z ^ (z >> np.uint64(31))
-
-
-@numba.njit(cache=True, inline="always")
-def _next(state):
-    x = state
-    x ^= x >> np.uint64(12)
-    x ^= x << np.uint64(25)
-    x ^= x >> np.uint64(27)
-    return x, x * _XS
 
 
 @numba.njit(cache=True)
@@ -113,15 +103,44 @@ def _auto_range(h_b, Js, n):
     return hot, cold
 
 
+_SLOTS = 8  # cached program set-ups: > the programs one group of lanes can span
 _LANES = 4  # reads annealed side by side (independent streams; the count changes no result)
 _ONE_BITS = np.uint64(0x3FF0000000000000)
 _MANT = np.uint64(0x000FFFFFFFFFFFFF)
-_LN2 = 0.6931471805599453
-_SQRT2 = 1.4142135623730951
+_LN2 = np.float32(0.6931471805599453)
+_SQRT2 = np.float32(1.4142135623730951)
+_LOG_MIN = np.float32(-20.0)
 _U52 = 1.0 / 4503599627370496.0
-# log(1 + t) = t * P(t) on [sqrt(1/2) - 1, sqrt(2) - 1], least squares on Chebyshev nodes (|error| < 1e-8)
-_LOGC = (1.0000000000182157, -0.4999998829414175, 0.3333332402363801, -0.25001585123044273, 0.2000207167482409, -0.16609126504962715, 0.14180078717998598, -0.13240842692636628, 0.12914170328040778, -0.07638592458275842)
-_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7, _C8, _C9 = _LOGC
+# log(1 + t) = t * P(t) on [sqrt(1/2) - 1, sqrt(2) - 1] in float32, least squares on Chebyshev
+# nodes (|error| < 1e-7, the float32 rounding of the thresholds)
+_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7 = (np.float32(v) for v in (
+    0.9999999425426719, -0.5000036309272982, 0.33335114140346994, -0.24970071685057837,
+    0.1989856504823497, -0.17247013303837178, 0.1623418979919823, -0.10134056751194925))
+
+
+@numba.njit(cache=True, inline="always")
+def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, betas_b):
+    """Symmetric couplings ``Jb`` (padding columns stay zero) and the schedule of one program."""
+    for i in range(n):
+        Jb[i, i] = 0.0
+        for j in range(i + 1, n):
+            v = J_b[i, j] + J_b[j, i]
+            Jb[i, j] = v
+            Jb[j, i] = v
+    if beta_hot <= 0.0:
+        hot, cold = _auto_range(h_b, Jb, n)
+    else:
+        hot, cold = beta_hot, beta_cold
+    if sweeps == 1:
+        betas_b[0] = cold
+    elif geometric:
+        ratio = (cold / hot) ** (1.0 / (sweeps - 1))
+        betas_b[0] = hot
+        for k in range(1, sweeps):
+            betas_b[k] = betas_b[k - 1] * ratio
+    else:
+        for k in range(sweeps):
+            betas_b[k] = hot + (cold - hot) * (k / (sweeps - 1))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -137,46 +156,27 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     R = num_reads
     npad = (n + 7) // 8 * 8
     n_cores = mismatch.shape[0]
-    # per program: symmetric couplings (float64, exact energies) and the beta schedule
-    Js = np.zeros((B, n, npad))
-    betas = np.zeros((B, sweeps))
-    for b in range(B):
-        Jb = Js[b]
-        for i in range(n):
-            for j in range(i + 1, n):
-                v = J[b, i, j] + J[b, j, i]
-                Jb[i, j] = v
-                Jb[j, i] = v
-        if beta_hot <= 0.0:
-            hot, cold = _auto_range(h[b], Jb, n)
-        else:
-            hot, cold = beta_hot, beta_cold
-        if sweeps == 1:
-            betas[b, 0] = cold
-        elif geometric:
-            ratio = (cold / hot) ** (1.0 / (sweeps - 1))
-            betas[b, 0] = hot
-            for k in range(1, sweeps):
-                betas[b, k] = betas[b, k - 1] * ratio
-        else:
-            for k in range(sweeps):
-                betas[b, k] = hot + (cold - hot) * (k / (sweeps - 1))
+    # per program (a small cache of the programs of the current lanes): symmetric
+    # couplings (float64, exact energies) and the beta schedule
+    Js = np.zeros((_SLOTS, n, npad))
+    betas = np.ones((_SLOTS, sweeps))
+    slot_prog = np.full(_SLOTS, -1, dtype=np.int64)
     # per lane (one read of one program): annealed couplings, fields, spins (float32)
     W = np.zeros((_LANES, n, npad), dtype=np.float32)
     f = np.zeros((_LANES, npad), dtype=np.float32)
     s = np.zeros((_LANES, npad), dtype=np.float32)
-    st = np.zeros(_LANES, dtype=np.uint64)
+    st = np.zeros(_LANES, dtype=np.uint64)  # readout-flip counters
     bl = np.zeros(_LANES, dtype=np.int64)
-    cl = np.zeros(_LANES)
     # one sweep's acceptance thresholds of all lanes, flat [i * L + l]
     nq_max = n * _LANES
     thr = np.zeros(nq_max, dtype=np.float32)
-    cq = np.zeros(nq_max)
     uf = np.zeros(nq_max)
     ub = uf.view(np.uint64)
     mb = np.zeros(nq_max, dtype=np.uint64)
     mf = mb.view(np.float64)
-    ex = np.zeros(nq_max)
+    ex = np.zeros(nq_max, dtype=np.float32)
+    cq = np.zeros(nq_max, dtype=np.float32)
+    kq = np.zeros(nq_max, dtype=np.uint64)
     g = np.zeros(npad)
     seed64 = np.uint64(seed)
     total = B * R
@@ -186,23 +186,28 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
             k = g0 + l
             b = k // R
             r = k - b * R
-            bl[l] = b
-            state = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
-            if state == np.uint64(0):
-                state = _GOLDEN
+            sl = b % _SLOTS
+            if slot_prog[sl] != b:
+                slot_prog[sl] = b
+                _program_setup(h[b], J[b], n, sweeps, geometric, beta_hot, beta_cold, Js[sl], betas[sl])
+            bl[l] = sl
+            key = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
+            for i in range(n):
+                kq[l * n + i] = key + np.uint64(i) * _GOLDEN
+            st[l] = key + np.uint64(n * (sweeps + 1)) * _GOLDEN  # readout flips draw after the anneal
             if n_cores > 0:
                 core = k % n_cores
                 for i in range(n):
                     for j in range(n):
-                        W[l, i, j] = Js[b, i, j] * mismatch[core, i, j]
+                        W[l, i, j] = Js[sl, i, j] * mismatch[core, i, j]
             else:
                 for i in range(n):
                     for j in range(npad):
-                        W[l, i, j] = Js[b, i, j]
+                        W[l, i, j] = Js[sl, i, j]
             # random start
             for i in range(n):
-                state, x = _next(state)
-                s[l, i] = 1.0 if (x >> np.uint64(63)) == np.uint64(1) else -1.0
+                x = _splitmix(kq[l * n + i])
+                s[l, i] = np.float32(np.int64(x >> np.uint64(63)) * 2 - 1)
             for j in range(npad):
                 f[l, j] = 0.0
             for j in range(n):
@@ -211,52 +216,47 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                 si = s[l, i]
                 for j in range(npad):
                     f[l, j] += si * W[l, i, j]
-            st[l] = state
         for k in range(sweeps):
-            # thresholds t = max(log u, -20) / (2 beta): accept iff s_i f_i > t
-            for l in range(_LANES):
-                cl[l] = 0.5 / betas[bl[l], k]
-            for i in range(n):
-                for l in range(_LANES):
-                    state, x = _next(st[l])
-                    st[l] = state
-                    q = i * _LANES + l
-                    cq[q] = cl[l]
-                    uf[q] = (np.int64(x >> np.uint64(12)) + 0.5) * _U52
+            # thresholds t = max(log u, -20) / (2 beta), flat [l * n + i]: accept iff s_i f_i > t
+            off = np.uint64(n * (k + 1)) * _GOLDEN
+            for q in range(nq_max):
+                x = _splitmix(kq[q] + off)
+                uf[q] = (np.int64(x >> np.uint64(12)) + 0.5) * _U52
             for q in range(nq_max):
                 bits = ub[q]
-                ex[q] = np.float64(np.int64(bits >> np.uint64(52)) - 1023)
+                ex[q] = np.float32(np.int64(bits >> np.uint64(52)) - 1023)
                 mb[q] = (bits & _MANT) | _ONE_BITS
+            for l in range(_LANES):
+                c = 0.5 / betas[bl[l], k] if l < L else np.inf  # idle lanes of the last group never flip
+                for q in range(l * n, (l + 1) * n):
+                    cq[q] = np.float32(c)
             for q in range(nq_max):
-                m = mf[q]
+                m = np.float32(mf[q])
                 e = ex[q]
                 big = m > _SQRT2
-                m = 0.5 * m if big else m
-                e = e + 1.0 if big else e
-                t = m - 1.0
+                m = np.float32(0.5) * m if big else m
+                e = e + np.float32(1.0) if big else e
+                t = m - np.float32(1.0)
                 lu = e * _LN2 + t * (_C0 + t * (_C1 + t * (_C2 + t * (_C3 + t * (_C4 + t * (
-                    _C5 + t * (_C6 + t * (_C7 + t * (_C8 + t * _C9)))))))))
-                lu = lu if lu > -20.0 else -20.0
-                thr[q] = np.float32(lu * cq[q])
-            for l in range(L, _LANES):  # idle lanes of the last group never flip
-                for i in range(n):
-                    thr[i * _LANES + l] = np.inf
+                    _C5 + t * (_C6 + t * _C7)))))))
+                lu = lu if lu > _LOG_MIN else _LOG_MIN
+                thr[q] = lu * cq[q]
             # the sweep: spins in order, the lanes interleaved
             for i in range(n):
                 for l in range(_LANES):
                     si = s[l, i]
-                    if si * f[l, i] > thr[i * _LANES + l]:
+                    if si * f[l, i] > thr[l * n + i]:
                         s[l, i] = -si
                         d = np.float32(-2.0) * si
                         for j in range(npad):
                             f[l, j] += d * W[l, i, j]
         for l in range(L):
-            b = bl[l]
+            b = (g0 + l) // R
             r = g0 + l - b * R
-            state = st[l]
+            sl = bl[l]
             if flip_prob > 0.0:
                 for i in range(n):
-                    state, x = _next(state)
+                    x = _splitmix(st[l] + np.uint64(i) * _GOLDEN)
                     u = np.int64(x >> np.uint64(11)) * _U53
                     if u < flip_prob:
                         s[l, i] = -s[l, i]
@@ -267,7 +267,7 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                 si = np.float64(s[l, i])
                 out_spins[b, r, i] = np.int8(si)
                 for j in range(npad):
-                    g[j] += si * Js[b, i, j]
+                    g[j] += si * Js[sl, i, j]
             e = 0.0
             for i in range(n):
                 e += s[l, i] * (2.0 * h[b, i] + g[i])

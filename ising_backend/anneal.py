@@ -67,20 +67,9 @@ def _splitmix(x):
     return z ^ (z >> np.uint64(31))
 
 
-@numba.njit(cache=True)
-def _auto_range(h_b, Js, n):
-    """Automatic beta range of one program (hot, cold); see the module docstring (one pass)."""
-    sqs = np.empty(n)
-    mns = np.empty(n)
-    for j in range(n):
-        hj = h_b[j]
-        sqs[j] = hj * hj
-        mns[j] = abs(hj) if hj != 0.0 else np.inf
-    for i in range(n):
-        for j in range(n):
-            a = abs(Js[i, j])
-            sqs[j] += a * a
-            mns[j] = a if (a != 0.0 and a < mns[j]) else mns[j]
+@numba.njit(cache=True, inline="always")
+def _range_from(sqs, mns, n):
+    """(hot, cold) from the per-spin squared field sums and smallest non-zero magnitudes."""
     max_sq = 0.0
     min_eff = np.inf
     count = 0
@@ -103,6 +92,28 @@ def _auto_range(h_b, Js, n):
     return hot, cold
 
 
+@numba.njit(cache=True, inline="always")
+def _field_stats(h_b, n, sqs, mns):
+    for j in range(n):
+        hj = h_b[j]
+        sqs[j] = hj * hj
+        mns[j] = abs(hj) if hj != 0.0 else np.inf
+
+
+@numba.njit(cache=True)
+def _auto_range(h_b, Js, n):
+    """Automatic beta range of one program (hot, cold) from its symmetric couplings; see the module docstring."""
+    sqs = np.empty(n)
+    mns = np.empty(n)
+    _field_stats(h_b, n, sqs, mns)
+    for i in range(n):
+        for j in range(n):
+            a = abs(Js[i, j])
+            sqs[j] += a * a
+            mns[j] = a if (a != 0.0) & (a < mns[j]) else mns[j]
+    return _range_from(sqs, mns, n)
+
+
 _SLOTS = 8  # cached program set-ups: > the programs one group of lanes can span
 _LANES = 4  # reads annealed side by side (independent streams; the count changes no result)
 _ONE_BITS = np.uint64(0x3FF0000000000000)
@@ -119,16 +130,25 @@ _C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7 = (np.float32(v) for v in (
 
 
 @numba.njit(cache=True, inline="always")
-def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, betas_b):
-    """Symmetric couplings ``Jb`` (padding columns stay zero) and the schedule of one program."""
+def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, betas_b, sqs, mns):
+    """Symmetric couplings ``Jb`` (padding columns stay zero) and the schedule of one program (one pass)."""
+    for i in range(n):
+        for j in range(n):
+            Jb[i, j] = J_b[i, j]
     for i in range(n):
         Jb[i, i] = 0.0
         for j in range(i + 1, n):
-            v = J_b[i, j] + J_b[j, i]
+            v = Jb[i, j] + Jb[j, i]
             Jb[i, j] = v
             Jb[j, i] = v
+    _field_stats(h_b, n, sqs, mns)
+    for i in range(n):
+        for j in range(n):
+            a = abs(Jb[i, j])
+            sqs[j] += a * a
+            mns[j] = a if (a != 0.0) & (a < mns[j]) else mns[j]
     if beta_hot <= 0.0:
-        hot, cold = _auto_range(h_b, Jb, n)
+        hot, cold = _range_from(sqs, mns, n)
     else:
         hot, cold = beta_hot, beta_cold
     if sweeps == 1:
@@ -161,6 +181,8 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     Js = np.zeros((_SLOTS, n, npad))
     betas = np.ones((_SLOTS, sweeps))
     slot_prog = np.full(_SLOTS, -1, dtype=np.int64)
+    sqs = np.empty(n)
+    mns = np.empty(n)
     # per lane (one read of one program): annealed couplings, fields, spins (float32)
     W = np.zeros((_LANES, n, npad), dtype=np.float32)
     f = np.zeros((_LANES, npad), dtype=np.float32)
@@ -189,7 +211,7 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
             sl = b % _SLOTS
             if slot_prog[sl] != b:
                 slot_prog[sl] = b
-                _program_setup(h[b], J[b], n, sweeps, geometric, beta_hot, beta_cold, Js[sl], betas[sl])
+                _program_setup(h[b], J[b], n, sweeps, geometric, beta_hot, beta_cold, Js[sl], betas[sl], sqs, mns)
             bl[l] = sl
             key = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
             for i in range(n):

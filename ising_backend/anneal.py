@@ -9,9 +9,9 @@ anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
   (exact for the chip's integer coefficients; an accepted flip of spin ``i`` costs
   one row update), the flip energy is ``dE = -2 s_i f_i``;
 * every spin visit draws one uniform ``u`` in (0, 1) and accepts iff
-  ``u < exp(-beta dE)`` and ``beta dE <= 20`` (``exp(-20)`` ~ 2e-9), evaluated as
+  ``u < exp(-beta dE)`` and ``beta dE < 20`` (``exp(-20)`` ~ 2e-9), evaluated as
   ``s_i f_i > max(log u, -20) / (2 beta)``: the thresholds of a whole sweep are
-  drawn before it (a vectorised polynomial ``log``, error < 1e-8), so the serial
+  drawn before it (a vectorised float32 polynomial ``log``, error < 1e-7), so the serial
   part of a visit is one compare and, on acceptance, the row update; downhill
   flips (``dE <= 0``) are always accepted;
 * the inverse-temperature schedule is geometric (or linear) from ``beta_hot`` to
@@ -23,27 +23,35 @@ anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
   uses the worst-case field ``|h_i| + sum_j |J_ij|`` there, which on dense
   programs spends the first third of a 50-sweep anneal at random; the RMS rule
   measured a higher ground-state hit rate at 50 sweeps and fewer wasted flips;
-* each read has its own random stream, xorshift64* seeded by splitmix64 of
-  ``(seed, program index, read index)``, consumed in a fixed order (``n`` draws for
-  the random start, ``n`` per sweep, ``n`` for readout flips): the same seed gives
-  the same samples, and a read's samples depend only on its program's
-  coefficients, the program's index in the stack, the read index and the seed,
-  never on the other programs of the batch.  Reads are annealed ``_LANES`` at a
-  time side by side (interleaved in one loop so the core overlaps their
-  dependency chains); that grouping changes no result.  Zero-padding a program
-  to a larger ``n`` does change its random stream;
+* each read has its own random stream: splitmix64 in counter form, draw ``t``
+  of read ``r`` of program ``b`` being ``splitmix64(K + t * golden)`` with the
+  key ``K = splitmix64(seed ^ splitmix64(b * golden + r))``; draws ``0 .. n-1``
+  give the random start, ``n (k + 1) + i`` the threshold of spin ``i`` in sweep
+  ``k``, and the readout flips come after the last sweep.  Draws without a serial
+  chain vectorise.  The same seed gives the same samples, and a read's samples
+  depend only on its program's coefficients, the program's index in the stack,
+  the read index and the seed, never on the other programs of the batch (nor on
+  whether the coefficients arrive as int64 or float64).  Reads are annealed
+  ``_LANES`` at a time side by side (interleaved in one loop so the core overlaps
+  their dependency chains); that grouping changes no result.  Zero-padding a
+  program to a larger ``n`` does change its random stream;
 * optional static coupling mismatch: read ``k = b * reads + r`` of the call runs
   on core ``k % n_cores`` whose fixed factor matrix multiplies the couplings while
   annealing; optional readout bit flips after the anneal;
 * the returned energy is that of the *programmed* coefficients (recomputed in
   float64 from scratch, so it is exact for integer programs).
 
-Speed: see ``benchmarks/RESULTS.md`` "Issue 3: emulated chip"
-(``benchmarks/chip_speed.py``).  Measured no faster: float32 fields with the
-exp-on-the-critical-path loop, a tabulated exp, a branch-free always-update
-acceptance (the row update then costs every visit; ~22 % of visits accept), libm
-``log`` for the thresholds, and a 16-lane SIMD layout across reads (numba's
-vectoriser re-checks aliasing on every short inner loop).
+Speed (``benchmarks/chip_speed.py``, results in ``benchmarks/RESULTS.md`` "Issue 3:
+emulated chip"): about 14 us of one thread per 45-spin, 50-sweep call at one read
+per program and 11.5 us at 10 reads, through ``EmulatedChip.anneal_batch`` on the
+2-vCPU development VM (AMD EPYC, AVX-512); the previous kernel (xorshift stream,
+``exp`` on the serial chain of each visit) took 27 and 21 us.  Of the ~11 us at 10
+reads, about 7 us is the sweep loop itself (~22 % of visits accept: a mispredicted
+branch and one row update each), ~3.4 us the thresholds, ~0.9 us the set-up and
+energy.  Measured no faster: float32 fields alone, a tabulated exp, a branch-free
+always-update acceptance (the row update then costs every visit), libm ``log``
+for the thresholds, and a 16-lane SIMD layout across reads (numba's vectoriser
+re-checks aliasing on every short inner loop).
 """
 
 from __future__ import annotations
@@ -167,6 +175,8 @@ def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, beta
 def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                   mismatch, flip_prob, out_spins, out_energy):
     """Anneal ``B`` programs x ``num_reads`` reads in place into ``out_spins`` / ``out_energy``.
+
+    ``h`` / ``J`` are int64 or float64 (compiled once per dtype; same samples).
 
     ``beta_hot <= 0`` selects the automatic per-program range.  ``mismatch`` is
     ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)`` for none).

@@ -214,6 +214,9 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     total = B * R
     for g0 in range(0, total, _LANES):
         L = min(_LANES, total - g0)
+        nq = n * L
+        for q in range(nq, nq_max):  # idle lanes of the last group never flip
+            thr[q] = np.inf
         for l in range(L):
             k = g0 + l
             b = k // R
@@ -251,18 +254,18 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
         for k in range(sweeps):
             # thresholds t = max(log u, -20) / (2 beta), flat [l * n + i]: accept iff s_i f_i > t
             off = np.uint64(n * (k + 1)) * _GOLDEN
-            for q in range(nq_max):
+            for q in range(nq):
                 x = _splitmix(kq[q] + off)
                 uf[q] = (np.int64(x >> np.uint64(12)) + 0.5) * _U52
-            for q in range(nq_max):
+            for q in range(nq):
                 bits = ub[q]
                 ex[q] = np.float32(np.int64(bits >> np.uint64(52)) - 1023)
                 mb[q] = (bits & _MANT) | _ONE_BITS
             for l in range(_LANES):
-                c = 0.5 / betas[bl[l], k] if l < L else np.inf  # idle lanes of the last group never flip
+                c = np.float32(0.5 / betas[bl[l], k])
                 for q in range(l * n, (l + 1) * n):
-                    cq[q] = np.float32(c)
-            for q in range(nq_max):
+                    cq[q] = c
+            for q in range(nq):
                 m = np.float32(mf[q])
                 e = ex[q]
                 big = m > _SQRT2

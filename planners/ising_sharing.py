@@ -68,7 +68,7 @@ partial solutions share their chip submissions.
 Choices the paper leaves open (each a constructor parameter), tuned on
 centre-placement worlds (3 robots x 10 targets, exact tours); figures are
 mean total route cost over worlds 0..999 (SSA 28.65, exact optimum 27.97,
-median 28 for SSA, exact and these defaults; defaults 28.32):
+median 28 for SSA, exact and these defaults; defaults 28.31-28.32 depending on the annealer build):
 
 ``beam`` (3), ``refine_beam`` (2), ``max_states`` (9), ``reads`` (2)
     ``beam`` / ``refine_beam`` candidates are kept per robot / refinement

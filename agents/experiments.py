@@ -207,6 +207,8 @@ def _compute_columns(report: ComputeReport, cpu_s: float, accelerated: bool) -> 
     rep = report.replace(cpu_s=cpu_s)
     row = {
         "cpu_s": rep.cpu_s,
+        "emulation_s": rep.emulation_s,
+        "host_cpu_s": rep.host_cpu_s,
         "chip_calls": rep.chip_calls,
         "chip_batches": rep.chip_batches,
         "logical_calls": rep.logical_calls,

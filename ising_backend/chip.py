@@ -19,6 +19,7 @@ holds the charge of that call.
 
 from __future__ import annotations
 
+import time
 from typing import Sequence
 
 import dimod
@@ -253,6 +254,7 @@ class EmulatedChip(dimod.Sampler):
         if int(num_reads) != num_reads or num_reads < 1:
             raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
         num_reads = int(num_reads)
+        t0 = time.perf_counter()
         hf, Jf = check_program(h, J, self.spec, native=True)
         seed = self._draw_seed(seed)
         B, n = hf.shape
@@ -265,7 +267,7 @@ class EmulatedChip(dimod.Sampler):
         if B:
             anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
                           hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
-        self.last_call = self.ledger.record_physical(B * num_reads, self.spec)
+        self.last_call = self.ledger.record_physical(B * num_reads, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
         return spins, energies

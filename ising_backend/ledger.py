@@ -12,6 +12,12 @@ Accounting (paper section 6.1; ARCHITECTURE.md "Chip call accounting"):
   time and energy with the same numbers; a group of ``k`` logical calls issued
   together counts ``ceil(k / n_cores)`` ``logical_batches`` for the parallel
   time.
+
+``emulation_s`` is the host wall time spent *emulating* the accelerator (the
+chip's program check and annealing kernel, the logical solver's search).  On
+real hardware that work is done by the chip, so planners report it apart from
+the host's own glue work instead of charging it twice (as host CPU energy and
+as chip energy).
 """
 
 from __future__ import annotations
@@ -39,9 +45,11 @@ class CallLedger:
     chip_time_s: float = 0.0
     chip_time_parallel_s: float = 0.0
     energy_j: float = 0.0
+    emulation_s: float = 0.0
 
-    def record_physical(self, calls: int, spec: ChipSpec) -> "CallLedger":
-        """Charge ``calls`` physical calls dispatched together; returns this call's ledger."""
+    def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
+        """Charge ``calls`` physical calls dispatched together (``seconds`` of host
+        emulation time); returns this call's ledger."""
         calls = int(calls)
         if calls < 0:
             raise ValueError(f"calls = {calls} must be >= 0")
@@ -52,11 +60,12 @@ class CallLedger:
             chip_time_s=calls * spec.solve_time_s,
             chip_time_parallel_s=batches * spec.solve_time_s,
             energy_j=calls * spec.energy_per_call_j,
+            emulation_s=float(seconds),
         )
         self._add_in_place(delta)
         return delta
 
-    def record_logical(self, calls: int, spec: ChipSpec) -> "CallLedger":
+    def record_logical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
         """Charge ``calls`` logical calls issued together, each projected as one chip call."""
         calls = int(calls)
         if calls < 0:
@@ -68,6 +77,7 @@ class CallLedger:
             chip_time_s=calls * spec.solve_time_s,
             chip_time_parallel_s=batches * spec.solve_time_s,
             energy_j=calls * spec.energy_per_call_j,
+            emulation_s=float(seconds),
         )
         self._add_in_place(delta)
         return delta

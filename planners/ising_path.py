@@ -733,13 +733,7 @@ class IsingPath:
             pos = seg[-1]
 
         delta = solver.charged
-        compute = ComputeReport(
-            chip_calls=int(delta.physical_calls),
-            chip_batches=int(delta.batches),
-            chip_time_s=float(delta.chip_time_s),
-            chip_time_parallel_s=float(delta.chip_time_parallel_s),
-            accelerator_energy_j=float(delta.energy_j),
-        )
+        compute = ComputeReport.from_ledger(delta)
         stats = {
             "chip_calls": int(delta.physical_calls),
             "chip_batches": int(delta.batches),

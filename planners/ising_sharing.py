@@ -549,14 +549,7 @@ class IsingSharing:
 
     def _compute(self, snap) -> ComputeReport:
         d = self.chip.ledger.since(snap)
-        return ComputeReport(
-            chip_calls=int(d.physical_calls),
-            chip_batches=int(d.batches),
-            logical_calls=int(d.logical_calls),
-            chip_time_s=float(d.chip_time_s),
-            chip_time_parallel_s=float(d.chip_time_parallel_s),
-            accelerator_energy_j=float(d.energy_j),
-        )
+        return ComputeReport.from_ledger(d)
 
     def _problem(self, dist, R, nodes, kind) -> SplitProblem:
         a, b = choose_anchors(dist, nodes, R)

@@ -612,14 +612,7 @@ class IsingTour:
 
     def _result(self, run: _Run, snap, order, dist, failure: str | None = None) -> TourResult:
         led = self._since(snap)
-        compute = ComputeReport(
-            chip_calls=int(led.physical_calls),
-            chip_batches=int(led.batches),
-            logical_calls=int(led.logical_calls),
-            chip_time_s=float(led.chip_time_s),
-            chip_time_parallel_s=float(led.chip_time_parallel_s),
-            accelerator_energy_j=float(led.energy_j),
-        )
+        compute = ComputeReport.from_ledger(led)
         if failure is not None:
             run.stats["failure"] = failure
             return TourResult(order=(), cost=math.inf, compute=compute, stats=run.stats, failure=failure)

@@ -28,8 +28,30 @@ def test_good_plan_and_metrics():
     assert d["robots"][0] == {"targets": [0, 1], "path": [[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2]]}
     assert (d["route_cost"], d["makespan"], d["imbalance"], d["success"]) == (6, 5, 4, True)
     assert d["compute"]["host_energy_j"] == pytest.approx(0.002 * 15)
-    assert set(d["compute"]) == {"cpu_s", "host_energy_j", "chip_calls", "chip_batches", "logical_calls",
-                                 "chip_time_s", "chip_time_parallel_s", "accelerator_energy_j"}
+    assert set(d["compute"]) == {"cpu_s", "emulation_s", "host_cpu_s", "host_energy_j", "chip_calls",
+                                 "chip_batches", "logical_calls", "chip_time_s", "chip_time_parallel_s",
+                                 "accelerator_energy_j"}
+
+
+def test_emulation_time_is_not_charged_as_host_energy():
+    rep = ComputeReport(cpu_s=0.010, chip_calls=4, emulation_s=0.004)
+    assert rep.host_cpu_s == pytest.approx(0.006)
+    assert rep.host_energy_j == pytest.approx(0.006 * 15)
+    assert (rep + rep).emulation_s == pytest.approx(0.008)
+    d = rep.to_dict()
+    assert (d["emulation_s"], d["host_cpu_s"]) == (pytest.approx(0.004), pytest.approx(0.006))
+
+
+def test_ising_layer_reports_its_emulation_time():
+    from mrmt_env import generate_world
+    from planners.pipeline import make_pipeline
+
+    world = generate_world(3, n_robots=1, n_targets=1)
+    plan = make_pipeline(sharing="ssa", tour="nn", path="ising").plan(world, seed=0)
+    c = plan.compute
+    assert c.chip_calls > 0
+    assert 0.0 < c.emulation_s <= c.cpu_s
+    assert c.host_cpu_s == pytest.approx(c.cpu_s - c.emulation_s)
 
 
 def _with(route0=None, route1=None):

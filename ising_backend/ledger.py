@@ -50,30 +50,25 @@ class CallLedger:
     def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
         """Charge ``calls`` physical calls dispatched together (``seconds`` of host
         emulation time); returns this call's ledger."""
-        calls = int(calls)
-        if calls < 0:
-            raise ValueError(f"calls = {calls} must be >= 0")
-        batches = math.ceil(calls / spec.n_cores)
-        delta = CallLedger(
-            physical_calls=calls,
-            batches=batches,
-            chip_time_s=calls * spec.solve_time_s,
-            chip_time_parallel_s=batches * spec.solve_time_s,
-            energy_j=calls * spec.energy_per_call_j,
-            emulation_s=float(seconds),
-        )
-        self._add_in_place(delta)
-        return delta
+        return self._record(calls, spec, seconds, logical=False)
 
     def record_logical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
         """Charge ``calls`` logical calls issued together, each projected as one chip call."""
+        return self._record(calls, spec, seconds, logical=True)
+
+    def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool) -> "CallLedger":
+        """Charge ``calls`` chip calls (physical, or logical when ``logical``); returns the delta."""
         calls = int(calls)
         if calls < 0:
             raise ValueError(f"calls = {calls} must be >= 0")
         batches = math.ceil(calls / spec.n_cores)
+        counts = (
+            {"logical_calls": calls, "logical_batches": batches}
+            if logical
+            else {"physical_calls": calls, "batches": batches}
+        )
         delta = CallLedger(
-            logical_calls=calls,
-            logical_batches=batches,
+            **counts,
             chip_time_s=calls * spec.solve_time_s,
             chip_time_parallel_s=batches * spec.solve_time_s,
             energy_j=calls * spec.energy_per_call_j,

@@ -29,8 +29,10 @@ that time; an Ising method's accumulated chip time (calls x 50 us, one after
 another) and accelerator energy (calls x 0.45 uJ; logical tour calls
 projected as one chip call each).  The Ising methods' host CPU time (the
 classical glue: decomposition, mapping, decoding, scoring) is never folded
-away: ``cpu_s``, ``host_energy_j`` and ``total_energy_j`` carry it for every
-method, and ``summary.md`` reports the system totals too.
+away: ``host_cpu_s`` (measured ``cpu_s`` less ``emulation_s``, the run time
+of the chip emulator and logical solver that stand in for the accelerator),
+``host_energy_j`` and ``total_energy_j`` carry it for every method, and
+``summary.md`` reports the system totals too.
 
 Choices the paper leaves open:
 
@@ -562,7 +564,8 @@ def summarize(result: ExperimentResult) -> dict:
             s["ising median chip calls"] = _med(r.values("ising", "chip_calls"))
             s["ising median chip time (ms)"] = 1e3 * _med(r.values("ising", "chip_time_s"))
             s["ising median energy (uJ)"] = 1e6 * _med(r.values("ising", "accelerator_energy_j"))
-            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "cpu_s"))
+            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "host_cpu_s"))
+            s["ising median emulation (ms)"] = 1e3 * _med(r.values("ising", "emulation_s"))
             gap = r.values("ising", "cost") - r.values("ising", "bfs_length")
             s["ising median excess over BFS"] = _med(gap)
         if "astar" in ms:
@@ -579,7 +582,8 @@ def summarize(result: ExperimentResult) -> dict:
             s["ising median logical calls"] = _med(r.values("ising", "logical_calls"))
             s["ising median chip time (ms)"] = 1e3 * _med(r.values("ising", "chip_time_s"))
             s["ising median energy (uJ)"] = 1e6 * _med(r.values("ising", "accelerator_energy_j"))
-            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "cpu_s"))
+            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "host_cpu_s"))
+            s["ising median emulation (ms)"] = 1e3 * _med(r.values("ising", "emulation_s"))
             if "3opt" in ms:
                 e3 = 1e6 * _med(r.values("3opt", "energy_j"))
                 s["3opt median energy (uJ)"] = e3
@@ -599,7 +603,8 @@ def summarize(result: ExperimentResult) -> dict:
             s["ising median chip batches"] = _med(r.values("ising", "chip_batches", successful=False))
             s["ising median chip time (ms)"] = 1e3 * _med(r.values("ising", "chip_time_s", successful=False))
             s["ising median energy (uJ)"] = 1e6 * _med(r.values("ising", "accelerator_energy_j", successful=False))
-            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "cpu_s", successful=False))
+            s["ising median host cpu (ms)"] = 1e3 * _med(r.values("ising", "host_cpu_s", successful=False))
+            s["ising median emulation (ms)"] = 1e3 * _med(r.values("ising", "emulation_s", successful=False))
             if "ssa" in ms:
                 s["energy ratio ssa / ising"] = _ratio(
                     s["ssa median energy (mJ)"] * 1e3, s["ising median energy (uJ)"]
@@ -612,9 +617,10 @@ def summarize(result: ExperimentResult) -> dict:
             s[f"{m} median energy (mJ)"] = 1e3 * _med(r.values(m, "energy_j"))
             s[f"{m} median latency (ms)"] = 1e3 * _med(r.values(m, "time_s"))
             s[f"{m} median system energy (mJ)"] = 1e3 * _med(r.values(m, "total_energy_j"))
-            s[f"{m} median host cpu (ms)"] = 1e3 * _med(r.values(m, "cpu_s"))
+            s[f"{m} median host cpu (ms)"] = 1e3 * _med(r.values(m, "host_cpu_s"))
         if "ising" in ms:
             s["ising median gap to strong (%)"] = _med(r.values("ising", "gap_to_strong"))
+            s["ising median emulation (ms)"] = 1e3 * _med(r.values("ising", "emulation_s"))
             s["ising median chip time, 8-core parallel (ms)"] = 1e3 * _med(r.values("ising", "chip_time_parallel_s"))
             for layer, key in (("path", "chip_calls"), ("sharing", "chip_calls"), ("tour", "logical_calls")):
                 label = "chip calls" if key == "chip_calls" else "logical calls"

@@ -63,20 +63,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ._rng import GOLDEN as _GOLDEN
+from ._rng import splitmix as _splitmix
+
 __all__ = ["anneal_kernel", "beta_range_auto"]
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
 _U53 = 1.0 / 9007199254740992.0
-
-
-@numba.njit(cache=True, inline="always")
-def _splitmix(x):
-    z = x + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
-    return z ^ (z >> np.uint64(31))
 
 
 @numba.njit(cache=True, inline="always")

@@ -42,6 +42,9 @@ import dimod
 import numba
 import numpy as np
 
+from ._rng import GOLDEN as _GOLDEN
+from ._rng import splitmix as _splitmix
+from ._rng import xorshift_star as _next
 from .chip import ChipProgramError, stack_programs
 from .ledger import CallLedger
 from .models import IsingModel
@@ -50,29 +53,6 @@ from .spec import ChipSpec
 __all__ = ["LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS", "tabu_kernel"]
 
 LOGICAL_METHODS = ("tabu", "dwave-tabu")
-
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_XS = np.uint64(0x2545F4914F6CDD1D)
-
-
-@numba.njit(cache=True, inline="always")
-def _splitmix(x):
-    z = x + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
-    return z ^ (z >> np.uint64(31))
-
-
-@numba.njit(cache=True, inline="always")
-def _next(state):
-    x = state
-    x ^= x >> np.uint64(12)
-    x ^= x << np.uint64(25)
-    x ^= x >> np.uint64(27)
-    return x, x * _XS
-
 
 @numba.njit(cache=True, nogil=True)
 def tabu_kernel(h, J, num_reads, seed, restarts, iterations, tenure, out_spins, out_energy):

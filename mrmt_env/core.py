@@ -33,12 +33,22 @@ from mrmt_env.distances import MOVES
 from mrmt_env.generation import generate_world
 from mrmt_env.io import read_worlds
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
+from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
-__all__ = ["MRMTCore", "WorldSource", "action_between", "actions_from_path", "N_ACTIONS", "ACTION_NAMES", "successor_table"]
+__all__ = [
+    "MRMTCore", "WorldSource", "action_between", "actions_from_path", "check_render_mode", "N_ACTIONS", "ACTION_NAMES",
+    "successor_table",
+]
 
 N_ACTIONS = 5
 ACTION_NAMES = ("stay", "up", "down", "left", "right")
+
+
+def check_render_mode(render_mode, render_modes) -> None:
+    """Raise ``ValueError`` unless ``render_mode`` is ``None`` or one of ``render_modes``."""
+    if render_mode is not None and render_mode not in render_modes:
+        raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
 
 
 def successor_table(grid: np.ndarray) -> list[tuple[int, ...]]:
@@ -250,6 +260,24 @@ class MRMTCore:
             "vertex_conflicts": self.vertex_conflicts,
             "swap_conflicts": self.swap_conflicts,
         }
+
+    def render(self, mode: str, makespan: bool = False):
+        """Render the current state: an ``(H*16, W*16, 3)`` image for ``"rgb_array"``,
+        else the ansi text under a header (steps, targets, route cost and, when
+        ``makespan``, the makespan); ``"human"`` prints the text and returns ``None``."""
+        if self.world is None:
+            raise RuntimeError("call reset() before render()")
+        if mode == "rgb_array":
+            return render_rgb(self.world.grid, self.world.targets, self.visited, self.positions())
+        info = self.info()
+        header = f"step {info['steps']}  targets {info['targets_visited']}/{info['n_targets']}  route_cost {info['route_cost']}"
+        if makespan:
+            header += f"  makespan {info['makespan']}"
+        text = render_ansi(self.world.grid, self.world.targets, self.visited, self.positions(), header)
+        if mode == "human":
+            print(text, end="")
+            return None
+        return text
 
     def current_world(self) -> World:
         """The world as it is now: current robot cells, unvisited targets

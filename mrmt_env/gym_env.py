@@ -6,9 +6,8 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode
 from mrmt_env.observation import observation_space
-from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
 __all__ = ["MRMTEnv", "check_joint_action"]
@@ -178,8 +177,7 @@ class MRMTEnv(gym.Env):
         target_reward: float | None = None,
         render_mode: str | None = None,
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         self.render_mode = render_mode
@@ -229,24 +227,12 @@ class MRMTEnv(gym.Env):
         return core.observation(), float(reward), terminated, truncated, core.info()
 
     def render(self):
-        core = self.core
-        if core.world is None:
+        if self.core.world is None:
             raise RuntimeError("call reset() before render()")
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'")
             return None
-        if self.render_mode == "rgb_array":
-            return render_rgb(core.world.grid, core.world.targets, core.visited, core.positions())
-        info = core.info()
-        header = (
-            f"step {info['steps']}  targets {info['targets_visited']}/{info['n_targets']}  "
-            f"route_cost {info['route_cost']}  makespan {info['makespan']}"
-        )
-        text = render_ansi(core.world.grid, core.world.targets, core.visited, core.positions(), header)
-        if self.render_mode == "human":
-            print(text, end="")
-            return None
-        return text
+        return self.core.render(self.render_mode, makespan=True)
 
     # -------------------------------------------------------------- helpers
     def current_world(self) -> World:

@@ -29,9 +29,8 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode
 from mrmt_env.observation import ROBOT_CHANNEL0, agent_observation_space, observation_space
-from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
 __all__ = ["MRMTParallelEnv", "parallel_env", "env", "DEFAULT_MAX_CYCLES"]
@@ -66,8 +65,7 @@ class MRMTParallelEnv(ParallelEnv):
         target_reward: float | None = None,
         render_mode: str | None = None,
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         if max_cycles is not None and max_episode_steps is not None and max_cycles != max_episode_steps:
             raise ValueError(f"max_cycles={max_cycles} and max_episode_steps={max_episode_steps} disagree; give one")
         limit = max_cycles if max_cycles is not None else max_episode_steps
@@ -163,20 +161,11 @@ class MRMTParallelEnv(ParallelEnv):
         return self.core.observation()
 
     def render(self):
-        core = self.core
-        if core.world is None:
+        if self.core.world is None:
             raise RuntimeError("call reset() before render()")
         if self.render_mode is None:
             return None
-        if self.render_mode == "rgb_array":
-            return render_rgb(core.world.grid, core.world.targets, core.visited, core.positions())
-        info = core.info()
-        header = f"step {info['steps']}  targets {info['targets_visited']}/{info['n_targets']}  route_cost {info['route_cost']}"
-        text = render_ansi(core.world.grid, core.world.targets, core.visited, core.positions(), header)
-        if self.render_mode == "human":
-            print(text, end="")
-            return None
-        return text
+        return self.core.render(self.render_mode)
 
     def close(self) -> None:
         pass

@@ -337,10 +337,38 @@ def _sharing_instance(i: int, seed: int, methods, n_robots: int, n_targets: int,
     return rows
 
 
+def _plan_valid(world, plan) -> bool:
+    """``plan.success`` and the plan passes :func:`planners.plan.validate_plan`; an
+    invalid plan (a planner bug) is recorded in ``plan.stats["invalid"]``, not hidden."""
+    from planners.plan import PlanError, validate_plan
+
+    if not plan.success:
+        return False
+    try:
+        validate_plan(world, plan)
+    except PlanError as exc:
+        plan.stats.setdefault("invalid", str(exc))
+        return False
+    return True
+
+
+def _layer_columns(plan) -> dict:
+    """``{layer}_cpu_s``, ``{layer}_chip_calls``, ``{layer}_logical_calls`` of the
+    pipeline layers a plan reports in ``plan.stats["layers"]``."""
+    layers = plan.stats.get("layers", {}) if isinstance(plan.stats, dict) else {}
+    cols = {}
+    for layer in ("sharing", "tour", "path"):
+        rep = layers.get(layer)
+        if rep is not None:
+            cols[f"{layer}_cpu_s"] = rep.cpu_s
+            cols[f"{layer}_chip_calls"] = rep.chip_calls
+            cols[f"{layer}_logical_calls"] = rep.logical_calls
+    return cols
+
+
 def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int, placement: str) -> list[dict]:
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
-    from planners.plan import PlanError, validate_plan
 
     world = generate_world(seed + i, n_robots=n_robots, n_targets=n_targets, placement=placement)
     rows = []
@@ -348,26 +376,14 @@ def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int
         pipe = make_pipeline(m)
         _warm(("pipeline", m), lambda: make_pipeline(m).plan(world, seed=0))
         plan = pipe.plan(world, seed=seed + i)
-        ok = bool(plan.success)
-        if ok:
-            try:
-                validate_plan(world, plan)
-            except PlanError as exc:  # a planner bug: recorded, not hidden
-                ok = False
-                plan.stats.setdefault("invalid", str(exc))
+        ok = _plan_valid(world, plan)
         row = {"instance": i, "world_seed": seed + i, "method": m, "success": ok}
         row["cost"] = float(plan.route_cost) if ok else math.nan
         row["makespan"] = float(plan.makespan) if ok else math.nan
         row["imbalance"] = float(plan.imbalance) if ok else math.nan
         row["failure"] = plan.failure or plan.stats.get("invalid")
         row.update(_compute_columns(plan.compute, plan.compute.cpu_s, m == "ising" or _is_accelerated(plan.compute)))
-        layers = plan.stats.get("layers", {}) if isinstance(plan.stats, dict) else {}
-        for layer in ("sharing", "tour", "path"):
-            rep = layers.get(layer)
-            if rep is not None:
-                row[f"{layer}_cpu_s"] = rep.cpu_s
-                row[f"{layer}_chip_calls"] = rep.chip_calls
-                row[f"{layer}_logical_calls"] = rep.logical_calls
+        row.update(_layer_columns(plan))
         rows.append(row)
     strong = next((r["cost"] for r in rows if r["method"] == "strong" and r["success"]), math.nan)
     for r in rows:
@@ -731,6 +747,14 @@ def _fmt(v) -> str:
     return f"{v:.3g}"
 
 
+def _paper_rows(paper: dict, measured: dict) -> list[str]:
+    """Rows ``| statistic | paper | measured |``: every paper statistic (``-`` where
+    not measured), then the measured statistics the paper does not report."""
+    rows = [f"| {key} | {_fmt(pv)} | {_fmt(measured.get(key))} |" for key, pv in paper.items()]
+    rows += [f"| {key} | - | {_fmt(mv)} |" for key, mv in measured.items() if key not in paper]
+    return rows
+
+
 def write_summary(results: dict, mapping: list[dict], path, quick: bool, wall: dict) -> Path:
     """``summary.md``: every measured statistic beside the paper's number."""
     path = Path(path)
@@ -752,11 +776,7 @@ def write_summary(results: dict, mapping: list[dict], path, quick: bool, wall: d
         lines += [f"## {titles[name]} ({n} instances; figure `fig_{name}.png`; rows `{name}.csv`)", "",
                   f"Settings: {json.dumps(res.config)}; wall time {wall.get(name, res.wall_s):.1f} s.", "",
                   "| statistic | paper | measured |", "|---|---|---|"]
-        for key, pv in paper.items():
-            lines.append(f"| {key} | {_fmt(pv)} | {_fmt(stats.get(key))} |")
-        for key, mv in stats.items():
-            if key not in paper:
-                lines.append(f"| {key} | - | {_fmt(mv)} |")
+        lines += _paper_rows(paper, stats)
         lines.append("")
     if mapping:
         lines += ["## Table 5: mapping outcomes (`mapping.csv`)", "",

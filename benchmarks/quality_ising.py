@@ -96,29 +96,17 @@ def run_endtoend_variant(n: int, seed: int, label: str, options: dict) -> list[d
     ``make_pipeline("ising", **options)`` on the same worlds, one process."""
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
-    from planners.plan import PlanError, validate_plan
 
     rows = []
     make_pipeline("ising", **options).plan(generate_world(seed, placement="centre"), seed=0)  # warm-up
     for i in range(n):
         world = generate_world(seed + i, n_robots=3, n_targets=10, placement="centre")
         plan = make_pipeline("ising", **options).plan(world, seed=seed + i)
-        ok = bool(plan.success)
-        if ok:
-            try:
-                validate_plan(world, plan)
-            except PlanError:
-                ok = False
+        ok = ex._plan_valid(world, plan)
         row = {"instance": i, "world_seed": seed + i, "method": label, "success": ok,
                "cost": float(plan.route_cost) if ok else math.nan}
         row.update(ex._compute_columns(plan.compute, plan.compute.cpu_s, True))
-        layers = plan.stats.get("layers", {})
-        for layer in ("sharing", "tour", "path"):
-            rep = layers.get(layer)
-            if rep is not None:
-                row[f"{layer}_cpu_s"] = rep.cpu_s
-                row[f"{layer}_chip_calls"] = rep.chip_calls
-                row[f"{layer}_logical_calls"] = rep.logical_calls
+        row.update(ex._layer_columns(plan))
         rows.append(row)
     return rows
 
@@ -311,11 +299,7 @@ def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], go
         s, paper = stats[name], ex.PAPER[name]
         lines += [f"### {_TITLES[name]}: {_SETUP[name].format(n=sizes[name])} ({wall.get(name, 0):.0f} s)", "",
                   "| statistic | paper | measured |", "|---|---:|---:|"]
-        for key, pv in paper.items():
-            lines.append(f"| {key} | {_fmt(pv)} | {_fmt(s.get(key))} |")
-        for key, mv in s.items():
-            if key not in paper:
-                lines.append(f"| {key} | - | {_fmt(mv)} |")
+        lines += ex._paper_rows(paper, s)
         lines.append("")
     if sharing_variants:
         keys = list(next(iter(sharing_variants.values())).keys())

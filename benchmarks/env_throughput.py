@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import re
 import time
 from pathlib import Path
 
@@ -36,6 +35,11 @@ import numpy as np
 import gymnasium as gym
 import mrmt_env
 from mrmt_env import MRMTEnv
+
+try:
+    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+except ImportError:  # imported as benchmarks.<name>
+    from benchmarks._common import write_results_section
 
 SECTION = "## Issue 2: environments"
 RESULTS = Path(__file__).with_name("RESULTS.md")
@@ -141,14 +145,7 @@ def write_section(results: dict[str, tuple[float, float, float]], steps: int, re
         "Reproduce: `flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/env_throughput.py --write-results`",
         "",
     ]
-    block = "\n".join(lines)
-    text = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n\n"
-    pattern = re.compile(rf"^{re.escape(SECTION)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    RESULTS.write_text(text)
+    write_results_section(SECTION, "\n".join(lines), RESULTS)
     print(f"wrote section {SECTION!r} of {RESULTS}")
 
 

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import platform
-import re
 import time
 from pathlib import Path
 
@@ -51,6 +50,11 @@ from planners.paths_classical import AStarPath, BFSPath, GreedyBestFirstPath
 from planners.pipeline import make_pipeline
 from planners.sharing_classical import ExactSharing, PSASharing, RoundRobinSharing, SSASharing
 from planners.tours_classical import BruteTour, NearestNeighbourTour, ThreeOptTour, TwoOptTour
+
+try:
+    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+except ImportError:  # imported as benchmarks.<name>
+    from benchmarks._common import write_results_section
 
 RESULTS = Path(__file__).with_name("RESULTS.md")
 SECTION = "## Issue 4: classical planners"
@@ -294,13 +298,7 @@ def render(n_worlds, repeats, res) -> str:
 
 
 def write_section(block: str) -> None:
-    text = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n\n"
-    pattern = re.compile(rf"^{re.escape(SECTION)}\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block + "\n", text)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    RESULTS.write_text(text)
+    write_results_section(SECTION, block, RESULTS)
     print(f"wrote section {SECTION!r} of {RESULTS}")
 
 

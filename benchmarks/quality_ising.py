@@ -44,7 +44,6 @@ from __future__ import annotations
 import argparse
 import math
 import platform
-import re
 import sys
 import time
 from pathlib import Path
@@ -52,6 +51,11 @@ from pathlib import Path
 import numpy as np
 
 from agents import experiments as ex
+
+try:
+    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+except ImportError:  # imported as benchmarks.<name>
+    from benchmarks._common import write_results_section
 
 RESULTS = Path(__file__).with_name("RESULTS.md")
 SECTION = "## Issue 5: Ising planners"
@@ -383,13 +387,7 @@ def _notes(stats: dict, blocks: list[dict], variants: dict) -> list[str]:
 
 
 def write_section(block: str) -> None:
-    text = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n\n"
-    pattern = re.compile(r"^" + re.escape(SECTION) + r"\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block.rstrip("\n") + "\n\n", text)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block.rstrip("\n") + "\n"
-    RESULTS.write_text(text)
+    write_results_section(SECTION, block, RESULTS)
     print(f"wrote section {SECTION!r} of {RESULTS}", file=sys.stderr)
 
 

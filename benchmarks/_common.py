@@ -1,0 +1,27 @@
+"""Helpers shared by the benchmark scripts (run as ``python benchmarks/<name>.py``)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+RESULTS = Path(__file__).with_name("RESULTS.md")
+
+
+def write_results_section(section: str, block: str, path: Path = RESULTS) -> None:
+    """Put ``block`` (text starting with the heading line ``section``) into ``path``.
+
+    An existing section (from its heading to the next ``## `` heading or the end)
+    is replaced; otherwise the block is appended.  Other sections are kept as
+    they are.  The block is written with one trailing newline plus the blank line
+    before the next section.
+    """
+    path = Path(path)
+    text = path.read_text() if path.exists() else "# Benchmark results\n\n"
+    body = block.rstrip("\n")
+    pattern = re.compile(r"^" + re.escape(section) + r"\n.*?(?=^## |\Z)", re.S | re.M)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: body + "\n\n", text)
+    else:
+        text = text.rstrip("\n") + "\n\n" + body + "\n"
+    path.write_text(text)

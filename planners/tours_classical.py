@@ -113,6 +113,18 @@ def _route_cost(d, route):
 
 
 @numba.njit(cache=True, nogil=True)
+def _reverse(t, lo, hi):
+    """Reverse ``t[lo:hi]`` in place."""
+    hi -= 1
+    while lo < hi:
+        x = t[lo]
+        t[lo] = t[hi]
+        t[hi] = x
+        lo += 1
+        hi -= 1
+
+
+@numba.njit(cache=True, nogil=True)
 def _two_opt_kernel(d, route, free_end):
     """First-improvement 2-opt on an open route with fixed start ``route[0]``."""
     n = route.shape[0] - 1
@@ -132,27 +144,9 @@ def _two_opt_kernel(d, route, free_end):
                     e = route[j + 1]
                     delta += d[b, e] - d[c, e]
                 if delta < -1e-9:
-                    lo = i
-                    hi = j
-                    while lo < hi:
-                        t = route[lo]
-                        route[lo] = route[hi]
-                        route[hi] = t
-                        lo += 1
-                        hi -= 1
+                    _reverse(route, i, j + 1)
                     improved = True
     return passes
-
-
-@numba.njit(cache=True, nogil=True)
-def _reverse(t, lo, hi):
-    hi -= 1
-    while lo < hi:
-        x = t[lo]
-        t[lo] = t[hi]
-        t[hi] = x
-        lo += 1
-        hi -= 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -293,20 +287,29 @@ def _three_opt_open(d, full):
 
 
 @numba.njit(cache=True, nogil=True)
-def _held_karp(d):
-    """Exact open route from node 0 over nodes 1..n.  Returns (route, cost)."""
+def _held_karp_dp(d, par, best):
+    """Held-Karp table over nodes 1..n: ``dp[s, j]`` is the cheapest open route from
+    node 0 visiting exactly the bitmask ``s`` (bit ``j`` = node ``j + 1``) and ending
+    at node ``j + 1``.  Parents go into ``par`` (same shape) unless it is ``(0, 0)``;
+    ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best`` is empty."""
     m = d.shape[0]
     n = m - 1
-    full = (1 << n) - 1
-    dp = np.full((1 << n, n), np.inf)
-    par = np.full((1 << n, n), -1, dtype=np.int64)
+    size = 1 << n
+    track = par.shape[0] > 0
+    subsets = best.shape[0] > 0
+    dp = np.full((size, n), np.inf)
+    if subsets:
+        best[0] = 0.0
     for j in range(n):
         dp[1 << j, j] = d[0, j + 1]
-    for s in range(1, full + 1):
+    for s in range(1, size):
+        bs = np.inf
         for j in range(n):
             if not (s >> j) & 1:
                 continue
             cur = dp[s, j]
+            if cur < bs:
+                bs = cur
             if cur == np.inf:
                 continue
             for x in range(n):
@@ -316,7 +319,21 @@ def _held_karp(d):
                 v = cur + d[j + 1, x + 1]
                 if v < dp[ns, x]:
                     dp[ns, x] = v
-                    par[ns, x] = j
+                    if track:
+                        par[ns, x] = j
+        if subsets:
+            best[s] = bs
+    return dp
+
+
+@numba.njit(cache=True, nogil=True)
+def _held_karp(d):
+    """Exact open route from node 0 over nodes 1..n.  Returns (route, cost)."""
+    m = d.shape[0]
+    n = m - 1
+    full = (1 << n) - 1
+    par = np.full((1 << n, n), -1, dtype=np.int64)
+    dp = _held_karp_dp(d, par, np.empty(0))
     best = 0
     for j in range(1, n):
         if dp[full, j] < dp[full, best]:
@@ -340,32 +357,8 @@ def _held_karp_subsets(d):
     Returns ``best[s]`` for each bitmask ``s`` of the ``n`` targets (bit ``j`` =
     node ``j + 1``); ``best[0] = 0``.
     """
-    m = d.shape[0]
-    n = m - 1
-    size = 1 << n
-    dp = np.full((size, n), np.inf)
-    best = np.full(size, np.inf)
-    best[0] = 0.0
-    for j in range(n):
-        dp[1 << j, j] = d[0, j + 1]
-    for s in range(1, size):
-        bs = np.inf
-        for j in range(n):
-            if not (s >> j) & 1:
-                continue
-            cur = dp[s, j]
-            if cur < bs:
-                bs = cur
-            if cur == np.inf:
-                continue
-            for x in range(n):
-                if (s >> x) & 1:
-                    continue
-                ns = s | (1 << x)
-                v = cur + d[j + 1, x + 1]
-                if v < dp[ns, x]:
-                    dp[ns, x] = v
-        best[s] = bs
+    best = np.full(1 << (d.shape[0] - 1), np.inf)
+    _held_karp_dp(d, np.empty((0, 0), dtype=np.int64), best)
     return best
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import platform
 import re
 from pathlib import Path
 
@@ -25,3 +26,15 @@ def write_results_section(section: str, block: str, path: Path = RESULTS) -> Non
     else:
         text = text.rstrip("\n") + "\n\n" + body + "\n"
     path.write_text(text)
+
+
+def cpu_name() -> str:
+    """The CPU model from ``/proc/cpuinfo`` ("model name"), else ``platform.processor()`` or the machine type."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return cpu

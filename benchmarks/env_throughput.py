@@ -37,9 +37,9 @@ import mrmt_env
 from mrmt_env import MRMTEnv
 
 try:
-    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+    from _common import cpu_name, write_results_section  # run as a script: python benchmarks/<name>.py
 except ImportError:  # imported as benchmarks.<name>
-    from benchmarks._common import write_results_section
+    from benchmarks._common import cpu_name, write_results_section
 
 SECTION = "## Issue 2: environments"
 RESULTS = Path(__file__).with_name("RESULTS.md")
@@ -115,14 +115,7 @@ def run(steps: int, repeats: int) -> dict[str, tuple[float, float, float]]:
 
 
 def write_section(results: dict[str, tuple[float, float, float]], steps: int, repeats: int) -> None:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_name()
     lines = [
         SECTION,
         "",

@@ -52,9 +52,9 @@ from planners.sharing_classical import ExactSharing, PSASharing, RoundRobinShari
 from planners.tours_classical import BruteTour, NearestNeighbourTour, ThreeOptTour, TwoOptTour
 
 try:
-    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+    from _common import cpu_name, write_results_section  # run as a script: python benchmarks/<name>.py
 except ImportError:  # imported as benchmarks.<name>
-    from benchmarks._common import write_results_section
+    from benchmarks._common import cpu_name, write_results_section
 
 RESULTS = Path(__file__).with_name("RESULTS.md")
 SECTION = "## Issue 4: classical planners"
@@ -201,14 +201,7 @@ def _uj(s):
 
 
 def render(n_worlds, repeats, res) -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_name()
     L = [
         SECTION,
         "",

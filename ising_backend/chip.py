@@ -172,6 +172,21 @@ def stack_programs(models: Sequence[IsingModel], n: int | None = None) -> tuple[
     return h, J
 
 
+def sample_bqm(solver, bqm: dimod.BinaryQuadraticModel, num_reads: int, seed: int | None,
+               **info) -> dimod.SampleSet:
+    """``solver.sample(bqm)`` through ``solver.anneal_batch`` on one program (exact
+    conversion to SPIN and back); the SampleSet's info holds the call's ledger
+    (``solver.last_call``) then ``info``."""
+    variables = list(bqm.variables)
+    model = IsingModel.from_bqm(bqm.spin if bqm.vartype is dimod.BINARY else bqm, variables)
+    spins, _ = solver.anneal_batch(model.h[None], model.J[None], num_reads=num_reads, seed=seed)
+    samples = spins[0]
+    if bqm.vartype is dimod.BINARY:
+        samples = ((samples + 1) // 2).astype(np.int8)
+    return dimod.SampleSet.from_samples_bqm((samples, variables), bqm,
+                                            info={"ledger": solver.last_call.to_dict(), **info})
+
+
 def _mismatch_matrices(spec: ChipSpec) -> np.ndarray:
     if spec.coupling_mismatch == 0.0:
         return np.zeros((0, 0, 0))
@@ -289,12 +304,5 @@ class EmulatedChip(dimod.Sampler):
         Raises:
             ChipProgramError: the program does not fit the spec (nothing is clipped).
         """
-        kwargs = self.remove_unknown_kwargs(**kwargs)
-        variables = list(bqm.variables)
-        model = IsingModel.from_bqm(bqm.spin if bqm.vartype is dimod.BINARY else bqm, variables)
-        spins, _ = self.anneal_batch(model.h[None], model.J[None], num_reads=num_reads, seed=seed)
-        samples = spins[0]
-        if bqm.vartype is dimod.BINARY:
-            samples = ((samples + 1) // 2).astype(np.int8)
-        info = {"ledger": self.last_call.to_dict(), "spec": self.spec.to_dict()}
-        return dimod.SampleSet.from_samples_bqm((samples, variables), bqm, info=info)
+        self.remove_unknown_kwargs(**kwargs)
+        return sample_bqm(self, bqm, num_reads, seed, spec=self.spec.to_dict())

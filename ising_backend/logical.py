@@ -45,7 +45,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
-from .chip import ChipProgramError, stack_programs
+from .chip import ChipProgramError, sample_bqm, stack_programs
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -213,14 +213,7 @@ class LogicalIsingSolver(dimod.Sampler):
     def sample(self, bqm: dimod.BinaryQuadraticModel, num_reads: int = 1, seed: int | None = None,
                **kwargs) -> dimod.SampleSet:
         self.remove_unknown_kwargs(**kwargs)
-        variables = list(bqm.variables)
-        model = IsingModel.from_bqm(bqm.spin if bqm.vartype is dimod.BINARY else bqm, variables)
-        spins, _ = self.anneal_batch(model.h[None], model.J[None], num_reads=num_reads, seed=seed)
-        samples = spins[0]
-        if bqm.vartype is dimod.BINARY:
-            samples = ((samples + 1) // 2).astype(np.int8)
-        return dimod.SampleSet.from_samples_bqm((samples, variables), bqm,
-                                                info={"ledger": self.last_call.to_dict()})
+        return sample_bqm(self, bqm, num_reads, seed)
 
     # ------------------------------------------------------------------ core
     def _check(self, h, J):

@@ -97,11 +97,18 @@ def _range_from(sqs, mns, n):
 
 
 @numba.njit(cache=True, inline="always")
-def _field_stats(h_b, n, sqs, mns):
+def _field_stats(h_b, Js, n, sqs, mns):
+    """Per spin ``j``: ``sqs[j] = h_j^2 + sum_i Js[i, j]^2`` and ``mns[j]`` the smallest
+    non-zero ``|h_j|``, ``|Js[i, j]|`` (``inf`` if none), from symmetric couplings ``Js``."""
     for j in range(n):
         hj = h_b[j]
         sqs[j] = hj * hj
         mns[j] = abs(hj) if hj != 0.0 else np.inf
+    for i in range(n):
+        for j in range(n):
+            a = abs(Js[i, j])
+            sqs[j] += a * a
+            mns[j] = a if (a != 0.0) & (a < mns[j]) else mns[j]
 
 
 @numba.njit(cache=True)
@@ -109,12 +116,7 @@ def _auto_range(h_b, Js, n):
     """Automatic beta range of one program (hot, cold) from its symmetric couplings; see the module docstring."""
     sqs = np.empty(n)
     mns = np.empty(n)
-    _field_stats(h_b, n, sqs, mns)
-    for i in range(n):
-        for j in range(n):
-            a = abs(Js[i, j])
-            sqs[j] += a * a
-            mns[j] = a if (a != 0.0) & (a < mns[j]) else mns[j]
+    _field_stats(h_b, Js, n, sqs, mns)
     return _range_from(sqs, mns, n)
 
 
@@ -145,12 +147,7 @@ def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, beta
             v = Jb[i, j] + Jb[j, i]
             Jb[i, j] = v
             Jb[j, i] = v
-    _field_stats(h_b, n, sqs, mns)
-    for i in range(n):
-        for j in range(n):
-            a = abs(Jb[i, j])
-            sqs[j] += a * a
-            mns[j] = a if (a != 0.0) & (a < mns[j]) else mns[j]
+    _field_stats(h_b, Jb, n, sqs, mns)
     if beta_hot <= 0.0:
         hot, cold = _range_from(sqs, mns, n)
     else:

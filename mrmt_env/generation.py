@@ -2,7 +2,8 @@
 
 ``generate_world(seed, ...)`` is a pure function of its arguments:
 
-* exactly ``round(obstacle_density * H * W)`` obstacle cells, sampled
+* exactly ``round(obstacle_density * (H * W))`` obstacle cells (Python's
+  round, half to even), sampled
   uniformly without replacement (20 on the paper's 10x10 grid);
 * robots and targets on pairwise distinct free cells;
 * the draw is repeated (from the same random stream) until every robot and

@@ -21,7 +21,7 @@ params = st.fixed_dictionaries(
 
 
 def _counts(p, data):
-    free = p["height"] * p["width"] - int(round(p["obstacle_density"] * p["height"] * p["width"]))
+    free = p["height"] * p["width"] - int(round(p["obstacle_density"] * (p["height"] * p["width"])))
     # stay well under the free-cell count so a connected draw exists
     budget = max(2, free // 3)
     n_robots = data.draw(st.integers(1, min(4, budget - 1)))
@@ -37,7 +37,8 @@ def test_generator_invariants(p, data):
     assert isinstance(w, World)
     h, wd = p["height"], p["width"]
     assert w.shape == (h, wd)
-    assert int(w.grid.sum()) == int(round(p["obstacle_density"] * h * wd))
+    # round(density x cell count), Python's round (half to even): 0.3 x 45 = 13.5 -> 14
+    assert int(w.grid.sum()) == int(round(p["obstacle_density"] * (h * wd)))
     assert w.n_robots == n_robots and w.n_targets == n_targets
     cells = [tuple(c) for c in w.nodes.tolist()]
     assert len(set(cells)) == len(cells), "robots and targets must be on pairwise distinct cells"
@@ -83,3 +84,9 @@ def test_centre_placement_puts_robots_near_centre():
 def test_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         generate_world(0, **kwargs)
+
+
+def test_obstacle_count_rounds_density_times_cells_half_to_even():
+    # 0.3 x (9 x 5) = 13.5 exactly: Python's round gives 14 (half to even)
+    w = generate_world(0, height=9, width=5, obstacle_density=0.3, n_robots=1, n_targets=0)
+    assert int(w.grid.sum()) == 14

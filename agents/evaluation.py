@@ -470,8 +470,8 @@ def evaluate(
     specs = [e if isinstance(e, str) else e[0] for e in entries]
     if len(set(specs)) != len(specs):
         raise ControllerError(f"controller names must be unique, got {specs}")
-    if int(n_worlds) < 1:
-        raise ValueError(f"n_worlds must be >= 1, got {n_worlds}")
+    if isinstance(n_worlds, bool) or int(n_worlds) != n_worlds or n_worlds < 1:
+        raise ValueError(f"n_worlds must be an integer >= 1, got {n_worlds!r}")
     seeds = [int(s) for s in (seeds if np.iterable(seeds) else [seeds])]
     if not seeds:
         raise ValueError("seeds must name at least one seed")

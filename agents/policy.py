@@ -125,8 +125,9 @@ class PlannerPolicy:
                 raise TypeError(f"pipeline must be a preset name or have .plan(world, seed), got {pipeline!r}")
             self.pipeline = pipeline
             self.name = getattr(pipeline, "name", type(pipeline).__name__)
-        if int(max_replans) < 0:
-            raise ValueError(f"max_replans must be >= 0, got {max_replans}")
+        for name, value in (("seed", seed), ("max_replans", max_replans)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
         self.seed = int(seed)
         self.max_replans = int(max_replans)
         self.last_compute: ComputeReport | None = None
@@ -221,7 +222,12 @@ class PlannerPolicy:
             if episode_start is None:
                 starts = np.zeros(n, dtype=bool)
             else:
-                starts = np.broadcast_to(np.asarray(episode_start, dtype=bool), (n,))
+                starts = np.asarray(episode_start, dtype=bool)
+                if starts.ndim > 1 or starts.size not in (1, n):
+                    raise ValueError(
+                        f"episode_start must be a bool or {n} bools (one per env in the batch), got shape {starts.shape}"
+                    )
+                starts = np.broadcast_to(starts, (n,))
             return np.stack([self._act(i, obs[i], bool(starts[i])) for i in range(n)]), state
         raise ValueError(f"observation must have shape (C, H, W) or (n_envs, C, H, W), got {obs.shape}")
 

@@ -154,9 +154,10 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"scale = {scale!r} must be a positive finite number")
     Lh, Lj = _limit(spec.h_range), _limit(spec.j_range)
-    tie = Lj if tie is None else int(tie)
-    if not (1 <= tie <= Lj):
-        raise MergeError(f"tie = {tie} must be in [1, {Lj}] (the coupling range limit)")
+    tie = Lj if tie is None else tie
+    if isinstance(tie, bool) or not isinstance(tie, (int, np.integer)) or not (1 <= tie <= Lj):
+        raise MergeError(f"tie = {tie!r} must be an integer in [1, {Lj}] (the coupling range limit)")
+    tie = int(tie)
     n = model.n
     if n > spec.n_spins:
         raise MergeError(f"model has {n} spins; the chip has {spec.n_spins}: branch first")

@@ -50,8 +50,16 @@ class QuantizeError(ValueError):
     """A quantization request cannot be met (bad rule or range)."""
 
 
+def _pair(rng, name) -> tuple[int, int]:
+    """``rng`` as an integer ``(low, high)`` pair; anything else is an error (never truncated)."""
+    vals = tuple(np.ravel(np.asarray(rng, dtype=object)))
+    if len(vals) != 2 or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in vals):
+        raise QuantizeError(f"{name} = {rng!r} must be an integer (low, high) pair, e.g. (-7, 7)")
+    return int(vals[0]), int(vals[1])
+
+
 def _limit(rng, name) -> int:
-    lo, hi = int(rng[0]), int(rng[1])
+    lo, hi = _pair(rng, name)
     lim = min(-lo, hi)
     if lim < 1:
         raise QuantizeError(f"{name} = {tuple(rng)} has no symmetric integer range (need low <= -1 and high >= 1)")
@@ -72,6 +80,8 @@ def quantize(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7), *, 
     if rule not in QUANTIZE_RULES:
         raise QuantizeError(f"rule = {rule!r} not in {QUANTIZE_RULES} (saturate() is the fixed-scale rule)")
     Lh, Lj = _limit(h_range, "h_range"), _limit(j_range, "j_range")
+    if not (np.isfinite(percentile) and 0 < percentile <= 100):
+        raise QuantizeError(f"percentile = {percentile!r} must be in (0, 100]")
     n = model.n
     iu = np.triu_indices(n, 1)
     c = np.concatenate([model.h, model.J[iu]])
@@ -106,6 +116,7 @@ def saturate(model: IsingModel, scale: float, h_range=(-7, 7), j_range=(-7, 7)) 
     """
     if not (np.isfinite(scale) and scale > 0):
         raise QuantizeError(f"scale = {scale!r} must be a positive finite number")
+    h_range, j_range = _pair(h_range, "h_range"), _pair(j_range, "j_range")
     h = np.clip(np.rint(model.h * scale), h_range[0], h_range[1])
     J = np.clip(np.rint(model.J * scale), j_range[0], j_range[1])
     return IsingModel(h, J, model.offset * scale, model.labels)

@@ -97,8 +97,13 @@ def world_from_observation(obs) -> World:
         raise ValueError(f"observation must have shape (2 + R, H, W), got shape {a.shape}")
     if a.shape[0] < 3:
         raise ValueError(f"observation needs at least 3 channels (obstacles, targets, >= 1 robot), got {a.shape[0]}")
-    if not np.all((a == 0) | (a == 1)):
-        raise ValueError("observation values must be 0 or 1")
+    bad = ~((a == 0) | (a == 1))
+    if bad.any():
+        where = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(
+            f"observation values must be 0 or 1, got {a[where].item()!r} at [channel, row, col] = {list(where)} "
+            f"({int(bad.sum())} bad value(s))"
+        )
     grid = a[OBSTACLE_CHANNEL].astype(bool)
     targets = np.argwhere(a[TARGET_CHANNEL] == 1)  # row-major order
     robots = []

@@ -65,8 +65,12 @@ class World:
         if grid.ndim != 2 or grid.shape[0] < 1 or grid.shape[1] < 1:
             raise WorldError(f"grid must be a non-empty 2-D array, got shape {grid.shape}")
         if grid.dtype != np.bool_:
-            if not np.all(np.isin(grid, (0, 1))):
-                raise WorldError("grid must be boolean (True = obstacle) or 0/1")
+            bad = ~np.isin(grid, (0, 1))
+            if bad.any():
+                r, c = (int(i) for i in np.argwhere(bad)[0])
+                raise WorldError(
+                    f"grid must be boolean (True = obstacle) or 0/1, got {grid[r, c].item()!r} at cell [{r}, {c}]"
+                )
             grid = grid.astype(bool)
         grid = np.ascontiguousarray(grid)
         grid.setflags(write=False)

@@ -128,6 +128,9 @@ def _iter_worlds(path: Path, text: str):
 
 
 def run(args) -> int:
+    if args.seed < 0:
+        _error(f"--seed must be >= 0 (a numpy seed), got {args.seed}")
+        return 2
     try:
         pipeline = build_pipeline(args)
     except (ValueError, TypeError, ImportError, RuntimeError) as exc:

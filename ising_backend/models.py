@@ -52,7 +52,7 @@ def _check_finite(arr: np.ndarray, name: str) -> None:
     bad = ~np.isfinite(arr)
     if np.any(bad):
         idx = tuple(int(v) for v in np.argwhere(bad)[0])
-        raise ModelError(f"{name}{list(idx)} = {arr[idx]!r} is not finite")
+        raise ModelError(f"{name}{list(idx)} = {arr[idx].item()!r} is not finite")
 
 
 def _labels(labels, n: int):

@@ -80,3 +80,8 @@ def test_cli_plan_negative_seed(tmp_path, capsys):
     write_worlds([generate_world(0, n_robots=1, n_targets=2)], worlds)
     assert main(["plan", str(worlds), "--seed", "-1", "--no-progress"]) == 2
     assert "--seed must be >= 0" in capsys.readouterr().err
+
+
+def test_model_non_finite_value_plain():
+    with pytest.raises(ValueError, match=r"^J\[0, 1\] = nan is not finite$"):
+        IsingModel(np.zeros(2), np.array([[0.0, np.nan], [0.0, 0.0]]))

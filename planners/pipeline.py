@@ -219,8 +219,15 @@ class Pipeline:
 
     def plan(self, world: World, seed=None) -> Plan:
         """Plan every robot's route on ``world`` (see the module docstring)."""
-        with stopwatch() as total:
+        if not isinstance(world, World):
+            raise TypeError(f"world must be a mrmt_env.world.World, got {type(world).__name__}")
+        try:
             rng = np.random.default_rng(seed)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"seed = {seed!r} is not a numpy seed (None, an integer >= 0, a sequence of them, or a Generator): {exc}"
+            ) from exc
+        with stopwatch() as total:
             acc = {"sharing": _Account(), "tour": _Account(), "path": _Account()}
             stats: dict = {}
             failures: list[str] = []

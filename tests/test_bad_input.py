@@ -85,3 +85,18 @@ def test_cli_plan_negative_seed(tmp_path, capsys):
 def test_model_non_finite_value_plain():
     with pytest.raises(ValueError, match=r"^J\[0, 1\] = nan is not finite$"):
         IsingModel(np.zeros(2), np.array([[0.0, np.nan], [0.0, 0.0]]))
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "x"])
+def test_pipeline_seed_named(seed):
+    from planners.pipeline import make_pipeline
+
+    with pytest.raises(ValueError, match=f"seed = {seed!r} is not a numpy seed"):
+        make_pipeline("fast").plan(generate_world(0), seed=seed)
+
+
+def test_pipeline_world_type():
+    from planners.pipeline import make_pipeline
+
+    with pytest.raises(TypeError, match="world must be a mrmt_env.world.World, got str"):
+        make_pipeline("fast").plan("world.json", seed=0)

@@ -187,6 +187,16 @@ def sample_bqm(solver, bqm: dimod.BinaryQuadraticModel, num_reads: int, seed: in
                                             info={"ledger": solver.last_call.to_dict(), **info})
 
 
+def seeded_rng(seed, where: str) -> np.random.Generator:
+    """``np.random.default_rng(seed)``, with an error naming ``where`` and the bad seed."""
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"{where}: seed = {seed!r} is not a numpy seed (None, an integer >= 0 or a sequence of them): {exc}"
+        ) from exc
+
+
 def _mismatch_matrices(spec: ChipSpec) -> np.ndarray:
     if spec.coupling_mismatch == 0.0:
         return np.zeros((0, 0, 0))
@@ -217,7 +227,7 @@ class EmulatedChip(dimod.Sampler):
 
     def __init__(self, spec: ChipSpec | None = None, seed: int | None = None):
         self.spec = ChipSpec() if spec is None else spec
-        self._rng = np.random.default_rng(seed)
+        self._rng = seeded_rng(seed, "EmulatedChip")
         self.ledger = CallLedger()
         self._mismatch = _mismatch_matrices(self.spec)
         self._parameters = {"num_reads": [], "seed": []}

@@ -45,7 +45,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
-from .chip import ChipProgramError, sample_bqm, stack_programs
+from .chip import ChipProgramError, sample_bqm, seeded_rng, stack_programs
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -195,7 +195,7 @@ class LogicalIsingSolver(dimod.Sampler):
         if int(max_tenure) != max_tenure or max_tenure < 1:
             raise ValueError(f"max_tenure = {max_tenure!r} must be an integer >= 1")
         self.max_tenure = int(max_tenure)
-        self._rng = np.random.default_rng(seed)
+        self._rng = seeded_rng(seed, "LogicalIsingSolver")
         self.ledger = CallLedger()
         self.last_call = CallLedger()
 

@@ -100,3 +100,12 @@ def test_pipeline_world_type():
 
     with pytest.raises(TypeError, match="world must be a mrmt_env.world.World, got str"):
         make_pipeline("fast").plan("world.json", seed=0)
+
+
+@pytest.mark.parametrize("cls", ["EmulatedChip", "LogicalIsingSolver"])
+@pytest.mark.parametrize("seed", [-1, 1.5])
+def test_solver_seed_named(cls, seed):
+    import ising_backend
+
+    with pytest.raises(ValueError, match=f"{cls}: seed = {seed!r} is not a numpy seed"):
+        getattr(ising_backend, cls)(seed=seed)

@@ -23,6 +23,7 @@ as chip energy).
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import asdict, dataclass, fields
 
 from .spec import ChipSpec
@@ -36,6 +37,10 @@ class CallLedger:
 
     ``snapshot()`` freezes the current totals; ``since(snapshot)`` returns the
     ledger of what happened after it (handy to charge one planning layer).
+    ``since`` is exact: while a snapshot is alive the ledger also sums every
+    charge made after it from zero, so the same calls give bit-identical
+    times and energies however much the ledger had charged before (a
+    difference of running float totals would not).
     """
 
     physical_calls: int = 0
@@ -46,6 +51,19 @@ class CallLedger:
     chip_time_parallel_s: float = 0.0
     energy_j: float = 0.0
     emulation_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        # live snapshots, each carrying the exact sum of the charges made after it
+        self._taps: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("_taps", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._taps = weakref.WeakValueDictionary()
 
     def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
         """Charge ``calls`` physical calls dispatched together (``seconds`` of host
@@ -75,6 +93,8 @@ class CallLedger:
             emulation_s=float(seconds),
         )
         self._add_in_place(delta)
+        for snap in list(self._taps.values()):
+            snap._charged_since._add_in_place(delta)
         return delta
 
     def _add_in_place(self, other: "CallLedger") -> None:
@@ -92,11 +112,16 @@ class CallLedger:
         return CallLedger(**{f.name: getattr(self, f.name) - getattr(other, f.name) for f in fields(self)})
 
     def snapshot(self) -> "CallLedger":
-        """A copy of the current totals."""
-        return CallLedger(**asdict(self))
+        """A copy of the current totals (also the mark for :meth:`since`)."""
+        snap = CallLedger(**asdict(self))
+        snap._charged_since = CallLedger()
+        self._taps[id(snap)] = snap
+        return snap
 
     def since(self, snapshot: "CallLedger") -> "CallLedger":
-        """What was charged after ``snapshot`` was taken."""
+        """What was charged after ``snapshot`` was taken (exact for this ledger's snapshots)."""
+        if self._taps.get(id(snapshot)) is snapshot:
+            return CallLedger(**asdict(snapshot._charged_since))
         return self - snapshot
 
     @property

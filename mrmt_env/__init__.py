@@ -63,7 +63,30 @@ def _register() -> None:
 
 _register()
 
-from mrmt_env.core import ACTION_NAMES, action_between, actions_from_path  # noqa: E402
-from mrmt_env.gym_env import MRMTEnv  # noqa: E402
-from mrmt_env.observation import world_from_observation  # noqa: E402
-from mrmt_env.pz_env import MRMTParallelEnv, env, parallel_env  # noqa: E402
+#: Public names loaded on first use (PEP 562), so importing the world model --
+#: as the planners do -- does not import the env classes.
+_LAZY = {
+    "ACTION_NAMES": "mrmt_env.core",
+    "action_between": "mrmt_env.core",
+    "actions_from_path": "mrmt_env.core",
+    "MRMTEnv": "mrmt_env.gym_env",
+    "world_from_observation": "mrmt_env.observation",
+    "MRMTParallelEnv": "mrmt_env.pz_env",
+    "env": "mrmt_env.pz_env",
+    "parallel_env": "mrmt_env.pz_env",
+}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'mrmt_env' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -116,3 +116,14 @@ def test_reused_ising_pipeline_reports_bit_identical_accelerator_figures():
     # counts, chip times and energies, bit for bit (cpu_s is measured wall time)
     assert a.replace(cpu_s=0.0) == b.replace(cpu_s=0.0)
     assert (a.chip_time_s, a.accelerator_energy_j) == (b.chip_time_s, b.accelerator_energy_j)
+
+
+def test_planners_do_not_import_the_env_classes():
+    # layering (ARCHITECTURE.md): planners use the world model, never the envs
+    import subprocess
+    import sys
+
+    code = ("import sys, planners.pipeline, planners.ising_path, planners.ising_tour, planners.ising_sharing; "
+            "print(sorted(m for m in sys.modules if m in ('mrmt_env.gym_env', 'mrmt_env.pz_env', 'agents')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -1,8 +1,11 @@
 """Grid worlds for multi-robot multi-target planning (world model, envs, metrics).
 
-Importing the package registers the Gymnasium ids in :data:`GYM_IDS`
-(``gymnasium.make("mrmt_env/MRMT-v0")``) and, when the installed PettingZoo
-has a registry, the PettingZoo ids ``mrmt_env/mrmt_v0`` (AEC and parallel).
+Importing the package registers the Gymnasium ids in :data:`GYM_IDS` (grid
+level, ``gymnasium.make("mrmt_env/MRMT-v0")``) and :data:`ASSIGN_IDS` (plan
+level, ``mrmt_env/MRMT-Assign-v0``), each with a native vector env
+(``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``)
+and, when the installed PettingZoo has a registry, the PettingZoo ids
+``mrmt_env/mrmt_v0`` (AEC and parallel) and ``mrmt_env/mrmt_assign_v0`` (AEC).
 """
 
 from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_distance_fields
@@ -26,6 +29,9 @@ __all__ = [
     "actions_from_path",
     "ACTION_NAMES",
     "GYM_IDS",
+    "ASSIGN_IDS",
+    "MRMTAssignEnv",
+    "assign_env",
 ]
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
@@ -41,16 +47,24 @@ GYM_IDS = {
     ),
 }
 
+#: Registered plan-level (Assign) ids -> (kwargs, max_episode_steps).
+ASSIGN_IDS = {
+    "mrmt_env/MRMT-Assign-v0": ({}, 200),  # the paper's set-up; a masked agent needs <= N + R steps
+}
+
 
 def _register() -> None:
     import gymnasium
 
-    for env_id, (kwargs, steps) in GYM_IDS.items():
-        if env_id not in gymnasium.registry:
-            # the passive env checker stays enabled (gymnasium's default)
-            gymnasium.register(
-                id=env_id, entry_point="mrmt_env.gym_env:MRMTEnv", kwargs=kwargs, max_episode_steps=steps
-            )
+    for ids, entry, vector in (
+        (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", None),
+        (ASSIGN_IDS, "mrmt_env.assign_env:MRMTAssignEnv", "mrmt_env.assign_vector:MRMTAssignVectorEnv"),
+    ):
+        for env_id, (kwargs, steps) in ids.items():
+            if env_id not in gymnasium.registry:
+                # the passive env checker stays enabled (gymnasium's default)
+                gymnasium.register(id=env_id, entry_point=entry, vector_entry_point=vector, kwargs=kwargs,
+                                   max_episode_steps=steps)
     try:
         from pettingzoo.env_registry.registration import aec_registry, parallel_registry, register
     except ImportError:  # older PettingZoo: no registry
@@ -59,6 +73,8 @@ def _register() -> None:
         register("aec", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:env")
     if "mrmt_env/mrmt_v0" not in parallel_registry:
         register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:parallel_env")
+    if "mrmt_env/mrmt_assign_v0" not in aec_registry:
+        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign_pz:assign_env")
 
 
 _register()
@@ -74,6 +90,8 @@ _LAZY = {
     "MRMTParallelEnv": "mrmt_env.pz_env",
     "env": "mrmt_env.pz_env",
     "parallel_env": "mrmt_env.pz_env",
+    "MRMTAssignEnv": "mrmt_env.assign_env",
+    "assign_env": "mrmt_env.assign_pz",
 }
 
 

@@ -1,0 +1,188 @@
+"""Compiled dynamics of the plan-level (Assign) env, batched over envs.
+
+One copy of the dynamics: the single env runs these kernels on a batch of
+one, the native vector env on a batch of ``B``.  State arrays (``b`` = env):
+
+* ``dist[b]``: ``(R+N, R+N)`` int32 BFS distances, robots then targets
+  (-1 = different free components);
+* ``cell[b, k]``: node where robot ``k`` is (or will be when free): ``k`` at
+  reset, ``R + j`` after it took target ``j``;
+* ``free_at[b, k]``: moves robot ``k`` has committed (the time it is free),
+  which is also its route length so far;
+* ``active[b, k]``: robot ``k`` still takes targets; ``open_[b, j]``: target
+  ``j`` not yet taken;
+* ``decider[b]``: the idle robot choosing now (-1 when the episode is over).
+
+Action ``a < N`` sends the decider to target ``a``; action ``N`` retires it.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["assign_step", "assign_masks", "assign_observe", "next_decider", "N_ROBOT_FEATURES"]
+
+#: Feature columns before the per-target distance block (see the env docstring).
+N_ROBOT_FEATURES = 8
+
+
+@numba.njit(cache=True, nogil=True)
+def next_decider(cell, free_at, active, open_, dist, n_targets) -> int:
+    """The active robot with the least committed time (lowest index on ties);
+    -1 when no target is open or no robot is active."""
+    any_open = False
+    for j in range(n_targets):
+        if open_[j]:
+            any_open = True
+            break
+    if not any_open:
+        return -1
+    best = -1
+    for k in range(cell.shape[0]):
+        if active[k] and (best < 0 or free_at[k] < free_at[best]):
+            best = k
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _stop_allowed(b, k, cell, active, open_, dist, n_robots, n_targets) -> bool:
+    # retiring robot k is legal when every open target stays reachable by another active robot
+    for j in range(n_targets):
+        if not open_[b, j]:
+            continue
+        ok = False
+        for q in range(n_robots):
+            if q != k and active[b, q] and dist[b, cell[b, q], n_robots + j] >= 0:
+                ok = True
+                break
+        if not ok:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def assign_masks(cell, active, open_, dist, decider, out) -> None:
+    """Fill ``out (B, N + 1)`` bool with the legal actions of each env's decider.
+
+    Target ``j``: open and reachable from the decider.  Stop (index ``N``):
+    every open target stays reachable by another active robot.  An env whose
+    episode is over (``decider < 0``) allows only stop.
+    """
+    n_robots = cell.shape[1]
+    n_targets = open_.shape[1]
+    for b in range(out.shape[0]):
+        k = decider[b]
+        if k < 0:
+            out[b, :] = False
+            out[b, n_targets] = True
+            continue
+        src = cell[b, k]
+        for j in range(n_targets):
+            out[b, j] = open_[b, j] and dist[b, src, n_robots + j] >= 0
+        out[b, n_targets] = _stop_allowed(b, k, cell, active, open_, dist, n_robots, n_targets)
+
+
+@numba.njit(cache=True, nogil=True)
+def assign_step(actions, cell, free_at, active, open_, dist, decider, counters, rewards, terminated) -> None:
+    """Apply one action per env (values already checked to lie in ``0..N``).
+
+    ``counters[b]`` = (route_cost, steps, targets_visited, invalid_actions).
+    The reward is minus the moves the action commits (0 for stop).  An
+    action the mask forbids changes nothing, costs -1 and counts as invalid
+    (as a blocked move does in the grid env).  ``terminated[b]`` is set when
+    no target is left open.
+    """
+    n_robots = cell.shape[1]
+    n_targets = open_.shape[1]
+    for b in range(actions.shape[0]):
+        a = actions[b]
+        k = decider[b]
+        counters[b, 1] += 1
+        legal = k >= 0
+        if legal and a < n_targets:
+            d = dist[b, cell[b, k], n_robots + a]
+            legal = open_[b, a] and d >= 0
+        elif legal:
+            legal = _stop_allowed(b, k, cell, active, open_, dist, n_robots, n_targets)
+        if not legal:
+            counters[b, 3] += 1
+            rewards[b] = -1.0
+        elif a < n_targets:
+            d = dist[b, cell[b, k], n_robots + a]
+            cell[b, k] = n_robots + a
+            free_at[b, k] += d
+            open_[b, a] = False
+            counters[b, 0] += d
+            counters[b, 2] += 1
+            rewards[b] = -float(d)
+        else:
+            active[b, k] = False
+            rewards[b] = 0.0
+        decider[b] = next_decider(cell[b], free_at[b], active[b], open_[b], dist[b], n_targets)
+        terminated[b] = decider[b] < 0
+
+
+@numba.njit(cache=True, nogil=True)
+def assign_observe(cell, free_at, active, open_, dist, decider, coords, scale, far, out) -> None:
+    """Write each env's observation into ``out (B, N + R, 8 + N)`` float32.
+
+    ``coords[b]``: ``(R+N, 2)`` node cells already divided by ``(H-1, W-1)``;
+    distances are divided by ``scale`` (= H + W); an unreachable distance
+    reads ``far``.  Layout: see :class:`mrmt_env.assign_env.MRMTAssignEnv`.
+    """
+    n_robots = cell.shape[1]
+    n_targets = open_.shape[1]
+    f0 = N_ROBOT_FEATURES
+    for b in range(out.shape[0]):
+        o = out[b]
+        o[:, :] = 0.0
+        k = decider[b]
+        now = free_at[b, k] if k >= 0 else 0
+        n_open = 0
+        for j in range(n_targets):
+            if open_[b, j]:
+                n_open += 1
+        for j in range(n_targets):
+            node = n_robots + j
+            o[j, 0] = 1.0
+            o[j, 1] = 1.0 if open_[b, j] else 0.0
+            o[j, 2] = coords[b, node, 0]
+            o[j, 3] = coords[b, node, 1]
+            if k >= 0:
+                d = dist[b, cell[b, k], node]
+                o[j, 4] = far if d < 0 else d / scale
+            else:
+                o[j, 4] = 0.0
+            best = -1.0  # earliest arrival of another active robot
+            for q in range(n_robots):
+                if q == k or not active[b, q]:
+                    continue
+                d = dist[b, cell[b, q], node]
+                if d >= 0:
+                    t = (free_at[b, q] - now + d) / scale
+                    if best < 0 or t < best:
+                        best = t
+            o[j, 5] = far if best < 0 else best
+            near = -1.0  # nearest other open target
+            for i in range(n_targets):
+                d = dist[b, node, n_robots + i]
+                o[j, f0 + i] = far if d < 0 else d / scale
+                if i != j and open_[b, i] and d >= 0 and (near < 0 or d / scale < near):
+                    near = d / scale
+            o[j, 6] = 0.0 if near < 0 else near
+            o[j, 7] = n_open / n_targets
+        for q in range(n_robots):
+            r = n_targets + q
+            o[r, 0] = 0.0
+            o[r, 1] = 1.0 if active[b, q] else 0.0
+            node = cell[b, q]
+            o[r, 2] = coords[b, node, 0]
+            o[r, 3] = coords[b, node, 1]
+            o[r, 4] = max(free_at[b, q] - now, 0) / scale
+            o[r, 5] = free_at[b, q] / scale
+            o[r, 6] = 1.0 if q == k else 0.0
+            o[r, 7] = n_open / n_targets
+            for i in range(n_targets):
+                d = dist[b, node, n_robots + i]
+                o[r, f0 + i] = far if d < 0 else d / scale

@@ -1,0 +1,156 @@
+"""Shared machinery of the native (batched) vector envs: seeding, autoreset, infos.
+
+A subclass holds ``B`` episodes in arrays and implements ``_load(i, rng)``
+(start env ``i`` on a world drawn from its generator), ``_step(actions)``
+(advance every env; returns rewards and terminations), ``_observe()`` and
+``_info_arrays()`` (per-key arrays over the batch).
+
+Semantics are those of ``gymnasium.vector.SyncVectorEnv`` over the registered
+single env (``gymnasium.make(id)``, with its ``TimeLimit``), so the two give
+identical batches for the same seeds and actions:
+
+* ``reset(seed=s)`` seeds env ``i`` with ``s + i`` (a list gives one seed per
+  env); later resets continue each env's own generator;
+* autoreset mode ``NEXT_STEP`` (gymnasium's default): the step after an
+  episode ends resets that env, ignores its action, and returns reward 0 and
+  ``terminated = truncated = False``; ``SAME_STEP`` resets at once and puts
+  ``final_obs`` / ``final_info`` in the infos; ``DISABLED`` leaves resets to
+  ``reset(options={"reset_mask": mask})``;
+* truncation when an episode's steps reach ``max_episode_steps`` (as
+  ``TimeLimit``: it may coincide with termination);
+* infos: every key of the single env's info as an array over the batch,
+  with the ``_key`` mask.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+__all__ = ["BatchedVectorEnv"]
+
+
+class BatchedVectorEnv(VectorEnv):
+    """Base class: see the module docstring."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int, max_episode_steps: int | None, autoreset_mode, copy: bool) -> None:
+        if isinstance(num_envs, bool) or int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            valid = [m.value for m in AutoresetMode]
+            raise ValueError(f"autoreset_mode must be one of {valid}, got {autoreset_mode!r}") from None
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        self.autoreset_mode = mode
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.copy = bool(copy)
+        self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
+        self._started = False
+
+    # ----------------------------------------------------------- subclass API
+    def _load(self, i: int, rng: np.random.Generator) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _step(self, actions: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+        raise NotImplementedError
+
+    def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def _observe(self) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def _info_arrays(self) -> dict:  # pragma: no cover
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- resets
+    def _seeds(self, seed) -> list:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            if seed < 0:
+                raise ValueError(f"seed must be >= 0, got {seed}")
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"seed list has {len(seeds)} seeds; this vector env has {self.num_envs} envs")
+        return seeds
+
+    def _reset_env(self, i: int, seed) -> None:
+        if seed is not None or self._rngs[i] is None:
+            self._rngs[i], _ = seeding.np_random(seed)
+        self._load(i, self._rngs[i])
+        self._elapsed[i] = 0
+        self._autoreset[i] = False
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        seeds = self._seeds(seed)
+        mask = None if not options or "reset_mask" not in options else np.asarray(options["reset_mask"], dtype=bool)
+        if mask is not None and mask.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must have shape ({self.num_envs},), got {mask.shape}")
+        for i in range(self.num_envs):
+            if mask is None or mask[i]:
+                self._reset_env(i, seeds[i])
+        self._started = True
+        obs = self._observe()
+        return (obs.copy() if self.copy else obs), self._infos(np.ones(self.num_envs, dtype=bool))
+
+    # ------------------------------------------------------------------ step
+    def step(self, actions):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        n = self.num_envs
+        mode = self.autoreset_mode
+        resetting = self._autoreset.copy() if mode == AutoresetMode.NEXT_STEP else np.zeros(n, dtype=bool)
+        if mode == AutoresetMode.DISABLED and self._autoreset.any():
+            i = int(np.flatnonzero(self._autoreset)[0])
+            raise RuntimeError(f"env {i}'s episode is over; reset it with reset(options={{'reset_mask': mask}})")
+        live = ~resetting
+        acts = self._check_actions(actions, live)
+        rewards, terminated = self._step(acts, live)
+        rewards = np.where(live, rewards, 0.0).astype(np.float64)
+        terminated = terminated & live
+        self._elapsed[live] += 1
+        if self.max_episode_steps is not None:
+            truncated = live & (self._elapsed >= self.max_episode_steps)
+        else:
+            truncated = np.zeros(n, dtype=bool)
+        for i in np.flatnonzero(resetting):
+            self._reset_env(int(i), None)
+        done = terminated | truncated
+        infos = self._infos(np.ones(n, dtype=bool))
+        if mode == AutoresetMode.SAME_STEP and done.any():
+            final_obs = np.full(n, None, dtype=object)
+            obs_now = self._observe()
+            for i in np.flatnonzero(done):
+                final_obs[i] = obs_now[i].copy()
+            final_info = self._infos(done)
+            for i in np.flatnonzero(done):
+                self._reset_env(int(i), None)
+            infos = self._infos(np.ones(n, dtype=bool))
+            infos["final_obs"], infos["_final_obs"] = final_obs, done.copy()
+            infos["final_info"], infos["_final_info"] = final_info, done.copy()
+        self._autoreset = done.copy()
+        obs = self._observe()
+        return (obs.copy() if self.copy else obs), rewards, terminated, truncated, infos
+
+    def _infos(self, mask: np.ndarray) -> dict:
+        out = {}
+        for key, arr in self._info_arrays().items():
+            if not mask.all():
+                arr = np.where(mask.reshape((-1,) + (1,) * (arr.ndim - 1)), arr, np.zeros_like(arr))
+            out[key] = arr
+            out["_" + key] = mask.copy()
+        return out
+
+    def close_extras(self, **kwargs) -> None:
+        pass

@@ -46,21 +46,35 @@ the number of broken ties (logical spins whose copies disagree) per sample.
 
 :func:`saturate_mapping` is the authors' baseline (fixed scale, round, clip at
 the range) wrapped in the same :class:`MergedModel` interface with no copies.
+
+The duplication loop, the layout and the decoding run in compiled kernels
+(:mod:`._merge_kernel`; :func:`~._merge_kernel.merge_styles` maps one model with
+several styles in one call); the pure-Python original is kept as the reference
+in :mod:`._reference` and the tests hold the two bit-identical.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ._merge_kernel import (
+    MERGE_COUPLING_UNFIT,
+    MERGE_FIELD_UNFIT,
+    MERGE_OK,
+    MERGE_TOO_MANY_SPINS,
+    STYLE_IDS,
+    decode_copies,
+    merge_styles,
+)
 from .models import IsingModel
 from .spec import ChipSpec
 
-__all__ = ["MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping"]
+__all__ = ["MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_error_message"]
 
 MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")
-_SPLIT = {"overload": "spill", "max_coeff": "even", "high_degree": "spill", "balanced": "even"}
 
 
 class MergeError(ValueError):
@@ -91,6 +105,39 @@ class MergedModel:
         """Spare physical spins used as copies."""
         return self.physical.n - self.logical.n
 
+    def __getattr__(self, name):
+        # ``copies`` of a model built by merge_spins is made from the flat layout on first use
+        d = self.__dict__
+        if name == "copies" and "_ptr" in d:
+            ptr, idx = d["_ptr"][0], d["_idx"][0]
+            copies = tuple(idx[ptr[i]:ptr[i + 1]].copy() for i in range(ptr.size - 1))
+            d["copies"] = copies
+            return copies
+        raise AttributeError(name)
+
+    @classmethod
+    def _from_layout(cls, logical, physical, ptr, idx, style, scale) -> "MergedModel":
+        """Internal: from a flat copy layout ``ptr (1, n + 1)``, ``idx (1, N)`` (int64)."""
+        self = object.__new__(cls)
+        self.__dict__.update(logical=logical, physical=physical, style=style, scale=scale,
+                             _ptr=ptr, _idx=idx, _nlog=np.array([logical.n], dtype=np.int64))
+        return self
+
+    def layout(self) -> tuple[np.ndarray, np.ndarray]:
+        """The copies as a flat layout ``(ptr (n + 1,), idx (N,))`` int64: the copies of
+        logical spin ``i`` are ``idx[ptr[i]:ptr[i + 1]]`` (the form the compiled decoder takes)."""
+        d = self.__dict__
+        if "_ptr" not in d:
+            sizes = np.array([len(c) for c in self.copies], dtype=np.int64)
+            ptr = np.zeros((1, sizes.size + 1), dtype=np.int64)
+            np.cumsum(sizes, out=ptr[0, 1:])
+            idx = np.zeros((1, max(int(ptr[0, -1]), self.physical.n)), dtype=np.int64)
+            if sizes.size:
+                idx[0, :ptr[0, -1]] = np.concatenate([np.asarray(c, dtype=np.int64) for c in self.copies])
+            d["_ptr"], d["_idx"] = ptr, idx
+            d["_nlog"] = np.array([self.logical.n], dtype=np.int64)
+        return d["_ptr"][0], d["_idx"][0]
+
     def decode(self, spins, method: str = "majority") -> tuple[np.ndarray, np.ndarray]:
         """Physical spins ``(..., n_phys)`` (extra trailing padding allowed) -> logical.
 
@@ -99,21 +146,21 @@ class MergedModel:
         if method not in ("majority", "first"):
             raise ValueError(f"method = {method!r} not in ('majority', 'first')")
         s = np.asarray(spins)
-        if s.shape[-1] < self.physical.n:
-            raise ValueError(f"spins have {s.shape[-1]} entries; the physical model has {self.physical.n}")
-        s = s[..., : self.physical.n].astype(np.int64)
-        n = self.logical.n
-        out = s[..., :n].copy()
-        broken = np.zeros(s.shape[:-1], dtype=np.int64)
-        for i, c in enumerate(self.copies):
-            if len(c) == 1:
-                continue
-            vals = s[..., c]
-            tot = vals.sum(axis=-1)
-            broken += np.abs(tot) != len(c)
-            if method == "majority":
-                out[..., i] = np.where(tot > 0, 1, np.where(tot < 0, -1, vals[..., 0]))
-        return out.astype(np.int8), broken
+        N = self.physical.n
+        if s.ndim == 0 or s.shape[-1] < N:
+            got = s.shape[-1] if s.ndim else 0
+            raise ValueError(f"spins have {got} entries; the physical model has {N}")
+        lead = s.shape[:-1]
+        if s.shape[-1] != N:
+            s = s[..., :N]
+        if s.dtype != np.int8:
+            s = s.astype(np.int64)
+        s = np.ascontiguousarray(s).reshape(1, math.prod(lead), N)
+        if "_ptr" not in self.__dict__:
+            self.layout()
+        d = self.__dict__
+        out, broken = decode_copies(s, d["_nlog"], d["_ptr"], d["_idx"], method == "first")
+        return out[0].reshape(lead + (self.logical.n,)), broken[0].reshape(lead)
 
 
 def _limit(rng) -> int:
@@ -121,22 +168,6 @@ def _limit(rng) -> int:
     if lim < 1:
         raise MergeError(f"range {tuple(rng)} has no symmetric integer range")
     return lim
-
-
-def _split(total: int, k: int, lim: int, mode: str) -> list[int]:
-    """Split integer ``total`` into ``k`` integer pieces each of magnitude <= ``lim``."""
-    sgn = 1 if total >= 0 else -1
-    t = abs(int(total))
-    if mode == "spill":
-        pieces = []
-        for _ in range(k):
-            p = min(lim, t)
-            pieces.append(p)
-            t -= p
-    else:
-        q, r = divmod(t, k)
-        pieces = [q + (1 if m < r else 0) for m in range(k)]
-    return [sgn * p for p in pieces]
 
 
 def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, scale: float = 1.0,
@@ -163,84 +194,40 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
         raise MergeError(f"model has {n} spins; the chip has {spec.n_spins}: branch first")
     H = np.rint(model.h * scale).astype(np.int64)
     C = np.rint(model.J * scale).astype(np.int64)
-    absC = np.abs(C) + np.abs(C).T
-    degree = (absC != 0).sum(axis=1)
-    strength = absC.sum(axis=1)
-    a = np.ones(n, dtype=np.int64)
+    status, err, a, _, hp, Jp, offset_add, ptr, idx = merge_styles(H, C, _STYLE_ARRAY[style], Lh, Lj, tie,
+                                                                  spec.n_spins)
+    if status[0] != MERGE_OK:
+        raise MergeError(merge_error_message(int(status[0]), err[0], H, C, a[0], Lh, Lj, spec.n_spins, scale))
+    offset = model.offset * scale + float(offset_add[0])
+    if np.isfinite(offset):
+        physical = IsingModel.trusted(hp[0], Jp[0], float(offset))
+    else:  # the validating constructor names the non-finite offset
+        physical = IsingModel(hp[0], Jp[0], offset)
+    return MergedModel._from_layout(model, physical, ptr, idx, style, float(scale))
 
-    while True:
-        cap_h = Lh * a
-        cap_j = Lj * np.outer(a, a)
-        ex_h = np.abs(H) - cap_h
-        ex_j = np.triu(np.abs(C) - cap_j, 1)
-        bad_h = ex_h > 0
-        bad_j = ex_j > 0
-        if not bad_h.any() and not bad_j.any():
-            break
-        if n + int((a - 1).sum()) >= spec.n_spins:
-            if bad_h.any():
-                i = int(np.argmax(np.where(bad_h, ex_h, -1)))
-                what = f"field h[{i}] = {H[i]} (scaled x{scale:g}) needs {-(-abs(H[i]) // Lh)} copies, has {a[i]}"
-            else:
-                i, j = np.unravel_index(int(np.argmax(ex_j)), ex_j.shape)
-                what = f"coupling J[{i}, {j}] = {C[i, j]} (scaled x{scale:g}) exceeds {Lj} x {a[i]} x {a[j]} copy pairs"
-            raise MergeError(f"{what}; all {spec.n_spins} chip spins are used ({n} logical + "
-                             f"{int((a - 1).sum())} copies): use saturate, a smaller scale or a larger chip")
-        excess = np.where(bad_h, ex_h, 0).astype(np.float64)
-        exj = np.where(bad_j, ex_j, 0)
-        excess += exj.sum(axis=1) + exj.sum(axis=0)
-        involved = excess > 0
-        if style == "overload":
-            pick = int(np.argmax(excess))
-        elif style == "max_coeff":
-            ratio_h = np.where(bad_h, np.abs(H) / cap_h, 0.0)
-            ratio_j = np.where(bad_j, np.abs(C) / np.maximum(cap_j, 1), 0.0)
-            if ratio_h.max() >= ratio_j.max():
-                pick = int(np.argmax(ratio_h))
-            else:
-                i, j = np.unravel_index(int(np.argmax(ratio_j)), ratio_j.shape)
-                key_i = (a[i], -strength[i], i)
-                key_j = (a[j], -strength[j], j)
-                pick = int(i if key_i <= key_j else j)
-        elif style == "high_degree":
-            key = np.where(involved, degree * 1e6 + excess, -1.0)
-            pick = int(np.argmax(key))
-        else:  # balanced
-            key = np.where(involved, -a * 1e9 + excess, -np.inf)
-            pick = int(np.argmax(key))
-        a[pick] += 1
 
-    # physical layout: originals 0..n-1, then copies in creation order (grouped by spin)
-    copies = []
-    nxt = n
-    for i in range(n):
-        c = [i] + list(range(nxt, nxt + a[i] - 1))
-        nxt += a[i] - 1
-        copies.append(np.array(c, dtype=np.int64))
-    N = nxt
-    mode = _SPLIT[style]
-    hp = np.zeros(N)
-    Jp = np.zeros((N, N))
-    single = a == 1
-    hp[:n] = np.where(single, H, 0)
-    Jp[:n, :n] = np.where(np.outer(single, single), C, 0)
-    for i in np.flatnonzero(~single):
-        for p, v in zip(copies[i], _split(H[i], a[i], Lh, mode)):
-            hp[p] = v
-    multi = ~np.outer(single, single) & (C != 0)
-    for i, j in zip(*np.nonzero(np.triu(multi, 1))):
-        pairs = [(p, q) for p in copies[i] for q in copies[j]]
-        for (p, q), v in zip(pairs, _split(C[i, j], len(pairs), Lj, mode)):
-            lo, hi = (p, q) if p < q else (q, p)
-            Jp[lo, hi] += v
-    n_ties = 0
-    for c in copies:
-        for x in range(len(c)):
-            for y in range(x + 1, len(c)):
-                Jp[min(c[x], c[y]), max(c[x], c[y])] = -tie
-                n_ties += 1
-    physical = IsingModel(hp, Jp, model.offset * scale + tie * n_ties)
-    return MergedModel(model, physical, tuple(copies), style, float(scale))
+_STYLE_ARRAY = {s: np.array([STYLE_IDS[s]], dtype=np.int64) for s in MERGE_STYLES}
+
+
+def merge_error_message(status: int, err, H, C, a, Lh: int, Lj: int, n_spins: int, scale: float = 1.0) -> str:
+    """The :class:`MergeError` message of a failed :func:`~._merge_kernel.merge_styles` style.
+
+    Args: the style's ``status`` and ``err`` row, the rounded ``H`` / ``C`` given to the
+    kernel, the style's copy counts ``a`` at the failure, the limits, the spin budget and
+    the scale (for the message).
+    """
+    n = len(H)
+    if status == MERGE_TOO_MANY_SPINS:
+        return f"model has {n} spins; the chip has {n_spins}: branch first"
+    i, j = int(err[0]), int(err[1])
+    if status == MERGE_FIELD_UNFIT:
+        what = f"field h[{i}] = {H[i]} (scaled x{scale:g}) needs {-(-abs(H[i]) // Lh)} copies, has {a[i]}"
+    elif status == MERGE_COUPLING_UNFIT:
+        what = f"coupling J[{i}, {j}] = {C[i, j]} (scaled x{scale:g}) exceeds {Lj} x {a[i]} x {a[j]} copy pairs"
+    else:
+        raise ValueError(f"status = {status!r} is not a merge failure code (1, 2 or 3)")
+    return (f"{what}; all {n_spins} chip spins are used ({n} logical + "
+            f"{int(np.sum(a) - n)} copies): use saturate, a smaller scale or a larger chip")
 
 
 def saturate_mapping(model: IsingModel, spec: ChipSpec | None = None, scale: float = 1.0) -> MergedModel:

@@ -96,6 +96,22 @@ class IsingModel:
         object.__setattr__(self, "offset", float(self.offset))
         object.__setattr__(self, "labels", _labels(self.labels, h.size))
 
+    @classmethod
+    def trusted(cls, h: np.ndarray, J: np.ndarray, offset: float = 0.0, labels: tuple | None = None) -> "IsingModel":
+        """Build without validation, for internal code whose arrays are valid by construction.
+
+        The caller guarantees what ``__init__`` would otherwise check or establish:
+        ``h`` float64 ``(n,)``, ``J`` float64 ``(n, n)`` with zero diagonal and lower
+        triangle, all finite, ``offset`` a finite float, ``labels`` ``None`` or a tuple
+        of ``n`` unique labels.  The arrays are taken over (made read-only, not
+        copied).  Public construction (``IsingModel(h, J, ...)``) keeps validating.
+        """
+        h.flags.writeable = False
+        J.flags.writeable = False
+        self = object.__new__(cls)
+        self.__dict__.update(h=h, J=J, offset=offset, labels=labels)
+        return self
+
     # ------------------------------------------------------------------ basics
     @property
     def n(self) -> int:

@@ -33,15 +33,20 @@ Common rules (the paper is silent; our choices):
 :func:`saturate` is the authors' baseline rule (COBI host code): a *fixed* scale
 factor, round, and saturate at the range limits.  It clips by design, so it is
 an explicit, separately named rule.
+
+Both run in compiled kernels (:mod:`._quantize_kernel`; :func:`quantize_stack`
+gives several rules of one model in one call); the numpy original is kept as the
+reference in :mod:`._reference` and the tests hold the two bit-identical.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ._quantize_kernel import QUANT_OK, RULE_IDS, quantize_rules, saturate_arrays
 from .models import IsingModel
 
-__all__ = ["QUANTIZE_RULES", "quantize", "saturate", "QuantizeError"]
+__all__ = ["QUANTIZE_RULES", "quantize", "quantize_stack", "saturate", "QuantizeError"]
 
 QUANTIZE_RULES = ("linear", "clip95", "rank", "sqrt")
 
@@ -82,30 +87,45 @@ def quantize(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7), *, 
     Lh, Lj = _limit(h_range, "h_range"), _limit(j_range, "j_range")
     if not (np.isfinite(percentile) and 0 < percentile <= 100):
         raise QuantizeError(f"percentile = {percentile!r} must be in (0, 100]")
-    n = model.n
-    iu = np.triu_indices(n, 1)
-    c = np.concatenate([model.h, model.J[iu]])
-    lim = np.concatenate([np.full(n, float(Lh)), np.full(iu[0].size, float(Lj))])
-    q = np.zeros_like(c)
-    nz = c != 0
-    if nz.any():
-        if rule == "rank":
-            rel = np.abs(c[nz]) / lim[nz]
-            uniq, inv = np.unique(rel, return_inverse=True)
-            frac = inv / (uniq.size - 1) if uniq.size > 1 else np.ones(inv.size)
-            q[nz] = np.sign(c[nz]) * np.rint(1 + (lim[nz] - 1) * frac)
-        else:
-            v = np.sign(c) * np.sqrt(np.abs(c)) if rule == "sqrt" else c
-            rel = np.abs(v[nz]) / lim[nz]
-            a = np.percentile(rel, percentile) if rule == "clip95" else rel.max()
-            q = np.clip(np.rint(v / a), -lim, lim)
-        if keep_sign:
-            small = nz & (q == 0)
-            q[small] = np.sign(c[small])
-    h = q[:n]
-    J = np.zeros((n, n))
-    J[iu] = q[n:]
-    return IsingModel(h, J, 0.0, model.labels)
+    if isinstance(percentile, np.floating) and not isinstance(percentile, float):
+        from ._reference import quantize_ref  # numpy computes in the percentile's own precision
+
+        return quantize_ref(model, rule, h_range, j_range, keep_sign=keep_sign, percentile=percentile)
+    status, h, J = quantize_rules(model.h, model.J, _RULE_ARRAY[rule], float(Lh), float(Lj), bool(keep_sign),
+                                  float(percentile))
+    if status[0] != QUANT_OK:  # the validating constructor names the non-finite coefficient
+        return IsingModel(h[0], J[0], 0.0, model.labels)
+    return IsingModel.trusted(h[0], J[0], 0.0, model.labels)
+
+
+_RULE_ARRAY = {r: np.array([RULE_IDS[r]], dtype=np.int64) for r in QUANTIZE_RULES}
+_ALL_RULES = np.array([RULE_IDS[r] for r in QUANTIZE_RULES], dtype=np.int64)
+
+
+def quantize_stack(model: IsingModel, rules=QUANTIZE_RULES, h_range=(-7, 7), j_range=(-7, 7), *,
+                   keep_sign: bool = True, percentile: float = 95.0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`quantize` of one model under several rules in one compiled call, as arrays.
+
+    Returns ``(h (k, n), J (k, n, n))`` float64, row ``r`` equal to
+    ``quantize(model, rules[r], ...)``'s ``h`` / ``J`` (default: all four rules, in
+    :data:`QUANTIZE_RULES` order).
+
+    Raises:
+        QuantizeError: a bad rule, range or percentile.
+        ModelError: a result is not finite (a non-zero coefficient whose relative size underflows).
+    """
+    for rule in rules:
+        if rule not in QUANTIZE_RULES:
+            raise QuantizeError(f"rule = {rule!r} not in {QUANTIZE_RULES} (saturate() is the fixed-scale rule)")
+    Lh, Lj = _limit(h_range, "h_range"), _limit(j_range, "j_range")
+    if not (np.isfinite(percentile) and 0 < percentile <= 100):
+        raise QuantizeError(f"percentile = {percentile!r} must be in (0, 100]")
+    ids = _ALL_RULES if tuple(rules) == QUANTIZE_RULES else np.array([RULE_IDS[r] for r in rules], dtype=np.int64)
+    status, h, J = quantize_rules(model.h, model.J, ids, float(Lh), float(Lj), bool(keep_sign), float(percentile))
+    bad = np.flatnonzero(status != QUANT_OK)
+    if bad.size:
+        IsingModel(h[bad[0]], J[bad[0]])  # raises ModelError naming the coefficient
+    return h, J
 
 
 def saturate(model: IsingModel, scale: float, h_range=(-7, 7), j_range=(-7, 7)) -> IsingModel:
@@ -117,6 +137,11 @@ def saturate(model: IsingModel, scale: float, h_range=(-7, 7), j_range=(-7, 7)) 
     if not (np.isfinite(scale) and scale > 0):
         raise QuantizeError(f"scale = {scale!r} must be a positive finite number")
     h_range, j_range = _pair(h_range, "h_range"), _pair(j_range, "j_range")
-    h = np.clip(np.rint(model.h * scale), h_range[0], h_range[1])
-    J = np.clip(np.rint(model.J * scale), j_range[0], j_range[1])
-    return IsingModel(h, J, model.offset * scale, model.labels)
+    h, J = saturate_arrays(model.h, model.J, float(scale), float(h_range[0]), float(h_range[1]),
+                           float(j_range[0]), float(j_range[1]))
+    offset = model.offset * scale
+    if j_range[0] <= 0 <= j_range[1] and np.isfinite(offset):
+        return IsingModel.trusted(h, J, float(offset), model.labels)
+    # a J range without 0 turns the zero diagonal / lower triangle non-zero (refused or folded), or the
+    # offset overflowed: the validating constructor handles (and names) these
+    return IsingModel(h, J, offset, model.labels)

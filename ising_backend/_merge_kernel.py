@@ -1,0 +1,319 @@
+"""Compiled spin merging and copy decoding (the kernels behind :mod:`.merge`).
+
+Contract (see :func:`.merge.merge_spins` for the algorithm; design notes in
+``docs/design/mapping_kernels.md``):
+
+* :func:`merge_styles` maps one logical model, given as rounded integer fields
+  ``H (n,)`` and upper-triangular couplings ``C (n, n)`` (int64), with several
+  merge styles in one call.  It reproduces :func:`.merge.merge_spins` exactly:
+  the same duplication choices (same float keys, ties on the lowest index), the
+  same physical layout (originals ``0..n-1``, then the extra copies grouped by
+  spin) and the same splits, so ``h`` / ``J`` are bit-identical.
+* :func:`decode_copies` decodes physical spins of many (program, read) samples
+  back to logical spins through a flat copy layout (``ptr`` / ``idx``, CSR style:
+  the copies of logical spin ``i`` are ``idx[ptr[i]:ptr[i + 1]]``, original first).
+
+Both are plain ``@njit(cache=True)`` functions over arrays: callable from Python
+and from other numba code.  They allocate their outputs and build no Python
+objects.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = [
+    "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
+    "merge_styles", "decode_copies",
+]
+
+#: merge style name -> style id of the kernels (the order of ``MERGE_STYLES``)
+STYLE_IDS = {"overload": 0, "max_coeff": 1, "high_degree": 2, "balanced": 3}
+
+#: status codes of :func:`merge_styles` (per style)
+MERGE_OK = 0
+#: the spin budget ran out; ``err = (i, -1)``: field ``H[i]`` still exceeds ``Lh * a[i]``
+MERGE_FIELD_UNFIT = 1
+#: the spin budget ran out; ``err = (i, j)``: coupling ``C[i, j]`` exceeds ``Lj * a[i] * a[j]``
+MERGE_COUPLING_UNFIT = 2
+#: the logical model alone has more spins than the chip (``n > n_spins``); ``err = (n, n_spins)``
+MERGE_TOO_MANY_SPINS = 3
+
+_EVEN = (False, True, False, True)  # split mode per style id: spill (False) or even (True)
+
+
+@numba.njit(cache=True)
+def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
+    """The duplication loop of one style: copy counts into ``a``; returns a status code.
+
+    Each round recomputes, as the reference does, the excess of every field
+    (``|H_i| - Lh a_i``) and coupling (``|C_ij| - Lj a_i a_j``), the per-spin total
+    excess (float64: ``float(field excess) + float(coupling excesses)``), and adds
+    one copy to the spin the style picks.
+    """
+    n = H.shape[0]
+    for i in range(n):
+        a[i] = 1
+    if n > n_spins:
+        err[0] = n
+        err[1] = n_spins
+        return MERGE_TOO_MANY_SPINS
+    used = n
+    excess = np.zeros(n)
+    exj = np.zeros(n, dtype=np.int64)
+    while True:
+        bad_h = False
+        bad_j = False
+        for i in range(n):
+            exj[i] = 0
+        for i in range(n):
+            for j in range(i + 1, n):
+                e = abs(C[i, j]) - Lj * a[i] * a[j]
+                if e > 0:
+                    bad_j = True
+                    exj[i] += e
+                    exj[j] += e
+        for i in range(n):
+            e = abs(H[i]) - Lh * a[i]
+            if e > 0:
+                bad_h = True
+            else:
+                e = 0
+            excess[i] = np.float64(e) + np.float64(exj[i])
+        if not (bad_h or bad_j):
+            return MERGE_OK
+        if used >= n_spins:  # budget exhausted: name the worst remaining term
+            if bad_h:
+                bi = 0
+                best = -1
+                for i in range(n):
+                    e = abs(H[i]) - Lh * a[i]
+                    v = e if e > 0 else -1
+                    if v > best:
+                        best = v
+                        bi = i
+                err[0] = bi
+                err[1] = -1
+                return MERGE_FIELD_UNFIT
+            best = 0
+            bi = 0
+            bj = 0
+            for i in range(n):
+                for j in range(i + 1, n):
+                    e = abs(C[i, j]) - Lj * a[i] * a[j]
+                    if e > best:
+                        best = e
+                        bi = i
+                        bj = j
+            err[0] = bi
+            err[1] = bj
+            return MERGE_COUPLING_UNFIT
+        pick = 0
+        if style == 0:  # overload: largest total excess
+            best_f = excess[0]
+            for i in range(1, n):
+                if excess[i] > best_f:
+                    best_f = excess[i]
+                    pick = i
+        elif style == 1:  # max_coeff: an endpoint of the worst term by |c| / capacity
+            rh = 0.0
+            ih = 0
+            for i in range(n):
+                cap = Lh * a[i]
+                r = abs(H[i]) / cap if abs(H[i]) > cap else 0.0
+                if r > rh:
+                    rh = r
+                    ih = i
+            rj = 0.0
+            ii = 0
+            jj = 0
+            for i in range(n):
+                for j in range(i + 1, n):
+                    cap = Lj * a[i] * a[j]
+                    r = abs(C[i, j]) / max(cap, 1) if abs(C[i, j]) > cap else 0.0
+                    if r > rj:
+                        rj = r
+                        ii = i
+                        jj = j
+            if rh >= rj:
+                pick = ih
+            elif a[ii] < a[jj] or (a[ii] == a[jj] and strength[ii] >= strength[jj]):
+                pick = ii  # (a, -strength, index) lexicographic; ii < jj
+            else:
+                pick = jj
+        elif style == 2:  # high_degree: most non-zero couplings among involved spins
+            best_f = -np.inf
+            for i in range(n):
+                k = np.float64(degree[i]) * 1e6 + excess[i] if excess[i] > 0 else -1.0
+                if k > best_f:
+                    best_f = k
+                    pick = i
+        else:  # balanced: fewest copies among involved spins, then largest excess
+            best_f = -np.inf
+            first = True
+            for i in range(n):
+                k = np.float64(-a[i]) * 1e9 + excess[i] if excess[i] > 0 else -np.inf
+                if first or k > best_f:
+                    best_f = k
+                    pick = i
+                    first = False
+        a[pick] += 1
+        used += 1
+
+
+@numba.njit(cache=True, inline="always")
+def _piece(total, k, m, lim, even):
+    """Piece ``m`` of splitting integer ``total`` into ``k`` pieces of magnitude <= ``lim``."""
+    t = abs(total)
+    if even:
+        p = t // k + (1 if m < t % k else 0)
+    else:  # spill: fill the first slots up to the limit
+        p = min(lim, max(0, t - m * lim))
+    return p if total >= 0 else -p
+
+
+@numba.njit(cache=True, inline="always")
+def _phys(i, m, start):
+    """Physical index of copy ``m`` of logical spin ``i`` (copy 0 is the original)."""
+    return i if m == 0 else start[i] + m - 1
+
+
+@numba.njit(cache=True)
+def _fill(H, C, a, even, Lh, Lj, tie, start, hp, Jp):
+    """Physical ``hp`` / ``Jp`` (zeroed on entry) from the copy counts; returns the number of ties."""
+    n = H.shape[0]
+    for i in range(n):
+        if a[i] == 1:
+            hp[i] = H[i]
+        else:
+            for m in range(a[i]):
+                hp[_phys(i, m, start)] = _piece(H[i], a[i], m, Lh, even)
+    for i in range(n):
+        for j in range(i + 1, n):
+            c = C[i, j]
+            if a[i] == 1 and a[j] == 1:
+                Jp[i, j] = c
+            elif c != 0:  # spread over the copy pairs (p over i's copies, q over j's)
+                k = a[i] * a[j]
+                for pi in range(a[i]):
+                    p = _phys(i, pi, start)
+                    for qi in range(a[j]):
+                        q = _phys(j, qi, start)
+                        v = _piece(c, k, pi * a[j] + qi, Lj, even)
+                        if p < q:
+                            Jp[p, q] += v
+                        else:
+                            Jp[q, p] += v
+    n_ties = 0
+    for i in range(n):
+        for x in range(a[i]):
+            p = _phys(i, x, start)
+            for y in range(x + 1, a[i]):
+                q = _phys(i, y, start)
+                if p < q:
+                    Jp[p, q] = -tie
+                else:
+                    Jp[q, p] = -tie
+                n_ties += 1
+    return n_ties
+
+
+@numba.njit(cache=True)
+def merge_styles(H, C, styles, Lh, Lj, tie, n_spins):
+    """Merge one logical model with each of ``styles`` (style ids, see :data:`STYLE_IDS`).
+
+    Args:
+        H: ``(n,)`` int64 rounded fields; C: ``(n, n)`` int64 rounded couplings, upper triangular.
+        styles: ``(k,)`` int64 style ids.  Lh, Lj: symmetric range limits (>= 1);
+        tie: tie strength in ``[1, Lj]``; n_spins: the chip's spin budget.
+
+    Returns ``(status, err, a, n_phys, h, J, offset_add, ptr, idx)``:
+        status ``(k,)`` int64 (``MERGE_*`` codes), err ``(k, 2)`` int64 (indices of the
+        term that did not fit, ``-1`` unused), a ``(k, n)`` int64 copy counts (at the
+        failure for a failed style), n_phys ``(k,)`` int64 physical spins (0 if failed),
+        h ``(k, N)`` float64 and J ``(k, N, N)`` float64 upper triangular, zero-padded to
+        ``N = max(n_phys)``, offset_add ``(k,)`` float64 ``tie x ties`` (add to
+        ``offset x scale``), ptr ``(k, n + 1)`` / idx ``(k, N)`` int64 copy layout.
+    """
+    n = H.shape[0]
+    k = styles.shape[0]
+    absC = np.abs(C) + np.abs(C).T
+    degree = np.zeros(n, dtype=np.int64)
+    strength = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        for j in range(n):
+            degree[i] += absC[i, j] != 0
+            strength[i] += absC[i, j]
+    status = np.zeros(k, dtype=np.int64)
+    err = np.full((k, 2), -1, dtype=np.int64)
+    a = np.ones((k, n), dtype=np.int64)
+    n_phys = np.zeros(k, dtype=np.int64)
+    N = 0
+    for s in range(k):
+        status[s] = _copy_counts(H, C, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err[s])
+        if status[s] == MERGE_OK:
+            n_phys[s] = a[s].sum()
+            N = max(N, n_phys[s])
+    h = np.zeros((k, N))
+    J = np.zeros((k, N, N))
+    offset_add = np.zeros(k)
+    ptr = np.zeros((k, n + 1), dtype=np.int64)
+    idx = np.zeros((k, N), dtype=np.int64)
+    start = np.zeros(n, dtype=np.int64)
+    for s in range(k):
+        if status[s] != MERGE_OK:
+            continue
+        nxt = n
+        for i in range(n):
+            start[i] = nxt
+            nxt += a[s, i] - 1
+            ptr[s, i + 1] = ptr[s, i] + a[s, i]
+            for m in range(a[s, i]):
+                idx[s, ptr[s, i] + m] = _phys(i, m, start)
+        even = _EVEN[styles[s]]
+        offset_add[s] = tie * _fill(H, C, a[s], even, Lh, Lj, tie, start, h[s], J[s])
+    return status, err, a, n_phys, h, J, offset_add, ptr, idx
+
+
+@numba.njit(cache=True)
+def decode_copies(spins, n_logical, ptr, idx, first):
+    """Logical spins of many samples from their physical spins and copy layouts.
+
+    Args:
+        spins: ``(P, R, W)`` physical spins (int8 or int64) of ``P`` programs x ``R`` reads.
+        n_logical: ``(P,)`` logical spin count of each program.
+        ptr, idx: ``(P, >= n + 1)`` / ``(P, >= N)`` copy layouts (see the module docstring).
+        first: ``True``: the original copy; ``False``: the majority of the copies, a tie
+            going to the copy listed first.
+
+    Returns ``(logical (P, R, n_max) int8, broken (P, R) int64)``: logical spins
+    (zero beyond each program's ``n_logical``) and the number of logical spins whose
+    copies disagree.
+    """
+    P = spins.shape[0]
+    R = spins.shape[1]
+    n_max = 0
+    for p in range(P):
+        n_max = max(n_max, n_logical[p])
+    out = np.zeros((P, R, n_max), dtype=np.int8)
+    broken = np.zeros((P, R), dtype=np.int64)
+    for p in range(P):
+        for r in range(R):
+            s = spins[p, r]
+            nb = 0
+            for i in range(n_logical[p]):
+                v = s[i]
+                c0 = ptr[p, i]
+                c1 = ptr[p, i + 1]
+                if c1 - c0 > 1:
+                    tot = 0
+                    for c in range(c0, c1):
+                        tot += np.int64(s[idx[p, c]])
+                    if abs(tot) != c1 - c0:
+                        nb += 1
+                    if not first:
+                        v = 1 if tot > 0 else (-1 if tot < 0 else s[idx[p, c0]])
+                out[p, r, i] = v
+            broken[p, r] = nb
+    return out, broken

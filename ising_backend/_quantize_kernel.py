@@ -1,0 +1,159 @@
+"""Compiled coefficient quantization (the kernels behind :mod:`.quantize`).
+
+Contract: :func:`quantize_rules` computes :func:`.quantize.quantize` of one model
+under several rules in one call, bit-identical to the numpy original (kept in
+:mod:`._reference`): the same flat coefficient order (``h`` then the upper
+triangle of ``J`` row by row), the same float operations in the same order,
+``np.sign`` / ``np.clip`` / ``np.rint`` semantics including signed zeros, ``rank``
+levels by sorted distinct magnitudes (as ``np.unique``), and ``clip95``'s factor
+by numpy's default (``"linear"``) percentile.  :func:`saturate_arrays` is
+:func:`.quantize.saturate` elementwise.  Design notes: ``docs/design/mapping_kernels.md``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays"]
+
+#: quantization rule name -> rule id of the kernel (the order of ``QUANTIZE_RULES``)
+RULE_IDS = {"linear": 0, "clip95": 1, "rank": 2, "sqrt": 3}
+
+#: status codes of :func:`quantize_rules` (per rule)
+QUANT_OK = 0
+#: a result is not finite: a non-zero coefficient so small that its magnitude
+#: relative to the range underflows to 0 (the validating model constructor names it)
+QUANT_NONFINITE = 1
+
+
+@numba.njit(cache=True, inline="always")
+def _sign(x):
+    """``np.sign`` of a non-NaN float (``sign(-0.0) = +0.0``)."""
+    return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
+
+
+@numba.njit(cache=True, inline="always")
+def _clip(x, lo, hi):
+    """``np.clip(x, lo, hi)`` of a float: ``min(max(x, lo), hi)``, keeping ``x`` (and its zero sign) on a tie."""
+    y = lo if x < lo else x
+    return hi if y > hi else y
+
+
+@numba.njit(cache=True)
+def _percentile(sorted_vals, p):
+    """``np.percentile(vals, p)`` with numpy's default ``"linear"`` method, from sorted values."""
+    m = sorted_vals.shape[0]
+    vi = (m - 1) * (p / 100.0)
+    if vi >= m - 1:
+        return sorted_vals[m - 1]
+    lo = np.floor(vi)
+    g = vi - lo
+    a = sorted_vals[int(lo)]
+    b = sorted_vals[int(lo) + 1]
+    d = b - a
+    if g >= 0.5:
+        return b - d * (1.0 - g)
+    return a + d * g
+
+
+@numba.njit(cache=True)
+def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
+    """Quantize one model (``h (n,)``, ``J (n, n)`` upper triangular, float64) under ``rules``.
+
+    Args:
+        rules: ``(k,)`` int64 rule ids (see :data:`RULE_IDS`).  Lh, Lj: the symmetric
+        range limits (>= 1); keep_sign: non-zero coefficients never round to 0;
+        percentile: the clip point of ``clip95`` in (0, 100].
+
+    Returns ``(status (k,) int64, h (k, n) float64, J (k, n, n) float64)``; ``J`` is
+    strictly upper triangular.  A rule with status ``QUANT_NONFINITE`` holds NaN.
+    """
+    n = h.shape[0]
+    k = rules.shape[0]
+    L = n + n * (n - 1) // 2
+    c = np.empty(L)
+    lim = np.empty(L)
+    t = 0
+    for i in range(n):
+        c[t] = h[i]
+        lim[t] = Lh
+        t += 1
+    for i in range(n):
+        for j in range(i + 1, n):
+            c[t] = J[i, j]
+            lim[t] = Lj
+            t += 1
+    nzi = np.empty(L, dtype=np.int64)
+    m = 0
+    for t in range(L):
+        if c[t] != 0:
+            nzi[m] = t
+            m += 1
+    status = np.zeros(k, dtype=np.int64)
+    out_h = np.zeros((k, n))
+    out_J = np.zeros((k, n, n))
+    q = np.zeros(L)
+    v = np.empty(L)
+    rel = np.empty(m)
+    level = np.empty(m, dtype=np.int64)
+    for r in range(k):
+        rule = rules[r]
+        if m == 0:
+            q[:] = 0.0
+        elif rule == 2:  # rank: level of |c| / limit among the distinct values, spread over 1..limit
+            q[:] = 0.0
+            for u in range(m):
+                rel[u] = abs(c[nzi[u]]) / lim[nzi[u]]
+            order = np.argsort(rel)
+            cur = 0
+            level[order[0]] = 0
+            for u in range(1, m):
+                if rel[order[u]] != rel[order[u - 1]]:
+                    cur += 1
+                level[order[u]] = cur
+            for u in range(m):
+                t = nzi[u]
+                frac = level[u] / cur if cur > 0 else 1.0
+                q[t] = _sign(c[t]) * np.rint(1.0 + (lim[t] - 1.0) * frac)
+        else:  # linear / clip95 / sqrt: one factor, round, clip
+            for t in range(L):
+                v[t] = _sign(c[t]) * np.sqrt(abs(c[t])) if rule == 3 else c[t]
+            for u in range(m):
+                rel[u] = abs(v[nzi[u]]) / lim[nzi[u]]
+            if rule == 1:
+                a = _percentile(np.sort(rel), percentile)
+            else:
+                a = rel.max()
+            for t in range(L):
+                q[t] = _clip(np.rint(v[t] / a), -lim[t], lim[t])
+        if keep_sign:
+            for u in range(m):
+                t = nzi[u]
+                if q[t] == 0:
+                    q[t] = _sign(c[t])
+        t = 0
+        for i in range(n):
+            out_h[r, i] = q[t]
+            t += 1
+        for i in range(n):
+            for j in range(i + 1, n):
+                out_J[r, i, j] = q[t]
+                t += 1
+        for t in range(L):
+            if not np.isfinite(q[t]):
+                status[r] = QUANT_NONFINITE
+    return status, out_h, out_J
+
+
+@numba.njit(cache=True)
+def saturate_arrays(h, J, scale, h_lo, h_hi, j_lo, j_hi):
+    """``clip(rint(scale * c), lo, hi)`` of every entry of ``h (n,)`` and ``J (n, n)`` (float64 bounds)."""
+    n = h.shape[0]
+    out_h = np.empty(n)
+    out_J = np.empty((n, n))
+    for i in range(n):
+        out_h[i] = _clip(np.rint(h[i] * scale), h_lo, h_hi)
+        for j in range(n):
+            out_J[i, j] = _clip(np.rint(J[i, j] * scale), j_lo, j_hi)
+    return out_h, out_J

@@ -1,4 +1,4 @@
-"""Clustered Ising tour (planners.ising_tour): quality vs calls for its open choices.
+"""Clustered Ising tour (planners.ising.tour): quality vs calls for its open choices.
 
 Paper 6.2.2 setup: ``generate_world(seed, n_robots=1, n_targets=10)`` (10x10,
 20 obstacles, uniform placement, BFS distances), gap to the exact Held-Karp
@@ -23,7 +23,7 @@ import numpy as np
 
 from ising_backend import QUANTIZE_RULES, ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
-from planners.ising_tour import IsingTour
+from planners.ising.tour import IsingTour
 from planners.tours_classical import BruteTour
 
 VARIANTS = {

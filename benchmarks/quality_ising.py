@@ -152,7 +152,7 @@ def run_sharing_variant(n: int, seed: int, label: str, options: dict) -> list[di
     """Sharing rows for ``IsingSharing(**options)`` on the sharing experiment's worlds
     (centre, 3 x 10, bundles priced and allocations toured by ``brute``)."""
     from mrmt_env.generation import generate_world
-    from planners.ising_sharing import IsingSharing
+    from planners.ising.sharing import IsingSharing
     from planners.tours_classical import BruteTour
 
     tour = BruteTour()

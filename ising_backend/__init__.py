@@ -13,6 +13,7 @@ Modules:
 * :mod:`.anneal` / :mod:`.chip` -- :class:`EmulatedChip` (a ``dimod.Sampler`` with the
   batched :meth:`EmulatedChip.anneal_batch`; refuses programs that do not fit);
 * :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
+* :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics.
 
@@ -32,6 +33,7 @@ from .models import IsingModel, ModelError, QuboModel, from_bqm
 from .spec import SCHEDULES, ChipSpec
 from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
+from .meter import MeteredSolver, SolverOutputError
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_spins, saturate_mapping
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
@@ -60,6 +62,8 @@ __all__ = [
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs",
     # logical solver
     "LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS",
+    # metering
+    "MeteredSolver", "SolverOutputError",
     # mapping toolkit
     "QUANTIZE_RULES", "QuantizeError", "quantize", "saturate",
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",

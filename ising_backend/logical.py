@@ -170,11 +170,13 @@ class LogicalIsingSolver(dimod.Sampler):
             45/60 with 20).
         timeout_ms: ``"dwave-tabu"`` timeout per read.
         seed: seed of the generator that seeds calls made without their own seed.
+        ledger: the :class:`CallLedger` to charge (default a new one; a pipeline passes its
+            chip's ledger so physical and projected calls add up in one place).
     """
 
     def __init__(self, budget: int | None = None, spec: ChipSpec | None = None, method: str = "tabu",
                  restarts: int = 4, iterations: int | None = None, tenure: int | None = None, timeout_ms: int = 5, seed: int | None = None,
-                 max_tenure: int = 10):
+                 max_tenure: int = 10, ledger: CallLedger | None = None):
         self.spec = ChipSpec() if spec is None else spec
         self.budget = self.spec.n_spins if budget is None else int(budget)
         if self.budget < 1:
@@ -196,7 +198,7 @@ class LogicalIsingSolver(dimod.Sampler):
             raise ValueError(f"max_tenure = {max_tenure!r} must be an integer >= 1")
         self.max_tenure = int(max_tenure)
         self._rng = seeded_rng(seed, "LogicalIsingSolver")
-        self.ledger = CallLedger()
+        self.ledger = CallLedger() if ledger is None else ledger
         self.last_call = CallLedger()
 
     # ----------------------------------------------------------------- dimod

@@ -352,6 +352,14 @@ def make_pipeline(
             f"make_pipeline needs a preset ({', '.join(PRESETS)}) or all of sharing, tour, path; missing {missing}"
         )
     options = {"sharing": sharing_options, "tour": tour_options, "path": path_options}
+    if "chip" not in shared and any(
+        isinstance(spec, str) and registry.accepts(registry.get_factory(layer, spec), "chip")
+        for layer, spec in chosen.items()
+    ):
+        # one chip, and so one ledger, for every layer that uses one
+        from ising_backend import ChipSpec, EmulatedChip
+
+        shared = {**shared, "chip": EmulatedChip(ChipSpec())}
     used: set[str] = set()
     layers = {}
     for layer, spec in chosen.items():

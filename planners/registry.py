@@ -50,20 +50,20 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "psa": "planners.sharing_classical:PSASharing",
         "ssa": "planners.sharing_classical:SSASharing",
         "exact": "planners.sharing_classical:ExactSharing",
-        "ising": "planners.ising_sharing:IsingSharing",
+        "ising": "planners.ising.sharing:IsingSharing",
     },
     "tour": {
         "nn": "planners.tours_classical:NearestNeighbourTour",
         "2opt": "planners.tours_classical:TwoOptTour",
         "3opt": "planners.tours_classical:ThreeOptTour",
         "brute": "planners.tours_classical:BruteTour",
-        "ising": "planners.ising_tour:IsingTour",
+        "ising": "planners.ising.tour:IsingTour",
     },
     "path": {
         "bfs": "planners.paths_classical:BFSPath",
         "astar": "planners.paths_classical:AStarPath",
         "gbfs": "planners.paths_classical:GreedyBestFirstPath",
-        "ising": "planners.ising_path:IsingPath",
+        "ising": "planners.ising.path:IsingPath",
     },
 }
 
@@ -157,8 +157,23 @@ def get_factory(layer: str, name: str) -> Callable:
     return factory
 
 
+def _option_names(factory: Callable) -> list[str]:
+    """Keyword options of ``factory``: its named parameters, plus its ``config_class`` fields."""
+    try:
+        params = [p for p, v in inspect.signature(factory).parameters.items()
+                  if p != "self" and v.kind is not inspect.Parameter.VAR_KEYWORD]
+    except (TypeError, ValueError):  # pragma: no cover - builtins without signatures
+        params = []
+    cfg = getattr(factory, "config_class", None)
+    return params + [f for f in getattr(cfg, "__dataclass_fields__", {}) if f not in params]
+
+
 def accepts(factory: Callable, keyword: str) -> bool:
-    """Whether ``factory`` takes keyword argument ``keyword`` (or ``**kwargs``)."""
+    """Whether ``factory`` takes keyword argument ``keyword``.
+
+    A factory with a ``config_class`` (the Ising planners) takes its named
+    parameters and that config's fields; any other ``**kwargs`` takes everything.
+    """
     try:
         params = inspect.signature(factory).parameters
     except (TypeError, ValueError):  # pragma: no cover - builtins without signatures
@@ -168,6 +183,8 @@ def accepts(factory: Callable, keyword: str) -> bool:
         inspect.Parameter.KEYWORD_ONLY,
     ):
         return True
+    if getattr(factory, "config_class", None) is not None:
+        return keyword in _option_names(factory)
     return any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
 
 
@@ -182,10 +199,7 @@ def create(layer: str, name: str, options: dict | None = None, shared: dict | No
     options = dict(options or {})
     for key in options:
         if not accepts(factory, key):
-            try:
-                allowed = [p for p in inspect.signature(factory).parameters if p != "self"]
-            except (TypeError, ValueError):  # pragma: no cover
-                allowed = []
+            allowed = _option_names(factory)
             raise TypeError(
                 f"{layer} planner {name!r} takes no option {key!r}; its options: {', '.join(allowed) or 'none'}"
             )

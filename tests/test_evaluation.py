@@ -61,7 +61,7 @@ def test_layer_triple_controller():
 
 
 def test_ising_controller_reports_chip_compute():
-    pytest.importorskip("planners.ising_path")
+    pytest.importorskip("planners.ising.path")
     res = evaluate(["ising"], n_worlds=1, env_kwargs=SMALL, n_jobs=1, progress=False)
     (row,) = res.rows
     assert row["chip_calls"] > 0 and row["accelerator_energy_j"] > 0
@@ -113,7 +113,7 @@ def test_compare_cli_writes_table_and_files(tmp_path, capsys):
 
 
 def test_ising_route_metrics_do_not_depend_on_workers():
-    pytest.importorskip("planners.ising_path")
+    pytest.importorskip("planners.ising.path")
     a = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=1, progress=False)
     b = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=2, progress=False)
     assert _route_view(a.rows) == _route_view(b.rows)

@@ -1,4 +1,4 @@
-"""Patch-sliding Ising pathfinding (planners/ising_path.py, paper 5.1 / Algorithm 1)."""
+"""Patch-sliding Ising pathfinding (planners/ising/path, paper 5.1 / Algorithm 1)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from planners.ising_path import (
+from planners.ising.path import (
     DEFAULT_WEIGHTS,
     build_patch_qubo,
     component_of,
@@ -153,7 +153,7 @@ from planners.base import PathPlanner  # noqa: E402
 from planners.plan import Plan, RobotRoute, validate_plan  # noqa: E402
 
 from ising_backend import MERGE_STYLES, ChipSpec, EmulatedChip  # noqa: E402
-from planners.ising_path import IsingPath  # noqa: E402
+from planners.ising.path import IsingPath  # noqa: E402
 
 
 def _check_path(world, start, goal, path):

@@ -123,7 +123,7 @@ def test_planners_do_not_import_the_env_classes():
     import subprocess
     import sys
 
-    code = ("import sys, planners.pipeline, planners.ising_path, planners.ising_tour, planners.ising_sharing; "
+    code = ("import sys, planners.pipeline, planners.ising.path, planners.ising.tour, planners.ising.sharing; "
             "print(sorted(m for m in sys.modules if m in ('mrmt_env.gym_env', 'mrmt_env.pz_env', 'agents')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

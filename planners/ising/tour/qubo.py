@@ -1,40 +1,9 @@
-"""QUBO builders, decoders and scorers for the clustered Ising tour (paper 5.2).
+"""QUBO builders, decoders and scorers of the clustered Ising tour (paper 5.2, eqs. 1 and 7) -- pure numpy.
 
-Pure numpy, no solver: the method itself lives in :mod:`planners.ising_tour`.
-
-A QUBO here is the triple ``(q, Q, offset)`` with energy
-``E(x) = x @ Q @ x + q @ x + offset`` for ``x`` in ``{0, 1}^n`` and ``Q``
-strictly upper triangular (the convention of :class:`ising_backend.QuboModel`).
-
-Two model families:
-
-* :func:`maxcut_qubo` -- the distance-Ising split of eq. (7):
-  ``cut(x) = sum_{i<j} w_ij (x_i + x_j - 2 x_i x_j)``, maximised, so the QUBO
-  energy is ``-cut(x)``.
-* :func:`open_path_qubo` -- the position-indexed one-hot open-path model of
-  eq. (1) with soft boundary costs, used for cluster ordering, local TSP and
-  patch refinement.  Variable ``v = i * s + p`` means "item ``i`` at position
-  ``p``" (row-major ``(item, position)`` matrix)::
-
-      E = A * sum_i (1 - sum_p x_ip)^2          (each item exactly once)
-        + A * sum_p (1 - sum_i x_ip)^2          (each position exactly once)
-        + B * ( sum_i entry_i x_i0               (from the previous waypoint)
-              + sum_p sum_{i != j} d_ij x_ip x_j,p+1
-              + sum_i exit_i x_i,s-1 )           (toward the next waypoint)
-
-  On a valid permutation ``E = B * (entry + internal + exit cost)`` exactly
-  (the offset ``2 s A`` is included), so the energy ranks valid candidates
-  like the original objective.
-
-Penalty weight: :func:`onehot_penalty` gives ``A = B * (margin_factor * w_max
-+ 1)`` with ``w_max`` the largest route coefficient (any ``d_ij``, entry or
-exit value) of the subproblem.  Lucas (2014) shows ``A > B * w_max`` makes
-every ground state a valid permutation for the closed tour; in the open path
-with boundary costs, emptying one position and dropping one item raises the
-penalty by ``2A`` and saves at most two route terms (``<= 2 B w_max``), so
-``A > B w_max`` still suffices.  The ``+1`` keeps a strict margin when all
-distances are equal (or zero); a larger ``margin_factor`` makes invalid
-states costlier but flattens the route landscape for the sampler.
+``(q, Q, offset)``: ``E(x) = x @ Q @ x + q @ x + offset``, ``Q`` strictly upper triangular.
+:func:`maxcut_qubo` (eq. 7 split, energy ``-cut``) and :func:`open_path_qubo` (one-hot
+open path with soft boundary costs; variable ``i * s + p`` = item ``i`` at position ``p``;
+on a valid permutation ``E = B * route cost``).  Penalty choice: docs/design/ising_tour_qubo.md.
 """
 
 from __future__ import annotations

@@ -1,0 +1,72 @@
+"""Metering: the one way a planner charges a solver call to its own compute report.
+
+:class:`MeteredSolver` wraps an :class:`~ising_backend.EmulatedChip` or a
+:class:`~ising_backend.LogicalIsingSolver` (anything with ``spec``, ``ledger``
+and ``anneal_batch``) for the duration of one planning call.  It forwards the
+calls, checks that every answer is a ``(programs, reads, spins)`` array of
++-1 (a broken or foreign solver raises :class:`SolverOutputError` instead of
+being decoded), and adds exactly what each call charged (``solver.last_call``)
+to :attr:`MeteredSolver.charged`.  Several wrappers may share one ``charged``
+ledger (e.g. a tour layer that uses the logical solver and the chip).
+
+The wrapped solver's own ledger keeps the running totals of everything it ran
+(one ledger per pipeline when the layers share one chip).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ledger import CallLedger
+
+__all__ = ["MeteredSolver", "SolverOutputError"]
+
+
+class SolverOutputError(RuntimeError):
+    """A solver's answer is not a (programs, reads, spins) array of +-1."""
+
+
+class MeteredSolver:
+    """A solver seen through one planning call (see the module docstring)."""
+
+    def __init__(self, solver, charged: CallLedger | None = None):
+        self.solver = solver
+        self.spec = getattr(solver, "spec", None)
+        self.budget = getattr(solver, "budget", None if self.spec is None else self.spec.n_spins)
+        self.charged = CallLedger() if charged is None else charged
+
+    def _charge(self, before) -> None:
+        last = getattr(self.solver, "last_call", None)
+        # the call's own charge adds up exactly; a difference of running float totals would not
+        self.charged._add_in_place(last if last is not None else self.solver.ledger.since(before))
+
+    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None):
+        """``solver.anneal_batch`` with the answer checked and its charge metered."""
+        before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
+        spins, energies = self.solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        self._charge(before)
+        spins = np.asarray(spins)
+        want = (np.shape(h)[0], num_reads, np.shape(h)[1]) if np.ndim(h) == 2 else (num_reads, np.shape(h)[0])
+        if spins.shape != want or not ((spins == 1) | (spins == -1)).all():
+            raise SolverOutputError(f"got shape {spins.shape}, expected {want} spins in {{-1, +1}}")
+        return spins, energies
+
+    def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
+        """``solver.solve_many`` (logical solvers) with the answers checked and the charge metered."""
+        before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
+        out = self.solver.solve_many(models, num_reads=num_reads, seed=seed)
+        if models:
+            self._charge(before)
+        for m, r in zip(models, out):
+            s = np.asarray(r.spins)
+            if s.shape != (num_reads, m.n) or not ((s == 1) | (s == -1)).all():
+                raise SolverOutputError(f"got shape {s.shape}, expected {(num_reads, m.n)} spins in {{-1, +1}}")
+        return out
+
+    def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
+        """Chip-legal models in one batch: ``[(spins (reads, n_b), energies + offset)]``."""
+        from .chip import stack_programs
+
+        h, J = stack_programs(models)
+        spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]

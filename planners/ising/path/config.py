@@ -1,0 +1,104 @@
+"""Options of the patch-sliding Ising pathfinder (paper 5.1); reasons in docs/design/ising_path.md."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+
+__all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
+
+FORMS = ("pair", "degree")
+TARGET_ORDERS = ("boundary_first", "merged")
+
+#: Chip units per QUBO weight unit before the merge styles round.
+DEFAULT_SCALE = {"pair": 16.0, "degree": 2.0}
+
+#: Default weights per formulation.
+DEFAULT_WEIGHTS = {
+    "pair": {"C": 1.0, "B": 1.375, "Dg": 0.25, "A_end": 0.5},
+    "degree": {"A": 1.0, "A_end": 1.0, "B": 0.5},
+}
+
+_MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")  # ising_backend.MERGE_STYLES
+
+
+@dataclass(frozen=True)
+class PathConfig(IsingConfig):
+    """Options of :class:`~planners.ising.path.IsingPath`.
+
+    Attributes:
+        patch_size: side of the square patch centred on the robot (odd, >= 3).
+        form: patch QUBO, ``"pair"`` (default) or ``"degree"``.
+        weights: overrides of :data:`DEFAULT_WEIGHTS` ``[form]`` (all of them: :attr:`full_weights`).
+        styles: spin-merging styles of the portfolio (default all four).
+        num_reads: reads per mapped program (each read is one chip call).
+        targets_per_call: ranked local targets whose programs share one submission.
+        interior_targets: after the boundary cells, fall back to interior patch cells.
+        backtrack: when no local target is left, step back along the committed walk.
+        cut_loops: remove loops from the committed walk.
+        max_attempts: local-target attempts per query (``None``: ``max(64, free cells)``).
+        max_chip_calls: physical calls per query (``None``: attempts x styles x reads).
+        target_order: ``"boundary_first"`` or ``"merged"``.
+        scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
+            ``[form]``; the value used: :attr:`chip_scale`).
+        pack: block-pack the portfolio's programs into shared chip programs.
+    """
+
+    patch_size: int = 5
+    form: str = "pair"
+    weights: dict | None = field(default=None, compare=True)
+    styles: tuple = _MERGE_STYLES
+    num_reads: int = 1
+    targets_per_call: int = 1
+    interior_targets: bool = True
+    backtrack: bool = True
+    cut_loops: bool = True
+    max_attempts: int | None = None
+    max_chip_calls: int | None = None
+    target_order: str = "boundary_first"
+    scale: float | None = None
+    pack: bool = False
+
+    def __post_init__(self) -> None:
+        check_choice("form", self.form, FORMS)
+        check_choice("target_order", self.target_order, TARGET_ORDERS)
+        if isinstance(self.patch_size, bool) or int(self.patch_size) != self.patch_size \
+                or self.patch_size < 3 or self.patch_size % 2 == 0:
+            raise ValueError(f"patch_size must be an odd integer >= 3, got {self.patch_size!r}")
+        known = DEFAULT_WEIGHTS[self.form]
+        if self.weights:
+            unknown = set(self.weights) - set(known)
+            if unknown:
+                raise ValueError(f"unknown weights {sorted(unknown)} for form {self.form!r} (known: {sorted(known)})")
+            for k, v in self.weights.items():
+                check_real(f"weight {k}", v)
+            object.__setattr__(self, "weights", {k: float(v) for k, v in self.weights.items()})
+        styles = tuple(self.styles) if self.styles is not None else _MERGE_STYLES
+        bad = [s for s in styles if s not in _MERGE_STYLES]
+        if not styles or bad:
+            raise ValueError(f"styles must be a non-empty subset of {_MERGE_STYLES}, got {self.styles!r}")
+        object.__setattr__(self, "styles", styles)
+        for name in ("num_reads", "targets_per_call"):
+            check_int(name, getattr(self, name), 1)
+        for name in ("max_attempts", "max_chip_calls"):
+            check_int(name, getattr(self, name), 1, none=True)
+        if self.scale is not None:
+            try:
+                check_real("scale", self.scale, lo=0.0, lo_open=True)
+            except ValueError:
+                raise ValueError(f"scale must be a positive finite number, got {self.scale!r}") from None
+            object.__setattr__(self, "scale", float(self.scale))
+        object.__setattr__(self, "patch_size", int(self.patch_size))
+        for name in ("interior_targets", "backtrack", "cut_loops", "pack"):
+            object.__setattr__(self, name, bool(getattr(self, name)))
+
+    @property
+    def full_weights(self) -> dict:
+        """Every weight of the form: the defaults with :attr:`weights` applied."""
+        return {**DEFAULT_WEIGHTS[self.form], **(self.weights or {})}
+
+    @property
+    def chip_scale(self) -> float:
+        """The scale in use: :attr:`scale`, or the form's default."""
+        return DEFAULT_SCALE[self.form] if self.scale is None else self.scale

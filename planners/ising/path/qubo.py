@@ -1,0 +1,187 @@
+"""Patch geometry and the cell-based patch QUBO (paper 5.1, eq. 6) -- pure functions.
+
+A ``size x size`` patch centred on the robot; only free cells 4-connected to the
+robot inside the patch are modelled; the robot cell and the local target are
+pinned (substituted with ``x = 1``).  Forms and weights: docs/design/ising_path.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from planners.ising.path.config import DEFAULT_WEIGHTS, FORMS
+
+__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo"]
+
+
+# --------------------------------------------------------------------------- geometry
+@dataclass(frozen=True)
+class PatchFrame:
+    """Fixed local structure of a ``size x size`` patch (cells row-major, ``size**2`` of them).
+
+    ``adj4[i, j]``: cells i and j are 4-neighbours; ``diag[i, j]``: diagonal
+    neighbours; ``ring``: cells on the patch boundary (Chebyshev radius
+    ``size // 2`` from the centre); ``offsets``: ``(size**2, 2)`` offset of each
+    cell from the centre.
+    """
+
+    size: int
+    adj4: np.ndarray
+    diag: np.ndarray
+    ring: np.ndarray
+    offsets: np.ndarray
+    neighbours: tuple  # per cell, tuple of 4-neighbour cell indices
+
+    @property
+    def radius(self) -> int:
+        return self.size // 2
+
+    @property
+    def n(self) -> int:
+        return self.size * self.size
+
+
+@lru_cache(maxsize=8)
+def patch_frame(size: int) -> PatchFrame:
+    if int(size) != size or size < 3 or size % 2 == 0:
+        raise ValueError(f"patch_size must be an odd integer >= 3, got {size!r}")
+    size = int(size)
+    rad = size // 2
+    rr, cc = np.divmod(np.arange(size * size), size)
+    dr = np.abs(rr[:, None] - rr[None, :])
+    dc = np.abs(cc[:, None] - cc[None, :])
+    adj4 = (dr + dc) == 1
+    diag = (dr == 1) & (dc == 1)
+    offsets = np.stack([rr - rad, cc - rad], axis=1).astype(np.int64)
+    ring = np.maximum(np.abs(offsets[:, 0]), np.abs(offsets[:, 1])) == rad
+    neighbours = tuple(tuple(int(j) for j in np.flatnonzero(adj4[i])) for i in range(size * size))
+    for a in (adj4, diag, ring, offsets):
+        a.setflags(write=False)
+    return PatchFrame(size, adj4, diag, ring, offsets, neighbours)
+
+
+def component_of(frame: PatchFrame, allowed: np.ndarray, start: int) -> np.ndarray:
+    """Cells of the patch 4-connected to ``start`` through ``allowed`` cells (a label, not a path)."""
+    reach = np.zeros(frame.n, dtype=bool)
+    if not allowed[start]:
+        return reach
+    reach[start] = True
+    stack = [start]
+    nb = frame.neighbours
+    while stack:
+        i = stack.pop()
+        for j in nb[i]:
+            if allowed[j] and not reach[j]:
+                reach[j] = True
+                stack.append(j)
+    return reach
+
+
+# --------------------------------------------------------------------------- QUBO
+@dataclass(frozen=True)
+class PatchQubo:
+    """A patch problem with the two endpoints substituted (pinned, not variables).
+
+    Energy of variable assignment ``x`` (0/1, one per entry of ``cells``):
+    ``offset + q @ x + sum_{i<j} Q[i, j] x_i x_j`` (``Q`` strictly upper triangular).
+    """
+
+    cells: np.ndarray  # (n,) patch-frame indices of the variables
+    q: np.ndarray  # (n,)
+    Q: np.ndarray  # (n, n) strictly upper triangular
+    offset: float
+    start: int  # patch-frame index of the robot cell
+    goal: int  # patch-frame index of the local target
+
+    @property
+    def n(self) -> int:
+        return int(len(self.cells))
+
+    def energy(self, x: np.ndarray) -> np.ndarray:
+        """Original-objective energy of ``x`` (``(..., n)`` 0/1), vectorised over leading axes."""
+        x = np.asarray(x, dtype=np.float64)
+        return self.offset + x @ self.q + np.einsum("...i,ij,...j->...", x, self.Q, x)
+
+
+def _add_form(q: np.ndarray, W: np.ndarray, M: np.ndarray, scale: float) -> None:
+    """Add ``scale * x^T M x`` (``M`` symmetric) to (linear ``q``, symmetric pair matrix ``W``).
+
+    Pair convention: energy = ``q @ x + sum_{i<j} W[i, j] x_i x_j``.
+    """
+    q += scale * np.diag(M)
+    off = M - np.diag(np.diag(M))
+    W += 2.0 * scale * off
+
+
+def build_patch_qubo(
+    frame: PatchFrame,
+    allowed: np.ndarray,
+    start: int,
+    goal: int,
+    form: str = "pair",
+    weights: dict | None = None,
+) -> PatchQubo:
+    """The cell-based patch QUBO (paper eq. 6) over ``allowed`` patch cells, endpoints pinned.
+
+    ``allowed`` (bool, ``frame.n``) marks the free patch cells that may carry the
+    path; ``start`` and ``goal`` must be allowed and distinct.  The energy is
+    built on the whole frame with the endpoints as ordinary 0/1 cells and then
+    the endpoints are substituted with ``x = 1`` (their terms fold into the
+    linear coefficients of their neighbours and into the offset).
+    """
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+    w = dict(DEFAULT_WEIGHTS[form])
+    if weights:
+        unknown = set(weights) - set(w)
+        if unknown:
+            raise ValueError(f"unknown weights {sorted(unknown)} for form {form!r} (known: {sorted(w)})")
+        w.update(weights)
+    if start == goal:
+        raise ValueError("start and goal of a patch problem must differ")
+    allowed = np.asarray(allowed, dtype=bool)
+    if not (allowed[start] and allowed[goal]):
+        raise ValueError("start and goal of a patch problem must be allowed cells")
+    n = frame.n
+    A4 = (frame.adj4 & allowed[:, None] & allowed[None, :]).astype(np.float64)
+    q = np.zeros(n)
+    W = np.zeros((n, n))
+    pinned = np.zeros(n, dtype=bool)
+    pinned[[start, goal]] = True
+    free_var = allowed & ~pinned
+    if form == "pair":
+        DG = (frame.diag & allowed[:, None] & allowed[None, :]).astype(np.float64)
+        W += -w["C"] * A4 + w["Dg"] * DG
+        q += w["B"] * free_var
+        # endpoint terms: A_end * (deg(e) - 1)^2 for each pinned endpoint e
+        for e in (start, goal):
+            a = A4[e]
+            _add_form(q, W, np.outer(a, a), w["A_end"])
+            q += -2.0 * w["A_end"] * a
+        offset = 2.0 * w["A_end"]
+    else:  # degree form: A_end*E_end + A*sum_i (d_i - 2 x_i)^2 + B*sum x
+        D = A4 * free_var[:, None]  # rows: free variable cells i, columns: their neighbours
+        _add_form(q, W, D.T @ D, w["A"])  # sum_i d_i^2
+        K = D  # -4 x_i d_i
+        W += -4.0 * w["A"] * (K + K.T)
+        q += 4.0 * w["A"] * free_var + w["B"] * free_var
+        for e in (start, goal):
+            a = A4[e]
+            _add_form(q, W, np.outer(a, a), w["A_end"])
+            q += -2.0 * w["A_end"] * a
+        offset = 2.0 * w["A_end"]
+    np.fill_diagonal(W, 0.0)
+    var = np.flatnonzero(free_var)
+    pins = np.array([start, goal])
+    # substitute x_pin = 1
+    qv = q[var] + W[np.ix_(var, pins)].sum(axis=1)
+    offset += q[pins].sum() + W[start, goal]
+    Qv = np.triu(W[np.ix_(var, var)], k=1)
+    for a in (var, qv, Qv):
+        a.setflags(write=False)
+    return PatchQubo(var, qv, Qv, float(offset), int(start), int(goal))
+
+

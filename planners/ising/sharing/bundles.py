@@ -1,0 +1,97 @@
+"""Bundle placement and pricing of Ising target sharing (paper 5.3, last step) -- host side.
+
+After the chip splits, each robot keeps its base set and every robotless bundle goes,
+one after another, to the robot whose route cost grows least (classically, as in the
+paper).  :class:`BundlePricer` prices a robot's set with the pricing tour (exact
+Held-Karp up to 13 targets with ``"auto"``), memoised per (robot, set); its compute
+reports are summed so nothing is hidden.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.compute import ComputeReport
+from planners.tours_classical import MAX_BRUTE_TARGETS, BruteTour
+
+__all__ = ["SharingFailure", "BundlePricer", "assign_bundles"]
+
+
+class SharingFailure(RuntimeError):
+    """Internal: a split could not be mapped or solved (becomes a failure result)."""
+
+
+class BundlePricer:
+    """Route cost of robot ``k`` over a set of global target nodes, by the pricing tour (cached)."""
+
+    def __init__(self, dist: np.ndarray, tour, pricing_tour, rng: np.random.Generator, stats: dict):
+        self.dist = dist
+        self.rng = rng
+        self.stats = stats
+        self.compute = ComputeReport()
+        self._cache: dict = {}
+        if pricing_tour == "auto":
+            exact = BruteTour()
+            self._pricer = lambda n: exact if n <= MAX_BRUTE_TARGETS else tour  # noqa: E731
+        elif pricing_tour == "downstream":
+            self._pricer = lambda n: tour  # noqa: E731
+        else:
+            if isinstance(pricing_tour, str):
+                from planners import registry
+
+                pricing_tour = registry.create("tour", pricing_tour)
+            self._pricer = lambda n: pricing_tour  # noqa: E731
+
+    def cost(self, k: int, targets) -> float:
+        key = (k, frozenset(targets))
+        hit = self._cache.get(key)
+        if hit is None:
+            if not targets:
+                hit = 0.0
+            else:
+                nodes = [k] + sorted(targets)
+                res = self._pricer(len(targets)).solve(self.dist[np.ix_(nodes, nodes)], self.rng)
+                self.compute = self.compute + res.compute
+                self.stats["tour_solves"] += 1
+                if getattr(res, "failure", None):
+                    raise SharingFailure(f"tour solver failed while pricing a bundle: {res.failure}")
+                hit = float(res.cost)
+            self._cache[key] = hit
+        return hit
+
+
+def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -> list[list[int]]:
+    """Robot base sets plus every bundle placed on the robot whose route cost
+    (``cost(k, targets)``, the downstream tour) grows least.  Global node indices."""
+    base: list[list[int]] = [[] for _ in range(R)]
+    bundles: list[list[int]] = []
+    for g in groups:
+        robots = g[g < R]
+        targets = [int(t) for t in g[g >= R]]
+        if len(robots) == 1:
+            base[int(robots[0])].extend(targets)
+        elif len(robots) == 0:
+            if targets:
+                bundles.append(targets)
+        else:  # cannot happen: robot stages run until <= 1 robot per group
+            raise SharingFailure(f"group {g.tolist()} still holds {len(robots)} robots")
+    stats["bundles"] += len(bundles)
+    if not bundles:
+        return base
+    robots = np.arange(R)
+    near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
+    if bundle_order == "far_first":
+        order = sorted(range(len(bundles)), key=lambda i: (-near[i], i))
+    elif bundle_order == "near_first":
+        order = sorted(range(len(bundles)), key=lambda i: (near[i], i))
+    elif bundle_order == "largest_first":
+        order = sorted(range(len(bundles)), key=lambda i: (-len(bundles[i]), i))
+    else:
+        order = list(range(len(bundles)))
+    current = [list(b) for b in base]
+    for i in order:
+        b = bundles[i]
+        inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
+        k = int(np.argmin(inc))
+        current[k].extend(b)
+    return current

@@ -1,0 +1,142 @@
+"""Steps 1-2 of the clustered Ising tour (paper 5.2): distance-Ising clustering and cluster ordering.
+
+A mixin of :class:`~planners.ising.tour.IsingTour`: recursive max-cut splits (eq. 7) until
+clusters hold at most ``local_limit`` targets, refinement up to ``max_clusters``, then the
+nearest cluster first and a one-hot ordering model for the rest (hierarchical above the
+ordering limit).  Choices: docs/design/ising_tour.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.ising.tour.qubo import cut_value, maxcut_qubo
+
+__all__ = ["TourFailure", "Clustering"]
+
+
+class TourFailure(RuntimeError):
+    """Raised internally when a construction subproblem never decodes valid."""
+
+
+class Clustering:
+    """Clustering and ordering steps; needs ``config``, ``_budget``, ``_sample`` and ``_solve_path``."""
+
+    # ------------------------------------------------------------------ 1. clustering
+    def _cluster(self, dist: np.ndarray, run: _Run) -> list[list[int]]:
+        n = dist.shape[0] - 1
+        clusters: list[list[int]] = [list(range(1, n + 1))]
+        # split every cluster above the local limit (largest first, ties by index)
+        while True:
+            big = [k for k, c in enumerate(clusters) if len(c) > self.config.local_limit]
+            if not big:
+                break
+            k = max(big, key=lambda j: (len(clusters[j]), -j))
+            clusters[k:k + 1] = self._split(dist, clusters[k], run)
+        # refinement up to the ordering limit
+        while len(clusters) < self.config.max_clusters:
+            sizes = np.array([len(c) for c in clusters])
+            if sizes.max() < 2:
+                break
+            if self.config.refine == "spare_first" and len(clusters) > 1:
+                near = int(np.argmin([dist[0, c].min() for c in clusters]))
+                others = sizes.copy()
+                others[near] = 0
+                k = int(np.argmax(others)) if others.max() >= 2 else near
+            else:
+                k = int(np.argmax(sizes))  # largest, ties by lowest index
+            clusters[k:k + 1] = self._split(dist, clusters[k], run)
+            run.stats["refinement_splits"] += 1
+        run.stats["clusters"] = [len(c) for c in clusters]
+        return clusters
+
+    def _split(self, dist: np.ndarray, members: list[int], run: _Run) -> list[list[int]]:
+        """Max-cut split (eq. 7) of ``members`` by the Ising solver."""
+        run.stats["splits"] += 1
+        s = len(members)
+        if s == 2:  # the only non-degenerate cut: no decision to make
+            return [[members[0]], [members[1]]]
+        limit = self._budget + self.config.max_branch_bits
+        drawn = np.asarray(members)
+        if s > limit:
+            drawn = np.sort(run.rng.choice(drawn, size=self._budget, replace=False))
+        w = dist[np.ix_(drawn, drawn)]
+        q, Q, off = maxcut_qubo(w)
+        for _attempt in range(self.config.max_retries + 1):
+            bits = self._sample(q, Q, off, run, onehot=False)
+            sizes = bits.sum(axis=1)
+            ok = (sizes > 0) & (sizes < len(drawn))
+            if np.any(ok):
+                cand = bits[ok]
+                cuts = cut_value(w, cand)
+                x = cand[int(np.argmax(cuts))]
+                break
+        else:
+            raise TourFailure(f"max-cut split of {s} targets gave only degenerate samples "
+                              f"after {self.config.max_retries + 1} attempts")
+        side = {int(t): int(b) for t, b in zip(drawn, x)}
+        if s > limit:  # undrawn members join the side of their nearest drawn member
+            for t in members:
+                if t not in side:
+                    near = drawn[int(np.argmin(dist[t, drawn]))]
+                    side[t] = side[int(near)]
+        a = [t for t in members if side[t] == 0]
+        b = [t for t in members if side[t] == 1]
+        return [a, b]
+
+    # ------------------------------------------------------------------ 2. cluster order
+    def _cluster_dist(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
+        K = len(clusters)
+        D = np.zeros((K, K))
+        if self.config.cluster_distance == "medoid":
+            med = []
+            for c in clusters:
+                sub = dist[np.ix_(c, c)]
+                med.append(c[int(np.argmin(sub.sum(axis=1)))])
+        for a in range(K):
+            for b in range(K):
+                if a == b:
+                    continue
+                if self.config.cluster_distance == "medoid":
+                    D[a, b] = dist[med[a], med[b]]
+                else:
+                    block = dist[np.ix_(clusters[a], clusters[b])]
+                    D[a, b] = block.min() if self.config.cluster_distance == "min" else block.mean()
+        return D
+
+    def _order_clusters(self, dist: np.ndarray, clusters: list[list[int]], run: _Run) -> list[list[int]]:
+        K = len(clusters)
+        to_robot = np.array([dist[0, c].min() for c in clusters])
+        first = int(np.argmin(to_robot))  # ties by lowest index
+        rest = [k for k in range(K) if k != first]
+        if len(rest) <= 1:
+            return [clusters[first]] + [clusters[k] for k in rest]
+        D = self._cluster_dist(dist, clusters)
+        order = self._order_items(D, rest, first, run)
+        return [clusters[first]] + [clusters[k] for k in order]
+
+    def _order_items(self, D: np.ndarray, items: list[int], prev: int, run: _Run) -> list[int]:
+        """Open path over cluster indices ``items`` entered from cluster ``prev``.
+
+        Up to ``max_clusters - 1`` items: one one-hot ordering model.  More
+        (only when the clusters of at most ``local_limit`` targets number more
+        than ``max_clusters``): hierarchical -- a max-cut split of the items on
+        ``D``, the part nearer to ``prev`` first (the paper's nearest-first
+        rule one level up), each part ordered recursively.
+        """
+        if len(items) <= 1:
+            return list(items)
+        if len(items) <= self.config.max_clusters - 1:
+            d = D[np.ix_(items, items)]
+            entry = D[prev, items]
+            order = self._solve_path(d, entry, np.zeros(len(items)), run, "ordering")
+            if order is None:
+                raise TourFailure(f"cluster ordering ({len(items)}^2 = {len(items) ** 2} variables) gave no valid "
+                                  f"permutation after {self.config.max_retries + 1} attempts")
+            return [items[i] for i in order]
+        run.stats["ordering_splits"] += 1
+        a, b = self._split(D, list(items), run)
+        if D[prev, b].min() < D[prev, a].min():
+            a, b = b, a
+        left = self._order_items(D, a, prev, run)
+        return left + self._order_items(D, b, left[-1], run)

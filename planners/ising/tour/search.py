@@ -1,0 +1,286 @@
+"""Clustered Ising tour construction: the search of paper 5.2 (Algorithm 2).
+
+Contract: ``IsingTour(chip, config).solve(dist, rng) -> TourResult`` orders nodes
+``1..n`` of ``dist`` into an open route from node 0; a construction that never
+decodes valid is a failure result (``result.failure``), never a repaired tour.
+Steps: clustering and ordering (:mod:`.cluster`), local one-hot TSPs, Ising patch
+refinement with patience, several independent starts.  The logical solver
+(spin budget, no coefficient range) is the paper's backend; ``backend="chip"``
+quantizes the same QUBOs for the physical chip.  Every call is metered
+(:class:`ising_backend.MeteredSolver`).  Choices and measurements: docs/design/ising_tour.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ising_backend import LogicalIsingSolver, MeteredSolver, QuboModel, SolverOutputError, branch, quantize
+from planners.base import TourResult
+from planners.compute import ComputeReport
+from planners.ising.config import resolve_config
+from planners.ising.tour.cluster import Clustering, TourFailure
+from planners.ising.tour.config import TourConfig
+from planners.ising.tour.qubo import decode_onehot_batch, open_path_qubo
+
+__all__ = ["IsingTour"]
+
+
+@dataclass
+class _Run:
+    """Per-solve bookkeeping: the rng, statistics and the metered solvers."""
+
+    rng: np.random.Generator
+    stats: dict = field(default_factory=dict)
+    solver: MeteredSolver | None = None
+    chip: MeteredSolver | None = None
+
+
+class IsingTour(Clustering):
+    """Clustered Ising tour construction (see the module docstring).
+
+    Args:
+        chip: an :class:`ising_backend.EmulatedChip` (default: a fresh one); its
+            spec gives the spin budget and the accounting numbers, and its ledger
+            is shared with the default logical solver (one ledger per pipeline).
+        config: a :class:`TourConfig`; keyword ``options`` override its fields.
+        solver: a ready logical solver (``solve_many(models, num_reads, seed)``,
+            ``ledger``, ``last_call``), replacing the default.
+    """
+
+    name = "ising"
+    config_class = TourConfig
+
+    def __init__(self, chip=None, config: TourConfig | None = None, *, solver=None, **options) -> None:
+        from ising_backend import ChipSpec, EmulatedChip
+
+        self.config = cfg = resolve_config(TourConfig, config, options)
+        self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        self.spec = self.chip.spec
+        self._budget = int(self.spec.n_spins)
+        self.solver = solver if solver is not None else LogicalIsingSolver(
+            spec=self.spec, ledger=self.chip.ledger, **cfg.solver_options)
+        largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
+        if largest ** 2 > self._budget + cfg.max_branch_bits:
+            raise ValueError(
+                f"one-hot models of {largest}^2 = {largest ** 2} variables exceed the spin budget {self._budget} "
+                f"+ max_branch_bits {cfg.max_branch_bits} (local_limit={cfg.local_limit}, patch_size="
+                f"{cfg.patch_size}, max_clusters={cfg.max_clusters})")
+
+    def __getattr__(self, name):  # config options read as attributes (tour.n_starts, ...)
+        cfg = self.__dict__.get("config")
+        if cfg is not None and name in TourConfig.__dataclass_fields__:
+            return getattr(cfg, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __repr__(self) -> str:
+        return f"IsingTour({self.config!r})"
+
+    def _sample(self, q, Q, off, run: _Run, onehot: bool) -> np.ndarray:
+        """Bits ``(m, n)`` of every read of every branch of one QUBO program issue."""
+        cfg = self.config
+        model = QuboModel(q, Q, off).to_ising()
+        if model.n > self._budget:
+            branches = branch(model, self._budget, max_frozen=cfg.max_branch_bits)
+            programs = [b.model for b in branches]
+        else:
+            branches = None
+            programs = [model]
+        seed = int(run.rng.integers(0, 2**63 - 1))
+        if cfg.backend == "logical":
+            spins = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
+            physical = False
+        else:
+            hr, jr = self.spec.h_range, self.spec.j_range
+            progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
+            spins = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
+            physical = True
+        if branches is not None:
+            spins = [b.decode(sp) for b, sp in zip(branches, spins)]
+        per_program = [((np.asarray(sp, dtype=np.int8) + 1) // 2).reshape(-1, model.n) for sp in spins]
+        if onehot:
+            s = int(round(math.sqrt(model.n)))
+            m = run.stats["mapping"]["tour"]
+            any_valid = False
+            for bits in per_program:
+                _o, valid = decode_onehot_batch(bits, s)
+                m["programs"] += 1
+                m["reads"] += int(valid.size)
+                m["valid_reads"] += int(valid.sum())
+                if valid.any():
+                    m["valid"] += 1
+                    any_valid = True
+                if physical:
+                    m["physical_programs"] += 1
+                    m["valid_physical"] += int(valid.any())
+            m["subproblems"] += 1
+            m["valid_subproblems"] += int(any_valid)
+        return np.concatenate(per_program, axis=0)
+
+    # ------------------------------------------------------------------ public
+    def solve(self, dist: np.ndarray, rng: np.random.Generator | None = None) -> TourResult:
+        """Order nodes ``1..n`` of ``dist`` into an open route from node 0."""
+        dist = np.asarray(dist, dtype=np.float64)
+        if dist.ndim != 2 or dist.shape[0] != dist.shape[1] or dist.shape[0] < 1:
+            raise ValueError(f"dist must be a square (n+1, n+1) matrix, got shape {dist.shape}")
+        if np.any(np.isnan(dist)) or np.any(dist < 0):
+            raise ValueError("dist must hold non-negative distances (no NaN)")
+        rng = np.random.default_rng() if rng is None else rng
+        n = dist.shape[0] - 1
+        run = _Run(rng=rng, stats=self._empty_stats())
+        run.solver = MeteredSolver(self.solver)
+        run.chip = MeteredSolver(self.chip, run.solver.charged)
+        if not np.all(np.isfinite(dist)):
+            bad = np.argwhere(~np.isfinite(dist))[0]
+            return self._result(run, None, dist,
+                                f"distance {tuple(int(v) for v in bad)} is infinite: targets on different components")
+        if n == 0:
+            return self._result(run, (), dist)
+        best, best_cost, failure = None, math.inf, None
+        clusters = None
+        starts = 1 if n <= self.config.patch_size else self.config.n_starts
+        stale = 0  # consecutive starts that did not improve the best tour
+        for _start in range(starts):
+            if self.config.start_patience is not None and stale >= self.config.start_patience:
+                break
+            try:
+                if clusters is None or not self.config.share_clusters:
+                    clusters = self._cluster(dist, run)
+                ordered = self._order_clusters(dist, clusters, run)
+                tour = self._local_tours(dist, ordered, run)
+                tour = self._refine(dist, tour, run)
+            except SolverOutputError as exc:  # a broken solver: no start can succeed
+                return self._result(run, None, dist, f"the solver returned malformed samples: {exc}")
+            except TourFailure as exc:  # this start gave up; other starts may still succeed
+                failure = str(exc)
+                run.stats["failed_starts"] += 1
+                clusters = None
+                continue
+            cost = _tour_cost(dist, tour)
+            run.stats["start_costs"].append(cost)
+            if cost < best_cost - 1e-9:
+                best, best_cost = tour, cost
+                stale = 0
+            else:
+                stale += 1
+        if best is None:
+            return self._result(run, None, dist, failure)
+        return self._result(run, tuple(int(t) for t in best), dist)
+
+
+    # ------------------------------------------------------------------ 3. local TSPs
+    def _local_tours(self, dist: np.ndarray, ordered: list[list[int]], run: _Run) -> list[int]:
+        tour: list[int] = []
+        prev = 0
+        for k, c in enumerate(ordered):
+            c = np.asarray(c)
+            if len(c) == 1:
+                local = [int(c[0])]
+            else:
+                d = dist[np.ix_(c, c)]
+                entry = dist[prev, c]
+                if k + 1 < len(ordered):
+                    nxt = np.asarray(ordered[k + 1])
+                    block = dist[np.ix_(c, nxt)]
+                    ex = block.min(axis=1) if self.config.exit_cost == "min" else block.mean(axis=1)
+                    ex = self.config.exit_weight * ex
+                else:
+                    ex = np.zeros(len(c))
+                order = self._solve_path(d, entry, ex, run, "local")
+                if order is None:
+                    raise TourFailure(f"local TSP of cluster {k} ({len(c)} targets) gave no valid permutation "
+                                      f"after {self.config.max_retries + 1} attempts")
+                local = [int(c[i]) for i in order]
+            tour.extend(local)
+            prev = local[-1]
+        return tour
+
+    # ------------------------------------------------------------------ 4. patch refinement
+    def _refine(self, dist: np.ndarray, tour: list[int], run: _Run) -> list[int]:
+        n = len(tour)
+        L = min(self.config.patch_size, n)
+        if L < 2:
+            return tour
+        n_windows = n - L + 1
+        patience = n_windows + 1 if self.config.patience is None else self.config.patience
+        tour = list(tour)
+        cost = _tour_cost(dist, tour)
+        fails = 0
+        queue: list[int] = []
+        while fails < patience:
+            if not queue:
+                queue = [int(a) for a in run.rng.permutation(n_windows)]
+            a = queue.pop()
+            patch = np.asarray(tour[a:a + L])
+            prev = tour[a - 1] if a > 0 else 0
+            d = dist[np.ix_(patch, patch)]
+            entry = dist[prev, patch]
+            ex = dist[patch, tour[a + L]] if a + L < n else np.zeros(L)
+            run.stats["patches"] += 1
+            order = self._solve_path(d, entry, ex, run, "patch")
+            if order is not None:
+                new = tour[:a] + [int(patch[i]) for i in order] + tour[a + L:]
+                new_cost = _tour_cost(dist, new)
+                if new_cost < cost - 1e-9:
+                    tour, cost = new, new_cost
+                    fails = 0
+                    run.stats["patches_accepted"] += 1
+                    continue
+                if self.config.accept_equal and new_cost <= cost + 1e-9 and new != tour:
+                    tour = new  # sideways move on a cost plateau; still a non-improving attempt
+                    run.stats["patches_sideways"] += 1
+            fails += 1
+        return tour
+
+    # ------------------------------------------------------------------ one-hot programs
+    def _solve_path(self, d, entry, ex, run: _Run, kind: str):
+        """Best valid order of an open-path one-hot QUBO, or ``None`` after retries."""
+        s = d.shape[0]
+        q, Q, off, _A = open_path_qubo(d, entry, ex, B=1.0, margin_factor=self.config.penalty_factor)
+        for _attempt in range(self.config.max_retries + 1):
+            bits = self._sample(q, Q, off, run, onehot=True)
+            orders, valid = decode_onehot_batch(bits, s)
+            if np.any(valid):
+                cand = orders[valid]
+                costs = entry[cand[:, 0]] + ex[cand[:, -1]] + d[cand[:, :-1], cand[:, 1:]].sum(axis=1)
+                return [int(i) for i in cand[int(np.argmin(costs))]]
+            run.stats["retries"] += 1
+        run.stats["unsolved"][kind] += 1
+        return None
+
+    # ------------------------------------------------------------------ result
+    def _empty_stats(self) -> dict:
+        return {
+            "backend": self.config.backend,
+            "clusters": [],
+            "start_costs": [],
+            "failed_starts": 0,
+            "splits": 0,
+            "refinement_splits": 0,
+            "ordering_splits": 0,
+            "patches": 0,
+            "patches_accepted": 0,
+            "patches_sideways": 0,
+            "retries": 0,
+            "unsolved": {"ordering": 0, "local": 0, "patch": 0},
+            "mapping": {"tour": {"programs": 0, "valid": 0, "physical_programs": 0, "valid_physical": 0,
+                                 "reads": 0, "valid_reads": 0, "subproblems": 0, "valid_subproblems": 0}},
+        }
+
+    def _result(self, run: _Run, order, dist, failure: str | None = None) -> TourResult:
+        compute = ComputeReport.from_ledger(run.solver.charged)
+        if failure is not None:
+            run.stats["failure"] = failure
+            return TourResult(order=(), cost=math.inf, compute=compute, stats=run.stats, failure=failure)
+        return TourResult(order=tuple(order), cost=_tour_cost(dist, list(order)), compute=compute, stats=run.stats)
+
+
+
+
+def _tour_cost(dist: np.ndarray, tour: list[int]) -> float:
+    if not tour:
+        return 0.0
+    nodes = np.asarray([0] + list(tour))
+    return float(dist[nodes[:-1], nodes[1:]].sum())

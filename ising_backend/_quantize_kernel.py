@@ -57,7 +57,7 @@ def _percentile(sorted_vals, p):
     return a + d * g
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")  # IEEE division (x / 0), as numpy
 def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     """Quantize one model (``h (n,)``, ``J (n, n)`` upper triangular, float64) under ``rules``.
 

@@ -238,5 +238,9 @@ def saturate_mapping(model: IsingModel, spec: ChipSpec | None = None, scale: flo
     if model.n > spec.n_spins:
         raise MergeError(f"model has {model.n} spins; the chip has {spec.n_spins}: branch first")
     phys = saturate(model, scale, spec.h_range, spec.j_range)
-    copies = tuple(np.array([i], dtype=np.int64) for i in range(model.n))
-    return MergedModel(model, IsingModel(phys.h, phys.J, phys.offset), copies, "saturate", float(scale))
+    if phys.labels is not None:  # the physical view is unlabelled (trusted: phys is valid already)
+        phys = IsingModel.trusted(phys.h, phys.J, phys.offset)
+    n = model.n
+    ptr = np.arange(n + 1, dtype=np.int64).reshape(1, n + 1)
+    idx = np.arange(n, dtype=np.int64).reshape(1, n)
+    return MergedModel._from_layout(model, phys, ptr, idx, "saturate", float(scale))

@@ -59,6 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.errors import ControllerError
 from planners.compute import ComputeReport
 
 __all__ = [
@@ -109,10 +110,6 @@ COMPUTE_KEYS = (
     "host_energy_j",
     "total_energy_j",
 )
-
-
-class ControllerError(ValueError):
-    """A controller spec that names no known controller, or a model file that cannot be used."""
 
 
 def compute_record(report: ComputeReport) -> dict:

@@ -1,27 +1,29 @@
-"""Learned agents: PPO (stable-baselines3) trained on the MRMT env, and its loader.
+"""Learned agents: training (stable-baselines3 / sb3-contrib) on the MRMT envs, and loading.
 
-stable-baselines3 and torch are imported lazily (only when training or
-loading), so the rest of the package never pays for them; install them with
-the ``rl`` extra.
+torch, stable-baselines3 and sb3-contrib are imported lazily (only when
+training or loading); install them with the ``rl`` extra.
 
-Choices the issue leaves open:
+Two set-ups (choices and measurements: docs/design/learned-agents.md):
 
-* Policy: ``MlpPolicy`` over the flattened ``(2 + R, H, W)`` 0/1 observation.
-  SB3's ``CnnPolicy`` (NatureCNN) needs images of at least 36x36 pixels, and
-  the observation's values are already 0/1, so no image normalisation is
-  applied (SB3 does not treat a ``Box(0, 1)`` as an image).
-* Action: the env's joint ``MultiDiscrete([5] * R)`` action, unchanged.
-* Hyper-parameters: SB3's PPO defaults (``n_steps=2048``, ``batch_size=64``,
-  ``lr=3e-4``, ``gamma=0.99``) except ``n_steps`` which is lowered when the
-  run is shorter than one rollout, so a few hundred steps still train.
-  ``device="cpu"`` always (the models are tiny).
-* Worlds: a fresh random world at every ``reset`` (the env's default), so the
-  agent must generalise across worlds; evaluation uses unseen world seeds.
+* plan level, ``mrmt_env/MRMT-Assign-v0`` (the default for a learned
+  allocator): sb3-contrib ``MaskablePPO`` with
+  :class:`agents.assign_net.AssignPointerPolicy` (distance-biased attention
+  encoder, pointer head), ``gamma = 1`` (the return is minus the route
+  cost), rewards scaled by ``1 / (H + W)``, the native vector env;
+* grid level, ``mrmt_env/MRMT-v0``: SB3 ``PPO`` (``MlpPolicy``, SB3 defaults)
+  or ``MaskablePPO`` with masks for blocked moves; ``CnnPolicy`` when the
+  env's ``observation="image"``.
+
+Every saved model has a ``.json`` sidecar (algorithm, policy, env id and
+kwargs, seed, timesteps, training wall time) and, unless disabled, a training
+curve (``.curve.csv`` and ``.curve.png``: mean return, success and route
+cost of the episodes finished in each rollout).  :func:`load_policy` reads the
+algorithm from the sidecar (or from the model file), so ``ppo:model.zip`` in
+``mrmt compare`` loads a PPO or a MaskablePPO model alike.
 
 Compute accounting of a learned agent (:class:`LearnedPolicy`): latency =
 measured inference wall time (``model.predict``) summed over the episode's
-steps; energy = that time x 15 W (the same CPU proxy as the classical
-planners); no chip.
+steps; energy = that time x 15 W (the classical planners' CPU proxy); no chip.
 """
 
 from __future__ import annotations
@@ -34,22 +36,43 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.evaluation import ControllerError
+from agents.errors import ControllerError
 from planners.compute import ComputeReport
 
-__all__ = ["SMALL_ENV_ID", "train_ppo", "LearnedPolicy", "load_policy", "sidecar_path"]
+__all__ = [
+    "SMALL_ENV_ID", "ASSIGN_ENV_ID", "ALGORITHMS", "DEFAULT_TIMESTEPS", "train", "train_ppo", "LearnedPolicy",
+    "load_policy", "sidecar_path", "curve_paths", "is_assign_env",
+]
 
-#: The small world registered for quick training (falls back to MRMT-v0 with kwargs if absent).
+#: The small world registered for quick training.
 SMALL_ENV_ID = "mrmt_env/MRMT-5x5-v0"
+#: The plan-level env.
+ASSIGN_ENV_ID = "mrmt_env/MRMT-Assign-v0"
+#: Algorithms ``train`` knows.
+ALGORITHMS = ("ppo", "maskable_ppo")
+#: Default training budgets (env steps): the plan-level default finishes in
+#: <= 10 minutes on a 2-core machine (benchmarks/RESULTS.md).
+DEFAULT_TIMESTEPS = {"assign": 150_000, "grid": 100_000}
+
+#: MaskablePPO settings for the plan-level env (see the module docstring).
+ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4, gamma=1.0, gae_lambda=0.95,
+                    ent_coef=0.01, clip_range=0.2)
+ASSIGN_N_ENVS = 16
 
 
 def sidecar_path(model_path) -> Path:
-    """Where :func:`train_ppo` writes the training config next to the model (``model.json``)."""
+    """Where :func:`train` writes the training config next to the model (``model.json``)."""
     p = Path(model_path)
     return p.with_name(p.name[: -len(".zip")] + ".json" if p.name.endswith(".zip") else p.name + ".json")
 
 
-def _make_env(env_id: str, env_kwargs: dict, seed: int):
+def curve_paths(model_path) -> tuple[Path, Path]:
+    """The training curve files next to the model: ``model.curve.csv`` and ``model.curve.png``."""
+    stem = sidecar_path(model_path).with_suffix("")
+    return stem.with_name(stem.name + ".curve.csv"), stem.with_name(stem.name + ".curve.png")
+
+
+def _spec(env_id: str):
     import gymnasium as gym
 
     import mrmt_env  # noqa: F401  (registers the ids)
@@ -57,59 +80,180 @@ def _make_env(env_id: str, env_kwargs: dict, seed: int):
     if env_id not in gym.registry:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
         raise ValueError(f"unknown env id {env_id!r}; registered: {known}")
-    return gym.make(env_id, **env_kwargs)
+    return gym.spec(env_id)
 
 
-def train_ppo(
-    timesteps: int,
-    out=None,
+def is_assign_env(env_id: str) -> bool:
+    """True for a plan-level (Assign) env id."""
+    entry = _spec(env_id).entry_point
+    return isinstance(entry, str) and entry.endswith("MRMTAssignEnv")
+
+
+def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int):
+    """An SB3 VecEnv: the id's native vector env (SAME_STEP autoreset) when it has one, else DummyVecEnv."""
+    import gymnasium as gym
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from agents.sb3_vec import GymVecToSB3
+
+    spec = _spec(env_id)
+    if spec.vector_entry_point is None:
+        return make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
+    venv = gym.make_vec(env_id, num_envs=n_envs, vectorization_mode="vector_entry_point",
+                        autoreset_mode="SameStep", **env_kwargs)
+    return VecMonitor(GymVecToSB3(venv, seed=seed))
+
+
+def _curve_callback():
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CurveCallback(BaseCallback):
+        """Per rollout: env steps, episodes, mean return, success rate and mean route cost of finished episodes."""
+
+        def __init__(self):
+            super().__init__()
+            self.rows: list[dict] = []
+            self._ret, self._succ, self._cost = [], [], []
+
+        def _on_step(self) -> bool:
+            for done, info in zip(self.locals["dones"], self.locals["infos"]):
+                if done and "episode" in info:
+                    self._ret.append(float(info["episode"]["r"]))
+                    self._succ.append(bool(info.get("is_success", False)))
+                    if info.get("is_success") and "route_cost" in info:
+                        self._cost.append(float(info["route_cost"]))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            if self._ret:
+                self.rows.append({
+                    "timesteps": int(self.num_timesteps), "episodes": len(self._ret),
+                    "mean_return": float(np.mean(self._ret)), "success_rate": float(np.mean(self._succ)),
+                    "mean_route_cost": float(np.mean(self._cost)) if self._cost else float("nan"),
+                })
+            self._ret, self._succ, self._cost = [], [], []
+
+    return CurveCallback()
+
+
+def _write_curve(rows: list[dict], model_path, title: str) -> None:
+    import csv
+
+    csv_path, png_path = curve_paths(model_path)
+    with open(csv_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["timesteps", "episodes", "mean_return", "success_rate", "mean_route_cost"])
+        w.writeheader()
+        w.writerows(rows)
+    if not rows:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = [r["timesteps"] for r in rows]
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.2))
+    for ax, key, label in zip(axes, ("mean_return", "success_rate", "mean_route_cost"),
+                              ("mean episode return", "success rate", "route cost (successful episodes)")):
+        ax.plot(t, [r[key] for r in rows])
+        ax.set_xlabel("env steps")
+        ax.set_title(label, fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=100)
+    plt.close(fig)
+
+
+def train(
     env_id: str = "mrmt_env/MRMT-v0",
+    timesteps: int | None = None,
+    out=None,
+    *,
+    algo: str | None = None,
+    policy: str | None = None,
     env_kwargs: dict | None = None,
     seed: int = 0,
-    n_envs: int = 1,
+    n_envs: int | None = None,
     verbose: int = 0,
     progress: bool = False,
+    curve: bool = True,
     torch_threads: int | None = 1,
-    **ppo_kwargs,
+    callback=None,
+    **algo_kwargs,
 ):
-    """Train PPO on ``env_id`` for ``timesteps`` env steps; save to ``out`` if given.
+    """Train an agent on ``env_id`` for ``timesteps`` env steps; save to ``out`` if given.
 
     Args:
-        timesteps: total environment steps (>= 1).
-        out: path of the ``.zip`` to write (a ``.json`` sidecar records the
-            env id, kwargs, seed, timesteps and training wall time).
-        env_id, env_kwargs: the env to train on.
-        seed: seeds PPO, torch and the envs.
-        n_envs: parallel envs (``DummyVecEnv``: in-process).
-        torch_threads: ``torch.set_num_threads`` for training (default 1: the
-            networks are tiny and extra threads only contend for the cores;
-            ``None`` leaves torch's setting alone).
-        **ppo_kwargs: override PPO's hyper-parameters.
+        env_id, env_kwargs: the env (a plan-level id gets MaskablePPO and the
+            pointer policy, a grid id PPO unless ``algo`` says otherwise).
+        timesteps: env steps (default :data:`DEFAULT_TIMESTEPS` for the kind).
+        out: the ``.zip`` to write, with its ``.json`` sidecar and curve.
+        algo: ``"ppo"`` or ``"maskable_ppo"``.
+        policy: SB3 policy name (grid: default ``MlpPolicy``, ``CnnPolicy``
+            for ``observation="image"``); ignored for the plan-level env.
+        n_envs: envs stepped together (the id's native vector env; plan level
+            default 16, grid default 1).
+        torch_threads: ``torch.set_num_threads`` (default 1: the networks are
+            small; ``None`` leaves torch's setting alone).
+        callback: an extra SB3 callback.
+        **algo_kwargs: override the algorithm's hyper-parameters.
 
     Returns:
-        the trained ``stable_baselines3.PPO`` model.
+        the trained model.
     """
-    if int(timesteps) < 1:
-        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
-    if int(n_envs) < 1:
-        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    assign = is_assign_env(env_id)
+    kind = "assign" if assign else "grid"
+    timesteps = DEFAULT_TIMESTEPS[kind] if timesteps is None else timesteps
+    if isinstance(timesteps, bool) or int(timesteps) != timesteps or timesteps < 1:
+        raise ValueError(f"timesteps must be an integer >= 1, got {timesteps!r}")
+    n_envs = (ASSIGN_N_ENVS if assign else 1) if n_envs is None else n_envs
+    if isinstance(n_envs, bool) or int(n_envs) != n_envs or n_envs < 1:
+        raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
+    algo = ("maskable_ppo" if assign else "ppo") if algo is None else algo
+    if algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {ALGORITHMS}, got {algo!r}")
+    if assign and algo != "maskable_ppo":
+        raise ValueError(f"the plan-level env {env_id} needs action masks: algo must be 'maskable_ppo', got {algo!r}")
+    timesteps, n_envs = int(timesteps), int(n_envs)
+    env_kwargs = dict(env_kwargs or {})
+
+    import gymnasium as gym
     import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.env_util import make_vec_env
 
     if torch_threads is not None:
         torch.set_num_threads(int(torch_threads))
-    env_kwargs = dict(env_kwargs or {})
-    _make_env(env_id, env_kwargs, seed).close()  # validates the id and kwargs with a clear error
-    venv = make_vec_env(env_id, n_envs=int(n_envs), seed=int(seed), env_kwargs=env_kwargs)
-    params = dict(n_steps=2048, batch_size=64)
-    rollout = max(16, min(2048, int(timesteps) // int(n_envs)))
-    params["n_steps"] = rollout
-    params["batch_size"] = min(64, rollout * int(n_envs))
-    params.update(ppo_kwargs)
-    model = PPO("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=verbose, **params)
+    probe = gym.make(env_id, **env_kwargs)  # validates the id and kwargs with a clear error
+    probe.close()
+    venv = _vec_env(env_id, env_kwargs, n_envs, int(seed))
+    if assign:
+        from agents.assign_net import AssignPointerPolicy
+        from agents.sb3_vec import ScaleReward
+
+        world_h, world_w = probe.unwrapped.source.height, probe.unwrapped.source.width
+        venv = ScaleReward(venv, 1.0 / (world_h + world_w))
+        params = dict(ASSIGN_HYPER)
+        params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
+        params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
+        policy_obj = AssignPointerPolicy
+        policy_name = "AssignPointerPolicy"
+    else:
+        image = env_kwargs.get("observation") == "image"
+        policy_name = policy or ("CnnPolicy" if image else "MlpPolicy")
+        policy_obj = policy_name
+        rollout = max(16, min(2048, timesteps // n_envs))
+        params = dict(n_steps=rollout, batch_size=min(64, rollout * n_envs))
+    params.update(algo_kwargs)
+    if algo == "maskable_ppo":
+        from sb3_contrib import MaskablePPO as Algo
+    else:
+        from stable_baselines3 import PPO as Algo
+    model = Algo(policy_obj, venv, seed=int(seed), device="cpu", verbose=verbose, **params)
+    curve_cb = _curve_callback() if curve and out is not None else None
+    callbacks = [c for c in (curve_cb, callback) if c is not None]
     t0 = time.perf_counter()
-    model.learn(total_timesteps=int(timesteps), progress_bar=bool(progress))
+    model.learn(total_timesteps=timesteps, progress_bar=bool(progress), callback=callbacks or None)
     wall = time.perf_counter() - t0
     if out is not None:
         out = Path(out)
@@ -117,39 +261,65 @@ def train_ppo(
         model.save(out)
         zpath = out if out.suffix == ".zip" else out.with_name(out.name + ".zip")
         meta = {
+            "algo": algo,
+            "policy": policy_name,
             "env_id": env_id,
             "env_kwargs": env_kwargs,
             "seed": int(seed),
-            "timesteps": int(timesteps),
-            "n_envs": int(n_envs),
+            "timesteps": timesteps,
+            "n_envs": n_envs,
             "train_wall_s": wall,
-            "ppo": {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))},
+            "hyper": {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))},
         }
         sidecar_path(zpath).write_text(json.dumps(meta, indent=1))
+        if curve_cb is not None:
+            _write_curve(curve_cb.rows, zpath, f"{algo} {policy_name} on {env_id}, {timesteps} steps")
     venv.close()
     return model
 
 
-class LearnedPolicy:
-    """A stable-baselines3 model as a controller for the evaluator.
+def train_ppo(timesteps: int, out=None, env_id: str = "mrmt_env/MRMT-v0", env_kwargs: dict | None = None,
+              seed: int = 0, n_envs: int = 1, verbose: int = 0, progress: bool = False,
+              torch_threads: int | None = 1, **ppo_kwargs):
+    """PPO on a grid env (kept for existing callers): :func:`train` with ``algo="ppo"`` unless the env needs masks."""
+    algo = "maskable_ppo" if is_assign_env(env_id) else "ppo"
+    return train(env_id, timesteps, out, algo=algo, env_kwargs=env_kwargs, seed=seed, n_envs=n_envs,
+                 verbose=verbose, progress=progress, torch_threads=torch_threads, **ppo_kwargs)
 
-    ``predict`` forwards to ``model.predict`` and adds the measured wall time
-    of the call to the episode's inference time (per env index; a batched
-    call's time is split evenly between its envs).
+
+class LearnedPolicy:
+    """A stable-baselines3 / sb3-contrib model as a controller for the evaluator.
+
+    ``predict`` forwards to ``model.predict`` (with ``action_masks`` for a
+    MaskablePPO model: :attr:`uses_action_masks`) and adds the measured wall
+    time of the call to the episode's inference time (per env index; a
+    batched call's time is split evenly between its envs).
     :meth:`episode_compute` reports it as ``ComputeReport(cpu_s=...)``.
+    A model trained on image observations (``observation="image"``) gets the
+    env's binary observation converted (:func:`mrmt_env.observation.to_image`).
     """
 
-    def __init__(self, model, name: str = "ppo", seed: int = 0):
+    def __init__(self, model, name: str = "ppo", seed: int = 0, meta: dict | None = None):
         self.model = model
         self.name = name
         self.seed = int(seed)
+        self.meta = dict(meta or {})
         self._episode_s: dict[int, float] = {}
         self.total_inference_s = 0.0
+        self.uses_action_masks = type(model).__name__ == "MaskablePPO"
+        self.image = self.meta.get("env_kwargs", {}).get("observation") == "image"
         shape = getattr(getattr(model, "observation_space", None), "shape", None)
         self.observation_shape = tuple(shape) if shape is not None else None
 
     def reset(self) -> None:
         self._episode_s.clear()
+
+    def _convert(self, obs: np.ndarray) -> np.ndarray:
+        if not self.image or obs.dtype != np.uint8 or obs.shape[-3:] == self.observation_shape or obs.max(initial=0) > 1:
+            return obs
+        from mrmt_env.observation import to_image
+
+        return to_image(obs)
 
     def _check(self, obs: np.ndarray) -> None:
         if self.observation_shape is None:
@@ -158,11 +328,12 @@ class LearnedPolicy:
         if obs.ndim not in (len(self.observation_shape), len(self.observation_shape) + 1) or got != self.observation_shape:
             raise ValueError(
                 f"{self.name}: the model was trained on observations of shape {self.observation_shape} "
-                f"but was given {obs.shape}; evaluate it on the same world size and robot count it was trained on"
+                f"but was given {obs.shape}; evaluate it on the env, world size and robot/target counts it was "
+                f"trained on ({self.meta.get('env_id', 'see its .json sidecar')})"
             )
 
-    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        obs = np.asarray(observation)
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True, action_masks=None):
+        obs = self._convert(np.asarray(observation))
         self._check(obs)
         batched = self.observation_shape is not None and obs.ndim == len(self.observation_shape) + 1
         n = obs.shape[0] if batched else 1
@@ -170,8 +341,10 @@ class LearnedPolicy:
         for i in range(n):
             if starts[i] or i not in self._episode_s:
                 self._episode_s[i] = 0.0
+        kwargs = {"action_masks": action_masks} if self.uses_action_masks and action_masks is not None else {}
         t0 = time.perf_counter()
-        action, state = self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+        action, state = self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic,
+                                           **kwargs)
         dt = time.perf_counter() - t0
         self.total_inference_s += dt
         for i in range(n):
@@ -188,24 +361,43 @@ class LearnedPolicy:
         return f"LearnedPolicy({self.name!r})"
 
 
+def _algo_name(algo: str) -> str:
+    return {"ppo": "PPO", "maskable_ppo": "MaskablePPO"}[algo]
+
+
+def _algorithm_of(path: str, meta: dict) -> str:
+    if meta.get("algo") in ALGORITHMS:
+        return meta["algo"]
+    with zipfile.ZipFile(path) as z:  # no sidecar: the policy class names the algorithm
+        data = z.read("data").decode("utf-8", "replace") if "data" in z.namelist() else ""
+    return "maskable_ppo" if ("sb3_contrib" in data or "Maskable" in data or "assign_net" in data) else "ppo"
+
+
 def load_policy(path, seed: int = 0) -> LearnedPolicy:
-    """Load a saved PPO ``.zip`` as a :class:`LearnedPolicy`.
+    """Load a model saved by :func:`train` (PPO or MaskablePPO) as a :class:`LearnedPolicy`.
 
     Raises:
-        ControllerError: the file does not exist, is not a zip, or
-            stable-baselines3 cannot load it as a PPO model.
+        ControllerError: the file does not exist, is not a zip, the needed
+            library is missing, or it cannot be loaded.
     """
     path = str(path)
     if not os.path.isfile(path):
-        raise ControllerError(f"PPO model file {path!r} does not exist")
+        raise ControllerError(f"model file {path!r} does not exist")
     if not zipfile.is_zipfile(path):
-        raise ControllerError(f"PPO model file {path!r} is not a stable-baselines3 .zip model")
+        raise ControllerError(f"model file {path!r} is not a stable-baselines3 .zip model")
+    side = sidecar_path(path)
+    meta = json.loads(side.read_text()) if side.is_file() else {}
+    algo = _algorithm_of(path, meta)
     try:
-        from stable_baselines3 import PPO
+        if algo == "maskable_ppo":
+            from sb3_contrib import MaskablePPO as Algo
+        else:
+            from stable_baselines3 import PPO as Algo
     except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ControllerError("loading a PPO model needs stable-baselines3: pip install 'mrmt-ising[rl]'") from exc
+        raise ControllerError(f"loading a {_algo_name(algo)} model needs the rl extra: pip install 'mrmt-ising[rl]' "
+                              f"({exc})") from exc
     try:
-        model = PPO.load(path, device="cpu")
+        model = Algo.load(path, device="cpu")
     except Exception as exc:  # SB3 raises many kinds for a bad archive
-        raise ControllerError(f"cannot load PPO model {path!r}: {type(exc).__name__}: {exc}") from exc
-    return LearnedPolicy(model, name=f"ppo:{path}", seed=seed)
+        raise ControllerError(f"cannot load {_algo_name(algo)} model {path!r}: {type(exc).__name__}: {exc}") from exc
+    return LearnedPolicy(model, name=f"ppo:{path}", seed=seed, meta=meta)

@@ -57,7 +57,7 @@ def _register() -> None:
     import gymnasium
 
     for ids, entry, vector in (
-        (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", None),
+        (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", "mrmt_env.grid_vector:MRMTVectorEnv"),
         (ASSIGN_IDS, "mrmt_env.assign_env:MRMTAssignEnv", "mrmt_env.assign_vector:MRMTAssignVectorEnv"),
     ):
         for env_id, (kwargs, steps) in ids.items():

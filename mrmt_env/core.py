@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrmt_env.distances import MOVES
+from mrmt_env.distances import MOVES, bfs_distance_fields
 from mrmt_env.generation import generate_world
 from mrmt_env.io import read_worlds
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
@@ -236,6 +236,24 @@ class MRMTCore:
     @property
     def all_visited(self) -> bool:
         return self.n_visited == self.n_targets
+
+    def move_masks(self) -> np.ndarray:
+        """``(R, 5)`` bool: action ``a`` of robot ``k`` is not blocked (stay is always allowed)."""
+        nxt = self._nxt
+        return np.array([[a == 0 or nxt[p][a] != p for a in range(N_ACTIONS)] for p in self.pos], dtype=bool)
+
+    def nearest_target_field(self) -> np.ndarray:
+        """``(H*W,)`` int32 BFS moves from each cell to the nearest unvisited target (-1: none reachable)."""
+        todo = self.world.targets[[i for i, v in enumerate(self.visited) if not v]]
+        if len(todo) == 0:
+            return np.full(self.hw, -1, dtype=np.int32)
+        fields = bfs_distance_fields(self.world.grid, todo).reshape(len(todo), -1)
+        fields = np.where(fields < 0, np.iinfo(np.int32).max, fields).min(axis=0)
+        return np.where(fields == np.iinfo(np.int32).max, -1, fields).astype(np.int32)
+
+    def potential(self, field: np.ndarray) -> float:
+        """Minus the summed BFS moves from each robot to its nearest unvisited target (0 when none is left)."""
+        return -float(sum(max(int(field[p]), 0) for p in self.pos))
 
     def observation(self) -> np.ndarray:
         """A copy of the global observation ``(2 + R, H, W)`` uint8."""

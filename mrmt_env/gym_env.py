@@ -7,10 +7,13 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode
-from mrmt_env.observation import observation_space
+from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
-__all__ = ["MRMTEnv", "check_joint_action"]
+__all__ = ["MRMTEnv", "check_joint_action", "OBSERVATIONS"]
+
+#: Observation forms: the binary channels, or the same as a CNN-ready image.
+OBSERVATIONS = ("binary", "image")
 
 
 def check_joint_action(action, n_robots: int) -> list[int]:
@@ -78,6 +81,11 @@ class MRMTEnv(gym.Env):
     | 1       | targets not yet visited                    |
     | 2 + k   | robot k's current cell (exactly one 1)     |
 
+    With ``observation="image"`` the same channels come as an image SB3's
+    ``CnnPolicy`` accepts: ``Box(0, 255, (2 + R, s*H, s*W), uint8)``, values
+    0/255, each cell an ``s x s`` block with ``s = ceil(36 / min(H, W))``
+    (40 x 40 on 10 x 10; ``mrmt_env.observation.to_image``).
+
     The observation holds the whole world:
     ``mrmt_env.observation.world_from_observation(obs)`` rebuilds a ``World``
     (robots at their current cells, unvisited targets in row-major order).
@@ -95,6 +103,20 @@ class MRMTEnv(gym.Env):
 
     is maximised exactly by visiting every target with the fewest total moves
     and no blocked moves.  Targets under a robot at reset give no reward.
+
+    Optional dense reward (``dense_reward = c > 0``): each step also gets
+    ``c * (phi(s') - phi(s))`` with ``phi`` = minus the summed BFS moves from
+    each robot to its nearest unvisited target: progress towards targets pays
+    at once.  It is potential-based shaping (Ng et al. 1999), so with
+    ``gamma = 1`` the best policies are unchanged (the shaping sums to
+    ``-phi(s_0)`` over a completed episode).
+
+    ## Action Masks
+
+    ``action_masks()`` returns ``(5 * R,)`` bools, robot by robot (stay, up,
+    down, left, right): a move into an obstacle or off the grid is masked.
+    This is the flat ``MultiDiscrete`` mask sb3-contrib's ``MaskablePPO``
+    expects; masked moves stay legal for the env (blocked, as above).
 
     ## Starting State
 
@@ -150,6 +172,8 @@ class MRMTEnv(gym.Env):
     | `world`            | World, path or None  | None        | fixed world (or world file) for every episode      |
     | `max_episode_steps`| int or None          | None        | self-truncation for direct construction            |
     | `target_reward`    | float or None        | `2 * H * W` | reward per newly visited target                    |
+    | `observation`      | str                  | `"binary"`  | `"binary"` or `"image"` (CNN-ready, see above)     |
+    | `dense_reward`     | float                | 0.0         | weight of the BFS-progress shaping (0 = off)        |
     | `render_mode`      | str or None          | None        | `"ansi"`, `"rgb_array"` or `"human"` (prints text) |
 
     Registered ids: ``mrmt_env/MRMT-v0`` (10x10, density 0.2, 3 robots, 10
@@ -176,8 +200,17 @@ class MRMTEnv(gym.Env):
         max_episode_steps: int | None = None,
         target_reward: float | None = None,
         render_mode: str | None = None,
+        observation: str = "binary",
+        dense_reward: float = 0.0,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
+        if observation not in OBSERVATIONS:
+            raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
+        if isinstance(dense_reward, bool) or not isinstance(dense_reward, (int, float, np.floating, np.integer)) \
+                or not np.isfinite(dense_reward) or dense_reward < 0:
+            raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
+        self.observation_mode = observation
+        self.dense_reward = float(dense_reward)
         if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         self.render_mode = render_mode
@@ -188,8 +221,10 @@ class MRMTEnv(gym.Env):
         )
         self.n_robots = self.source.n_robots
         self.action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)
-        self.observation_space = observation_space(self.n_robots, self.source.height, self.source.width)
+        space = image_observation_space if observation == "image" else observation_space
+        self.observation_space = space(self.n_robots, self.source.height, self.source.width)
         self.core = MRMTCore(target_reward)
+        self._field = None
         self._ashape = (self.n_robots,)
         self.world: World | None = None
 
@@ -202,9 +237,11 @@ class MRMTEnv(gym.Env):
             world = self.source.draw(self.np_random)
         self.world = world
         self.core.reset(world)
+        if self.dense_reward:
+            self._field = self.core.nearest_target_field()
         if self.render_mode == "human":
             self.render()
-        return self.core.observation(), self.core.info()
+        return self._obs(), self.core.info()
 
     def step(self, action):
         core = self.core
@@ -217,14 +254,21 @@ class MRMTEnv(gym.Env):
                 acts = check_joint_action(action, self.n_robots)  # raises, naming the robot
         else:
             acts = check_joint_action(action, self.n_robots)
-        reward = core.step(acts)
+        if self.dense_reward:
+            phi = core.potential(self._field)
+            reward = core.step(acts)
+            if core.last_new_targets:
+                self._field = core.nearest_target_field()
+            reward += self.dense_reward * (core.potential(self._field) - phi)
+        else:
+            reward = core.step(acts)
         terminated = core.n_visited == core.n_targets
         truncated = (
             not terminated and self.max_episode_steps is not None and core.steps >= self.max_episode_steps
         )
         if self.render_mode == "human":
             self.render()
-        return core.observation(), float(reward), terminated, truncated, core.info()
+        return self._obs(), float(reward), terminated, truncated, core.info()
 
     def render(self):
         if self.core.world is None:
@@ -234,7 +278,17 @@ class MRMTEnv(gym.Env):
             return None
         return self.core.render(self.render_mode, makespan=True)
 
+    def action_masks(self) -> np.ndarray:
+        """``(5 * R,)`` bool: per robot, which of stay/up/down/left/right is not blocked (sb3-contrib's hook)."""
+        if self.core.world is None:
+            raise RuntimeError("call reset() before action_masks()")
+        return self.core.move_masks().reshape(-1)
+
     # -------------------------------------------------------------- helpers
+    def _obs(self) -> np.ndarray:
+        obs = self.core.observation()
+        return to_image(obs) if self.observation_mode == "image" else obs
+
     def current_world(self) -> World:
         """The world now: robots at their current cells, unvisited targets in
         their original order (``world_from_observation`` gives row-major order)."""

@@ -34,6 +34,10 @@ __all__ = [
     "encode_observation",
     "world_from_observation",
     "agent_index_from_observation",
+    "MIN_IMAGE_SIDE",
+    "image_scale",
+    "image_observation_space",
+    "to_image",
 ]
 
 OBSTACLE_CHANNEL = 0
@@ -44,6 +48,30 @@ ROBOT_CHANNEL0 = 2
 def observation_space(n_robots: int, height: int, width: int) -> spaces.Box:
     """The global observation space ``Box(0, 1, (2 + R, H, W), uint8)``."""
     return spaces.Box(0, 1, (2 + n_robots, height, width), np.uint8)
+
+
+#: Smallest image side SB3's ``CnnPolicy`` (NatureCNN) accepts.
+MIN_IMAGE_SIDE = 36
+
+
+def image_scale(height: int, width: int) -> int:
+    """Pixels per cell of the image observation: the least ``s`` with ``s * min(H, W) >= 36``."""
+    return max(1, -(-MIN_IMAGE_SIDE // min(int(height), int(width))))
+
+
+def image_observation_space(n_robots: int, height: int, width: int) -> spaces.Box:
+    """The image form of the global observation: ``Box(0, 255, (2 + R, s*H, s*W), uint8)``, ``s = image_scale(H, W)``."""
+    s = image_scale(height, width)
+    return spaces.Box(0, 255, (2 + n_robots, s * height, s * width), np.uint8)
+
+
+def to_image(obs: np.ndarray) -> np.ndarray:
+    """A binary observation ``(..., C, H, W)`` as an image ``(..., C, s*H, s*W)``: 0 -> 0, 1 -> 255,
+    each cell an ``s x s`` block (SB3 treats a uint8 ``Box(0, 255)`` of side >= 36 as an image)."""
+    a = np.asarray(obs)
+    s = image_scale(a.shape[-2], a.shape[-1])
+    img = a * np.uint8(255)
+    return np.repeat(np.repeat(img, s, axis=-2), s, axis=-1)
 
 
 def agent_observation_space(n_robots: int, height: int, width: int) -> spaces.Box:

@@ -1,0 +1,122 @@
+"""Native vector env of the grid ids (``mrmt_env/MRMT-v0`` ...): ``B`` episodes in arrays, one compiled step.
+
+``gymnasium.make_vec("mrmt_env/MRMT-v0", num_envs=B,
+vectorization_mode="vector_entry_point")`` builds it.  Dynamics are those of
+:class:`mrmt_env.core.MRMTCore` (:mod:`mrmt_env.grid_kernels`); semantics,
+seeding and infos those of ``SyncVectorEnv`` over the single env
+(:mod:`mrmt_env.vector_base`).  Options as the single env: ``observation``
+(``"binary"`` / ``"image"``), ``dense_reward``, ``target_reward``;
+``action_masks()`` gives ``(B, 5 * R)`` bools.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector.utils import batch_space
+
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource
+from mrmt_env.fast_generation import draw_world_arrays
+from mrmt_env.grid_kernels import grid_load, grid_masks, grid_step
+from mrmt_env.gym_env import OBSERVATIONS
+from mrmt_env.observation import image_observation_space, observation_space, to_image
+from mrmt_env.vector_base import BatchedVectorEnv
+
+__all__ = ["MRMTVectorEnv"]
+
+
+class MRMTVectorEnv(BatchedVectorEnv):
+    """``num_envs`` grid episodes stepped together (arguments of ``MRMTEnv`` plus ``num_envs``,
+    ``autoreset_mode`` and ``copy``: return a copy of the observation buffer)."""
+
+    metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
+                 n_targets=None, world=None, placement=None, max_episode_steps=None, target_reward=None,
+                 render_mode=None, observation: str = "binary", dense_reward: float = 0.0,
+                 autoreset_mode="NextStep", copy: bool = True) -> None:
+        if render_mode is not None:
+            raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
+        if observation not in OBSERVATIONS:
+            raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
+        if isinstance(dense_reward, bool) or not np.isfinite(dense_reward) or dense_reward < 0:
+            raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
+        self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
+                                  n_robots=n_robots, n_targets=n_targets, placement=placement)
+        h, w, r = self.source.height, self.source.width, self.source.n_robots
+        n = int(self.source.params["n_targets"])
+        b = self.num_envs
+        MRMTCore(target_reward)  # validates target_reward with the single env's message
+        self.target_reward = MRMTCore.default_target_reward(h, w) if target_reward is None else float(target_reward)
+        self.height, self.width, self.n_robots, self.n_targets = h, w, r, n
+        self.observation_mode, self.dense_reward = observation, float(dense_reward)
+        self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * r)
+        space = image_observation_space if observation == "image" else observation_space
+        self.single_observation_space = space(r, h, w)
+        self.action_space = batch_space(self.single_action_space, b)
+        self.observation_space = batch_space(self.single_observation_space, b)
+        hw = h * w
+        self.succ = np.zeros((b, hw, 5), dtype=np.int64)
+        self.tgt_at = np.full((b, hw), -1, dtype=np.int64)
+        self.pos = np.zeros((b, r), dtype=np.int64)
+        self.visited = np.zeros((b, n), dtype=np.bool_)
+        self.moves = np.zeros((b, r), dtype=np.int64)
+        self.counters = np.zeros((b, 6), dtype=np.int64)  # steps, route_cost, visited, invalid, vertex, swap
+        self.grids = np.zeros((b, hw), dtype=np.bool_)
+        self.targets = np.zeros((b, n), dtype=np.int64)
+        self.field = np.full((b, hw), -1, dtype=np.int64)
+        self._obs = np.zeros((b, 2 + r, hw), dtype=np.uint8)
+        self._rewards = np.zeros(b, dtype=np.float64)
+        self._terminated = np.zeros(b, dtype=np.bool_)
+        self._masks = np.zeros((b, N_ACTIONS * r), dtype=np.bool_)
+
+    def _load(self, i: int, rng: np.random.Generator) -> None:
+        flat, robots, targets = draw_world_arrays(rng, self.source.params, self.source.fixed)
+        self.grids[i] = flat
+        self.targets[i] = targets
+        grid_load(i, self.grids[i], self.width, robots, targets, self.succ, self.tgt_at, self.pos, self.visited,
+                  self.moves, self.counters, self._obs, self.field, self.dense_reward > 0)
+
+    def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
+        a = np.asarray(actions)
+        shape = (self.num_envs, self.n_robots)
+        if a.shape != shape or a.dtype.kind not in "iu":
+            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
+                             f"shape {a.shape}")
+        bad = live[:, None] & ((a < 0) | (a >= N_ACTIONS))
+        if bad.any():
+            b, k = (int(v) for v in np.argwhere(bad)[0])
+            raise ValueError(f"action for env {b} robot {k} is {int(a[b, k])}; valid moves are 0..{N_ACTIONS - 1} "
+                             "(0 stay, 1 up, 2 down, 3 left, 4 right)")
+        return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
+
+    def _step(self, actions: np.ndarray, live: np.ndarray):
+        grid_step(actions, live, self.succ, self.tgt_at, self.pos, self.visited, self.moves, self.counters, self._obs,
+                  self.target_reward, self.grids, self.width, self.targets, self.field, self.dense_reward,
+                  self._rewards, self._terminated)
+        return self._rewards.copy(), self._terminated.copy()
+
+    def _observe(self) -> np.ndarray:
+        obs = self._obs.reshape(self.num_envs, 2 + self.n_robots, self.height, self.width)
+        return to_image(obs) if self.observation_mode == "image" else obs
+
+    def _info_arrays(self) -> dict:
+        c = self.counters
+        return {
+            "route_cost": c[:, 1].copy(),
+            "makespan": self.moves.max(axis=1),
+            "steps": c[:, 0].copy(),
+            "targets_visited": c[:, 2].copy(),
+            "n_targets": np.full(self.num_envs, self.n_targets, dtype=np.int64),
+            "is_success": c[:, 2] == self.n_targets,
+            "invalid_moves": c[:, 3].copy(),
+            "conflicts": c[:, 4] + c[:, 5],
+            "vertex_conflicts": c[:, 4].copy(),
+            "swap_conflicts": c[:, 5].copy(),
+        }
+
+    def action_masks(self) -> np.ndarray:
+        """``(B, 5 * R)``: per env and robot, stay and the moves that are not blocked."""
+        grid_masks(self.succ, self.pos, self._masks)
+        return self._masks.copy()

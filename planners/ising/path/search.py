@@ -11,6 +11,7 @@ Termination rules, budgets and measurements: docs/design/ising_path.md.
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import NamedTuple
 
 import numpy as np
 
@@ -18,7 +19,8 @@ from ising_backend import MeteredSolver, SolverOutputError
 from planners.ising.config import resolve_config
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import cut_loops, decode_paths
-from planners.ising.path.qubo import build_patch_qubo, component_of, patch_frame
+from planners.ising.path.kernels import neighbour_table, rank_local_targets, score_patch_samples
+from planners.ising.path.qubo import build_patch_qubo, patch_frame
 
 __all__ = ["IsingPath"]
 
@@ -30,33 +32,19 @@ class _LRU(OrderedDict):
         super().__init__()
         self.size = size
 
-    def get_or(self, key, make):
-        hit = self.get(key)
-        if hit is None:
-            hit = make()
-            self[key] = hit
-            if len(self) > self.size:
-                self.popitem(last=False)
-        else:
-            self.move_to_end(key)
-        return hit
 
+class _PatchProgram(NamedTuple):
+    """A patch problem with its logical Ising model and its merged programs, stacked per style."""
 
-def _cached_merge_mapping(style: str, scale: float, cache: _LRU):
-    """A :class:`ising_backend.MergeMapping` whose results are memoised per logical model.
-
-    Merging is a deterministic function of (model, style, scale, spec); patch
-    problems recur (the same local obstacle pattern and local target), so the
-    host maps each distinct one once.
-    """
-    from ising_backend import MergeMapping
-
-    class _Cached(MergeMapping):
-        def map(self, model, spec):
-            key = (style, model.h.tobytes(), model.J.tobytes(), spec)
-            return cache.get_or(key, lambda: MergeMapping.map(self, model, spec))
-
-    return _Cached(style, scale=scale)
+    problem: object  # PatchQubo
+    model: object  # IsingModel of the patch QUBO (None without variables)
+    merged: list  # MergedModel per mapped style
+    styles: tuple  # indices (into config.styles) of the mapped styles
+    errors: dict  # style -> MergeError message
+    h: np.ndarray  # (mapped styles, N) physical fields, zero-padded
+    J: np.ndarray  # (mapped styles, N, N)
+    ptr: np.ndarray  # (mapped styles, n + 1) copy layout
+    idx: np.ndarray  # (mapped styles, N)
 
 
 class IsingPath:
@@ -85,8 +73,8 @@ class IsingPath:
                 f"the chip has {n_spins} spins (spec.n_spins)"
             )
         self._problem_cache = _LRU(4096)
-        self._merge_cache = _LRU(4 * 4096)
-        self._mappings = None
+        self._padded_for = None
+        self._nbr = neighbour_table(self.frame)
 
     def __getattr__(self, name):  # config options read as attributes (planner.form, planner.styles, ...)
         cfg = self.__dict__.get("config")
@@ -98,60 +86,144 @@ class IsingPath:
         return f"IsingPath({self.config!r})"
 
     # ------------------------------------------------------------------ mapping
-    def _solve(self, solver, problems: list, rng: np.random.Generator) -> list:
-        """One portfolio submission: every problem x every merge style, ``num_reads`` reads each."""
-        from ising_backend import run_portfolio_batch
+    def _padded(self, grid: np.ndarray) -> np.ndarray:
+        """The grid padded with obstacles by the patch radius (memoised for the last grid)."""
+        cached = self._padded_for
+        if cached is not None and cached[0] is grid:
+            return cached[1]
+        padded = np.pad(np.asarray(grid, dtype=bool), self.frame.radius, constant_values=True)
+        self._padded_for = (grid, padded)
+        return padded
 
-        models = [m for _, m in problems]
-        problems = [pr for pr, _ in problems]
+    def _program(self, comp: np.ndarray, key: bytes, target: int) -> _PatchProgram:
+        """The patch problem for a free-cell mask and local target, mapped by every merge style (memoised).
+
+        Patch problems recur along the legs of one world (the same local obstacle pattern
+        and local target), so each distinct one is built and merged once per planner.
+        """
+        hit = self._problem_cache.get((key, target))
+        if hit is not None:
+            self._problem_cache.move_to_end((key, target))
+            return hit
+        from ising_backend import MergeError, QuboModel, merge_spins
+
+        cfg = self.config
+        pr = build_patch_qubo(self.frame, comp, self.frame.n // 2, target, cfg.form, cfg.full_weights)
+        model = QuboModel(pr.q, pr.Q, pr.offset).to_ising() if pr.n else None
+        ok, errors, merged = [], {}, []
+        if model is not None:
+            for k, st in enumerate(cfg.styles):
+                try:
+                    mm = merge_spins(model, st, self.chip.spec, scale=cfg.chip_scale)
+                except MergeError as exc:
+                    errors[st] = str(exc)
+                    continue
+                ok.append(k)
+                merged.append(mm)
+        N = max((mm.physical.n for mm in merged), default=0)
+        h = np.zeros((len(merged), N))
+        J = np.zeros((len(merged), N, N))
+        ptr = np.zeros((len(merged), pr.n + 1), dtype=np.int64)
+        idx = np.zeros((len(merged), max(N, 1)), dtype=np.int64)
+        for row, mm in enumerate(merged):
+            n_p = mm.physical.n
+            h[row, :n_p] = mm.physical.h
+            J[row, :n_p, :n_p] = mm.physical.J
+            flat = np.concatenate(mm.copies) if mm.copies else np.zeros(0, dtype=np.int64)
+            ptr[row, 1:] = np.cumsum([len(c) for c in mm.copies])
+            idx[row, : len(flat)] = flat
+        prog = _PatchProgram(pr, model, merged, tuple(ok), errors, h, J, ptr, idx)
+        self._problem_cache[(key, target)] = prog
+        if len(self._problem_cache) > self._problem_cache.size:
+            self._problem_cache.popitem(last=False)
+        return prog
+
+    def _outcome(self, prog: _PatchProgram, valid: np.ndarray, energy: np.ndarray, logical: np.ndarray):
+        """Per style ``(reads, valid, error, best score)`` and the best candidate of one problem.
+
+        The first read with the lowest original energy wins (styles in portfolio order);
+        styles whose best is within ``1e-9 x max(1, |best|)`` share the win.
+        """
+        reads = self.config.num_reads
+        outcomes = {}
+        best_score, best_at = np.inf, None
+        row = 0
+        for k, st in enumerate(self.config.styles):
+            if st in prog.errors:
+                outcomes[st] = (0, 0, prog.errors[st], np.inf)
+                continue
+            v = valid[row]
+            if v.any():
+                e = energy[row]
+                r = int(np.argmin(e))
+                score = float(e[r])
+                if score < best_score:
+                    best_score, best_at = score, (row, r)
+            else:
+                score = np.inf
+            outcomes[st] = (reads, int(v.sum()), None, score)
+            row += 1
+        if best_at is None:
+            return None, outcomes
+        tol = 1e-9 * max(1.0, abs(best_score))
+        winners = [st for st in self.config.styles if outcomes[st][3] <= best_score + tol]
+        x = logical[best_at] > 0
+        path = decode_paths(self.frame, prog.problem, x[None])[0]
+        return (best_score, winners, path), outcomes
+
+    def _submit(self, solver, progs: list, rng: np.random.Generator) -> list:
+        """One chip submission: every problem x every mapped merge style, ``num_reads`` reads each;
+        one compiled decode-check-score call per problem."""
+        seed = int(rng.integers(0, 2**63 - 1))
+        rows = [p.h.shape[0] for p in progs]
+        if not sum(rows):
+            return [self._outcome(p, np.zeros((0, 0), bool), np.zeros((0, 0)), None) for p in progs]
+        if len(progs) == 1:
+            h, J = progs[0].h, progs[0].J
+        else:
+            N = max(p.h.shape[1] for p in progs)
+            h = np.zeros((sum(rows), N))
+            J = np.zeros((sum(rows), N, N))
+            at = 0
+            for p in progs:
+                b, n_p = p.h.shape
+                h[at:at + b, :n_p] = p.h
+                J[at:at + b, :n_p, :n_p] = p.J
+                at += b
+        spins, _ = solver.anneal_batch(h, J, num_reads=self.config.num_reads, seed=seed)
+        out, at = [], 0
+        for p, b in zip(progs, rows):
+            pr, m = p.problem, p.model
+            valid, energy, logical = score_patch_samples(spins[at:at + b], p.ptr, p.idx, pr.n, pr.cells, pr.start,
+                                                         pr.goal, self._nbr, m.h, m.J, m.offset)
+            out.append(self._outcome(p, valid, energy, logical))
+            at += b
+        return out
+
+    def _solve_portfolio(self, solver, progs: list, rng: np.random.Generator) -> list:
+        """``pack=True``: the same submission through :func:`ising_backend.run_portfolio_batch`
+        (block-packed programs)."""
+        from ising_backend import MergeMapping, run_portfolio_batch
+
         fr = self.frame
 
         def decoder(pr):
-            def decode(spins):
-                return decode_paths(fr, pr, (np.asarray(spins) > 0)[None])[0]
-            return decode
+            return lambda spins: decode_paths(fr, pr, (np.asarray(spins) > 0)[None])[0]
 
-        if self._mappings is None:
-            self._mappings = [_cached_merge_mapping(st, self.config.chip_scale, self._merge_cache) for st in self.config.styles]
-        mappings = self._mappings
-        return run_portfolio_batch(models, mappings, solver, decode=[decoder(p) for p in problems],
-                                   num_reads=self.config.num_reads, seed=int(rng.integers(0, 2**63 - 1)),
-                                   pack=self.config.pack)
-
-    def _problem(self, comp: np.ndarray, target: int):
-        """The patch problem (and its logical Ising model) for a free-cell mask and local target, memoised."""
-        from ising_backend import QuboModel
-
-        def make():
-            pr = build_patch_qubo(self.frame, comp, self.frame.n // 2, target, self.config.form, self.config.full_weights)
-            model = QuboModel(pr.q, pr.Q, pr.offset).to_ising() if pr.n else None
-            return pr, model
-
-        return self._problem_cache.get_or((np.packbits(comp).tobytes(), target), make)
-
-    # ------------------------------------------------------------------ ranking
-    def _ranked_targets(self, pos, goal, comp, excluded) -> list:
-        fr = self.frame
-        idx = np.flatnonzero(comp)
-        idx = idx[idx != fr.n // 2]
-        cells = fr.offsets[idx] + np.asarray(pos)
-        keep = np.array([(int(r), int(c)) not in excluded for r, c in cells], dtype=bool)
-        idx, cells = idx[keep], cells[keep]
-        if len(idx) == 0:
-            return []
-        is_goal = (cells == np.asarray(goal)).all(axis=1)
-        ring = fr.ring[idx]
-        cls = np.where(is_goal, 0, np.where(ring, 1, 2))
-        if not self.config.interior_targets:
-            sel = cls < 2
-            idx, cells, cls = idx[sel], cells[sel], cls[sel]
-        to_goal = np.abs(cells - np.asarray(goal)).sum(axis=1)
-        from_pos = np.abs(fr.offsets[idx]).sum(axis=1)
-        if self.config.target_order == "merged":  # interior cells compete on distance, boundary wins ties
-            order = np.lexsort((idx, from_pos, cls, to_goal, cls != 0))
-        else:
-            order = np.lexsort((idx, from_pos, to_goal, cls))
-        return [(int(idx[k]), (int(cells[k, 0]), int(cells[k, 1]))) for k in order]
+        mappings = [MergeMapping(st, scale=self.config.chip_scale) for st in self.config.styles]
+        results = run_portfolio_batch([p.model for p in progs], mappings, solver,
+                                      decode=[decoder(p.problem) for p in progs], num_reads=self.config.num_reads,
+                                      seed=int(rng.integers(0, 2**63 - 1)), pack=True)
+        out = []
+        for res in results:
+            outcomes = {st: (o.reads, o.valid, o.error, o.best_score) for st, o in res.outcomes.items()}
+            best = None
+            if res.success:
+                tol = 1e-9 * max(1.0, abs(res.best_score))
+                best = (res.best_score, [st for st in self.config.styles
+                                         if res.outcomes[st].best_score <= res.best_score + tol], res.best)
+            out.append((best, outcomes))
+        return out
 
     # ------------------------------------------------------------------ main loop
     def find_path(self, world, start, goal, rng: np.random.Generator | None = None):
@@ -170,9 +242,10 @@ class IsingPath:
                 return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
         rng = np.random.default_rng() if rng is None else rng
         fr = self.frame
+        cfg = self.config
         rad = fr.radius
-        centre = fr.n // 2
-        padded = np.pad(np.asarray(grid, dtype=bool), rad, constant_values=True)
+        offsets = fr.offsets
+        padded = self._padded(grid)
         solver = MeteredSolver(self.chip)
         mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in self.config.styles}
         counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
@@ -182,9 +255,10 @@ class IsingPath:
         max_calls = self.config.max_chip_calls if self.config.max_chip_calls is not None else max_attempts * per_target
         pos = s
         walk = [s]
-        visited = {s}
+        visited_mask = np.zeros_like(padded)  # cells on the committed walk (padded coordinates)
+        visited_mask[s[0] + rad, s[1] + rad] = True
         stack: list = []  # committed segments (lists of cells), most recent last
-        failed: set = set()  # (position, local target) pairs that gave no valid candidate
+        failed_at: dict = {}  # position -> local targets that gave no valid candidate from there
         failure = None
         first_map_error = None
 
@@ -195,12 +269,16 @@ class IsingPath:
                            f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
                            f"{used} chip calls of max_chip_calls={max_calls})")
                 break
-            allowed = ~padded[pos[0]:pos[0] + fr.size, pos[1]:pos[1] + fr.size].reshape(-1)
-            comp = component_of(fr, allowed, centre)
-            excluded = visited | {t for (p, t) in failed if p == pos}
-            ranked = self._ranked_targets(pos, g, comp, excluded)
-            if not ranked:
-                if self.config.backtrack and stack:
+            if failed_at.get(pos):
+                excluded = visited_mask.copy()
+                for (r, c) in failed_at[pos]:
+                    excluded[r + rad, c + rad] = True
+            else:
+                excluded = visited_mask
+            comp, ranked_idx = rank_local_targets(padded, pos[0], pos[1], g[0], g[1], fr.size, self._nbr, fr.ring,
+                                                  excluded, cfg.interior_targets, cfg.target_order == "merged")
+            if len(ranked_idx) == 0:
+                if cfg.backtrack and stack:
                     seg = stack.pop()
                     walk.extend(reversed(seg[:-1]))
                     pos = seg[0]
@@ -208,18 +286,21 @@ class IsingPath:
                     continue
                 failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
                            f"reachable from [{pos[0]}, {pos[1]}] was visited or failed"
-                           + (" and backtracking is exhausted" if self.config.backtrack else " (backtrack=False)")
+                           + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
                            + " (the goal may be unreachable)")
                 break
             # calls left in the budget limit how many targets share this submission
             room = max(1, (max_calls - used) // per_target)
             room = min(room, max_attempts - counts["patch_solves"])
-            batch = ranked[: min(self.config.targets_per_call, room)]
-            problems = [self._problem(comp, li) for li, _ in batch]
+            batch = [(int(li), (pos[0] + int(offsets[li, 0]), pos[1] + int(offsets[li, 1])))
+                     for li in ranked_idx[: min(cfg.targets_per_call, room)]]
+            key = comp.tobytes()
+            problems = [self._program(comp, key, li) for li, _ in batch]
             # a problem without variables (the target is the robot's only patch neighbour) needs no chip
             results: list = [[] for _ in batch]
             on_chip = []
-            for k, (pr, _) in enumerate(problems):
+            for k, prog in enumerate(problems):
+                pr = prog.problem
                 if pr.n == 0:
                     path = decode_paths(fr, pr, np.zeros((1, 0)))[0]
                     if path is not None:
@@ -228,29 +309,31 @@ class IsingPath:
                     on_chip.append(k)
             if on_chip:
                 try:
-                    outs = self._solve(solver, [problems[k] for k in on_chip], rng)
+                    if cfg.pack:
+                        outs = self._solve_portfolio(solver, [problems[k] for k in on_chip], rng)
+                    else:
+                        outs = self._submit(solver, [problems[k] for k in on_chip], rng)
                 except SolverOutputError as exc:
                     failure = f"the chip returned malformed samples: {exc}"
                     break
                 counts["anneal_calls"] += 1
                 counts["patch_solves"] += len(on_chip)
-                for k, res in zip(on_chip, outs):
-                    for st, o in res.outcomes.items():
-                        mapping[st]["programs"] += o.reads
-                        mapping[st]["valid"] += o.valid
-                        mapping[st]["map_errors"] += int(o.error is not None)
-                        if o.error is not None and first_map_error is None:
-                            first_map_error = f"{st}: {o.error}"
-                    if res.success:
-                        tol = 1e-9 * max(1.0, abs(res.best_score))
-                        winners = [st for st in self.config.styles if res.outcomes[st].best_score <= res.best_score + tol]
-                        results[k].append((res.best_score, winners, res.best))
+                for k, (best, outcomes) in zip(on_chip, outs):
+                    for st, (reads, valid, err, _score) in outcomes.items():
+                        m = mapping[st]
+                        m["programs"] += reads
+                        m["valid"] += valid
+                        m["map_errors"] += int(err is not None)
+                        if err is not None and first_map_error is None:
+                            first_map_error = f"{st}: {err}"
+                    if best is not None:
+                        results[k].append(best)
             chosen = None
             for k, (li, target) in enumerate(batch):
                 if results[k]:
                     chosen = results[k][0]
                     break
-                failed.add((pos, target))
+                failed_at.setdefault(pos, []).append(target)
             if chosen is None:
                 continue
             _, winners, path = chosen
@@ -263,7 +346,8 @@ class IsingPath:
             if g in seg:  # the segment passes the goal: the robot stops there
                 seg = seg[: seg.index(g) + 1]
             walk.extend(seg[1:])
-            visited.update(seg)
+            for (r, c) in seg:
+                visited_mask[r + rad, c + rad] = True
             stack.append(seg)
             counts["segments"] += 1
             pos = seg[-1]

@@ -1,0 +1,189 @@
+"""Compiled host kernels of Ising pathfinding (paper 5.1): patch ranking and sample scoring.
+
+* :func:`rank_local_targets` -- the free cells 4-connected to the robot inside the
+  patch and the local targets ranked as :meth:`IsingPath` ranks them (goal, boundary
+  by Manhattan distance to the goal, interior; ties by moves from the robot, then
+  row-major), skipping excluded cells.  One call per robot position.
+* :func:`score_patch_samples` -- physical spins of every (program, read) of one
+  submission -> majority-decoded logical spins -> the strict simple-path check of
+  :func:`~planners.ising.path.decode.decode_paths` -> the original (unmerged) Ising
+  energy.  One call per chip submission.
+
+Reference implementations (the slower numpy/Python ones in :mod:`.qubo` / :mod:`.decode`
+and ``IsingPath``) are what the tests compare these against.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["rank_local_targets", "score_patch_samples", "neighbour_table"]
+
+
+def neighbour_table(frame) -> np.ndarray:
+    """``(n, 4)`` int64: the 4-neighbours of every patch cell (``-1`` padded), ascending."""
+    tab = np.full((frame.n, 4), -1, dtype=np.int64)
+    for i, nb in enumerate(frame.neighbours):
+        tab[i, : len(nb)] = nb
+    return tab
+
+
+@numba.njit(cache=True)
+def rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged):
+    """Component of the robot cell and its ranked local targets.
+
+    Args:
+        padded: ``(H + 2r, W + 2r)`` bool obstacles, padded with ``True`` by ``r = size // 2``.
+        pr, pc / gr, gc: robot / goal cell (grid coordinates).
+        nbr: :func:`neighbour_table`; ring: ``(n,)`` bool patch-boundary cells.
+        excluded: ``(H + 2r, W + 2r)`` bool: cells that may not be a local target
+            (the robot's walk, targets that failed from this position).
+        interior: interior cells are targets after the boundary; merged: rank boundary and
+            interior cells together (``target_order="merged"``).
+
+    Returns ``(comp (n,) bool, ranked (m,) int64 patch-cell indices)``.
+    """
+    n = size * size
+    rad = size // 2
+    centre = n // 2
+    comp = np.zeros(n, dtype=np.bool_)
+    stack = np.empty(n, dtype=np.int64)
+    if not padded[pr + rad, pc + rad]:
+        comp[centre] = True
+        stack[0] = centre
+        top = 1
+        while top > 0:
+            top -= 1
+            i = stack[top]
+            for k in range(4):
+                j = nbr[i, k]
+                if j < 0:
+                    break
+                if not comp[j] and not padded[pr + j // size, pc + j % size]:
+                    comp[j] = True
+                    stack[top] = j
+                    top += 1
+    keys = np.empty(n, dtype=np.int64)
+    cand = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if not comp[i] or i == centre:
+            continue
+        dr = i // size - rad
+        dc = i % size - rad
+        if excluded[pr + rad + dr, pc + rad + dc]:
+            continue
+        r = pr + dr
+        c = pc + dc
+        if r == gr and c == gc:
+            cls = 0
+        elif ring[i]:
+            cls = 1
+        else:
+            cls = 2
+        if cls == 2 and not interior:
+            continue
+        to_goal = abs(r - gr) + abs(c - gc)
+        from_pos = abs(dr) + abs(dc)
+        if merged:  # lexsort((idx, from_pos, cls, to_goal, cls != 0))
+            key = (((np.int64(cls != 0) * 1048576 + to_goal) * 4 + cls) * 1024 + from_pos) * 4096 + i
+        else:  # lexsort((idx, from_pos, to_goal, cls))
+            key = ((np.int64(cls) * 1048576 + to_goal) * 1024 + from_pos) * 4096 + i
+        keys[m] = key
+        cand[m] = i
+        m += 1
+    order = np.argsort(keys[:m])
+    return comp, cand[:m][order]
+
+
+@numba.njit(cache=True)
+def score_patch_samples(spins, ptr, idx, n_logical, cells, start, goal, nbr, h, J, offset):
+    """Decode, check and score every read of the programs of one patch problem.
+
+    Args:
+        spins: ``(P, R, W)`` int8 physical spins of ``P`` programs (merge styles) x ``R`` reads.
+        ptr, idx: ``(P, n + 1)`` / ``(P, >= N)`` copy layouts of the programs (majority decode,
+            a tie to the original copy).
+        n_logical: number of patch variables ``n``; cells: ``(n,)`` their patch-cell indices.
+        start, goal: the pinned endpoints (patch-cell indices); nbr: :func:`neighbour_table`.
+        h, J, offset: the logical Ising model of the patch QUBO (the original objective).
+
+    Returns ``(valid (P, R) bool, energy (P, R) float64, logical (P, R, n) int8)``: a read is
+    valid when its selected cells plus the endpoints form one simple, induced 4-connected
+    path from start to goal; ``energy`` is the logical model's energy (``inf`` when invalid).
+    """
+    P = spins.shape[0]
+    R = spins.shape[1]
+    n = n_logical
+    nc = nbr.shape[0]
+    valid = np.zeros((P, R), dtype=np.bool_)
+    energy = np.full((P, R), np.inf)
+    logical = np.zeros((P, R, n), dtype=np.int8)
+    sel = np.zeros(nc, dtype=np.bool_)
+    for p in range(P):
+        for r in range(R):
+            s = spins[p, r]
+            x = logical[p, r]
+            for i in range(n):
+                c0 = ptr[p, i]
+                c1 = ptr[p, i + 1]
+                v = s[i]
+                if c1 - c0 > 1:
+                    tot = 0
+                    for c in range(c0, c1):
+                        tot += np.int64(s[idx[p, c]])
+                    v = 1 if tot > 0 else (-1 if tot < 0 else s[idx[p, c0]])
+                x[i] = v
+            sel[:] = False
+            total = 2
+            for i in range(n):
+                if x[i] > 0:
+                    sel[cells[i]] = True
+                    total += 1
+            sel[start] = True
+            sel[goal] = True
+            ok = True
+            for i in range(nc):
+                if not sel[i]:
+                    continue
+                deg = 0
+                for k in range(4):
+                    j = nbr[i, k]
+                    if j < 0:
+                        break
+                    deg += sel[j]
+                want = 1 if (i == start or i == goal) else 2
+                if deg != want:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            # walk from start: every selected cell must be reached before the goal
+            prev = -1
+            cur = start
+            steps = 1
+            while cur != goal:
+                nxt = -1
+                for k in range(4):
+                    j = nbr[cur, k]
+                    if j < 0:
+                        break
+                    if sel[j] and j != prev:
+                        nxt = j
+                        break
+                if nxt < 0:
+                    break
+                prev = cur
+                cur = nxt
+                steps += 1
+            if cur != goal or steps != total:
+                continue
+            valid[p, r] = True
+            e = offset
+            for i in range(n):
+                e += h[i] * x[i]
+                for j in range(i + 1, n):
+                    e += J[i, j] * x[i] * x[j]
+            energy[p, r] = e
+    return valid, energy, logical

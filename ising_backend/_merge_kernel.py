@@ -5,7 +5,7 @@ Contract (see :func:`.merge.merge_spins` for the algorithm; design notes in
 
 * :func:`merge_styles` maps one logical model, given as rounded integer fields
   ``H (n,)`` and upper-triangular couplings ``C (n, n)`` (int64), with several
-  merge styles in one call.  It reproduces :func:`.merge.merge_spins` exactly:
+  merge styles in one call; :func:`merge_batch` maps several (zero-padded) models.  It reproduces :func:`.merge.merge_spins` exactly:
   the same duplication choices (same float keys, ties on the lowest index), the
   same physical layout (originals ``0..n-1``, then the extra copies grouped by
   spin) and the same splits, so ``h`` / ``J`` are bit-identical.
@@ -25,7 +25,7 @@ import numpy as np
 
 __all__ = [
     "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
-    "merge_styles", "decode_copies",
+    "merge_batch", "merge_styles", "decode_copies",
 ]
 
 #: merge style name -> style id of the kernels (the order of ``MERGE_STYLES``)
@@ -44,15 +44,15 @@ _EVEN = (False, True, False, True)  # split mode per style id: spill (False) or 
 
 
 @numba.njit(cache=True)
-def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
-    """The duplication loop of one style: copy counts into ``a``; returns a status code.
+def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
+    """The duplication loop of one style on model ``b`` (``n`` spins): copy counts into ``a``;
+    returns a status code.
 
     Each round recomputes, as the reference does, the excess of every field
     (``|H_i| - Lh a_i``) and coupling (``|C_ij| - Lj a_i a_j``), the per-spin total
     excess (float64: ``float(field excess) + float(coupling excesses)``), and adds
     one copy to the spin the style picks.
     """
-    n = H.shape[0]
     for i in range(n):
         a[i] = 1
     if n > n_spins:
@@ -69,13 +69,13 @@ def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
             exj[i] = 0
         for i in range(n):
             for j in range(i + 1, n):
-                e = abs(C[i, j]) - Lj * a[i] * a[j]
+                e = abs(C[b, i, j]) - Lj * a[i] * a[j]
                 if e > 0:
                     bad_j = True
                     exj[i] += e
                     exj[j] += e
         for i in range(n):
-            e = abs(H[i]) - Lh * a[i]
+            e = abs(H[b, i]) - Lh * a[i]
             if e > 0:
                 bad_h = True
             else:
@@ -88,7 +88,7 @@ def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
                 bi = 0
                 best = -1
                 for i in range(n):
-                    e = abs(H[i]) - Lh * a[i]
+                    e = abs(H[b, i]) - Lh * a[i]
                     v = e if e > 0 else -1
                     if v > best:
                         best = v
@@ -101,7 +101,7 @@ def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
             bj = 0
             for i in range(n):
                 for j in range(i + 1, n):
-                    e = abs(C[i, j]) - Lj * a[i] * a[j]
+                    e = abs(C[b, i, j]) - Lj * a[i] * a[j]
                     if e > best:
                         best = e
                         bi = i
@@ -121,7 +121,7 @@ def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
             ih = 0
             for i in range(n):
                 cap = Lh * a[i]
-                r = abs(H[i]) / cap if abs(H[i]) > cap else 0.0
+                r = abs(H[b, i]) / cap if abs(H[b, i]) > cap else 0.0
                 if r > rh:
                     rh = r
                     ih = i
@@ -131,7 +131,7 @@ def _copy_counts(H, C, style, Lh, Lj, n_spins, degree, strength, a, err):
             for i in range(n):
                 for j in range(i + 1, n):
                     cap = Lj * a[i] * a[j]
-                    r = abs(C[i, j]) / max(cap, 1) if abs(C[i, j]) > cap else 0.0
+                    r = abs(C[b, i, j]) / max(cap, 1) if abs(C[b, i, j]) > cap else 0.0
                     if r > rj:
                         rj = r
                         ii = i
@@ -180,18 +180,18 @@ def _phys(i, m, start):
 
 
 @numba.njit(cache=True)
-def _fill(H, C, a, even, Lh, Lj, tie, start, hp, Jp):
-    """Physical ``hp`` / ``Jp`` (zeroed on entry) from the copy counts; returns the number of ties."""
-    n = H.shape[0]
+def _fill(H, C, b, n, a, even, Lh, Lj, tie, start, hp, Jp):
+    """Physical ``hp`` / ``Jp`` (zeroed on entry) of model ``b`` from the copy counts;
+    returns the number of ties."""
     for i in range(n):
         if a[i] == 1:
-            hp[i] = H[i]
+            hp[i] = H[b, i]
         else:
             for m in range(a[i]):
-                hp[_phys(i, m, start)] = _piece(H[i], a[i], m, Lh, even)
+                hp[_phys(i, m, start)] = _piece(H[b, i], a[i], m, Lh, even)
     for i in range(n):
         for j in range(i + 1, n):
-            c = C[i, j]
+            c = C[b, i, j]
             if a[i] == 1 and a[j] == 1:
                 Jp[i, j] = c
             elif c != 0:  # spread over the copy pairs (p over i's copies, q over j's)
@@ -220,60 +220,85 @@ def _fill(H, C, a, even, Lh, Lj, tie, start, hp, Jp):
 
 
 @numba.njit(cache=True)
-def merge_styles(H, C, styles, Lh, Lj, tie, n_spins):
-    """Merge one logical model with each of ``styles`` (style ids, see :data:`STYLE_IDS`).
+def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
+    """Merge ``B`` logical models with each of ``styles`` (style ids, see :data:`STYLE_IDS`).
 
     Args:
-        H: ``(n,)`` int64 rounded fields; C: ``(n, n)`` int64 rounded couplings, upper triangular.
-        styles: ``(k,)`` int64 style ids.  Lh, Lj: symmetric range limits (>= 1);
-        tie: tie strength in ``[1, Lj]``; n_spins: the chip's spin budget.
+        H: ``(B, n_max)`` int64 rounded fields; C: ``(B, n_max, n_max)`` int64 rounded
+            couplings, upper triangular; model ``b`` is ``H[b, :n[b]]``, ``C[b, :n[b], :n[b]]``
+            (the padding is ignored).
+        n: ``(B,)`` int64 spins per model.  styles: ``(k,)`` int64 style ids.
+        Lh, Lj: symmetric range limits (>= 1); tie: tie strength in ``[1, Lj]``;
+        n_spins: the chip's spin budget.
 
-    Returns ``(status, err, a, n_phys, h, J, offset_add, ptr, idx)``:
-        status ``(k,)`` int64 (``MERGE_*`` codes), err ``(k, 2)`` int64 (indices of the
-        term that did not fit, ``-1`` unused), a ``(k, n)`` int64 copy counts (at the
-        failure for a failed style), n_phys ``(k,)`` int64 physical spins (0 if failed),
-        h ``(k, N)`` float64 and J ``(k, N, N)`` float64 upper triangular, zero-padded to
-        ``N = max(n_phys)``, offset_add ``(k,)`` float64 ``tie x ties`` (add to
-        ``offset x scale``), ptr ``(k, n + 1)`` / idx ``(k, N)`` int64 copy layout.
+    Returns ``(status, err, a, n_phys, h, J, offset_add, ptr, idx)`` with one row per
+    (model, style), row ``r = b * k + s``:
+        status ``(R,)`` int64 (``MERGE_*`` codes); err ``(R, 2)`` int64 (the term that did
+        not fit, ``-1`` unused); a ``(R, n_max)`` int64 copy counts (at the failure for a
+        failed row, 0 beyond the model); n_phys ``(R,)`` int64 physical spins (0 if
+        failed); h ``(R, N)`` float64 and J ``(R, N, N)`` float64 upper triangular,
+        zero-padded to ``N = max(n_phys)``; offset_add ``(R,)`` float64 ``tie x ties``
+        (the physical offset is ``offset x scale + offset_add``); ptr ``(R, n_max + 1)``
+        / idx ``(R, N)`` int64 copy layout (``ptr`` constant beyond the model).
     """
-    n = H.shape[0]
+    B = H.shape[0]
+    n_max = H.shape[1]
     k = styles.shape[0]
-    absC = np.abs(C) + np.abs(C).T
-    degree = np.zeros(n, dtype=np.int64)
-    strength = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        for j in range(n):
-            degree[i] += absC[i, j] != 0
-            strength[i] += absC[i, j]
-    status = np.zeros(k, dtype=np.int64)
-    err = np.full((k, 2), -1, dtype=np.int64)
-    a = np.ones((k, n), dtype=np.int64)
-    n_phys = np.zeros(k, dtype=np.int64)
+    R = B * k
+    degree = np.zeros(n_max, dtype=np.int64)
+    strength = np.zeros(n_max, dtype=np.int64)
+    status = np.zeros(R, dtype=np.int64)
+    err = np.full((R, 2), -1, dtype=np.int64)
+    a = np.zeros((R, n_max), dtype=np.int64)
+    n_phys = np.zeros(R, dtype=np.int64)
     N = 0
-    for s in range(k):
-        status[s] = _copy_counts(H, C, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err[s])
-        if status[s] == MERGE_OK:
-            n_phys[s] = a[s].sum()
-            N = max(N, n_phys[s])
-    h = np.zeros((k, N))
-    J = np.zeros((k, N, N))
-    offset_add = np.zeros(k)
-    ptr = np.zeros((k, n + 1), dtype=np.int64)
-    idx = np.zeros((k, N), dtype=np.int64)
-    start = np.zeros(n, dtype=np.int64)
-    for s in range(k):
-        if status[s] != MERGE_OK:
+    for b in range(B):
+        nb = n[b]
+        for i in range(nb):  # absC = |C| + |C|.T: non-zero couplings and total |coupling| per spin
+            degree[i] = 0
+            strength[i] = 0
+            for j in range(nb):
+                v = abs(C[b, i, j]) + abs(C[b, j, i])
+                degree[i] += v != 0
+                strength[i] += v
+        for s in range(k):
+            r = b * k + s
+            status[r] = _copy_counts(H, C, b, nb, styles[s], Lh, Lj, n_spins, degree, strength, a[r], err[r])
+            if status[r] == MERGE_OK:
+                n_phys[r] = a[r].sum()
+                N = max(N, n_phys[r])
+    h = np.zeros((R, N))
+    J = np.zeros((R, N, N))
+    offset_add = np.zeros(R)
+    ptr = np.zeros((R, n_max + 1), dtype=np.int64)
+    idx = np.zeros((R, N), dtype=np.int64)
+    start = np.zeros(n_max, dtype=np.int64)
+    for r in range(R):
+        if status[r] != MERGE_OK:
             continue
-        nxt = n
-        for i in range(n):
+        b = r // k
+        nb = n[b]
+        nxt = nb
+        for i in range(nb):
             start[i] = nxt
-            nxt += a[s, i] - 1
-            ptr[s, i + 1] = ptr[s, i] + a[s, i]
-            for m in range(a[s, i]):
-                idx[s, ptr[s, i] + m] = _phys(i, m, start)
-        even = _EVEN[styles[s]]
-        offset_add[s] = tie * _fill(H, C, a[s], even, Lh, Lj, tie, start, h[s], J[s])
+            nxt += a[r, i] - 1
+            ptr[r, i + 1] = ptr[r, i] + a[r, i]
+            for m in range(a[r, i]):
+                idx[r, ptr[r, i] + m] = _phys(i, m, start)
+        for i in range(nb + 1, n_max + 1):
+            ptr[r, i] = ptr[r, nb]
+        even = _EVEN[styles[r % k]]
+        offset_add[r] = tie * _fill(H, C, b, nb, a[r], even, Lh, Lj, tie, start, h[r], J[r])
     return status, err, a, n_phys, h, J, offset_add, ptr, idx
+
+
+@numba.njit(cache=True)
+def merge_styles(H, C, styles, Lh, Lj, tie, n_spins):
+    """Merge one logical model (``H (n,)``, ``C (n, n)`` int64) with each of ``styles``:
+    :func:`merge_batch` with ``B = 1`` (same returns, one row per style)."""
+    n = H.shape[0]
+    sizes = np.full(1, n, dtype=np.int64)
+    return merge_batch(H.reshape(1, n), C.reshape(1, n, n), sizes, styles, Lh, Lj, tie, n_spins)
 
 
 @numba.njit(cache=True)

@@ -57,6 +57,8 @@ class QuantizeError(ValueError):
 
 def _pair(rng, name) -> tuple[int, int]:
     """``rng`` as an integer ``(low, high)`` pair; anything else is an error (never truncated)."""
+    if type(rng) is tuple and len(rng) == 2 and type(rng[0]) is int and type(rng[1]) is int:
+        return rng  # the common case (a ChipSpec range), without the general check's array round trip
     vals = tuple(np.ravel(np.asarray(rng, dtype=object)))
     if len(vals) != 2 or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in vals):
         raise QuantizeError(f"{name} = {rng!r} must be an integer (low, high) pair, e.g. (-7, 7)")

@@ -29,6 +29,7 @@ from ising_backend._merge_kernel import (
     MERGE_TOO_MANY_SPINS,
     STYLE_IDS,
     decode_copies,
+    merge_batch,
     merge_styles,
 )
 from ising_backend._quantize_kernel import RULE_IDS, quantize_rules
@@ -128,6 +129,40 @@ def test_merge_batch_matches_single_styles(seed, n, kind, mag, density, budget, 
         assert np.array_equal(a[k], [len(c) for c in ref.copies])
         for i, c in enumerate(ref.copies):
             assert np.array_equal(idx[k, ptr[k, i]:ptr[k, i + 1]], c)
+
+
+@settings(max_examples=60, **SETTINGS)
+@given(seed=st.integers(0, 2**32 - 1), models=st.integers(1, 5), styles=st.lists(st.integers(0, 3), max_size=5))
+def test_merge_batch_rows_match_reference(seed, models, styles):
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(0, 20, models)
+    n_max = int(sizes.max())
+    H = rng.integers(-99, 100, (models, n_max))  # padding is garbage: the kernel must ignore it
+    C = rng.integers(-99, 100, (models, n_max, n_max))
+    logical = []
+    for b, n in enumerate(sizes):
+        m = _random_model(rng, int(n), 0, int(rng.choice([5, 9, 20])), 0.3)
+        H[b, :n], C[b, :n, :n] = m.h, m.J
+        logical.append(m)
+    ids = np.array(styles, dtype=np.int64)
+    status, err, a, n_phys, h, J, off, ptr, idx = merge_batch(H, C, sizes, ids, 7, 7, 7, 45)
+    R = models * len(styles)
+    assert status.shape == (R,) and a.shape == (R, n_max) and ptr.shape == (R, n_max + 1) and h.shape[0] == R
+    for r in range(R):
+        m, style = logical[r // len(styles)], MERGE_STYLES[styles[r % len(styles)]]
+        try:
+            ref = merge_spins_ref(m, style)
+        except MergeError as exc:
+            Hb, Cb = np.rint(m.h).astype(np.int64), np.rint(m.J).astype(np.int64)
+            assert merge_error_message(int(status[r]), err[r], Hb, Cb, a[r, :m.n], 7, 7, 45) == str(exc)
+            continue
+        k = ref.physical.n
+        assert status[r] == MERGE_OK and n_phys[r] == k and m.offset + off[r] == ref.physical.offset
+        assert h[r, :k].tobytes() == ref.physical.h.tobytes() and not h[r, k:].any()
+        assert J[r, :k, :k].tobytes() == ref.physical.J.tobytes() and not J[r, k:].any() and not J[r, :, k:].any()
+        assert np.all(ptr[r, m.n:] == k)
+        for i, c in enumerate(ref.copies):
+            assert np.array_equal(idx[r, ptr[r, i]:ptr[r, i + 1]], c)
 
 
 def test_merge_edge_cases():

@@ -83,8 +83,8 @@ class SharingResult:
     """Targets assigned to robots: ``assignment[k]`` lists target indices (0..N-1)
     for robot ``k`` (order not meaningful; the tour layer orders them).
 
-    A planner that gives up sets ``failure`` (or, equivalently for the
-    pipeline, ``stats["failure"]``); the pipeline turns it into a failed plan.
+    A planner that gives up sets ``failure`` (the one failure channel); the
+    pipeline turns it into a failed plan.
     """
 
     assignment: tuple[tuple[int, ...], ...]
@@ -94,7 +94,7 @@ class SharingResult:
 
     @property
     def success(self) -> bool:
-        return self.failure is None and not self.stats.get("failure")
+        return self.failure is None
 
 
 @runtime_checkable

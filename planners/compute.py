@@ -31,7 +31,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields
 
-__all__ = ["ComputeReport", "CPU_WATTS_PER_CORE", "stopwatch"]
+__all__ = ["ComputeReport", "CPU_WATTS_PER_CORE", "RECORD_KEYS", "stopwatch"]
 
 #: Paper 6.1: "a 15 W per-core power estimate obtained by normalizing the CPU TDP".
 CPU_WATTS_PER_CORE = 15.0
@@ -103,25 +103,48 @@ class ComputeReport:
     def replace(self, **changes) -> "ComputeReport":
         return dataclasses.replace(self, **changes)
 
-    def to_dict(self) -> dict:
-        """The ``compute`` object of ``mrmt plan`` output (derived energies included)."""
-        d = asdict(self)
-        d["host_energy_j"] = self.host_energy_j
+    @property
+    def accelerated(self) -> bool:
+        """Whether any (physical or projected logical) accelerator call was made."""
+        return self.chip_calls > 0 or self.logical_calls > 0
+
+    def to_record(self, accelerated: bool | None = None) -> dict:
+        """The one flat record of a report: ``mrmt plan``'s ``compute`` object and the compute
+        columns of ``compare``, ``reproduce`` and the benchmarks (:data:`RECORD_KEYS`).
+
+        Measured and derived values side by side: host time and energy (the system
+        total's host part), accelerator time and energy, latency = host + chip time
+        (sequential / 8-core parallel), and the paper's convention (section 6.1):
+        ``paper_time_s`` / ``paper_energy_j`` are the accelerator's figures for an
+        accelerated method and the CPU's for a classical one (``accelerated``:
+        default :attr:`accelerated`).
+        """
+        acc = self.accelerated if accelerated is None else bool(accelerated)
         return {
-            "cpu_s": d["cpu_s"],
-            "emulation_s": d["emulation_s"],
-            "host_cpu_s": self.host_cpu_s,
-            "host_energy_j": d["host_energy_j"],
-            "chip_calls": d["chip_calls"],
-            "chip_batches": d["chip_batches"],
-            "logical_calls": d["logical_calls"],
-            "chip_time_s": d["chip_time_s"],
-            "chip_time_parallel_s": d["chip_time_parallel_s"],
-            "accelerator_energy_j": d["accelerator_energy_j"],
+            "cpu_s": float(self.cpu_s),
+            "emulation_s": float(self.emulation_s),
+            "host_cpu_s": float(self.host_cpu_s),
+            "chip_calls": int(self.chip_calls),
+            "chip_batches": int(self.chip_batches),
+            "logical_calls": int(self.logical_calls),
+            "chip_time_s": float(self.chip_time_s),
+            "chip_time_parallel_s": float(self.chip_time_parallel_s),
+            "latency_s": float(self.host_cpu_s + self.chip_time_s),
+            "latency_parallel_s": float(self.host_cpu_s + self.chip_time_parallel_s),
+            "accelerator_energy_j": float(self.accelerator_energy_j),
+            "host_energy_j": float(self.host_energy_j),
+            "total_energy_j": float(self.total_energy_j),
+            "paper_time_s": float(self.chip_time_s if acc else self.cpu_s),
+            "paper_energy_j": float(self.accelerator_energy_j if acc else self.host_energy_j),
         }
+
+    to_dict = to_record
 
 
 _FIELDS = tuple(f.name for f in fields(ComputeReport))
+
+#: Keys of :meth:`ComputeReport.to_record`, in order.
+RECORD_KEYS = tuple(ComputeReport().to_record())
 
 
 @contextmanager

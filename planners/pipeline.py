@@ -66,14 +66,13 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from mrmt_env.world import World
 from planners import registry
 from planners.base import PathResult, SharingResult, TourResult
 from planners.compute import ComputeReport, stopwatch
-from planners.plan import Plan, RobotRoute
+from planners.plan import Plan, PlanError, RobotRoute, path_problem, validate_plan
 
 __all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
 
@@ -141,47 +140,6 @@ def merge_stats(into: dict, new: dict) -> dict:
     return into
 
 
-@numba.njit(cache=True, nogil=True)
-def _path_ok(grid, p, ar, ac, br, bc):
-    h, w = grid.shape
-    n = p.shape[0]
-    if p[0, 0] != ar or p[0, 1] != ac or p[n - 1, 0] != br or p[n - 1, 1] != bc:
-        return False
-    for i in range(n):
-        r = p[i, 0]
-        c = p[i, 1]
-        if r < 0 or r >= h or c < 0 or c >= w or grid[r, c]:
-            return False
-        if i > 0 and abs(r - p[i - 1, 0]) + abs(c - p[i - 1, 1]) > 1:
-            return False
-    return True
-
-
-def _path_problem(world: World, path, a, b) -> str | None:
-    """Why ``path`` is not a legal path from ``a`` to ``b`` (None if it is)."""
-    p = np.asarray(path)
-    if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
-        return f"path layer returned an array of shape {p.shape}, not (L+1, 2) cells"
-    if p.dtype == np.int64 and _path_ok(world.grid, p, int(a[0]), int(a[1]), int(b[0]), int(b[1])):
-        return None
-    if not np.array_equal(p[0], a) or not np.array_equal(p[-1], b):
-        return f"path layer returned a path from {p[0].tolist()} to {p[-1].tolist()}, not {list(a)} to {list(b)}"
-    h, w = world.shape
-    inside = (p[:, 0] >= 0) & (p[:, 0] < h) & (p[:, 1] >= 0) & (p[:, 1] < w)
-    if not inside.all():
-        return f"path layer returned cell {p[~inside][0].tolist()} off the {h}x{w} grid"
-    blocked = world.grid[p[:, 0], p[:, 1]]
-    if blocked.any():
-        return f"path layer returned a path through obstacle {p[blocked][0].tolist()}"
-    steps = np.abs(np.diff(p, axis=0)).sum(axis=1)
-    if (steps > 1).any():
-        i = int(np.flatnonzero(steps > 1)[0])
-        return f"path layer returned a jump from {p[i].tolist()} to {p[i + 1].tolist()}"
-    if p.dtype.kind not in "iu":
-        return f"path layer returned {p.dtype} cells, not integers"
-    return None
-
-
 def _assignment_problem(assignment, n_robots: int, n_targets: int) -> str | None:
     if len(assignment) != n_robots:
         return f"assignment has {len(assignment)} groups for {n_robots} robots"
@@ -241,7 +199,7 @@ class Pipeline:
                 res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
                 acc["sharing"].add(res.compute, _clock() - t0)
                 merge_stats(stats, res.stats)
-                problem = getattr(res, "failure", None) or res.stats.get("failure")
+                problem = res.failure
                 if not problem:
                     assignment = tuple(tuple(int(x) for x in g) for g in res.assignment)
                     problem = _assignment_problem(assignment, r, n)
@@ -263,7 +221,7 @@ class Pipeline:
                     acc["tour"].add(tres.compute, _clock() - t0)
                     if tres.stats:
                         merge_stats(stats, tres.stats)
-                    problem = getattr(tres, "failure", None) or tres.stats.get("failure")
+                    problem = tres.failure
                     if not problem and sorted(tres.order) != list(range(1, len(group) + 1)):
                         problem = f"tour layer returned order {list(tres.order)}, not a permutation of 1..{len(group)}"
                     if problem:
@@ -284,7 +242,7 @@ class Pipeline:
                     if pres.path is None:
                         problem = pres.failure or "path layer gave no path"
                     else:
-                        problem = _path_problem(world, pres.path, a, b)
+                        problem = path_problem(world, pres.path, a, b)
                     if problem:
                         failures.append(
                             f"robot {k} leg {j} ({a.tolist()} -> target {ordered[j]} at {b.tolist()}): {problem}"
@@ -293,6 +251,12 @@ class Pipeline:
                     pieces.append(np.asarray(pres.path, dtype=np.int64)[1:])
                     reached.append(ordered[j])
                 routes.append(RobotRoute(tuple(reached), np.concatenate(pieces, axis=0)))
+            routes = tuple(routes)
+            try:  # the one validity check: never hand out an illegal plan as a success
+                validate_plan(world, Plan(routes=routes), require_complete=not failures)
+            except PlanError as exc:
+                routes = tuple(RobotRoute((), world.robots[k].reshape(1, 2)) for k in range(r))
+                failures.append(f"invalid plan: {exc}")
         reports = {layer: a.total() for layer, a in acc.items()}
         layers_cpu = sum(rep.cpu_s for rep in reports.values())
         glue = max(total() - layers_cpu, 0.0)
@@ -300,13 +264,8 @@ class Pipeline:
         stats["glue_cpu_s"] = glue
         stats["pipeline"] = self.name
         compute = reports["sharing"] + reports["tour"] + reports["path"] + ComputeReport(cpu_s=glue)
-        return Plan(
-            routes=tuple(routes),
-            compute=compute,
-            success=not failures,
-            failure="; ".join(failures) if failures else None,
-            stats=stats,
-        )
+        return Plan(routes=routes, compute=compute, success=not failures,
+                    failure="; ".join(failures) if failures else None, stats=stats)
 
     def __repr__(self) -> str:
         return f"Pipeline(sharing={self.sharing!r}, tour={self.tour!r}, path={self.path!r})"

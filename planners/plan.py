@@ -12,12 +12,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from mrmt_env.world import World
 from planners.compute import ComputeReport
 
-__all__ = ["RobotRoute", "Plan", "PlanError", "validate_plan"]
+__all__ = ["RobotRoute", "Plan", "PlanError", "validate_plan", "path_problem"]
 
 
 class PlanError(ValueError):
@@ -102,6 +103,50 @@ class Plan:
         return d
 
 
+@numba.njit(cache=True, nogil=True)
+def _path_ok(grid, p, ar, ac, br, bc):
+    h, w = grid.shape
+    n = p.shape[0]
+    if p[0, 0] != ar or p[0, 1] != ac or p[n - 1, 0] != br or p[n - 1, 1] != bc:
+        return False
+    for i in range(n):
+        r = p[i, 0]
+        c = p[i, 1]
+        if r < 0 or r >= h or c < 0 or c >= w or grid[r, c]:
+            return False
+        if i > 0 and abs(r - p[i - 1, 0]) + abs(c - p[i - 1, 1]) > 1:
+            return False
+    return True
+
+
+def path_problem(world: World, path, a, b) -> str | None:
+    """Why ``path`` is not a legal leg from cell ``a`` to cell ``b`` on ``world`` (``None`` if it is).
+
+    The leg check of :func:`validate_plan` (compiled fast path, then a message that names the cell).
+    """
+    p = np.asarray(path)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) == 0:
+        return f"path layer returned an array of shape {p.shape}, not (L+1, 2) cells"
+    if p.dtype == np.int64 and _path_ok(world.grid, p, int(a[0]), int(a[1]), int(b[0]), int(b[1])):
+        return None
+    if not np.array_equal(p[0], a) or not np.array_equal(p[-1], b):
+        return f"path layer returned a path from {p[0].tolist()} to {p[-1].tolist()}, not {list(a)} to {list(b)}"
+    h, w = world.shape
+    inside = (p[:, 0] >= 0) & (p[:, 0] < h) & (p[:, 1] >= 0) & (p[:, 1] < w)
+    if not inside.all():
+        return f"path layer returned cell {p[~inside][0].tolist()} off the {h}x{w} grid"
+    blocked = world.grid[p[:, 0], p[:, 1]]
+    if blocked.any():
+        return f"path layer returned a path through obstacle {p[blocked][0].tolist()}"
+    steps = np.abs(np.diff(p, axis=0)).sum(axis=1)
+    if (steps > 1).any():
+        i = int(np.flatnonzero(steps > 1)[0])
+        return f"path layer returned a jump from {p[i].tolist()} to {p[i + 1].tolist()}"
+    if p.dtype.kind not in "iu":
+        return f"path layer returned {p.dtype} cells, not integers"
+    return None
+
+
 def validate_plan(world: World, plan: Plan, require_complete: bool = True) -> None:
     """Raise :class:`PlanError` unless ``plan`` is legal for ``world``.
 
@@ -122,7 +167,10 @@ def validate_plan(world: World, plan: Plan, require_complete: bool = True) -> No
             raise PlanError(
                 f"robot {k}: path starts at {path[0].tolist()}, not at its start cell {world.robots[k].tolist()}"
             )
-        for step, cell in enumerate(path):
+        last = path[-1]
+        fast_ok = path.dtype == np.int64 and _path_ok(world.grid, path, int(path[0, 0]), int(path[0, 1]),
+                                                      int(last[0]), int(last[1]))
+        for step, cell in enumerate(() if fast_ok else path):
             r, c = int(cell[0]), int(cell[1])
             if not (0 <= r < world.height and 0 <= c < world.width):
                 raise PlanError(f"robot {k} step {step}: cell [{r}, {c}] is off the {world.height}x{world.width} grid")

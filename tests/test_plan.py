@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mrmt_env import World
-from planners.compute import ComputeReport
+from planners.compute import RECORD_KEYS, ComputeReport
 from planners.plan import Plan, PlanError, RobotRoute, validate_plan
 
 # 4x5 grid, obstacle column at (0..2, 2)
@@ -28,7 +28,7 @@ def test_good_plan_and_metrics():
     assert d["robots"][0] == {"targets": [0, 1], "path": [[0, 0], [1, 0], [2, 0], [3, 0], [3, 1], [3, 2]]}
     assert (d["route_cost"], d["makespan"], d["imbalance"], d["success"]) == (6, 5, 4, True)
     assert d["compute"]["host_energy_j"] == pytest.approx(0.002 * 15)
-    assert set(d["compute"]) == {"cpu_s", "emulation_s", "host_cpu_s", "host_energy_j", "chip_calls",
+    assert set(d["compute"]) == set(RECORD_KEYS) >= {"cpu_s", "emulation_s", "host_cpu_s", "host_energy_j", "chip_calls",
                                  "chip_batches", "logical_calls", "chip_time_s", "chip_time_parallel_s",
                                  "accelerator_energy_j"}
 
@@ -127,3 +127,18 @@ def test_planners_do_not_import_the_env_classes():
             "print(sorted(m for m in sys.modules if m in ('mrmt_env.gym_env', 'mrmt_env.pz_env', 'agents')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_to_record_reports_system_and_paper_figures_side_by_side():
+    rep = ComputeReport(cpu_s=0.010, chip_calls=4, chip_batches=1, chip_time_s=200e-6, chip_time_parallel_s=50e-6,
+                        accelerator_energy_j=1.8e-6, emulation_s=0.004)
+    d = rep.to_record()
+    assert tuple(d) == RECORD_KEYS
+    assert d["latency_s"] == pytest.approx(0.006 + 200e-6)
+    assert d["latency_parallel_s"] == pytest.approx(0.006 + 50e-6)
+    assert d["total_energy_j"] == pytest.approx(1.8e-6 + 0.006 * 15)
+    # the paper's convention: an accelerated method is charged its accelerator only
+    assert (d["paper_time_s"], d["paper_energy_j"]) == (pytest.approx(200e-6), pytest.approx(1.8e-6))
+    classical = ComputeReport(cpu_s=0.001).to_record()
+    assert (classical["paper_time_s"], classical["paper_energy_j"]) == (pytest.approx(0.001), pytest.approx(0.015))
+    assert rep.to_record(accelerated=False)["paper_energy_j"] == pytest.approx(0.006 * 15)

@@ -79,7 +79,6 @@ class IsingSharing:
         if not np.all(np.isfinite(dist)):
             i, j = np.argwhere(~np.isfinite(dist))[0]
             msg = f"node {i} cannot reach node {j} (distance {dist[i, j]}); sharing needs one connected component"
-            stats["failure"] = msg
             return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats, failure=msg)
         if N == 0:
             return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats)
@@ -106,7 +105,6 @@ class IsingSharing:
             self._memo = {}
         except SharingFailure as exc:
             self._memo = {}
-            stats["failure"] = str(exc)
             return SharingResult(
                 assignment=empty, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats, failure=str(exc)
             )

@@ -272,7 +272,6 @@ class IsingTour(Clustering):
     def _result(self, run: _Run, order, dist, failure: str | None = None) -> TourResult:
         compute = ComputeReport.from_ledger(run.solver.charged)
         if failure is not None:
-            run.stats["failure"] = failure
             return TourResult(order=(), cost=math.inf, compute=compute, stats=run.stats, failure=failure)
         return TourResult(order=tuple(order), cost=_tour_cost(dist, list(order)), compute=compute, stats=run.stats)
 

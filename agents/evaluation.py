@@ -188,11 +188,13 @@ def parse_controllers(text: str) -> list[str]:
     return specs
 
 
-def make_controller(spec: str, seed: int = 0):
-    """Build the controller a spec names (see :func:`validate_controller_spec`).
+def make_controller(spec: str, seed: int = 0, env_id: str | None = None):
+    """Build the controller a spec names (see :func:`validate_controller_spec`) for the env ``env_id``.
 
-    Planners become :class:`agents.policy.PlannerPolicy`; ``ppo:PATH`` becomes
-    :class:`agents.learned.LearnedPolicy`.  Every controller has
+    Planners become :class:`agents.policy.PlannerPolicy` in a grid env and
+    :class:`agents.assign_policy.AssignPlannerPolicy` in the plan-level env;
+    ``ppo:PATH`` becomes :class:`agents.learned.LearnedPolicy` (PPO or
+    MaskablePPO, as the model was trained).  Every controller has
     ``predict(obs, state, episode_start, deterministic)`` and
     ``episode_compute(index)``.
     """
@@ -201,17 +203,22 @@ def make_controller(spec: str, seed: int = 0):
         from agents.learned import load_policy
 
         return load_policy(spec[4:], seed=seed)
-    from agents.policy import PlannerPolicy
+    from agents.env_ids import is_assign_env
+
+    if env_id is not None and is_assign_env(env_id):
+        from agents.assign_policy import AssignPlannerPolicy as Policy
+    else:
+        from agents.policy import PlannerPolicy as Policy
 
     if "+" in spec:
         from planners.pipeline import make_pipeline
 
         sharing, tour, path = spec.split("+")
         pipe = make_pipeline(sharing=sharing, tour=tour, path=path)
-        policy = PlannerPolicy(pipe, seed=seed)
+        policy = Policy(pipe, seed=seed)
         policy.name = spec
         return policy
-    return PlannerPolicy(spec, seed=seed)
+    return Policy(spec, seed=seed)
 
 
 # --------------------------------------------------------------------- episodes
@@ -219,16 +226,26 @@ def run_episode(env, controller, world_seed: int | None, index: int = 0) -> dict
     """Run one episode of ``controller`` in ``env``; return its row (without labels).
 
     The env is reset with ``seed=world_seed``; the controller is told the
-    episode starts.  The row has :data:`ROUTE_KEYS`, ``truncated``,
-    ``episode_return`` and the compute columns of the controller's
-    ``episode_compute(index)``.
+    episode starts (and, if it has ``begin_episode(env, index)``, given the
+    env after the reset).  A controller with ``uses_action_masks`` gets
+    ``action_masks`` (``info["action_mask"]`` or ``env.action_masks()``).
+    The row has :data:`ROUTE_KEYS`, ``truncated``, ``episode_return`` and the
+    compute columns of the controller's ``episode_compute(index)``.
     """
     obs, info = env.reset(seed=world_seed)
+    begin = getattr(controller, "begin_episode", None)
+    if begin is not None:
+        begin(env.unwrapped, index)
+    masked = bool(getattr(controller, "uses_action_masks", False))
     start = True
     total = 0.0
     terminated = truncated = False
     while not (terminated or truncated):
-        action, _ = controller.predict(obs, episode_start=start, deterministic=True)
+        kwargs = {}
+        if masked:
+            mask = info.get("action_mask")
+            kwargs["action_masks"] = env.unwrapped.action_masks() if mask is None else mask
+        action, _ = controller.predict(obs, episode_start=start, deterministic=True, **kwargs)
         start = False
         obs, reward, terminated, truncated, info = env.step(action)
         total += float(reward)
@@ -274,10 +291,10 @@ WARMUP_WORLD_SEED = 2**31 - 1
 def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict, warmup: bool = True) -> dict:
     env = _env_for(env_id, env_kwargs)
     name, factory = (spec, None) if isinstance(spec, str) else spec
-    ckey = (name, seed)
+    ckey = (name, seed, env_id)
     ctrl = _CONTROLLERS.get(ckey)
     if ctrl is None:
-        ctrl = _CONTROLLERS[ckey] = make_controller(name, seed=seed) if factory is None else factory(seed)
+        ctrl = _CONTROLLERS[ckey] = make_controller(name, seed=seed, env_id=env_id) if factory is None else factory(seed)
         if warmup:  # first use in this process pays numba/torch start-up: not part of any episode
             run_episode(env, ctrl, WARMUP_WORLD_SEED)
     row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}

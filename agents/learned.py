@@ -36,6 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.env_ids import check_env_id as _spec
+from agents.env_ids import is_assign_env
 from agents.errors import ControllerError
 from planners.compute import ComputeReport
 
@@ -70,23 +72,6 @@ def curve_paths(model_path) -> tuple[Path, Path]:
     """The training curve files next to the model: ``model.curve.csv`` and ``model.curve.png``."""
     stem = sidecar_path(model_path).with_suffix("")
     return stem.with_name(stem.name + ".curve.csv"), stem.with_name(stem.name + ".curve.png")
-
-
-def _spec(env_id: str):
-    import gymnasium as gym
-
-    import mrmt_env  # noqa: F401  (registers the ids)
-
-    if env_id not in gym.registry:
-        known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
-        raise ValueError(f"unknown env id {env_id!r}; registered: {known}")
-    return gym.spec(env_id)
-
-
-def is_assign_env(env_id: str) -> bool:
-    """True for a plan-level (Assign) env id."""
-    entry = _spec(env_id).entry_point
-    return isinstance(entry, str) and entry.endswith("MRMTAssignEnv")
 
 
 def _vec_env(env_id: str, env_kwargs: dict, n_envs: int, seed: int):
@@ -373,8 +358,12 @@ def _algorithm_of(path: str, meta: dict) -> str:
     return "maskable_ppo" if ("sb3_contrib" in data or "Maskable" in data or "assign_net" in data) else "ppo"
 
 
-def load_policy(path, seed: int = 0) -> LearnedPolicy:
+def load_policy(path, seed: int = 0, torch_threads: int | None = 1) -> LearnedPolicy:
     """Load a model saved by :func:`train` (PPO or MaskablePPO) as a :class:`LearnedPolicy`.
+
+    ``torch_threads`` sets ``torch.set_num_threads`` for inference (default 1:
+    one small forward pass per step gains nothing from more threads and the
+    evaluator's workers would contend; ``None`` leaves torch alone).
 
     Raises:
         ControllerError: the file does not exist, is not a zip, the needed
@@ -396,6 +385,10 @@ def load_policy(path, seed: int = 0) -> LearnedPolicy:
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise ControllerError(f"loading a {_algo_name(algo)} model needs the rl extra: pip install 'mrmt-ising[rl]' "
                               f"({exc})") from exc
+    if torch_threads is not None:
+        import torch
+
+        torch.set_num_threads(int(torch_threads))
     try:
         model = Algo.load(path, device="cpu")
     except Exception as exc:  # SB3 raises many kinds for a bad archive

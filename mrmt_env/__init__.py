@@ -31,7 +31,8 @@ __all__ = [
     "GYM_IDS",
     "ASSIGN_IDS",
     "MRMTAssignEnv",
-    "assign_env",
+    "assign_aec_env",
+    "MRMTAssignAECEnv",
 ]
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
@@ -74,7 +75,7 @@ def _register() -> None:
     if "mrmt_env/mrmt_v0" not in parallel_registry:
         register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:parallel_env")
     if "mrmt_env/mrmt_assign_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign_pz:assign_env")
+        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign_pz:assign_aec_env")
 
 
 _register()
@@ -91,7 +92,8 @@ _LAZY = {
     "env": "mrmt_env.pz_env",
     "parallel_env": "mrmt_env.pz_env",
     "MRMTAssignEnv": "mrmt_env.assign_env",
-    "assign_env": "mrmt_env.assign_pz",
+    "assign_aec_env": "mrmt_env.assign_pz",
+    "MRMTAssignAECEnv": "mrmt_env.assign_pz",
 }
 
 

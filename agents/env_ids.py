@@ -1,0 +1,23 @@
+"""Which registered env an id names (grid level or plan level), with a clear error for an unknown id."""
+
+from __future__ import annotations
+
+__all__ = ["check_env_id", "is_assign_env"]
+
+
+def check_env_id(env_id: str):
+    """The id's ``gymnasium`` spec; ``ValueError`` listing the ``mrmt_env/`` ids if it is not registered."""
+    import gymnasium as gym
+
+    import mrmt_env  # noqa: F401  (registers the ids)
+
+    if env_id not in gym.registry:
+        known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
+        raise ValueError(f"unknown env id {env_id!r}; registered: {known}")
+    return gym.spec(env_id)
+
+
+def is_assign_env(env_id: str) -> bool:
+    """True for a plan-level (Assign) env id: an idle robot picks its next target."""
+    entry = check_env_id(env_id).entry_point
+    return isinstance(entry, str) and entry.endswith(":MRMTAssignEnv")

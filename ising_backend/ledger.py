@@ -52,9 +52,8 @@ class CallLedger:
     energy_j: float = 0.0
     emulation_s: float = 0.0
 
-    def __post_init__(self) -> None:
-        # live snapshots, each carrying the exact sum of the charges made after it
-        self._taps: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+    #: live snapshots, each carrying the exact sum of the charges made after it (made on first use)
+    _taps = None
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -63,7 +62,6 @@ class CallLedger:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        self._taps = weakref.WeakValueDictionary()
 
     def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
         """Charge ``calls`` physical calls dispatched together (``seconds`` of host
@@ -93,13 +91,15 @@ class CallLedger:
             emulation_s=float(seconds),
         )
         self._add_in_place(delta)
-        for snap in list(self._taps.values()):
-            snap._charged_since._add_in_place(delta)
+        if self._taps:
+            for snap in list(self._taps.values()):
+                snap._charged_since._add_in_place(delta)
         return delta
 
     def _add_in_place(self, other: "CallLedger") -> None:
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
+        d, o = self.__dict__, other.__dict__
+        for name in _FIELDS:
+            d[name] += o[name]
 
     def __add__(self, other: "CallLedger") -> "CallLedger":
         if not isinstance(other, CallLedger):
@@ -115,12 +115,14 @@ class CallLedger:
         """A copy of the current totals (also the mark for :meth:`since`)."""
         snap = CallLedger(**asdict(self))
         snap._charged_since = CallLedger()
+        if self._taps is None:
+            self._taps = weakref.WeakValueDictionary()
         self._taps[id(snap)] = snap
         return snap
 
     def since(self, snapshot: "CallLedger") -> "CallLedger":
         """What was charged after ``snapshot`` was taken (exact for this ledger's snapshots)."""
-        if self._taps.get(id(snapshot)) is snapshot:
+        if self._taps is not None and self._taps.get(id(snapshot)) is snapshot:
             return CallLedger(**asdict(snapshot._charged_since))
         return self - snapshot
 
@@ -131,3 +133,6 @@ class CallLedger:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+_FIELDS = tuple(f.name for f in fields(CallLedger))

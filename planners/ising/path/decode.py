@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from planners.ising.path.kernels import extract_path, neighbour_table
 from planners.ising.path.qubo import PatchFrame, PatchQubo
 
 __all__ = ["decode_paths", "cut_loops"]
@@ -20,36 +21,15 @@ def decode_paths(frame: PatchFrame, problem: PatchQubo, x: np.ndarray) -> list:
     """
     x = np.asarray(x).astype(bool)
     x = x.reshape(x.shape[0] if x.ndim > 1 else 1, problem.n)
-    S = x.shape[0]
-    sel = np.zeros((S, frame.n), dtype=bool)
-    sel[:, problem.cells] = x
-    sel[:, [problem.start, problem.goal]] = True
-    deg = (sel.astype(np.int16) @ frame.adj4.astype(np.int16)) * sel
-    want = np.where(sel, 2, 0)
-    want[:, [problem.start, problem.goal]] = 1
-    ok = (deg == want).all(axis=1)
-    out: list = [None] * S
-    nb = frame.neighbours
-    for s in np.flatnonzero(ok):
-        row = sel[s]
-        path = [problem.start]
-        prev, cur = -1, problem.start
-        while cur != problem.goal:
-            nxt = -1
-            for j in nb[cur]:
-                if row[j] and j != prev:
-                    nxt = j
-                    break
-            if nxt < 0:  # cannot happen after the degree check, kept for safety
-                break
-            prev, cur = cur, nxt
-            path.append(cur)
-        if cur == problem.goal and len(path) == int(row.sum()):
-            out[s] = path
+    nbr = neighbour_table(frame)
+    cells = np.asarray(problem.cells, dtype=np.int64)
+    out: list = []
+    for row in x:
+        path = extract_path(row, cells, int(problem.start), int(problem.goal), nbr)
+        out.append([int(i) for i in path] if len(path) else None)
     return out
 
 
-# --------------------------------------------------------------------------- planner
 def cut_loops(cells: list) -> list:
     """Remove every closed loop from a walk (cells as ``(r, c)`` tuples): a simple path.
 

@@ -15,17 +15,28 @@ and ``IsingPath``) are what the tests compare these against.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numba
 import numpy as np
 
-__all__ = ["rank_local_targets", "score_patch_samples", "neighbour_table"]
+from planners.ising.path.qubo import patch_frame
+
+__all__ = ["rank_local_targets", "score_patch_samples", "extract_path", "neighbour_table"]
 
 
 def neighbour_table(frame) -> np.ndarray:
-    """``(n, 4)`` int64: the 4-neighbours of every patch cell (``-1`` padded), ascending."""
+    """``(n, 4)`` int64: the 4-neighbours of every patch cell (``-1`` padded), ascending (read-only)."""
+    return _neighbour_table(frame.size)
+
+
+@lru_cache(maxsize=8)
+def _neighbour_table(size: int) -> np.ndarray:
+    frame = patch_frame(size)
     tab = np.full((frame.n, 4), -1, dtype=np.int64)
     for i, nb in enumerate(frame.neighbours):
         tab[i, : len(nb)] = nb
+    tab.setflags(write=False)
     return tab
 
 
@@ -109,16 +120,18 @@ def score_patch_samples(spins, ptr, idx, n_logical, cells, start, goal, nbr, h, 
         start, goal: the pinned endpoints (patch-cell indices); nbr: :func:`neighbour_table`.
         h, J, offset: the logical Ising model of the patch QUBO (the original objective).
 
-    Returns ``(valid (P, R) bool, energy (P, R) float64, logical (P, R, n) int8)``: a read is
-    valid when its selected cells plus the endpoints form one simple, induced 4-connected
-    path from start to goal; ``energy`` is the logical model's energy (``inf`` when invalid).
+    Returns ``(n_valid (P,) int64, best (P,) int64, energy (P,) float64, logical (P, R, n) int8)``:
+    a read is valid when its selected cells plus the endpoints form one simple, induced
+    4-connected path from start to goal; per program the number of valid reads, the first
+    valid read of lowest original energy (``-1``: none) and that energy (``inf``: none).
     """
     P = spins.shape[0]
     R = spins.shape[1]
     n = n_logical
     nc = nbr.shape[0]
-    valid = np.zeros((P, R), dtype=np.bool_)
-    energy = np.full((P, R), np.inf)
+    n_valid = np.zeros(P, dtype=np.int64)
+    best = np.full(P, -1, dtype=np.int64)
+    energy = np.full(P, np.inf)
     logical = np.zeros((P, R, n), dtype=np.int8)
     sel = np.zeros(nc, dtype=np.bool_)
     for p in range(P):
@@ -179,11 +192,63 @@ def score_patch_samples(spins, ptr, idx, n_logical, cells, start, goal, nbr, h, 
                 steps += 1
             if cur != goal or steps != total:
                 continue
-            valid[p, r] = True
+            n_valid[p] += 1
             e = offset
             for i in range(n):
                 e += h[i] * x[i]
                 for j in range(i + 1, n):
                     e += J[i, j] * x[i] * x[j]
-            energy[p, r] = e
-    return valid, energy, logical
+            if e < energy[p]:
+                energy[p] = e
+                best[p] = r
+    return n_valid, best, energy, logical
+
+
+@numba.njit(cache=True)
+def extract_path(x, cells, start, goal, nbr):
+    """The ordered patch cells from ``start`` to ``goal`` selected by 0/1 ``x`` (one per entry of
+    ``cells``, endpoints pinned), or an empty array unless they form one simple, induced
+    4-connected path (the rule of :func:`score_patch_samples`)."""
+    nc = nbr.shape[0]
+    sel = np.zeros(nc, dtype=np.bool_)
+    total = 2
+    for i in range(x.shape[0]):
+        if x[i]:
+            sel[cells[i]] = True
+            total += 1
+    sel[start] = True
+    sel[goal] = True
+    empty = np.zeros(0, dtype=np.int64)
+    for i in range(nc):
+        if sel[i]:
+            deg = 0
+            for k in range(4):
+                j = nbr[i, k]
+                if j < 0:
+                    break
+                deg += sel[j]
+            if deg != (1 if (i == start or i == goal) else 2):
+                return empty
+    path = np.empty(total, dtype=np.int64)
+    path[0] = start
+    prev = -1
+    cur = start
+    steps = 1
+    while cur != goal:
+        nxt = -1
+        for k in range(4):
+            j = nbr[cur, k]
+            if j < 0:
+                break
+            if sel[j] and j != prev:
+                nxt = j
+                break
+        if nxt < 0 or steps >= total:
+            return empty
+        prev = cur
+        cur = nxt
+        path[steps] = cur
+        steps += 1
+    if steps != total:
+        return empty
+    return path

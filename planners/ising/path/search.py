@@ -19,7 +19,7 @@ from ising_backend import MeteredSolver, SolverOutputError
 from planners.ising.config import resolve_config
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import cut_loops, decode_paths
-from planners.ising.path.kernels import neighbour_table, rank_local_targets, score_patch_samples
+from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
 
 __all__ = ["IsingPath"]
@@ -138,7 +138,7 @@ class IsingPath:
             self._problem_cache.popitem(last=False)
         return prog
 
-    def _outcome(self, prog: _PatchProgram, valid: np.ndarray, energy: np.ndarray, logical: np.ndarray):
+    def _outcome(self, prog: _PatchProgram, n_valid, best, energy, logical):
         """Per style ``(reads, valid, error, best score)`` and the best candidate of one problem.
 
         The first read with the lowest original energy wins (styles in portfolio order);
@@ -148,28 +148,22 @@ class IsingPath:
         outcomes = {}
         best_score, best_at = np.inf, None
         row = 0
-        for k, st in enumerate(self.config.styles):
+        for st in self.config.styles:
             if st in prog.errors:
                 outcomes[st] = (0, 0, prog.errors[st], np.inf)
                 continue
-            v = valid[row]
-            if v.any():
-                e = energy[row]
-                r = int(np.argmin(e))
-                score = float(e[r])
-                if score < best_score:
-                    best_score, best_at = score, (row, r)
-            else:
-                score = np.inf
-            outcomes[st] = (reads, int(v.sum()), None, score)
+            score = float(energy[row])
+            if score < best_score:
+                best_score, best_at = score, (row, int(best[row]))
+            outcomes[st] = (reads, int(n_valid[row]), None, score)
             row += 1
         if best_at is None:
             return None, outcomes
         tol = 1e-9 * max(1.0, abs(best_score))
         winners = [st for st in self.config.styles if outcomes[st][3] <= best_score + tol]
-        x = logical[best_at] > 0
-        path = decode_paths(self.frame, prog.problem, x[None])[0]
-        return (best_score, winners, path), outcomes
+        pr = prog.problem
+        path = extract_path(logical[best_at] > 0, pr.cells, pr.start, pr.goal, self._nbr)
+        return (best_score, winners, path.tolist()), outcomes
 
     def _submit(self, solver, progs: list, rng: np.random.Generator) -> list:
         """One chip submission: every problem x every mapped merge style, ``num_reads`` reads each;
@@ -177,7 +171,7 @@ class IsingPath:
         seed = int(rng.integers(0, 2**63 - 1))
         rows = [p.h.shape[0] for p in progs]
         if not sum(rows):
-            return [self._outcome(p, np.zeros((0, 0), bool), np.zeros((0, 0)), None) for p in progs]
+            return [self._outcome(p, (), (), (), None) for p in progs]
         if len(progs) == 1:
             h, J = progs[0].h, progs[0].J
         else:
@@ -194,9 +188,8 @@ class IsingPath:
         out, at = [], 0
         for p, b in zip(progs, rows):
             pr, m = p.problem, p.model
-            valid, energy, logical = score_patch_samples(spins[at:at + b], p.ptr, p.idx, pr.n, pr.cells, pr.start,
-                                                         pr.goal, self._nbr, m.h, m.J, m.offset)
-            out.append(self._outcome(p, valid, energy, logical))
+            out.append(self._outcome(p, *score_patch_samples(spins[at:at + b], p.ptr, p.idx, pr.n, pr.cells, pr.start,
+                                                             pr.goal, self._nbr, m.h, m.J, m.offset)))
             at += b
         return out
 

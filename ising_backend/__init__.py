@@ -34,7 +34,7 @@ from .spec import SCHEDULES, ChipSpec
 from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver, SolverOutputError
-from .quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
+from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_spins, saturate_mapping
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import pack_blocks, plan_packs, unpack_blocks
@@ -65,7 +65,7 @@ __all__ = [
     # metering
     "MeteredSolver", "SolverOutputError",
     # mapping toolkit
-    "QUANTIZE_RULES", "QuantizeError", "quantize", "saturate",
+    "QUANTIZE_RULES", "QuantizeError", "quantize", "quantize_stack", "saturate",
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
     "pack_blocks", "plan_packs", "unpack_blocks",

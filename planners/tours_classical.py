@@ -351,6 +351,36 @@ def _held_karp(d):
 
 
 @numba.njit(cache=True, nogil=True)
+def _exact_route_cost(dist, nodes):
+    m = nodes.shape[0]
+    n = m - 1
+    if n <= 0:
+        return 0.0
+    d = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            d[i, j] = dist[nodes[i], nodes[j]]
+    if n == 1:
+        return d[0, 1]
+    dp = _held_karp_dp(d, np.empty((0, 0), dtype=np.int64), np.empty(0))
+    full = (1 << n) - 1
+    best = dp[full, 0]
+    for j in range(1, n):
+        if dp[full, j] < best:
+            best = dp[full, j]
+    return best
+
+
+def exact_route_cost(dist: np.ndarray, nodes) -> float:
+    """Cost of the optimal open route from ``nodes[0]`` over ``nodes[1:]`` under ``dist`` (Held-Karp,
+    no sub-matrix copy in Python): :class:`BruteTour`'s cost on ``dist[np.ix_(nodes, nodes)]``."""
+    nodes = np.asarray(nodes, dtype=np.int64)
+    if len(nodes) - 1 > MAX_BRUTE_TARGETS:
+        raise ValueError(f"exact_route_cost: {len(nodes) - 1} targets > MAX_BRUTE_TARGETS = {MAX_BRUTE_TARGETS}")
+    return float(_exact_route_cost(np.asarray(dist, dtype=np.float64), nodes))
+
+
+@numba.njit(cache=True, nogil=True)
 def _held_karp_subsets(d):
     """Optimal open-route cost from node 0 over every subset of nodes 1..n.
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.tours_classical import MAX_BRUTE_TARGETS, BruteTour
+from planners.tours_classical import MAX_BRUTE_TARGETS, exact_route_cost
 
 __all__ = ["SharingFailure", "BundlePricer", "assign_bundles"]
 
@@ -30,9 +30,9 @@ class BundlePricer:
         self.stats = stats
         self.compute = ComputeReport()
         self._cache: dict = {}
+        self._exact = pricing_tour == "auto"  # Held-Karp up to MAX_BRUTE_TARGETS, the downstream tour beyond
         if pricing_tour == "auto":
-            exact = BruteTour()
-            self._pricer = lambda n: exact if n <= MAX_BRUTE_TARGETS else tour  # noqa: E731
+            self._pricer = lambda n: tour  # noqa: E731
         elif pricing_tour == "downstream":
             self._pricer = lambda n: tour  # noqa: E731
         else:
@@ -43,11 +43,17 @@ class BundlePricer:
             self._pricer = lambda n: pricing_tour  # noqa: E731
 
     def cost(self, k: int, targets) -> float:
-        key = (k, frozenset(targets))
+        mask = 0
+        for t in targets:
+            mask |= 1 << t
+        key = (k, mask)
         hit = self._cache.get(key)
         if hit is None:
             if not targets:
                 hit = 0.0
+            elif self._exact and len(targets) <= MAX_BRUTE_TARGETS:
+                hit = exact_route_cost(self.dist, [k] + sorted(targets))
+                self.stats["tour_solves"] += 1
             else:
                 nodes = [k] + sorted(targets)
                 res = self._pricer(len(targets)).solve(self.dist[np.ix_(nodes, nodes)], self.rng)

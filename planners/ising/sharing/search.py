@@ -15,7 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import BranchMapping, ChipProgramError, MeteredSolver, SolverOutputError, QuantizeMapping, QuboModel, run_portfolio_batch
+from ising_backend import (
+    BranchMapping, ChipProgramError, MeteredSolver, ModelError, QuantizeError, QuantizeMapping, QuboModel,
+    SolverOutputError, plan_packs, quantize_stack, run_portfolio_batch,
+)
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -243,6 +246,82 @@ class IsingSharing:
                     return False
         return True
 
+    def _solve_packed(self, w, R, problems, models, rng, stats) -> None:
+        """The submission of :meth:`_solve` for splits that fit the chip, without the generic
+        portfolio objects: all rules of a split quantized in one compiled call
+        (:func:`ising_backend.quantize_stack`), every (split, rule) program block-packed
+        first-fit decreasing (:func:`ising_backend.plan_packs`) into one ``anneal_batch``;
+        each distinct decoded partition is checked and scored once per split."""
+        cfg = self.config
+        spec = self.chip.spec
+        seed = int(rng.integers(2**63 - 1))
+        rules = cfg.rules
+        try:
+            stacks = [quantize_stack(m, rules, spec.h_range, spec.j_range) for m in models]
+        except (QuantizeError, ModelError) as exc:
+            raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
+        sizes = [m.n for m in models for _ in rules]
+        packs = plan_packs(sizes, spec.n_spins)
+        width = max(sum(sizes[j] for j in pk) for pk in packs)
+        h = np.zeros((len(packs), width))
+        J = np.zeros((len(packs), width, width))
+        where = [None] * len(sizes)
+        nr = len(rules)
+        for b, pk in enumerate(packs):
+            s0 = 0
+            for j in pk:
+                n = sizes[j]
+                qh, qJ = stacks[j // nr]
+                h[b, s0:s0 + n] = qh[j % nr]
+                J[b, s0:s0 + n, s0:s0 + n] = qJ[j % nr]
+                where[j] = (b, s0, n)
+                s0 += n
+        try:
+            spins, _ = self._meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
+        except SolverOutputError as exc:  # a broken chip: nothing to decode
+            raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
+        except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
+            raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
+        mapping = stats["mapping"]["sharing"]
+        for k, p in enumerate(problems):
+            seen: dict = {}  # logical spins -> (candidate, valid, score), first occurrence
+            found: dict = {}  # distinct valid partitions, first occurrence order
+            best = np.inf
+            rule_best = []
+            for r, rule in enumerate(rules):
+                b, s0, n = where[k * nr + r]
+                block = spins[b, :, s0:s0 + n]
+                valid = 0
+                rb = np.inf
+                for s in block:
+                    key = s.tobytes()
+                    hit = seen.get(key)
+                    if hit is None:
+                        cand = decode_split(p, s)
+                        ok = cand is not None and self._valid(R, cand[0], cand[1], p.kind)
+                        if ok:
+                            found.setdefault(cand[1].tobytes(), cand)
+                        hit = (cand, ok, -cut_value(w, cand[0], cand[1]) if ok else np.inf)
+                        seen[key] = hit
+                    if hit[1]:
+                        valid += 1
+                        rb = min(rb, hit[2])
+                mapping[rule]["candidates"] += block.shape[0]
+                mapping[rule]["valid"] += valid
+                rule_best.append(rb)
+                best = min(best, rb)
+            if not found:
+                continue
+            tol = 1e-9 * max(1.0, abs(best))
+            winners = [rule for rule, rb in zip(rules, rule_best) if rb <= best + tol]
+            # ties between rules (common: several rules find the same split) are
+            # broken at random so integer win counts stay unbiased
+            win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
+            mapping[win]["wins"] += 1
+            cands = [(cut_value(w, c[0], c[1]), c[0], c[1], None) for c in found.values()]
+            order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
+            p.cands = [cands[i] for i in order]
+
     def _solve(self, dist, R, problems, rng, stats) -> None:
         """One chip submission for every mapped program of ``problems``.
 
@@ -254,6 +333,8 @@ class IsingSharing:
         on the unquantized cut (objective ``-cut``: lower is better).
         """
         models = [QuboModel(p.q, p.Q, p.offset).to_ising() for p in problems]
+        if max(len(p.free) for p in problems) <= self.chip.spec.n_spins:
+            return self._solve_packed(dist, R, problems, models, rng, stats)
         if max(len(p.free) for p in problems) > self.chip.spec.n_spins:
             # spin-budget branching: freeze the excess spins, 2^k reduced programs per rule
             mappings = [BranchMapping(None, QuantizeMapping(rule), name=rule) for rule in self.config.rules]

@@ -29,13 +29,14 @@ Example::
 """
 
 from .ledger import CallLedger
-from .models import IsingModel, ModelError, QuboModel, from_bqm
+from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
 from .spec import SCHEDULES, ChipSpec
 from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver, SolverOutputError
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
-from .merge import MERGE_STYLES, MergedModel, MergeError, merge_spins, saturate_mapping
+from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
+from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import pack_blocks, plan_packs, unpack_blocks
 from .portfolio import (
@@ -57,7 +58,7 @@ from .portfolio import (
 
 __all__ = [
     # models, spec, ledger
-    "IsingModel", "QuboModel", "ModelError", "from_bqm", "ChipSpec", "SCHEDULES", "CallLedger",
+    "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs",
     # logical solver
@@ -66,7 +67,8 @@ __all__ = [
     "MeteredSolver", "SolverOutputError",
     # mapping toolkit
     "QUANTIZE_RULES", "QuantizeError", "quantize", "quantize_stack", "saturate",
-    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping",
+    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles",
+    "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
     "pack_blocks", "plan_packs", "unpack_blocks",
     # portfolio

@@ -275,3 +275,13 @@ def from_bqm(bqm: dimod.BinaryQuadraticModel, variables=None) -> IsingModel | Qu
     if bqm.vartype is dimod.SPIN:
         return IsingModel.from_bqm(bqm, variables)
     return QuboModel.from_bqm(bqm, variables)
+
+
+def ising_from_qubo(q: np.ndarray, Q: np.ndarray, offset: float = 0.0) -> IsingModel:
+    """``QuboModel(q, Q, offset).to_ising()`` without validation, for internal model builders whose
+    ``q`` (float64 ``(n,)``) and ``Q`` (float64 ``(n, n)``, strictly upper triangular) are finite by
+    construction; the same arithmetic, so the same bits."""
+    Qs = Q + Q.T
+    J = Q / 4.0
+    h = q / 2.0 + Qs.sum(axis=1) / 4.0
+    return IsingModel.trusted(h, J, float(offset + q.sum() / 2.0 + Q.sum() / 4.0))

@@ -38,7 +38,6 @@ class _PatchProgram(NamedTuple):
 
     problem: object  # PatchQubo
     model: object  # IsingModel of the patch QUBO (None without variables)
-    merged: list  # MergedModel per mapped style
     styles: tuple  # indices (into config.styles) of the mapped styles
     errors: dict  # style -> MergeError message
     h: np.ndarray  # (mapped styles, N) physical fields, zero-padded
@@ -75,6 +74,12 @@ class IsingPath:
         self._problem_cache = _LRU(4096)
         self._padded_for = None
         self._nbr = neighbour_table(self.frame)
+        from ising_backend import MERGE_STYLE_IDS
+
+        spec = self.chip.spec
+        lim = [min(-int(r[0]), int(r[1])) for r in (spec.h_range, spec.j_range)]
+        self._limits = (lim[0], lim[1], int(spec.n_spins))
+        self._style_ids = np.array([MERGE_STYLE_IDS[st] for st in cfg.styles], dtype=np.int64)
 
     def __getattr__(self, name):  # config options read as attributes (planner.form, planner.styles, ...)
         cfg = self.__dict__.get("config")
@@ -105,34 +110,27 @@ class IsingPath:
         if hit is not None:
             self._problem_cache.move_to_end((key, target))
             return hit
-        from ising_backend import MergeError, QuboModel, merge_spins
+        from ising_backend import ising_from_qubo, merge_error_message, merge_styles
 
         cfg = self.config
         pr = build_patch_qubo(self.frame, comp, self.frame.n // 2, target, cfg.form, cfg.full_weights)
-        model = QuboModel(pr.q, pr.Q, pr.offset).to_ising() if pr.n else None
-        ok, errors, merged = [], {}, []
-        if model is not None:
-            for k, st in enumerate(cfg.styles):
-                try:
-                    mm = merge_spins(model, st, self.chip.spec, scale=cfg.chip_scale)
-                except MergeError as exc:
-                    errors[st] = str(exc)
-                    continue
-                ok.append(k)
-                merged.append(mm)
-        N = max((mm.physical.n for mm in merged), default=0)
-        h = np.zeros((len(merged), N))
-        J = np.zeros((len(merged), N, N))
-        ptr = np.zeros((len(merged), pr.n + 1), dtype=np.int64)
-        idx = np.zeros((len(merged), max(N, 1)), dtype=np.int64)
-        for row, mm in enumerate(merged):
-            n_p = mm.physical.n
-            h[row, :n_p] = mm.physical.h
-            J[row, :n_p, :n_p] = mm.physical.J
-            flat = np.concatenate(mm.copies) if mm.copies else np.zeros(0, dtype=np.int64)
-            ptr[row, 1:] = np.cumsum([len(c) for c in mm.copies])
-            idx[row, : len(flat)] = flat
-        prog = _PatchProgram(pr, model, merged, tuple(ok), errors, h, J, ptr, idx)
+        if not pr.n:
+            none = np.zeros((0, 0), dtype=np.int64)
+            prog = _PatchProgram(pr, None, (), {}, np.zeros((0, 0)), np.zeros((0, 0, 0)), none, none)
+        else:
+            # every merge style in one compiled call (ising_backend.merge_spins's kernel, same programs)
+            model = ising_from_qubo(pr.q, pr.Q, pr.offset)
+            scale = cfg.chip_scale
+            H = np.rint(model.h * scale).astype(np.int64)
+            C = np.rint(model.J * scale).astype(np.int64)
+            Lh, Lj, n_spins = self._limits
+            status, err, a, _, h, J, _, ptr, idx = merge_styles(H, C, self._style_ids, Lh, Lj, Lj, n_spins)
+            ok = np.flatnonzero(status == 0)
+            errors = {cfg.styles[k]: merge_error_message(int(status[k]), err[k], H, C, a[k], Lh, Lj, n_spins, scale)
+                      for k in np.flatnonzero(status != 0)}
+            if len(ok) < len(status):
+                h, J, ptr, idx = h[ok], J[ok], ptr[ok], idx[ok]
+            prog = _PatchProgram(pr, model, tuple(int(k) for k in ok), errors, h, J, ptr, idx)
         self._problem_cache[(key, target)] = prog
         if len(self._problem_cache) > self._problem_cache.size:
             self._problem_cache.popitem(last=False)

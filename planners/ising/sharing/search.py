@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    BranchMapping, ChipProgramError, MeteredSolver, ModelError, QuantizeError, QuantizeMapping, QuboModel,
-    SolverOutputError, plan_packs, quantize_stack, run_portfolio_batch,
+    BranchMapping, ChipProgramError, MeteredSolver, ModelError, QuantizeError, QuantizeMapping,
+    SolverOutputError, ising_from_qubo, plan_packs, quantize_stack, run_portfolio_batch,
 )
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
@@ -332,7 +332,7 @@ class IsingSharing:
         ``anneal_batch``, decodes, filters and scores each split's candidates
         on the unquantized cut (objective ``-cut``: lower is better).
         """
-        models = [QuboModel(p.q, p.Q, p.offset).to_ising() for p in problems]
+        models = [ising_from_qubo(p.q, p.Q, p.offset) for p in problems]
         if max(len(p.free) for p in problems) <= self.chip.spec.n_spins:
             return self._solve_packed(dist, R, problems, models, rng, stats)
         if max(len(p.free) for p in problems) > self.chip.spec.n_spins:

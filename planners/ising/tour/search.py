@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import LogicalIsingSolver, MeteredSolver, QuboModel, SolverOutputError, branch, quantize
+from ising_backend import LogicalIsingSolver, MeteredSolver, SolverOutputError, branch, ising_from_qubo, quantize
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -81,7 +81,7 @@ class IsingTour(Clustering):
     def _sample(self, q, Q, off, run: _Run, onehot: bool) -> np.ndarray:
         """Bits ``(m, n)`` of every read of every branch of one QUBO program issue."""
         cfg = self.config
-        model = QuboModel(q, Q, off).to_ising()
+        model = ising_from_qubo(np.asarray(q, dtype=np.float64), np.asarray(Q, dtype=np.float64), float(off))
         if model.n > self._budget:
             branches = branch(model, self._budget, max_frozen=cfg.max_branch_bits)
             programs = [b.model for b in branches]

@@ -10,11 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba
 import numpy as np
 
 from planners.ising.path.config import DEFAULT_WEIGHTS, FORMS
 
-__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo"]
+__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo", "build_patch_qubo_reference"]
 
 
 # --------------------------------------------------------------------------- geometry
@@ -116,6 +117,23 @@ def _add_form(q: np.ndarray, W: np.ndarray, M: np.ndarray, scale: float) -> None
     W += 2.0 * scale * off
 
 
+def _resolve(form: str, weights: dict | None, allowed, start: int, goal: int) -> tuple[dict, np.ndarray]:
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+    w = dict(DEFAULT_WEIGHTS[form])
+    if weights:
+        unknown = set(weights) - set(w)
+        if unknown:
+            raise ValueError(f"unknown weights {sorted(unknown)} for form {form!r} (known: {sorted(w)})")
+        w.update(weights)
+    if start == goal:
+        raise ValueError("start and goal of a patch problem must differ")
+    allowed = np.asarray(allowed, dtype=bool)
+    if not (allowed[start] and allowed[goal]):
+        raise ValueError("start and goal of a patch problem must be allowed cells")
+    return w, allowed
+
+
 def build_patch_qubo(
     frame: PatchFrame,
     allowed: np.ndarray,
@@ -125,6 +143,101 @@ def build_patch_qubo(
     weights: dict | None = None,
 ) -> PatchQubo:
     """The cell-based patch QUBO (paper eq. 6) over ``allowed`` patch cells, endpoints pinned.
+
+    ``allowed`` (bool, ``frame.n``) marks the free patch cells that may carry the
+    path; ``start`` and ``goal`` must be allowed and distinct.  The energy is
+    built on the whole frame with the endpoints as ordinary 0/1 cells and then
+    the endpoints are substituted with ``x = 1`` (their terms fold into the
+    linear coefficients of their neighbours and into the offset).  Compiled
+    (:func:`_patch_qubo_kernel`); :func:`build_patch_qubo_reference` is the numpy original.
+    """
+    w, allowed = _resolve(form, weights, allowed, start, goal)
+    if form == "pair":
+        coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0)
+    else:
+        coef = (0.0, w["B"], 0.0, w["A_end"], w["A"])
+    var, qv, Qv, offset = _patch_qubo_kernel(frame.adj4, frame.diag, allowed, int(start), int(goal),
+                                             form == "degree", *coef)
+    for a in (var, qv, Qv):
+        a.setflags(write=False)
+    return PatchQubo(var, qv, Qv, float(offset), int(start), int(goal))
+
+
+@numba.njit(cache=True)
+def _patch_qubo_kernel(adj4, diag, allowed, start, goal, degree, C, B, Dg, A_end, A):
+    """The arithmetic of :func:`build_patch_qubo_reference`, term by term in the same order."""
+    n = adj4.shape[0]
+    A4 = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            if adj4[i, j] and allowed[i] and allowed[j]:
+                A4[i, j] = 1.0
+    free = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        free[i] = allowed[i] and i != start and i != goal
+    q = np.zeros(n)
+    W = np.zeros((n, n))
+    if not degree:
+        for i in range(n):
+            for j in range(n):
+                dg = 1.0 if (diag[i, j] and allowed[i] and allowed[j]) else 0.0
+                W[i, j] += -C * A4[i, j] + Dg * dg
+            q[i] += B * free[i]
+    else:
+        # D = A4 * free[:, None]; M = D.T @ D; q += A diag(M); W += 2A (M - diag M); W += -4A (D + D.T)
+        for i in range(n):
+            for j in range(n):
+                m = 0.0
+                for k in range(n):
+                    m += (A4[k, i] * free[k]) * (A4[k, j] * free[k])
+                if i == j:
+                    q[i] += A * m
+                else:
+                    W[i, j] += 2.0 * A * m
+        for i in range(n):
+            for j in range(n):
+                W[i, j] += -4.0 * A * (A4[i, j] * free[i] + A4[j, i] * free[j])
+        for i in range(n):
+            q[i] += 4.0 * A * free[i] + B * free[i]
+    for e in (start, goal):  # endpoint terms: A_end * (deg(e) - 1)^2
+        for i in range(n):
+            q[i] += A_end * (A4[e, i] * A4[e, i])
+        for i in range(n):
+            for j in range(n):
+                if i != j:
+                    W[i, j] += 2.0 * A_end * (A4[e, i] * A4[e, j])
+        for i in range(n):
+            q[i] += -2.0 * A_end * A4[e, i]
+    offset = 2.0 * A_end
+    m = 0
+    for i in range(n):
+        m += free[i]
+    var = np.empty(m, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if free[i]:
+            var[k] = i
+            k += 1
+    qv = np.empty(m)
+    Qv = np.zeros((m, m))
+    for a in range(m):
+        i = var[a]
+        qv[a] = q[i] + (W[i, start] + W[i, goal])
+        for b in range(a + 1, m):
+            Qv[a, b] = W[i, var[b]]
+    offset += (q[start] + q[goal]) + W[start, goal]
+    return var, qv, Qv, offset
+
+
+def build_patch_qubo_reference(
+    frame: PatchFrame,
+    allowed: np.ndarray,
+    start: int,
+    goal: int,
+    form: str = "pair",
+    weights: dict | None = None,
+) -> PatchQubo:
+    """:func:`build_patch_qubo` in plain numpy (the reference the compiled builder is tested against).
 
     ``allowed`` (bool, ``frame.n``) marks the free patch cells that may carry the
     path; ``start`` and ``goal`` must be allowed and distinct.  The energy is

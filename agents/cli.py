@@ -20,6 +20,7 @@ SUBCOMMANDS = {
     "compare": "agents.commands.compare",
     "train": "agents.commands.train",
     "reproduce": "agents.commands.reproduce",
+    "watch": "agents.commands.watch",
 }
 
 

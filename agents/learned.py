@@ -166,6 +166,7 @@ def train(
     curve: bool = True,
     torch_threads: int | None = 1,
     callback=None,
+    reward_scale: float | None = None,
     **algo_kwargs,
 ):
     """Train an agent on ``env_id`` for ``timesteps`` env steps; save to ``out`` if given.
@@ -183,6 +184,9 @@ def train(
         torch_threads: ``torch.set_num_threads`` (default 1: the networks are
             small; ``None`` leaves torch's setting alone).
         callback: an extra SB3 callback.
+        reward_scale: multiply the rewards the learner sees (default
+            ``1 / (H + W)`` on the plan-level env, 1 on a grid env); the
+            curve and ``info`` keep the env's own rewards.
         **algo_kwargs: override the algorithm's hyper-parameters.
 
     Returns:
@@ -212,12 +216,18 @@ def train(
     probe = gym.make(env_id, **env_kwargs)  # validates the id and kwargs with a clear error
     probe.close()
     venv = _vec_env(env_id, env_kwargs, n_envs, int(seed))
-    if assign:
-        from agents.assign_net import AssignPointerPolicy
+    world_h, world_w = probe.unwrapped.source.height, probe.unwrapped.source.width
+    if reward_scale is None:
+        reward_scale = 1.0 / (world_h + world_w) if assign else 1.0
+    if not (np.isfinite(reward_scale) and reward_scale > 0):
+        raise ValueError(f"reward_scale must be a finite number > 0, got {reward_scale!r}")
+    if reward_scale != 1.0:
         from agents.sb3_vec import ScaleReward
 
-        world_h, world_w = probe.unwrapped.source.height, probe.unwrapped.source.width
-        venv = ScaleReward(venv, 1.0 / (world_h + world_w))
+        venv = ScaleReward(venv, float(reward_scale))
+    if assign:
+        from agents.assign_net import AssignPointerPolicy
+
         params = dict(ASSIGN_HYPER)
         params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
         params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
@@ -253,6 +263,7 @@ def train(
             "seed": int(seed),
             "timesteps": timesteps,
             "n_envs": n_envs,
+            "reward_scale": float(reward_scale),
             "train_wall_s": wall,
             "hyper": {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))},
         }

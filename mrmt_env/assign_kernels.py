@@ -21,7 +21,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["assign_step", "assign_masks", "assign_observe", "next_decider", "N_ROBOT_FEATURES"]
+from mrmt_env.fast_generation import node_distances
+
+__all__ = ["assign_load", "assign_step", "assign_masks", "assign_observe", "next_decider", "N_ROBOT_FEATURES"]
 
 #: Feature columns before the per-target distance block (see the env docstring).
 N_ROBOT_FEATURES = 8
@@ -43,6 +45,31 @@ def next_decider(cell, free_at, active, open_, dist, n_targets) -> int:
         if active[k] and (best < 0 or free_at[k] < free_at[best]):
             best = k
     return best
+
+
+@numba.njit(cache=True, nogil=True)
+def assign_load(b, flat_grid, width, height, nodes, n_robots, dist, coords, cell, free_at, active, open_, counters,
+                decider) -> None:
+    """Start env ``b`` on a world given as a flat grid and node cells (robots, then targets)."""
+    node_distances(flat_grid, width, nodes, dist[b])
+    n_targets = open_.shape[1]
+    for a in range(nodes.shape[0]):
+        coords[b, a, 0] = (nodes[a] // width) / max(height - 1, 1)
+        coords[b, a, 1] = (nodes[a] % width) / max(width - 1, 1)
+    for k in range(n_robots):
+        cell[b, k] = k
+        free_at[b, k] = 0
+        active[b, k] = True
+    counters[b, :] = 0
+    for j in range(n_targets):
+        under = False
+        for k in range(n_robots):
+            if dist[b, k, n_robots + j] == 0:
+                under = True
+        open_[b, j] = not under
+        if under:
+            counters[b, 2] += 1
+    decider[b] = next_decider(cell[b], free_at[b], active[b], open_[b], dist[b], n_targets)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrmt_env.fast_generation import node_distances
-from mrmt_env.assign_kernels import N_ROBOT_FEATURES, assign_masks, assign_observe, assign_step, next_decider
+from mrmt_env.assign_kernels import N_ROBOT_FEATURES, assign_load, assign_masks, assign_observe, assign_step
 from mrmt_env.world import World
 
 __all__ = ["AssignBatch", "assign_feature_count", "assign_obs_high"]
@@ -55,18 +54,10 @@ class AssignBatch:
 
     def load_arrays(self, i: int, flat_grid: np.ndarray, robots: np.ndarray, targets: np.ndarray) -> None:
         """:meth:`load` from flat cell indices (``r * W + c``), as the vector env draws them."""
-        r, n, w = self.n_robots, self.n_targets, self.width
         nodes = np.concatenate([robots, targets]).astype(np.int64)
-        node_distances(np.ascontiguousarray(flat_grid, dtype=np.bool_), w, nodes, self.dist[i])
-        self.coords[i, :, 0] = (nodes // w) / max(self.height - 1, 1)
-        self.coords[i, :, 1] = (nodes % w) / max(self.width - 1, 1)
-        self.cell[i] = np.arange(r)
-        self.free_at[i] = 0
-        self.active[i] = True
-        under = (self.dist[i, :r, r:] == 0).any(axis=0)
-        self.open_[i] = ~under
-        self.counters[i] = (0, 0, int(under.sum()), 0)
-        self.decider[i] = next_decider(self.cell[i], self.free_at[i], self.active[i], self.open_[i], self.dist[i], n)
+        assign_load(i, np.ascontiguousarray(flat_grid, dtype=np.bool_), self.width, self.height, nodes, self.n_robots,
+                    self.dist, self.coords, self.cell, self.free_at, self.active, self.open_, self.counters,
+                    self.decider)
         self.worlds[i] = None
         self._arrays[i] = (flat_grid, nodes)
 

@@ -115,11 +115,13 @@ class BatchedVectorEnv(VectorEnv):
             i = int(np.flatnonzero(self._autoreset)[0])
             raise RuntimeError(f"env {i}'s episode is over; reset it with reset(options={{'reset_mask': mask}})")
         live = ~resetting
+        all_live = not resetting.any()
         acts = self._check_actions(actions, live)
         rewards, terminated = self._step(acts, live)
-        rewards = np.where(live, rewards, 0.0).astype(np.float64)
-        terminated = terminated & live
-        self._elapsed[live] += 1
+        if not all_live:
+            rewards[resetting] = 0.0
+            terminated[resetting] = False
+        self._elapsed += live
         if self.max_episode_steps is not None:
             truncated = live & (self._elapsed >= self.max_episode_steps)
         else:
@@ -145,11 +147,13 @@ class BatchedVectorEnv(VectorEnv):
 
     def _infos(self, mask: np.ndarray) -> dict:
         out = {}
+        full = mask.all()
+        shared = mask.copy()  # one "_key" mask array shared by every key of this info dict
         for key, arr in self._info_arrays().items():
-            if not mask.all():
+            if not full:
                 arr = np.where(mask.reshape((-1,) + (1,) * (arr.ndim - 1)), arr, np.zeros_like(arr))
             out[key] = arr
-            out["_" + key] = mask.copy()
+            out["_" + key] = shared
         return out
 
     def close_extras(self, **kwargs) -> None:

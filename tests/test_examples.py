@@ -24,7 +24,7 @@ def run_example(name: str, *args: str) -> str:
 
 
 def test_every_example_is_tested():
-    tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py"}
+    tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -49,3 +49,11 @@ def test_planner_vs_ppo():
     pytest.importorskip("stable_baselines3")
     out = run_example("planner_vs_ppo.py", "--timesteps", "128", "--worlds", "2", "--jobs", "1")
     assert "strong" in out and "ising" in out and "ppo_small.zip" in out
+
+
+def test_watch_episode(tmp_path):
+    pytest.importorskip("sb3_contrib")
+    pytest.importorskip("imageio")
+    out = run_example("watch_episode.py", "--timesteps", "256", "--out", str(tmp_path))
+    assert "strong: route cost" in out and "learned: route cost" in out
+    assert (tmp_path / "strong.gif").stat().st_size > 0 and (tmp_path / "learned.gif").stat().st_size > 0

@@ -1,0 +1,93 @@
+"""Grid-level learning on the paper's 10x10 world: MaskablePPO with masks, dense reward, MLP or CNN.
+
+Trains sb3-contrib MaskablePPO on ``mrmt_env/MRMT-v0`` (3 robots, 10
+targets) with action masks for blocked moves and the BFS-progress dense
+reward, either ``MlpPolicy`` on the binary channels or ``CnnPolicy`` on the
+image observation, then scores it with the strong planner on unseen worlds
+(reset seeds 10_000 + i) through the evaluation runner and writes its
+RESULTS.md row (section "Issue 11: grid-level PPO").
+
+    flock /tmp/mrmt-bench.lock python benchmarks/grid_ppo.py --policy cnn --timesteps 1000000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, cpu_name, write_results_section  # noqa: E402
+
+ENV_ID = "mrmt_env/MRMT-v0"
+SECTION = "## Issue 11: grid-level PPO on the paper's 10x10 world"
+HYPER = dict(n_steps=256, batch_size=512, n_epochs=4, learning_rate=3e-4, gamma=0.99, gae_lambda=0.95, ent_coef=0.01)
+
+
+def main(argv=None) -> int:
+    from agents.evaluation import evaluate
+    from agents.learned import train
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--policy", choices=("mlp", "cnn"), default="cnn")
+    p.add_argument("--timesteps", type=int, default=1_000_000)
+    p.add_argument("--dense-reward", type=float, default=1.0)
+    p.add_argument("--n-envs", type=int, default=16)
+    p.add_argument("--worlds", type=int, default=100)
+    p.add_argument("--out", default="results/grid_ppo")
+    p.add_argument("--no-results", action="store_true")
+    args = p.parse_args(argv)
+
+    env_kwargs = {"dense_reward": args.dense_reward}
+    if args.policy == "cnn":
+        env_kwargs["observation"] = "image"
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    model = out / f"grid_{args.policy}.zip"
+    t0 = time.perf_counter()
+    train(ENV_ID, args.timesteps, out=model, algo="maskable_ppo", env_kwargs=env_kwargs, n_envs=args.n_envs, seed=0,
+          reward_scale=0.01, **HYPER)
+    train_s = time.perf_counter() - t0
+    print(f"trained {args.timesteps} steps in {train_s:.0f} s")
+    res = evaluate(["strong", f"ppo:{model}"], n_worlds=args.worlds, world_seed=10_000, env_id=ENV_ID, n_jobs=2,
+                   progress=False)
+    print(res.format_summary())
+    rows = res.by_controller(f"ppo:{model}")
+    record = {
+        "policy": args.policy, "timesteps": args.timesteps, "train_s": train_s, "dense_reward": args.dense_reward,
+        "success_rate": float(np.mean([r["is_success"] for r in rows])),
+        "targets_visited_frac": float(np.mean([r["targets_visited"] / r["n_targets"] for r in rows])),
+        "median_route_cost_success": float(np.median([r["route_cost"] for r in rows if r["is_success"]]))
+        if any(r["is_success"] for r in rows) else None,
+        "strong_median_route_cost": res.summary()[0]["route_cost"],
+    }
+    (out / f"grid_{args.policy}.json").write_text(json.dumps(record, indent=1))
+    print(json.dumps(record))
+    if not args.no_results:
+        head = [
+            SECTION, "",
+            "MaskablePPO (sb3-contrib), action masks for blocked moves, dense reward (BFS progress, weight "
+            f"{args.dense_reward}), rewards x 0.01, {args.n_envs} envs of the native vector env, hyper-parameters "
+            f"{HYPER}; evaluated on {args.worlds} unseen worlds (reset seeds 10000..). {cpu_name()}, 2 shared cores. "
+            "Command: `python benchmarks/grid_ppo.py --policy P --timesteps N`.", "",
+            "| policy | env steps | train time | success | targets visited | median cost (successes) | strong |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+        ]
+        cost = "-" if record["median_route_cost_success"] is None else f"{record['median_route_cost_success']:.1f}"
+        row = (f"| {args.policy} | {args.timesteps} | {train_s / 60:.1f} min | {100 * record['success_rate']:.0f} % | "
+               f"{100 * record['targets_visited_frac']:.0f} % | {cost} | {record['strong_median_route_cost']:.1f} |")
+        text = RESULTS.read_text() if RESULTS.exists() else ""
+        m = re.search(re.escape(SECTION) + r"\n.*?(?=^## |\Z)", text, re.S | re.M)
+        old_rows = [ln for ln in (m.group(0).splitlines() if m else []) if ln.startswith("| ") and
+                    not ln.startswith("| policy") and not ln.startswith(f"| {args.policy} | {args.timesteps} |")]
+        write_results_section(SECTION, "\n".join(head + old_rows + [row]) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

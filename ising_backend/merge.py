@@ -75,6 +75,7 @@ from .spec import ChipSpec
 __all__ = ["MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_error_message"]
 
 MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")
+_DEFAULT_SPEC = ChipSpec()  # frozen: shared by the calls that pass no spec
 
 
 class MergeError(ValueError):
@@ -181,7 +182,7 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
         return saturate_mapping(model, spec, scale)
     if style not in MERGE_STYLES:
         raise ValueError(f"style = {style!r} not in {MERGE_STYLES} (or 'saturate')")
-    spec = ChipSpec() if spec is None else spec
+    spec = _DEFAULT_SPEC if spec is None else spec
     if not (np.isfinite(scale) and scale > 0):
         raise ValueError(f"scale = {scale!r} must be a positive finite number")
     Lh, Lj = _limit(spec.h_range), _limit(spec.j_range)
@@ -199,7 +200,7 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
     if status[0] != MERGE_OK:
         raise MergeError(merge_error_message(int(status[0]), err[0], H, C, a[0], Lh, Lj, spec.n_spins, scale))
     offset = model.offset * scale + float(offset_add[0])
-    if np.isfinite(offset):
+    if math.isfinite(offset):
         physical = IsingModel.trusted(hp[0], Jp[0], float(offset))
     else:  # the validating constructor names the non-finite offset
         physical = IsingModel(hp[0], Jp[0], offset)
@@ -234,7 +235,7 @@ def saturate_mapping(model: IsingModel, spec: ChipSpec | None = None, scale: flo
     """The authors' fixed-scale saturating mapping as a copy-free :class:`MergedModel`."""
     from .quantize import saturate
 
-    spec = ChipSpec() if spec is None else spec
+    spec = _DEFAULT_SPEC if spec is None else spec
     if model.n > spec.n_spins:
         raise MergeError(f"model has {model.n} spins; the chip has {spec.n_spins}: branch first")
     phys = saturate(model, scale, spec.h_range, spec.j_range)

@@ -313,6 +313,33 @@ class LogicalIsingSolver(dimod.Sampler):
         return out  # type: ignore[return-value]
 
 
+    def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None) -> np.ndarray:
+        """:meth:`solve_many` of ``B`` same-size models given as arrays (``h (B, n)``, ``J (n, n)``
+        shared or ``(B, n, n)``): the same sub-seed, spins and charge, without model objects.
+
+        Returns ``spins (B, num_reads, n)`` int8.
+        """
+        h = np.ascontiguousarray(h, dtype=np.float64)
+        B, n = h.shape
+        if n > self.budget:
+            raise ChipProgramError(f"programs have {n} spins; the logical solver's spin budget is "
+                                   f"{self.budget}: use spin-budget branching (ising_backend.branch)")
+        if int(num_reads) != num_reads or num_reads < 1:
+            raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
+        num_reads = int(num_reads)
+        if not B:
+            return np.empty((0, num_reads, n), dtype=np.int8)
+        J = np.asarray(J, dtype=np.float64)
+        if J.ndim == 2:
+            J = np.broadcast_to(J, (B, n, n))
+        J = np.ascontiguousarray(J)
+        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else int(seed)
+        t0 = time.perf_counter()
+        spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
+        self.last_call = self.ledger.record_logical(B * num_reads, self.spec, time.perf_counter() - t0)
+        return spins
+
+
 def _mix_py(seed: int, k: int) -> int:
     """Derive a sub-seed (splitmix64) so each size group gets its own stream."""
     z = (seed + 0x9E3779B97F4A7C15 * (k + 1)) & 0xFFFFFFFFFFFFFFFF

@@ -63,6 +63,15 @@ class MeteredSolver:
                 raise SolverOutputError(f"got shape {s.shape}, expected {(num_reads, m.n)} spins in {{-1, +1}}")
         return out
 
+    def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None):
+        """``solver.solve_stack`` (:class:`LogicalIsingSolver`) with the answer checked and metered."""
+        spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)
+        self._charge(None)
+        want = (np.shape(h)[0], num_reads, np.shape(h)[1])
+        if spins.shape != want or not ((spins == 1) | (spins == -1)).all():
+            raise SolverOutputError(f"got shape {spins.shape}, expected {want} spins in {{-1, +1}}")
+        return spins
+
     def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
         """Chip-legal models in one batch: ``[(spins (reads, n_b), energies + offset)]``."""
         from .chip import stack_programs

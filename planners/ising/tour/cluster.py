@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.tour.qubo import cut_value, maxcut_qubo
+from planners.ising.tour.kernels import maxcut_ising
+from planners.ising.tour.qubo import cut_value
 
 __all__ = ["TourFailure", "Clustering"]
 
@@ -60,10 +61,12 @@ class Clustering:
         drawn = np.asarray(members)
         if s > limit:
             drawn = np.sort(run.rng.choice(drawn, size=self._budget, replace=False))
-        w = dist[np.ix_(drawn, drawn)]
-        q, Q, off = maxcut_qubo(w)
+        w = np.ascontiguousarray(dist[np.ix_(drawn, drawn)], dtype=np.float64)
+        if not np.all(np.isfinite(w)):
+            raise ValueError("weight matrix has non-finite entries (targets in different components?)")
+        h, J, off = maxcut_ising(w)
         for _attempt in range(self.config.max_retries + 1):
-            bits = self._sample(q, Q, off, run, onehot=False)
+            bits = self._sample(h, J, off, run, onehot=False)
             sizes = bits.sum(axis=1)
             ok = (sizes > 0) & (sizes < len(drawn))
             if np.any(ok):

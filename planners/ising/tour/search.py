@@ -17,13 +17,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import LogicalIsingSolver, MeteredSolver, SolverOutputError, branch, ising_from_qubo, quantize
+from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, quantize
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
 from planners.ising.tour.cluster import Clustering, TourFailure
 from planners.ising.tour.config import TourConfig
-from planners.ising.tour.qubo import decode_onehot_batch, open_path_qubo
+from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
+from planners.ising.tour.qubo import onehot_penalty
 
 __all__ = ["IsingTour"]
 
@@ -60,6 +61,7 @@ class IsingTour(Clustering):
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
         self.spec = self.chip.spec
         self._budget = int(self.spec.n_spins)
+        self._zeros: dict = {}  # s -> zero costs, for one-hot validity checks
         self.solver = solver if solver is not None else LogicalIsingSolver(
             spec=self.spec, ledger=self.chip.ledger, **cfg.solver_options)
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
@@ -78,46 +80,53 @@ class IsingTour(Clustering):
     def __repr__(self) -> str:
         return f"IsingTour({self.config!r})"
 
-    def _sample(self, q, Q, off, run: _Run, onehot: bool) -> np.ndarray:
-        """Bits ``(m, n)`` of every read of every branch of one QUBO program issue."""
+    def _sample(self, h, J, off, run: _Run, onehot: bool) -> np.ndarray:
+        """Bits ``(m, n)`` uint8 of every read of every branch of one program issue (logical Ising
+        ``h``, ``J``, ``off``); models above the spin budget are branched (``2^k`` programs)."""
         cfg = self.config
-        model = ising_from_qubo(np.asarray(q, dtype=np.float64), np.asarray(Q, dtype=np.float64), float(off))
-        if model.n > self._budget:
-            branches = branch(model, self._budget, max_frozen=cfg.max_branch_bits)
-            programs = [b.model for b in branches]
+        n = h.shape[0]
+        if n > self._budget:
+            k = n - self._budget
+            if k > cfg.max_branch_bits:
+                raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
+            strength = np.abs(h) + np.abs(J + J.T).sum(axis=1)  # ising_backend.freeze_order
+            frozen = np.sort(np.argsort(-strength, kind="stable")[:k])
         else:
-            branches = None
-            programs = [model]
+            frozen = np.zeros(0, dtype=np.int64)
+        free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)
         seed = int(run.rng.integers(0, 2**63 - 1))
-        if cfg.backend == "logical":
-            spins = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
-            physical = False
+        physical = cfg.backend != "logical"
+        if not physical and isinstance(run.solver.solver, LogicalIsingSolver):
+            spins = run.solver.solve_stack(hb, Jb, num_reads=cfg.num_reads, seed=seed)
         else:
-            hr, jr = self.spec.h_range, self.spec.j_range
-            progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
-            spins = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
-            physical = True
-        if branches is not None:
-            spins = [b.decode(sp) for b, sp in zip(branches, spins)]
-        per_program = [((np.asarray(sp, dtype=np.int8) + 1) // 2).reshape(-1, model.n) for sp in spins]
+            programs = [IsingModel.trusted(hb[m], Jb.copy(), float(offs[m])) for m in range(len(hb))]
+            if physical:
+                hr, jr = self.spec.h_range, self.spec.j_range
+                progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
+                out = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
+            else:
+                out = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
+            spins = np.stack([np.asarray(sp).reshape(cfg.num_reads, -1) for sp in out])
+        bits = expand_branches(spins, free, frozen, n)
         if onehot:
-            s = int(round(math.sqrt(model.n)))
+            s = int(round(math.sqrt(n)))
+            z = self._zeros.get(s)
+            if z is None:
+                z = self._zeros[s] = np.zeros((s, s))
+            valid = best_onehot(bits, s, z, z[0], z[0])[0]
+            per_program = valid.reshape(len(hb), -1)
             m = run.stats["mapping"]["tour"]
-            any_valid = False
-            for bits in per_program:
-                _o, valid = decode_onehot_batch(bits, s)
-                m["programs"] += 1
-                m["reads"] += int(valid.size)
-                m["valid_reads"] += int(valid.sum())
-                if valid.any():
-                    m["valid"] += 1
-                    any_valid = True
-                if physical:
-                    m["physical_programs"] += 1
-                    m["valid_physical"] += int(valid.any())
+            any_valid = bool(valid.any())
+            m["programs"] += len(hb)
+            m["reads"] += int(valid.size)
+            m["valid_reads"] += int(valid.sum())
+            m["valid"] += int(per_program.any(axis=1).sum())
+            if physical:
+                m["physical_programs"] += len(hb)
+                m["valid_physical"] += int(per_program.any(axis=1).sum())
             m["subproblems"] += 1
             m["valid_subproblems"] += int(any_valid)
-        return np.concatenate(per_program, axis=0)
+        return bits
 
     # ------------------------------------------------------------------ public
     def solve(self, dist: np.ndarray, rng: np.random.Generator | None = None) -> TourResult:
@@ -238,14 +247,16 @@ class IsingTour(Clustering):
     def _solve_path(self, d, entry, ex, run: _Run, kind: str):
         """Best valid order of an open-path one-hot QUBO, or ``None`` after retries."""
         s = d.shape[0]
-        q, Q, off, _A = open_path_qubo(d, entry, ex, B=1.0, margin_factor=self.config.penalty_factor)
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        entry = np.ascontiguousarray(entry, dtype=np.float64)
+        ex = np.ascontiguousarray(ex, dtype=np.float64)
+        A = onehot_penalty(d, entry, ex, 1.0, self.config.penalty_factor)
+        h, J, off = onehot_ising(d, entry, ex, A, 1.0)
         for _attempt in range(self.config.max_retries + 1):
-            bits = self._sample(q, Q, off, run, onehot=True)
-            orders, valid = decode_onehot_batch(bits, s)
-            if np.any(valid):
-                cand = orders[valid]
-                costs = entry[cand[:, 0]] + ex[cand[:, -1]] + d[cand[:, :-1], cand[:, 1:]].sum(axis=1)
-                return [int(i) for i in cand[int(np.argmin(costs))]]
+            bits = self._sample(h, J, off, run, onehot=True)
+            _valid, best, orders = best_onehot(bits, s, d, entry, ex)
+            if best >= 0:
+                return [int(i) for i in orders[best]]
             run.stats["retries"] += 1
         run.stats["unsolved"][kind] += 1
         return None

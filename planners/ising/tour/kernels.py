@@ -1,0 +1,187 @@
+"""Compiled host kernels of the clustered Ising tour (paper 5.2): model builders and decoders.
+
+* :func:`onehot_ising` / :func:`maxcut_ising` -- the Ising form (``x = (1 + s) / 2``) of
+  :func:`~planners.ising.tour.qubo.open_path_qubo` / :func:`~planners.ising.tour.qubo.maxcut_qubo`,
+  built directly (same terms, so the same coefficients on the integer BFS distances).
+* :func:`branch_stack` -- spin-budget branching (:func:`ising_backend.branch`) of one model
+  into ``2^k`` reduced programs as stacked arrays; :func:`expand_branches` puts the frozen
+  spins back into every read.
+* :func:`best_onehot` -- one-hot decode of every read and the cheapest valid order.
+
+The numpy functions of :mod:`.qubo` and :mod:`ising_backend.branching` are the references
+the tests compare these against.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot"]
+
+
+@numba.njit(cache=True)
+def _to_ising(q, Q, offset):
+    n = q.shape[0]
+    h = np.empty(n)
+    J = np.empty((n, n))
+    tq = 0.0
+    tQ = 0.0
+    for i in range(n):
+        r = 0.0
+        for j in range(n):
+            r += Q[i, j] + Q[j, i]
+            J[i, j] = Q[i, j] / 4.0
+            tQ += Q[i, j]
+        h[i] = q[i] / 2.0 + r / 4.0
+        tq += q[i]
+    return h, J, offset + tq / 2.0 + tQ / 4.0
+
+
+@numba.njit(cache=True)
+def onehot_ising(d, entry, exit_, A, B):
+    """Ising ``(h, J, offset)`` of the one-hot open path over ``s`` items (variable ``i * s + p``)."""
+    s = d.shape[0]
+    n = s * s
+    q = np.full(n, -2.0 * A)
+    for i in range(s):
+        q[i * s] += B * entry[i]
+    for i in range(s):
+        q[i * s + s - 1] += B * exit_[i]
+    Q = np.zeros((n, n))
+    for a in range(n):
+        ia, pa = a // s, a % s
+        for b in range(a + 1, n):
+            ib, pb = b // s, b % s
+            if ia == ib or pa == pb:
+                Q[a, b] = 2.0 * A
+            elif pb == pa + 1:
+                Q[a, b] = B * d[ia, ib]
+            elif pa == pb + 1:
+                Q[a, b] = B * d[ib, ia]
+    return _to_ising(q, Q, 2.0 * s * A)
+
+
+@numba.njit(cache=True)
+def maxcut_ising(w):
+    """Ising ``(h, J, offset)`` whose energy is ``-cut`` of eq. (7) for weights ``w``."""
+    n = w.shape[0]
+    q = np.zeros(n)
+    Q = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            if i != j:
+                ws = 0.5 * (w[i, j] + w[j, i])
+                q[i] -= ws
+                if j > i:
+                    Q[i, j] = 2.0 * ws
+    return _to_ising(q, Q, 0.0)
+
+
+@numba.njit(cache=True)
+def branch_stack(h, J, offset, frozen):
+    """Freeze spins ``frozen`` (sorted) at every sign pattern: branch ``m`` sets ``frozen[t]`` to
+    ``+1`` if bit ``t`` of ``m`` is set.  Returns ``(free, hb (2^k, nf), Jb (nf, nf), offsets (2^k,))``;
+    the reduced couplings are the same for every branch."""
+    n = h.shape[0]
+    k = frozen.shape[0]
+    is_frozen = np.zeros(n, dtype=np.bool_)
+    for t in range(k):
+        is_frozen[frozen[t]] = True
+    nf = n - k
+    free = np.empty(nf, dtype=np.int64)
+    c = 0
+    for i in range(n):
+        if not is_frozen[i]:
+            free[c] = i
+            c += 1
+    Jb = np.empty((nf, nf))
+    for a in range(nf):
+        for b in range(nf):
+            Jb[a, b] = J[free[a], free[b]]
+    nb = 1 << k
+    hb = np.empty((nb, nf))
+    offs = np.empty(nb)
+    z = np.empty(k)
+    for m in range(nb):
+        for t in range(k):
+            z[t] = 1.0 if (m >> t) & 1 else -1.0
+        for a in range(nf):
+            i = free[a]
+            v = 0.0
+            for t in range(k):
+                f = frozen[t]
+                v += (J[i, f] + J[f, i]) * z[t]
+            hb[m, a] = h[i] + v
+        e = 0.0
+        for t in range(k):
+            e += h[frozen[t]] * z[t]
+        e2 = 0.0
+        for t in range(k):
+            for u in range(k):
+                e2 += z[t] * J[frozen[t], frozen[u]] * z[u]
+        offs[m] = offset + e + e2
+    return free, hb, Jb, offs
+
+
+@numba.njit(cache=True)
+def expand_branches(spins, free, frozen, n):
+    """Bits ``(B * R, n)`` uint8 (``x = (1 + s) / 2``) of the reads ``spins (B, R, >= nf)`` of the
+    branches of :func:`branch_stack` (program-major, frozen spins set per branch)."""
+    B, R = spins.shape[0], spins.shape[1]
+    k = frozen.shape[0]
+    out = np.empty((B * R, n), dtype=np.uint8)
+    for m in range(B):
+        for r in range(R):
+            row = out[m * R + r]
+            for a in range(free.shape[0]):
+                row[free[a]] = 1 if spins[m, r, a] > 0 else 0
+            for t in range(k):
+                row[frozen[t]] = (m >> t) & 1
+    return out
+
+
+@numba.njit(cache=True)
+def best_onehot(bits, s, d, entry, exit_):
+    """One-hot decode of every row of ``bits (m, s*s)`` (``order[p]`` = the item at position ``p``)
+    and the first valid row of lowest ``entry + exit + internal`` cost.
+
+    Returns ``(valid (m,) bool, best row (-1: none), orders (m, s) int64)``.
+    """
+    m = bits.shape[0]
+    valid = np.zeros(m, dtype=np.bool_)
+    orders = np.zeros((m, s), dtype=np.int64)
+    best = -1
+    best_cost = np.inf
+    for r in range(m):
+        ok = True
+        for i in range(s):  # each item exactly once
+            c = 0
+            for p in range(s):
+                c += bits[r, i * s + p] != 0
+            if c != 1:
+                ok = False
+                break
+        if ok:
+            for p in range(s):  # each position exactly once
+                c = 0
+                item = 0
+                for i in range(s):
+                    if bits[r, i * s + p] != 0:
+                        c += 1
+                        item = i
+                if c != 1:
+                    ok = False
+                    break
+                orders[r, p] = item
+        if not ok:
+            continue
+        valid[r] = True
+        internal = 0.0
+        for p in range(s - 1):
+            internal += d[orders[r, p], orders[r, p + 1]]
+        cost = entry[orders[r, 0]] + exit_[orders[r, s - 1]] + internal
+        if cost < best_cost:
+            best_cost = cost
+            best = r
+    return valid, best, orders

@@ -84,15 +84,18 @@ def _figure(rows, refs, path: Path, title: str) -> None:
     t = [r["timesteps"] for r in rows]
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
     a.plot(t, [100 * r["success_rate"] for r in rows], "o-", label="MaskablePPO (pointer)")
-    b.plot(t, [r["median_route_cost"] for r in rows], "o-", label="MaskablePPO median")
-    b.plot(t, [r["mean_route_cost"] for r in rows], "o--", alpha=0.6, label="MaskablePPO mean")
+    b.plot(t, [r["mean_route_cost"] for r in rows], "o-", label="MaskablePPO (pointer)")
+    b.plot(t, [r["median_route_cost"] for r in rows], "s", ms=3, alpha=0.5, color="tab:blue",
+           label="MaskablePPO, median")
     colours = {"fast": "tab:gray", "strong": "tab:green", "ising": "tab:purple", "exact+brute+astar": "black"}
+    styles = {"fast": ":", "strong": "--", "ising": "-.", "exact+brute+astar": ":"}
     for name, ref in refs.items():
-        a.axhline(100 * ref["success_rate"], color=colours.get(name), ls=":", lw=1)
-        b.axhline(ref["route_cost"], color=colours.get(name), ls=":", lw=1.2, label=f"{name} (median)")
+        a.axhline(100 * ref["success_rate"], color=colours.get(name), ls=styles.get(name), lw=1)
+        b.axhline(ref["mean_route_cost"], color=colours.get(name), ls=styles.get(name), lw=1.2,
+                  label=f"{name}: {ref['mean_route_cost']:.2f}")
     a.set_ylim(-2, 102)
     a.set_ylabel("success on unseen worlds (%)")
-    b.set_ylabel("route cost on unseen worlds")
+    b.set_ylabel("mean route cost on unseen worlds")
     for ax in (a, b):
         ax.set_xlabel("training env steps")
         ax.grid(alpha=0.3)
@@ -140,7 +143,9 @@ def main(argv=None) -> int:
               if by[ppo_name][w]["is_success"] and by["strong"][w]["route_cost"] > 0]
     refs_curve = evaluate(list(PLANNERS), n_worlds=args.curve_worlds, world_seed=UNSEEN, env_id=ENV_ID, n_jobs=2,
                           progress=False)
-    refs = {s["controller"]: s for s in refs_curve.summary()}
+    refs = {s["controller"]: dict(s, mean_route_cost=float(np.mean(
+        [r["route_cost"] for r in refs_curve.by_controller(s["controller"]) if r["is_success"]])))
+        for s in refs_curve.summary()}
     title = (f"MaskablePPO + pointer policy on {ENV_ID} (3 robots, 10 targets, 10x10); "
              f"{args.curve_worlds} unseen worlds per checkpoint")
     _figure(cb.rows, refs, Path(args.figure), title)

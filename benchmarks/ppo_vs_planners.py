@@ -1,12 +1,14 @@
-"""How far does a PPO agent get against the planners?  (Issue 6, honest number.)
+"""How far does plain PPO on the grid env get against the planners?  (Issue 6's baseline.)
 
-Trains stable-baselines3 PPO (MlpPolicy, defaults; see agents/learned.py) on
-an env id for ``--timesteps`` steps on this machine, then evaluates it with the
-planners on the same *unseen* worlds (reset seeds 10_000 + i) through the
-evaluation runner, and prints the table plus a JSON line for RESULTS.md.
+Trains stable-baselines3 PPO (MlpPolicy, SB3 defaults, no masks, sparse
+reward; see agents/learned.py) on a grid env id for ``--timesteps`` steps,
+then evaluates it with the planners on the same *unseen* worlds (reset seeds
+10_000 + i) through the evaluation runner, and prints the table plus a JSON
+line.  The learnable set-ups are benchmarks/grid_ppo.py (masks, dense
+reward, CNN) and benchmarks/learned_vs_planners.py (the plan-level env).
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/ppo_vs_planners.py \
-        --env-id mrmt_env/MRMT-5x5-v0 --timesteps 100000 --model /tmp/mrmt_ppo/ppo_5x5.zip
+    flock /tmp/mrmt-bench.lock python benchmarks/ppo_vs_planners.py \
+        --env-id mrmt_env/MRMT-5x5-v0 --timesteps 100000 --model results/ppo/ppo_5x5.zip
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--env-id", default="mrmt_env/MRMT-5x5-v0")
     p.add_argument("--timesteps", type=int, default=100_000)
-    p.add_argument("--model", default="/tmp/mrmt_ppo/ppo.zip")
+    p.add_argument("--model", default="results/ppo/ppo.zip")
     p.add_argument("--skip-train", action="store_true", help="evaluate an existing --model")
     p.add_argument("--worlds", type=int, default=100)
     p.add_argument("--controllers", default="fast,strong,ising")

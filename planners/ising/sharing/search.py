@@ -24,6 +24,7 @@ from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.config import SharingConfig
+from planners.ising.sharing.kernels import score_split_reads, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
 __all__ = ["IsingSharing"]
@@ -132,8 +133,15 @@ class IsingSharing:
     # -------------------------------------------------------------- helpers
 
     def _problem(self, dist, R, nodes, kind) -> SplitProblem:
-        a, b = choose_anchors(dist, nodes, R)
-        free = np.array([n for n in nodes if n != a and n != b], dtype=int)
+        nodes = np.asarray(nodes, dtype=np.int64)
+        balance = self.config.balance if kind == "robots" else 0.0
+        if len(nodes) < 2 or balance:
+            a, b = choose_anchors(dist, nodes, R)  # the reference (and its errors), and the balance term
+            free = np.array([n for n in nodes if n != a and n != b], dtype=np.int64)
+            q, Q, offset = None, None, None
+        else:
+            a, b, free, q, Q, offset = split_model(dist, nodes, R)
+            a, b = int(a), int(b)
         limit = int(self.chip.spec.n_spins) + self.config.max_frozen
         if len(free) > limit:
             raise SharingFailure(
@@ -141,8 +149,9 @@ class IsingSharing:
                 f"the chip has {self.chip.spec.n_spins} spins and spin-budget branching freezes at most "
                 f"max_frozen = {self.config.max_frozen} (at most {limit + 2} robots + targets per group)"
             )
-        q, Q, offset = build_split_qubo(dist, free, a, b, R, self.config.balance if kind == "robots" else 0.0)
-        return SplitProblem(nodes=np.asarray(nodes, dtype=int), a=a, b=b, free=free, q=q, Q=Q, offset=offset, kind=kind)
+        if q is None:
+            q, Q, offset = build_split_qubo(dist, free, a, b, R, balance)
+        return SplitProblem(nodes=nodes, a=a, b=b, free=free, q=q, Q=Q, offset=float(offset), kind=kind)
 
     def _split_all(self, w, R, rng, stats) -> list[list[np.ndarray]]:
         """All candidate partial solutions (lists of groups) after the split stages.
@@ -283,34 +292,23 @@ class IsingSharing:
         except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
         mapping = stats["mapping"]["sharing"]
+        reads = cfg.reads
+        reject = cfg.reject_empty_robot_side
         for k, p in enumerate(problems):
-            seen: dict = {}  # logical spins -> (candidate, valid, score), first occurrence
-            found: dict = {}  # distinct valid partitions, first occurrence order
+            blocks = np.concatenate([spins[b, :, s0:s0 + n] for b, s0, n in where[k * nr:(k + 1) * nr]])
+            valid, cut, first = score_split_reads(blocks, p.free, p.a, p.b, w, R, reject and p.kind == "robots")
             best = np.inf
             rule_best = []
             for r, rule in enumerate(rules):
-                b, s0, n = where[k * nr + r]
-                block = spins[b, :, s0:s0 + n]
-                valid = 0
-                rb = np.inf
-                for s in block:
-                    key = s.tobytes()
-                    hit = seen.get(key)
-                    if hit is None:
-                        cand = decode_split(p, s)
-                        ok = cand is not None and self._valid(R, cand[0], cand[1], p.kind)
-                        if ok:
-                            found.setdefault(cand[1].tobytes(), cand)
-                        hit = (cand, ok, -cut_value(w, cand[0], cand[1]) if ok else np.inf)
-                        seen[key] = hit
-                    if hit[1]:
-                        valid += 1
-                        rb = min(rb, hit[2])
-                mapping[rule]["candidates"] += block.shape[0]
-                mapping[rule]["valid"] += valid
+                v = valid[r * reads:(r + 1) * reads]
+                nv = int(v.sum())
+                rb = float(-cut[r * reads:(r + 1) * reads][v].max()) if nv else np.inf
+                mapping[rule]["candidates"] += reads
+                mapping[rule]["valid"] += nv
                 rule_best.append(rb)
                 best = min(best, rb)
-            if not found:
+            distinct = [r for r in range(len(valid)) if valid[r] and first[r] == r]
+            if not distinct:
                 continue
             tol = 1e-9 * max(1.0, abs(best))
             winners = [rule for rule, rb in zip(rules, rule_best) if rb <= best + tol]
@@ -318,7 +316,10 @@ class IsingSharing:
             # broken at random so integer win counts stay unbiased
             win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
             mapping[win]["wins"] += 1
-            cands = [(cut_value(w, c[0], c[1]), c[0], c[1], None) for c in found.values()]
+            cands = []
+            for r in distinct:
+                side0, side1 = decode_split(p, blocks[r])
+                cands.append((float(cut[r]), side0, side1, None))
             order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
             p.cands = [cands[i] for i in order]
 

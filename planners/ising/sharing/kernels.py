@@ -1,0 +1,153 @@
+"""Compiled host kernels of Ising target sharing (paper 5.3): split models and candidate scoring.
+
+* :func:`split_model` -- the anchors (:func:`~planners.ising.sharing.qubo.choose_anchors`)
+  and the reduced ``-cut`` QUBO (:func:`~planners.ising.sharing.qubo.build_split_qubo`,
+  without the balance term) of one group, in one call.
+* :func:`score_split_reads` -- every read of one split's programs: the partition it
+  encodes, the validity rule, the unquantized cut
+  (:func:`~planners.ising.sharing.qubo.cut_value`) and the first read with the same spins.
+
+Sums follow numpy's order (:func:`planners.ising.numeric.pairwise_sum`), so the results are
+the bits of the numpy functions, which the tests compare against.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.ising.numeric import pairwise_sum
+
+__all__ = ["split_model", "score_split_reads"]
+
+
+@numba.njit(cache=True)
+def _farthest_pair(dist, pool):
+    """First maximum of ``dist`` over pool pairs ``i < j`` in row-major order."""
+    best = -np.inf
+    a = pool[0]
+    b = pool[1]
+    m = pool.shape[0]
+    for i in range(m):
+        for j in range(i + 1, m):
+            v = dist[pool[i], pool[j]]
+            if v > best:
+                best = v
+                a = pool[i]
+                b = pool[j]
+    return a, b
+
+
+@numba.njit(cache=True)
+def split_model(dist, nodes, n_robots):
+    """Anchors ``(a, b)``, free nodes and ``(q, Q, offset)`` of the anchored split of ``nodes``."""
+    nr = 0
+    for v in nodes:
+        nr += v < n_robots
+    robots = np.empty(nr, dtype=np.int64)
+    targets = np.empty(nodes.shape[0] - nr, dtype=np.int64)
+    ir = 0
+    it = 0
+    for v in nodes:
+        if v < n_robots:
+            robots[ir] = v
+            ir += 1
+        else:
+            targets[it] = v
+            it += 1
+    if nr >= 2:
+        a, b = _farthest_pair(dist, robots)
+    elif nr == 1:
+        a = robots[0]
+        b = targets[0]
+        best = dist[a, targets[0]]
+        for t in targets[1:]:
+            if dist[a, t] > best:
+                best = dist[a, t]
+                b = t
+    else:
+        a, b = _farthest_pair(dist, targets)
+    f = nodes.shape[0] - 2
+    free = np.empty(f, dtype=np.int64)
+    k = 0
+    for v in nodes:
+        if v != a and v != b:
+            free[k] = v
+            k += 1
+    q = np.empty(f)
+    Q = np.zeros((f, f))
+    row = np.empty(f)
+    wb = np.empty(f)
+    for i in range(f):
+        for j in range(f):
+            row[j] = 0.0 if i == j else dist[free[i], free[j]]
+            if j > i:
+                Q[i, j] = 2.0 * row[j]
+        wb[i] = dist[free[i], b]
+        q[i] = (-pairwise_sum(row, 0, f) - dist[free[i], a]) + wb[i]
+    offset = -dist[a, b] - pairwise_sum(wb, 0, f)
+    return a, b, free, q, Q, offset
+
+
+@numba.njit(cache=True)
+def score_split_reads(blocks, free, a, b, dist, n_robots, reject_empty_robot_side):
+    """Decode, check and score the reads ``blocks (m, f)`` (+-1, one per free node) of one split.
+
+    Side 1 holds ``b`` and the free nodes with spin ``+1``; the cut is the sum of ``dist`` over
+    (sorted side 0) x (sorted side 1) in row-major order.  With ``reject_empty_robot_side`` a side
+    holding robots but no target is invalid.  Returns ``(valid (m,) bool, cut (m,) float64,
+    first (m,) int64)`` (``first[r]``: the first read with the same spins).
+    """
+    m, f = blocks.shape
+    valid = np.zeros(m, dtype=np.bool_)
+    cut = np.zeros(m)
+    first = np.arange(m)
+    n = f + 2
+    s0 = np.empty(n, dtype=np.int64)
+    s1 = np.empty(n, dtype=np.int64)
+    prod = np.empty(n * n)
+    for r in range(m):
+        for u in range(r):
+            same = True
+            for i in range(f):
+                if blocks[u, i] != blocks[r, i]:
+                    same = False
+                    break
+            if same:
+                first[r] = first[u]
+                break
+        if first[r] != r:
+            valid[r] = valid[first[r]]
+            cut[r] = cut[first[r]]
+            continue
+        n0 = 1
+        n1 = 1
+        s0[0] = a
+        s1[0] = b
+        for i in range(f):
+            if blocks[r, i] > 0:
+                s1[n1] = free[i]
+                n1 += 1
+            else:
+                s0[n0] = free[i]
+                n0 += 1
+        x0 = np.sort(s0[:n0])
+        x1 = np.sort(s1[:n1])
+        ok = True
+        if reject_empty_robot_side:
+            for side in (x0, x1):
+                rob = 0
+                for v in side:
+                    rob += v < n_robots
+                if rob > 0 and rob == side.shape[0]:
+                    ok = False
+        if not ok:
+            continue
+        valid[r] = True
+        k = 0
+        for i in range(n0):
+            for j in range(n1):
+                prod[k] = dist[x0[i], x1[j]]
+                k += 1
+        cut[r] = pairwise_sum(prod, 0, k)
+    return valid, cut, first

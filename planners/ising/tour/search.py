@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, quantize
+from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, freeze_order, quantize
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -89,8 +89,7 @@ class IsingTour(Clustering):
             k = n - self._budget
             if k > cfg.max_branch_bits:
                 raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
-            strength = np.abs(h) + np.abs(J + J.T).sum(axis=1)  # ising_backend.freeze_order
-            frozen = np.sort(np.argsort(-strength, kind="stable")[:k])
+            frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k])
         else:
             frozen = np.zeros(0, dtype=np.int64)
         free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)

@@ -1,0 +1,313 @@
+"""Compiled host kernels of the Ising planners against their slow reference implementations.
+
+Every kernel of ``planners/ising/*/kernels.py`` (and the numeric helper) is checked on random
+inputs (hypothesis) against the numpy / Python code it replaced, bit for bit where the
+kernel promises numpy's bits; edge cases: empty patch problems, one spin, one item, saturated
+ranges, groups of two nodes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ising_backend import QuboModel, branch
+from planners.ising.numeric import pairwise_sum
+from planners.ising.path.config import DEFAULT_WEIGHTS
+from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
+from planners.ising.path.qubo import build_patch_qubo, build_patch_qubo_reference, component_of, patch_frame
+from planners.ising.sharing.kernels import score_split_reads, split_model
+from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
+from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, maxcut_ising, onehot_ising
+from planners.ising.tour.qubo import decode_onehot_batch, maxcut_qubo, onehot_penalty, open_path_qubo
+from planners.tours_classical import BruteTour, exact_route_cost
+
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FRAME = patch_frame(5)
+NBR = neighbour_table(FRAME)
+
+
+# ----------------------------------------------------------------------------- references
+def ranked_reference(frame, padded, pos, goal, excluded, interior, merged):
+    """The ranking IsingPath used before it was compiled (component, then lexsort)."""
+    rad = frame.radius
+    allowed = ~padded[pos[0]:pos[0] + frame.size, pos[1]:pos[1] + frame.size].reshape(-1)
+    comp = component_of(frame, allowed, frame.n // 2)
+    idx = np.flatnonzero(comp)
+    idx = idx[idx != frame.n // 2]
+    cells = frame.offsets[idx] + np.asarray(pos)
+    keep = np.array([not excluded[r + rad, c + rad] for r, c in cells], dtype=bool)
+    idx, cells = idx[keep], cells[keep]
+    if len(idx) == 0:
+        return comp, []
+    is_goal = (cells == np.asarray(goal)).all(axis=1)
+    cls = np.where(is_goal, 0, np.where(frame.ring[idx], 1, 2))
+    if not interior:
+        sel = cls < 2
+        idx, cells, cls = idx[sel], cells[sel], cls[sel]
+    to_goal = np.abs(cells - np.asarray(goal)).sum(axis=1)
+    from_pos = np.abs(frame.offsets[idx]).sum(axis=1)
+    if merged:
+        order = np.lexsort((idx, from_pos, cls, to_goal, cls != 0))
+    else:
+        order = np.lexsort((idx, from_pos, to_goal, cls))
+    return comp, [int(idx[k]) for k in order]
+
+
+def decode_reference(frame, problem, x):
+    """The numpy decode of patch samples IsingPath used before it was compiled."""
+    x = np.asarray(x).astype(bool).reshape(-1, problem.n)
+    sel = np.zeros((x.shape[0], frame.n), dtype=bool)
+    sel[:, problem.cells] = x
+    sel[:, [problem.start, problem.goal]] = True
+    deg = (sel.astype(np.int16) @ frame.adj4.astype(np.int16)) * sel
+    want = np.where(sel, 2, 0)
+    want[:, [problem.start, problem.goal]] = 1
+    ok = (deg == want).all(axis=1)
+    out = [None] * x.shape[0]
+    for s in np.flatnonzero(ok):
+        row = sel[s]
+        path, prev, cur = [problem.start], -1, problem.start
+        while cur != problem.goal:
+            nxt = next((j for j in frame.neighbours[cur] if row[j] and j != prev), -1)
+            if nxt < 0:
+                break
+            prev, cur = cur, nxt
+            path.append(cur)
+        if cur == problem.goal and len(path) == int(row.sum()):
+            out[s] = path
+    return out
+
+
+def patch_case(seed, density):
+    rng = np.random.default_rng(seed)
+    allowed = rng.random(25) >= density
+    allowed[12] = True
+    cand = [i for i in np.flatnonzero(allowed) if i != 12]
+    if not cand:
+        allowed[13] = True
+        cand = [13]
+    return allowed, int(rng.choice(cand)), rng
+
+
+# ----------------------------------------------------------------------------- numeric
+@SETTINGS
+@given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=0, max_size=400))
+def test_pairwise_sum_is_numpys_sum(values):
+    a = np.array(values, dtype=np.float64)
+    assert pairwise_sum(a, 0, len(a)) == a.sum()
+
+
+# ----------------------------------------------------------------------------- path
+@SETTINGS
+@given(st.integers(0, 10**6), st.floats(0.0, 0.6), st.sampled_from(["pair", "degree"]), st.booleans())
+def test_patch_qubo_kernel_is_the_numpy_reference(seed, density, form, custom):
+    allowed, goal, rng = patch_case(seed, density)
+    weights = {k: float(rng.uniform(0.1, 3.0)) for k in DEFAULT_WEIGHTS[form]} if custom else None
+    a = build_patch_qubo(FRAME, allowed, 12, goal, form, weights)
+    b = build_patch_qubo_reference(FRAME, allowed, 12, goal, form, weights)
+    assert np.array_equal(a.cells, b.cells) and np.array_equal(a.q, b.q) and np.array_equal(a.Q, b.Q)
+    assert a.offset == b.offset
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.floats(0.0, 0.7), st.booleans(), st.booleans(), st.floats(0.0, 0.5))
+def test_rank_local_targets_matches_the_reference(seed, density, interior, merged, excl_density):
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(1, 12)), int(rng.integers(1, 12))
+    grid = rng.random((h, w)) < density
+    pos = (int(rng.integers(h)), int(rng.integers(w)))
+    goal = (int(rng.integers(h)), int(rng.integers(w)))
+    grid[pos] = False
+    padded = np.pad(grid, 2, constant_values=True)
+    excluded = np.pad(rng.random((h, w)) < excl_density, 2, constant_values=False)
+    comp, ranked = rank_local_targets(padded, pos[0], pos[1], goal[0], goal[1], 5, NBR, FRAME.ring, excluded,
+                                      interior, merged)
+    ref_comp, ref_ranked = ranked_reference(FRAME, padded, pos, goal, excluded, interior, merged)
+    assert np.array_equal(comp, ref_comp)
+    assert ranked.tolist() == ref_ranked
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.floats(0.0, 0.5), st.integers(1, 6))
+def test_patch_scoring_matches_reference_decode_and_energy(seed, density, reads):
+    allowed, goal, rng = patch_case(seed, density)
+    pr = build_patch_qubo(FRAME, allowed, 12, goal)
+    model = QuboModel(pr.q, pr.Q, pr.offset).to_ising()
+    n = pr.n
+    # two unmerged "programs" (identity copy layout) plus one with every spin copied once
+    P = 3
+    W = max(2 * n, 1)
+    spins = rng.choice(np.array([-1, 1], dtype=np.int8), size=(P, reads, W))
+    # bias some reads towards valid paths: the decoded reference path of a BFS-like choice
+    ptr = np.zeros((P, n + 1), dtype=np.int64)
+    idx = np.zeros((P, W), dtype=np.int64)
+    for p in range(2):
+        ptr[p] = np.arange(n + 1)
+        idx[p, :n] = np.arange(n)
+    ptr[2] = 2 * np.arange(n + 1)
+    for i in range(n):
+        idx[2, 2 * i], idx[2, 2 * i + 1] = i, n + i
+    n_valid, best, energy, logical = score_patch_samples(spins, ptr, idx, n, pr.cells, pr.start, pr.goal, NBR,
+                                                         model.h, model.J, model.offset)
+    for p in range(P):
+        lg = []
+        for r in range(reads):
+            s = spins[p, r].astype(np.int64)
+            x = np.empty(n, dtype=np.int64)
+            for i in range(n):
+                c = idx[p, ptr[p, i]:ptr[p, i + 1]]
+                tot = s[c].sum()
+                x[i] = 1 if tot > 0 else (-1 if tot < 0 else s[c[0]])
+            lg.append(x)
+        lg = np.array(lg).reshape(reads, n)
+        assert np.array_equal(logical[p], lg)
+        paths = decode_reference(FRAME, pr, lg > 0)
+        ok = [q is not None for q in paths]
+        assert n_valid[p] == sum(ok)
+        if any(ok):
+            e = [model.energy(lg[r]) if ok[r] else np.inf for r in range(reads)]
+            assert best[p] == int(np.argmin(e)) and energy[p] == pytest.approx(min(e), abs=1e-9)
+            got = extract_path(lg[best[p]] > 0, pr.cells, pr.start, pr.goal, NBR)
+            assert got.tolist() == paths[best[p]]
+        else:
+            assert best[p] == -1 and energy[p] == np.inf
+        for r in range(reads):
+            got = extract_path(lg[r] > 0, pr.cells, pr.start, pr.goal, NBR)
+            assert (got.tolist() if len(got) else None) == paths[r]
+
+
+def test_empty_patch_problem_and_one_variable():
+    allowed = np.zeros(25, dtype=bool)
+    allowed[[12, 13]] = True  # the target is the robot's only neighbour: no variable
+    pr = build_patch_qubo(FRAME, allowed, 12, 13)
+    assert pr.n == 0
+    assert extract_path(np.zeros(0, dtype=bool), pr.cells, 12, 13, NBR).tolist() == [12, 13]
+    allowed[14] = True  # one variable between robot and target
+    pr = build_patch_qubo(FRAME, allowed, 12, 14)
+    assert pr.n == 1 and extract_path(np.ones(1, dtype=bool), pr.cells, 12, 14, NBR).tolist() == [12, 13, 14]
+    assert len(extract_path(np.zeros(1, dtype=bool), pr.cells, 12, 14, NBR)) == 0
+
+
+# ----------------------------------------------------------------------------- tour
+def _ising_of(q, Q, off):
+    return QuboModel(q, Q, off).to_ising()
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(1, 7))
+def test_onehot_and_maxcut_ising_are_the_qubo_conversions(seed, s):
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, 20, size=(s, s)).astype(float)
+    np.fill_diagonal(d, 0)
+    entry = rng.integers(0, 20, size=s).astype(float)
+    ex = rng.integers(0, 20, size=s).astype(float)
+    q, Q, off, A = open_path_qubo(d, entry, ex)
+    ref = _ising_of(q, Q, off)
+    h, J, o = onehot_ising(d, entry, ex, onehot_penalty(d, entry, ex), 1.0)
+    assert A == onehot_penalty(d, entry, ex)
+    assert np.array_equal(h, ref.h) and np.array_equal(J, ref.J) and o == ref.offset
+    w = d + d.T
+    ref = _ising_of(*maxcut_qubo(w))
+    h, J, o = maxcut_ising(w)
+    assert np.array_equal(h, ref.h) and np.array_equal(J, ref.J) and o == ref.offset
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(3, 7), st.integers(0, 4))
+def test_branch_stack_is_ising_backend_branch(seed, s, k):
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, 9, size=(s, s)).astype(float)
+    entry = rng.integers(0, 9, size=s).astype(float)
+    h, J, o = onehot_ising(d, entry, entry[::-1].copy(), onehot_penalty(d, entry, entry), 1.0)
+    model = _ising_of(*open_path_qubo(d, entry, entry[::-1].copy())[:3])
+    budget = s * s - k
+    branches = branch(model, budget, max_frozen=4)
+    frozen = branches[0].frozen
+    free, hb, Jb, offs = branch_stack(h, J, o, np.asarray(frozen, dtype=np.int64))
+    assert len(branches) == len(hb) == 2 ** len(frozen)
+    for m, br in enumerate(branches):
+        assert np.array_equal(free, br.free)
+        assert np.allclose(hb[m], br.model.h) and np.array_equal(Jb, br.model.J)
+        assert offs[m] == pytest.approx(br.model.offset)
+    spins = rng.choice(np.array([-1, 1], dtype=np.int8), size=(len(hb), 2, len(free)))
+    bits = expand_branches(spins, free, np.asarray(frozen, dtype=np.int64), s * s)
+    ref = np.concatenate([(br.decode(spins[m]).astype(np.int64) + 1) // 2 for m, br in enumerate(branches)])
+    assert np.array_equal(bits, ref)
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(1, 6), st.integers(1, 30), st.floats(0.0, 1.0))
+def test_best_onehot_matches_batch_decode_and_cost(seed, s, m, perm_share):
+    rng = np.random.default_rng(seed)
+    bits = (rng.random((m, s * s)) < 1.0 / s).astype(np.uint8)
+    for r in range(m):  # some rows are permutations
+        if rng.random() < perm_share:
+            bits[r] = 0
+            bits[r, np.arange(s) * s + rng.permutation(s)] = 1
+    d = rng.integers(0, 20, size=(s, s)).astype(float)
+    entry = rng.integers(0, 20, size=s).astype(float)
+    ex = rng.integers(0, 20, size=s).astype(float)
+    valid, best, orders = best_onehot(bits, s, d, entry, ex)
+    ref_orders, ref_valid = decode_onehot_batch(bits, s)
+    assert np.array_equal(valid, ref_valid)
+    assert np.array_equal(orders[valid], ref_orders[ref_valid])
+    if ref_valid.any():
+        cand = ref_orders[ref_valid]
+        costs = entry[cand[:, 0]] + ex[cand[:, -1]] + d[cand[:, :-1], cand[:, 1:]].sum(axis=1)
+        assert best == int(np.flatnonzero(ref_valid)[int(np.argmin(costs))])
+    else:
+        assert best == -1
+
+
+# ----------------------------------------------------------------------------- sharing
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(2, 16), st.integers(1, 4), st.booleans())
+def test_split_model_matches_anchors_and_split_qubo(seed, m, R, shifted):
+    rng = np.random.default_rng(seed)
+    pts = rng.integers(0, 10, size=(R + 14, 2))
+    dist = np.abs(pts[:, None] - pts[None]).sum(-1).astype(float)
+    if shifted:  # the planner's split weights: d - 0.5 mean (non-integer)
+        dist = dist - 0.5 * dist[np.triu_indices(len(dist), 1)].mean()
+        np.fill_diagonal(dist, 0.0)
+    nodes = np.sort(rng.choice(R + 14, size=m, replace=False)).astype(np.int64)
+    if int((nodes < R).sum()) == 1 and len(nodes) == 1:
+        return
+    a, b, free, q, Q, off = split_model(dist, nodes, R)
+    ra, rb = choose_anchors(dist, nodes, R)
+    rfree = np.array([v for v in nodes if v != ra and v != rb], dtype=np.int64)
+    rq, rQ, roff = build_split_qubo(dist, rfree, ra, rb, R)
+    assert (a, b) == (ra, rb) and np.array_equal(free, rfree)
+    assert np.array_equal(q, rq) and np.array_equal(Q, rQ) and off == roff
+    reads = rng.choice(np.array([-1, 1], dtype=np.int8), size=(8, len(free)))
+    reads[5] = reads[1]
+    for reject in (False, True):
+        valid, cut, first = score_split_reads(reads, free, a, b, dist, R, reject)
+        p = SplitProblem(nodes, a, b, free, q, Q, off, "robots")
+        for r in range(8):
+            side0, side1 = decode_split(p, reads[r])
+            ok = not (reject and any((sd < R).any() and not (sd >= R).any() for sd in (side0, side1)))
+            assert valid[r] == ok
+            if ok:
+                assert cut[r] == cut_value(dist, side0, side1)
+            assert reads[first[r]].tobytes() == reads[r].tobytes() and first[r] <= r
+        assert first[5] == first[1]
+
+
+# ----------------------------------------------------------------------------- classical pricing
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(0, 9))
+def test_exact_route_cost_is_brute_tour_cost(seed, n):
+    rng = np.random.default_rng(seed)
+    pts = rng.integers(0, 10, size=(n + 4, 2))
+    dist = np.abs(pts[:, None] - pts[None]).sum(-1).astype(float)
+    nodes = [int(v) for v in rng.permutation(n + 4)[: n + 1]]
+    ref = BruteTour().solve(dist[np.ix_(nodes, nodes)]).cost
+    assert exact_route_cost(dist, nodes) == ref
+
+
+def test_exact_route_cost_refuses_too_many_targets():
+    with pytest.raises(ValueError, match="MAX_BRUTE_TARGETS"):
+        exact_route_cost(np.zeros((20, 20)), list(range(16)))

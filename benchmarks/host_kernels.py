@@ -13,10 +13,10 @@ Inputs (realistic, seed 0):
 For every operation, the reference (``ising_backend._reference``, the numpy code
 the package used before) and the public compiled path (``merge_spins``,
 ``quantize``, ``MergedModel.decode``) are checked bit-identical, then timed call by
-call (``perf_counter_ns``), interleaved over the same inputs; the table reports
-medians over ``--calls`` calls.  The batch entry points (``merge_styles``: four
-styles in one call; ``quantize_stack``: four rules; ``decode_copies``: 4 programs x
-10 reads) are timed per call as well.
+call (``perf_counter_ns``) over the same inputs, taking turns in blocks; the table
+reports medians over ``--calls`` calls.  The batch entry points (``merge_styles``:
+four styles in one call; ``quantize_stack``: four rules; ``decode_copies``: 4
+programs x 10 reads) are timed against the reference doing the same work.
 
 Usage::
 
@@ -97,36 +97,27 @@ def _same(x, y) -> bool:
     return x.h.tobytes() == y.h.tobytes() and x.J.tobytes() == y.J.tobytes() and x.offset == y.offset
 
 
-def median_us(calls: int, inputs: list, ref_fn, new_fn) -> tuple[float, float]:
-    """Median per-call microseconds of ``ref_fn(x)`` and ``new_fn(x)``, interleaved over ``inputs``."""
-    for x in inputs[:3]:  # warm
-        ref_fn(x)
-        new_fn(x)
-    tr = np.empty(calls)
-    tn = np.empty(calls)
-    clock = time.perf_counter_ns
-    for c in range(calls):
-        x = inputs[c % len(inputs)]
-        t = clock()
-        ref_fn(x)
-        tr[c] = clock() - t
-        t = clock()
-        new_fn(x)
-        tn[c] = clock() - t
-    return float(np.median(tr)) / 1e3, float(np.median(tn)) / 1e3
+def median_us(calls: int, inputs: list, *fns, blocks: int = 20) -> list[float]:
+    """Median per-call microseconds of each ``fn(x)`` over ``inputs`` (cycled).
 
-
-def median_one_us(calls: int, inputs: list, fn) -> float:
-    for x in inputs[:3]:
-        fn(x)
-    ts = np.empty(calls)
+    The functions take turns in ``blocks`` blocks of ``calls / blocks`` calls each, so
+    slow drifts of the shared machine's load hit all of them alike, while each
+    block runs with its own function's caches warm.
+    """
+    per = -(-calls // blocks)
+    for fn in fns:  # warm (compile, first-call set-up)
+        for x in inputs[:3]:
+            fn(x)
+    times = [np.empty(per * blocks) for _ in fns]
     clock = time.perf_counter_ns
-    for c in range(calls):
-        x = inputs[c % len(inputs)]
-        t = clock()
-        fn(x)
-        ts[c] = clock() - t
-    return float(np.median(ts)) / 1e3
+    for b in range(blocks):
+        for fn, ts in zip(fns, times):
+            for c in range(b * per, (b + 1) * per):
+                x = inputs[c % len(inputs)]
+                t = clock()
+                fn(x)
+                ts[c] = clock() - t
+    return [float(np.median(ts)) / 1e3 for ts in times]
 
 
 def run(calls: int) -> tuple[list, dict]:
@@ -142,10 +133,13 @@ def run(calls: int) -> tuple[list, dict]:
                              lambda m: merge_spins(m, style, scale=SCALE))
         rows.append((f"merge_spins `{style}`", "patch", ref, new))
     all_styles = np.array([STYLE_IDS[s] for s in MERGE_STYLES], dtype=np.int64)
-    rounded = [(np.rint(m.h * SCALE).astype(np.int64), np.rint(m.J * SCALE).astype(np.int64)) for m in patches]
-    ref4 = sum(r for (_, _, r, _) in rows)
-    batch = median_one_us(calls, rounded, lambda hc: merge_styles(hc[0], hc[1], all_styles, 7, 7, 7, 45))
-    rows.append(("merge_styles, 4 styles in one call (rounded arrays in)", "patch", ref4, batch))
+
+    def rounded(m):
+        return np.rint(m.h * SCALE).astype(np.int64), np.rint(m.J * SCALE).astype(np.int64)
+
+    ref, new = median_us(calls, patches, lambda m: [merge_spins_ref(m, s, scale=SCALE) for s in MERGE_STYLES],
+                         lambda m: merge_styles(*rounded(m), all_styles, 7, 7, 7, 45))
+    rows.append(("4 styles: 4 reference calls vs one `merge_styles` (rounding included)", "patch", ref, new))
     # ---- decode (majority, 10 reads)
     rng = np.random.default_rng(1)
     merged = [merge_spins(m, "overload", scale=SCALE) for m in patches]
@@ -165,10 +159,10 @@ def run(calls: int) -> tuple[list, dict]:
         nlog = np.full(4, m.n, dtype=np.int64)
         views = [merge_spins(m, s, scale=SCALE) for s in MERGE_STYLES]
         packs.append((spins, nlog, ptr, idx, views))
-    ref4 = median_one_us(calls, packs, lambda p: [decode_ref(v.copies, v.physical.n, p[0][k, :, :v.physical.n])
-                                                  for k, v in enumerate(p[4])])
-    batch = median_one_us(calls, packs, lambda p: decode_copies(p[0], p[1], p[2], p[3], False))
-    rows.append((f"decode_copies, 4 programs x {READS} reads in one call", "patch", ref4, batch))
+    ref, new = median_us(calls, packs, lambda p: [decode_ref(v.copies, v.physical.n, p[0][k, :, :v.physical.n])
+                                                  for k, v in enumerate(p[4])],
+                         lambda p: decode_copies(p[0], p[1], p[2], p[3], False))
+    rows.append((f"4 programs x {READS} reads: 4 reference decodes vs one `decode_copies`", "patch", ref, new))
     # ---- quantize (4 rules) on cut QUBOs
     for n in CUT_SIZES:
         models = cut_models(n, 16)
@@ -177,9 +171,8 @@ def run(calls: int) -> tuple[list, dict]:
                 assert _same(quantize_ref(m, rule), quantize(m, rule))
             ref, new = median_us(calls, models, lambda m: quantize_ref(m, rule), lambda m: quantize(m, rule))
             rows.append((f"quantize `{rule}`", f"cut {n}", ref, new))
-        ref4 = sum(r for (op, inp, r, _) in rows[-4:])
-        batch = median_one_us(calls, models, lambda m: quantize_stack(m))
-        rows.append(("quantize_stack, 4 rules in one call", f"cut {n}", ref4, batch))
+        ref, new = median_us(calls, models, lambda m: [quantize_ref(m, r) for r in QUANTIZE_RULES], quantize_stack)
+        rows.append(("4 rules: 4 reference calls vs one `quantize_stack`", f"cut {n}", ref, new))
     info = {"patch_spins": (min(sizes), int(np.median(sizes)), max(sizes)),
             "patch_copies": (min(mm.n_extra for mm in merged), max(mm.n_extra for mm in merged))}
     return rows, info
@@ -214,8 +207,9 @@ Patch: 64 random 5x5 pair-form patch QUBOs ({lo}-{hi} spins, median {med}) as Is
 at scale 16 (the `overload` view uses {c0}-{c1} copies); decode of {READS} reads.  Cut n: 16 anchored
 split QUBOs of the sharing layer with n free spins (BFS distances of generated 10x10 worlds).
 The public calls (`merge_spins`, `quantize`, `MergedModel.decode`) include their argument checks,
-rounding and model construction; the batch rows compare one compiled call with the sum of the
-reference's per-style (per-rule) medians (decode: the reference decoding each program).
+rounding and model construction; the batch rows time the reference doing the same work (one call
+per style / rule / program) against one call of the batch kernel.  Reference and compiled calls
+take turns in 20 blocks of calls/20 calls each.
 
 {table(rows)}
 """

@@ -106,8 +106,8 @@ class IsingModel:
         of ``n`` unique labels.  The arrays are taken over (made read-only, not
         copied).  Public construction (``IsingModel(h, J, ...)``) keeps validating.
         """
-        h.flags.writeable = False
-        J.flags.writeable = False
+        h.setflags(write=False)
+        J.setflags(write=False)
         self = object.__new__(cls)
         self.__dict__.update(h=h, J=J, offset=offset, labels=labels)
         return self

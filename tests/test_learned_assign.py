@@ -141,3 +141,16 @@ def test_image_observation_is_cnn_ready():
 def test_grid_option_errors(kw, match):
     with pytest.raises(ValueError, match=match):
         gym.make("mrmt_env/MRMT-v0", **kw)
+
+
+def test_grid_options_pass_the_env_checkers():
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make("mrmt_env/MRMT-v0", observation="image", dense_reward=1.0).unwrapped
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an image SB3 accepts as it is: no warning at all
+        check_env(env)
+        sb3_check_env(env, warn=True)

@@ -72,20 +72,22 @@ def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -
     base: list[list[int]] = [[] for _ in range(R)]
     bundles: list[list[int]] = []
     for g in groups:
-        robots = g[g < R]
-        targets = [int(t) for t in g[g >= R]]
+        nodes = g.tolist()
+        robots = [v for v in nodes if v < R]
+        targets = [v for v in nodes if v >= R]
         if len(robots) == 1:
-            base[int(robots[0])].extend(targets)
+            base[robots[0]].extend(targets)
         elif len(robots) == 0:
             if targets:
                 bundles.append(targets)
         else:  # cannot happen: robot stages run until <= 1 robot per group
-            raise SharingFailure(f"group {g.tolist()} still holds {len(robots)} robots")
+            raise SharingFailure(f"group {nodes} still holds {len(robots)} robots")
     stats["bundles"] += len(bundles)
     if not bundles:
         return base
-    robots = np.arange(R)
-    near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
+    if bundle_order in ("far_first", "near_first"):
+        robots = np.arange(R)
+        near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
     if bundle_order == "far_first":
         order = sorted(range(len(bundles)), key=lambda i: (-near[i], i))
     elif bundle_order == "near_first":
@@ -98,6 +100,6 @@ def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -
     for i in order:
         b = bundles[i]
         inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
-        k = int(np.argmin(inc))
+        k = inc.index(min(inc))  # the first robot of least increase (np.argmin's tie rule)
         current[k].extend(b)
     return current

@@ -164,18 +164,20 @@ class IsingSharing:
         """
         states: list[tuple[float, list[np.ndarray]]] = [(0.0, [np.arange(w.shape[0])])]
         while True:  # robot stages: split every group holding more than one robot
-            todo = [(si, gi) for si, (_, st) in enumerate(states) for gi, g in enumerate(st) if int((g < R).sum()) >= 2]
+            # groups are sorted node arrays: robots (nodes < R) come first
+            todo = [(si, gi) for si, (_, st) in enumerate(states) for gi, g in enumerate(st) if g.searchsorted(R) >= 2]
             if not todo:
                 break
             problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "robots", rng, stats)
             states = self._expand(states, todo, problems, self.config.beam)
         for _ in range(self.config.refine_stages):
-            todo = [
-                (si, gi)
-                for si, (_, st) in enumerate(states)
-                for gi, g in enumerate(st)
-                if int((g >= R).sum()) > (self.config.resolved_base_max if (g < R).any() else self.config.refine_above)
-            ]
+            base_max, above = self.config.resolved_base_max, self.config.refine_above
+            todo = []
+            for si, (_, st) in enumerate(states):
+                for gi, g in enumerate(st):
+                    nr = g.searchsorted(R)
+                    if len(g) - nr > (base_max if nr else above):
+                        todo.append((si, gi))
             if not todo:
                 break
             problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "refine", rng, stats)
@@ -297,14 +299,14 @@ class IsingSharing:
         for k, p in enumerate(problems):
             blocks = np.concatenate([spins[b, :, s0:s0 + n] for b, s0, n in where[k * nr:(k + 1) * nr]])
             valid, cut, first = score_split_reads(blocks, p.free, p.a, p.b, w, R, reject and p.kind == "robots")
+            valid, cut, first = valid.tolist(), cut.tolist(), first.tolist()
             best = np.inf
             rule_best = []
             for r, rule in enumerate(rules):
-                v = valid[r * reads:(r + 1) * reads]
-                nv = int(v.sum())
-                rb = float(-cut[r * reads:(r + 1) * reads][v].max()) if nv else np.inf
+                scores = [-c for v, c in zip(valid[r * reads:(r + 1) * reads], cut[r * reads:(r + 1) * reads]) if v]
+                rb = min(scores) if scores else np.inf
                 mapping[rule]["candidates"] += reads
-                mapping[rule]["valid"] += nv
+                mapping[rule]["valid"] += len(scores)
                 rule_best.append(rb)
                 best = min(best, rb)
             distinct = [r for r in range(len(valid)) if valid[r] and first[r] == r]

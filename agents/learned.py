@@ -54,11 +54,11 @@ ASSIGN_ENV_ID = "mrmt_env/MRMT-Assign-v0"
 ALGORITHMS = ("ppo", "maskable_ppo")
 #: Default training budgets (env steps): the plan-level default finishes in
 #: <= 10 minutes on a 2-core machine (benchmarks/RESULTS.md).
-DEFAULT_TIMESTEPS = {"assign": 150_000, "grid": 100_000}
+DEFAULT_TIMESTEPS = {"assign": 300_000, "grid": 100_000}
 
 #: MaskablePPO settings for the plan-level env (see the module docstring).
-ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4, gamma=1.0, gae_lambda=0.95,
-                    ent_coef=0.01, clip_range=0.2)
+ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=1.0,
+                    gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 ASSIGN_N_ENVS = 16
 
 
@@ -240,6 +240,15 @@ def train(
         rollout = max(16, min(2048, timesteps // n_envs))
         params = dict(n_steps=rollout, batch_size=min(64, rollout * n_envs))
     params.update(algo_kwargs)
+    schedule = params.pop("lr_schedule", "constant")
+    if schedule not in ("constant", "linear"):
+        raise ValueError(f"lr_schedule must be 'constant' or 'linear', got {schedule!r}")
+    hyper = {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))}
+    hyper["lr_schedule"] = schedule
+    if schedule == "linear":  # from learning_rate down to 0 at the end of training
+        from stable_baselines3.common.utils import LinearSchedule
+
+        params["learning_rate"] = LinearSchedule(float(params["learning_rate"]), 0.0, 1.0)
     if algo == "maskable_ppo":
         from sb3_contrib import MaskablePPO as Algo
     else:
@@ -265,7 +274,7 @@ def train(
             "n_envs": n_envs,
             "reward_scale": float(reward_scale),
             "train_wall_s": wall,
-            "hyper": {k: v for k, v in params.items() if isinstance(v, (int, float, str, bool))},
+            "hyper": hyper,
         }
         sidecar_path(zpath).write_text(json.dumps(meta, indent=1))
         if curve_cb is not None:

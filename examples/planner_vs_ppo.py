@@ -5,7 +5,7 @@ Trains sb3-contrib MaskablePPO (pointer policy) briefly on the plan-level env
 an idle robot picks its next target), then runs the strong classical
 pipeline, the Ising pipeline and the learned agent on the same unseen worlds
 and prints the evaluator's table (route cost, success, latency, energy).
-``mrmt train --env-id mrmt_env/MRMT-Assign-v0``'s default budget (150k steps,
+``mrmt train --env-id mrmt_env/MRMT-Assign-v0``'s default budget (300k steps,
 a few minutes) brings the learned route cost within a few percent of the
 strong pipeline's (benchmarks/RESULTS.md); this example's 20k steps get
 within about 10 %.

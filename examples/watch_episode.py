@@ -2,7 +2,7 @@
 
 Trains a MaskablePPO allocator briefly on the plan-level env
 ``mrmt_env/MRMT-Assign-v0`` (the default budget of ``mrmt train`` is
-150k steps; a few thousand already give a usable agent), then writes one GIF
+300k steps; a few thousand already give a usable agent), then writes one GIF
 of the strong pipeline and one of the learned agent on the same unseen world.
 Robots are coloured squares; each route is solid where driven and faint
 where still to go.

@@ -22,7 +22,7 @@ HELP = "train a learned agent (PPO / MaskablePPO) on an MRMT env and save it"
 
 def add_arguments(parser) -> None:
     parser.add_argument("--timesteps", type=int, default=None,
-                        help="total env steps (default: 150000 on the plan-level env, about 5 min on 2 cores; "
+                        help="total env steps (default: 300000 on the plan-level env, about 6.5 min on 2 cores; "
                              "100000 on a grid env)")
     parser.add_argument("--out", required=True, help="model path (.zip)")
     parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")

@@ -114,7 +114,7 @@ class MergedModel:
             copies = tuple(idx[ptr[i]:ptr[i + 1]].copy() for i in range(ptr.size - 1))
             d["copies"] = copies
             return copies
-        raise AttributeError(name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @classmethod
     def _from_layout(cls, logical, physical, ptr, idx, style, scale) -> "MergedModel":

@@ -4,6 +4,9 @@ Every result is compared bit for bit (``tobytes``: signed zeros included), error
 by type and message.
 """
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -204,6 +207,11 @@ def test_merged_model_copies_and_layout_are_consistent():
         for i, c in enumerate(mm.copies):
             assert c[0] == i and np.array_equal(idx[ptr[i]:ptr[i + 1]], c)
         assert "copies=" in repr(mm)
+    for clone in (pickle.loads(pickle.dumps(mm)), copy.deepcopy(mm)):  # the lazily made copies survive
+        assert [list(c) for c in clone.copies] == [list(c) for c in mm.copies]
+        assert _same_model(clone.physical, mm.physical)
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        mm.nothing
     sat = saturate_mapping(model)
     assert [list(c) for c in sat.copies] == [[0], [1], [2], [3]]
     assert _same_model(sat.physical, IsingModel(saturate_ref(model, 1.0).h, saturate_ref(model, 1.0).J))

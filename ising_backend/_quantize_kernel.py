@@ -96,7 +96,29 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     q = np.zeros(L)
     v = np.empty(L)
     rel = np.empty(m)
-    level = np.empty(m, dtype=np.int64)
+    # |c| / limit of the non-zero coefficients, sorted once for rank and clip95 (both rules see
+    # exactly these values); rank also needs each value's level among the distinct ones
+    rel0 = np.empty(m)
+    for u in range(m):
+        rel0[u] = abs(c[nzi[u]]) / lim[nzi[u]]
+    need_rank = False
+    need_sorted = False
+    for r in range(k):
+        need_rank |= rules[r] == 2
+        need_sorted |= rules[r] == 1 or rules[r] == 2
+    level = np.zeros(m, dtype=np.int64)
+    top = 0  # the highest level
+    if m > 0 and need_rank:
+        order = np.argsort(rel0)
+        sorted0 = rel0[order]
+        for u in range(1, m):
+            if sorted0[u] != sorted0[u - 1]:
+                top += 1
+            level[order[u]] = top
+    elif m > 0 and need_sorted:
+        sorted0 = np.sort(rel0)
+    else:
+        sorted0 = rel0
     for r in range(k):
         rule = rules[r]
         if m == 0:
@@ -104,26 +126,17 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
         elif rule == 2:  # rank: level of |c| / limit among the distinct values, spread over 1..limit
             q[:] = 0.0
             for u in range(m):
-                rel[u] = abs(c[nzi[u]]) / lim[nzi[u]]
-            order = np.argsort(rel)
-            cur = 0
-            level[order[0]] = 0
-            for u in range(1, m):
-                if rel[order[u]] != rel[order[u - 1]]:
-                    cur += 1
-                level[order[u]] = cur
-            for u in range(m):
                 t = nzi[u]
-                frac = level[u] / cur if cur > 0 else 1.0
+                frac = level[u] / top if top > 0 else 1.0
                 q[t] = _sign(c[t]) * np.rint(1.0 + (lim[t] - 1.0) * frac)
         else:  # linear / clip95 / sqrt: one factor, round, clip
             for t in range(L):
                 v[t] = _sign(c[t]) * np.sqrt(abs(c[t])) if rule == 3 else c[t]
-            for u in range(m):
-                rel[u] = abs(v[nzi[u]]) / lim[nzi[u]]
             if rule == 1:
-                a = _percentile(np.sort(rel), percentile)
+                a = _percentile(sorted0, percentile)
             else:
+                for u in range(m):
+                    rel[u] = abs(v[nzi[u]]) / lim[nzi[u]]
                 a = rel.max()
             for t in range(L):
                 q[t] = _clip(np.rint(v[t] / a), -lim[t], lim[t])

@@ -67,12 +67,18 @@ from ._merge_kernel import (
     MERGE_TOO_MANY_SPINS,
     STYLE_IDS,
     decode_copies,
+    merge_batch,
     merge_styles,
 )
 from .models import IsingModel
 from .spec import ChipSpec
 
-__all__ = ["MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_error_message"]
+__all__ = [
+    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_error_message",
+    # the compiled kernels (array in, array out; see ising_backend._merge_kernel)
+    "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
+    "merge_batch", "merge_styles", "decode_copies",
+]
 
 MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")
 _DEFAULT_SPEC = ChipSpec()  # frozen: shared by the calls that pass no spec

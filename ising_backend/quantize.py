@@ -43,10 +43,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._quantize_kernel import QUANT_OK, RULE_IDS, quantize_rules, saturate_arrays
+from ._quantize_kernel import QUANT_NONFINITE, QUANT_OK, RULE_IDS, quantize_rules, saturate_arrays
 from .models import IsingModel
 
-__all__ = ["QUANTIZE_RULES", "quantize", "quantize_stack", "saturate", "QuantizeError"]
+__all__ = [
+    "QUANTIZE_RULES", "quantize", "quantize_stack", "saturate", "QuantizeError",
+    # the compiled kernels (array in, array out; see ising_backend._quantize_kernel)
+    "RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays",
+]
 
 QUANTIZE_RULES = ("linear", "clip95", "rank", "sqrt")
 

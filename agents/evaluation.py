@@ -36,8 +36,10 @@ measured wall-clock time and vary from run to run.
 
 Controllers are named by a spec string (:func:`make_controller`): a pipeline
 preset (``fast``, ``strong``, ``ising``), a layer triple
-``sharing+tour+path`` (e.g. ``ssa+brute+astar``), or ``ppo:PATH`` for a saved
-stable-baselines3 PPO model (:mod:`agents.learned`).
+``sharing+tour+path`` (e.g. ``ssa+brute+astar``), ``ppo:PATH`` for a model
+saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned`), or
+``ppo-ms:PATH`` for a plan-level model decoded from every legal first
+decision, the cheapest kept (:mod:`agents.assign_search`).
 
 Episodes run on a process pool (``n_jobs`` workers, default 2; ``n_jobs=1``
 runs inline) with a tqdm progress bar on stderr; each worker builds each
@@ -78,6 +80,10 @@ __all__ = [
 ]
 
 DEFAULT_ENV_ID = "mrmt_env/MRMT-v0"
+
+#: Spec prefixes of learned models: a saved model, and the same decoded from every first decision
+#: (plan-level env only; :mod:`agents.assign_search`).
+LEARNED_PREFIXES = ("ppo:", "ppo-ms:")
 
 #: Pipeline presets of :func:`planners.pipeline.make_pipeline`.
 PIPELINE_PRESETS = ("fast", "strong", "ising")
@@ -143,15 +149,16 @@ def validate_controller_spec(spec: str) -> str:
 
     Raises:
         ControllerError: an unknown name, a malformed layer triple, or a
-            ``ppo:`` path that does not exist or is not a model zip file.
+            ``ppo:`` / ``ppo-ms:`` path that does not exist or is not a model zip file.
     """
     if not isinstance(spec, str) or not spec.strip():
         raise ControllerError(f"controller spec must be a non-empty string, got {spec!r}")
     spec = spec.strip()
-    if spec.startswith("ppo:"):
-        path = spec[4:]
+    prefix = next((p for p in LEARNED_PREFIXES if spec.startswith(p)), None)
+    if prefix is not None:
+        path = spec[len(prefix):]
         if not path:
-            raise ControllerError("controller 'ppo:' needs a model path, e.g. ppo:model.zip")
+            raise ControllerError(f"controller '{prefix}' needs a model path, e.g. {prefix}model.zip")
         if not os.path.isfile(path):
             raise ControllerError(f"PPO model file {path!r} does not exist")
         if not zipfile.is_zipfile(path):
@@ -173,7 +180,7 @@ def validate_controller_spec(spec: str) -> str:
         return spec
     raise ControllerError(
         f"unknown controller {spec!r}; expected one of {', '.join(PIPELINE_PRESETS)}, "
-        "a layer triple sharing+tour+path (e.g. ssa+3opt+astar), or ppo:PATH"
+        "a layer triple sharing+tour+path (e.g. ssa+3opt+astar), ppo:PATH or ppo-ms:PATH"
     )
 
 
@@ -199,11 +206,22 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None):
     ``episode_compute(index)``.
     """
     spec = validate_controller_spec(spec)
+    from agents.env_ids import is_assign_env
+
     if spec.startswith("ppo:"):
         from agents.learned import load_policy
 
         return load_policy(spec[4:], seed=seed)
-    from agents.env_ids import is_assign_env
+    if spec.startswith("ppo-ms:"):
+        from agents.assign_search import MultiStartPolicy
+        from agents.learned import load_policy
+
+        if env_id is None or not is_assign_env(env_id):
+            raise ControllerError(f"{spec!r}: multi-start decoding needs the plan-level env (mrmt_env/MRMT-Assign-v0)")
+        try:
+            return MultiStartPolicy(load_policy(spec[7:], seed=seed))
+        except ValueError as exc:
+            raise ControllerError(f"{spec!r}: {exc}") from None
 
     if env_id is not None and is_assign_env(env_id):
         from agents.assign_policy import AssignPlannerPolicy as Policy

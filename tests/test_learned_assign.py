@@ -154,3 +154,15 @@ def test_grid_options_pass_the_env_checkers():
         warnings.simplefilter("error")  # an image SB3 accepts as it is: no warning at all
         check_env(env)
         sb3_check_env(env, warn=True)
+
+
+def test_multi_start_decoding(assign_model, capsys):
+    greedy, multi = f"ppo:{assign_model}", f"ppo-ms:{assign_model}"
+    res = evaluate([greedy, multi], n_worlds=4, env_id=ASSIGN_ENV_ID, n_jobs=1, progress=False)
+    g, m = res.by_controller(greedy), res.by_controller(multi)
+    assert all(r["is_success"] and r["invalid_moves"] == 0 and r["cpu_s"] > 0 for r in m)
+    # the greedy rollout is one of the starts, so the best start costs no more (summed: robust to float ties)
+    assert sum(r["route_cost"] for r in m) <= sum(r["route_cost"] for r in g)
+    assert main(["compare", "--env-id", "mrmt_env/MRMT-5x5-v0", "--worlds", "1", "--jobs", "1", "--no-progress",
+                 "--controllers", multi]) == 2
+    assert "multi-start decoding needs the plan-level env" in capsys.readouterr().err

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from agents.policy import resolve_pipeline
 from mrmt_env.assign_kernels import N_ROBOT_FEATURES
 from planners.compute import ComputeReport
 
@@ -38,18 +39,7 @@ class AssignPlannerPolicy:
     uses_action_masks = True
 
     def __init__(self, pipeline="strong", seed: int = 0, **options) -> None:
-        if isinstance(pipeline, str):
-            from planners.pipeline import make_pipeline
-
-            self.name = pipeline
-            self.pipeline = make_pipeline(pipeline, **options)
-        else:
-            if options:
-                raise TypeError(f"options {sorted(options)} only apply when pipeline is a preset name")
-            if not callable(getattr(pipeline, "plan", None)):
-                raise TypeError(f"pipeline must be a preset name or have .plan(world, seed), got {pipeline!r}")
-            self.pipeline = pipeline
-            self.name = getattr(pipeline, "name", type(pipeline).__name__)
+        self.pipeline, self.name = resolve_pipeline(pipeline, options)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
         self.seed = int(seed)

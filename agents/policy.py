@@ -56,7 +56,7 @@ from mrmt_env.world import World
 from planners.compute import ComputeReport
 from planners.plan import Plan
 
-__all__ = ["PlannerPolicy", "move_action", "DEFAULT_MAX_REPLANS"]
+__all__ = ["PlannerPolicy", "move_action", "resolve_pipeline", "DEFAULT_MAX_REPLANS"]
 
 #: Replans allowed per episode after a plan runs out with targets left.
 DEFAULT_MAX_REPLANS = 3
@@ -86,6 +86,19 @@ class _Episode:
         return all(self.t >= len(r.path) - 1 for r in self.plan.routes)
 
 
+def resolve_pipeline(pipeline, options: dict):
+    """``(pipeline, name)`` from a preset name (built with ``options``) or an object with ``plan(world, seed)``."""
+    if isinstance(pipeline, str):
+        from planners.pipeline import make_pipeline
+
+        return make_pipeline(pipeline, **options), pipeline
+    if options:
+        raise TypeError(f"options {sorted(options)} only apply when pipeline is a preset name")
+    if not callable(getattr(pipeline, "plan", None)):
+        raise TypeError(f"pipeline must be a preset name or have .plan(world, seed), got {pipeline!r}")
+    return pipeline, getattr(pipeline, "name", type(pipeline).__name__)
+
+
 def _robot_cells(obs: np.ndarray) -> np.ndarray:
     chans = obs[ROBOT_CHANNEL0:]
     flat = chans.reshape(chans.shape[0], -1).argmax(axis=1)
@@ -113,18 +126,7 @@ class PlannerPolicy:
     """
 
     def __init__(self, pipeline="strong", seed: int = 0, max_replans: int = DEFAULT_MAX_REPLANS, **options):
-        if isinstance(pipeline, str):
-            from planners.pipeline import make_pipeline
-
-            self.name = pipeline
-            self.pipeline = make_pipeline(pipeline, **options)
-        else:
-            if options:
-                raise TypeError(f"options {sorted(options)} only apply when pipeline is a preset name")
-            if not callable(getattr(pipeline, "plan", None)):
-                raise TypeError(f"pipeline must be a preset name or have .plan(world, seed), got {pipeline!r}")
-            self.pipeline = pipeline
-            self.name = getattr(pipeline, "name", type(pipeline).__name__)
+        self.pipeline, self.name = resolve_pipeline(pipeline, options)
         for name, value in (("seed", seed), ("max_replans", max_replans)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise ValueError(f"{name} must be an integer >= 0, got {value!r}")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields"]
+__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat"]
 
 UNREACHABLE = -1
 
@@ -48,6 +48,32 @@ def _bfs_many(grid: np.ndarray, sources: np.ndarray, out: np.ndarray) -> None:
                 if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] and field[nr, nc] < 0:
                     field[nr, nc] = nd
                     queue[tail] = nr * w + nc
+                    tail += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def bfs_flat(flat_grid, width, field, queue, n_sources) -> None:
+    """Multi-source BFS on a flat grid (cells ``r * width + c``), in place, for compiled callers.
+
+    On entry ``queue[:n_sources]`` holds the source cells, ``field`` is 0 at
+    them and -1 elsewhere; on return ``field`` holds the moves to the nearest
+    source (-1 where none is reachable).
+    """
+    n = flat_grid.shape[0]
+    h = n // width
+    head, tail = 0, n_sources
+    while head < tail:
+        p = queue[head]
+        head += 1
+        r, c = p // width, p % width
+        for m in range(4):
+            nr = r + (-1, 1, 0, 0)[m]
+            nc = c + (0, 0, -1, 1)[m]
+            if 0 <= nr < h and 0 <= nc < width:
+                q = nr * width + nc
+                if not flat_grid[q] and field[q] < 0:
+                    field[q] = field[p] + 1
+                    queue[tail] = q
                     tail += 1
 
 

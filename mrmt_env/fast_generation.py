@@ -13,6 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mrmt_env.distances import bfs_flat
 from mrmt_env.generation import generate_world
 from mrmt_env.world import World
 
@@ -21,27 +22,13 @@ __all__ = ["draw_world_arrays", "node_distances"]
 
 @numba.njit(cache=True, nogil=True)
 def _all_connected(flat_grid, width, cells) -> bool:
-    n = flat_grid.shape[0]
-    h = n // width
-    seen = np.zeros(n, dtype=np.bool_)
-    queue = np.empty(n, dtype=np.int64)
+    field = np.full(flat_grid.shape[0], -1, dtype=np.int32)
+    queue = np.empty(flat_grid.shape[0], dtype=np.int64)
+    field[cells[0]] = 0
     queue[0] = cells[0]
-    seen[cells[0]] = True
-    head, tail = 0, 1
-    while head < tail:
-        p = queue[head]
-        head += 1
-        r, c = p // width, p % width
-        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-            nr, nc = r + dr, c + dc
-            if 0 <= nr < h and 0 <= nc < width:
-                q = nr * width + nc
-                if not flat_grid[q] and not seen[q]:
-                    seen[q] = True
-                    queue[tail] = q
-                    tail += 1
+    bfs_flat(flat_grid, width, field, queue, 1)
     for i in range(cells.shape[0]):
-        if not seen[cells[i]]:
+        if field[cells[i]] < 0:
             return False
     return True
 
@@ -49,27 +36,13 @@ def _all_connected(flat_grid, width, cells) -> bool:
 @numba.njit(cache=True, nogil=True)
 def node_distances(flat_grid, width, nodes, out) -> None:
     """``out[a, b]``: BFS moves between flat cells ``nodes[a]`` and ``nodes[b]`` (-1 if disconnected)."""
-    n = flat_grid.shape[0]
-    h = n // width
-    field = np.empty(n, dtype=np.int32)
-    queue = np.empty(n, dtype=np.int64)
+    field = np.empty(flat_grid.shape[0], dtype=np.int32)
+    queue = np.empty(flat_grid.shape[0], dtype=np.int64)
     for a in range(nodes.shape[0]):
         field[:] = -1
         field[nodes[a]] = 0
         queue[0] = nodes[a]
-        head, tail = 0, 1
-        while head < tail:
-            p = queue[head]
-            head += 1
-            r, c = p // width, p % width
-            for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-                nr, nc = r + dr, c + dc
-                if 0 <= nr < h and 0 <= nc < width:
-                    q = nr * width + nc
-                    if not flat_grid[q] and field[q] < 0:
-                        field[q] = field[p] + 1
-                        queue[tail] = q
-                        tail += 1
+        bfs_flat(flat_grid, width, field, queue, 1)
         for b in range(nodes.shape[0]):
             out[a, b] = field[nodes[b]]
 

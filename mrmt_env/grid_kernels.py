@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mrmt_env.distances import bfs_flat
+
 __all__ = ["grid_load", "grid_step", "grid_masks", "nearest_field"]
 
 _DR = (-1, 1, 0, 0)
@@ -21,29 +23,15 @@ _DC = (0, 0, -1, 1)
 @numba.njit(cache=True, nogil=True)
 def nearest_field(grid, width, targets, visited, field) -> None:
     """``field[p]``: BFS moves from cell ``p`` to the nearest unvisited target (-1 if none)."""
-    n = grid.shape[0]
-    h = n // width
     field[:] = -1
-    queue = np.empty(n, dtype=np.int64)
+    queue = np.empty(grid.shape[0], dtype=np.int64)
     tail = 0
     for j in range(targets.shape[0]):
         if not visited[j]:
             field[targets[j]] = 0
             queue[tail] = targets[j]
             tail += 1
-    head = 0
-    while head < tail:
-        p = queue[head]
-        head += 1
-        r, c = p // width, p % width
-        for m in range(4):
-            nr, nc = r + _DR[m], c + _DC[m]
-            if 0 <= nr < h and 0 <= nc < width:
-                q = nr * width + nc
-                if not grid[q] and field[q] < 0:
-                    field[q] = field[p] + 1
-                    queue[tail] = q
-                    tail += 1
+    bfs_flat(grid, width, field, queue, tail)
 
 
 @numba.njit(cache=True, nogil=True)

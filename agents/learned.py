@@ -19,7 +19,8 @@ kwargs, seed, timesteps, training wall time) and, unless disabled, a training
 curve (``.curve.csv`` and ``.curve.png``: mean return, success and route
 cost of the episodes finished in each rollout).  :func:`load_policy` reads the
 algorithm from the sidecar (or from the model file), so ``ppo:model.zip`` in
-``mrmt compare`` loads a PPO or a MaskablePPO model alike.
+``mrmt compare`` loads a PPO or a MaskablePPO model alike (``ppo-ms:`` adds
+multi-start decoding on the plan-level env: :mod:`agents.assign_search`).
 
 Compute accounting of a learned agent (:class:`LearnedPolicy`): latency =
 measured inference wall time (``model.predict``) summed over the episode's

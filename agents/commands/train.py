@@ -8,7 +8,8 @@ kwargs, seed, timesteps, training wall time) and the training curve
 (``.curve.csv``, ``.curve.png``); shows a progress bar.  Evaluate it with
 ``mrmt compare --env-id <same id> --controllers strong,ppo:model.zip`` (the
 ``ppo:`` prefix loads PPO and MaskablePPO models alike: the algorithm is
-read from the sidecar or the model file).
+read from the sidecar or the model file; ``ppo-ms:`` decodes a plan-level
+model from every legal first decision and keeps the cheapest rollout).
 """
 
 from __future__ import annotations

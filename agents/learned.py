@@ -137,15 +137,18 @@ def _write_curve(rows: list[dict], model_path, title: str) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter
 
     t = [r["timesteps"] for r in rows]
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.2))
     for ax, key, label in zip(axes, ("mean_return", "success_rate", "mean_route_cost"),
                               ("mean episode return", "success rate", "route cost (successful episodes)")):
         ax.plot(t, [r[key] for r in rows])
+        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
         ax.set_xlabel("env steps")
         ax.set_title(label, fontsize=9)
         ax.grid(alpha=0.3)
+    axes[1].set_ylim(-0.02, 1.02)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(png_path, dpi=100)

@@ -297,6 +297,27 @@ class EmulatedChip(dimod.Sampler):
             return spins[0], energies[0]
         return spins, energies
 
+    def kernel_args(self) -> tuple:
+        """``(sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)``: this chip's arguments of
+        :func:`~ising_backend.anneal.anneal_kernel` after the seed.
+
+        For compiled planners that anneal chip-legal programs inside their own loops with the
+        very kernel, seeds and padding :meth:`anneal_batch` would use; they charge the calls
+        with :meth:`charge`.
+        """
+        hot, cold = (-1.0, -1.0) if self.spec.beta_range is None else self.spec.beta_range
+        return (int(self.spec.sweeps), self.spec.schedule == "geometric", float(hot), float(cold), self._mismatch,
+                float(self.spec.readout_flip_prob))
+
+    def charge(self, calls, seconds) -> list[CallLedger]:
+        """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` physical calls and
+        ``seconds[i]`` emulation seconds each, in order, exactly as :meth:`anneal_batch` charges one
+        submission; returns each submission's ledger (the last is :attr:`last_call`)."""
+        out = [self.ledger.record_physical(int(c), self.spec, float(t)) for c, t in zip(calls, seconds)]
+        if out:
+            self.last_call = out[-1]
+        return out
+
     def anneal_models(self, models: Sequence[IsingModel], num_reads: int = 1, seed: int | None = None):
         """Anneal chip-legal :class:`IsingModel` s in one batch.
 

@@ -267,12 +267,12 @@ def test_best_onehot_matches_batch_decode_and_cost(seed, s, m, perm_share):
 @given(st.integers(0, 10**6), st.integers(2, 16), st.integers(1, 4), st.booleans())
 def test_split_model_matches_anchors_and_split_qubo(seed, m, R, shifted):
     rng = np.random.default_rng(seed)
-    pts = rng.integers(0, 10, size=(R + 14, 2))
+    pts = rng.integers(0, 10, size=(R + 16, 2))
     dist = np.abs(pts[:, None] - pts[None]).sum(-1).astype(float)
     if shifted:  # the planner's split weights: d - 0.5 mean (non-integer)
         dist = dist - 0.5 * dist[np.triu_indices(len(dist), 1)].mean()
         np.fill_diagonal(dist, 0.0)
-    nodes = np.sort(rng.choice(R + 14, size=m, replace=False)).astype(np.int64)
+    nodes = np.sort(rng.choice(R + 16, size=m, replace=False)).astype(np.int64)
     if int((nodes < R).sum()) == 1 and len(nodes) == 1:
         return
     a, b, free, q, Q, off = split_model(dist, nodes, R)
@@ -311,3 +311,45 @@ def test_exact_route_cost_is_brute_tour_cost(seed, n):
 def test_exact_route_cost_refuses_too_many_targets():
     with pytest.raises(ValueError, match="MAX_BRUTE_TARGETS"):
         exact_route_cost(np.zeros((20, 20)), list(range(16)))
+
+
+# ----------------------------------------------------------------------------- compiled path loop
+@pytest.mark.parametrize("options", [{}, {"form": "degree"}, {"target_order": "merged", "num_reads": 2},
+                                     {"interior_targets": False, "backtrack": False}, {"max_attempts": 3}])
+def test_compiled_path_loop_makes_the_reference_loops_decisions(options):
+    """The compiled search loop (planners.ising.path.engine) against the Python loop it mirrors:
+    the same paths, failures, statistics, chip charges and rng state on random worlds."""
+    from ising_backend import EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.path import IsingPath
+
+    fast, ref = IsingPath(EmulatedChip(), **options), IsingPath(EmulatedChip(), **options)
+    assert fast._engine_args is not None
+    ref._engine_args = None  # force the reference loop
+    outcomes = set()
+    for s in range(8):
+        w = generate_world(s, height=8 + s % 5, width=9 + s % 4, n_robots=2, n_targets=3,
+                           obstacle_density=0.1 + 0.05 * (s % 4))
+        for t in list(w.targets) + [w.robots[1]]:
+            r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
+            a = fast.find_path(w, w.robots[0], t, r1)
+            b = ref.find_path(w, w.robots[0], t, r2)
+            assert a.failure == b.failure
+            assert (a.path is None and b.path is None) or np.array_equal(a.path, b.path)
+            assert a.stats == b.stats and a.compute == b.compute
+            assert r1.integers(1 << 62) == r2.integers(1 << 62)  # the same draws were made
+            outcomes.add(a.failure is None)
+    assert True in outcomes
+
+
+def test_chip_subclass_that_overrides_annealing_uses_the_reference_loop():
+    from ising_backend import EmulatedChip
+    from planners.ising.path import IsingPath
+
+    class Noisy(EmulatedChip):
+        def anneal_batch(self, h, J, num_reads=1, seed=None):
+            return super().anneal_batch(h, J, num_reads=num_reads, seed=seed)
+
+    assert IsingPath(Noisy())._engine_args is None
+    assert IsingPath(EmulatedChip(), pack=True)._engine_args is None
+    assert IsingPath(EmulatedChip(), targets_per_call=2)._engine_args is None

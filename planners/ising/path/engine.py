@@ -1,0 +1,290 @@
+"""Compiled search loop of Ising pathfinding (paper 5.1, Algorithm 1) on the emulated chip.
+
+Contract: :func:`run_query` makes, for one query, the decisions of the Python loop in
+:mod:`.search` (its reference; the tests compare both): the same ranking, patch programs,
+chip seeds (drawn from the query's ``numpy.random.Generator``), annealing kernel and padding
+(the chip's own :func:`~ising_backend.anneal.anneal_kernel` with
+:meth:`~ising_backend.EmulatedChip.kernel_args`), decoding, scoring, win draws and
+bookkeeping.  Each submission's calls and its measured emulation seconds (``objmode`` clock
+around the kernel) are returned, so the caller charges the chip exactly as
+:meth:`~ising_backend.EmulatedChip.anneal_batch` would.
+
+Patch programs are memoised in a :class:`ProgramPool` (compiled arrays keyed by free-cell
+mask and local target).  A query whose program cannot be merged onto the chip returns
+:data:`NEEDS_REFERENCE` so the caller reruns it with the Python loop (which names the error).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+from numba import types
+from numba.typed import Dict
+
+from ising_backend.anneal import anneal_kernel
+from ising_backend import merge_styles
+from planners.ising.numeric import pairwise_sum
+from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
+from planners.ising.path.qubo import _patch_qubo_kernel
+
+__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "NEEDS_REFERENCE"]
+
+REACHED, BUDGET_SPENT, EXHAUSTED, NEEDS_REFERENCE = 0, 1, 2, 3
+
+
+class ProgramPool:
+    """Memoised patch programs of one planner as compiled arrays (cleared when full)."""
+
+    def __init__(self, n_cells: int, n_styles: int, n_spins: int, budget_bytes: int = 48 << 20):
+        nv = max(n_cells - 2, 1)
+        N = max(int(n_spins), 1)
+        cap = int(max(64, min(4096, budget_bytes // max(1, n_styles * N * N * 2))))
+        self.keys = Dict.empty(key_type=types.int64, value_type=types.int64)
+        self.count = np.zeros(1, dtype=np.int64)
+        self.n_var = np.zeros(cap, dtype=np.int64)
+        self.cells = np.zeros((cap, nv), dtype=np.int64)
+        self.lh = np.zeros((cap, nv))
+        self.lJ = np.zeros((cap, nv, nv))
+        self.loff = np.zeros(cap)
+        self.width = np.zeros(cap, dtype=np.int64)
+        self.ph = np.zeros((cap, n_styles, N), dtype=np.int16)
+        self.pJ = np.zeros((cap, n_styles, N, N), dtype=np.int16)
+        self.ptr = np.zeros((cap, n_styles, nv + 1), dtype=np.int64)
+        self.idx = np.zeros((cap, n_styles, N), dtype=np.int64)
+
+    def arrays(self) -> tuple:
+        return (self.keys, self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width, self.ph,
+                self.pJ, self.ptr, self.idx)
+
+
+@numba.njit(cache=True)
+def _ising_of_qubo(q, Q, offset):
+    """``ising_backend.ising_from_qubo``'s arithmetic (numpy's summation order)."""
+    n = q.shape[0]
+    h = np.empty(n)
+    J = np.empty((n, n))
+    row = np.empty(n)
+    flat = np.empty(n * n)
+    for i in range(n):
+        for j in range(n):
+            row[j] = Q[i, j] + Q[j, i]
+            J[i, j] = Q[i, j] / 4.0
+            flat[i * n + j] = Q[i, j]
+        h[i] = q[i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
+    return h, J, offset + pairwise_sum(q, 0, n) / 2.0 + pairwise_sum(flat, 0, n * n) / 4.0
+
+
+@numba.njit(cache=True)
+def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, comp, target, adj4, diag, degree,
+             coef, scale, style_ids, Lh, Lj, n_spins):
+    """Pool slot of the patch program (built and merged on a miss); -1 if a style cannot merge."""
+    n = comp.shape[0]
+    key = np.int64(target)
+    for i in range(n):
+        if comp[i]:
+            key |= np.int64(1) << np.int64(i + 8)
+    if key in keys:
+        return keys[key]
+    var, qv, Qv, off = _patch_qubo_kernel(adj4, diag, comp, n // 2, target, degree, coef[0], coef[1], coef[2],
+                                          coef[3], coef[4])
+    m = var.shape[0]
+    h, J, o = _ising_of_qubo(qv, Qv, off)
+    k = style_ids.shape[0]
+    w = 0
+    if m > 0:
+        H = np.empty(m, dtype=np.int64)
+        C = np.empty((m, m), dtype=np.int64)
+        for i in range(m):
+            H[i] = np.int64(np.rint(h[i] * scale))
+            for j in range(m):
+                C[i, j] = np.int64(np.rint(J[i, j] * scale))
+        status, _err, _a, n_phys, hp, Jp, _oa, pp, ii = merge_styles(H, C, style_ids, Lh, Lj, Lj, n_spins)
+        for s in range(k):
+            if status[s] != 0:
+                return -1
+        w = hp.shape[1]
+    if count[0] >= n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
+        keys.clear()
+        count[0] = 0
+    slot = count[0]
+    count[0] += 1
+    keys[key] = slot
+    n_var[slot] = m
+    cells[slot, :m] = var
+    lh[slot, :m] = h
+    lJ[slot, :m, :m] = J
+    loff[slot] = o
+    width[slot] = w
+    if m > 0:
+        for s in range(k):
+            for i in range(w):
+                ph[slot, s, i] = np.int16(hp[s, i])
+                idx[slot, s, i] = ii[s, i]
+                for j in range(w):
+                    pJ[slot, s, i, j] = np.int16(Jp[s, i, j])
+            ptr[slot, s, : m + 1] = pp[s]
+    return slot
+
+
+@numba.njit(cache=True)
+def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
+              num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric,
+              beta_hot, beta_cold, mismatch, flip_prob, free_cells):
+    """One query of Algorithm 1 (see the module docstring).
+
+    Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu)``:
+    counts = patch_solves, anneal_calls, segments, backtracks, direct_moves; mapping rows per
+    style = programs, valid, wins, map_errors; per chip submission its calls and emulation seconds.
+    """
+    rad = size // 2
+    n = size * size
+    centre = n // 2
+    k = style_ids.shape[0]
+    per_target = k * num_reads
+    cap = 2 * (free_cells + 2) * (n + 2) + 8
+    walk = np.empty((cap, 2), dtype=np.int64)
+    seg_cells = np.empty((cap, 2), dtype=np.int64)
+    seg_start = np.empty(cap, dtype=np.int64)
+    seg_len = np.empty(cap, dtype=np.int64)
+    f_pos = np.empty((max_attempts + free_cells + 8, 2), dtype=np.int64)
+    f_cell = np.empty((max_attempts + free_cells + 8, 2), dtype=np.int64)
+    sub_calls = np.zeros(max_attempts + 1, dtype=np.int64)
+    sub_emu = np.zeros(max_attempts + 1)
+    counts = np.zeros(5, dtype=np.int64)
+    mapping = np.zeros((k, 4), dtype=np.int64)
+    visited = np.zeros(padded.shape, dtype=np.bool_)
+    excluded = np.zeros(padded.shape, dtype=np.bool_)
+    winners = np.empty(k, dtype=np.int64)
+    scores = np.empty(k)
+    pr, pc = sr, sc
+    walk[0, 0], walk[0, 1] = sr, sc
+    wl = 1
+    visited[sr + rad, sc + rad] = True
+    nseg = 0
+    seg_top = 0
+    nf = 0
+    nsub = 0
+    used = 0
+    status = REACHED
+    while not (pr == gr and pc == gc):
+        if counts[0] >= max_attempts or used + per_target > max_calls:
+            status = BUDGET_SPENT
+            break
+        excluded[:, :] = visited
+        for t in range(nf):
+            if f_pos[t, 0] == pr and f_pos[t, 1] == pc:
+                excluded[f_cell[t, 0] + rad, f_cell[t, 1] + rad] = True
+        comp, ranked = rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged)
+        if ranked.shape[0] == 0:
+            if backtrack and nseg > 0:
+                nseg -= 1
+                s0 = seg_start[nseg]
+                L = seg_len[nseg]
+                for t in range(L - 2, -1, -1):  # reversed(seg[:-1])
+                    walk[wl, 0], walk[wl, 1] = seg_cells[s0 + t, 0], seg_cells[s0 + t, 1]
+                    wl += 1
+                pr, pc = seg_cells[s0, 0], seg_cells[s0, 1]
+                seg_top = s0
+                counts[3] += 1
+                continue
+            status = EXHAUSTED
+            break
+        li = ranked[0]
+        tr = pr + offsets[li, 0]
+        tc = pc + offsets[li, 1]
+        slot = _program(keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, comp, li, adj4, diag, degree, coef, scale, style_ids, Lh, Lj,
+                        n_spins)
+        if slot < 0:
+            return NEEDS_REFERENCE, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]
+        m = n_var[slot]
+        cells = cells_p[slot, :m]
+        direct = False
+        path = np.zeros(0, dtype=np.int64)
+        if m == 0:
+            path = extract_path(np.zeros(0, dtype=np.bool_), cells, centre, li, nbr)
+            direct = path.shape[0] > 0
+            found = direct
+        else:
+            seed = rng.integers(0, 9223372036854775807)
+            w = width[slot]
+            hf = np.empty((k, w))
+            Jf = np.empty((k, w, w))
+            for s in range(k):
+                for i in range(w):
+                    hf[s, i] = ph[slot, s, i]
+                    for j in range(w):
+                        Jf[s, i, j] = pJ[slot, s, i, j]
+            spins = np.empty((k, num_reads, w), dtype=np.int8)
+            energies = np.empty((k, num_reads))
+            with numba.objmode(t0="float64"):
+                t0 = time.perf_counter()
+            anneal_kernel(hf, Jf, num_reads, np.uint64(seed), sweeps, geometric, beta_hot, beta_cold, mismatch,
+                          flip_prob, spins, energies)
+            with numba.objmode(t1="float64"):
+                t1 = time.perf_counter()
+            sub_calls[nsub] = k * num_reads
+            sub_emu[nsub] = t1 - t0
+            nsub += 1
+            used += k * num_reads
+            counts[1] += 1
+            counts[0] += 1
+            n_valid, best, energy, logical = score_patch_samples(
+                spins, ptr[slot], idx[slot], m, cells, centre, li, nbr, lh[slot, :m],
+                lJ[slot, :m, :m], loff[slot])
+            best_score = np.inf
+            brow = -1
+            for s in range(k):
+                mapping[s, 0] += num_reads
+                mapping[s, 1] += n_valid[s]
+                scores[s] = energy[s]
+                if energy[s] < best_score:
+                    best_score = energy[s]
+                    brow = s
+            found = brow >= 0
+            if found:
+                tol = 1e-9 * max(1.0, abs(best_score))
+                nw = 0
+                for s in range(k):
+                    if scores[s] <= best_score + tol:
+                        winners[nw] = s
+                        nw += 1
+                x = np.empty(m, dtype=np.bool_)
+                for i in range(m):
+                    x[i] = logical[brow, best[brow], i] > 0
+                path = extract_path(x, cells, centre, li, nbr)
+                if nw > 1:
+                    win = winners[rng.integers(0, nw)]
+                else:
+                    win = winners[0]
+                mapping[win, 2] += 1
+        if not found:
+            f_pos[nf, 0], f_pos[nf, 1] = pr, pc
+            f_cell[nf, 0], f_cell[nf, 1] = tr, tc
+            nf += 1
+            continue
+        if direct:
+            counts[4] += 1
+        # the segment, cut where it passes the goal
+        L = path.shape[0]
+        for t in range(L):
+            if pr + offsets[path[t], 0] == gr and pc + offsets[path[t], 1] == gc:
+                L = t + 1
+                break
+        s0 = seg_top
+        for t in range(L):
+            seg_cells[s0 + t, 0] = pr + offsets[path[t], 0]
+            seg_cells[s0 + t, 1] = pc + offsets[path[t], 1]
+        for t in range(1, L):
+            walk[wl, 0], walk[wl, 1] = seg_cells[s0 + t, 0], seg_cells[s0 + t, 1]
+            wl += 1
+        for t in range(L):
+            visited[seg_cells[s0 + t, 0] + rad, seg_cells[s0 + t, 1] + rad] = True
+        seg_start[nseg] = s0
+        seg_len[nseg] = L
+        nseg += 1
+        seg_top = s0 + L
+        counts[2] += 1
+        pr, pc = seg_cells[s0 + L - 1, 0], seg_cells[s0 + L - 1, 1]
+    return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]

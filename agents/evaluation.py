@@ -119,22 +119,9 @@ COMPUTE_KEYS = (
 
 
 def compute_record(report: ComputeReport) -> dict:
-    """The compute columns (:data:`COMPUTE_KEYS`) of one episode's report."""
-    return {
-        "cpu_s": float(report.cpu_s),
-        "emulation_s": float(report.emulation_s),
-        "host_cpu_s": float(report.host_cpu_s),
-        "chip_calls": int(report.chip_calls),
-        "chip_batches": int(report.chip_batches),
-        "logical_calls": int(report.logical_calls),
-        "chip_time_s": float(report.chip_time_s),
-        "chip_time_parallel_s": float(report.chip_time_parallel_s),
-        "latency_s": float(report.host_cpu_s + report.chip_time_s),
-        "latency_parallel_s": float(report.host_cpu_s + report.chip_time_parallel_s),
-        "accelerator_energy_j": float(report.accelerator_energy_j),
-        "host_energy_j": float(report.host_energy_j),
-        "total_energy_j": float(report.total_energy_j),
-    }
+    """The compute columns (:data:`COMPUTE_KEYS`) of one episode's report (from ``report.to_record()``)."""
+    record = report.to_record()
+    return {key: record[key] for key in COMPUTE_KEYS}
 
 
 # ------------------------------------------------------------------ controllers

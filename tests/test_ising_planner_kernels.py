@@ -353,3 +353,18 @@ def test_chip_subclass_that_overrides_annealing_uses_the_reference_loop():
     assert IsingPath(Noisy())._engine_args is None
     assert IsingPath(EmulatedChip(), pack=True)._engine_args is None
     assert IsingPath(EmulatedChip(), targets_per_call=2)._engine_args is None
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(1, 9), st.sampled_from(["min", "mean"]))
+def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
+    from planners.ising.tour import IsingTour
+
+    rng = np.random.default_rng(seed)
+    n = K + int(rng.integers(0, 12))
+    pts = rng.normal(size=(n + 1, 2)) * 5
+    dist = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1))
+    cut = np.sort(rng.choice(np.arange(1, n), size=K - 1, replace=False)) if K > 1 else np.array([], dtype=int)
+    clusters = [list(map(int, c)) for c in np.split(rng.permutation(np.arange(1, n + 1)), cut)]
+    tour = IsingTour(cluster_distance=mode)
+    assert np.array_equal(tour._cluster_dist(dist, clusters), tour._cluster_dist_reference(dist, clusters))

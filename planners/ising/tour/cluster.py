@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.tour.kernels import maxcut_ising
+from planners.ising.tour.kernels import cluster_distances, maxcut_ising
 from planners.ising.tour.qubo import cut_value
 
 __all__ = ["TourFailure", "Clustering"]
@@ -89,6 +89,15 @@ class Clustering:
 
     # ------------------------------------------------------------------ 2. cluster order
     def _cluster_dist(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
+        if self.config.cluster_distance in ("min", "mean"):
+            flat = np.array([t for c in clusters for t in c], dtype=np.int64)
+            ptr = np.cumsum([0] + [len(c) for c in clusters]).astype(np.int64)
+            return cluster_distances(np.ascontiguousarray(dist, dtype=np.float64), flat, ptr,
+                                     self.config.cluster_distance == "mean")
+        return self._cluster_dist_reference(dist, clusters)
+
+    def _cluster_dist_reference(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
+        """Cluster-to-cluster distances in numpy (the reference of :func:`.kernels.cluster_distances`)."""
         K = len(clusters)
         D = np.zeros((K, K))
         if self.config.cluster_distance == "medoid":

@@ -17,7 +17,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot"]
+from planners.ising.numeric import pairwise_sum
+
+__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances"]
 
 
 @numba.njit(cache=True)
@@ -185,3 +187,27 @@ def best_onehot(bits, s, d, entry, exit_):
             best_cost = cost
             best = r
     return valid, best, orders
+
+
+@numba.njit(cache=True)
+def cluster_distances(dist, flat, ptr, mean):
+    """``(K, K)`` cluster-to-cluster distances of clusters ``flat[ptr[k]:ptr[k + 1]]``: the minimum
+    (single linkage) or, with ``mean``, the mean (numpy's ``block.mean()`` bits) over member pairs."""
+    K = ptr.shape[0] - 1
+    D = np.zeros((K, K))
+    buf = np.empty(flat.shape[0] * flat.shape[0])
+    for a in range(K):
+        for b in range(K):
+            if a == b:
+                continue
+            m = 0
+            best = np.inf
+            for i in range(ptr[a], ptr[a + 1]):
+                for j in range(ptr[b], ptr[b + 1]):
+                    v = dist[flat[i], flat[j]]
+                    buf[m] = v
+                    m += 1
+                    if v < best:
+                        best = v
+            D[a, b] = pairwise_sum(buf, 0, m) / m if mean else best
+    return D

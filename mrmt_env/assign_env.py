@@ -7,7 +7,7 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource, check_render_mode
+from mrmt_env.core import WorldSource, check_render_mode, check_step_limit
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -118,10 +118,8 @@ class MRMTAssignEnv(gym.Env):
         render_mode: str | None = None,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
-        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         self.render_mode = render_mode
-        self.max_episode_steps = max_episode_steps
+        self.max_episode_steps = check_step_limit(max_episode_steps)
         self.source = WorldSource(
             world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
             n_targets=n_targets, placement=placement,

@@ -37,12 +37,22 @@ from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
 __all__ = [
-    "MRMTCore", "WorldSource", "action_between", "actions_from_path", "check_render_mode", "N_ACTIONS", "ACTION_NAMES",
+    "MRMTCore", "WorldSource", "action_between", "actions_from_path", "check_render_mode", "check_step_limit",
+    "N_ACTIONS", "ACTION_NAMES",
     "successor_table",
 ]
 
 N_ACTIONS = 5
 ACTION_NAMES = ("stay", "up", "down", "left", "right")
+
+
+def check_step_limit(max_episode_steps):
+    """``max_episode_steps`` as an int, or ``None``; ``ValueError`` naming it unless an integer >= 1."""
+    if max_episode_steps is None:
+        return None
+    if isinstance(max_episode_steps, bool) or int(max_episode_steps) != max_episode_steps or max_episode_steps < 1:
+        raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
+    return int(max_episode_steps)
 
 
 def check_render_mode(render_mode, render_modes) -> None:

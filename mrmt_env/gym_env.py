@@ -6,7 +6,7 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
@@ -211,10 +211,8 @@ class MRMTEnv(gym.Env):
             raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
         self.observation_mode = observation
         self.dense_reward = float(dense_reward)
-        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         self.render_mode = render_mode
-        self.max_episode_steps = max_episode_steps
+        self.max_episode_steps = check_step_limit(max_episode_steps)
         self.source = WorldSource(
             world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
             n_targets=n_targets, placement=placement,

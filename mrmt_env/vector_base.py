@@ -28,6 +28,8 @@ import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
+from mrmt_env.core import check_step_limit
+
 __all__ = ["BatchedVectorEnv"]
 
 
@@ -39,15 +41,13 @@ class BatchedVectorEnv(VectorEnv):
     def __init__(self, num_envs: int, max_episode_steps: int | None, autoreset_mode, copy: bool) -> None:
         if isinstance(num_envs, bool) or int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None and (int(max_episode_steps) != max_episode_steps or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {max_episode_steps!r}")
         try:
             mode = AutoresetMode(autoreset_mode)
         except ValueError:
             valid = [m.value for m in AutoresetMode]
             raise ValueError(f"autoreset_mode must be one of {valid}, got {autoreset_mode!r}") from None
         self.num_envs = int(num_envs)
-        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        self.max_episode_steps = check_step_limit(max_episode_steps)
         self.autoreset_mode = mode
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.copy = bool(copy)

@@ -126,11 +126,19 @@ def assign_step(actions, cell, free_at, active, open_, dist, decider, counters, 
         a = actions[b]
         k = decider[b]
         counters[b, 1] += 1
-        legal = k >= 0
-        if legal and a < n_targets:
+        if k < 0:  # nothing left to take: stop is the one legal action (its mask), a no-op
+            if a == n_targets:
+                rewards[b] = 0.0
+            else:
+                counters[b, 3] += 1
+                rewards[b] = -1.0
+            terminated[b] = True
+            continue
+        legal = True
+        if a < n_targets:
             d = dist[b, cell[b, k], n_robots + a]
             legal = open_[b, a] and d >= 0
-        elif legal:
+        else:
             legal = _stop_allowed(b, k, cell, active, open_, dist, n_robots, n_targets)
         if not legal:
             counters[b, 3] += 1

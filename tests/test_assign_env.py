@@ -152,3 +152,12 @@ def test_pettingzoo_team_reward_and_turns():
     assert obs["action_mask"].sum() == 0 and env.observe("robot_1")["action_mask"].sum() > 0
     with pytest.raises(ValueError, match="valid actions are 0..3"):
         env.step(9)
+
+
+def test_world_without_open_targets_ends_on_a_free_stop():
+    grid = np.zeros((2, 3), dtype=bool)
+    env = MRMTAssignEnv(world=World(grid, [[0, 0]], [[0, 0]]))
+    _, info = env.reset()
+    assert info["robot"] == -1 and info["action_mask"].tolist() == [False, True]
+    _, r, term, _, info = env.step(1)
+    assert term and r == 0 and info["invalid_moves"] == 0 and info["is_success"]

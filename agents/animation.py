@@ -64,21 +64,23 @@ def _grid_frames(env, controller, seed, cell, max_frames):
         begin(env.unwrapped, 0)
     core = env.unwrapped.core
     world = env.unwrapped.world
+    masked = getattr(controller, "uses_action_masks", False)
     trails = [[tuple(p)] for p in core.positions().tolist()]
     frames, start, done = [], True, False
     while True:
+        action = None
+        if not done:
+            kwargs = {"action_masks": env.unwrapped.action_masks()} if masked else {}
+            action, _ = controller.predict(obs, episode_start=start, deterministic=True, **kwargs)
+            start = False
         plan = controller.current_plan(0) if hasattr(controller, "current_plan") else None
         to_go = [None] * world.n_robots
-        if plan is not None and not start:
-            t = controller._episodes[0].t if hasattr(controller, "_episodes") else 0
-            to_go = [r.path[min(t, len(r.path) - 1):] if k < world.n_robots else None
-                     for k, r in enumerate(plan.routes)]
+        if plan is not None:
+            t = max(controller.plan_step(0) - (0 if done else 1), 0)  # the move just chosen is still to go
+            to_go = [r.path[min(t, len(r.path) - 1):] for r in plan.routes][: world.n_robots]
         frames.append(_frame(world, list(core.visited), core.positions(), trails, to_go, cell))
         if done or len(frames) >= max_frames:
             break
-        kwargs = {"action_masks": env.unwrapped.action_masks()} if getattr(controller, "uses_action_masks", False) else {}
-        action, _ = controller.predict(obs, episode_start=start, deterministic=True, **kwargs)
-        start = False
         obs, _, term, trunc, info = env.step(action)
         for k, p in enumerate(core.positions().tolist()):
             if tuple(p) != trails[k][-1]:

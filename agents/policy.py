@@ -158,6 +158,11 @@ class PlannerPolicy:
         ep = self._episodes.get(index)
         return None if ep is None else ep.plan
 
+    def plan_step(self, index: int = 0) -> int:
+        """How many steps of env ``index``'s current plan have been acted (0 before the first)."""
+        ep = self._episodes.get(index)
+        return 0 if ep is None else ep.t
+
     def current_world(self, index: int = 0) -> World | None:
         """The world rebuilt from the observation the current plan was made for."""
         ep = self._episodes.get(index)

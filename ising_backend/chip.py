@@ -187,6 +187,13 @@ def sample_bqm(solver, bqm: dimod.BinaryQuadraticModel, num_reads: int, seed: in
                                             info={"ledger": solver.last_call.to_dict(), **info})
 
 
+def check_call_seed(seed) -> int:
+    """A per-call sampling seed: an integer in ``[0, 2**64)`` (a float, bool or NaN is refused)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
+        raise ValueError(f"seed = {seed!r} must be None or an integer in [0, 2**64)")
+    return int(seed)
+
+
 def seeded_rng(seed, where: str) -> np.random.Generator:
     """``np.random.default_rng(seed)``, with an error naming ``where`` and the bad seed."""
     try:
@@ -256,10 +263,7 @@ class EmulatedChip(dimod.Sampler):
     def _draw_seed(self, seed) -> int:
         if seed is None:
             return int(self._rng.integers(0, 2**63 - 1))
-        seed = int(seed)
-        if seed < 0 or seed >= 2**64:
-            raise ValueError(f"seed = {seed} must be in [0, 2**64)")
-        return seed
+        return check_call_seed(seed)
 
     def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Anneal a stack of programs.
@@ -292,7 +296,8 @@ class EmulatedChip(dimod.Sampler):
         if B:
             anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
                           hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
-        self.last_call = self.ledger.record_physical(B * num_reads, self.spec, time.perf_counter() - t0)
+        # a program without spins is not run on the chip: nothing is charged
+        self.last_call = self.ledger.record_physical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
         return spins, energies

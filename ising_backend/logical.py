@@ -45,7 +45,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
-from .chip import ChipProgramError, sample_bqm, seeded_rng, stack_programs
+from .chip import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -247,9 +247,10 @@ class LogicalIsingSolver(dimod.Sampler):
         num_reads = int(num_reads)
         t0 = time.perf_counter()
         h, J, single = self._check(h, J)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else int(seed)
+        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         spins, energies = self._run(h, J, num_reads, seed)
-        self.last_call = self.ledger.record_logical(h.shape[0] * num_reads, self.spec, time.perf_counter() - t0)
+        calls = h.shape[0] * num_reads if h.shape[1] else 0  # a program without spins is not solved
+        self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
         return spins, energies
@@ -298,7 +299,7 @@ class LogicalIsingSolver(dimod.Sampler):
         if int(num_reads) != num_reads or num_reads < 1:
             raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
         num_reads = int(num_reads)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else int(seed)
+        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         t0 = time.perf_counter()
         out: list[LogicalResult | None] = [None] * len(models)
         # group by size (no padding: padded spins would waste tabu moves)
@@ -309,7 +310,8 @@ class LogicalIsingSolver(dimod.Sampler):
             spins, energies = self._run(h, J, num_reads, int(_mix_py(seed, size)))
             for row, k in enumerate(idx):
                 out[k] = LogicalResult(spins[row], energies[row] + models[k].offset)
-        self.last_call = self.ledger.record_logical(len(models) * num_reads, self.spec, time.perf_counter() - t0)
+        calls = sum(1 for m in models if m.n) * num_reads  # programs without spins are not solved
+        self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
         return out  # type: ignore[return-value]
 
 
@@ -333,10 +335,10 @@ class LogicalIsingSolver(dimod.Sampler):
         if J.ndim == 2:
             J = np.broadcast_to(J, (B, n, n))
         J = np.ascontiguousarray(J)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else int(seed)
+        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         t0 = time.perf_counter()
         spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
-        self.last_call = self.ledger.record_logical(B * num_reads, self.spec, time.perf_counter() - t0)
+        self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         return spins
 
 

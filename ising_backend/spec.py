@@ -38,6 +38,8 @@ Emulation knobs (the paper is silent; choices and reasons):
 from __future__ import annotations
 
 import math
+
+import numpy as np
 from dataclasses import asdict, dataclass, replace
 
 __all__ = ["ChipSpec", "SCHEDULES"]
@@ -95,6 +97,8 @@ class ChipSpec:
             bad(f"coupling_mismatch = {self.coupling_mismatch!r} must be in [0, 1)")
         if not (0 <= self.readout_flip_prob <= 0.5):
             bad(f"readout_flip_prob = {self.readout_flip_prob!r} must be in [0, 0.5]")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**63:
+            bad(f"seed = {self.seed!r} must be an integer in [0, 2**63) (the hardware's mismatch pattern)")
 
     @property
     def n_cores(self) -> int:

@@ -109,3 +109,21 @@ def test_solver_seed_named(cls, seed):
 
     with pytest.raises(ValueError, match=f"{cls}: seed = {seed!r} is not a numpy seed"):
         getattr(ising_backend, cls)(seed=seed)
+
+
+def test_chip_seeds_are_integers_and_empty_programs_cost_nothing():
+    import dimod
+
+    from ising_backend import ChipSpec, EmulatedChip, LogicalIsingSolver
+
+    with pytest.raises(ValueError, match=r"seed = -1 must be an integer in \[0, 2\*\*63\)"):
+        ChipSpec(seed=-1)
+    with pytest.raises(ValueError, match="seed = 1.5"):
+        ChipSpec(seed=1.5)
+    for solver in (EmulatedChip(), LogicalIsingSolver()):
+        for bad in (1.5, float("nan"), -1, True, 2**64):
+            with pytest.raises(ValueError, match=r"must be None or an integer in \[0, 2\*\*64\)"):
+                solver.sample_ising({0: 1.0}, {}, seed=bad)
+        empty = solver.sample(dimod.BinaryQuadraticModel("SPIN"), num_reads=3, seed=0)
+        assert len(empty.variables) == 0
+        assert solver.ledger.physical_calls + solver.ledger.logical_calls == 0

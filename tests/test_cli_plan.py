@@ -142,3 +142,22 @@ def test_console_script_subprocess(tmp_path, worlds):
     lines = proc.stdout.splitlines()
     assert len(lines) == 2
     validate_plan(worlds[1], _as_plan(json.loads(lines[1])))
+
+
+def test_a_failed_plan_is_written_and_exits_1(tmp_path, capsys):
+    import numpy as np
+
+    from mrmt_env import World
+
+    grid = np.zeros((3, 5), dtype=bool)
+    grid[:, 2] = True  # a wall: two components, one robot in each
+    world = World(grid, [[0, 0], [0, 4]], [[1, 1], [2, 4]])
+    src = tmp_path / "w.json"
+    write_world(world, src)
+    # Ising target sharing needs one connected component: a failed plan, not an input error
+    assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 1
+    captured = capsys.readouterr()
+    (line,) = captured.out.splitlines()
+    d = json.loads(line)
+    assert d["success"] is False and d["failure"]
+    assert captured.err.strip().splitlines() == ['mrmt plan: 1 of 1 plans failed ("success": false; see their "failure")']

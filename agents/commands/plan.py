@@ -27,7 +27,9 @@ With ``--keep-going`` planning continues past bad lines; each bad line gets,
 in its place in the output, an error object ``{"error": MESSAGE, "line": N}``
 (so output line *i* still belongs to input world *i*), and the exit code is
 still 2 at the end.  A plan that fails (``"success": false``, e.g. a target no
-assigned robot can reach) is a result, not an input error: exit code 0.
+robot can reach) is written like any other plan, with its ``failure``; after the last
+world a one-line summary goes to stderr and the exit code is 1 (input errors, 2, take
+precedence).
 
 Seeds: world on input line ``N`` is planned with ``seed=[--seed, N]``, so a
 plan does not depend on the other lines of the file.  A progress bar (tqdm,
@@ -158,6 +160,8 @@ def run(args) -> int:
             _error(f"{args.out}: cannot write ({exc})")
             return 2
     bad = 0
+    failed = 0
+    planned = 0
     try:
         progress = tqdm(
             total=n_lines,
@@ -172,6 +176,8 @@ def run(args) -> int:
                 if not isinstance(item, Exception):
                     try:
                         record = pipeline.plan(item, seed=[args.seed, line]).to_dict()
+                        planned += 1
+                        failed += not record["success"]
                     except (ValueError, TypeError, RuntimeError) as exc:
                         item = ValueError(f"{path} line {line}: planning failed: {exc}")
                 if isinstance(item, Exception):
@@ -186,4 +192,10 @@ def run(args) -> int:
     finally:
         if out is not sys.stdout:
             out.close()
-    return 2 if bad else 0
+    if bad:
+        return 2
+    if failed:
+        print(f"mrmt plan: {failed} of {planned} plans failed (\"success\": false; see their \"failure\")",
+              file=sys.stderr)
+        return 1
+    return 0

@@ -29,7 +29,8 @@ from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "NEEDS_REFERENCE"]
+__all__ = ["ProgramPool", "CompiledSearch", "engine_capable", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED",
+           "NEEDS_REFERENCE"]
 
 REACHED, BUDGET_SPENT, EXHAUSTED, NEEDS_REFERENCE = 0, 1, 2, 3
 
@@ -288,3 +289,63 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
         counts[2] += 1
         pr, pc = seg_cells[s0 + L - 1, 0], seg_cells[s0 + L - 1, 1]
     return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]
+
+
+def engine_capable(chip) -> bool:
+    """Whether ``chip`` is an :class:`ising_backend.EmulatedChip` whose annealing is its own
+    (then the compiled loop may call its kernel); subclasses that override ``anneal_batch``
+    (e.g. to inject faults) and other solvers go through the reference loop."""
+    from ising_backend import EmulatedChip
+
+    return isinstance(chip, EmulatedChip) and type(chip).anneal_batch is EmulatedChip.anneal_batch \
+        and hasattr(chip, "kernel_args")
+
+
+class CompiledSearch:
+    """:class:`~planners.ising.path.IsingPath`'s side of the compiled loop: run a query with
+    :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
+    ``chip``, ``_pool``, ``_engine_args``, ``_nbr``, ``_padded`` and ``_finish``)."""
+
+    def _run_engine(self, grid, s, g, rng):
+        """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
+        submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
+        from ising_backend import CallLedger
+
+        cfg = self.config
+        fr = self.frame
+        free = int(self._free_cells(grid))
+        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, free)
+        per_target = len(cfg.styles) * cfg.num_reads
+        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
+        status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
+            rng, *self._pool.arrays(), self._padded(grid), s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
+            fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
+            cfg.num_reads, max_attempts, max_calls, *self._engine_args, free)
+        if status == NEEDS_REFERENCE:
+            return None
+        charged = CallLedger()
+        for delta in self.chip.charge(sub_calls, sub_emu):
+            charged._add_in_place(delta)
+        counts = dict(zip(("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves"),
+                          (int(v) for v in counts)))
+        mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}
+                   for st, r in zip(cfg.styles, mp)}
+        failure = None
+        if status == BUDGET_SPENT:
+            failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
+                       f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
+                       f"{charged.physical_calls} chip calls of max_chip_calls={max_calls})")
+        elif status == EXHAUSTED:
+            failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
+                       f"reachable from [{pr}, {pc}] was visited or failed"
+                       + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
+                       + " (the goal may be unreachable)")
+        return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure, None)
+
+    def _free_cells(self, grid) -> int:
+        cached = self._free_for
+        if cached is not None and cached[0] is grid:
+            return cached[1]
+        free = int((~np.asarray(grid, dtype=bool)).sum())
+        self._free_for = (grid, free)
+        return free

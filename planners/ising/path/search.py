@@ -19,21 +19,11 @@ from ising_backend import MeteredSolver, SolverOutputError
 from planners.ising.config import resolve_config
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import cut_loops, decode_paths
-from planners.ising.path.engine import BUDGET_SPENT, EXHAUSTED, NEEDS_REFERENCE, ProgramPool, run_query
+from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capable
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
 
 __all__ = ["IsingPath"]
-
-
-def _engine_capable(chip) -> bool:
-    """Whether ``chip`` is an :class:`ising_backend.EmulatedChip` whose annealing is its own
-    (then the compiled loop may call its kernel); subclasses that override ``anneal_batch``
-    (e.g. to inject faults) and other solvers go through the reference loop."""
-    from ising_backend import EmulatedChip
-
-    return isinstance(chip, EmulatedChip) and type(chip).anneal_batch is EmulatedChip.anneal_batch \
-        and hasattr(chip, "kernel_args")
 
 
 class _LRU(OrderedDict):
@@ -57,7 +47,7 @@ class _PatchProgram(NamedTuple):
     idx: np.ndarray  # (mapped styles, N)
 
 
-class IsingPath:
+class IsingPath(CompiledSearch):
     """Patch-sliding Ising pathfinder (paper Algorithm 1).
 
     Args:
@@ -93,7 +83,7 @@ class IsingPath:
         self._style_ids = np.array([MERGE_STYLE_IDS[st] for st in cfg.styles], dtype=np.int64)
         self._free_for = None
         self._engine_args = None
-        if _engine_capable(self.chip) and not cfg.pack and cfg.targets_per_call == 1 and cfg.patch_size <= 7:
+        if engine_capable(self.chip) and not cfg.pack and cfg.targets_per_call == 1 and cfg.patch_size <= 7:
             w = cfg.full_weights
             coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0) if cfg.form == "pair" else \
                 (0.0, w["B"], 0.0, w["A_end"], w["A"])
@@ -408,46 +398,3 @@ class IsingPath:
                               failure="internal error: the stitched walk is not a valid 4-neighbour path")
         stats["path_length"] = len(path) - 1
         return PathResult(path, compute=compute, stats=stats)
-    def _run_engine(self, grid, s, g, rng):
-        """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
-        submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
-        from ising_backend import CallLedger
-
-        cfg = self.config
-        fr = self.frame
-        free = int(self._free_cells(grid))
-        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, free)
-        per_target = len(cfg.styles) * cfg.num_reads
-        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
-        status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, *self._pool.arrays(), self._padded(grid), s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
-            fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
-            cfg.num_reads, max_attempts, max_calls, *self._engine_args, free)
-        if status == NEEDS_REFERENCE:
-            return None
-        charged = CallLedger()
-        for delta in self.chip.charge(sub_calls, sub_emu):
-            charged._add_in_place(delta)
-        counts = dict(zip(("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves"),
-                          (int(v) for v in counts)))
-        mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}
-                   for st, r in zip(cfg.styles, mp)}
-        failure = None
-        if status == BUDGET_SPENT:
-            failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
-                       f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
-                       f"{charged.physical_calls} chip calls of max_chip_calls={max_calls})")
-        elif status == EXHAUSTED:
-            failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
-                       f"reachable from [{pr}, {pc}] was visited or failed"
-                       + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
-                       + " (the goal may be unreachable)")
-        return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure, None)
-
-    def _free_cells(self, grid) -> int:
-        cached = self._free_for
-        if cached is not None and cached[0] is grid:
-            return cached[1]
-        free = int((~np.asarray(grid, dtype=bool)).sum())
-        self._free_for = (grid, free)
-        return free

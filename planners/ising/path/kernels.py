@@ -134,6 +134,7 @@ def score_patch_samples(spins, ptr, idx, n_logical, cells, start, goal, nbr, h, 
     energy = np.full(P, np.inf)
     logical = np.zeros((P, R, n), dtype=np.int8)
     sel = np.zeros(nc, dtype=np.bool_)
+    buf = np.empty(nc, dtype=np.int64)
     for p in range(P):
         for r in range(R):
             s = spins[p, r]
@@ -156,41 +157,7 @@ def score_patch_samples(spins, ptr, idx, n_logical, cells, start, goal, nbr, h, 
                     total += 1
             sel[start] = True
             sel[goal] = True
-            ok = True
-            for i in range(nc):
-                if not sel[i]:
-                    continue
-                deg = 0
-                for k in range(4):
-                    j = nbr[i, k]
-                    if j < 0:
-                        break
-                    deg += sel[j]
-                want = 1 if (i == start or i == goal) else 2
-                if deg != want:
-                    ok = False
-                    break
-            if not ok:
-                continue
-            # walk from start: every selected cell must be reached before the goal
-            prev = -1
-            cur = start
-            steps = 1
-            while cur != goal:
-                nxt = -1
-                for k in range(4):
-                    j = nbr[cur, k]
-                    if j < 0:
-                        break
-                    if sel[j] and j != prev:
-                        nxt = j
-                        break
-                if nxt < 0:
-                    break
-                prev = cur
-                cur = nxt
-                steps += 1
-            if cur != goal or steps != total:
+            if not _walk(sel, start, goal, nbr, total, buf):
                 continue
             n_valid[p] += 1
             e = offset
@@ -218,7 +185,18 @@ def extract_path(x, cells, start, goal, nbr):
             total += 1
     sel[start] = True
     sel[goal] = True
-    empty = np.zeros(0, dtype=np.int64)
+    path = np.empty(total, dtype=np.int64)
+    if _walk(sel, start, goal, nbr, total, path):
+        return path
+    return np.zeros(0, dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _walk(sel, start, goal, nbr, total, out):
+    """Whether the ``total`` selected cells form one simple, induced 4-connected path from
+    ``start`` to ``goal`` (every selected cell has two selected neighbours, each endpoint one, and
+    the walk from ``start`` covers them all); the path's cells go into ``out``."""
+    nc = nbr.shape[0]
     for i in range(nc):
         if sel[i]:
             deg = 0
@@ -228,9 +206,8 @@ def extract_path(x, cells, start, goal, nbr):
                     break
                 deg += sel[j]
             if deg != (1 if (i == start or i == goal) else 2):
-                return empty
-    path = np.empty(total, dtype=np.int64)
-    path[0] = start
+                return False
+    out[0] = start
     prev = -1
     cur = start
     steps = 1
@@ -244,11 +221,9 @@ def extract_path(x, cells, start, goal, nbr):
                 nxt = j
                 break
         if nxt < 0 or steps >= total:
-            return empty
+            return False
         prev = cur
         cur = nxt
-        path[steps] = cur
+        out[steps] = cur
         steps += 1
-    if steps != total:
-        return empty
-    return path
+    return steps == total

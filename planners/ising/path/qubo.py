@@ -237,27 +237,8 @@ def build_patch_qubo_reference(
     form: str = "pair",
     weights: dict | None = None,
 ) -> PatchQubo:
-    """:func:`build_patch_qubo` in plain numpy (the reference the compiled builder is tested against).
-
-    ``allowed`` (bool, ``frame.n``) marks the free patch cells that may carry the
-    path; ``start`` and ``goal`` must be allowed and distinct.  The energy is
-    built on the whole frame with the endpoints as ordinary 0/1 cells and then
-    the endpoints are substituted with ``x = 1`` (their terms fold into the
-    linear coefficients of their neighbours and into the offset).
-    """
-    if form not in FORMS:
-        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-    w = dict(DEFAULT_WEIGHTS[form])
-    if weights:
-        unknown = set(weights) - set(w)
-        if unknown:
-            raise ValueError(f"unknown weights {sorted(unknown)} for form {form!r} (known: {sorted(w)})")
-        w.update(weights)
-    if start == goal:
-        raise ValueError("start and goal of a patch problem must differ")
-    allowed = np.asarray(allowed, dtype=bool)
-    if not (allowed[start] and allowed[goal]):
-        raise ValueError("start and goal of a patch problem must be allowed cells")
+    """:func:`build_patch_qubo` in plain numpy (the reference the compiled builder is tested against)."""
+    w, allowed = _resolve(form, weights, allowed, start, goal)
     n = frame.n
     A4 = (frame.adj4 & allowed[:, None] & allowed[None, :]).astype(np.float64)
     q = np.zeros(n)

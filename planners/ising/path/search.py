@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ising_backend import MeteredSolver, SolverOutputError
-from planners.ising.config import resolve_config
+from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import cut_loops, decode_paths
 from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capable
@@ -47,7 +47,7 @@ class _PatchProgram(NamedTuple):
     idx: np.ndarray  # (mapped styles, N)
 
 
-class IsingPath(CompiledSearch):
+class IsingPath(CompiledSearch, ConfigAttributes):
     """Patch-sliding Ising pathfinder (paper Algorithm 1).
 
     Args:
@@ -91,12 +91,6 @@ class IsingPath(CompiledSearch):
                                  self._style_ids, self._limits[0], self._limits[1], self._limits[2],
                                  *self.chip.kernel_args())
             self._pool = ProgramPool(self.frame.n, len(cfg.styles), spec.n_spins)
-
-    def __getattr__(self, name):  # config options read as attributes (planner.form, planner.styles, ...)
-        cfg = self.__dict__.get("config")
-        if cfg is not None and name in PathConfig.__dataclass_fields__:
-            return getattr(cfg, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __repr__(self) -> str:
         return f"IsingPath({self.config!r})"

@@ -21,7 +21,7 @@ from ising_backend import (
 )
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
-from planners.ising.config import resolve_config
+from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import score_split_reads, split_model
@@ -30,7 +30,7 @@ from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_a
 __all__ = ["IsingSharing"]
 
 
-class IsingSharing:
+class IsingSharing(ConfigAttributes):
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:
@@ -47,12 +47,6 @@ class IsingSharing:
 
         self.config = resolve_config(SharingConfig, config, options)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
-
-    def __getattr__(self, name):  # config options read as attributes (sharing.beam, ...)
-        cfg = self.__dict__.get("config")
-        if cfg is not None and name in SharingConfig.__dataclass_fields__:
-            return getattr(cfg, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"

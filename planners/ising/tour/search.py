@@ -20,7 +20,7 @@ import numpy as np
 from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, freeze_order, quantize
 from planners.base import TourResult
 from planners.compute import ComputeReport
-from planners.ising.config import resolve_config
+from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.tour.cluster import Clustering, TourFailure
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
@@ -39,7 +39,7 @@ class _Run:
     chip: MeteredSolver | None = None
 
 
-class IsingTour(Clustering):
+class IsingTour(Clustering, ConfigAttributes):
     """Clustered Ising tour construction (see the module docstring).
 
     Args:
@@ -70,12 +70,6 @@ class IsingTour(Clustering):
                 f"one-hot models of {largest}^2 = {largest ** 2} variables exceed the spin budget {self._budget} "
                 f"+ max_branch_bits {cfg.max_branch_bits} (local_limit={cfg.local_limit}, patch_size="
                 f"{cfg.patch_size}, max_clusters={cfg.max_clusters})")
-
-    def __getattr__(self, name):  # config options read as attributes (tour.n_starts, ...)
-        cfg = self.__dict__.get("config")
-        if cfg is not None and name in TourConfig.__dataclass_fields__:
-            return getattr(cfg, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __repr__(self) -> str:
         return f"IsingTour({self.config!r})"

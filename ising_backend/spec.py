@@ -37,10 +37,12 @@ Emulation knobs (the paper is silent; choices and reasons):
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 
 import numpy as np
-from dataclasses import asdict, dataclass, replace
 
 __all__ = ["ChipSpec", "SCHEDULES"]
 
@@ -100,6 +102,40 @@ class ChipSpec:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**63:
             bad(f"seed = {self.seed!r} must be an integer in [0, 2**63) (the hardware's mismatch pattern)")
 
+    @classmethod
+    def from_options(cls, items, base: "ChipSpec | None" = None) -> "ChipSpec":
+        """A spec from command-line items: ``KEY=VALUE`` strings and/or paths of JSON files
+        holding one object of fields, applied in order on ``base`` (default ``ChipSpec()``).
+
+        Values: integers and floats as usual; a range (``h_range``, ``j_range``) as ``m``
+        (meaning ``(-m, m)``) or ``lo,hi``; ``beta_range`` as ``hot,cold`` or ``none``.  A JSON
+        file is data only (parsed with :mod:`json`, at most 64 KiB).  An unknown field or a bad
+        value raises ``ValueError`` naming it and listing the valid fields.
+        """
+        spec = cls() if base is None else base
+        if isinstance(items, str):
+            items = [items]
+        for item in items:
+            if not isinstance(item, str):
+                raise ValueError(f"chip option {item!r} must be a KEY=VALUE string or a JSON file path")
+            if "=" in item:
+                key, _, value = item.partition("=")
+                spec = spec._with(key.strip(), value.strip(), where=f"chip option {item!r}")
+            else:
+                for key, value in _read_spec_file(item).items():
+                    spec = spec._with(key, value, where=f"{item}: field {key!r}")
+        return spec
+
+    def _with(self, key: str, value, where: str) -> "ChipSpec":
+        names = [f.name for f in fields(self)]
+        if key not in names:
+            raise ValueError(f"{where}: unknown chip field {key!r}; valid fields: {', '.join(names)}")
+        try:
+            parsed = _parse_field(key, value)
+            return replace(self, **{key: parsed})
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: {exc}") from None
+
     @property
     def n_cores(self) -> int:
         """Parallel solver cores (chips x cores per chip): programs per batch."""
@@ -122,3 +158,74 @@ class ChipSpec:
         d["n_cores"] = self.n_cores
         d["energy_per_call_j"] = self.energy_per_call_j
         return d
+
+
+_INT_FIELDS = ("n_spins", "n_chips", "cores_per_chip", "sweeps", "seed")
+_FLOAT_FIELDS = ("solve_time_s", "power_w", "coupling_mismatch", "readout_flip_prob")
+_MAX_SPEC_FILE = 64 * 1024
+
+
+def _number(text, kind, key):
+    if isinstance(text, bool):
+        raise ValueError(f"{key} = {text!r} must be {'an integer' if kind is int else 'a number'}")
+    if kind is int:
+        if isinstance(text, (int, np.integer)):
+            return int(text)
+        if isinstance(text, str) and text.strip().lstrip("+-").isdigit():
+            return int(text)
+        raise ValueError(f"{key} = {text!r} must be an integer")
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"{key} = {text!r} must be a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{key} = {text!r} must be finite")
+    return v
+
+
+def _parse_field(key: str, value):
+    """One field's value from a command-line string or a JSON value."""
+    if key in _INT_FIELDS:
+        return _number(value, int, key)
+    if key in _FLOAT_FIELDS:
+        return _number(value, float, key)
+    if key in ("h_range", "j_range"):
+        parts = value if isinstance(value, (list, tuple)) else str(value).split(",")
+        nums = [_number(p, int, key) for p in parts]
+        if len(nums) == 1:
+            if nums[0] < 1:
+                raise ValueError(f"{key} = {value!r}: a single value m means (-m, m) and must be >= 1")
+            return (-nums[0], nums[0])
+        if len(nums) != 2:
+            raise ValueError(f"{key} = {value!r} must be m or lo,hi")
+        return tuple(nums)
+    if key == "beta_range":
+        if value is None or str(value).strip().lower() == "none":
+            return None
+        parts = value if isinstance(value, (list, tuple)) else str(value).split(",")
+        nums = [_number(p, float, key) for p in parts]
+        if len(nums) != 2:
+            raise ValueError(f"{key} = {value!r} must be hot,cold or none")
+        return tuple(nums)
+    if key == "schedule":
+        return str(value)
+    raise ValueError(f"unknown chip field {key!r}")  # pragma: no cover - guarded by _with
+
+
+def _read_spec_file(path) -> dict:
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise ValueError(f"chip option {str(path)!r} is neither KEY=VALUE nor a readable JSON file ({exc})") from None
+    if size > _MAX_SPEC_FILE:
+        raise ValueError(f"{path}: {size} bytes; a chip spec file may hold at most {_MAX_SPEC_FILE} bytes")
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: cannot read ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: a chip spec file holds one JSON object of fields, got {type(data).__name__}")
+    return data

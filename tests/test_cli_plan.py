@@ -161,3 +161,60 @@ def test_a_failed_plan_is_written_and_exits_1(tmp_path, capsys):
     d = json.loads(line)
     assert d["success"] is False and d["failure"]
     assert captured.err.strip().splitlines() == ['mrmt plan: 1 of 1 plans failed ("success": false; see their "failure")']
+
+
+def test_chip_option_plans_on_another_chip(tmp_path, worlds, capsys):
+    src = tmp_path / "w.json"
+    write_world(worlds[3], src)
+    spec_file = tmp_path / "chip.json"
+    spec_file.write_text(json.dumps({"n_spins": 64, "j_range": [-15, 15]}))
+    assert main(["plan", str(src), "--pipeline", "ising", "--chip", str(spec_file), "--chip", "cores_per_chip=4",
+                 "--no-progress"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["success"] is True
+    # 16 cores: a submission of up to 16 programs is one parallel batch
+    assert d["compute"]["chip_batches"] <= d["compute"]["chip_calls"]
+    validate_plan(worlds[3], _as_plan(d))
+
+
+@pytest.mark.parametrize("chip, message", [
+    (["warp=9"], "unknown chip field 'warp'; valid fields: n_spins, h_range"),
+    (["n_spins=4.5"], "n_spins = '4.5' must be an integer"),
+    (["j_range=0"], "a single value m means (-m, m) and must be >= 1"),
+    (["missing.json"], "neither KEY=VALUE nor a readable JSON file"),
+])
+def test_bad_chip_option_is_one_line_and_exit_2(tmp_path, worlds, capsys, chip, message):
+    src = tmp_path / "w.json"
+    write_world(worlds[0], src)
+    args = ["plan", str(src), "--pipeline", "ising", "--no-progress"]
+    for c in chip:
+        args += ["--chip", c]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_chip_option_needs_a_chip_layer(tmp_path, worlds, capsys):
+    src = tmp_path / "w.json"
+    write_world(worlds[0], src)
+    assert main(["plan", str(src), "--pipeline", "strong", "--chip", "n_spins=64", "--no-progress"]) == 2
+    assert "no layer of this pipeline runs on a chip" in capsys.readouterr().err
+
+
+def test_chip_spec_file_is_data_with_a_size_limit(tmp_path):
+    from ising_backend import ChipSpec
+
+    big = tmp_path / "big.json"
+    big.write_text("{" + " " * 70000 + "}")
+    with pytest.raises(ValueError, match="at most 65536 bytes"):
+        ChipSpec.from_options([str(big)])
+    not_obj = tmp_path / "list.json"
+    not_obj.write_text("[1, 2]")
+    with pytest.raises(ValueError, match="one JSON object of fields, got list"):
+        ChipSpec.from_options([str(not_obj)])
+    broken = tmp_path / "broken.json"
+    broken.write_text('{\n  "n_spins": 64,\n  "sweeps": \n}')
+    with pytest.raises(ValueError, match="line 4"):
+        ChipSpec.from_options([str(broken)])
+    spec = ChipSpec.from_options(["beta_range=0.1,3", "h_range=-3,5", "readout_flip_prob=0.01"])
+    assert spec.beta_range == (0.1, 3.0) and spec.h_range == (-3, 5) and spec.readout_flip_prob == 0.01

@@ -62,6 +62,9 @@ def add_arguments(parser) -> None:
         metavar="LAYER.KEY=VALUE",
         help="layer factory option, e.g. tour.moves=7 or sharing.bid=tour (repeatable)",
     )
+    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                        help="the emulated chip of the Ising layers: any ChipSpec field (e.g. n_spins=64, "
+                             "j_range=15 meaning (-15, 15), cores_per_chip=4) or a JSON file of fields; repeatable")
     parser.add_argument("--out", default=None, help="write the plans here (JSON Lines) instead of stdout")
     parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
     parser.add_argument("--keep-going", action="store_true", help='continue past bad lines: each gets {"error": ..., "line": N} in its output place (still exit 2)')
@@ -97,15 +100,27 @@ def build_pipeline(args):
     preset = args.pipeline
     if preset is None and not (args.sharing and args.tour and args.path):
         preset = "strong"
-    return make_pipeline(
-        preset,
-        sharing=args.sharing,
-        tour=args.tour,
-        path=args.path,
-        sharing_options=options["sharing"],
-        tour_options=options["tour"],
-        path_options=options["path"],
-    )
+    shared = {}
+    if getattr(args, "chip", None):
+        from ising_backend import ChipSpec, EmulatedChip
+
+        shared["chip"] = EmulatedChip(ChipSpec.from_options(args.chip))
+    try:
+        return make_pipeline(
+            preset,
+            sharing=args.sharing,
+            tour=args.tour,
+            path=args.path,
+            sharing_options=options["sharing"],
+            tour_options=options["tour"],
+            path_options=options["path"],
+            **shared,
+        )
+    except TypeError as exc:
+        if shared and "accepted by no layer" in str(exc):
+            raise ValueError("--chip given, but no layer of this pipeline runs on a chip (use --pipeline ising "
+                             "or an ising layer)") from None
+        raise
 
 
 def _iter_worlds(path: Path, text: str):

@@ -315,6 +315,22 @@ class LogicalIsingSolver(dimod.Sampler):
         return out  # type: ignore[return-value]
 
 
+    def kernel_args(self, n: int) -> tuple:
+        """``(restarts, iterations, tenure)``: this solver's arguments of :func:`tabu_kernel` for
+        ``n``-spin programs (method ``"tabu"``), for compiled planners that call the kernel in their
+        own loops with :func:`mix_seed` sub-seeds, as :meth:`solve_stack` does; they charge the
+        calls with :meth:`charge`."""
+        iters = self.iterations if self.iterations is not None else 50 * n
+        return int(self.restarts), int(iters), int(self._tenure(n))
+
+    def charge(self, calls, seconds) -> list:
+        """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` logical calls and
+        ``seconds[i]`` emulation seconds each, in order, as :meth:`solve_stack` charges one."""
+        out = [self.ledger.record_logical(int(c), self.spec, float(t)) for c, t in zip(calls, seconds)]
+        if out:
+            self.last_call = out[-1]
+        return out
+
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None) -> np.ndarray:
         """:meth:`solve_many` of ``B`` same-size models given as arrays (``h (B, n)``, ``J (n, n)``
         shared or ``(B, n, n)``): the same sub-seed, spins and charge, without model objects.
@@ -340,6 +356,12 @@ class LogicalIsingSolver(dimod.Sampler):
         spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
         self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         return spins
+
+
+@numba.njit(cache=True)
+def mix_seed(seed, k):
+    """:func:`_mix_py` in compiled code (the sub-seed of a size group of :meth:`LogicalIsingSolver.solve_many`)."""
+    return _splitmix(np.uint64(seed) + _GOLDEN * np.uint64(k))
 
 
 def _mix_py(seed: int, k: int) -> int:

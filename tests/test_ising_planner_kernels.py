@@ -368,3 +368,23 @@ def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
     clusters = [list(map(int, c)) for c in np.split(rng.permutation(np.arange(1, n + 1)), cut)]
     tour = IsingTour(cluster_distance=mode)
     assert np.array_equal(tour._cluster_dist(dist, clusters), tour._cluster_dist_reference(dist, clusters))
+
+
+@pytest.mark.parametrize("options", [{}, {"n_starts": 2, "num_reads": 2}, {"max_retries": 0, "patch_size": 4}])
+def test_compiled_tour_subproblems_make_the_reference_decisions(options):
+    """planners.ising.tour.engine.solve_order against the Python _solve_path/_sample it mirrors:
+    the same tours, statistics, logical charges and rng state."""
+    from ising_backend import EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.tour import IsingTour
+
+    fast, ref = IsingTour(EmulatedChip(), **options), IsingTour(EmulatedChip(), **options)
+    assert fast._engine
+    ref._engine = False
+    for s in range(10):
+        dist = generate_world(s, n_robots=1, n_targets=3 + s % 9).distance_matrix
+        r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
+        a, b = fast.solve(dist, r1), ref.solve(dist, r2)
+        assert a.order == b.order and a.cost == b.cost and a.failure == b.failure
+        assert a.stats == b.stats and a.compute == b.compute
+        assert r1.integers(1 << 62) == r2.integers(1 << 62)

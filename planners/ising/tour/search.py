@@ -23,6 +23,7 @@ from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.tour.cluster import Clustering, TourFailure
 from planners.ising.tour.config import TourConfig
+from planners.ising.tour.engine import solve_order
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 from planners.ising.tour.qubo import onehot_penalty
 
@@ -64,6 +65,9 @@ class IsingTour(Clustering, ConfigAttributes):
         self._zeros: dict = {}  # s -> zero costs, for one-hot validity checks
         self.solver = solver if solver is not None else LogicalIsingSolver(
             spec=self.spec, ledger=self.chip.ledger, **cfg.solver_options)
+        # the compiled subproblem solve needs the logical solver's own tabu kernel
+        self._engine = (cfg.backend == "logical" and type(self.solver) is LogicalIsingSolver
+                        and self.solver.method == "tabu")
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
         if largest ** 2 > self._budget + cfg.max_branch_bits:
             raise ValueError(
@@ -243,6 +247,8 @@ class IsingTour(Clustering, ConfigAttributes):
         d = np.ascontiguousarray(d, dtype=np.float64)
         entry = np.ascontiguousarray(entry, dtype=np.float64)
         ex = np.ascontiguousarray(ex, dtype=np.float64)
+        if self._engine and s * s <= self._budget:
+            return self._solve_path_compiled(d, entry, ex, run, kind)
         A = onehot_penalty(d, entry, ex, 1.0, self.config.penalty_factor)
         h, J, off = onehot_ising(d, entry, ex, A, 1.0)
         for _attempt in range(self.config.max_retries + 1):
@@ -253,6 +259,29 @@ class IsingTour(Clustering, ConfigAttributes):
             run.stats["retries"] += 1
         run.stats["unsolved"][kind] += 1
         return None
+
+    def _solve_path_compiled(self, d, entry, ex, run: _Run, kind: str):
+        """:meth:`_solve_path` in one compiled call (:func:`.engine.solve_order`), charged to the
+        logical solver attempt by attempt as ``solve_stack`` charges."""
+        cfg = self.config
+        s = d.shape[0]
+        order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
+                                            cfg.num_reads, *self.solver.kernel_args(s * s))
+        charged = run.solver.charged
+        for delta in self.solver.charge(calls, emu):
+            charged._add_in_place(delta)
+        m = run.stats["mapping"]["tour"]
+        m["programs"] += int(st[0])
+        m["reads"] += int(st[1])
+        m["valid_reads"] += int(st[2])
+        m["valid"] += int(st[3])
+        m["subproblems"] += int(st[0])
+        m["valid_subproblems"] += int(st[3])
+        run.stats["retries"] += int(st[4])
+        if st[5]:
+            run.stats["unsolved"][kind] += 1
+            return None
+        return [int(i) for i in order]
 
     # ------------------------------------------------------------------ result
     def _empty_stats(self) -> dict:

@@ -16,9 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ising_backend import quantize_rules
 from planners.ising.numeric import pairwise_sum
 
-__all__ = ["split_model", "score_split_reads"]
+__all__ = ["split_model", "score_split_reads", "map_stage", "score_stage"]
 
 
 @numba.njit(cache=True)
@@ -151,3 +152,82 @@ def score_split_reads(blocks, free, a, b, dist, n_robots, reject_empty_robot_sid
                 k += 1
         cut[r] = pairwise_sum(prod, 0, k)
     return valid, cut, first
+
+
+@numba.njit(cache=True)
+def map_stage(q, Q, sizes, rules, Lh, Lj):
+    """Every split of a stage mapped by every quantization rule in one call.
+
+    ``q (P, f)`` / ``Q (P, f, f)`` are the splits' reduced QUBOs (zero-padded to ``f``), ``sizes``
+    their free spins.  Each QUBO is converted to Ising form with
+    :func:`ising_backend.ising_from_qubo`'s arithmetic and quantized by
+    :func:`ising_backend.quantize_stack`'s kernel (``keep_sign``, percentile 95).  Returns
+    ``(status (P, k), h (P * k, f), J (P * k, f, f))``, row ``p * k + r`` = split ``p``, rule ``r``.
+    """
+    P, f = q.shape
+    k = rules.shape[0]
+    status = np.zeros((P, k), dtype=np.int64)
+    h_out = np.zeros((P * k, f))
+    J_out = np.zeros((P * k, f, f))
+    for p in range(P):
+        n = sizes[p]
+        h = np.empty(n)
+        J = np.zeros((n, n))
+        row = np.empty(n)
+        for i in range(n):
+            for j in range(n):
+                row[j] = Q[p, i, j] + Q[p, j, i]
+                J[i, j] = Q[p, i, j] / 4.0
+            h[i] = q[p, i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
+        st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+        for r in range(k):
+            status[p, r] = st[r]
+            h_out[p * k + r, :n] = hq[r]
+            J_out[p * k + r, :n, :n] = Jq[r]
+    return status, h_out, J_out
+
+
+@numba.njit(cache=True)
+def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject):
+    """Decode, check and score every read of every split of one stage submission.
+
+    ``where (P * k, 2)``: the pack and first spin of program ``p * k + r`` in ``spins (packs, R, W)``;
+    ``free (P, f)`` / ``anchors (P, 2)`` / ``reject (P,)`` per split (see :func:`score_split_reads`).
+    Returns ``(n_valid (P, k), best (P, k)`` -- the rule's best ``-cut``, ``inf`` if none --
+    ``, cand (M, 2)`` -- split and cut rank key of each distinct valid partition, first occurrence
+    order -- ``, cut (M,), side1 (M, f) bool)``.
+    """
+    P = sizes.shape[0]
+    R = spins.shape[1]
+    f = free.shape[1]
+    n_valid = np.zeros((P, k), dtype=np.int64)
+    best = np.full((P, k), np.inf)
+    M = 0
+    cand_split = np.empty(P * k * R, dtype=np.int64)
+    cand_cut = np.empty(P * k * R)
+    cand_side = np.zeros((P * k * R, f), dtype=np.bool_)
+    for p in range(P):
+        n = sizes[p]
+        blocks = np.empty((k * R, n), dtype=np.int8)
+        for r in range(k):
+            b = where[p * k + r, 0]
+            s0 = where[p * k + r, 1]
+            for t in range(R):
+                for i in range(n):
+                    blocks[r * R + t, i] = spins[b, t, s0 + i]
+        valid, cut, first = score_split_reads(blocks, free[p, :n], anchors[p, 0], anchors[p, 1], dist, n_robots,
+                                              reject[p])
+        for r in range(k):
+            for t in range(R):
+                row = r * R + t
+                if valid[row]:
+                    n_valid[p, r] += 1
+                    if -cut[row] < best[p, r]:
+                        best[p, r] = -cut[row]
+                    if first[row] == row:
+                        cand_split[M] = p
+                        cand_cut[M] = cut[row]
+                        for i in range(n):
+                            cand_side[M, i] = blocks[row, i] > 0
+                        M += 1
+    return n_valid, best, cand_split[:M], cand_cut[:M], cand_side[:M]

@@ -24,7 +24,7 @@ from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.kernels import score_split_reads, split_model
+from planners.ising.sharing.kernels import map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
 __all__ = ["IsingSharing"]
@@ -47,6 +47,11 @@ class IsingSharing(ConfigAttributes):
 
         self.config = resolve_config(SharingConfig, config, options)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        from ising_backend import QUANTIZE_RULE_IDS
+
+        spec = self.chip.spec
+        self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
+        self._limits = tuple(float(min(-int(r[0]), int(r[1]))) for r in (spec.h_range, spec.j_range))
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"
@@ -251,35 +256,49 @@ class IsingSharing(ConfigAttributes):
                     return False
         return True
 
-    def _solve_packed(self, w, R, problems, models, rng, stats) -> None:
-        """The submission of :meth:`_solve` for splits that fit the chip, without the generic
-        portfolio objects: all rules of a split quantized in one compiled call
-        (:func:`ising_backend.quantize_stack`), every (split, rule) program block-packed
-        first-fit decreasing (:func:`ising_backend.plan_packs`) into one ``anneal_batch``;
-        each distinct decoded partition is checked and scored once per split."""
+    def _solve_packed(self, w, R, problems, rng, stats) -> None:
+        """The submission of :meth:`_solve` for splits that fit the chip, in compiled calls: every
+        split x quantization rule mapped at once (:func:`.kernels.map_stage`), block-packed
+        first-fit decreasing (:func:`ising_backend.plan_packs`) into one ``anneal_batch``, every
+        read decoded, checked and scored at once (:func:`.kernels.score_stage`); each distinct
+        valid partition becomes a candidate."""
         cfg = self.config
         spec = self.chip.spec
         seed = int(rng.integers(2**63 - 1))
         rules = cfg.rules
-        try:
-            stacks = [quantize_stack(m, rules, spec.h_range, spec.j_range) for m in models]
-        except (QuantizeError, ModelError) as exc:
-            raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
-        sizes = [m.n for m in models for _ in rules]
-        packs = plan_packs(sizes, spec.n_spins)
-        width = max(sum(sizes[j] for j in pk) for pk in packs)
+        nr = len(rules)
+        P = len(problems)
+        f = max(len(p.free) for p in problems)
+        q = np.zeros((P, f))
+        Q = np.zeros((P, f, f))
+        free = np.zeros((P, f), dtype=np.int64)
+        sizes = np.empty(P, dtype=np.int64)
+        for k, p in enumerate(problems):
+            n = len(p.free)
+            sizes[k] = n
+            q[k, :n] = p.q
+            Q[k, :n, :n] = p.Q
+            free[k, :n] = p.free
+        status, qh, qJ = map_stage(q, Q, sizes, self._rule_ids, *self._limits)
+        if status.any():  # a non-finite quantized coefficient: the checked path names it
+            for k, p in enumerate(problems):
+                try:
+                    quantize_stack(ising_from_qubo(p.q, p.Q, p.offset), rules, spec.h_range, spec.j_range)
+                except (QuantizeError, ModelError) as exc:
+                    raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
+        prog_sizes = np.repeat(sizes, nr)
+        packs = plan_packs(prog_sizes.tolist(), spec.n_spins)
+        width = max(int(prog_sizes[pk].sum()) for pk in packs)
         h = np.zeros((len(packs), width))
         J = np.zeros((len(packs), width, width))
-        where = [None] * len(sizes)
-        nr = len(rules)
+        where = np.zeros((P * nr, 2), dtype=np.int64)
         for b, pk in enumerate(packs):
             s0 = 0
             for j in pk:
-                n = sizes[j]
-                qh, qJ = stacks[j // nr]
-                h[b, s0:s0 + n] = qh[j % nr]
-                J[b, s0:s0 + n, s0:s0 + n] = qJ[j % nr]
-                where[j] = (b, s0, n)
+                n = int(prog_sizes[j])
+                h[b, s0:s0 + n] = qh[j, :n]
+                J[b, s0:s0 + n, s0:s0 + n] = qJ[j, :n, :n]
+                where[j] = (b, s0)
                 s0 += n
         try:
             spins, _ = self._meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
@@ -287,37 +306,34 @@ class IsingSharing(ConfigAttributes):
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
+        anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
+        reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
+        n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject)
         mapping = stats["mapping"]["sharing"]
-        reads = cfg.reads
-        reject = cfg.reject_empty_robot_side
+        cands: list = [[] for _ in problems]
+        for m, k in enumerate(c_split.tolist()):
+            p = problems[k]
+            x = c_side[m, : len(p.free)]
+            side1 = np.sort(np.concatenate([[p.b], p.free[x]])).astype(int)
+            side0 = np.sort(np.concatenate([[p.a], p.free[~x]])).astype(int)
+            cands[k].append((float(c_cut[m]), side0, side1, None))
+        n_valid, best = n_valid.tolist(), best.tolist()
         for k, p in enumerate(problems):
-            blocks = np.concatenate([spins[b, :, s0:s0 + n] for b, s0, n in where[k * nr:(k + 1) * nr]])
-            valid, cut, first = score_split_reads(blocks, p.free, p.a, p.b, w, R, reject and p.kind == "robots")
-            valid, cut, first = valid.tolist(), cut.tolist(), first.tolist()
-            best = np.inf
-            rule_best = []
             for r, rule in enumerate(rules):
-                scores = [-c for v, c in zip(valid[r * reads:(r + 1) * reads], cut[r * reads:(r + 1) * reads]) if v]
-                rb = min(scores) if scores else np.inf
-                mapping[rule]["candidates"] += reads
-                mapping[rule]["valid"] += len(scores)
-                rule_best.append(rb)
-                best = min(best, rb)
-            distinct = [r for r in range(len(valid)) if valid[r] and first[r] == r]
-            if not distinct:
+                mapping[rule]["candidates"] += cfg.reads
+                mapping[rule]["valid"] += n_valid[k][r]
+            if not cands[k]:
                 continue
-            tol = 1e-9 * max(1.0, abs(best))
-            winners = [rule for rule, rb in zip(rules, rule_best) if rb <= best + tol]
+            top = min(best[k])
+            tol = 1e-9 * max(1.0, abs(top))
+            winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
             # ties between rules (common: several rules find the same split) are
             # broken at random so integer win counts stay unbiased
             win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
             mapping[win]["wins"] += 1
-            cands = []
-            for r in distinct:
-                side0, side1 = decode_split(p, blocks[r])
-                cands.append((float(cut[r]), side0, side1, None))
-            order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
-            p.cands = [cands[i] for i in order]
+            c = cands[k]
+            order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
+            p.cands = [c[i] for i in order]
 
     def _solve(self, dist, R, problems, rng, stats) -> None:
         """One chip submission for every mapped program of ``problems``.
@@ -329,9 +345,9 @@ class IsingSharing(ConfigAttributes):
         ``anneal_batch``, decodes, filters and scores each split's candidates
         on the unquantized cut (objective ``-cut``: lower is better).
         """
-        models = [ising_from_qubo(p.q, p.Q, p.offset) for p in problems]
         if max(len(p.free) for p in problems) <= self.chip.spec.n_spins:
-            return self._solve_packed(dist, R, problems, models, rng, stats)
+            return self._solve_packed(dist, R, problems, rng, stats)
+        models = [ising_from_qubo(p.q, p.Q, p.offset) for p in problems]
         if max(len(p.free) for p in problems) > self.chip.spec.n_spins:
             # spin-budget branching: freeze the excess spins, 2^k reduced programs per rule
             mappings = [BranchMapping(None, QuantizeMapping(rule), name=rule) for rule in self.config.rules]

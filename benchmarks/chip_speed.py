@@ -15,7 +15,7 @@
 
 Usage::
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/chip_speed.py [--write]
+    flock /tmp/mrmt-bench.lock python benchmarks/chip_speed.py [--write]
 
 ``--write`` replaces the "Issue 3: emulated chip" section of benchmarks/RESULTS.md.
 """
@@ -163,7 +163,7 @@ def main(argv=None) -> int:
     lines = [
         SECTION,
         "",
-        f"`flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/chip_speed.py --write` "
+        f"`flock /tmp/mrmt-bench.lock python benchmarks/chip_speed.py --write` "
         f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {cpu}, one thread, NUMBA_NUM_THREADS=1; "
         "the 2 vCPUs are shared with other jobs, so wall times carry noise; CPU time = process time of "
         "the one thread).",

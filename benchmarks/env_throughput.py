@@ -16,7 +16,7 @@ Measured:
 
 Run under the shared benchmark lock::
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/env_throughput.py --write-results
+    flock /tmp/mrmt-bench.lock python benchmarks/env_throughput.py --write-results
 
 ``--write-results`` replaces the "Issue 2: environments" section of
 ``benchmarks/RESULTS.md`` (other sections are kept).
@@ -135,7 +135,7 @@ def write_section(results: dict[str, tuple[float, float, float]], steps: int, re
         "",
         "The machine's 2 cores are shared with other jobs, so runs vary; the median is reported.",
         "",
-        "Reproduce: `flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/env_throughput.py --write-results`",
+        "Reproduce: `flock /tmp/mrmt-bench.lock python benchmarks/env_throughput.py --write-results`",
         "",
     ]
     write_results_section(SECTION, "\n".join(lines), RESULTS)

@@ -8,7 +8,7 @@ worlds are not optimal, median projected logical calls and host seconds per
 solve (shared 2-core machine: indicative).  Then the physical-chip option:
 valid-permutation rate of the one-hot programs per quantization rule.
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/ising_tour_sweep.py [--n 100] [--seed0 0]
+    flock /tmp/mrmt-bench.lock python benchmarks/ising_tour_sweep.py [--n 100] [--seed0 0]
 
 (The paper-figure comparison with the classical baselines is in
 ``benchmarks/quality_ising.py``.)

@@ -32,7 +32,7 @@ core, after a warm-up call so numba compilation is excluded), the best of
 the shared machine; the table gives the median over instances, and the energy
 proxy is that time x 15 W (paper 6.1).
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/quality_classical.py --write-results
+    flock /tmp/mrmt-bench.lock python benchmarks/quality_classical.py --write-results
 """
 
 from __future__ import annotations
@@ -284,7 +284,7 @@ def render(n_worlds, repeats, res) -> str:
         "kernels with little Python overhead, so every Ising-vs-classical energy ratio computed against these "
         "baselines is smaller (harder to win) than the paper's.",
         "",
-        "Reproduce: `flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/quality_classical.py --write-results`",
+        "Reproduce: `flock /tmp/mrmt-bench.lock python benchmarks/quality_classical.py --write-results`",
         "",
     ]
     return "\n".join(L)

@@ -35,8 +35,8 @@ accelerator energy (calls x 0.45 uJ, projected logical calls included).  The
 Ising methods' host CPU (classical glue) is reported beside it, never folded
 away.
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/quality_ising.py --write-results
-    /work/venv/bin/python benchmarks/quality_ising.py --quick
+    flock /tmp/mrmt-bench.lock python benchmarks/quality_ising.py --write-results
+    python benchmarks/quality_ising.py --quick
 """
 
 from __future__ import annotations
@@ -347,7 +347,7 @@ def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], go
     notes = _notes(stats, blocks, variants or {})
     if notes:
         lines += ["Notes.", ""] + [f"* {n}" for n in notes] + [""]
-    cmd = "flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/quality_ising.py --write-results"
+    cmd = "flock /tmp/mrmt-bench.lock python benchmarks/quality_ising.py --write-results"
     lines += [f"Reproduce: `{cmd}{' --quick' if quick else ''}`", ""]
     return "\n".join(lines)
 

@@ -17,7 +17,7 @@ Two measurements:
    decoding, scoring); wall time not inside any measured call is runner
    overhead (world generation, exact-tour scoring, figures, files).
 
-    flock /tmp/mrmt-bench.lock /work/venv/bin/python benchmarks/reproduce_time.py [--fraction 10] [--skip-full]
+    flock /tmp/mrmt-bench.lock python benchmarks/reproduce_time.py [--fraction 10] [--skip-full]
 """
 
 from __future__ import annotations

@@ -182,7 +182,44 @@ def parse_controllers(text: str) -> list[str]:
     return specs
 
 
-def make_controller(spec: str, seed: int = 0, env_id: str | None = None):
+def _planner_pipeline(spec: str, chip):
+    """The pipeline a planner spec names, on an emulated chip of spec ``chip`` when given
+    (layers without a chip ignore it); ``None`` without a chip (the policy builds the preset)."""
+    from planners.pipeline import make_pipeline
+
+    shared = {}
+    if chip is not None:
+        from ising_backend import EmulatedChip
+
+        shared["chip"] = EmulatedChip(chip)
+    if "+" in spec:
+        sharing, tour, path = spec.split("+")
+        kw = dict(sharing=sharing, tour=tour, path=path)
+    elif chip is None:
+        return None
+    else:
+        kw = dict(preset=spec)
+    try:
+        return make_pipeline(**kw, **shared)
+    except TypeError as exc:
+        if shared and "accepted by no layer" in str(exc):  # a classical controller: no chip to use
+            return make_pipeline(**kw)
+        raise
+
+
+def uses_chip(spec: str) -> bool:
+    """Whether a planner spec (preset or layer triple) has a layer that runs on the chip."""
+    from planners import registry
+    from planners.pipeline import PRESETS
+
+    if spec.startswith(("ppo:", "ppo-ms:")):
+        return False
+    layers = spec.split("+") if "+" in spec else PRESETS.get(spec, ())
+    return any(registry.accepts(registry.get_factory(kind, name), "chip")
+               for kind, name in zip(("sharing", "tour", "path"), layers))
+
+
+def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=None):
     """Build the controller a spec names (see :func:`validate_controller_spec`) for the env ``env_id``.
 
     Planners become :class:`agents.policy.PlannerPolicy` in a grid env and
@@ -190,7 +227,8 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None):
     ``ppo:PATH`` becomes :class:`agents.learned.LearnedPolicy` (PPO or
     MaskablePPO, as the model was trained).  Every controller has
     ``predict(obs, state, episode_start, deterministic)`` and
-    ``episode_compute(index)``.
+    ``episode_compute(index)``.  ``chip`` (an :class:`ising_backend.ChipSpec`) is the emulated
+    chip of planners with Ising layers.
     """
     spec = validate_controller_spec(spec)
     from agents.env_ids import is_assign_env
@@ -215,11 +253,8 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None):
     else:
         from agents.policy import PlannerPolicy as Policy
 
-    if "+" in spec:
-        from planners.pipeline import make_pipeline
-
-        sharing, tour, path = spec.split("+")
-        pipe = make_pipeline(sharing=sharing, tour=tour, path=path)
+    pipe = _planner_pipeline(spec, chip)
+    if pipe is not None:
         policy = Policy(pipe, seed=seed)
         policy.name = spec
         return policy
@@ -293,13 +328,15 @@ def _env_for(env_id: str, env_kwargs: dict):
 WARMUP_WORLD_SEED = 2**31 - 1
 
 
-def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict, warmup: bool = True) -> dict:
+def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict, warmup: bool = True,
+                  chip=None) -> dict:
     env = _env_for(env_id, env_kwargs)
     name, factory = (spec, None) if isinstance(spec, str) else spec
-    ckey = (name, seed, env_id)
+    ckey = (name, seed, env_id, chip)
     ctrl = _CONTROLLERS.get(ckey)
     if ctrl is None:
-        ctrl = _CONTROLLERS[ckey] = make_controller(name, seed=seed, env_id=env_id) if factory is None else factory(seed)
+        ctrl = _CONTROLLERS[ckey] = (make_controller(name, seed=seed, env_id=env_id, chip=chip) if factory is None
+                                     else factory(seed))
         if warmup:  # first use in this process pays numba/torch start-up: not part of any episode
             run_episode(env, ctrl, WARMUP_WORLD_SEED)
     row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
@@ -459,6 +496,7 @@ def evaluate(
     n_jobs: int = 2,
     progress: bool = True,
     warmup: bool = True,
+    chip=None,
 ) -> EvaluationResult:
     """Run every controller on worlds ``world_seed .. world_seed + n_worlds - 1`` for each seed.
 
@@ -478,6 +516,8 @@ def evaluate(
             one untimed episode (reset seed :data:`WARMUP_WORLD_SEED`) so
             numba compilation/cache loading and torch start-up are not
             charged to the first evaluated episode.
+        chip: an :class:`ising_backend.ChipSpec` for the planners' Ising layers (default the
+            paper's chip); refused when no controller runs on a chip.
 
     Returns:
         :class:`EvaluationResult` with rows ordered by controller, seed, world.
@@ -497,8 +537,11 @@ def evaluate(
     if int(n_jobs) < 1:
         raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
     env_kwargs = dict(env_kwargs or {})
+    if chip is not None and not any(isinstance(e, str) and uses_chip(e) for e in entries):
+        raise ControllerError(f"a chip spec was given, but none of the controllers {specs} runs on a chip "
+                              "(add ising or a layer triple with an ising layer)")
     tasks = [
-        (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup))
+        (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup), chip)
         for entry in entries
         for s in seeds
         for i in range(int(n_worlds))
@@ -532,5 +575,6 @@ def evaluate(
         "world_seed": int(world_seed),
         "env_id": env_id,
         "env_kwargs": env_kwargs,
+        "chip": None if chip is None else chip.to_dict(),
     }
     return EvaluationResult(rows=rows, controllers=specs, config=config)

@@ -34,6 +34,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
     parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes; 1 = inline (default 2)")
+    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                        help="the emulated chip of the Ising planners: any ChipSpec field (e.g. n_spins=64, "
+                             "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
     parser.add_argument("--out", default=None, help="directory for episodes.csv and episodes.json")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -69,6 +72,11 @@ def run(args) -> int:
     }
     env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:
+        chip = None
+        if args.chip:
+            from ising_backend import ChipSpec
+
+            chip = ChipSpec.from_options(args.chip)
         result = evaluate(
             specs,
             n_worlds=args.worlds,
@@ -78,6 +86,7 @@ def run(args) -> int:
             env_kwargs=env_kwargs,
             n_jobs=args.jobs,
             progress=not args.no_progress,
+            chip=chip,
         )
     except (ControllerError, ValueError) as exc:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)

@@ -1,0 +1,52 @@
+"""``--chip`` on ``mrmt compare`` and ``evaluate(chip=...)``: the Ising planners run on the chip given."""
+
+from __future__ import annotations
+
+import pytest
+
+from agents.cli import main
+from agents.errors import ControllerError
+from agents.evaluation import evaluate, make_controller, uses_chip
+from ising_backend import ChipSpec
+
+
+def test_uses_chip_reads_presets_and_layer_triples():
+    assert uses_chip("ising") and uses_chip("ssa+3opt+ising") and uses_chip("ising+3opt+astar")
+    assert not uses_chip("strong") and not uses_chip("fast") and not uses_chip("ssa+3opt+astar")
+
+
+def test_make_controller_builds_the_ising_layers_on_the_given_chip():
+    spec = ChipSpec(n_spins=64, j_range=(-15, 15), cores_per_chip=4)
+    policy = make_controller("ising", chip=spec)
+    pipe = policy.pipeline
+    assert pipe.sharing.chip is pipe.tour.chip is pipe.path.chip  # one chip per pipeline
+    assert pipe.path.chip.spec == spec
+    classical = make_controller("strong", chip=spec)  # no chip to use: the plain preset
+    assert classical.name == "strong"
+
+
+def test_evaluate_with_a_chip_uses_its_accounting_numbers():
+    slow = ChipSpec(solve_time_s=100e-6)  # twice the paper's 50 us per call (and so twice the energy)
+    base = evaluate("ising", n_worlds=2, n_jobs=1, progress=False, env_kwargs={"n_targets": 6})
+    res = evaluate("ising", n_worlds=2, n_jobs=1, progress=False, env_kwargs={"n_targets": 6}, chip=slow)
+    assert res.config["chip"]["solve_time_s"] == 100e-6 and base.config["chip"] is None
+    for a, b in zip(base.rows, res.rows):
+        assert a["route_cost"] == b["route_cost"] and a["chip_calls"] == b["chip_calls"]
+        assert b["chip_time_s"] == pytest.approx(2 * a["chip_time_s"])
+        assert b["accelerator_energy_j"] == pytest.approx(2 * a["accelerator_energy_j"])
+
+
+def test_a_chip_without_a_chip_controller_is_refused():
+    with pytest.raises(ControllerError, match="none of the controllers"):
+        evaluate("fast,strong", n_worlds=1, n_jobs=1, progress=False, chip=ChipSpec(n_spins=64))
+
+
+def test_compare_chip_option_errors_are_one_line(capsys):
+    assert main(["compare", "--worlds", "1", "--controllers", "strong", "--chip", "n_spins=64", "--jobs", "1",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "none of the controllers" in err[0]
+    assert main(["compare", "--worlds", "1", "--controllers", "ising", "--chip", "bogus=1", "--jobs", "1",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown chip field 'bogus'" in err[0]

@@ -182,7 +182,7 @@ def parse_controllers(text: str) -> list[str]:
     return specs
 
 
-def _planner_pipeline(spec: str, chip):
+def planner_pipeline(spec: str, chip):
     """The pipeline a planner spec names, on an emulated chip of spec ``chip`` when given
     (layers without a chip ignore it); ``None`` without a chip (the policy builds the preset)."""
     from planners.pipeline import make_pipeline
@@ -253,7 +253,7 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
     else:
         from agents.policy import PlannerPolicy as Policy
 
-    pipe = _planner_pipeline(spec, chip)
+    pipe = planner_pipeline(spec, chip)
     if pipe is not None:
         policy = Policy(pipe, seed=seed)
         policy.name = spec

@@ -183,11 +183,16 @@ ENDTOEND_METHODS = ("fast", "strong", "ising")
 
 
 # ------------------------------------------------------------------ layer objects
-def make_layer(kind: str, name: str):
-    """A fresh planner object for layer ``kind`` (``path``/``tour``/``sharing``) by registry name."""
+def make_layer(kind: str, name: str, chip=None):
+    """A fresh planner object for layer ``kind`` (``path``/``tour``/``sharing``) by registry name;
+    an Ising layer runs on an emulated chip of spec ``chip`` (default the paper's chip)."""
     from planners import registry
 
-    return registry.create(kind, name)
+    if chip is None:
+        return registry.create(kind, name)
+    from ising_backend import EmulatedChip
+
+    return registry.create(kind, name, shared={"chip": EmulatedChip(chip)})
 
 
 _WARMED: set = set()
@@ -234,7 +239,7 @@ def _jsonable(x):
 
 
 # ----------------------------------------------------------------- instance tasks
-def _path_instance(i: int, seed: int, methods, placement: str) -> list[dict]:
+def _path_instance(i: int, seed: int, methods, placement: str, chip=None) -> list[dict]:
     from mrmt_env.generation import generate_world
 
     world = generate_world(seed + i, n_robots=1, n_targets=1, placement=placement)
@@ -242,7 +247,7 @@ def _path_instance(i: int, seed: int, methods, placement: str) -> list[dict]:
     bfs_len = int(world.robot_fields[0][goal[0], goal[1]])
     rows = []
     for m in methods:
-        solver = make_layer("path", m)
+        solver = make_layer("path", m, chip)
         _warm(("path", m), lambda: make_layer("path", m).find_path(world, start, goal, np.random.default_rng(0)))
         rng = np.random.default_rng(seed + i)
         with stopwatch() as t:
@@ -257,14 +262,14 @@ def _path_instance(i: int, seed: int, methods, placement: str) -> list[dict]:
     return rows
 
 
-def _tour_instance(i: int, seed: int, methods, n_targets: int, placement: str) -> list[dict]:
+def _tour_instance(i: int, seed: int, methods, n_targets: int, placement: str, chip=None) -> list[dict]:
     from mrmt_env.generation import generate_world
 
     world = generate_world(seed + i, n_robots=1, n_targets=n_targets, placement=placement)
     dist = world.distance_matrix
     out = {}
     for m in dict.fromkeys(("brute",) + tuple(methods)):
-        solver = make_layer("tour", m)
+        solver = make_layer("tour", m, chip)
         _warm(("tour", m), lambda: make_layer("tour", m).solve(dist, np.random.default_rng(0)))
         rng = np.random.default_rng(seed + i)
         with stopwatch() as t:
@@ -286,7 +291,8 @@ def _tour_instance(i: int, seed: int, methods, n_targets: int, placement: str) -
     return rows
 
 
-def _sharing_instance(i: int, seed: int, methods, n_robots: int, n_targets: int, placement: str, pricing: str) -> list[dict]:
+def _sharing_instance(i: int, seed: int, methods, n_robots: int, n_targets: int, placement: str, pricing: str,
+                      chip=None) -> list[dict]:
     from mrmt_env.generation import generate_world
 
     world = generate_world(seed + i, n_robots=n_robots, n_targets=n_targets, placement=placement)
@@ -294,9 +300,9 @@ def _sharing_instance(i: int, seed: int, methods, n_robots: int, n_targets: int,
     exact_tour = make_layer("tour", "brute")
     rows = []
     for m in methods:
-        sharing = make_layer("sharing", m)
+        sharing = make_layer("sharing", m, chip)
         rng = np.random.default_rng(seed + i)
-        tour = make_layer("tour", pricing)
+        tour = make_layer("tour", pricing, chip)
         _warm(("sharing", m, pricing), lambda: make_layer("sharing", m).assign(
             dist, n_robots, make_layer("tour", pricing), np.random.default_rng(0)))
         with stopwatch() as t:
@@ -353,14 +359,16 @@ def _layer_columns(plan) -> dict:
     return cols
 
 
-def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int, placement: str) -> list[dict]:
+def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int, placement: str,
+                       chip=None) -> list[dict]:
     from mrmt_env.generation import generate_world
+    from agents.evaluation import planner_pipeline
     from planners.pipeline import make_pipeline
 
     world = generate_world(seed + i, n_robots=n_robots, n_targets=n_targets, placement=placement)
     rows = []
     for m in methods:
-        pipe = make_pipeline(m)
+        pipe = planner_pipeline(m, chip) if chip is not None else make_pipeline(m)
         _warm(("pipeline", m), lambda: make_pipeline(m).plan(world, seed=0))
         plan = pipe.plan(world, seed=seed + i)
         ok = _plan_valid(world, plan)
@@ -426,21 +434,21 @@ def _check_n(name: str, n: int) -> int:
 
 
 def path_experiment(n: int = 1000, seed: int = 0, methods=PATH_METHODS, placement: str = "uniform",
-                    n_jobs: int = 2, progress: bool = True) -> ExperimentResult:
+                    n_jobs: int = 2, progress: bool = True, chip=None) -> ExperimentResult:
     """Paper 6.2.1: ``n`` single-target queries on 10x10 worlds (1 robot, 1 target)."""
     n = _check_n("n", n)
     t0 = time.perf_counter()
-    rows = _run_instances(_path_instance, n, (seed, tuple(methods), placement), n_jobs, "path", progress)
+    rows = _run_instances(_path_instance, n, (seed, tuple(methods), placement, chip), n_jobs, "path", progress)
     return ExperimentResult("path", rows, tuple(methods), {"n": n, "seed": seed, "placement": placement},
                             time.perf_counter() - t0)
 
 
 def tour_experiment(n: int = 100, seed: int = 0, methods=TOUR_METHODS, n_targets: int = 10,
-                    placement: str = "uniform", n_jobs: int = 2, progress: bool = True) -> ExperimentResult:
+                    placement: str = "uniform", n_jobs: int = 2, progress: bool = True, chip=None) -> ExperimentResult:
     """Paper 6.2.2: ``n`` open tours of one robot over ``n_targets`` targets; gap to the exact tour."""
     n = _check_n("n", n)
     t0 = time.perf_counter()
-    rows = _run_instances(_tour_instance, n, (seed, tuple(methods), n_targets, placement), n_jobs, "tour", progress)
+    rows = _run_instances(_tour_instance, n, (seed, tuple(methods), n_targets, placement, chip), n_jobs, "tour", progress)
     return ExperimentResult("tour", rows, tuple(methods),
                             {"n": n, "seed": seed, "n_targets": n_targets, "placement": placement},
                             time.perf_counter() - t0)
@@ -448,7 +456,7 @@ def tour_experiment(n: int = 100, seed: int = 0, methods=TOUR_METHODS, n_targets
 
 def sharing_experiment(n: int = 100, seed: int = 0, methods=SHARING_METHODS, n_robots: int = 3,
                        n_targets: int = 10, placement: str = "centre", pricing_tour: str = "brute",
-                       n_jobs: int = 2, progress: bool = True) -> ExperimentResult:
+                       n_jobs: int = 2, progress: bool = True, chip=None) -> ExperimentResult:
     """Paper 6.2.3: ``n`` allocations of ``n_targets`` targets to ``n_robots`` robots.
 
     ``pricing_tour`` is the tour solver handed to the sharing methods (used by
@@ -457,7 +465,7 @@ def sharing_experiment(n: int = 100, seed: int = 0, methods=SHARING_METHODS, n_r
     """
     n = _check_n("n", n)
     t0 = time.perf_counter()
-    rows = _run_instances(_sharing_instance, n, (seed, tuple(methods), n_robots, n_targets, placement, pricing_tour),
+    rows = _run_instances(_sharing_instance, n, (seed, tuple(methods), n_robots, n_targets, placement, pricing_tour, chip),
                           n_jobs, "sharing", progress)
     return ExperimentResult("sharing", rows, tuple(methods),
                             {"n": n, "seed": seed, "n_robots": n_robots, "n_targets": n_targets,
@@ -467,11 +475,11 @@ def sharing_experiment(n: int = 100, seed: int = 0, methods=SHARING_METHODS, n_r
 
 def endtoend_experiment(n: int = 100, seed: int = 0, methods=ENDTOEND_METHODS, n_robots: int = 3,
                         n_targets: int = 10, placement: str = "centre", n_jobs: int = 2,
-                        progress: bool = True) -> ExperimentResult:
+                        progress: bool = True, chip=None) -> ExperimentResult:
     """Paper 6.2.4: the fast, strong and Ising pipelines on ``n`` worlds of ``n_robots`` x ``n_targets``."""
     n = _check_n("n", n)
     t0 = time.perf_counter()
-    rows = _run_instances(_endtoend_instance, n, (seed, tuple(methods), n_robots, n_targets, placement),
+    rows = _run_instances(_endtoend_instance, n, (seed, tuple(methods), n_robots, n_targets, placement, chip),
                           n_jobs, "end-to-end", progress)
     return ExperimentResult("endtoend", rows, tuple(methods),
                             {"n": n, "seed": seed, "n_robots": n_robots, "n_targets": n_targets,
@@ -809,13 +817,16 @@ def write_summary(results: dict, mapping: list[dict], path, quick: bool, wall: d
 
 
 def reproduce(out, quick: bool = False, seed: int = 0, n_jobs: int = 2, progress: bool = True,
-              sizes: dict | None = None, experiments=("path", "tour", "sharing", "endtoend")) -> dict:
+              sizes: dict | None = None, experiments=("path", "tour", "sharing", "endtoend"), chip=None) -> dict:
     """Run the section-6 experiments and write everything into ``out``.
 
     Files: ``{name}.csv`` / ``{name}.json`` (one row per instance and method)
     and ``fig_{name}.png`` for each experiment, ``mapping.csv`` /
     ``mapping.json`` (Table 5), ``summary.json`` (measured statistics with the
     paper's) and ``summary.md``.
+
+    ``chip`` (an :class:`ising_backend.ChipSpec`) is the emulated chip of every Ising method
+    (default the paper's chip).
 
     Returns:
         ``{"files": [paths...], "results": {name: ExperimentResult}, "wall_s": {...}}``
@@ -828,10 +839,10 @@ def reproduce(out, quick: bool = False, seed: int = 0, n_jobs: int = 2, progress
     if unknown:
         raise ValueError(f"unknown experiment(s) {sorted(unknown)}; known: {', '.join(PAPER_SIZES)}")
     runners = {
-        "path": lambda: path_experiment(base["path"], seed=seed, n_jobs=n_jobs, progress=progress),
-        "tour": lambda: tour_experiment(base["tour"], seed=seed, n_jobs=n_jobs, progress=progress),
-        "sharing": lambda: sharing_experiment(base["sharing"], seed=seed, n_jobs=n_jobs, progress=progress),
-        "endtoend": lambda: endtoend_experiment(base["endtoend"], seed=seed, n_jobs=n_jobs, progress=progress),
+        "path": lambda: path_experiment(base["path"], seed=seed, n_jobs=n_jobs, progress=progress, chip=chip),
+        "tour": lambda: tour_experiment(base["tour"], seed=seed, n_jobs=n_jobs, progress=progress, chip=chip),
+        "sharing": lambda: sharing_experiment(base["sharing"], seed=seed, n_jobs=n_jobs, progress=progress, chip=chip),
+        "endtoend": lambda: endtoend_experiment(base["endtoend"], seed=seed, n_jobs=n_jobs, progress=progress, chip=chip),
     }
     results: dict = {}
     files: list[Path] = []
@@ -849,6 +860,7 @@ def reproduce(out, quick: bool = False, seed: int = 0, n_jobs: int = 2, progress
     paper = {name: PAPER[name] for name in results}
     with open(out / "summary.json", "w") as f:
         json.dump({"quick": quick, "seed": seed, "sizes": {k: base[k] for k in results}, "wall_s": wall,
+                   "chip": None if chip is None else chip.to_dict(),
                    "measured": summary, "paper": paper}, f, indent=1)
     files.append(out / "summary.json")
     files.append(write_summary(results, mapping, out / "summary.md", quick, wall))

@@ -50,3 +50,20 @@ def test_compare_chip_option_errors_are_one_line(capsys):
                  "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown chip field 'bogus'" in err[0]
+
+
+def test_reproduce_runs_the_ising_methods_on_the_given_chip(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "r"
+    rc = main(["reproduce", "--quick", "--out", str(out), "--jobs", "1", "--no-progress", "--path", "5", "--tour", "2",
+               "--sharing", "2", "--endtoend", "2", "--chip", "solve_time_s=0.0001"])
+    assert rc == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["chip"]["solve_time_s"] == 0.0001
+    rows = json.loads((out / "endtoend.json").read_text())
+    ising = [r for r in rows if r["method"] == "ising"]
+    # 100 us per call: the chip time is calls x 100 us
+    assert all(r["chip_time_s"] == pytest.approx((r["chip_calls"] + r["logical_calls"]) * 1e-4) for r in ising)
+    assert main(["reproduce", "--quick", "--out", str(out), "--chip", "n_spins=x"]) == 2
+    assert "n_spins = 'x' must be an integer" in capsys.readouterr().err

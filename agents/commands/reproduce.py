@@ -30,6 +30,9 @@ def add_arguments(parser) -> None:
     )
     for name in ("path", "tour", "sharing", "endtoend"):
         parser.add_argument(f"--{name}", type=int, default=None, metavar="N", help=f"instances of the {name} experiment")
+    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                        help="the emulated chip of the Ising methods: any ChipSpec field (e.g. n_spins=64, "
+                             "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
 
 
@@ -58,9 +61,18 @@ def run(args) -> int:
                 print(f"mrmt reproduce: error: --{name} must be >= 1, got {v}", file=sys.stderr)
                 return 2
             sizes[name] = v
+    chip = None
+    if args.chip:
+        from ising_backend import ChipSpec
+
+        try:
+            chip = ChipSpec.from_options(args.chip)
+        except ValueError as exc:
+            print(f"mrmt reproduce: error: {exc}", file=sys.stderr)
+            return 2
     out = reproduce(
         args.out, quick=args.quick, seed=args.seed, n_jobs=args.jobs, progress=not args.no_progress,
-        sizes=sizes, experiments=names,
+        sizes=sizes, experiments=names, chip=chip,
     )
     from pathlib import Path
 

@@ -19,7 +19,6 @@ Action ``a < N`` sends the decider to target ``a``; action ``N`` retires it.
 from __future__ import annotations
 
 import numba
-import numpy as np
 
 from mrmt_env.fast_generation import node_distances
 

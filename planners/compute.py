@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 
 __all__ = ["ComputeReport", "CPU_WATTS_PER_CORE", "RECORD_KEYS", "stopwatch"]
 

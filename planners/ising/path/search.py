@@ -225,7 +225,6 @@ class IsingPath(CompiledSearch, ConfigAttributes):
     def find_path(self, world, start, goal, rng: np.random.Generator | None = None):
         """A 4-neighbour path from ``start`` to ``goal`` built from chip-generated patch segments."""
         from planners.base import PathResult
-        from planners.compute import ComputeReport
 
         grid = world.grid
         h, w = grid.shape

@@ -61,7 +61,6 @@ def build_split_qubo(
     is non-zero and the group has several robots).
     """
     free = np.asarray(free, dtype=int)
-    f = len(free)
     w = np.asarray(dist, dtype=float)[np.ix_(free, free)]
     np.fill_diagonal(w, 0.0)
     wa = np.asarray(dist, dtype=float)[free, a]

@@ -8,10 +8,15 @@ ordering limit).  Choices: docs/design/ising_tour.md.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from planners.ising.tour.kernels import cluster_distances, maxcut_ising
 from planners.ising.tour.qubo import cut_value
+
+if TYPE_CHECKING:  # the per-solve bookkeeping of the search
+    from planners.ising.tour.search import _Run
 
 __all__ = ["TourFailure", "Clustering"]
 

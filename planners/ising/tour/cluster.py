@@ -8,17 +8,25 @@ ordering limit).  Choices: docs/design/ising_tour.md.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from planners.ising.tour.kernels import cluster_distances, maxcut_ising
 from planners.ising.tour.qubo import cut_value
 
-if TYPE_CHECKING:  # the per-solve bookkeeping of the search
-    from planners.ising.tour.search import _Run
-
 __all__ = ["TourFailure", "Clustering"]
+
+
+@dataclass
+class _Run:
+    """Per-solve bookkeeping of :class:`~planners.ising.tour.IsingTour`: the rng, statistics and
+    the metered solvers (``ising_backend.MeteredSolver``)."""
+
+    rng: np.random.Generator
+    stats: dict = field(default_factory=dict)
+    solver: object = None
+    chip: object = None
 
 
 class TourFailure(RuntimeError):

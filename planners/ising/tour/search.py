@@ -13,7 +13,6 @@ quantizes the same QUBOs for the physical chip.  Every call is metered
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,23 +20,13 @@ from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverO
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
-from planners.ising.tour.cluster import Clustering, TourFailure
+from planners.ising.tour.cluster import Clustering, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.engine import solve_order
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 from planners.ising.tour.qubo import onehot_penalty
 
 __all__ = ["IsingTour"]
-
-
-@dataclass
-class _Run:
-    """Per-solve bookkeeping: the rng, statistics and the metered solvers."""
-
-    rng: np.random.Generator
-    stats: dict = field(default_factory=dict)
-    solver: MeteredSolver | None = None
-    chip: MeteredSolver | None = None
 
 
 class IsingTour(Clustering, ConfigAttributes):

@@ -15,7 +15,8 @@ Modules:
 * :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
 * :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
-* :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics.
+* :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
+* :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule).
 
 Example::
 
@@ -56,6 +57,7 @@ from .portfolio import (
     run_portfolio,
     run_portfolio_batch,
 )
+from .composite import COMPOSITE_RULES, QuantizeComposite
 
 __all__ = [
     # models, spec, ledger
@@ -77,4 +79,6 @@ __all__ = [
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",
     "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
+    # dimod composite
+    "QuantizeComposite", "COMPOSITE_RULES",
 ]

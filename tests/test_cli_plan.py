@@ -145,21 +145,16 @@ def test_console_script_subprocess(tmp_path, worlds):
 
 
 def test_a_failed_plan_is_written_and_exits_1(tmp_path, capsys):
-    import numpy as np
-
-    from mrmt_env import World
-
-    grid = np.zeros((3, 5), dtype=bool)
-    grid[:, 2] = True  # a wall: two components, one robot in each
-    world = World(grid, [[0, 0], [0, 4]], [[1, 1], [2, 4]])
     src = tmp_path / "w.json"
-    write_world(world, src)
-    # Ising target sharing needs one connected component: a failed plan, not an input error
-    assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 1
+    write_world(generate_world(0, n_robots=3, n_targets=10), src)
+    # a 5-spin chip cannot take the root split of 13 nodes (11 free spins, branching freezes at most 4):
+    # a failed plan (a result), not an input error
+    assert main(["plan", str(src), "--sharing", "ising", "--tour", "3opt", "--path", "astar", "--chip", "n_spins=5",
+                 "--no-progress"]) == 1
     captured = capsys.readouterr()
     (line,) = captured.out.splitlines()
     d = json.loads(line)
-    assert d["success"] is False and d["failure"]
+    assert d["success"] is False and "11 free spins" in d["failure"]
     assert captured.err.strip().splitlines() == ['mrmt plan: 1 of 1 plans failed ("success": false; see their "failure")']
 
 

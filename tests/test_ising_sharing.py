@@ -349,3 +349,20 @@ def test_three_targets_on_a_line_between_two_robots_match_the_exact_optimum():
     assert res.assignment == ((0, 1), (2,))
     ex = ExactSharing().assign(d, 2, TOUR)
     assert sum(_totals(d, 2, res.assignment)) == sum(_totals(d, 2, ex.assignment)) == 3.0
+
+
+def test_worlds_of_several_components_are_shared_per_component():
+    from mrmt_env import World
+    from planners.pipeline import make_pipeline
+    from planners.plan import validate_plan
+
+    grid = np.zeros((5, 9), dtype=bool)
+    grid[:, 4] = True  # a wall: two components
+    world = World(grid, [[0, 0], [4, 1], [0, 8]], [[2, 2], [4, 3], [0, 6], [3, 7], [1, 0]])
+    res = IsingSharing().assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    assert res.failure is None and res.stats["components"] == 2
+    assert sorted(res.assignment[2]) == [2, 3]  # the right-hand robot takes the right-hand targets
+    assert sorted(res.assignment[0] + res.assignment[1]) == [0, 1, 4]
+    plan = make_pipeline("ising").plan(world, seed=0)
+    assert plan.success, plan.failure
+    validate_plan(world, plan)

@@ -318,7 +318,7 @@ class EmulatedChip(dimod.Sampler):
         """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` physical calls and
         ``seconds[i]`` emulation seconds each, in order, exactly as :meth:`anneal_batch` charges one
         submission; returns each submission's ledger (the last is :attr:`last_call`)."""
-        out = [self.ledger.record_physical(int(c), self.spec, float(t)) for c, t in zip(calls, seconds)]
+        out = self.ledger.record_each(calls, seconds, self.spec)
         if out:
             self.last_call = out[-1]
         return out

@@ -72,6 +72,11 @@ class CallLedger:
         """Charge ``calls`` logical calls issued together, each projected as one chip call."""
         return self._record(calls, spec, seconds, logical=True)
 
+    def record_each(self, calls, seconds, spec: ChipSpec, logical: bool = False) -> list["CallLedger"]:
+        """Charge submissions one after another (``calls[i]`` calls, ``seconds[i]`` emulation
+        seconds each), exactly as that many ``record_physical`` / ``record_logical`` calls."""
+        return [self._record(c, spec, float(t), logical) for c, t in zip(calls, seconds)]
+
     def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool) -> "CallLedger":
         """Charge ``calls`` chip calls (physical, or logical when ``logical``); returns the delta."""
         calls = int(calls)

@@ -326,7 +326,7 @@ class LogicalIsingSolver(dimod.Sampler):
     def charge(self, calls, seconds) -> list:
         """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` logical calls and
         ``seconds[i]`` emulation seconds each, in order, as :meth:`solve_stack` charges one."""
-        out = [self.ledger.record_logical(int(c), self.spec, float(t)) for c, t in zip(calls, seconds)]
+        out = self.ledger.record_each(calls, seconds, self.spec, logical=True)
         if out:
             self.last_call = out[-1]
         return out

@@ -313,10 +313,8 @@ class CompiledSearch:
 
         cfg = self.config
         fr = self.frame
-        free = int(self._free_cells(grid))
-        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, free)
-        per_target = len(cfg.styles) * cfg.num_reads
-        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
+        free = self._free_cells(grid)
+        max_attempts, _per_target, max_calls = self._budgets(grid)
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
             rng, *self._pool.arrays(), self._padded(grid), s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
             fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
@@ -341,6 +339,14 @@ class CompiledSearch:
                        + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
                        + " (the goal may be unreachable)")
         return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure, None)
+
+    def _budgets(self, grid) -> tuple[int, int, int]:
+        """``(max_attempts, chip calls per attempt, max_chip_calls)`` of a query on ``grid``."""
+        cfg = self.config
+        per_target = len(cfg.styles) * cfg.num_reads
+        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, self._free_cells(grid))
+        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
+        return max_attempts, per_target, max_calls
 
     def _free_cells(self, grid) -> int:
         cached = self._free_for

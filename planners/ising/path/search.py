@@ -256,9 +256,7 @@ class IsingPath(CompiledSearch, ConfigAttributes):
         mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in self.config.styles}
         counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
 
-        per_target = len(self.config.styles) * self.config.num_reads  # chip calls of one local-target attempt
-        max_attempts = self.config.max_attempts if self.config.max_attempts is not None else max(64, int((~grid).sum()))
-        max_calls = self.config.max_chip_calls if self.config.max_chip_calls is not None else max_attempts * per_target
+        max_attempts, per_target, max_calls = self._budgets(grid)
         pos = s
         walk = [s]
         visited_mask = np.zeros_like(padded)  # cells on the committed walk (padded coordinates)

@@ -21,6 +21,7 @@ SUBCOMMANDS = {
     "train": "agents.commands.train",
     "reproduce": "agents.commands.reproduce",
     "watch": "agents.commands.watch",
+    "sweep": "agents.commands.sweep",
 }
 
 

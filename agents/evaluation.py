@@ -41,9 +41,9 @@ saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned`), or
 ``ppo-ms:PATH`` for a plan-level model decoded from every legal first
 decision, the cheapest kept (:mod:`agents.assign_search`).
 
-Episodes run on a process pool (``n_jobs`` workers, default 2; ``n_jobs=1``
-runs inline) with a tqdm progress bar on stderr; each worker builds each
-controller and env once.  Note that ``cpu_s`` measured by parallel workers
+Episodes run on the task runner (:mod:`agents.runner`: a process pool of
+``n_jobs`` workers by default, inline for ``n_jobs=1``, or Ray) with a tqdm
+progress bar on stderr; each worker builds each controller and env once.  Note that ``cpu_s`` measured by parallel workers
 includes contention with other processes on the machine.
 """
 
@@ -53,15 +53,14 @@ import csv
 import json
 import math
 import os
-import sys
 import zipfile
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from agents.errors import ControllerError
+from agents.runner import RunConfig, run_tasks
 from planners.compute import ComputeReport
 
 __all__ = [
@@ -312,16 +311,46 @@ _ENVS: dict = {}
 _CONTROLLERS: dict = {}
 
 
-def _env_for(env_id: str, env_kwargs: dict):
-    key = (env_id, json.dumps(env_kwargs, sort_keys=True, default=str))
+def _env_for(env_id: str, env_kwargs: dict, max_steps: int | None = None):
+    key = (env_id, json.dumps(env_kwargs, sort_keys=True, default=str), max_steps)
     env = _ENVS.get(key)
     if env is None:
         import gymnasium as gym
 
         import mrmt_env  # noqa: F401  (registers the ids)
 
-        env = _ENVS[key] = gym.make(env_id, **env_kwargs)
+        limit = {} if max_steps is None else {"max_episode_steps": int(max_steps)}
+        env = _ENVS[key] = gym.make(env_id, **env_kwargs, **limit)
     return env
+
+
+#: The paper's world (the registered ids' defaults) that :func:`step_limit` scales from.
+_BASE_WORLD = {"height": 10, "width": 10, "n_targets": 10}
+
+
+def check_max_steps(max_steps) -> int:
+    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 1:
+        raise ValueError(f"max_steps = {max_steps!r} must be an integer >= 1")
+    return int(max_steps)
+
+
+def step_limit(env_id: str, env_kwargs: dict) -> int:
+    """The default episode step limit: the id's registered limit, scaled by how much bigger
+    than the id's own world the requested one is (grid height + width, and target count).
+
+    ``mrmt_env/MRMT-v0`` keeps its 200 steps on 10x10 with 10 targets; 200x200 gets 4000.
+    """
+    import gymnasium as gym
+
+    import mrmt_env  # noqa: F401  (registers the ids)
+
+    spec = gym.spec(env_id)
+    base = {**_BASE_WORLD, **spec.kwargs}
+    limit = spec.max_episode_steps or 200
+    world = {**base, **{k: v for k, v in env_kwargs.items() if k in _BASE_WORLD}}
+    grow = max(1.0, (world["height"] + world["width"]) / (base["height"] + base["width"]))
+    grow *= max(1.0, world["n_targets"] / max(base["n_targets"], 1))
+    return int(math.ceil(limit * grow))
 
 
 #: Reset seed of the untimed warm-up episode (outside any evaluated range in practice).
@@ -329,19 +358,28 @@ WARMUP_WORLD_SEED = 2**31 - 1
 
 
 def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dict, warmup: bool = True,
-                  chip=None) -> dict:
-    env = _env_for(env_id, env_kwargs)
+                  chip=None, max_steps: int | None = None) -> dict:
+    env = _env_for(env_id, env_kwargs, max_steps)
+    name = spec if isinstance(spec, str) else spec[0]
+    ctrl = cached_controller(spec, seed, env, env_id, warmup, chip)
+    row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
+    row.update(run_episode(env, ctrl, world_seed))
+    return row
+
+
+def cached_controller(spec, seed: int, env, env_id: str, warmup: bool = True, chip=None):
+    """This worker's controller for ``(spec, seed, env_id, chip)``, built (and warmed up with one
+    untimed episode in ``env``) on first use; ``spec`` is a spec string or ``(name, factory)``."""
     name, factory = (spec, None) if isinstance(spec, str) else spec
     ckey = (name, seed, env_id, chip)
     ctrl = _CONTROLLERS.get(ckey)
     if ctrl is None:
-        ctrl = _CONTROLLERS[ckey] = (make_controller(name, seed=seed, env_id=env_id, chip=chip) if factory is None
-                                     else factory(seed))
+        ctrl = (make_controller(name, seed=seed, env_id=env_id, chip=chip) if factory is None
+                else factory(seed))
         if warmup:  # first use in this process pays numba/torch start-up: not part of any episode
             run_episode(env, ctrl, WARMUP_WORLD_SEED)
-    row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
-    row.update(run_episode(env, ctrl, world_seed))
-    return row
+        _CONTROLLERS[ckey] = ctrl
+    return ctrl
 
 
 @dataclass
@@ -497,6 +535,9 @@ def evaluate(
     progress: bool = True,
     warmup: bool = True,
     chip=None,
+    max_steps: int | None = None,
+    backend: str | None = None,
+    address: str | None = None,
 ) -> EvaluationResult:
     """Run every controller on worlds ``world_seed .. world_seed + n_worlds - 1`` for each seed.
 
@@ -510,7 +551,7 @@ def evaluate(
         seeds: controller seeds.
         world_seed: first env reset seed.
         env_id, env_kwargs: the Gymnasium env (``gymnasium.make(env_id, **env_kwargs)``).
-        n_jobs: worker processes; 1 runs inline in this process.
+        n_jobs: workers; 1 runs inline in this process (unless ``backend`` says otherwise).
         progress: show a tqdm bar on stderr.
         warmup: before a controller's first timed episode in a process, run
             one untimed episode (reset seed :data:`WARMUP_WORLD_SEED`) so
@@ -518,6 +559,10 @@ def evaluate(
             charged to the first evaluated episode.
         chip: an :class:`ising_backend.ChipSpec` for the planners' Ising layers (default the
             paper's chip); refused when no controller runs on a chip.
+        max_steps: the episode step limit (truncation); default :func:`step_limit`, the env
+            id's limit scaled up with the world's size and target count.
+        backend, address: the runner (:mod:`agents.runner`): ``inline``, ``process`` or
+            ``ray`` (``address`` of a Ray cluster); default inline for ``n_jobs=1``, else process.
 
     Returns:
         :class:`EvaluationResult` with rows ordered by controller, seed, world.
@@ -540,32 +585,18 @@ def evaluate(
     if chip is not None and not any(isinstance(e, str) and uses_chip(e) for e in entries):
         raise ControllerError(f"a chip spec was given, but none of the controllers {specs} runs on a chip "
                               "(add ising or a layer triple with an ising layer)")
+    run = RunConfig.from_jobs(n_jobs, progress=progress, backend=backend, address=address)
+    max_steps = step_limit(env_id, env_kwargs) if max_steps is None else check_max_steps(max_steps)
     tasks = [
-        (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup), chip)
+        (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup), chip, max_steps)
         for entry in entries
         for s in seeds
         for i in range(int(n_worlds))
     ]
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress, file=sys.stderr)
-    rows: list[dict] = []
-    try:
-        if int(n_jobs) == 1:
-            # inline: start from fresh controllers and envs, as a new pool's workers do
-            _CONTROLLERS.clear()
-            _ENVS.clear()
-            for t in tasks:
-                rows.append(_episode_task(*t))
-                bar.update(1)
-        else:
-            with ProcessPoolExecutor(max_workers=int(n_jobs)) as pool:
-                futures = [pool.submit(_episode_task, *t) for t in tasks]
-                for fut in as_completed(futures):
-                    rows.append(fut.result())
-                    bar.update(1)
-    finally:
-        bar.close()
+    if run.backend == "inline":  # start from fresh controllers and envs, as a new pool's workers do
+        _CONTROLLERS.clear()
+        _ENVS.clear()
+    rows = run_tasks(_episode_task, tasks, run, desc="episodes", unit="ep")
     order = {s: i for i, s in enumerate(specs)}
     rows.sort(key=lambda r: (order[r["controller"]], r["seed"], r["world_seed"]))
     config = {
@@ -576,5 +607,6 @@ def evaluate(
         "env_id": env_id,
         "env_kwargs": env_kwargs,
         "chip": None if chip is None else chip.to_dict(),
+        "max_steps": max_steps,
     }
     return EvaluationResult(rows=rows, controllers=specs, config=config)

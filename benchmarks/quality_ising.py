@@ -51,6 +51,8 @@ from pathlib import Path
 import numpy as np
 
 from agents import experiments as ex
+from agents.experiments import records
+from agents.experiments import summary as summary_stats
 
 try:
     from _common import write_results_section  # run as a script: python benchmarks/<name>.py
@@ -106,11 +108,11 @@ def run_endtoend_variant(n: int, seed: int, label: str, options: dict) -> list[d
     for i in range(n):
         world = generate_world(seed + i, n_robots=3, n_targets=10, placement="centre")
         plan = make_pipeline("ising", **options).plan(world, seed=seed + i)
-        ok = ex._plan_valid(world, plan)
+        ok = records._plan_valid(world, plan)
         row = {"instance": i, "world_seed": seed + i, "method": label, "success": ok,
                "cost": float(plan.route_cost) if ok else math.nan}
-        row.update(ex._compute_columns(plan.compute, plan.compute.cpu_s, True))
-        row.update(ex._layer_columns(plan))
+        row.update(records._compute_columns(plan.compute, plan.compute.cpu_s, True))
+        row.update(records._layer_columns(plan))
         rows.append(row)
     return rows
 
@@ -121,7 +123,7 @@ def variant_summary(rows: list[dict], strong_rows: list[dict]) -> dict:
     ok = [r for r in rows if r["success"]]
     gaps = [100.0 * (r["cost"] - strong[r["instance"]]["cost"]) / strong[r["instance"]]["cost"]
             for r in ok if r["instance"] in strong]
-    med = ex._med
+    med = summary_stats._med
     s = {
         "success": f"{len(ok)}/{len(rows)}",
         "median total": med([r["cost"] for r in ok]),
@@ -135,7 +137,7 @@ def variant_summary(rows: list[dict], strong_rows: list[dict]) -> dict:
         "median sharing host cpu (ms)": 1e3 * med([r.get("sharing_cpu_s", math.nan) for r in rows]),
     }
     strong_e = med([r["energy_j"] for r in strong.values()])
-    s["energy ratio strong / this"] = ex._ratio(1e3 * strong_e, s["median accelerator energy (mJ)"])
+    s["energy ratio strong / this"] = summary_stats._ratio(1e3 * strong_e, s["median accelerator energy (mJ)"])
     return s
 
 
@@ -177,10 +179,10 @@ def run_sharing_variant(n: int, seed: int, label: str, options: dict) -> list[di
 def sharing_variant_summary(rows: list[dict], exact_rows: list[dict]) -> dict:
     exact = {r["instance"]: r["cost"] for r in exact_rows if r["method"] == "exact" and r["success"]}
     ok = [r for r in rows if r["success"]]
-    med = ex._med
+    med = summary_stats._med
     return {
         "median total": med([r["cost"] for r in ok]),
-        "mean total": ex._mean([r["cost"] for r in ok]),
+        "mean total": summary_stats._mean([r["cost"] for r in ok]),
         "median gap to exact (%)": med([100.0 * (r["cost"] - exact[r["instance"]]) / exact[r["instance"]]
                                         for r in ok if r["instance"] in exact]),
         "median makespan": med([r["makespan"] for r in ok]),
@@ -274,7 +276,7 @@ _SETUP = {
 
 
 def _fmt(v) -> str:
-    return ex._fmt(v)
+    return summary_stats._fmt(v)
 
 
 def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], goals: list[dict],
@@ -303,7 +305,7 @@ def render(stats: dict, sizes: dict, mapping: list[dict], blocks: list[dict], go
         s, paper = stats[name], ex.PAPER[name]
         lines += [f"### {_TITLES[name]}: {_SETUP[name].format(n=sizes[name])} ({wall.get(name, 0):.0f} s)", "",
                   "| statistic | paper | measured |", "|---|---:|---:|"]
-        lines += ex._paper_rows(paper, s)
+        lines += summary_stats._paper_rows(paper, s)
         lines.append("")
     if sharing_variants:
         keys = list(next(iter(sharing_variants.values())).keys())

@@ -2,8 +2,9 @@
 
     mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising,ppo:model.zip
 
-Runs the evaluation runner (:mod:`agents.evaluation`): every controller on
-worlds ``seed .. seed + N - 1`` of the Gymnasium env, prints the summary table
+Runs the evaluation (:mod:`agents.evaluation`) on the task runner
+(``--backend process|ray|inline``): every controller on worlds
+``seed .. seed + N - 1`` of the Gymnasium env, prints the summary table
 (medians), and with ``--out DIR`` writes ``DIR/episodes.csv`` and
 ``DIR/episodes.json`` (one row per episode).  A bad controller name or model
 path is a one-line error and exit code 2.
@@ -12,6 +13,9 @@ path is a one-line error and exit code 2.
 from __future__ import annotations
 
 import sys
+
+from agents.commands.options import (add_chip_argument, add_runner_arguments, check_positive, check_seed,
+                                     runner_from_args)
 
 NAME = "compare"
 HELP = "compare planners and learned agents episode by episode on the same worlds"
@@ -33,10 +37,11 @@ def add_arguments(parser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
     parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes; 1 = inline (default 2)")
-    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
-                        help="the emulated chip of the Ising planners: any ChipSpec field (e.g. n_spins=64, "
-                             "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help="episode step limit (default: the env id's, 200 on 10x10, scaled up with the "
+                             "grid's height + width and the target count)")
+    add_runner_arguments(parser)
+    add_chip_argument(parser)
     parser.add_argument("--out", default=None, help="directory for episodes.csv and episodes.json")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -49,11 +54,12 @@ def run(args) -> int:
     except ControllerError as exc:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)
         return 2
-    for name in ("worlds", "robots", "targets", "height", "width", "jobs", "seeds"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            print(f"mrmt compare: error: --{name} must be >= 1, got {value}", file=sys.stderr)
-            return 2
+    problem = check_positive(args, ("worlds", "robots", "targets", "height", "width", "jobs", "seeds",
+                                    "max-steps"))
+    problem = problem or check_seed("--seed", args.seed, args.worlds)
+    if problem:
+        print(f"mrmt compare: error: {problem}", file=sys.stderr)
+        return 2
     import gymnasium as gym
 
     import mrmt_env  # noqa: F401  (registers the ids)
@@ -72,6 +78,7 @@ def run(args) -> int:
     }
     env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:
+        run = runner_from_args(args)
         chip = None
         if args.chip:
             from ising_backend import ChipSpec
@@ -87,6 +94,9 @@ def run(args) -> int:
             n_jobs=args.jobs,
             progress=not args.no_progress,
             chip=chip,
+            max_steps=args.max_steps,
+            backend=run.backend,
+            address=run.address,
         )
     except (ControllerError, ValueError) as exc:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import sys
 
+from agents.commands.options import add_chip_argument, add_runner_arguments, check_seed, runner_from_args
+
 NAME = "reproduce"
 HELP = "run the paper's section-6 experiments and write CSV/JSON, PNG figures and summary.md"
 
@@ -22,7 +24,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument("--quick", action="store_true", help="small sizes (CI): under a minute")
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes; 1 = inline (default 2)")
+    add_runner_arguments(parser)
     parser.add_argument(
         "--only",
         default=None,
@@ -30,17 +32,19 @@ def add_arguments(parser) -> None:
     )
     for name in ("path", "tour", "sharing", "endtoend"):
         parser.add_argument(f"--{name}", type=int, default=None, metavar="N", help=f"instances of the {name} experiment")
-    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
-                        help="the emulated chip of the Ising methods: any ChipSpec field (e.g. n_spins=64, "
-                             "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
+    add_chip_argument(parser, "the Ising methods")
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
 
 
 def run(args) -> int:
-    from agents.experiments import PAPER_SIZES, reproduce
+    from agents.experiments import PAPER_SIZES, QUICK_SIZES, reproduce
 
-    if args.jobs < 1:
-        print(f"mrmt reproduce: error: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+    from agents.runner import RunnerError
+
+    try:
+        runner = runner_from_args(args)
+    except RunnerError as exc:
+        print(f"mrmt reproduce: error: {exc}", file=sys.stderr)
         return 2
     names = tuple(PAPER_SIZES)
     if args.only:
@@ -61,6 +65,11 @@ def run(args) -> int:
                 print(f"mrmt reproduce: error: --{name} must be >= 1, got {v}", file=sys.stderr)
                 return 2
             sizes[name] = v
+    count = max([sizes.get(n, (QUICK_SIZES if args.quick else PAPER_SIZES)[n]) for n in names])
+    problem = check_seed("--seed", args.seed, count)
+    if problem:
+        print(f"mrmt reproduce: error: {problem}", file=sys.stderr)
+        return 2
     chip = None
     if args.chip:
         from ising_backend import ChipSpec
@@ -72,7 +81,7 @@ def run(args) -> int:
             return 2
     out = reproduce(
         args.out, quick=args.quick, seed=args.seed, n_jobs=args.jobs, progress=not args.no_progress,
-        sizes=sizes, experiments=names, chip=chip,
+        sizes=sizes, experiments=names, chip=chip, run=runner,
     )
     from pathlib import Path
 

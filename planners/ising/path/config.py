@@ -102,3 +102,13 @@ class PathConfig(IsingConfig):
     def chip_scale(self) -> float:
         """The scale in use: :attr:`scale`, or the form's default."""
         return DEFAULT_SCALE[self.form] if self.scale is None else self.scale
+
+    def fit_spins(self, n_spins: int, keep=()) -> "PathConfig":
+        """This config with ``patch_size`` shrunk (never grown) to the largest odd side whose
+        patch (``side^2 - 2`` free cells) fits ``n_spins``, unless given explicitly (in ``keep``)."""
+        side = self.patch_size
+        if "patch_size" not in keep:
+            while side > 3 and side * side - 2 > int(n_spins):
+                side -= 2
+        return self.replace(patch_size=side) if side != self.patch_size else self
+

@@ -63,8 +63,10 @@ class IsingPath(CompiledSearch, ConfigAttributes):
     def __init__(self, chip=None, config: PathConfig | None = None, **options):
         from ising_backend import ChipSpec, EmulatedChip
 
-        self.config = cfg = resolve_config(PathConfig, config, options)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        cfg = resolve_config(PathConfig, config, options)
+        # a patch not given explicitly shrinks to a smaller chip (an explicit config is taken as it is)
+        self.config = cfg = cfg if config is not None else cfg.fit_spins(self.chip.spec.n_spins, keep=set(options))
         self.frame = patch_frame(cfg.patch_size)
         n_spins = self.chip.spec.n_spins
         if self.frame.n - 2 > n_spins:

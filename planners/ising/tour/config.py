@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
@@ -84,3 +86,17 @@ class TourConfig(IsingConfig):
             object.__setattr__(self, nm, float(getattr(self, nm)))
         for nm in ("accept_equal", "share_clusters"):
             object.__setattr__(self, nm, bool(getattr(self, nm)))
+
+    def fit_spins(self, n_spins: int, keep=()) -> "TourConfig":
+        """This config with ``local_limit``, ``patch_size`` and ``max_clusters`` shrunk (never grown)
+        until their one-hot models (``size^2`` variables) fit ``n_spins`` + ``max_branch_bits``;
+        fields named in ``keep`` (given explicitly) are left as they are.  The paper's chip (45
+        spins) keeps the defaults; measured in docs/design/sweep.md, growing them on larger chips
+        made tours worse, so they are not grown."""
+        side = max(1, math.isqrt(int(n_spins) + self.max_branch_bits))
+        changes = {}
+        for name, cap in (("local_limit", side), ("patch_size", side), ("max_clusters", side + 1)):
+            if name not in keep and getattr(self, name) > cap:
+                changes[name] = cap
+        return self.replace(**changes) if changes else self
+

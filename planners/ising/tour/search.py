@@ -47,9 +47,11 @@ class IsingTour(Clustering, ConfigAttributes):
     def __init__(self, chip=None, config: TourConfig | None = None, *, solver=None, **options) -> None:
         from ising_backend import ChipSpec, EmulatedChip
 
-        self.config = cfg = resolve_config(TourConfig, config, options)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
         self.spec = self.chip.spec
+        cfg = resolve_config(TourConfig, config, options)
+        # sizes not given explicitly shrink to a smaller chip (an explicit config is taken as it is)
+        self.config = cfg = cfg if config is not None else cfg.fit_spins(self.spec.n_spins, keep=set(options))
         self._budget = int(self.spec.n_spins)
         self._zeros: dict = {}  # s -> zero costs, for one-hot validity checks
         self.solver = solver if solver is not None else LogicalIsingSolver(

@@ -1,0 +1,91 @@
+"""``mrmt sweep``: a grid of chip specs x worlds x controllers, Pareto figures and a summary.
+
+    mrmt sweep --chip n_spins=32,45,64 --chip j_range=3,7,15 --worlds 100 --controllers ising,strong --out sw
+    mrmt sweep ... --backend ray                       # a local Ray instance (127.0.0.1 only)
+    mrmt sweep ... --address 10.0.0.5:6379             # an existing Ray cluster
+
+``--chip KEY=V1,V2,...`` is repeatable; the grid is the product of the axes (any ChipSpec field,
+a range as ``m`` or ``lo..hi``, and ``n_cores``).  ``--base-chip KEY=VALUE|FILE.json`` sets the
+fields that do not vary.  Writes ``sweep.csv`` (one row per spec, world, controller and seed),
+``sweep.json``, ``specs.csv``, ``pareto.png`` and ``summary.md`` into ``--out``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from agents.commands.options import add_runner_arguments, check_positive, check_seed, runner_from_args
+
+NAME = "sweep"
+HELP = "sweep chip specs (a grid of ChipSpec values) over worlds and controllers; Pareto figures and a summary"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--chip", action="append", default=[], metavar="KEY=V1,V2,...", required=True,
+                        help="a sweep axis: a ChipSpec field (or n_cores) and its values, e.g. n_spins=32,45,64 "
+                             "or j_range=3,7,15 (m means (-m, m); lo..hi for another range); repeatable, the "
+                             "grid is the product")
+    parser.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                        help="fixed ChipSpec fields under the grid (as --chip of mrmt plan); repeatable")
+    parser.add_argument("--controllers", default="ising,strong",
+                        help="comma-separated controllers (as mrmt compare); those with an Ising layer run once "
+                             "per spec, the others once (default ising,strong)")
+    parser.add_argument("--reference", default="strong",
+                        help="chip-free controller the gaps are measured against (default strong; none for none)")
+    parser.add_argument("--worlds", type=int, default=20, help="worlds per spec and controller (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
+    parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")
+    parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
+    parser.add_argument("--robots", type=int, default=None, help="robots per world (default: the env id's, 3)")
+    parser.add_argument("--targets", type=int, default=None, help="targets per world (default: the env id's, 10)")
+    parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
+    parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
+    parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
+    parser.add_argument("--max-steps", type=int, default=None, help="episode step limit (default as mrmt compare)")
+    add_runner_arguments(parser)
+    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def run(args) -> int:
+    def fail(msg: str) -> int:
+        print(f"mrmt sweep: error: {msg}", file=sys.stderr)
+        return 2
+
+    problem = check_positive(args, ("worlds", "seeds", "robots", "targets", "height", "width", "max-steps"))
+    problem = problem or check_seed("--seed", args.seed, args.worlds)
+    if problem:
+        return fail(problem)
+    import gymnasium as gym
+
+    import mrmt_env  # noqa: F401  (registers the ids)
+    from agents.errors import ControllerError
+    from agents.sweep import SweepConfig, parse_axes, run_sweep
+    from agents.sweep_report import write_report
+
+    if args.env_id not in gym.registry:
+        known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
+        return fail(f"unknown env id {args.env_id!r}; registered: {known}")
+    given = {"n_robots": args.robots, "n_targets": args.targets, "height": args.height, "width": args.width,
+             "placement": args.placement}
+    try:
+        from ising_backend import ChipSpec
+
+        run_cfg = runner_from_args(args)
+        base = ChipSpec.from_options(args.base_chip) if args.base_chip else None
+        config = SweepConfig(axes=parse_axes(args.chip), controllers=tuple(args.controllers.split(",")),
+                             n_worlds=args.worlds, world_seed=args.seed, seeds=tuple(range(args.seeds)),
+                             env_id=args.env_id, env_kwargs={k: v for k, v in given.items() if v is not None},
+                             max_steps=args.max_steps)
+        reference = None if args.reference.lower() == "none" else args.reference
+        if reference is not None and reference not in config.controllers:
+            return fail(f"--reference {reference!r} is not among --controllers {args.controllers!r}")
+        result = run_sweep(config, run_cfg, base_chip=base)
+    except (ControllerError, ValueError) as exc:
+        return fail(str(exc).splitlines()[0])
+    files = write_report(result, args.out, reference)
+    from pathlib import Path
+
+    print(Path(args.out, "summary.md").read_text())
+    print(f"wrote {len(files)} files to {args.out}", file=sys.stderr)
+    return 0

@@ -1,24 +1,13 @@
 """World files: JSON, JSON Lines, and the MovingAI ``.map`` / ``.scen`` formats.
 
-World JSON (one object)::
-
-    {"grid": ["..@.", "....", ...], "robots": [[r, c], ...], "targets": [[r, c], ...]}
-
-``grid`` rows are strings of equal length.  Passable letters: ``.`` ``G``
-``S``; impassable: ``@`` ``O`` ``T`` ``W`` (the MovingAI letters; MovingAI's
-swamp ``S`` counts as passable and water ``W`` as impassable because this
-model has unit-cost 4-neighbour moves only).  We write ``.`` and ``@``.
-A JSON Lines file holds one such object per line (blank lines are skipped).
-
-MovingAI benchmark files (https://movingai.com/benchmarks/formats.html):
-
-* ``.map``: header lines ``type octile``, ``height H``, ``width W``, ``map``,
-  then ``H`` rows of ``W`` letters;
-* ``.scen``: a ``version`` line, then tab- or space-separated columns
-  ``bucket map width height start_x start_y goal_x goal_y optimal_length``
-  where ``x`` is the column and ``y`` the row.  The optimal length is for
-  8-connected moves with diagonal cost sqrt(2); :meth:`Scenario.bfs_length`
-  recomputes it for this model's 4-neighbour moves.
+The formats, the letters and the size limits are documented in
+``docs/world_format.md``.  In short: a world is
+``{"grid": ["..@.", ...], "robots": [[r, c], ...], "targets": [[r, c], ...]}``
+(passable letters ``.`` ``G`` ``S``, impassable ``@`` ``O`` ``T`` ``W``); a
+world file holds one such object (it may span lines) or JSON Lines of them.
+Files are data only: parsed with :mod:`json` or line by line, never executed
+or unpickled, and refused beyond :data:`MAX_FILE_BYTES`, :data:`MAX_GRID_CELLS`
+and :data:`MAX_FIELD_CELLS`.
 """
 
 from __future__ import annotations
@@ -44,6 +33,12 @@ __all__ = [
     "world_to_dict",
     "world_from_dict",
     "read_world",
+    "read_text",
+    "iter_worlds_text",
+    "example_world_path",
+    "MAX_FILE_BYTES",
+    "MAX_GRID_CELLS",
+    "MAX_FIELD_CELLS",
     "write_world",
     "read_worlds",
     "iter_world_lines",
@@ -56,6 +51,21 @@ __all__ = [
 PASSABLE = frozenset(".GS")
 IMPASSABLE = frozenset("@OTW")
 
+#: Largest file a reader takes (bytes): world JSON / JSON Lines, MovingAI ``.map`` and ``.scen``.
+MAX_FILE_BYTES = 64 * 2**20
+#: Largest grid of a world or map read from a file (cells; 2048 x 2048).
+MAX_GRID_CELLS = 2**22
+#: Most BFS distance-field cells, ``(robots + targets) x H x W``, a world read from a file may need
+#: (int32 each: 512 MiB).
+MAX_FIELD_CELLS = 2**27
+
+
+def example_world_path(lines: bool = False) -> Path:
+    """An example world file shipped with the package: ``example_world.json`` (one world of the
+    paper's set-up: 10x10, 20 obstacles, 3 robots, 10 targets; ``generate_world(0)``) or, with
+    ``lines=True``, ``example_worlds.jsonl`` (``generate_world(0 .. 4)``, JSON Lines)."""
+    return Path(__file__).with_name("data") / ("example_worlds.jsonl" if lines else "example_world.json")
+
 
 # --------------------------------------------------------------------- grids
 def grid_from_rows(rows, where: str = "grid") -> np.ndarray:
@@ -64,6 +74,10 @@ def grid_from_rows(rows, where: str = "grid") -> np.ndarray:
         raise WorldError(f"{where} must be a list of strings, got {type(rows).__name__}")
     if len(rows) == 0:
         raise WorldError(f"{where} has no rows")
+    first = rows[0]
+    if isinstance(first, str) and len(rows) * len(first) > MAX_GRID_CELLS:
+        raise WorldError(f"{where} is {len(rows)}x{len(first)} = {len(rows) * len(first)} cells; a grid read from "
+                         f"a file may hold at most {MAX_GRID_CELLS} (MAX_GRID_CELLS)")
     width = None
     out = []
     for i, row in enumerate(rows):
@@ -105,18 +119,30 @@ def world_to_dict(world: World) -> dict:
     }
 
 
-def _cells(d: dict, key: str) -> list:
+def _cells(d: dict, key: str, shape: tuple[int, int]) -> list:
     value = d[key]
     if not isinstance(value, (list, tuple)):
         raise WorldError(f"{key!r} must be a list of [row, col] pairs, got {type(value).__name__}")
+    h, w = shape
     for i, cell in enumerate(value):
         if (
             not isinstance(cell, (list, tuple))
             or len(cell) != 2
             or not all(isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) for v in cell)
         ):
-            raise WorldError(f"{key!r} entry {i} must be an integer [row, col] pair, got {cell!r}")
-    return [list(c) for c in value]
+            raise WorldError(f"{key!r} entry {i} must be an integer [row, col] pair, got {_short(cell)}")
+        r, c = (int(v) for v in cell)
+        if not (0 <= r < h and 0 <= c < w):
+            raise WorldError(
+                f"{key[:-1]} {i} cell [{r}, {c}] is out of bounds for a {h}x{w} grid "
+                f"(rows 0..{h - 1}, cols 0..{w - 1})"
+            )
+    return [[int(v) for v in c] for c in value]
+
+
+def _short(value, limit: int = 80) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def world_from_dict(d) -> World:
@@ -124,7 +150,9 @@ def world_from_dict(d) -> World:
 
     Raises:
         WorldError: not a dict, a missing or unknown key, a malformed grid
-            or cell list, or any :class:`World` validation error.
+            or cell list, a world beyond the file limits
+            (:data:`MAX_GRID_CELLS`, :data:`MAX_FIELD_CELLS`), or any
+            :class:`World` validation error.
     """
     if not isinstance(d, dict):
         raise WorldError(f"a world must be a JSON object, got {type(d).__name__}")
@@ -133,24 +161,141 @@ def world_from_dict(d) -> World:
         raise WorldError(f"world object is missing key(s) {missing} (needs 'grid', 'robots', 'targets')")
     extra = sorted(set(d) - {"grid", "robots", "targets"})
     if extra:
-        raise WorldError(f"world object has unknown key(s) {extra} (allowed: 'grid', 'robots', 'targets')")
+        shown = [k if len(k) <= 40 else k[:37] + "..." for k in extra[:5]]
+        more = f" and {len(extra) - 5} more" if len(extra) > 5 else ""
+        raise WorldError(f"world object has unknown key(s) {shown}{more} (allowed: 'grid', 'robots', 'targets')")
     grid = grid_from_rows(d["grid"])
-    robots = _cells(d, "robots")
-    targets = _cells(d, "targets")
+    robots = _cells(d, "robots", grid.shape)
+    targets = _cells(d, "targets", grid.shape)
+    nodes = len(robots) + len(targets)
+    if nodes * grid.size > MAX_FIELD_CELLS:
+        raise WorldError(
+            f"{len(robots)} robots + {len(targets)} targets on a {grid.shape[0]}x{grid.shape[1]} grid need "
+            f"{nodes * grid.size} distance-field cells; a world read from a file may need at most "
+            f"{MAX_FIELD_CELLS} (MAX_FIELD_CELLS)"
+        )
     return World(grid, np.array(robots, dtype=np.int64).reshape(-1, 2), np.array(targets, dtype=np.int64).reshape(-1, 2))
 
 
-def read_world(path) -> World:
-    """Read one world from a JSON file."""
-    text = Path(path).read_text(encoding="utf-8")
+def read_text(path, what: str = "world file") -> str:
+    """A text file's content (UTF-8, newlines as ``\\n``), at most :data:`MAX_FILE_BYTES` bytes.
+
+    Raises:
+        WorldError: the file is larger than the limit or is not UTF-8 text.
+        OSError: it cannot be read.
+    """
+    p = Path(path)
+    if p.is_file() and p.stat().st_size > MAX_FILE_BYTES:
+        raise WorldError(f"{path}: {p.stat().st_size} bytes; a {what} may hold at most {MAX_FILE_BYTES} bytes "
+                         "(MAX_FILE_BYTES)")
+    with open(p, "rb") as fh:
+        data = fh.read(MAX_FILE_BYTES + 1)
+    if len(data) > MAX_FILE_BYTES:
+        raise WorldError(f"{path}: more than {MAX_FILE_BYTES} bytes; a {what} may hold at most {MAX_FILE_BYTES} "
+                         "bytes (MAX_FILE_BYTES)")
     try:
-        d = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise WorldError(f"{path}: not valid JSON ({exc}); for JSON Lines use read_worlds") from exc
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise WorldError(f"{path}: byte {exc.start} ({data[exc.start:exc.start + 1]!r}) is not UTF-8 text; "
+                         f"a {what} is UTF-8 text") from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def _loads(text: str):
+    """``json.loads`` whose failures are one ``ValueError`` line each (a decode error keeps its
+    position; nesting too deep for the parser and over-long integers are named too)."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        raise
+    except RecursionError:
+        raise ValueError("nested too deeply for the JSON parser") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts
+        raise ValueError(str(exc).split(";")[0]) from None
+
+
+def _json_error(where: str, exc: ValueError, line_offset: int = 0) -> WorldError:
+    if isinstance(exc, json.JSONDecodeError):
+        return WorldError(f"{where} line {exc.lineno + line_offset} column {exc.colno}: not valid JSON ({exc.msg})")
+    return WorldError(f"{where}: not valid JSON ({exc})")
+
+
+def _nonblank(text: str) -> list[tuple[int, str]]:
+    return [(n, line) for n, line in enumerate(text.split("\n"), start=1) if line.strip()]
+
+
+def _line_world(where: str, n: int, line: str) -> World | WorldError:
+    try:
+        d = _loads(line)
+    except ValueError as exc:
+        if isinstance(exc, json.JSONDecodeError):
+            return WorldError(f"{where} line {n} column {exc.colno}: not valid JSON ({exc.msg})")
+        return WorldError(f"{where} line {n}: not valid JSON ({exc})")
     try:
         return world_from_dict(d)
     except WorldError as exc:
-        raise WorldError(f"{path}: {exc}") from exc
+        return WorldError(f"{where} line {n}: {exc}")
+
+
+def _parses_alone(line: str, want_object: bool) -> bool:
+    try:
+        value = _loads(line)
+    except ValueError:
+        return False
+    return isinstance(value, dict) or not want_object
+
+
+def iter_worlds_text(text: str, where="worlds") -> Iterator[tuple[int, World | WorldError]]:
+    """Yield ``(line_number, World or WorldError)`` for every world of a world file's text.
+
+    The text is one JSON object (it may span lines; line number 1) or JSON
+    Lines (one object per non-blank line).  It is JSON Lines when its first
+    non-blank line is a JSON value by itself, or when any later line is a
+    JSON object by itself; otherwise it is one document, and a parse error
+    names the line and column where the parser stopped.  Each bad line of
+    JSON Lines is yielded in its place, so a caller can report it and go on.
+    """
+    lines = _nonblank(text)
+    if not lines:
+        return
+    try:
+        whole = _loads(text)
+        error = None
+    except ValueError as exc:
+        whole, error = None, exc
+    if error is None:
+        if isinstance(whole, dict):
+            try:
+                yield 1, world_from_dict(whole)
+            except WorldError as exc:
+                yield 1, WorldError(f"{where}: {exc}")
+        elif isinstance(whole, list):
+            yield lines[0][0], WorldError(f"{where} line {lines[0][0]}: a JSON array is not a world file; "
+                                          "use one object or JSON Lines")
+        else:
+            yield lines[0][0], WorldError(f"{where} line {lines[0][0]}: a world must be a JSON object, "
+                                          f"got {type(whole).__name__}")
+        return
+    json_lines = len(lines) == 1 or _parses_alone(lines[0][1], want_object=False) or any(
+        _parses_alone(line, want_object=True) for _, line in lines[1:])
+    if not json_lines:  # one object spread over lines: report where the parser stopped
+        yield (error.lineno if isinstance(error, json.JSONDecodeError) else lines[0][0]), _json_error(where, error)
+        return
+    for n, line in lines:
+        yield n, _line_world(where, n, line)
+
+
+def read_world(path) -> World:
+    """Read one world from a JSON file (one object; it may span lines)."""
+    text = read_text(path)
+    try:
+        d = _loads(text)
+    except ValueError as exc:
+        raise WorldError(f"{_json_error(str(path), exc)}; for JSON Lines use read_worlds") from None
+    try:
+        return world_from_dict(d)
+    except WorldError as exc:
+        raise WorldError(f"{path}: {exc}") from None
 
 
 def write_world(world: World, path) -> None:
@@ -169,42 +314,18 @@ def iter_world_lines(path) -> Iterator[tuple[int, World | Exception]]:
     """Yield ``(line_number, World or the exception)`` for each non-blank line
     of a JSON Lines file (1-based numbers), so a caller can report a bad line
     and go on with the rest."""
-    with open(path, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            if not line.strip():
-                continue
-            try:
-                d = json.loads(line)
-            except json.JSONDecodeError as exc:
-                yield n, WorldError(f"{path} line {n}: not valid JSON ({exc})")
-                continue
-            try:
-                yield n, world_from_dict(d)
-            except WorldError as exc:
-                yield n, WorldError(f"{path} line {n}: {exc}")
+    for n, line in _nonblank(read_text(path)):
+        yield n, _line_world(str(path), n, line)
 
 
 def read_worlds(path) -> list[World]:
-    """Read a file holding one JSON world or JSON Lines of worlds.
+    """Read a file holding one JSON world (it may span lines) or JSON Lines of worlds.
 
-    A file that parses as one JSON object is one world; otherwise each
-    non-blank line must be a world.  The first bad line raises a
-    :class:`WorldError` naming it (use :func:`iter_world_lines` to skip bad lines).
+    The first bad world raises a :class:`WorldError` naming its line (see
+    :func:`iter_worlds_text` for how the two forms are told apart).
     """
-    text = Path(path).read_text(encoding="utf-8")
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError:
-        d = None
-    if isinstance(d, dict):
-        try:
-            return [world_from_dict(d)]
-        except WorldError as exc:
-            raise WorldError(f"{path}: {exc}") from exc
-    if isinstance(d, list):
-        raise WorldError(f"{path}: a JSON array is not a world file; use one object or JSON Lines")
     worlds = []
-    for _, item in iter_world_lines(path):
+    for _, item in iter_worlds_text(read_text(path), str(path)):
         if isinstance(item, Exception):
             raise item
         worlds.append(item)
@@ -221,7 +342,8 @@ def write_worlds(worlds, path) -> None:
 # ------------------------------------------------------------------- MovingAI
 def read_movingai_map(path) -> np.ndarray:
     """Read a MovingAI ``.map`` file as a bool obstacle grid ``(H, W)``."""
-    lines = Path(path).read_text(encoding="utf-8").splitlines()
+    text = read_text(path, "map file")
+    lines = (text[:-1] if text.endswith("\n") else text).split("\n")
     header: dict[str, str] = {}
     i = 0
     while i < len(lines):
@@ -233,7 +355,8 @@ def read_movingai_map(path) -> np.ndarray:
             break
         parts = line.split(None, 1)
         if len(parts) != 2:
-            raise WorldError(f"{path} line {i}: bad header line {line!r} (expected 'type', 'height', 'width', 'map')")
+            raise WorldError(f"{path} line {i}: bad header line {_short(line)} (expected 'type', 'height', "
+                             "'width', 'map')")
         header[parts[0].lower()] = parts[1].strip()
     else:
         raise WorldError(f"{path}: no 'map' line ending the header")
@@ -241,17 +364,24 @@ def read_movingai_map(path) -> np.ndarray:
         height = int(header["height"])
         width = int(header["width"])
     except KeyError as exc:
-        raise WorldError(f"{path}: header lacks {exc.args[0]!r}") from exc
-    except ValueError as exc:
-        raise WorldError(f"{path}: height/width must be integers, got {header.get('height')!r}/{header.get('width')!r}") from exc
+        raise WorldError(f"{path}: header lacks {exc.args[0]!r}") from None
+    except ValueError:
+        raise WorldError(f"{path}: height/width must be integers, got {_short(header.get('height'), 40)}/"
+                         f"{_short(header.get('width'), 40)}") from None
     if height < 1 or width < 1:
         raise WorldError(f"{path}: height and width must be >= 1, got {height}x{width}")
-    rows = [ln.rstrip("\r\n") for ln in lines[i: i + height]]
+    if height * width > MAX_GRID_CELLS:
+        raise WorldError(f"{path}: {height}x{width} = {height * width} cells; a map read from a file may hold at "
+                         f"most {MAX_GRID_CELLS} (MAX_GRID_CELLS)")
+    rows = lines[i: i + height]
     if len(rows) != height:
         raise WorldError(f"{path}: header says height {height} but the map has {len(rows)} rows")
     for k, row in enumerate(rows):
         if len(row) != width:
             raise WorldError(f"{path}: map row {k} has {len(row)} cells, header says width {width}")
+    extra = [n for n, line in enumerate(lines[i + height:], start=i + height + 1) if line.strip()]
+    if extra:
+        raise WorldError(f"{path} line {extra[0]}: text after the {height} map rows the header announces")
     return grid_from_rows(rows, where=str(path))
 
 
@@ -291,20 +421,30 @@ class Scenario:
 def read_movingai_scen(path) -> list[Scenario]:
     """Read a MovingAI ``.scen`` file (``version`` line optional)."""
     out = []
-    with open(path, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.lower().startswith("version"):
-                continue
-            parts = s.split("\t") if "\t" in s else s.split()
-            if len(parts) != 9:
-                raise WorldError(f"{path} line {n}: expected 9 columns (bucket map w h sx sy gx gy optimal), got {len(parts)}")
+    for n, line in enumerate(read_text(path, "scenario file").split("\n"), start=1):
+        s = line.strip()
+        if not s or s.lower().startswith("version"):
+            continue
+        parts = s.split("\t") if "\t" in s else s.split()
+        if len(parts) != 9:
+            raise WorldError(f"{path} line {n}: expected 9 columns (bucket map w h sx sy gx gy optimal), got {len(parts)}")
+        names = ("bucket", "map", "width", "height", "start_x", "start_y", "goal_x", "goal_y", "optimal_length")
+        values = []
+        for k in (0, 2, 3, 4, 5, 6, 7):
             try:
-                bucket, w, h, sx, sy, gx, gy = (int(parts[k]) for k in (0, 2, 3, 4, 5, 6, 7))
-                opt = float(parts[8])
-            except ValueError as exc:
-                raise WorldError(f"{path} line {n}: non-numeric column ({exc})") from exc
-            out.append(Scenario(bucket, parts[1].strip(), w, h, (sy, sx), (gy, gx), opt))
+                values.append(int(parts[k]))
+            except ValueError:
+                raise WorldError(f"{path} line {n}: {names[k]} must be an integer, got {_short(parts[k], 40)}") from None
+        bucket, w, h, sx, sy, gx, gy = values
+        try:
+            opt = float(parts[8])
+        except ValueError:
+            opt = float("nan")
+        if not (np.isfinite(opt) and opt >= 0):
+            raise WorldError(f"{path} line {n}: optimal_length must be a finite number >= 0, got {_short(parts[8], 40)}")
+        if w < 1 or h < 1:
+            raise WorldError(f"{path} line {n}: width and height must be >= 1, got {w}x{h}")
+        out.append(Scenario(bucket, parts[1].strip(), w, h, (sy, sx), (gy, gx), opt))
     return out
 
 
@@ -331,10 +471,11 @@ def world_from_movingai(
        largest 4-connected free component (``n_targets`` defaults to 10).
     """
     grid = read_movingai_map(map_path)
-    if n_robots < 1:
-        raise ValueError(f"n_robots must be >= 1, got {n_robots}")
-    if n_targets is not None and n_targets < 0:
-        raise ValueError(f"n_targets must be >= 0, got {n_targets}")
+    for name, value, low in (("n_robots", n_robots, 1), ("n_targets", n_targets, 0)):
+        if value is None and name == "n_targets":
+            continue
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < low:
+            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     scen = None
     if scen_path is not None and (robots is None or targets is None):
         scen = read_movingai_scen(scen_path)
@@ -360,7 +501,11 @@ def world_from_movingai(
         need = (n_robots if robots is None else 0) + (k_t if targets is None else 0)
         if need > len(cells):
             raise ValueError(f"need {need} distinct cells but the largest free component of {map_path} has {len(cells)}")
-        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        try:
+            rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"seed = {seed!r} is not a numpy seed (None, an integer >= 0 or a Generator): "
+                             f"{exc}") from None
         chosen = cells[rng.choice(len(cells), size=need, replace=False)]
         if robots is None:
             robots, chosen = chosen[:n_robots], chosen[n_robots:]

@@ -25,16 +25,40 @@ class WorldError(ValueError):
     """A world that breaks one of the model's rules (the message names the value)."""
 
 
-def _as_cells(name: str, cells, allow_empty: bool) -> np.ndarray:
-    arr = np.asarray(cells if len(cells) else np.zeros((0, 2)), dtype=np.float64)
+def _as_cells(name: str, cells, allow_empty: bool, shape: tuple[int, int]) -> np.ndarray:
+    """``(K, 2)`` int64 cells, each an integer pair inside the ``shape`` grid (checked before any
+    integer conversion, so a huge value is named as given, never wrapped or rounded)."""
+    singular = name[:-1]
+    try:
+        arr = np.asarray(cells if len(cells) else np.zeros((0, 2), dtype=np.int64))
+    except (TypeError, ValueError) as exc:
+        raise WorldError(f"{name} must be a list of [row, col] pairs ({exc})") from None
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise WorldError(f"{name} must be a list of [row, col] pairs, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)) or not np.all(arr == np.round(arr)):
-        bad = arr[~(np.isfinite(arr).all(axis=1) & (arr == np.round(arr)).all(axis=1))][0]
-        raise WorldError(f"{name} cell {bad.tolist()} is not an integer [row, col] pair")
     if not allow_empty and len(arr) == 0:
         raise WorldError(f"a world needs at least one of {name}, got 0")
-    return arr.astype(np.int64)
+    if arr.dtype.kind not in "iubfO":
+        raise WorldError(f"{name} must hold integer [row, col] pairs, got dtype {arr.dtype}")
+    h, w = shape
+    for i, (r, c) in enumerate(arr.tolist()):
+        for v in (r, c):
+            if isinstance(v, (float, np.floating)):
+                ok = bool(np.isfinite(v)) and float(v).is_integer()
+            else:
+                ok = isinstance(v, (int, np.integer))
+            if not ok:
+                raise WorldError(f"{name} cell {[r, c]} is not an integer [row, col] pair")
+        if not (0 <= r < h and 0 <= c < w):
+            raise WorldError(
+                f"{singular} {i} cell [{_show(r)}, {_show(c)}] is out of bounds for a {h}x{w} grid "
+                f"(rows 0..{h - 1}, cols 0..{w - 1})"
+            )
+    return arr.astype(np.int64).reshape(-1, 2)
+
+
+def _show(v) -> str:
+    """An integer-valued coordinate as an integer (``3.0`` -> ``3``, ``1e30`` -> all its digits)."""
+    return str(int(v))
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,16 +98,11 @@ class World:
             grid = grid.astype(bool)
         grid = np.ascontiguousarray(grid)
         grid.setflags(write=False)
-        robots = _as_cells("robots", self.robots, allow_empty=False)
-        targets = _as_cells("targets", self.targets, allow_empty=True)
         h, w = grid.shape
+        robots = _as_cells("robots", self.robots, allow_empty=False, shape=(h, w))
+        targets = _as_cells("targets", self.targets, allow_empty=True, shape=(h, w))
         for name, cells in (("robot", robots), ("target", targets)):
-            for i, (r, c) in enumerate(cells):
-                if not (0 <= r < h and 0 <= c < w):
-                    raise WorldError(
-                        f"{name} {i} cell [{r}, {c}] is out of bounds for a {h}x{w} grid "
-                        f"(rows 0..{h - 1}, cols 0..{w - 1})"
-                    )
+            for i, (r, c) in enumerate(cells.tolist()):
                 if grid[r, c]:
                     raise WorldError(f"{name} {i} cell [{r}, {c}] is on an obstacle")
         seen: dict[tuple[int, int], int] = {}

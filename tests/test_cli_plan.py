@@ -67,13 +67,28 @@ def _bad_file(tmp_path, worlds):
     return src
 
 
-def test_bad_line_stops_with_exit_2_keeping_earlier_plans(tmp_path, worlds, capsys):
+def test_bad_lines_are_all_named_and_nothing_is_planned(tmp_path, worlds, capsys):
     src = _bad_file(tmp_path, worlds)
     assert main(["plan", str(src), "--pipeline", "fast"]) == 2
     captured = capsys.readouterr()
-    assert len(captured.out.splitlines()) == 1
-    (err,) = [x for x in captured.err.splitlines() if "error" in x]
-    assert f"{src} line 2: not valid JSON" in err
+    assert captured.out == ""  # no partial output: the good lines are not silently cut short
+    err = captured.err.strip().splitlines()
+    assert len(err) == 3
+    assert err[0].startswith(f"mrmt plan: error: {src} line 2 column 2: not valid JSON")
+    assert f"{src} line 4: robot 0 cell [0, 99] is out of bounds" in err[1]
+    assert "2 of 5 worlds" in err[2] and "--keep-going" in err[2]
+
+
+def test_pretty_printed_world_error_names_its_line_and_column(tmp_path, worlds, capsys):
+    src = tmp_path / "one.json"
+    write_world(worlds[0], src)
+    lines = src.read_text().splitlines()
+    lines[3] = lines[3].rstrip(",")  # no comma after grid row 1 (file line 4): the parser stops on line 5
+    src.write_text("\n".join(lines) + "\n")
+    assert main(["plan", str(src), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert err[0].startswith(f"mrmt plan: error: {src} line 5 column 5: not valid JSON (Expecting ',' delimiter)")
 
 
 def test_keep_going_emits_error_objects_in_place(tmp_path, worlds, capsys):
@@ -91,9 +106,18 @@ def test_keep_going_emits_error_objects_in_place(tmp_path, worlds, capsys):
 
 def test_planning_refusal_is_reported_with_line(tmp_path, capsys):
     src = tmp_path / "big.jsonl"
-    write_worlds([generate_world(0, n_robots=1, n_targets=14)], src)
-    assert main(["plan", str(src), "--sharing", "psa", "--tour", "brute", "--path", "bfs"]) == 2
-    assert f"{src} line 1: planning failed: brute tour: 14 targets exceeds the limit of 13" in capsys.readouterr().err
+    write_worlds([generate_world(1, n_robots=1, n_targets=5), generate_world(0, n_robots=1, n_targets=14),
+                  generate_world(2, n_robots=1, n_targets=5)], src)
+    argv = ["plan", str(src), "--sharing", "psa", "--tour", "brute", "--path", "bfs"]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert len(captured.out.splitlines()) == 1
+    (err,) = captured.err.strip().splitlines()
+    assert f"{src} line 2: planning failed: brute tour: 14 targets exceeds the limit of 13" in err
+    assert "the 1 world(s) after line 2 were not planned; --keep-going" in err
+    assert main(argv + ["--keep-going"]) == 2
+    records = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [("error" in r) for r in records] == [False, True, False] and records[1]["line"] == 2
 
 
 @pytest.mark.parametrize(

@@ -85,7 +85,7 @@ def test_bad_lines_are_reported_and_skippable(tmp_path):
     items = list(iter_world_lines(p))
     assert [n for n, _ in items] == [1, 3, 4, 5]
     assert isinstance(items[0][1], World) and isinstance(items[3][1], World)
-    assert isinstance(items[1][1], WorldError) and "line 3: not valid JSON" in str(items[1][1])
+    assert isinstance(items[1][1], WorldError) and "line 3 column 2: not valid JSON" in str(items[1][1])
     assert isinstance(items[2][1], WorldError) and "line 4" in str(items[2][1]) and "out of bounds" in str(items[2][1])
     with pytest.raises(WorldError, match="line 3"):
         read_worlds(p)
@@ -94,7 +94,7 @@ def test_bad_lines_are_reported_and_skippable(tmp_path):
 def test_read_world_errors_name_the_file(tmp_path):
     p = tmp_path / "bad.json"
     p.write_text("{")
-    with pytest.raises(WorldError, match="bad.json: not valid JSON"):
+    with pytest.raises(WorldError, match="bad.json line 1 column 2: not valid JSON"):
         read_world(p)
     p.write_text("[]")
     with pytest.raises(WorldError, match="JSON array is not a world file"):
@@ -177,7 +177,7 @@ def test_scen_errors(tmp_path):
     with pytest.raises(WorldError, match="line 2: expected 9 columns"):
         read_movingai_scen(p)
     p.write_text("0 m 5 4 0 0 4 x 3\n")
-    with pytest.raises(WorldError, match="line 1: non-numeric"):
+    with pytest.raises(WorldError, match="line 1: goal_y must be an integer, got 'x'"):
         read_movingai_scen(p)
 
 
@@ -213,3 +213,88 @@ def test_numpy_integer_cells_accepted():
 def test_json_round_trip_property(seed, h, w, placement):
     world = generate_world(seed, height=h, width=w, n_robots=1, n_targets=min(3, h * w // 3), placement=placement)
     assert world_from_dict(json.loads(json.dumps(world_to_dict(world)))) == world
+
+
+# ----------------------------------------------------------- shipped examples, limits
+def test_example_worlds_ship_with_the_package_and_load():
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+    from pathlib import Path
+
+    from mrmt_env.io import example_world_path
+
+    one = read_world(example_world_path())
+    assert one == generate_world(0) and read_worlds(example_world_path()) == [one]
+    assert read_worlds(example_world_path(lines=True)) == [generate_world(s) for s in range(5)]
+    root = Path(__file__).resolve().parents[1]
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["mrmt_env"]
+    shipped = {p.name for pattern in patterns for p in (root / "mrmt_env").glob(pattern)}
+    assert {example_world_path().name, example_world_path(lines=True).name} <= shipped
+
+
+def test_example_world_drives_an_env_and_the_cli(capsys):
+    import gymnasium as gym
+
+    from agents.cli import main
+    from mrmt_env.io import example_world_path
+
+    env = gym.make("mrmt_env/MRMT-v0", world=str(example_world_path()))
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (5, 10, 10) and info["n_targets"] == 10
+    assert main(["plan", str(example_world_path(lines=True)), "--pipeline", "fast", "--no-progress"]) == 0
+    assert [json.loads(x)["success"] for x in capsys.readouterr().out.splitlines()] == [True] * 5
+
+
+@pytest.mark.parametrize("cell, shown", [(10**30, "1000000000000000000000000000000"), (-(2**63) - 1, "-9223372036854775809"),
+                                         (2**53 + 1, "9007199254740993")])
+def test_huge_cell_is_named_exactly_not_overflowed(cell, shown):
+    d = {"grid": ["..."], "robots": [[0, 0]], "targets": [[0, cell]]}
+    with pytest.raises(WorldError, match=rf"target 0 cell \[0, {shown}\] is out of bounds for a 1x3 grid"):
+        world_from_dict(d)
+    with pytest.raises(WorldError, match=rf"target 0 cell \[0, {shown}\] is out of bounds"):
+        World(np.zeros((1, 3), bool), [[0, 0]], [[0, cell]])
+
+
+def test_file_size_limits_are_named(tmp_path, monkeypatch):
+    import mrmt_env.io as io
+
+    p = tmp_path / "w.json"
+    write_world(generate_world(0), p)
+    monkeypatch.setattr(io, "MAX_FILE_BYTES", 100)
+    with pytest.raises(WorldError, match=r"w.json: \d+ bytes; a world file may hold at most 100 bytes"):
+        read_worlds(p)
+    monkeypatch.setattr(io, "MAX_FILE_BYTES", 2**20)
+    monkeypatch.setattr(io, "MAX_GRID_CELLS", 99)
+    with pytest.raises(WorldError, match=r"grid is 10x10 = 100 cells; a grid read from a file may hold at most 99"):
+        read_worlds(p)
+    monkeypatch.setattr(io, "MAX_GRID_CELLS", 2**22)
+    monkeypatch.setattr(io, "MAX_FIELD_CELLS", 1299)
+    with pytest.raises(WorldError, match=r"3 robots \+ 10 targets on a 10x10 grid need 1300 distance-field cells"):
+        read_worlds(p)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+    ('{"grid": ["."], "robots": [[0, ' + "9" * 5000 + ']], "targets": []}', "Exceeds the limit"),
+    ('{"grid": ["."], "robots": [[0, 0]], "targets": [[0, 0.5]]}', r"'targets' entry 0 must be an integer"),
+    ("42", "a world must be a JSON object, got int"),
+])
+def test_odd_json_is_one_world_error(tmp_path, text, match):
+    p = tmp_path / "odd.json"
+    p.write_text(text)
+    with pytest.raises(WorldError, match=match):
+        read_worlds(p)
+
+
+def test_non_utf8_and_trailing_map_text_are_named(tmp_path):
+    p = tmp_path / "latin.json"
+    p.write_bytes(b'{"grid": ["\xe9"]}')
+    with pytest.raises(WorldError, match=r"byte 11 \(b'\\xe9'\) is not UTF-8 text"):
+        read_worlds(p)
+    m = tmp_path / "extra.map"
+    m.write_text("type octile\nheight 1\nwidth 2\nmap\n..\n@@\n")
+    with pytest.raises(WorldError, match="line 6: text after the 1 map rows the header announces"):
+        read_movingai_map(m)
+    s = tmp_path / "nan.scen"
+    s.write_text("0 m 5 4 0 0 4 3 nan\n")
+    with pytest.raises(WorldError, match="optimal_length must be a finite number >= 0, got 'nan'"):
+        read_movingai_scen(s)

@@ -19,14 +19,17 @@ Layers: ``--pipeline`` picks a preset (default ``strong``); ``--sharing``,
 option to a layer.  An unknown name or option is a one-line error listing
 the valid ones, exit code 2, before any world is read.
 
-Bad input (unreadable file, a line that is not JSON, an invalid world, a world
-the chosen planners refuse, e.g. ``brute`` with more than 13 targets on one
-robot) is a one-line error on stderr naming the file, the line and the
-problem, and exit code 2.  The plans of earlier worlds are already written.
-With ``--keep-going`` planning continues past bad lines; each bad line gets,
-in its place in the output, an error object ``{"error": MESSAGE, "line": N}``
-(so output line *i* still belongs to input world *i*), and the exit code is
-still 2 at the end.  A plan that fails (``"success": false``, e.g. a target no
+Bad input is a one-line error on stderr per bad world, naming the file, the
+line and the problem, and exit code 2.  Every world is read and checked
+before any is planned: with an unreadable file, a line that is not JSON or an
+invalid world nothing is planned (a last line says how many worlds are
+invalid and points to ``--keep-going``).  A world the chosen planners refuse
+(e.g. ``brute`` with more than 13 targets on one robot) is found while
+planning: the plans of earlier worlds are already written, and the error says
+how many worlds after it were not planned.  With ``--keep-going`` planning
+goes on past every bad world; each gets, in its place in the output, an error
+object ``{"error": MESSAGE, "line": N}`` (so output line *i* still belongs to
+input world *i*), and the exit code is still 2 at the end.  A plan that fails (``"success": false``, e.g. a target no
 robot can reach) is written like any other plan, with its ``failure``; after the last
 world a one-line summary goes to stderr and the exit code is 1 (input errors, 2, take
 precedence).
@@ -123,25 +126,8 @@ def build_pipeline(args):
         raise
 
 
-def _iter_worlds(path: Path, text: str):
-    """Yield (line_number, World | Exception) for a one-object file or JSON Lines."""
-    from mrmt_env.io import iter_world_lines, world_from_dict
-    from mrmt_env.world import WorldError
-
-    try:
-        whole = json.loads(text)
-    except json.JSONDecodeError:
-        whole = None
-    if isinstance(whole, dict):
-        try:
-            yield 1, world_from_dict(whole)
-        except WorldError as exc:
-            yield 1, WorldError(f"{path} line 1: {exc}")
-        return
-    if isinstance(whole, list):
-        yield 1, WorldError(f"{path} line 1: a JSON array is not a world file; use one object or JSON Lines")
-        return
-    yield from iter_world_lines(path)
+def _error_line(item: Exception) -> str:
+    return str(item).replace("\n", " ")
 
 
 def run(args) -> int:
@@ -154,15 +140,34 @@ def run(args) -> int:
         _error(f"cannot build the pipeline: {type(exc).__name__}: {exc}" if isinstance(exc, (ImportError, RuntimeError))
                else str(exc))
         return 2
+    from mrmt_env.io import iter_worlds_text, read_text
+    from mrmt_env.world import WorldError
+
     path = Path(args.worlds)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        _error(f"{path}: cannot read ({exc})")
+        text = read_text(path)
+    except WorldError as exc:
+        _error(str(exc))
         return 2
-    n_lines = sum(1 for line in text.splitlines() if line.strip())
-    if n_lines == 0:
+    except OSError as exc:
+        _error(f"{path}: cannot read ({exc.strerror or exc})")
+        return 2
+    # first pass: read and check every world, so a bad line is found before any planning
+    total = 0
+    bad_lines = []
+    for line, item in iter_worlds_text(text, str(path)):
+        total += 1
+        if isinstance(item, Exception):
+            bad_lines.append(line)
+            if not args.keep_going:
+                _error(_error_line(item))
+    if total == 0:
         _error(f"{path}: no worlds (the file is empty)")
+        return 2
+    if bad_lines and not args.keep_going:
+        if total > 1:
+            _error(f"{len(bad_lines)} of {total} worlds in {path} are invalid, so none was planned; --keep-going "
+                   'plans the valid ones and writes {"error": ..., "line": N} in place of each invalid one')
         return 2
 
     from tqdm import tqdm
@@ -172,22 +177,24 @@ def run(args) -> int:
         try:
             out = open(args.out, "w", encoding="utf-8")
         except OSError as exc:
-            _error(f"{args.out}: cannot write ({exc})")
+            _error(f"{args.out}: cannot write ({exc.strerror or exc})")
             return 2
     bad = 0
     failed = 0
     planned = 0
+    done = 0
     try:
         progress = tqdm(
-            total=n_lines,
+            total=total,
             unit="world",
             file=sys.stderr,
-            disable=args.no_progress or n_lines < PROGRESS_MIN_WORLDS,
+            disable=args.no_progress or total < PROGRESS_MIN_WORLDS,
             desc="mrmt plan",
         )
         with progress:
-            for line, item in _iter_worlds(path, text):
+            for line, item in iter_worlds_text(text, str(path)):
                 progress.update(1)
+                done += 1
                 if not isinstance(item, Exception):
                     try:
                         record = pipeline.plan(item, seed=[args.seed, line]).to_dict()
@@ -197,10 +204,14 @@ def run(args) -> int:
                         item = ValueError(f"{path} line {line}: planning failed: {exc}")
                 if isinstance(item, Exception):
                     bad += 1
-                    message = str(item).replace("\n", " ")
-                    progress.write(f"mrmt plan: error: {message}", file=sys.stderr)
+                    message = _error_line(item)
                     if not args.keep_going:
+                        rest = total - done
+                        more = (f" (stopped: the {rest} world(s) after line {line} were not planned; --keep-going "
+                                "plans past a world the planners refuse)") if rest else ""
+                        progress.write(f"mrmt plan: error: {message}{more}", file=sys.stderr)
                         return 2
+                    progress.write(f"mrmt plan: error: {message}", file=sys.stderr)
                     record = {"error": message, "line": line}
                 out.write(json.dumps(record) + "\n")
                 out.flush()

@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[rl,test]"
+	$(PY) -m pip install --quiet -e ".[all]"
 	touch $(STAMP)
 
 demo: $(STAMP)

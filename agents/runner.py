@@ -6,9 +6,10 @@ and returns the results **in task order**, whatever the backend:
 ``inline``   in this process, one after another;
 ``process``  a :class:`concurrent.futures.ProcessPoolExecutor` of ``jobs``
              workers on this machine;
-``ray``      Ray tasks: a local instance of ``jobs`` CPUs bound to 127.0.0.1
-             (started and stopped here), or an existing cluster at ``address``
-             (``ray start --head`` / ``ray start --address=...``).
+``ray``      Ray tasks: a local instance of ``jobs`` CPUs listening on 127.0.0.1
+             only (started and stopped here; :data:`LOOPBACK_ENV`), or an
+             existing cluster at ``address`` (``ray start --head`` /
+             ``ray start --address=...``).
 
 ``fn`` must be a module-level function and the arguments picklable.  Tasks
 travel in chunks of consecutive tasks (``chunk_size``; default about eight
@@ -116,7 +117,17 @@ def _run_process(fn, chunks, config: RunConfig, bar) -> list:
     return parts
 
 
-def _ray():
+#: Ray reads this when imported: "0" makes a local instance use the loopback address, so its
+#: GCS, raylet and workers listen on 127.0.0.1 only (measured with ``ss -ltn``; without it they
+#: listen on every interface).  A user's own setting is kept.
+LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+
+
+def _ray(local: bool = True):
+    import os
+
+    if local and "ray" not in sys.modules:
+        os.environ.setdefault(LOOPBACK_ENV, "0")
     try:
         import ray
     except ImportError:
@@ -125,7 +136,7 @@ def _ray():
 
 
 def _run_ray(fn, chunks, config: RunConfig, bar) -> list:
-    ray = _ray()
+    ray = _ray(local=not config.address)
     started = False
     if not ray.is_initialized():
         import logging
@@ -133,9 +144,8 @@ def _run_ray(fn, chunks, config: RunConfig, bar) -> list:
         if config.address:
             ray.init(address=config.address, logging_level=logging.WARNING, log_to_driver=False)
         else:  # a private local instance: loopback only, no dashboard, a small object store
-            ray.init(num_cpus=config.jobs, include_dashboard=False, _node_ip_address="127.0.0.1",
-                     object_store_memory=256 * 1024 * 1024, logging_level=logging.WARNING,
-                     log_to_driver=False)
+            ray.init(num_cpus=config.jobs, include_dashboard=False, object_store_memory=256 * 1024 * 1024,
+                     logging_level=logging.WARNING, log_to_driver=False)
         started = True
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(_run_chunk)

@@ -33,7 +33,7 @@ def runner_from_args(args):
     run = RunConfig.from_jobs(args.jobs, progress=not getattr(args, "no_progress", False),
                               backend=args.backend, address=args.address)
     if run.backend == "ray":
-        _ray()  # fail now, with the install hint, rather than after the first experiment
+        _ray(local=not run.address)  # fail now, with the install hint, rather than after the first experiment
     return run
 
 

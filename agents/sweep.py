@@ -3,7 +3,8 @@
 ``mrmt sweep --chip n_spins=32,45,64 --chip j_range=3,7,15 --worlds 100 --controllers ising,strong``
 
 Contract: :func:`chip_grid` turns ``KEY=V1,V2,...`` axes (any :class:`ising_backend.ChipSpec`
-field, plus ``n_cores`` meaning ``n_cores`` single-core chips) into the product of specs;
+field, plus ``n_cores`` meaning ``n_cores`` single-core chips and ``coef_range`` m meaning
+``h_range = j_range = (-m, m)``) into the product of specs;
 :func:`run_sweep` runs every controller that uses a chip once per spec and every other
 controller once (its rows carry no chip fields: it does not depend on the chip), all on the
 same worlds and on one task runner (:mod:`agents.runner`), so the process and Ray backends
@@ -23,8 +24,11 @@ from pathlib import Path
 
 __all__ = ["SweepConfig", "SweepResult", "chip_grid", "parse_axes", "run_sweep", "spec_columns"]
 
-#: Axes that are not ChipSpec fields: name -> how a value sets the spec's fields.
-ALIASES = {"n_cores": lambda v: {"n_chips": v, "cores_per_chip": 1}}
+#: Axes that are not ChipSpec fields: name -> how a positive integer sets the spec's fields.
+ALIASES = {
+    "n_cores": lambda v: {"n_chips": v, "cores_per_chip": 1},  # v single-core chips
+    "coef_range": lambda v: {"h_range": (-v, v), "j_range": (-v, v)},  # the chip's coefficient range
+}
 
 #: Largest number of specs a sweep takes (a typo like n_spins=1..10000 should not start a week of work).
 MAX_SPECS = 4096

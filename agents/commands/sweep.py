@@ -5,7 +5,7 @@
     mrmt sweep ... --address 10.0.0.5:6379             # an existing Ray cluster
 
 ``--chip KEY=V1,V2,...`` is repeatable; the grid is the product of the axes (any ChipSpec field,
-a range as ``m`` or ``lo..hi``, and ``n_cores``).  ``--base-chip KEY=VALUE|FILE.json`` sets the
+a range as ``m`` or ``lo..hi``, ``n_cores`` single-core chips, ``coef_range`` m for both ranges).  ``--base-chip KEY=VALUE|FILE.json`` sets the
 fields that do not vary.  Writes ``sweep.csv`` (one row per spec, world, controller and seed),
 ``sweep.json``, ``specs.csv``, ``pareto.png`` and ``summary.md`` into ``--out``.
 """
@@ -22,7 +22,7 @@ HELP = "sweep chip specs (a grid of ChipSpec values) over worlds and controllers
 
 def add_arguments(parser) -> None:
     parser.add_argument("--chip", action="append", default=[], metavar="KEY=V1,V2,...", required=True,
-                        help="a sweep axis: a ChipSpec field (or n_cores) and its values, e.g. n_spins=32,45,64 "
+                        help="a sweep axis: a ChipSpec field (or n_cores, coef_range) and its values, e.g. n_spins=32,45,64 "
                              "or j_range=3,7,15 (m means (-m, m); lo..hi for another range); repeatable, the "
                              "grid is the product")
     parser.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",

@@ -12,6 +12,9 @@ Modules:
 * :mod:`.ledger` -- :class:`CallLedger` (physical / logical calls, time, energy);
 * :mod:`.anneal` / :mod:`.chip` -- :class:`EmulatedChip` (a ``dimod.Sampler`` with the
   batched :meth:`EmulatedChip.anneal_batch`; refuses programs that do not fit);
+* :mod:`.faults` / :mod:`.health` -- the fault model (:class:`FaultMap`: dead cores, stuck
+  spins, write errors) and graceful degradation (:class:`HealthMonitor`: probe, quarantine,
+  placement around stuck spins, re-dispatch; :class:`ChipUnavailableError`);
 * :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
 * :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
@@ -31,7 +34,9 @@ Example::
 
 from .ledger import CallLedger
 from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
-from .spec import SCHEDULES, ChipSpec
+from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
+from .faults import FaultMap
+from .health import ChipUnavailableError, HealthMonitor
 from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver, SolverOutputError
@@ -64,6 +69,8 @@ __all__ = [
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs",
+    # faults
+    "DEAD_CORE_MODES", "FaultMap", "HealthMonitor", "ChipUnavailableError",
     # logical solver
     "LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS",
     # metering

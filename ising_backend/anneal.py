@@ -36,8 +36,10 @@ anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
   their dependency chains); that grouping changes no result.  Zero-padding a
   program to a larger ``n`` does change its random stream;
 * optional static coupling mismatch: read ``k = b * reads + r`` of the call runs
-  on core ``k % n_cores`` whose fixed factor matrix multiplies the couplings while
-  annealing; optional readout bit flips after the anneal;
+  on core ``k % n_cores`` (or the core :func:`anneal_kernel_cores` is given) whose
+  fixed factor matrix multiplies the couplings while annealing; optional stuck
+  spins per core (clamped through the anneal); optional readout bit flips after
+  the anneal;
 * the returned energy is that of the *programmed* coefficients (recomputed in
   float64 from scratch, so it is exact for integer programs).
 
@@ -66,7 +68,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 
-__all__ = ["anneal_kernel", "beta_range_auto"]
+__all__ = ["anneal_kernel", "anneal_kernel_cores", "beta_range_auto"]
 
 _U53 = 1.0 / 9007199254740992.0
 
@@ -164,6 +166,10 @@ def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, beta
             betas_b[k] = hot + (cold - hot) * (k / (sweeps - 1))
 
 
+_NO_CORES = np.zeros(0, dtype=np.int64)
+_NO_CLAMP = np.zeros((0, 0), dtype=np.int8)
+
+
 @numba.njit(cache=True, nogil=True)
 def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                   mismatch, flip_prob, out_spins, out_energy):
@@ -172,13 +178,30 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     ``h`` / ``J`` are int64 or float64 (compiled once per dtype; same samples).
 
     ``beta_hot <= 0`` selects the automatic per-program range.  ``mismatch`` is
-    ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)`` for none).
+    ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)`` for none); read ``k`` runs
+    on core ``k % n_cores``.
+    """
+    anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                        _NO_CORES, _NO_CLAMP, out_spins, out_energy)
+
+
+@numba.njit(cache=True, nogil=True)
+def anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
+                        mismatch, flip_prob, cores, clamp, out_spins, out_energy):
+    """:func:`anneal_kernel` with each read's core given: read ``k`` runs on core ``cores[k]``
+    (``cores`` empty: ``k % n_cores``), whose factor matrix ``mismatch[core]`` (if any) and
+    stuck spins ``clamp[core]`` (``(n_cores, N)`` int8: 0 free, +-1 stuck at that value; or
+    ``(0, 0)`` for none) it anneals with.  A stuck spin starts at its value and never flips;
+    the readout flips after the anneal apply to it like to any spin.
     """
     B = h.shape[0]
     n = h.shape[1]
     R = num_reads
     npad = (n + 7) // 8 * 8
     n_cores = mismatch.shape[0]
+    given = cores.shape[0] > 0
+    clamped = clamp.shape[0] > 0
+    lane_core = np.zeros(_LANES, dtype=np.int64)
     # per program (a small cache of the programs of the current lanes): symmetric
     # couplings (float64, exact energies) and the beta schedule
     Js = np.zeros((_SLOTS, n, npad))
@@ -223,8 +246,9 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
             for i in range(n):
                 kq[l * n + i] = key + np.uint64(i) * _GOLDEN
             st[l] = key + np.uint64(n * (sweeps + 1)) * _GOLDEN  # readout flips draw after the anneal
+            core = cores[k] if given else (k % n_cores if n_cores > 0 else 0)
+            lane_core[l] = core
             if n_cores > 0:
-                core = k % n_cores
                 for i in range(n):
                     for j in range(n):
                         W[l, i, j] = Js[sl, i, j] * mismatch[core, i, j]
@@ -236,6 +260,11 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
             for i in range(n):
                 x = _splitmix(kq[l * n + i])
                 s[l, i] = np.float32(np.int64(x >> np.uint64(63)) * 2 - 1)
+            if clamped:
+                for i in range(n):
+                    v = clamp[core, i]
+                    if v != 0:
+                        s[l, i] = np.float32(v)
             for j in range(npad):
                 f[l, j] = 0.0
             for j in range(n):
@@ -269,6 +298,11 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                     _C5 + t * (_C6 + t * _C7)))))))
                 lu = lu if lu > _LOG_MIN else _LOG_MIN
                 thr[q] = lu * cq[q]
+            if clamped:  # a stuck spin never flips
+                for l in range(L):
+                    for i in range(n):
+                        if clamp[lane_core[l], i] != 0:
+                            thr[l * n + i] = np.inf
             # the sweep: spins in order, the lanes interleaved
             for i in range(n):
                 for l in range(_LANES):

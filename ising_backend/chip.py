@@ -15,6 +15,13 @@ It never clips or rescales: that is a mapping rule's job
 Every call is charged to :attr:`EmulatedChip.ledger` (a
 :class:`~ising_backend.ledger.CallLedger`); a ``SampleSet``'s ``info["ledger"]``
 holds the charge of that call.
+
+With a fault model in the spec (:attr:`ChipSpec.faulty`: dead cores, stuck spins,
+program write errors) the chip probes its cores at bring-up and every call goes
+through the fault-tolerant dispatch of :mod:`ising_backend.health` (quarantine,
+placement around stuck spins, re-dispatch within ``spec.max_retries``, else
+:class:`~ising_backend.health.ChipUnavailableError`); :attr:`EmulatedChip.health`
+holds what it found.  Without faults nothing of this runs.
 """
 
 from __future__ import annotations
@@ -26,7 +33,9 @@ import dimod
 import numba
 import numpy as np
 
-from .anneal import anneal_kernel
+from .anneal import anneal_kernel, anneal_kernel_cores
+from .faults import FaultMap
+from .health import HealthMonitor, dispatch
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -220,10 +229,14 @@ class EmulatedChip(dimod.Sampler):
     """An emulated multi-core CMOS Ising chip.
 
     Args:
-        spec: hardware limits, accounting numbers and emulation knobs.
+        spec: hardware limits, accounting numbers, emulation knobs and fault model.
         seed: seed of the sampling randomness.  Calls without their own ``seed``
             draw one from this generator, so a chip built with the same seed
             replays the same sequence of calls identically.
+        probe: with a fault model on, run the bring-up health probe (charged to
+            :attr:`ledger` as ``probe_calls``, to no planning call).  ``False`` gives
+            a raw faulty chip: detectable failures are still re-dispatched, but dead
+            cores answering garbage and stuck spins go unnoticed.
 
     Example:
         >>> chip = EmulatedChip(seed=1)
@@ -232,11 +245,19 @@ class EmulatedChip(dimod.Sampler):
         -2.0
     """
 
-    def __init__(self, spec: ChipSpec | None = None, seed: int | None = None):
+    def __init__(self, spec: ChipSpec | None = None, seed: int | None = None, probe: bool = True):
         self.spec = ChipSpec() if spec is None else spec
         self._rng = seeded_rng(seed, "EmulatedChip")
         self.ledger = CallLedger()
         self._mismatch = _mismatch_matrices(self.spec)
+        #: the fault-tolerant driver's view of the cores (``None`` without a fault model)
+        self.health: HealthMonitor | None = None
+        if self.spec.faulty:
+            self.faults = FaultMap.from_spec(self.spec)
+            self._clamp = self.faults.clamp if self.faults.clamp.any() else np.zeros((0, 0), dtype=np.int8)
+            self.health = HealthMonitor(self.spec, self.faults, self._mismatch)
+            if probe:
+                self.health.probe(self._run_cores, self._charge_probe)
         self._parameters = {"num_reads": [], "seed": []}
         self._properties = {
             "h_range": list(self.spec.h_range),
@@ -293,6 +314,8 @@ class EmulatedChip(dimod.Sampler):
             hot, cold = -1.0, -1.0
         else:
             hot, cold = self.spec.beta_range
+        if self.health is not None and B and n:
+            return self._dispatch(hf, Jf, num_reads, seed, single, time.perf_counter() - t0)
         if B:
             anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
                           hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
@@ -302,6 +325,47 @@ class EmulatedChip(dimod.Sampler):
             return spins[0], energies[0]
         return spins, energies
 
+    @property
+    def usable_spins(self) -> int:
+        """Spins a program may use without touching a stuck spin the health probe found
+        (``spec.n_spins`` without faults)."""
+        return self.spec.n_spins if self.health is None else self.health.usable_spins
+
+    def _dispatch(self, hf, Jf, num_reads, seed, single, check_s):
+        """:meth:`anneal_batch` on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged."""
+        rounds: list[CallLedger] = []
+        extra = [check_s]
+
+        def charge(calls, seconds, retries, probe):
+            rounds.append(self.ledger.record_physical(calls, self.spec, seconds + extra.pop() if extra else seconds,
+                                                      cores=len(self.health.healthy), retries=retries))
+
+        try:
+            spins, energies = dispatch(self.health, hf, Jf, num_reads, seed, self._run_cores, charge)
+        finally:
+            self.last_call = sum(rounds, CallLedger())
+        if single:
+            return spins[0], energies[0]
+        return spins, energies
+
+    def _run_cores(self, h, J, reads, seed, cores, raw):
+        """The annealing kernel with each read's core given (``raw``: physical placement, for the probe)."""
+        M, n = h.shape
+        spins = np.empty((M, reads, n), dtype=np.int8)
+        energies = np.empty((M, reads), dtype=np.float64)
+        hot, cold = (-1.0, -1.0) if self.spec.beta_range is None else self.spec.beta_range
+        clamp = self._clamp if raw or not self._clamp.size else self.health.clamp
+        mismatch = self._mismatch if raw else self.health.mismatch
+        anneal_kernel_cores(np.ascontiguousarray(h), np.ascontiguousarray(J), reads, np.uint64(seed), self.spec.sweeps,
+                            self.spec.schedule == "geometric", hot, cold, mismatch,
+                            float(self.spec.readout_flip_prob), np.asarray(cores, dtype=np.int64), clamp, spins,
+                            energies)
+        return spins, energies
+
+    def _charge_probe(self, calls, seconds, retries, probe):
+        self.ledger.record_physical(calls, self.spec, seconds, cores=self.spec.n_cores, retries=retries,
+                                    probe_calls=probe)
+
     def kernel_args(self) -> tuple:
         """``(sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)``: this chip's arguments of
         :func:`~ising_backend.anneal.anneal_kernel` after the seed.
@@ -310,6 +374,9 @@ class EmulatedChip(dimod.Sampler):
         very kernel, seeds and padding :meth:`anneal_batch` would use; they charge the calls
         with :meth:`charge`.
         """
+        if self.health is not None:
+            raise RuntimeError("kernel_args() bypasses the fault-tolerant dispatch of a chip with a fault model; "
+                               "use anneal_batch")
         hot, cold = (-1.0, -1.0) if self.spec.beta_range is None else self.spec.beta_range
         return (int(self.spec.sweeps), self.spec.schedule == "geometric", float(hot), float(cold), self._mismatch,
                 float(self.spec.readout_flip_prob))

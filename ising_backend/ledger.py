@@ -13,6 +13,11 @@ Accounting (paper section 6.1; ARCHITECTURE.md "Chip call accounting"):
   together counts ``ceil(k / n_cores)`` ``logical_batches`` for the parallel
   time.
 
+With a fault model on (:mod:`ising_backend.health`), a call that failed detectably
+(write error, timeout) is charged like any call and its re-dispatch counts
+``retries``; batches are counted over the cores not quarantined; the bring-up
+health probe's calls count ``probe_calls`` as well as ``physical_calls``.
+
 ``emulation_s`` is the host wall time spent *emulating* the accelerator (the
 chip's program check and annealing kernel, the logical solver's search).  On
 real hardware that work is done by the chip, so planners report it apart from
@@ -51,6 +56,8 @@ class CallLedger:
     chip_time_parallel_s: float = 0.0
     energy_j: float = 0.0
     emulation_s: float = 0.0
+    retries: int = 0
+    probe_calls: int = 0
 
     #: live snapshots, each carrying the exact sum of the charges made after it (made on first use)
     _taps = None
@@ -63,26 +70,31 @@ class CallLedger:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
 
-    def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
+    def record_physical(self, calls: int, spec: ChipSpec, seconds: float = 0.0, *, cores: int | None = None,
+                        retries: int = 0, probe_calls: int = 0) -> "CallLedger":
         """Charge ``calls`` physical calls dispatched together (``seconds`` of host
-        emulation time); returns this call's ledger."""
-        return self._record(calls, spec, seconds, logical=False)
+        emulation time) over ``cores`` parallel cores (default ``spec.n_cores``), of which
+        ``retries`` re-dispatch failed calls and ``probe_calls`` are health probes; returns
+        this call's ledger."""
+        return self._record(calls, spec, seconds, logical=False, cores=cores, retries=retries, probe_calls=probe_calls)
 
-    def record_logical(self, calls: int, spec: ChipSpec, seconds: float = 0.0) -> "CallLedger":
+    def record_logical(self, calls: int, spec: ChipSpec, seconds: float = 0.0, *, cores: int | None = None,
+                       retries: int = 0) -> "CallLedger":
         """Charge ``calls`` logical calls issued together, each projected as one chip call."""
-        return self._record(calls, spec, seconds, logical=True)
+        return self._record(calls, spec, seconds, logical=True, cores=cores, retries=retries)
 
     def record_each(self, calls, seconds, spec: ChipSpec, logical: bool = False) -> list["CallLedger"]:
         """Charge submissions one after another (``calls[i]`` calls, ``seconds[i]`` emulation
         seconds each), exactly as that many ``record_physical`` / ``record_logical`` calls."""
         return [self._record(c, spec, float(t), logical) for c, t in zip(calls, seconds)]
 
-    def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool) -> "CallLedger":
+    def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool, cores: int | None = None,
+                retries: int = 0, probe_calls: int = 0) -> "CallLedger":
         """Charge ``calls`` chip calls (physical, or logical when ``logical``); returns the delta."""
         calls = int(calls)
         if calls < 0:
             raise ValueError(f"calls = {calls} must be >= 0")
-        batches = math.ceil(calls / spec.n_cores)
+        batches = math.ceil(calls / (spec.n_cores if cores is None else max(int(cores), 1)))
         counts = (
             {"logical_calls": calls, "logical_batches": batches}
             if logical
@@ -94,6 +106,8 @@ class CallLedger:
             chip_time_parallel_s=batches * spec.solve_time_s,
             energy_j=calls * spec.energy_per_call_j,
             emulation_s=float(seconds),
+            retries=int(retries),
+            probe_calls=int(probe_calls),
         )
         self._add_in_place(delta)
         if self._taps:

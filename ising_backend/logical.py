@@ -30,11 +30,19 @@ Two methods:
   read (default 5 ms: on 45 spins TabuSampler's answers stop improving well
   before that; its own default of 20 ms would cost minutes per experiment).
   The tests check that ``"tabu"`` matches its quality on small problems.
+
+Faults.  Projected calls run on the chip's cores: given the chip's
+:class:`~ising_backend.health.HealthMonitor` (``health=``, as the tour layer passes
+it), every call goes through the same fault-tolerant dispatch (healthy cores,
+write errors and timeouts re-dispatched within ``spec.max_retries``).  A stuck
+spin is applied to the read-out of the logical spin placed on it (the tabu search
+itself does not see it): programs within the usable spins never meet one.
 """
 
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -46,6 +54,7 @@ from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
 from .chip import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
+from .health import clamped_readout, dispatch
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -172,11 +181,13 @@ class LogicalIsingSolver(dimod.Sampler):
         seed: seed of the generator that seeds calls made without their own seed.
         ledger: the :class:`CallLedger` to charge (default a new one; a pipeline passes its
             chip's ledger so physical and projected calls add up in one place).
+        health: a faulty chip's :class:`~ising_backend.health.HealthMonitor` (``chip.health``):
+            the projected calls then run on its healthy cores (module docstring).
     """
 
     def __init__(self, budget: int | None = None, spec: ChipSpec | None = None, method: str = "tabu",
                  restarts: int = 4, iterations: int | None = None, tenure: int | None = None, timeout_ms: int = 5, seed: int | None = None,
-                 max_tenure: int = 10, ledger: CallLedger | None = None):
+                 max_tenure: int = 10, ledger: CallLedger | None = None, health=None):
         self.spec = ChipSpec() if spec is None else spec
         self.budget = self.spec.n_spins if budget is None else int(budget)
         if self.budget < 1:
@@ -200,6 +211,8 @@ class LogicalIsingSolver(dimod.Sampler):
         self._rng = seeded_rng(seed, "LogicalIsingSolver")
         self.ledger = CallLedger() if ledger is None else ledger
         self.last_call = CallLedger()
+        self.health = health
+        self._rounds: list[CallLedger] = []
 
     # ----------------------------------------------------------------- dimod
     @property
@@ -248,14 +261,44 @@ class LogicalIsingSolver(dimod.Sampler):
         t0 = time.perf_counter()
         h, J, single = self._check(h, J)
         seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
-        spins, energies = self._run(h, J, num_reads, seed)
-        calls = h.shape[0] * num_reads if h.shape[1] else 0  # a program without spins is not solved
-        self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
+        with self._metering():
+            spins, energies = self._run(h, J, num_reads, seed)
+        if self.health is None:
+            calls = h.shape[0] * num_reads if h.shape[1] else 0  # a program without spins is not solved
+            self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
         return spins, energies
 
+    @contextmanager
+    def _metering(self):
+        """With ``health``: the call's dispatch rounds, summed into :attr:`last_call` (also on error)."""
+        if self.health is None:
+            yield
+            return
+        self._rounds = []
+        try:
+            yield
+        finally:
+            self.last_call = sum(self._rounds, CallLedger())
+
+    def _charge_round(self, calls, seconds, retries, probe):
+        self._rounds.append(self.ledger.record_logical(calls, self.spec, seconds, cores=len(self.health.healthy),
+                                                       retries=retries))
+
     def _run(self, h, J, num_reads, seed):
+        if self.health is not None and h.shape[0] and h.shape[1]:
+            return dispatch(self.health, h, J, num_reads, seed, self._run_cores, self._charge_round,
+                            what="logical solver")
+        return self._solve(h, J, num_reads, seed)
+
+    def _run_cores(self, h, J, reads, seed, cores, raw):
+        """:meth:`_solve`, then each read's stuck spins (by the core it ran on) applied to its read-out."""
+        spins, energies = self._solve(h, J, reads, seed)
+        clamped_readout(self.health.faults.clamp if raw else self.health.clamp, cores, spins, energies, h, J)
+        return spins, energies
+
+    def _solve(self, h, J, num_reads, seed):
         B, n = h.shape
         spins = np.empty((B, num_reads, n), dtype=np.int8)
         energies = np.zeros((B, num_reads))
@@ -304,14 +347,16 @@ class LogicalIsingSolver(dimod.Sampler):
         out: list[LogicalResult | None] = [None] * len(models)
         # group by size (no padding: padded spins would waste tabu moves)
         sizes = sorted({m.n for m in models})
-        for size in sizes:
-            idx = [k for k, m in enumerate(models) if m.n == size]
-            h, J = stack_programs([models[k] for k in idx], size)
-            spins, energies = self._run(h, J, num_reads, int(_mix_py(seed, size)))
-            for row, k in enumerate(idx):
-                out[k] = LogicalResult(spins[row], energies[row] + models[k].offset)
-        calls = sum(1 for m in models if m.n) * num_reads  # programs without spins are not solved
-        self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
+        with self._metering():
+            for size in sizes:
+                idx = [k for k, m in enumerate(models) if m.n == size]
+                h, J = stack_programs([models[k] for k in idx], size)
+                spins, energies = self._run(h, J, num_reads, int(_mix_py(seed, size)))
+                for row, k in enumerate(idx):
+                    out[k] = LogicalResult(spins[row], energies[row] + models[k].offset)
+        if self.health is None:
+            calls = sum(1 for m in models if m.n) * num_reads  # programs without spins are not solved
+            self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
         return out  # type: ignore[return-value]
 
 
@@ -320,6 +365,9 @@ class LogicalIsingSolver(dimod.Sampler):
         ``n``-spin programs (method ``"tabu"``), for compiled planners that call the kernel in their
         own loops with :func:`mix_seed` sub-seeds, as :meth:`solve_stack` does; they charge the
         calls with :meth:`charge`."""
+        if self.health is not None:
+            raise RuntimeError("kernel_args() bypasses the fault-tolerant dispatch of a faulty chip's cores; "
+                               "use solve_stack")
         iters = self.iterations if self.iterations is not None else 50 * n
         return int(self.restarts), int(iters), int(self._tenure(n))
 
@@ -353,8 +401,10 @@ class LogicalIsingSolver(dimod.Sampler):
         J = np.ascontiguousarray(J)
         seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         t0 = time.perf_counter()
-        spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
-        self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
+        with self._metering():
+            spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
+        if self.health is None:
+            self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         return spins
 
 

@@ -10,13 +10,18 @@ to :attr:`MeteredSolver.charged`.  Several wrappers may share one ``charged``
 ledger (e.g. a tour layer that uses the logical solver and the chip).
 
 The wrapped solver's own ledger keeps the running totals of everything it ran
-(one ledger per pipeline when the layers share one chip).
+(one ledger per pipeline when the layers share one chip).  A call the chip could
+not answer (:class:`~ising_backend.health.ChipUnavailableError`) is charged what it
+spent before the error propagates.
 """
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 
+from .health import ChipUnavailableError
 from .ledger import CallLedger
 
 __all__ = ["MeteredSolver", "SolverOutputError"]
@@ -40,10 +45,19 @@ class MeteredSolver:
         # the call's own charge adds up exactly; a difference of running float totals would not
         self.charged._add_in_place(last if last is not None else self.solver.ledger.since(before))
 
+    @contextmanager
+    def _charged_if_unavailable(self, before):
+        try:
+            yield
+        except ChipUnavailableError:
+            self._charge(before)
+            raise
+
     def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.anneal_batch`` with the answer checked and its charge metered."""
         before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
-        spins, energies = self.solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        with self._charged_if_unavailable(before):
+            spins, energies = self.solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
         self._charge(before)
         spins = np.asarray(spins)
         want = (np.shape(h)[0], num_reads, np.shape(h)[1]) if np.ndim(h) == 2 else (num_reads, np.shape(h)[0])
@@ -54,7 +68,8 @@ class MeteredSolver:
     def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_many`` (logical solvers) with the answers checked and the charge metered."""
         before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
-        out = self.solver.solve_many(models, num_reads=num_reads, seed=seed)
+        with self._charged_if_unavailable(before):
+            out = self.solver.solve_many(models, num_reads=num_reads, seed=seed)
         if models:
             self._charge(before)
         for m, r in zip(models, out):
@@ -65,7 +80,8 @@ class MeteredSolver:
 
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_stack`` (:class:`LogicalIsingSolver`) with the answer checked and metered."""
-        spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)
+        with self._charged_if_unavailable(None):
+            spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)
         self._charge(None)
         want = (np.shape(h)[0], num_reads, np.shape(h)[1])
         if spins.shape != want or not ((spins == 1) | (spins == -1)).all():

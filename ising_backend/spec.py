@@ -29,10 +29,30 @@ Emulation knobs (the paper is silent; choices and reasons):
   after the anneal.  The COBI chip samples oscillator phases digitally and the
   paper reports no readout errors, so the default is off; raise it to study
   decode robustness.
-* ``seed=0``: the seed of the static hardware (the mismatch pattern), i.e. which
-  physical chip you hold.  The sampling randomness is seeded per call.
+* ``seed=0``: the seed of the static hardware (the mismatch pattern and the
+  faults below), i.e. which physical chip you hold.  The sampling randomness is
+  seeded per call.
 
-``ChipSpec.noise_free()`` returns the same spec with both noise knobs at zero.
+Fault model (all off by default; deterministic under ``seed``; design notes in
+docs/design/faults.md):
+
+* ``dead_cores=0``: cores (chosen from ``seed``) that never solve.  With
+  ``dead_core_mode="garbage"`` they answer random spins; with ``"timeout"`` they
+  never answer and the driver charges the call and re-dispatches its work.
+* ``stuck_spins=0``: per core, this many physical spins (positions and values
+  from ``seed``) stuck at +1 or -1 through the anneal.
+* ``program_error_prob=0.0``: per physical call, the probability that writing
+  the program fails; the chip flags it, the call is charged and re-dispatched.
+* ``max_retries=3``: re-dispatch rounds per ``anneal_batch`` for calls that
+  failed detectably (write error, timeout) before the chip reports
+  :class:`~ising_backend.health.ChipUnavailableError`.
+
+With any fault on (:attr:`ChipSpec.faulty`) the chip probes its cores at
+bring-up, quarantines dead ones and maps programs around stuck spins
+(:mod:`ising_backend.health`).
+
+``ChipSpec.noise_free()`` returns the same spec with both noise knobs at zero;
+``ChipSpec.fault_free()`` the same spec with the fault model off.
 """
 
 from __future__ import annotations
@@ -44,9 +64,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ChipSpec", "SCHEDULES"]
+__all__ = ["ChipSpec", "SCHEDULES", "DEAD_CORE_MODES"]
 
 SCHEDULES = ("geometric", "linear")
+DEAD_CORE_MODES = ("garbage", "timeout")
 
 
 @dataclass(frozen=True)
@@ -66,6 +87,11 @@ class ChipSpec:
     coupling_mismatch: float = 0.05
     readout_flip_prob: float = 0.0
     seed: int = 0
+    dead_cores: int = 0
+    dead_core_mode: str = "garbage"
+    stuck_spins: int = 0
+    program_error_prob: float = 0.0
+    max_retries: int = 3
 
     def __post_init__(self):
         def bad(msg):
@@ -101,6 +127,17 @@ class ChipSpec:
             bad(f"readout_flip_prob = {self.readout_flip_prob!r} must be in [0, 0.5]")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**63:
             bad(f"seed = {self.seed!r} must be an integer in [0, 2**63) (the hardware's mismatch pattern)")
+        for name, hi, what in (("dead_cores", self.n_cores, "n_cores"), ("stuck_spins", self.n_spins, "n_spins"),
+                               ("max_retries", None, None)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0 or (hi is not None and v > hi):
+                limit = f"an integer in [0, {what} = {hi}]" if hi is not None else "an integer >= 0"
+                bad(f"{name} = {v!r} must be {limit}")
+            object.__setattr__(self, name, int(v))
+        if self.dead_core_mode not in DEAD_CORE_MODES:
+            bad(f"dead_core_mode = {self.dead_core_mode!r} not in {DEAD_CORE_MODES}")
+        if not (0 <= self.program_error_prob <= 1):
+            bad(f"program_error_prob = {self.program_error_prob!r} must be in [0, 1]")
 
     @classmethod
     def from_options(cls, items, base: "ChipSpec | None" = None) -> "ChipSpec":
@@ -146,9 +183,18 @@ class ChipSpec:
         """Accelerator energy of one call: power x solve time (0.45 uJ by default)."""
         return self.power_w * self.solve_time_s
 
+    @property
+    def faulty(self) -> bool:
+        """Whether the fault model is on (dead cores, stuck spins or program write errors)."""
+        return bool(self.dead_cores or self.stuck_spins or self.program_error_prob > 0)
+
     def noise_free(self) -> "ChipSpec":
         """This spec with coupling mismatch and readout flips switched off."""
         return replace(self, coupling_mismatch=0.0, readout_flip_prob=0.0)
+
+    def fault_free(self) -> "ChipSpec":
+        """This spec with dead cores, stuck spins and program write errors switched off."""
+        return replace(self, dead_cores=0, stuck_spins=0, program_error_prob=0.0)
 
     def replace(self, **changes) -> "ChipSpec":
         return replace(self, **changes)
@@ -160,8 +206,8 @@ class ChipSpec:
         return d
 
 
-_INT_FIELDS = ("n_spins", "n_chips", "cores_per_chip", "sweeps", "seed")
-_FLOAT_FIELDS = ("solve_time_s", "power_w", "coupling_mismatch", "readout_flip_prob")
+_INT_FIELDS = ("n_spins", "n_chips", "cores_per_chip", "sweeps", "seed", "dead_cores", "stuck_spins", "max_retries")
+_FLOAT_FIELDS = ("solve_time_s", "power_w", "coupling_mismatch", "readout_flip_prob", "program_error_prob")
 _MAX_SPEC_FILE = 64 * 1024
 
 
@@ -207,7 +253,7 @@ def _parse_field(key: str, value):
         if len(nums) != 2:
             raise ValueError(f"{key} = {value!r} must be hot,cold or none")
         return tuple(nums)
-    if key == "schedule":
+    if key in ("schedule", "dead_core_mode"):
         return str(value)
     raise ValueError(f"unknown chip field {key!r}")  # pragma: no cover - guarded by _with
 

@@ -1,0 +1,112 @@
+"""The emulated chip's hardware faults (a :class:`~ising_backend.spec.ChipSpec` fault model).
+
+Contract: every fault is a pure function of the spec (``seed`` and the fault fields), the
+core index and the call's seed, so the same spec and seeds give the same faults.
+
+* :class:`FaultMap` -- the static faults of one chip: which cores are dead
+  (``dead_cores`` of them, drawn from ``seed``) and, per core, which physical spins
+  are stuck at which value (``stuck_spins`` per core).  Drawn from its own stream
+  (``default_rng([seed, 0x5EED_FA17])``), so the mismatch pattern is unchanged.
+* :func:`write_failures` -- per call (one read of one program), whether writing the
+  program failed (``program_error_prob``), keyed by (seed, core, call seed, read,
+  attempt).
+* :func:`garbage_spins` -- what a dead core in ``"garbage"`` mode answers: uniform
+  random spins keyed by (seed, core, call seed, read), whatever the program.
+
+Design notes: docs/design/faults.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .spec import ChipSpec
+
+__all__ = ["FaultMap", "write_failures", "garbage_spins", "mix"]
+
+_FAULT_STREAM = 0x5EED_FA17
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_TAG_WRITE = 1
+_TAG_GARBAGE = 2
+
+
+def _splitmix(x: np.ndarray) -> np.ndarray:
+    """splitmix64 (as :func:`ising_backend._rng.splitmix`) on a uint64 array."""
+    with np.errstate(over="ignore"):
+        z = x + _GOLDEN
+        z = (z ^ (z >> np.uint64(30))) * _M1
+        z = (z ^ (z >> np.uint64(27))) * _M2
+        return z ^ (z >> np.uint64(31))
+
+
+def mix(*parts) -> np.ndarray:
+    """A uint64 hash of integers / integer arrays (broadcast), one splitmix64 round per part."""
+    key = np.zeros(np.broadcast(*[np.asarray(p) for p in parts]).shape, dtype=np.uint64)
+    for p in parts:
+        arr = np.asarray(p)
+        if arr.dtype != np.uint64:
+            arr = (arr.astype(object) % (1 << 64)).astype(np.uint64) if arr.dtype == object else \
+                arr.astype(np.int64).astype(np.uint64)
+        key = _splitmix(key ^ arr)
+    return key
+
+
+def _uniform(key: np.ndarray) -> np.ndarray:
+    return (key >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+@dataclass(frozen=True)
+class FaultMap:
+    """Static faults of one chip (see the module docstring).
+
+    Attributes:
+        dead: ``(n_cores,)`` bool, the dead cores.
+        clamp: ``(n_cores, n_spins)`` int8, ``+-1`` where a physical spin is stuck, else 0.
+        mode: ``"garbage"`` or ``"timeout"`` (what a dead core does).
+    """
+
+    dead: np.ndarray
+    clamp: np.ndarray
+    mode: str
+
+    @classmethod
+    def from_spec(cls, spec: ChipSpec) -> "FaultMap":
+        rng = np.random.default_rng([int(spec.seed), _FAULT_STREAM])
+        C, N = spec.n_cores, spec.n_spins
+        dead = np.zeros(C, dtype=bool)
+        dead[rng.choice(C, size=spec.dead_cores, replace=False)] = True
+        clamp = np.zeros((C, N), dtype=np.int8)
+        for c in range(C):
+            pos = rng.choice(N, size=spec.stuck_spins, replace=False)
+            clamp[c, pos] = rng.choice(np.array([-1, 1], dtype=np.int8), size=spec.stuck_spins)
+        dead.setflags(write=False)
+        clamp.setflags(write=False)
+        return cls(dead=dead, clamp=clamp, mode=spec.dead_core_mode)
+
+    @property
+    def dead_cores(self) -> list[int]:
+        return [int(c) for c in np.flatnonzero(self.dead)]
+
+    def stuck(self, core: int) -> dict[int, int]:
+        """Physical spin -> stuck value on ``core``."""
+        return {int(i): int(self.clamp[core, i]) for i in np.flatnonzero(self.clamp[core])}
+
+
+def write_failures(spec: ChipSpec, cores: np.ndarray, seed: int, attempt: int) -> np.ndarray:
+    """``(T,)`` bool: whether writing the program of read ``k`` (on core ``cores[k]``) failed."""
+    if spec.program_error_prob <= 0:
+        return np.zeros(len(cores), dtype=bool)
+    reads = np.arange(len(cores))
+    key = mix(_TAG_WRITE, int(spec.seed), np.asarray(cores), np.uint64(seed), reads, attempt)
+    return _uniform(key) < spec.program_error_prob
+
+
+def garbage_spins(spec: ChipSpec, cores: np.ndarray, reads: np.ndarray, seed: int, n: int) -> np.ndarray:
+    """``(len(reads), n)`` int8 random spins: what dead cores ``cores`` answer for reads ``reads``."""
+    key = mix(_TAG_GARBAGE, int(spec.seed), np.asarray(cores)[:, None], np.uint64(seed),
+              np.asarray(reads)[:, None], np.arange(n)[None, :])
+    return np.where((key >> np.uint64(63)) == 1, 1, -1).astype(np.int8)

@@ -22,6 +22,12 @@ host CPU would count it twice.  The emulator's wall seconds are therefore
 reported as ``emulation_s`` and the host's own work is
 ``host_cpu_s = cpu_s - emulation_s``; ``host_energy_j`` is ``host_cpu_s`` x 15 W.
 For classical planners ``emulation_s`` is 0, so ``host_cpu_s == cpu_s``.
+
+Faults (docs/design/faults.md).  ``retries`` counts chip calls re-dispatched after a
+detectable failure (write error, timeout; each failed call is charged like any
+call); ``fallbacks`` counts layer calls that the Ising layer handed to its classical
+counterpart because the chip could not answer (or, when configured, the Ising search
+failed).  Both are 0 on a fault-free chip.
 """
 
 from __future__ import annotations
@@ -54,6 +60,8 @@ class ComputeReport:
         accelerator_energy_j: (physical + projected) calls x 0.45 uJ.
         emulation_s: of ``cpu_s``, the host seconds spent emulating the
             accelerator (chip kernel and program checks, logical solver).
+        retries: chip calls re-dispatched after a detected failure (faulty chips).
+        fallbacks: layer calls answered by the classical fallback instead of the chip.
     """
 
     cpu_s: float = 0.0
@@ -65,6 +73,8 @@ class ComputeReport:
     accelerator_energy_j: float = 0.0
     #: measured wall time, so left out of ``==`` (layer reports of one seed compare equal)
     emulation_s: float = field(default=0.0, compare=False)
+    retries: int = 0
+    fallbacks: int = 0
 
     @classmethod
     def from_ledger(cls, ledger) -> "ComputeReport":
@@ -78,6 +88,7 @@ class ComputeReport:
             chip_time_parallel_s=float(ledger.chip_time_parallel_s),
             accelerator_energy_j=float(ledger.energy_j),
             emulation_s=float(ledger.emulation_s),
+            retries=int(getattr(ledger, "retries", 0)),
         )
 
     @property
@@ -136,6 +147,8 @@ class ComputeReport:
             "total_energy_j": float(self.total_energy_j),
             "paper_time_s": float(self.chip_time_s if acc else self.cpu_s),
             "paper_energy_j": float(self.accelerator_energy_j if acc else self.host_energy_j),
+            "retries": int(self.retries),
+            "fallbacks": int(self.fallbacks),
         }
 
     to_dict = to_record

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+from planners.ising.fallback import FALLBACK_MODES
 
 __all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
 
@@ -43,6 +44,8 @@ class PathConfig(IsingConfig):
         scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
             ``[form]``; the value used: :attr:`chip_scale`).
         pack: block-pack the portfolio's programs into shared chip programs.
+        fallback: when a query falls back to A* (:data:`~planners.ising.fallback.FALLBACK_MODES`):
+            ``"unavailable"`` (the chip cannot answer), ``"failure"`` (also a failed search), ``"never"``.
     """
 
     patch_size: int = 5
@@ -59,9 +62,11 @@ class PathConfig(IsingConfig):
     target_order: str = "boundary_first"
     scale: float | None = None
     pack: bool = False
+    fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
         check_choice("form", self.form, FORMS)
+        check_choice("fallback", self.fallback, FALLBACK_MODES)
         check_choice("target_order", self.target_order, TARGET_ORDERS)
         if isinstance(self.patch_size, bool) or int(self.patch_size) != self.patch_size \
                 or self.patch_size < 3 or self.patch_size % 2 == 0:

@@ -294,11 +294,12 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
 def engine_capable(chip) -> bool:
     """Whether ``chip`` is an :class:`ising_backend.EmulatedChip` whose annealing is its own
     (then the compiled loop may call its kernel); subclasses that override ``anneal_batch``
-    (e.g. to inject faults) and other solvers go through the reference loop."""
+    (e.g. to inject faults), chips with a fault model (their calls need the fault-tolerant
+    dispatch) and other solvers go through the reference loop."""
     from ising_backend import EmulatedChip
 
     return isinstance(chip, EmulatedChip) and type(chip).anneal_batch is EmulatedChip.anneal_batch \
-        and hasattr(chip, "kernel_args")
+        and hasattr(chip, "kernel_args") and getattr(chip, "health", None) is None
 
 
 class CompiledSearch:

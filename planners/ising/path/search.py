@@ -2,7 +2,8 @@
 
 Contract: ``IsingPath(chip, config).find_path(world, start, goal, rng) -> PathResult``;
 never raises for a failed query (``result.failure`` says why); every chip call
-is metered (:class:`ising_backend.MeteredSolver`) into ``result.compute``.
+is metered (:class:`ising_backend.MeteredSolver`) into ``result.compute``.  A chip
+that cannot answer hands the query to A* (flagged; :mod:`planners.ising.fallback`).
 The chip generates every local segment; the host places patches, ranks local
 targets (Manhattan to the goal), decodes, validates, scores and stitches.
 Termination rules, budgets and measurements: docs/design/ising_path.md.
@@ -15,8 +16,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ising_backend import MeteredSolver, SolverOutputError
+from ising_backend import ChipUnavailableError, MeteredSolver, SolverOutputError
 from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.fallback import path_fallback, unavailable_message
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import cut_loops, decode_paths
 from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capable
@@ -238,13 +240,15 @@ class IsingPath(CompiledSearch, ConfigAttributes):
             if grid[r, c]:
                 return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
         rng = np.random.default_rng() if rng is None else rng
+        result = None
         if self._engine_args is not None:
             state = rng.bit_generator.state
             result = self._run_engine(grid, s, g, rng)
-            if result is not None:
-                return result
-            rng.bit_generator.state = state  # a program the chip cannot take: the reference loop names it
-        return self._search(grid, s, g, rng)
+            if result is None:
+                rng.bit_generator.state = state  # a program the chip cannot take: the reference loop names it
+        if result is None:
+            result = self._search(grid, s, g, rng)
+        return path_fallback(self.config.fallback, world, s, g, rng, result)
 
     def _search(self, grid, s, g, rng):
         """The search loop in Python: the reference of :mod:`.engine` (and the loop for other chips,
@@ -321,6 +325,10 @@ class IsingPath(CompiledSearch, ConfigAttributes):
                         outs = self._submit(solver, [problems[k] for k in on_chip], rng)
                 except SolverOutputError as exc:
                     failure = f"the chip returned malformed samples: {exc}"
+                    break
+                except ChipUnavailableError as exc:  # charged by the meter; find_path may fall back
+                    failure = unavailable_message(exc)
+                    counts["chip_unavailable"] = 1
                     break
                 counts["anneal_calls"] += 1
                 counts["patch_solves"] += len(on_chip)

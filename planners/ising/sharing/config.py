@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+from planners.ising.fallback import FALLBACK_MODES
 
 __all__ = ["SharingConfig", "BUNDLE_ORDERS"]
 
@@ -34,6 +35,7 @@ class SharingConfig(IsingConfig):
         reject_empty_robot_side: reject multi-robot splits that leave robots without targets.
         retries: re-submissions of splits whose candidates were all invalid.
         max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
+        fallback: when sharing falls back to SSA (:data:`~planners.ising.fallback.FALLBACK_MODES`).
     """
 
     rules: tuple = _QUANTIZE_RULES
@@ -53,8 +55,10 @@ class SharingConfig(IsingConfig):
     reject_empty_robot_side: bool = False
     retries: int = 2
     max_frozen: int = 4
+    fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
+        check_choice("fallback", self.fallback, FALLBACK_MODES)
         rules = tuple(_QUANTIZE_RULES if self.rules is None else self.rules)
         if not rules:
             raise ValueError("rules must name at least one quantization rule")

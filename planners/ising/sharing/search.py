@@ -8,7 +8,8 @@ bundles; each stage's splits x quantization rules are block-packed into one chip
 submission (:func:`ising_backend.run_portfolio_batch`), decoded and scored on the
 unquantized cut; a beam of distinct candidates is carried to the complete
 assignments, which are compared by route cost.  Chip calls are metered
-(:class:`ising_backend.MeteredSolver`).  Choices and measurements: docs/design/ising_sharing.md.
+(:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the call to
+SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations
@@ -16,12 +17,13 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    BranchMapping, ChipProgramError, MeteredSolver, ModelError, QuantizeError, QuantizeMapping,
+    BranchMapping, ChipProgramError, ChipUnavailableError, MeteredSolver, ModelError, QuantizeError, QuantizeMapping,
     SolverOutputError, ising_from_qubo, plan_packs, quantize_stack, run_portfolio_batch,
 )
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import map_stage, score_stage, split_model
@@ -104,11 +106,18 @@ class IsingSharing(ConfigAttributes):
                     best = (total, sets)
             assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in best[1])
             self._memo = {}
-        except SharingFailure as exc:
+        except (SharingFailure, ChipUnavailableError) as exc:
             self._memo = {}
-            return SharingResult(
-                assignment=empty, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats, failure=str(exc)
-            )
+            unavailable = isinstance(exc, ChipUnavailableError)
+            reason = unavailable_message(exc) if unavailable else str(exc)
+            compute = ComputeReport.from_ledger(self._meter.charged) + pricer.compute
+            if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
+                from planners.sharing_classical import SSASharing
+
+                res = SSASharing().assign(dist, R, tour, rng)
+                return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
+                                     stats=flag(stats, "sharing", reason))
+            return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats)
 
     def _assign_components(self, dist, R: int, tour, rng, stats) -> SharingResult:
@@ -325,7 +334,9 @@ class IsingSharing(ConfigAttributes):
                 except (QuantizeError, ModelError) as exc:
                     raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
         prog_sizes = np.repeat(sizes, nr)
-        packs = plan_packs(prog_sizes.tolist(), spec.n_spins)
+        # a faulty chip's programs stay clear of the stuck spins its health probe found
+        capacity = max(int(getattr(self.chip, "usable_spins", spec.n_spins)), int(prog_sizes.max()))
+        packs = plan_packs(prog_sizes.tolist(), capacity)
         width = max(int(prog_sizes[pk].sum()) for pk in packs)
         h = np.zeros((len(packs), width))
         J = np.zeros((len(packs), width, width))

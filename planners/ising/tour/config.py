@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+from planners.ising.fallback import FALLBACK_MODES
 
 __all__ = ["TourConfig", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS", "DEFAULT_SOLVER_OPTIONS"]
 
@@ -43,6 +44,7 @@ class TourConfig(IsingConfig):
         accept_equal: also accept equal-cost patch reorders (not the paper's rule).
         share_clusters: reuse the first start's clustering in later starts.
         solver_options: keyword options of the default logical solver.
+        fallback: when a solve falls back to 3-opt (:data:`~planners.ising.fallback.FALLBACK_MODES`).
     """
 
     backend: str = "logical"
@@ -64,9 +66,11 @@ class TourConfig(IsingConfig):
     accept_equal: bool = False
     share_clusters: bool = False
     solver_options: dict | None = None
+    fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
         check_choice("backend", self.backend, BACKENDS)
+        check_choice("fallback", self.fallback, FALLBACK_MODES)
         check_choice("refine", self.refine, REFINE_RULES)
         check_choice("cluster_distance", self.cluster_distance, CLUSTER_DISTANCES)
         check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)

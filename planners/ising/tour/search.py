@@ -7,7 +7,8 @@ Steps: clustering and ordering (:mod:`.cluster`), local one-hot TSPs, Ising patc
 refinement with patience, several independent starts.  The logical solver
 (spin budget, no coefficient range) is the paper's backend; ``backend="chip"``
 quantizes the same QUBOs for the physical chip.  Every call is metered
-(:class:`ising_backend.MeteredSolver`).  Choices and measurements: docs/design/ising_tour.md.
+(:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the solve to
+3-opt (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations
@@ -16,10 +17,13 @@ import math
 
 import numpy as np
 
-from ising_backend import IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, freeze_order, quantize
+from ising_backend import (
+    ChipUnavailableError, IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, freeze_order, quantize,
+)
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.tour.cluster import Clustering, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.engine import solve_order
@@ -55,10 +59,11 @@ class IsingTour(Clustering, ConfigAttributes):
         self._budget = int(self.spec.n_spins)
         self._zeros: dict = {}  # s -> zero costs, for one-hot validity checks
         self.solver = solver if solver is not None else LogicalIsingSolver(
-            spec=self.spec, ledger=self.chip.ledger, **cfg.solver_options)
-        # the compiled subproblem solve needs the logical solver's own tabu kernel
+            spec=self.spec, ledger=self.chip.ledger, health=getattr(self.chip, "health", None),
+            **cfg.solver_options)
+        # the compiled subproblem solve needs the logical solver's own tabu kernel (and no fault model)
         self._engine = (cfg.backend == "logical" and type(self.solver) is LogicalIsingSolver
-                        and self.solver.method == "tabu")
+                        and self.solver.method == "tabu" and self.solver.health is None)
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
         if largest ** 2 > self._budget + cfg.max_branch_bits:
             raise ValueError(
@@ -150,6 +155,10 @@ class IsingTour(Clustering, ConfigAttributes):
                 tour = self._refine(dist, tour, run)
             except SolverOutputError as exc:  # a broken solver: no start can succeed
                 return self._result(run, None, dist, f"the solver returned malformed samples: {exc}")
+            except ChipUnavailableError as exc:  # no core can answer: the classical fallback, or a failure
+                if self.config.fallback == "never":
+                    return self._result(run, None, dist, unavailable_message(exc))
+                return self._fallback(run, dist, unavailable_message(exc))
             except TourFailure as exc:  # this start gave up; other starts may still succeed
                 failure = str(exc)
                 run.stats["failed_starts"] += 1
@@ -163,8 +172,18 @@ class IsingTour(Clustering, ConfigAttributes):
             else:
                 stale += 1
         if best is None:
+            if wants_fallback(self.config.fallback, False):
+                return self._fallback(run, dist, failure)
             return self._result(run, None, dist, failure)
         return self._result(run, tuple(int(t) for t in best), dist)
+
+    def _fallback(self, run: _Run, dist, reason: str) -> TourResult:
+        """3-opt's tour (the strong pipeline's tour layer), flagged and counted as a fallback."""
+        from planners.tours_classical import ThreeOptTour
+
+        res = ThreeOptTour().solve(dist, run.rng)
+        return TourResult(order=res.order, cost=res.cost, stats=flag(run.stats, "tour", reason),
+                          compute=counted(ComputeReport.from_ledger(run.solver.charged), res.compute))
 
 
     # ------------------------------------------------------------------ 3. local TSPs

@@ -15,6 +15,7 @@ import numpy as np
 
 from mrmt_env.distances import bfs_flat
 from mrmt_env.generation import generate_world
+from mrmt_env.pcg64 import MAX_POP, choice_floyd, state_views
 from mrmt_env.world import World
 
 __all__ = ["draw_world_arrays", "node_distances"]
@@ -47,6 +48,35 @@ def node_distances(flat_grid, width, nodes, out) -> None:
             out[a, b] = field[nodes[b]]
 
 
+@numba.njit(cache=True, nogil=True)
+def _draw_uniform(state, buf, n_cells, n_obstacles, needed, width, tries):
+    """The retry loop of :func:`draw_world_arrays` on a PCG64 state (:mod:`mrmt_env.pcg64`):
+    ``(flat grid, chosen cells, ok)``, the generator advanced exactly as numpy's would be."""
+    flat = np.zeros(n_cells, dtype=np.bool_)
+    obstacles = np.empty(n_obstacles, dtype=np.int64)
+    free_idx = np.empty(n_cells, dtype=np.int64)
+    pick = np.empty(needed, dtype=np.int64)
+    chosen = np.empty(needed, dtype=np.int64)
+    for _ in range(tries):
+        flat[:] = False
+        choice_floyd(state, buf, n_cells, n_obstacles, obstacles)
+        for k in range(n_obstacles):
+            flat[obstacles[k]] = True
+        n_free = 0
+        for c in range(n_cells):
+            if not flat[c]:
+                free_idx[n_free] = c
+                n_free += 1
+        if needed > n_free:
+            return flat, chosen, False
+        choice_floyd(state, buf, n_free, needed, pick)
+        for k in range(needed):
+            chosen[k] = free_idx[pick[k]]
+        if _all_connected(flat, width, chosen):
+            return flat, chosen, True
+    return flat, chosen, False
+
+
 def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | None = None):
     """``(flat_grid bool (H*W,), robot cells (R,), target cells (N,))`` as flat indices ``r * W + c``.
 
@@ -64,6 +94,12 @@ def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | Non
     n_cells = height * width
     n_obstacles = int(round(params["obstacle_density"] * n_cells))
     needed = n_robots + n_targets
+    views = state_views(rng) if n_cells <= MAX_POP and needed >= 1 else None
+    if views is not None and needed <= n_cells - n_obstacles:  # the compiled draw, draw for draw
+        flat, chosen, ok = _draw_uniform(views[0], views[1], n_cells, n_obstacles, needed, width, 10_000)
+        if ok:
+            return flat, chosen[:n_robots].copy(), chosen[n_robots:].copy()
+        views = None  # the same failure as below, from numpy's own words
     for _ in range(10_000):
         flat = np.zeros(n_cells, dtype=bool)
         flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True

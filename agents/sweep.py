@@ -201,12 +201,16 @@ def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = Tr
     max_steps = step_limit(config.env_id, env_kwargs) if config.max_steps is None else check_max_steps(config.max_steps)
     worlds = [int(config.world_seed) + i for i in range(int(config.n_worlds))]
     tasks = []
-    for c in config.controllers:  # specs outermost per controller: a worker reuses its controller
-        for spec_id, (labels, chip) in (enumerate(grid) if c in chipped else [(-1, ({}, None))]):
-            for s in config.seeds:
-                for w in worlds:
+    # specs innermost: every spec's host time is measured over the same stretch of the run (the
+    # machine's load drifts), and each worker keeps one warm controller per spec
+    for c in config.controllers:
+        for s in config.seeds:
+            for w in worlds:
+                for spec_id, (labels, chip) in (enumerate(grid) if c in chipped else [(-1, ({}, None))]):
                     tasks.append((spec_id, labels, chip, c, int(s), w, config.env_id, env_kwargs, max_steps))
     rows = run_tasks(_sweep_task, tasks, run, desc="sweep", unit="ep")
+    order = {c: k for k, c in enumerate(config.controllers)}
+    rows.sort(key=lambda r: (order[r["controller"]], r["spec_id"], r["seed"], r["world_seed"]))
     cfg = {
         "axes": {k: list(v) for k, v in config.axes.items()},
         "controllers": list(config.controllers),

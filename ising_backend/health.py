@@ -4,8 +4,9 @@ Contract: with a fault model on (:attr:`ChipSpec.faulty`), every call of
 :class:`~ising_backend.EmulatedChip` (and of a :class:`~ising_backend.LogicalIsingSolver`
 sharing its monitor) goes through :func:`dispatch`:
 
-* reads go round-robin to the cores the :class:`HealthMonitor` has not quarantined
-  (no quarantine: read ``k`` on core ``k % n_cores``, as without faults);
+* reads go round-robin to the cores the :class:`HealthMonitor` has not quarantined,
+  starting at a core drawn from the call's seed (so the load, and a retry, spread over
+  the cores; the assignment is a function of the seed, never of the call history);
 * the hardware step (:func:`emulate`) applies the faults; the driver sees only what
   real hardware would report: a write error flag or a timeout.  Garbage from a dead
   core is not visible to the driver;
@@ -31,7 +32,7 @@ import numpy as np
 from .faults import FaultMap, garbage_spins, mix, write_failures
 from .spec import ChipSpec
 
-__all__ = ["ChipUnavailableError", "HealthMonitor", "dispatch", "emulate", "clamped_readout", "program_energy",
+__all__ = ["ChipUnavailableError", "HealthMonitor", "dispatch", "emulate", "program_energy",
            "PROBE_READS"]
 
 #: Reads of each probe program (one per polarity) on every core.
@@ -69,18 +70,6 @@ def program_energy(h: np.ndarray, J: np.ndarray, spins: np.ndarray) -> np.ndarra
             - np.einsum("kii->k", J))
 
 
-def clamped_readout(clamp: np.ndarray, cores, spins: np.ndarray, energies: np.ndarray, h, J) -> None:
-    """In place: each read's spins stuck on its core (``clamp[core]``, by logical position) read their
-    stuck value; energies of the reads that changed recomputed on ``h``, ``J``."""
-    M, R, n = spins.shape
-    c = clamp[np.asarray(cores)].reshape(M, R, -1)[:, :, :n]
-    hit = (c != 0).any(axis=2)
-    if hit.any():
-        spins[:] = np.where(c != 0, c, spins)
-        b, r = np.nonzero(hit)
-        energies[b, r] = program_energy(h[b], J[b], spins[b, r])
-
-
 class HealthMonitor:
     """What the driver knows about the cores: quarantine, stuck spins, counters (module docstring)."""
 
@@ -92,6 +81,8 @@ class HealthMonitor:
         self.reasons: dict[int, str] = {}
         self.known_stuck = np.zeros((C, N), dtype=np.int8)
         self.counts = {"probe_calls": 0, "write_errors": 0, "timeouts": 0, "retries": 0, "unavailable": 0}
+        #: ``(programs, reads)``: the core that answered each read of the last dispatched call
+        self.last_cores = np.zeros((0, 0), dtype=np.int64)
         self._raw_mismatch = mismatch
         self._arrays()
 
@@ -204,13 +195,14 @@ def dispatch(monitor: HealthMonitor, h: np.ndarray, J: np.ndarray, num_reads: in
         monitor.counts["unavailable"] += 1
         raise ChipUnavailableError(f"{what}: every core is quarantined ({_reasons(monitor)})")
     t0 = time.perf_counter()
-    cores = healthy[np.arange(B * R) % len(healthy)]
+    cores = _assign(healthy, B * R, seed)
     spins, energies = run(h, J, R, seed, cores, False)
     failed, timed_out = emulate(spec, monitor.faults, cores, seed, 0, spins, energies, h, J)
     charge(B * R, time.perf_counter() - t0, 0, 0)
     flat_s = spins.reshape(B * R, n)
     flat_e = energies.reshape(-1)
     todo = np.arange(B * R)
+    monitor.last_cores = where = cores.reshape(B, R).copy()
     for attempt in range(1, spec.max_retries + 2):
         monitor.counts["write_errors"] += int(failed.sum())
         monitor.counts["timeouts"] += int(timed_out.sum())
@@ -229,7 +221,7 @@ def dispatch(monitor: HealthMonitor, h: np.ndarray, J: np.ndarray, num_reads: in
             raise ChipUnavailableError(f"{what}: {why}")
         t0 = time.perf_counter()
         sub = int(mix(seed, attempt))
-        cores = healthy[np.arange(len(todo)) % len(healthy)]
+        cores = _assign(healthy, len(todo), sub)
         prog = todo // R
         s, e = run(h[prog], J[prog], 1, sub, cores, False)
         failed, timed_out = emulate(spec, monitor.faults, cores, sub, attempt, s, e, h[prog], J[prog])
@@ -237,7 +229,15 @@ def dispatch(monitor: HealthMonitor, h: np.ndarray, J: np.ndarray, num_reads: in
         monitor.counts["retries"] += len(todo)
         flat_s[todo] = s[:, 0]
         flat_e[todo] = e[:, 0]
+        where.reshape(-1)[todo] = cores
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _assign(healthy: np.ndarray, reads: int, seed: int) -> np.ndarray:
+    """Core of each read: round-robin over ``healthy`` from an offset drawn from the call seed (all
+    cores healthy and offset 0 would be ``k % n_cores``, the fault-free assignment)."""
+    offset = int(mix(seed, 0xC0E) % np.uint64(len(healthy)))
+    return healthy[(offset + np.arange(reads)) % len(healthy)]
 
 
 def _reasons(monitor: HealthMonitor) -> str:

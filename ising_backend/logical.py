@@ -34,9 +34,9 @@ Two methods:
 Faults.  Projected calls run on the chip's cores: given the chip's
 :class:`~ising_backend.health.HealthMonitor` (``health=``, as the tour layer passes
 it), every call goes through the same fault-tolerant dispatch (healthy cores,
-write errors and timeouts re-dispatched within ``spec.max_retries``).  A stuck
-spin is applied to the read-out of the logical spin placed on it (the tabu search
-itself does not see it): programs within the usable spins never meet one.
+write errors and timeouts re-dispatched within ``spec.max_retries``).  A logical
+spin placed on a stuck spin is held at its value through the search, as the chip's
+anneal holds it; programs within the usable spins never meet one.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
 from .chip import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
-from .health import clamped_readout, dispatch
+from .health import dispatch, program_energy
 from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
@@ -293,10 +293,20 @@ class LogicalIsingSolver(dimod.Sampler):
         return self._solve(h, J, num_reads, seed)
 
     def _run_cores(self, h, J, reads, seed, cores, raw):
-        """:meth:`_solve`, then each read's stuck spins (by the core it ran on) applied to its read-out."""
-        spins, energies = self._solve(h, J, reads, seed)
-        clamped_readout(self.health.faults.clamp if raw else self.health.clamp, cores, spins, energies, h, J)
-        return spins, energies
+        """:meth:`_solve` with read ``k`` on core ``cores[k]``: a read whose core has stuck spins among
+        the program's spins searches with them held at their values (by a field outweighing every
+        coefficient), as the chip anneals them; energies are the program's."""
+        clamp = self.health.faults.clamp if raw else self.health.clamp
+        M, n = h.shape
+        c = clamp[np.asarray(cores)][:, :n].astype(np.float64)
+        if not c.any():
+            return self._solve(h, J, reads, seed)
+        big = 2.0 * (np.abs(h).sum(axis=1) + np.abs(J).sum(axis=(1, 2))) + 1.0
+        hr = np.repeat(h, reads, axis=0)
+        Jr = np.ascontiguousarray(np.repeat(J, reads, axis=0))
+        spins, _ = self._solve(np.ascontiguousarray(hr - np.repeat(big, reads)[:, None] * c), Jr, 1, seed)
+        energies = program_energy(hr, Jr, spins[:, 0])
+        return spins.reshape(M, reads, n), energies.reshape(M, reads)
 
     def _solve(self, h, J, num_reads, seed):
         B, n = h.shape

@@ -108,16 +108,18 @@ def test_stuck_spins_visible_in_raw_samples_of_their_core():
     spec = CLEAN.replace(stuck_spins=3, seed=4)
     chip = EmulatedChip(spec, probe=False)
     h, J = _random_program(45, seed=1)
-    spins, _ = chip.anneal_batch(h, J, num_reads=24, seed=3)  # read k runs on core k % 8
+    spins, _ = chip.anneal_batch(h, J, num_reads=24, seed=3)
+    cores = chip.health.last_cores[0]
+    assert sorted(np.bincount(cores, minlength=8)) == [3] * 8  # round-robin over the cores
     clamp = chip.faults.clamp
-    for k in range(24):
-        stuck = np.flatnonzero(clamp[k % 8])
-        assert np.array_equal(spins[0, k, stuck], clamp[k % 8, stuck])
+    for k, c in enumerate(cores):
+        stuck = np.flatnonzero(clamp[c])
+        assert np.array_equal(spins[0, k, stuck], clamp[c, stuck])
     # with readout flips the stuck spins still read their value most of the time
     noisy = EmulatedChip(spec.replace(readout_flip_prob=0.05), probe=False)
     spins, _ = noisy.anneal_batch(h, J, num_reads=400, seed=3)
-    agree = [spins[0, k, np.flatnonzero(clamp[k % 8])] == clamp[k % 8, np.flatnonzero(clamp[k % 8])]
-             for k in range(400)]
+    agree = [spins[0, k, np.flatnonzero(clamp[c])] == clamp[c, np.flatnonzero(clamp[c])]
+             for k, c in enumerate(noisy.health.last_cores[0])]
     assert 0.9 < np.mean(agree) < 1.0
 
 
@@ -127,8 +129,8 @@ def test_dead_core_answers_garbage_without_the_probe():
     dead = chip.faults.dead_cores[0]
     h, J = _forcing(40)
     spins, energies = chip.anneal_batch(h, J, num_reads=16, seed=0)
-    for k in range(16):  # a healthy core finds the forced state (a rare anneal miss aside)
-        assert (0.2 < (spins[0, k] == 1).mean() < 0.8) == (k % 8 == dead)
+    for k, c in enumerate(chip.health.last_cores[0]):  # a healthy core finds the forced state (rare misses aside)
+        assert (0.2 < (spins[0, k] == 1).mean() < 0.8) == (c == dead)
     # energies are the programmed ones of what was read
     assert np.allclose(energies[0], IsingModel(h[0], J[0]).energy(spins[0]))
 
@@ -160,9 +162,10 @@ def test_work_goes_to_healthy_cores_and_around_stuck_spins():
     assert healthy.last_call.physical_calls == 32 and healthy.last_call.batches == math.ceil(32 / 7)
     raw = EmulatedChip(spec, seed=0, probe=False)
     bad = (raw.anneal_batch(h, J, num_reads=32, seed=1)[0] != 1).sum(axis=2)[0]
-    against = [(raw.faults.clamp[k % 8, :41] == -1).sum() for k in range(32)]  # stuck against the field
-    assert (bad >= against).all() and max(against) > 0
-    assert (bad[[k for k in range(32) if raw.faults.dead[k % 8]]] > 5).all()
+    cores = raw.health.last_cores[0]
+    against = np.array([(raw.faults.clamp[c, :41] == -1).sum() for c in cores])  # stuck against the field
+    assert (bad >= against).all() and against.max() > 0
+    assert (bad[raw.faults.dead[cores]] > 5).all()
 
 
 def test_batches_are_counted_over_healthy_cores():
@@ -251,7 +254,7 @@ def test_same_seed_same_faulty_answers():
 
 # ------------------------------------------------------------------ logical solver on the chip's cores
 def test_logical_solver_shares_the_chip_health():
-    spec = CLEAN.replace(program_error_prob=0.3, stuck_spins=2, dead_cores=1, seed=2)
+    spec = CLEAN.replace(program_error_prob=0.3, stuck_spins=2, dead_cores=1, max_retries=12, seed=2)
     chip = EmulatedChip(spec, seed=0)
     solver = LogicalIsingSolver(spec=spec, ledger=chip.ledger, health=chip.health)
     with pytest.raises(RuntimeError, match="fault-tolerant"):
@@ -262,9 +265,11 @@ def test_logical_solver_shares_the_chip_health():
     assert solver.last_call.logical_calls == 8 + solver.last_call.retries and solver.last_call.physical_calls == 0
     res = solver.solve_many([IsingModel(h[0], J[0]), IsingModel(h[0, :5], J[0, :5, :5])], num_reads=2, seed=1)
     assert all((r.spins == 1).all() for r in res)
-    # a 45-spin program meets the stuck spins (they sit on the last logical spins)
-    big = solver.solve_stack(*_forcing(45), num_reads=8, seed=0)
-    assert (big[0, :, :43] == 1).all()
+    # a 45-spin program meets the stuck spins (the last two logical spins), held through the search
+    hb, Jb = _forcing(45)
+    big = solver.solve_stack(hb, Jb[0], num_reads=8, seed=0)
+    cores = chip.health.last_cores[0]
+    assert (big[0, :, :43] == 1).all() and np.array_equal(big[0, :, 43:], chip.health.clamp[cores, 43:])
     dead = EmulatedChip(ChipSpec(dead_cores=8), seed=0)
     with pytest.raises(ChipUnavailableError):
         LogicalIsingSolver(spec=dead.spec, health=dead.health).solve_stack(h, J[0], num_reads=1, seed=0)

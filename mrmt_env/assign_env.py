@@ -7,7 +7,7 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource, check_render_mode, check_step_limit
+from mrmt_env.core import WorldSource, check_render_mode, check_step_limit, show
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -30,6 +30,25 @@ def shortest_path(world: World, start, goal) -> np.ndarray:
                 break
         path.append((r, c))
     return np.array(path, dtype=np.int64)
+
+
+def _check_action(action, n_targets: int) -> np.ndarray:
+    """One action as a ``(1,)`` int64 array; ``ValueError`` naming the value unless an integer in ``0..N``."""
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action must be one integer in 0..{n_targets}, got {show(action)} "
+                         f"({' '.join(str(exc).split())})") from None
+    if a.ndim != 0 and a.shape != (1,):
+        raise ValueError(f"action must be one integer in 0..{n_targets}, got shape {a.shape}")
+    v = a.reshape(-1)[0] if a.size else None
+    v = v.item() if isinstance(v, np.generic) else v
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ValueError(f"action must be one integer in 0..{n_targets} (targets 0..{n_targets - 1}, {n_targets} = "
+                         f"stop), got {show(v)} of dtype {a.dtype}")
+    if not 0 <= v <= n_targets:
+        raise ValueError(f"action {v} is outside 0..{n_targets} (targets 0..{n_targets - 1}, {n_targets} = stop)")
+    return np.array([v], dtype=np.int64)
 
 
 class MRMTAssignEnv(gym.Env):
@@ -81,7 +100,11 @@ class MRMTAssignEnv(gym.Env):
 
     Termination when no target is open (a masked agent needs at most
     ``N + R`` steps).  Truncation: the step limit (registered: 200;
-    ``max_episode_steps`` for a directly constructed env).
+    ``max_episode_steps`` for a directly constructed env).  After the env
+    returned ``terminated`` or (its own) ``truncated``, ``step`` raises
+    ``RuntimeError`` until ``reset``; under ``gymnasium.make`` the limit is
+    gymnasium's ``TimeLimit`` wrapper, which the env does not see: call
+    ``reset`` after ``truncated`` as after ``terminated``.
 
     ## Info
 
@@ -131,19 +154,16 @@ class MRMTAssignEnv(gym.Env):
         self.observation_space = spaces.Box(0.0, assign_obs_high(h, w, n), (n + r, assign_feature_count(n)), np.float32)
         self.state = AssignBatch(1, h, w, r, n)
         self.world: World | None = None
+        self._ended: str | None = None
         self.orders: list[list[int]] = [[] for _ in range(r)]
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        if options and "world" in options:
-            world = self.source.check(options["world"])
-            if world.n_targets != self.n_targets:
-                raise ValueError(f"options['world'] has {world.n_targets} targets; this env's spaces need {self.n_targets}")
-        else:
-            world = self.source.draw(self.np_random)
+        world = self.source.reset_world(options, self.np_random, self.n_targets)
         self.world = world
         self.state.load(0, world)
+        self._ended = None
         self.orders = [[] for _ in range(self.n_robots)]
         if self.render_mode == "human":
             self.render()
@@ -152,18 +172,20 @@ class MRMTAssignEnv(gym.Env):
     def step(self, action):
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(action)
-        if a.ndim != 0 and a.shape != (1,):
-            raise ValueError(f"action must be one integer in 0..{self.n_targets}, got shape {a.shape}")
-        a = a.reshape(1)
+        if self._ended is not None:
+            raise RuntimeError(f"the episode has ended ({self._ended}); call reset() before step()")
+        a = _check_action(action, self.n_targets)
         k = int(self.state.decider[0])
         before = int(self.state.counters[0, 2])
         rewards, terminated = self.state.step(a)
         if int(self.state.counters[0, 2]) > before:  # the decider took target a
             self.orders[k].append(int(a[0]))
         term = bool(terminated[0])
-        truncated = (not term and self.max_episode_steps is not None
-                     and int(self.state.counters[0, 1]) >= self.max_episode_steps)
+        steps = int(self.state.counters[0, 1])
+        truncated = not term and self.max_episode_steps is not None and steps >= self.max_episode_steps
+        if term or truncated:
+            self._ended = (f"terminated at step {steps}: no target left open" if term else
+                           f"truncated at step {steps}: max_episode_steps={self.max_episode_steps}")
         if self.render_mode == "human":
             self.render()
         return self.state.observe()[0], float(rewards[0]), term, truncated, self._info()

@@ -24,6 +24,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import AECEnv
 
+from mrmt_env.assign_env import _check_action
 from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import WorldSource, check_render_mode
 from mrmt_env.render import render_ansi, render_rgb
@@ -75,10 +76,7 @@ class MRMTAssignAECEnv(AECEnv):
     def reset(self, seed: int | None = None, options: dict | None = None) -> None:
         if seed is not None or self._np_random is None:
             self._np_random, _ = seeding.np_random(seed)
-        if options and "world" in options:
-            world = self.source.check(options["world"])
-        else:
-            world = self.source.draw(self._np_random)
+        world = self.source.reset_world(options, self._np_random, self.n_targets)
         self.world = world
         self.state_.load(0, world)
         self.agents = self.possible_agents[:]
@@ -100,14 +98,16 @@ class MRMTAssignAECEnv(AECEnv):
         return {"observation": obs, "action_mask": mask}
 
     def step(self, action) -> None:
+        if not getattr(self, "agents", None):
+            raise RuntimeError("the episode is over (or reset() was never called); call reset()")
         agent = self.agent_selection
         if self.terminations[agent] or self.truncations[agent]:
             self._was_dead_step(action)
             return
-        a = int(action)
-        if not 0 <= a <= self.n_targets:
-            raise ValueError(f"action for {agent} is {a}; valid actions are 0..{self.n_targets} "
-                             f"(targets 0..{self.n_targets - 1}, {self.n_targets} = stop)")
+        try:
+            a = int(_check_action(action, self.n_targets)[0])
+        except ValueError as exc:
+            raise ValueError(f"{agent}: {exc}") from None
         self._cumulative_rewards[agent] = 0.0
         k = self.possible_agents.index(agent)
         was_active = bool(self.state_.active[0, k])

@@ -13,7 +13,7 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource
+from mrmt_env.core import WorldSource, show
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.vector_base import BatchedVectorEnv
 
@@ -51,10 +51,19 @@ class MRMTAssignVectorEnv(BatchedVectorEnv):
         self.state.load_arrays(i, flat, robots, targets)
 
     def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
-        a = np.asarray(actions)
+        try:
+            a = np.asarray(actions)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions must be {self.num_envs} integers in 0..{self.n_targets}, got "
+                             f"{show(actions)}") from None
         if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
             raise ValueError(f"actions must be {self.num_envs} integers in 0..{self.n_targets}, got {a.dtype} "
                              f"shape {a.shape}")
+        bad = live & ((a < 0) | (a > self.n_targets))
+        if bad.any():
+            b = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"action {int(a[b])} of env {b} is outside 0..{self.n_targets} "
+                             f"(targets 0..{self.n_targets - 1}, {self.n_targets} = stop)")
         return np.where(live, a, self.n_targets).astype(np.int64)  # an ignored env's action never matters
 
     def _step(self, actions: np.ndarray, live: np.ndarray):

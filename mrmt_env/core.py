@@ -37,13 +37,19 @@ from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
 __all__ = [
-    "MRMTCore", "WorldSource", "action_between", "actions_from_path", "check_render_mode", "check_step_limit",
+    "MRMTCore", "WorldSource", "action_between", "show", "actions_from_path", "check_render_mode", "check_step_limit",
     "N_ACTIONS", "ACTION_NAMES",
     "successor_table",
 ]
 
 N_ACTIONS = 5
 ACTION_NAMES = ("stay", "up", "down", "left", "right")
+
+
+def show(value, limit: int = 60) -> str:
+    """``repr(value)`` on one line, at most ``limit`` characters (for error messages)."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def check_step_limit(max_episode_steps):
@@ -363,8 +369,9 @@ class WorldSource:
             return self.fixed
         return generate_world(rng, **self.params)
 
-    def check(self, world) -> World:
-        """Validate a world passed through ``reset(options={"world": ...})``."""
+    def check(self, world, n_targets: int | None = None) -> World:
+        """Validate a world passed through ``reset(options={"world": ...})`` (``n_targets``: the
+        target count the env's spaces need, if they depend on it)."""
         if not isinstance(world, World):
             raise TypeError(f"options['world'] must be a World, got {type(world).__name__}")
         if world.shape != (self.height, self.width) or world.n_robots != self.n_robots:
@@ -372,4 +379,23 @@ class WorldSource:
                 f"options['world'] is {world.height}x{world.width} with {world.n_robots} robots; this env's "
                 f"spaces need {self.height}x{self.width} with {self.n_robots} robots"
             )
+        if n_targets is not None and world.n_targets != n_targets:
+            raise ValueError(f"options['world'] has {world.n_targets} targets; this env's spaces need {n_targets}")
         return world
+
+    def reset_world(self, options, rng: np.random.Generator, n_targets: int | None = None) -> World:
+        """The world of a ``reset(options=...)``: ``options["world"]`` (checked) or a draw from ``rng``.
+
+        Other keys are ignored, as PettingZoo's API test expects of an env.
+
+        Raises:
+            TypeError: ``options`` is not a dict (or ``None``), or its world is not a ``World``.
+            ValueError: a world that does not fit the env's spaces.
+        """
+        if options is None:
+            return self.draw(rng)
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        if "world" in options:
+            return self.check(options["world"], n_targets)
+        return self.draw(rng)

@@ -15,7 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, show
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.grid_kernels import grid_load, grid_masks, grid_step
 from mrmt_env.gym_env import OBSERVATIONS
@@ -79,8 +79,12 @@ class MRMTVectorEnv(BatchedVectorEnv):
                   self.moves, self.counters, self._obs, self.field, self.dense_reward > 0)
 
     def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
-        a = np.asarray(actions)
         shape = (self.num_envs, self.n_robots)
+        try:
+            a = np.asarray(actions)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {show(actions)}") \
+                from None
         if a.shape != shape or a.dtype.kind not in "iu":
             raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
                              f"shape {a.shape}")

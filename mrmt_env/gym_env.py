@@ -6,7 +6,7 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit, show
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
@@ -25,12 +25,19 @@ def check_joint_action(action, n_robots: int) -> list[int]:
         ValueError: wrong shape, non-integer dtype or a value outside ``0..4``
             (the message names the value and the robot).  Nothing is clipped.
     """
-    a = np.asarray(action)
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError) as exc:  # e.g. ragged nested lists
+        raise ValueError(f"action must be {n_robots} integer(s) 0..{N_ACTIONS - 1}, one per robot, got {show(action)} "
+                         f"({' '.join(str(exc).split())})") from None
     if a.shape != (n_robots,):
         raise ValueError(f"action must have shape ({n_robots},) (one move per robot), got shape {a.shape}")
-    if a.dtype.kind not in "iu":
-        raise ValueError(f"action must hold integers 0..{N_ACTIONS - 1}, got dtype {a.dtype}")
     acts = a.tolist()
+    if a.dtype.kind not in "iu":
+        bad = [v for v in acts if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer))]
+        if a.dtype.kind != "O" or bad:
+            raise ValueError(f"action must hold integers 0..{N_ACTIONS - 1}, got dtype {a.dtype}"
+                             + (f" ({show(bad[0])})" if bad else ""))
     for k, v in enumerate(acts):
         if not 0 <= v < N_ACTIONS:
             raise ValueError(
@@ -138,6 +145,12 @@ class MRMTEnv(gym.Env):
        directly constructed env truncates itself if ``max_episode_steps`` is
        given.  Truncation never sets ``terminated``.
 
+    After the env returned ``terminated`` or (its own) ``truncated``, ``step``
+    raises ``RuntimeError`` until ``reset``: the episode's metrics are final.
+    Under ``gymnasium.make`` the step limit is gymnasium's ``TimeLimit``
+    wrapper, which the env itself does not see: call ``reset`` after
+    ``truncated`` as after ``terminated`` (a further step would go on moving).
+
     ## Info
 
     Every ``reset`` and ``step`` returns the flat keys ``route_cost`` (moves
@@ -225,16 +238,15 @@ class MRMTEnv(gym.Env):
         self._field = None
         self._ashape = (self.n_robots,)
         self.world: World | None = None
+        self._ended: str | None = None
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        if options and "world" in options:
-            world = self.source.check(options["world"])
-        else:
-            world = self.source.draw(self.np_random)
+        world = self.source.reset_world(options, self.np_random)
         self.world = world
         self.core.reset(world)
+        self._ended = None
         if self.dense_reward:
             self._field = self.core.nearest_target_field()
         if self.render_mode == "human":
@@ -245,6 +257,8 @@ class MRMTEnv(gym.Env):
         core = self.core
         if core.world is None:
             raise RuntimeError("call reset() before step()")
+        if self._ended is not None:
+            raise RuntimeError(f"the episode has ended ({self._ended}); call reset() before step()")
         # fast path for the common case (an integer ndarray of the right shape)
         if type(action) is np.ndarray and action.shape == self._ashape and action.dtype.kind in "iu":
             acts = action.tolist()
@@ -264,6 +278,9 @@ class MRMTEnv(gym.Env):
         truncated = (
             not terminated and self.max_episode_steps is not None and core.steps >= self.max_episode_steps
         )
+        if terminated or truncated:
+            self._ended = (f"terminated at step {core.steps}: every target visited" if terminated else
+                           f"truncated at step {core.steps}: max_episode_steps={self.max_episode_steps}")
         if self.render_mode == "human":
             self.render()
         return self._obs(), float(reward), terminated, truncated, core.info()

@@ -27,15 +27,43 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode
+from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, show
 from mrmt_env.observation import ROBOT_CHANNEL0, agent_observation_space, observation_space
 from mrmt_env.world import World
 
 __all__ = ["MRMTParallelEnv", "parallel_env", "env", "DEFAULT_MAX_CYCLES"]
 
 DEFAULT_MAX_CYCLES = 200
+
+
+def check_move(agent: str, a) -> int:
+    """One robot's move as an int; ``ValueError`` naming the agent and value unless an integer 0..4."""
+    try:
+        if isinstance(a, (bool, np.bool_)):
+            raise TypeError
+        v = operator.index(a)
+    except TypeError:
+        raise ValueError(f"action for {agent} must be an integer 0..{N_ACTIONS - 1}, got {show(a)}") from None
+    if not 0 <= v < N_ACTIONS:
+        raise ValueError(
+            f"action for {agent} is {v}; valid moves are 0..{N_ACTIONS - 1} "
+            "(0 stay, 1 up, 2 down, 3 left, 4 right)"
+        )
+    return v
+
+
+class _CheckedAEC(parallel_to_aec_wrapper):
+    """PettingZoo's AEC form of the parallel env, checking each move when it is given (not when the
+    last agent of the cycle acts)."""
+
+    def step(self, action):
+        agent = self.agent_selection
+        if not (self.terminations[agent] or self.truncations[agent]):
+            check_move(agent, action)
+        super().step(action)
 
 
 class MRMTParallelEnv(ParallelEnv):
@@ -107,10 +135,7 @@ class MRMTParallelEnv(ParallelEnv):
     def reset(self, seed: int | None = None, options: dict | None = None):
         if seed is not None:
             self._np_random, _ = seeding.np_random(seed)
-        if options and "world" in options:
-            world = self.source.check(options["world"])
-        else:
-            world = self.source.draw(self.np_random)
+        world = self.source.reset_world(options, self.np_random)
         self.world = world
         self.core.reset(world)
         self.agents = self.possible_agents[:]
@@ -129,16 +154,7 @@ class MRMTParallelEnv(ParallelEnv):
             raise ValueError(f"actions must name every live agent once: missing {missing}, unknown {unknown}")
         acts = [0] * self.n_robots
         for agent, a in actions.items():
-            try:
-                v = operator.index(a)
-            except TypeError:
-                raise ValueError(f"action for {agent} must be an integer 0..{N_ACTIONS - 1}, got {a!r}") from None
-            if not 0 <= v < N_ACTIONS:
-                raise ValueError(
-                    f"action for {agent} is {v}; valid moves are 0..{N_ACTIONS - 1} "
-                    "(0 stay, 1 up, 2 down, 3 left, 4 right)"
-                )
-            acts[self._index[agent]] = v
+            acts[self._index[agent]] = check_move(agent, a)
         reward = float(core.step(acts))
         terminated = core.n_visited == core.n_targets
         truncated = not terminated and core.steps >= self.max_cycles
@@ -190,8 +206,8 @@ def parallel_env(**kwargs) -> MRMTParallelEnv:
 
 
 def env(**kwargs):
-    """The PettingZoo AEC env: ``parallel_to_aec(parallel_env(**kwargs))``."""
-    return parallel_to_aec(MRMTParallelEnv(**kwargs))
+    """The PettingZoo AEC env: ``parallel_to_aec(parallel_env(**kwargs))``, each move checked when given."""
+    return OrderEnforcingWrapper(_CheckedAEC(MRMTParallelEnv(**kwargs)))
 
 
 def raw_env(**kwargs):

@@ -203,6 +203,23 @@ def check_call_seed(seed) -> int:
     return int(seed)
 
 
+#: Most reads per program in one call (each read is one physical chip call).
+MAX_READS = 2**20
+
+
+def check_num_reads(num_reads) -> int:
+    """Reads per program: an integer in ``[1, MAX_READS]`` (a bool, NaN, inf or non-number is refused)."""
+    try:
+        ok = (not isinstance(num_reads, (bool, np.bool_)) and np.ndim(num_reads) == 0
+              and int(num_reads) == num_reads and 1 <= num_reads <= MAX_READS)
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
+        shown = " ".join(repr(num_reads).split())[:60]
+        raise ValueError(f"num_reads = {shown} must be an integer in [1, {MAX_READS}] (MAX_READS)")
+    return int(num_reads)
+
+
 def seeded_rng(seed, where: str) -> np.random.Generator:
     """``np.random.default_rng(seed)``, with an error naming ``where`` and the bad seed."""
     try:
@@ -301,9 +318,7 @@ class EmulatedChip(dimod.Sampler):
             axis dropped).  Charges ``B * num_reads`` calls to :attr:`ledger`.
         """
         single = np.ndim(h) == 1
-        if int(num_reads) != num_reads or num_reads < 1:
-            raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
-        num_reads = int(num_reads)
+        num_reads = check_num_reads(num_reads)
         t0 = time.perf_counter()
         hf, Jf = check_program(h, J, self.spec, native=True)
         seed = self._draw_seed(seed)

@@ -54,7 +54,7 @@ _DTYPES = st.sampled_from([np.int8, np.int16, np.int64, np.uint8, np.uint64, np.
 def _array(dtype):
     elements = {
         object: st.one_of(st.integers(-(2**70), 2**70), st.none(), st.text(max_size=2), st.floats()),
-        "U3": st.text(max_size=3),
+        "U3": st.text(st.characters(blacklist_characters="\x00"), max_size=3),
     }.get(dtype)
     return arrays(dtype, array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=4), elements=elements)
 

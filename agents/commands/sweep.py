@@ -30,8 +30,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--controllers", default="ising,strong",
                         help="comma-separated controllers (as mrmt compare); those with an Ising layer run once "
                              "per spec, the others once (default ising,strong)")
-    parser.add_argument("--reference", default="strong",
-                        help="chip-free controller the gaps are measured against (default strong; none for none)")
+    parser.add_argument("--reference", default=None,
+                        help="chip-free controller the gaps are measured against (default: strong when it is "
+                             "among --controllers; none for none)")
     parser.add_argument("--worlds", type=int, default=20, help="worlds per spec and controller (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
     parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")
@@ -77,7 +78,11 @@ def run(args) -> int:
                              n_worlds=args.worlds, world_seed=args.seed, seeds=tuple(range(args.seeds)),
                              env_id=args.env_id, env_kwargs={k: v for k, v in given.items() if v is not None},
                              max_steps=args.max_steps)
-        reference = None if args.reference.lower() == "none" else args.reference
+        reference = args.reference
+        if reference is None:
+            reference = "strong" if "strong" in config.controllers else None
+        elif reference.lower() == "none":
+            reference = None
         if reference is not None and reference not in config.controllers:
             return fail(f"--reference {reference!r} is not among --controllers {args.controllers!r}")
         result = run_sweep(config, run_cfg, base_chip=base)

@@ -56,7 +56,7 @@ def test_load_errors(tmp_path):
     bad = tmp_path / "bad.zip"
     with zipfile.ZipFile(bad, "w") as z:
         z.writestr("hello.txt", "no model here")
-    with pytest.raises(ControllerError, match="cannot load PPO model"):
+    with pytest.raises(ControllerError, match=r"is not a stable-baselines3 .zip model \(no 'data' entry\)"):
         load_policy(bad)
 
 
@@ -66,3 +66,15 @@ def test_train_cli(tmp_path, capsys):
     assert zipfile.is_zipfile(out)
     assert main(["train", "--timesteps", "64", "--out", str(out), "--env-id", "mrmt_env/Nope-v0"]) == 2
     assert "unknown env id 'mrmt_env/Nope-v0'" in capsys.readouterr().err
+
+
+def test_train_cli_names_the_file_it_writes(tmp_path, capsys):
+    out = tmp_path / "m2"
+    assert main(["train", "--timesteps", "64", "--out", str(out), "--env-id", SMALL_ENV_ID, "--no-progress"]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith(f"wrote {out}.zip, {out}.json") and zipfile.is_zipfile(f"{out}.zip") and not out.exists()
+    for seed in ("-1", str(2**32)):
+        assert main(["train", "--timesteps", "64", "--out", str(out), "--seed", seed]) == 2
+        assert capsys.readouterr().err.strip() == (
+            "mrmt train: error: --seed must be in [0, 2**32 - 1] (stable-baselines3 seeds numpy's global generator "
+            f"with it), got {seed}")

@@ -13,6 +13,7 @@ pytest.importorskip("sb3_contrib")
 
 from agents.cli import main  # noqa: E402
 from agents.evaluation import evaluate  # noqa: E402
+from agents.errors import ControllerError  # noqa: E402
 from agents.learned import ASSIGN_ENV_ID, curve_paths, load_policy, sidecar_path, train  # noqa: E402
 
 
@@ -36,7 +37,10 @@ def test_model_knows_its_algorithm_and_writes_a_curve(assign_model):
 def test_algorithm_read_from_the_model_file_without_sidecar(assign_model, tmp_path):
     bare = tmp_path / "bare.zip"
     bare.write_bytes(assign_model.read_bytes())
-    assert type(load_policy(bare).model).__name__ == "MaskablePPO"
+    # without a sidecar the spaces would have to come from the file's pickles: refused, unless the env is given
+    with pytest.raises(ControllerError, match="no sidecar bare.json naming its env.*pass env_id="):
+        load_policy(bare)
+    assert type(load_policy(bare, env_id=ASSIGN_ENV_ID).model).__name__ == "MaskablePPO"
 
 
 def test_learned_agent_acts_legally_and_always_succeeds(assign_model):

@@ -18,6 +18,10 @@ import argparse
 import sys
 
 NAME = "train"
+#: stable-baselines3 seeds numpy's global generator (``np.random.seed``), which takes [0, 2**32 - 1].
+MAX_TRAIN_SEED = 2**32 - 1
+#: Most envs stepped together.
+MAX_N_ENVS = 4096
 HELP = "train a learned agent (PPO / MaskablePPO) on an MRMT env and save it"
 
 
@@ -25,7 +29,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--timesteps", type=int, default=None,
                         help="total env steps (default: 300000 on the plan-level env, about 6.5 min on 2 cores; "
                              "100000 on a grid env)")
-    parser.add_argument("--out", required=True, help="model path (.zip)")
+    parser.add_argument("--out", required=True, help="model path (.zip is appended unless it ends in .zip)")
     parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
     parser.add_argument("--algo", default=None, choices=("ppo", "maskable_ppo"),
                         help="algorithm (default: maskable_ppo on the plan-level env, ppo on a grid env)")
@@ -52,14 +56,17 @@ def run(args) -> int:
         value = getattr(args, name)
         if value is not None and value < 1:
             return _fail(f"--{name.replace('_', '-')} must be >= 1, got {value}")
-    if args.seed < 0:
-        return _fail(f"--seed must be >= 0, got {args.seed}")
+    if not 0 <= args.seed <= MAX_TRAIN_SEED:
+        return _fail(f"--seed must be in [0, 2**32 - 1] (stable-baselines3 seeds numpy's global generator with it), "
+                     f"got {args.seed}")
+    if args.n_envs is not None and args.n_envs > MAX_N_ENVS:
+        return _fail(f"--n-envs must be <= {MAX_N_ENVS}, got {args.n_envs}")
     try:
         import sb3_contrib  # noqa: F401
         import stable_baselines3  # noqa: F401
     except ImportError as exc:
         return _fail(f"training needs the rl extra ({exc.name} is not installed): pip install 'mrmt-ising[rl]'")
-    from agents.learned import curve_paths, sidecar_path, train
+    from agents.learned import curve_paths, model_path, sidecar_path, train
 
     env_kwargs = {}
     for key, value in (("n_robots", args.robots), ("n_targets", args.targets), ("observation", args.observation),
@@ -71,6 +78,7 @@ def run(args) -> int:
               seed=args.seed, n_envs=args.n_envs, progress=not args.no_progress)
     except (ValueError, TypeError) as exc:
         return _fail(str(exc))
-    csv_path, png_path = curve_paths(args.out)
-    print(f"wrote {args.out}, {sidecar_path(args.out)}, {csv_path} and {png_path}")
+    zpath = model_path(args.out)
+    written = [str(p) for p in (zpath, sidecar_path(zpath), *curve_paths(zpath)) if p.exists()]
+    print(f"wrote {', '.join(written[:-1])} and {written[-1]}" if len(written) > 1 else f"wrote {written[0]}")
     return 0

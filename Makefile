@@ -1,30 +1,41 @@
 # Two commands do everything on a fresh clone (see README):
-#   make demo   - set up .venv, then run the planner comparison (the main job)
-#   make test   - set up .venv, then run the test suite
-# The CPU build of torch is installed *before* stable-baselines3 so pip does not
-# pull a multi-GB CUDA build.
+#   make demo   - set up .venv with the base package only (no torch), then run the planner comparison
+#   make test   - add torch (CPU build), stable-baselines3, Ray and the test tools, then run the test suite
+# torch comes from PyTorch's CPU index (TORCH_INDEX) *before* stable-baselines3, so pip does not pull
+# the multi-GB CUDA build that plain PyPI serves on Linux.  `make test TORCH_INDEX=` uses plain PyPI.
 
-PYTHON ?= python3
-VENV   ?= .venv
-PY     := $(VENV)/bin/python
-STAMP  := $(VENV)/.installed-stamp
+PYTHON      ?= python3
+VENV        ?= .venv
+PY          := $(VENV)/bin/python
+TORCH       ?= torch==2.13.0
+TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
+BASE_STAMP  := $(VENV)/.base-stamp
+FULL_STAMP  := $(VENV)/.full-stamp
 
-.PHONY: demo test reproduce bench clean
+.PHONY: demo test reproduce clean
 
-$(STAMP): pyproject.toml
+$(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[all]"
-	touch $(STAMP)
 
-demo: $(STAMP)
+# the package and its base dependencies: all the planners, the chip and the envs
+$(BASE_STAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet -e .
+	touch $(BASE_STAMP)
+
+# everything: learned agents (torch CPU build first), Ray, the test tools
+$(FULL_STAMP): pyproject.toml $(BASE_STAMP)
+	$(PY) -m pip install --quiet $(TORCH) $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
+	$(PY) -m pip install --quiet -e ".[all]"
+	touch $(FULL_STAMP)
+
+demo: $(BASE_STAMP)
 	$(VENV)/bin/mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising --out results/demo
 
-test: $(STAMP)
+test: $(FULL_STAMP)
 	$(PY) -m pytest -q -n 2 --durations=15
 
-reproduce: $(STAMP)
+reproduce: $(BASE_STAMP)
 	$(VENV)/bin/mrmt reproduce --out results/paper
 
 clean:

@@ -243,15 +243,15 @@ def test_split_slightly_over_the_spin_limit_uses_branching():
         _totals(world.distance_matrix, 3, full.assignment))
 
 
-def test_group_over_the_spin_limit_is_refused_with_size_and_limit():
+def test_group_over_the_spin_limit_is_split_on_clusters_not_refused():
     from ising_backend import ChipSpec, EmulatedChip
 
     world = generate_world(4, n_robots=3, n_targets=10)
     chip = EmulatedChip(ChipSpec(n_spins=8))
     res = IsingSharing(chip=chip, max_frozen=2).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
-    assert "11 free spins" in res.failure and "8 spins" in res.failure
-    assert "max_frozen = 2" in res.failure
-    assert res.compute.chip_calls == 0
+    assert res.failure is None and res.stats["coarse_splits"] >= 1
+    assert sorted(t for g in res.assignment for t in g) == list(range(10))
+    assert res.compute.chip_calls > 0
 
 
 @pytest.mark.parametrize(
@@ -366,3 +366,51 @@ def test_worlds_of_several_components_are_shared_per_component():
     plan = make_pipeline("ising").plan(world, seed=0)
     assert plan.success, plan.failure
     validate_plan(world, plan)
+
+
+# ---------------------------------------------------------------- groups larger than the chip
+def test_coarse_cut_equals_the_fine_cut_of_cluster_respecting_partitions():
+    from planners.ising.sharing.coarse import coarsen, expand_sides
+    from planners.ising.sharing.qubo import cut_value
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        n, R = int(rng.integers(6, 40)), int(rng.integers(0, 4))
+        pts = rng.random((n, 2)) * 10
+        w = np.abs(pts[:, None, :] - pts[None, :, :]).sum(-1) - 3.0  # shifted weights may be negative
+        np.fill_diagonal(w, 0.0)
+        group = np.arange(n)
+        k = int(rng.integers(1, max(2, n - R)))
+        members, wc = coarsen(w, group, R, k)
+        assert sorted(np.concatenate(members).tolist()) == list(range(n))
+        assert all(len(m) == 1 and m[0] < R for m in members[:R])
+        side = rng.random(len(members)) < 0.5
+        s0, s1 = np.flatnonzero(~side), np.flatnonzero(side)
+        f0, f1 = expand_sides(members, s0, s1)
+        assert cut_value(wc, s0, s1) == pytest.approx(cut_value(w, f0, f1))
+
+
+def test_a_group_larger_than_the_chip_is_split_on_clusters():
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+
+    world = generate_world(5, height=16, width=16, n_robots=3, n_targets=40)
+    chip_spec = ChipSpec(n_spins=16)
+    tour = ThreeOptTour()
+    runs = [IsingSharing(chip=EmulatedChip(chip_spec)).assign(world.distance_matrix, 3, tour,
+                                                                np.random.default_rng(1)) for _ in range(2)]
+    res = runs[0]
+    assert res.failure is None
+    assert sorted(t for group in res.assignment for t in group) == list(range(40))
+    assert res.stats["coarse_splits"] >= 1 and res.compute.chip_calls > 0
+    assert runs[1].assignment == res.assignment  # deterministic under the seed
+
+
+def test_robots_beyond_the_chip_are_a_failure_naming_the_limit():
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+
+    world = generate_world(2, height=12, width=12, n_robots=9, n_targets=20)
+    res = IsingSharing(chip=EmulatedChip(ChipSpec(n_spins=6)), fallback="never").assign(
+        world.distance_matrix, 9, ThreeOptTour(), np.random.default_rng(0))
+    assert res.failure is not None and "its robots and one cluster of targets need 8 free spins, the chip has 6" in res.failure

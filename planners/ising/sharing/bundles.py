@@ -2,9 +2,10 @@
 
 After the chip splits, each robot keeps its base set and every robotless bundle goes,
 one after another, to the robot whose route cost grows least (classically, as in the
-paper).  :class:`BundlePricer` prices a robot's set with the pricing tour (exact
-Held-Karp up to 13 targets with ``"auto"``), memoised per (robot, set); its compute
-reports are summed so nothing is hidden.
+paper).  :class:`BundlePricer` prices a robot's set with the pricing tour (``"auto"``:
+exact Held-Karp up to 13 targets, a host 3-opt tour beyond -- big worlds price thousands of
+sets, and the downstream Ising tour made that 25 s per 64x64 plan), memoised per (robot,
+set); its compute reports are summed so nothing is hidden.
 """
 
 from __future__ import annotations
@@ -30,9 +31,12 @@ class BundlePricer:
         self.stats = stats
         self.compute = ComputeReport()
         self._cache: dict = {}
-        self._exact = pricing_tour == "auto"  # Held-Karp up to MAX_BRUTE_TARGETS, the downstream tour beyond
+        self._exact = pricing_tour == "auto"  # Held-Karp up to MAX_BRUTE_TARGETS, host 3-opt beyond
         if pricing_tour == "auto":
-            self._pricer = lambda n: tour  # noqa: E731
+            from planners import registry
+
+            beyond = registry.create("tour", "3opt")
+            self._pricer = lambda n: beyond  # noqa: E731
         elif pricing_tour == "downstream":
             self._pricer = lambda n: tour  # noqa: E731
         else:

@@ -30,8 +30,8 @@ class SharingConfig(IsingConfig):
         base_max: a one-robot group with more targets than this is split (``None``: ``refine_above``).
         bundle_order: see :data:`BUNDLE_ORDERS`.
         pricing_tour: what prices bundles: ``"auto"`` (exact Held-Karp up to 13 targets,
-            else the downstream tour), ``"downstream"`` (or ``None``), a tour registry
-            name or a ``TourSolver``.
+            else a host 3-opt tour), ``"downstream"`` (or ``None``; the paper's literal rule),
+            a tour registry name or a ``TourSolver``.
         reject_empty_robot_side: reject multi-robot splits that leave robots without targets.
         retries: re-submissions of splits whose candidates were all invalid.
         max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).

@@ -14,6 +14,8 @@ SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/d
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from ising_backend import (
@@ -25,11 +27,20 @@ from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
+from planners.ising.sharing.coarse import coarsen, expand_sides
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
-__all__ = ["IsingSharing"]
+__all__ = ["IsingSharing", "CoarseSplit"]
+
+
+@dataclass
+class CoarseSplit:
+    """A split solved on target clusters: its group and its expanded candidates, best cut first."""
+
+    nodes: np.ndarray
+    cands: list = field(default_factory=list)
 
 
 class IsingSharing(ConfigAttributes):
@@ -270,11 +281,14 @@ class IsingSharing(ConfigAttributes):
         fresh: dict = {}
         for key, g in zip(keys, groups):
             if key not in memo and key not in fresh:
-                fresh[key] = self._problem(w, R, g, kind)
+                too_big = len(g) - 2 > int(self.chip.spec.n_spins) + self.config.max_frozen
+                fresh[key] = self._coarse_split(w, R, g, kind, rng, stats) if too_big else self._problem(w, R, g, kind)
         stats["stages"] += 1
         stats["splits"] += len(fresh)
         pending = []
         for p in fresh.values():
+            if isinstance(p, CoarseSplit):  # solved on its clusters already
+                continue
             if len(p.free) == 0:  # one partition only: nothing to solve
                 stats["trivial_splits"] += 1
                 side0, side1 = decode_split(p, np.zeros(0, dtype=np.int8))
@@ -295,6 +309,31 @@ class IsingSharing(ConfigAttributes):
             pending = failed
         memo.update(fresh)
         return [memo[key] for key in keys]
+
+    def _coarse_split(self, w, R, g, kind, rng, stats) -> "CoarseSplit":
+        """The split of a group too large for the chip, solved on target clusters
+        (:mod:`planners.ising.sharing.coarse`): as many clusters as fit the chip without branching."""
+        g = np.asarray(g, dtype=np.int64)
+        n_spins = int(self.chip.spec.n_spins)
+        robots = int((g < R).sum())
+        n_clusters = n_spins + 2 - robots
+        if n_clusters < 1:  # robots + one target cluster, less the two anchors, must fit
+            raise SharingFailure(
+                f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the chip: "
+                f"its robots and one cluster of targets need {robots - 1} free spins, the chip has {n_spins}")
+        members, wc = coarsen(w, g, R, n_clusters)
+        outer, self._memo = self._memo, {}  # coarse node indices must not meet the fine memo
+        try:
+            (problem,) = self._stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)
+        finally:
+            self._memo = outer
+        cands = []
+        for _cut, side0, side1, _ in problem.cands:
+            f0, f1 = expand_sides(members, side0, side1)
+            cands.append((cut_value(w, f0, f1), f0, f1, None))
+        cands.sort(key=lambda c: -c[0])
+        stats["coarse_splits"] = stats.get("coarse_splits", 0) + 1
+        return CoarseSplit(nodes=g, cands=cands)
 
     def _valid(self, R, side0, side1, kind) -> bool:
         if self.config.reject_empty_robot_side and kind == "robots":

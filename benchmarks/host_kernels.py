@@ -20,7 +20,7 @@ programs x 10 reads) are timed against the reference doing the same work.
 
 Usage::
 
-    flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/host_kernels.py [--calls 2000] [--write-results]
+    flock /tmp/mrmt-bench.lock python benchmarks/host_kernels.py [--calls 2000] [--write-results]
 """
 
 from __future__ import annotations
@@ -198,7 +198,7 @@ def main() -> None:
     c0, c1 = info["patch_copies"]
     block = f"""{SECTION}
 
-`flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/host_kernels.py --calls {args.calls} --write-results`
+`flock /tmp/mrmt-bench.lock python benchmarks/host_kernels.py --calls {args.calls} --write-results`
 ({when}, {platform.machine()}, {cpu_name()}, one thread; the 2 vCPUs are shared with other jobs, so
 times carry noise).  Median wall time per call over {args.calls} calls, reference (the numpy
 implementation the package used before, kept in `ising_backend/_reference.py`) and compiled path

@@ -382,6 +382,21 @@ def cached_controller(spec, seed: int, env, env_id: str, warmup: bool = True, ch
     return ctrl
 
 
+def write_csv(rows: list[dict], path) -> Path:
+    """``rows`` as CSV, columns in order of first appearance (a key a row lacks is empty)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k) for k in cols})
+    return path
+
+
 @dataclass
 class EvaluationResult:
     """Rows of an evaluation (one dict per episode) with writers and a summary."""
@@ -402,15 +417,7 @@ class EvaluationResult:
         return cols
 
     def to_csv(self, path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        cols = self.columns()
-        with open(path, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=cols)
-            w.writeheader()
-            for r in self.rows:
-                w.writerow({k: r.get(k) for k in cols})
-        return path
+        return write_csv(self.rows, path)
 
     def to_json(self, path) -> Path:
         path = Path(path)

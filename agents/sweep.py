@@ -143,19 +143,9 @@ class SweepResult:
     config: dict
 
     def to_csv(self, path) -> Path:
-        import csv
+        from agents.evaluation import write_csv
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        cols: list[str] = []
-        for r in self.rows:
-            cols += [k for k in r if k not in cols]
-        with open(path, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=cols)
-            w.writeheader()
-            for r in self.rows:
-                w.writerow({k: r.get(k) for k in cols})
-        return path
+        return write_csv(self.rows, path)
 
     def to_json(self, path) -> Path:
         path = Path(path)

@@ -194,16 +194,11 @@ def write_summary(result, stats: list[dict], path) -> Path:
 def write_report(result, out, reference: str | None = "strong") -> list[Path]:
     """``sweep.csv``, ``sweep.json``, ``specs.csv`` (per-spec statistics), ``pareto.png`` and
     ``summary.md`` in ``out``."""
-    import csv
+    from agents.evaluation import write_csv
 
     out = Path(out)
     stats = spec_stats(result, reference)
-    files = [result.to_csv(out / "sweep.csv"), result.to_json(out / "sweep.json")]
-    with open(out / "specs.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(stats[0]))
-        w.writeheader()
-        w.writerows(stats)
-    files.append(out / "specs.csv")
+    files = [result.to_csv(out / "sweep.csv"), result.to_json(out / "sweep.json"), write_csv(stats, out / "specs.csv")]
     files.append(plot_pareto(stats, out / "pareto.png"))
     files.append(write_summary(result, stats, out / "summary.md"))
     return files

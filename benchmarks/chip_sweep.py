@@ -20,6 +20,7 @@ import argparse
 import time
 from pathlib import Path
 
+from agents.evaluation import write_csv
 from agents.runner import RunConfig
 from agents.sweep import SweepConfig, SweepResult, parse_axes, run_sweep
 from agents.sweep_report import pareto_front, plot_pareto, spec_stats, write_summary
@@ -60,13 +61,7 @@ def main() -> None:
         wall = time.perf_counter() - t0
         out = Path(args.out) / family
         stats = spec_stats(result)
-        import csv
-
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / "specs.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(stats[0]))
-            w.writeheader()
-            w.writerows(stats)
+        write_csv(stats, out / "specs.csv")
         if not args.no_rows:
             result.to_csv(out / "sweep.csv")
         plot_pareto(stats, out / "pareto.png", title=f"chip sweep, {family} worlds ({n}): filled = every world "

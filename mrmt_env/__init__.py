@@ -6,6 +6,16 @@ level, ``mrmt_env/MRMT-Assign-v0``), each with a native vector env
 (``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``)
 and, when the installed PettingZoo has a registry, the PettingZoo ids
 ``mrmt_env/mrmt_v0`` (AEC and parallel) and ``mrmt_env/mrmt_assign_v0`` (AEC).
+
+Grid ids: ``MRMT-v0`` (the paper's 10x10, 20 obstacles, 3 robots, 10
+targets), ``MRMT-Centre-v0`` (robots near the centre), ``MRMT-5x5-v0``, and
+big worlds of the map families (:mod:`mrmt_env.maps`), 10 robots and 100
+targets on 64 x 64: ``MRMT-64x64-v0`` (uniform, 20 % obstacles),
+``MRMT-Warehouse-v0``, ``MRMT-Rooms-v0``, ``MRMT-Maze-v0``; and
+``MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets).  Plan level:
+``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Every id takes the
+generator's arguments, e.g. ``gymnasium.make("mrmt_env/MRMT-v0",
+layout="rooms", height=32, width=32)``.
 """
 
 from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_distance_fields
@@ -46,11 +56,29 @@ GYM_IDS = {
         dict(height=5, width=5, obstacle_density=0.04, n_robots=2, n_targets=3, placement="uniform"),
         50,
     ),
+    # big worlds (docs/maps.md): fleet-sized, 10 robots x 100 targets on 64 x 64, one per map family.
+    # Step limits are ~2x the longest makespan of the strong and fast pipelines over 100 worlds
+    # (377 uniform, 525 warehouse, 421 rooms); the maze's 4000 exceeds twice its free cells, so even
+    # one robot walking the whole maze finishes.
+    "mrmt_env/MRMT-64x64-v0": (dict(height=64, width=64, n_robots=10, n_targets=100), 1000),
+    "mrmt_env/MRMT-Warehouse-v0": (dict(height=64, width=64, n_robots=10, n_targets=100, layout="warehouse"), 1000),
+    "mrmt_env/MRMT-Rooms-v0": (dict(height=64, width=64, n_robots=10, n_targets=100, layout="rooms"), 1000),
+    "mrmt_env/MRMT-Maze-v0": (dict(height=64, width=64, n_robots=10, n_targets=100, layout="maze"), 4000),
+    # a large fleet: 50 robots x 500 targets in a 128 x 128 warehouse
+    "mrmt_env/MRMT-Warehouse-128x128-v0": (
+        dict(height=128, width=128, n_robots=50, n_targets=500, layout="warehouse"),
+        1500,
+    ),
 }
 
 #: Registered plan-level (Assign) ids -> (kwargs, max_episode_steps).
 ASSIGN_IDS = {
     "mrmt_env/MRMT-Assign-v0": ({}, 200),  # the paper's set-up; a masked agent needs <= N + R steps
+    # the 64 x 64 warehouse of MRMT-Warehouse-v0 at plan level (a masked agent needs <= 110 steps)
+    "mrmt_env/MRMT-Assign-Warehouse-v0": (
+        dict(height=64, width=64, n_robots=10, n_targets=100, layout="warehouse"),
+        400,
+    ),
 }
 
 

@@ -116,7 +116,7 @@ class MRMTAssignEnv(gym.Env):
     ## Arguments
 
     Those of ``MRMTEnv``: ``height``, ``width``, ``obstacle_density``,
-    ``n_robots``, ``n_targets``, ``placement``, ``world``,
+    ``n_robots``, ``n_targets``, ``placement``, ``layout``, ``layout_options``, ``world``,
     ``max_episode_steps``, ``render_mode`` (``"ansi"``, ``"rgb_array"``,
     ``"human"``).  Worlds and seeding are the grid env's: the same
     ``reset(seed=s)`` gives the same world in both.
@@ -139,13 +139,15 @@ class MRMTAssignEnv(gym.Env):
         placement: str | None = None,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
+        layout: str | None = None,
+        layout_options: dict | None = None,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.max_episode_steps = check_step_limit(max_episode_steps)
         self.source = WorldSource(
             world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement,
+            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options,
         )
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.fixed.n_targets if self.source.fixed is not None else self.source.params["n_targets"])

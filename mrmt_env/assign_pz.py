@@ -43,7 +43,7 @@ class MRMTAssignAECEnv(AECEnv):
 
     def __init__(self, height=None, width=None, obstacle_density=None, n_robots=None, n_targets=None,
                  world: World | str | None = None, placement=None, max_cycles: int | None = None,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, layout=None, layout_options=None) -> None:
         super().__init__()
         check_render_mode(render_mode, self.metadata["render_modes"])
         limit = DEFAULT_MAX_CYCLES if max_cycles is None else max_cycles
@@ -52,7 +52,8 @@ class MRMTAssignAECEnv(AECEnv):
         self.max_cycles = int(limit)
         self.render_mode = render_mode
         self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement)
+                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
+                                  layout_options=layout_options)
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

@@ -28,12 +28,13 @@ class MRMTAssignVectorEnv(BatchedVectorEnv):
 
     def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
                  n_targets=None, world=None, placement=None, max_episode_steps=None, render_mode=None,
-                 autoreset_mode="NextStep", copy: bool = True) -> None:
+                 autoreset_mode="NextStep", copy: bool = True, layout=None, layout_options=None) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
         super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
         self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement)
+                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
+                                  layout_options=layout_options)
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

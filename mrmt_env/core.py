@@ -27,10 +27,13 @@ per step.
 
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 
 from mrmt_env.distances import MOVES, bfs_distance_fields
-from mrmt_env.generation import generate_world
+from mrmt_env.generation import DEFAULT_DENSITY, generate_world
+from mrmt_env.maps import check_layout
 from mrmt_env.io import read_worlds
 from mrmt_env.observation import ROBOT_CHANNEL0, TARGET_CHANNEL, encode_observation
 from mrmt_env.render import render_ansi, render_rgb
@@ -39,7 +42,7 @@ from mrmt_env.world import World
 __all__ = [
     "MRMTCore", "WorldSource", "action_between", "show", "actions_from_path", "check_render_mode", "check_step_limit",
     "N_ACTIONS", "ACTION_NAMES",
-    "successor_table",
+    "successor_table", "MAX_GRID_ENV_CELLS", "check_grid_env_cells",
 ]
 
 N_ACTIONS = 5
@@ -67,22 +70,47 @@ def check_render_mode(render_mode, render_modes) -> None:
         raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
 
 
+#: Largest grid (cells; 1024 x 1024) of the step-level grid envs: they keep a Python move table per
+#: cell (about 200 MB at the limit) and copy a ``(2 + R) x H x W`` observation every step.  The world
+#: model, the planners and the plan-level env take up to ``generation.MAX_GRID_CELLS``.
+MAX_GRID_ENV_CELLS = 2**20
+
+
+def check_grid_env_cells(height: int, width: int) -> None:
+    """``ValueError`` naming the size and :data:`MAX_GRID_ENV_CELLS` if a grid env cannot hold the grid."""
+    if height * width > MAX_GRID_ENV_CELLS:
+        raise ValueError(
+            f"a {height}x{width} grid has {height * width} cells; the step-level grid env takes at most "
+            f"{MAX_GRID_ENV_CELLS} (MAX_GRID_ENV_CELLS, 1024 x 1024); plan such worlds with the planners or "
+            "the plan-level env (mrmt_env/MRMT-Assign-v0)"
+        )
+
+
 def successor_table(grid: np.ndarray) -> list[tuple[int, ...]]:
     """``table[p][a]``: flat cell reached from flat cell ``p`` by action ``a``.
 
     A move off the grid or into an obstacle gives ``p`` itself (blocked).
+    Built with numpy, then kept as Python tuples for the step's plain-int
+    indexing (a 1024 x 1024 grid: about a second and 200 MB).
     """
+    grid = np.asarray(grid, dtype=bool)
     h, w = grid.shape
-    table: list[tuple[int, ...]] = []
-    for r in range(h):
-        for c in range(w):
-            p = r * w + c
-            row = [p]
-            for dr, dc in MOVES.tolist():
-                nr, nc = r + dr, c + dc
-                row.append(nr * w + nc if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] else p)
-            table.append(tuple(row))
-    return table
+    cells = np.arange(h * w, dtype=np.int64).reshape(h, w)
+    table = np.repeat(cells[:, :, None], 1 + len(MOVES), axis=2)
+    for a, (dr, dc) in enumerate(MOVES.tolist(), start=1):
+        src = (slice(max(0, -dr), h - max(0, dr)), slice(max(0, -dc), w - max(0, dc)))
+        dst = (slice(max(0, dr), h - max(0, -dr)), slice(max(0, dc), w - max(0, -dc)))
+        table[src + (a,)] = np.where(grid[dst], cells[src], cells[dst])
+    enabled = gc.isenabled()
+    gc.disable()  # millions of new tuples would trigger many useless collections
+    try:
+        flat, out = table.reshape(h * w, -1), []
+        for start in range(0, h * w, 1 << 16):  # in chunks: no list-of-lists copy of the whole table
+            out.extend(map(tuple, flat[start:start + (1 << 16)].tolist()))
+        return out
+    finally:
+        if enabled:
+            gc.enable()
 
 
 _DELTA_TO_ACTION = {(0, 0): 0, **{(int(dr), int(dc)): a for a, (dr, dc) in enumerate(MOVES.tolist(), start=1)}}
@@ -327,15 +355,17 @@ class WorldSource:
     Args:
         world: a :class:`World`, a path to a world file (JSON, or JSON Lines
             holding exactly one world), or ``None`` to generate worlds.
-        height, width, obstacle_density, n_robots, n_targets, placement:
-            generator arguments (defaults 10, 10, 0.2, 3, 10, ``"uniform"``).
-            With a fixed world, sizes given here must agree with it.
+        grid_env: refuse grids beyond :data:`MAX_GRID_ENV_CELLS` (the step-level envs).
+        height, width, obstacle_density, n_robots, n_targets, placement, layout, layout_options:
+            generator arguments (defaults 10, 10, 0.2 for the ``uniform``
+            layout, 3, 10, ``"uniform"``, ``"uniform"``, the layout's
+            defaults).  With a fixed world, sizes given here must agree with it.
     """
 
-    DEFAULTS = {"height": 10, "width": 10, "obstacle_density": 0.2, "n_robots": 3, "n_targets": 10,
-                "placement": "uniform"}
+    DEFAULTS = {"height": 10, "width": 10, "obstacle_density": None, "n_robots": 3, "n_targets": 10,
+                "placement": "uniform", "layout": "uniform", "layout_options": None}
 
-    def __init__(self, world=None, **params) -> None:
+    def __init__(self, world=None, *, grid_env: bool = False, **params) -> None:
         given = {k: v for k, v in params.items() if v is not None}
         unknown = sorted(set(given) - set(self.DEFAULTS))
         if unknown:
@@ -353,11 +383,21 @@ class WorldSource:
                     raise ValueError(f"{key}={value!r} contradicts the given world, which has {key}={actual[key]}")
                 if key not in actual:
                     raise ValueError(f"{key}={value!r} only applies to generated worlds, not a fixed world")
+            if grid_env:
+                check_grid_env_cells(world.height, world.width)
             self.fixed: World | None = world
             self.params = dict(actual)
         else:
             self.fixed = None
-            self.params = {**self.DEFAULTS, **given}
+            params = {**self.DEFAULTS, **given}
+            if params["layout"] == "uniform" and params["obstacle_density"] is None:
+                params["obstacle_density"] = DEFAULT_DENSITY
+            if params["layout_options"] is not None:
+                params["layout_options"] = check_layout(params["layout"], params["layout_options"])
+            self.params = params
+            h, w = params["height"], params["width"]
+            if grid_env and all(isinstance(v, (int, np.integer)) for v in (h, w)):
+                check_grid_env_cells(int(h), int(w))  # before a world is drawn
             generate_world(0, **self.params)  # validates the arguments now, with clear errors
         self.height = int(self.params["height"])
         self.width = int(self.params["width"])

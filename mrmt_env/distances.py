@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat"]
+__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat", "component_labels"]
 
 UNREACHABLE = -1
 
@@ -94,3 +94,43 @@ def bfs_distance_fields(grid: np.ndarray, sources) -> np.ndarray:
 def bfs_distance_field(grid: np.ndarray, source) -> np.ndarray:
     """``(H, W)`` int32 distance field from one source cell."""
     return bfs_distance_fields(grid, [source])[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _label(flat_grid, width, labels, sizes):  # pragma: no cover - compiled
+    n = flat_grid.shape[0]
+    h = n // width
+    queue = np.empty(n, dtype=np.int64)
+    count = 0
+    for s in range(n):
+        if flat_grid[s] or labels[s] >= 0:
+            continue
+        labels[s] = count
+        queue[0] = s
+        head, tail = 0, 1
+        while head < tail:
+            p = queue[head]
+            head += 1
+            r, c = p // width, p % width
+            for m in range(4):
+                nr = r + (-1, 1, 0, 0)[m]
+                nc = c + (0, 0, -1, 1)[m]
+                if 0 <= nr < h and 0 <= nc < width:
+                    q = nr * width + nc
+                    if not flat_grid[q] and labels[q] < 0:
+                        labels[q] = count
+                        queue[tail] = q
+                        tail += 1
+        sizes[count] = tail
+        count += 1
+    return count
+
+
+def component_labels(grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(labels (H, W) int64, sizes (K,))`` of the 4-connected free components, numbered in
+    row-major order of their first cell (obstacles get -1); one linear pass."""
+    grid = np.ascontiguousarray(grid, dtype=np.bool_)
+    labels = np.full(grid.size, -1, dtype=np.int64)
+    sizes = np.zeros(grid.size, dtype=np.int64)
+    k = _label(grid.reshape(-1), grid.shape[1], labels, sizes)
+    return labels.reshape(grid.shape), sizes[:k].copy()

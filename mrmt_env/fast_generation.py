@@ -3,8 +3,8 @@
 :func:`draw_world_arrays` makes the same random calls, in the same order, as
 ``generate_world`` and returns the same grid, robots and targets as arrays,
 with a compiled connectivity check instead of validating a ``World`` (about
-a tenth of the time).  ``centre`` placement and fixed worlds go through
-``generate_world`` itself.  ``tests/test_vector_envs.py`` checks the two
+a tenth of the time).  ``centre`` placement, the map families other than
+``uniform`` and fixed worlds go through ``generate_world`` itself.  ``tests/test_vector_envs.py`` checks the two
 against each other draw for draw.
 """
 
@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from mrmt_env.distances import bfs_flat
-from mrmt_env.generation import generate_world
+from mrmt_env.generation import DEFAULT_DENSITY, draw_budget, generate_world
 from mrmt_env.pcg64 import MAX_POP, choice_floyd, state_views
 from mrmt_env.world import World
 
@@ -83,7 +83,7 @@ def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | Non
     The same world ``generate_world(rng, **params)`` returns (and ``rng``
     advanced the same way); a fixed world is returned as it is.
     """
-    if fixed is None and params["placement"] != "uniform":
+    if fixed is None and (params["placement"] != "uniform" or params.get("layout", "uniform") != "uniform"):
         fixed = generate_world(rng, **params)
     if fixed is not None:
         w = fixed.width
@@ -92,15 +92,17 @@ def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | Non
     height, width = int(params["height"]), int(params["width"])
     n_robots, n_targets = int(params["n_robots"]), int(params["n_targets"])
     n_cells = height * width
-    n_obstacles = int(round(params["obstacle_density"] * n_cells))
+    density = params.get("obstacle_density")
+    n_obstacles = int(round((DEFAULT_DENSITY if density is None else density) * n_cells))
+    tries = draw_budget(n_cells)
     needed = n_robots + n_targets
     views = state_views(rng) if n_cells <= MAX_POP and needed >= 1 else None
     if views is not None and needed <= n_cells - n_obstacles:  # the compiled draw, draw for draw
-        flat, chosen, ok = _draw_uniform(views[0], views[1], n_cells, n_obstacles, needed, width, 10_000)
+        flat, chosen, ok = _draw_uniform(views[0], views[1], n_cells, n_obstacles, needed, width, tries)
         if ok:
             return flat, chosen[:n_robots].copy(), chosen[n_robots:].copy()
         views = None  # the same failure as below, from numpy's own words
-    for _ in range(10_000):
+    for _ in range(tries):
         flat = np.zeros(n_cells, dtype=bool)
         flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True
         free_idx = np.flatnonzero(~flat)
@@ -109,5 +111,5 @@ def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | Non
             return flat, chosen[:n_robots].astype(np.int64), chosen[n_robots:].astype(np.int64)
     raise ValueError(  # pragma: no cover - the same limit as generate_world's
         f"no draw of {n_obstacles} obstacles on a {height}x{width} grid put {n_robots} robots and "
-        f"{n_targets} targets in one connected component in 10000 tries"
+        f"{n_targets} targets in one connected component in {tries} tries (draw_budget); lower the density"
     )

@@ -34,7 +34,7 @@ class MRMTVectorEnv(BatchedVectorEnv):
     def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
                  n_targets=None, world=None, placement=None, max_episode_steps=None, target_reward=None,
                  render_mode=None, observation: str = "binary", dense_reward: float = 0.0,
-                 autoreset_mode="NextStep", copy: bool = True) -> None:
+                 autoreset_mode="NextStep", copy: bool = True, layout=None, layout_options=None) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
         if observation not in OBSERVATIONS:
@@ -43,7 +43,8 @@ class MRMTVectorEnv(BatchedVectorEnv):
             raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
         super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
         self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement)
+                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
+                                  layout_options=layout_options, grid_env=True)
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         b = self.num_envs

@@ -215,6 +215,8 @@ class MRMTEnv(gym.Env):
         render_mode: str | None = None,
         observation: str = "binary",
         dense_reward: float = 0.0,
+        layout: str | None = None,
+        layout_options: dict | None = None,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         if observation not in OBSERVATIONS:
@@ -228,7 +230,7 @@ class MRMTEnv(gym.Env):
         self.max_episode_steps = check_step_limit(max_episode_steps)
         self.source = WorldSource(
             world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement,
+            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options, grid_env=True,
         )
         self.n_robots = self.source.n_robots
         self.action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)

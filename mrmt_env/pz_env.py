@@ -71,7 +71,7 @@ class MRMTParallelEnv(ParallelEnv):
 
     Arguments are those of :class:`mrmt_env.gym_env.MRMTEnv` (``height``,
     ``width``, ``obstacle_density``, ``n_robots``, ``n_targets``, ``world``,
-    ``placement``, ``target_reward``, ``render_mode``) plus ``max_cycles``
+    ``placement``, ``layout``, ``layout_options``, ``target_reward``, ``render_mode``) plus ``max_cycles``
     (steps before truncation, default 200; ``max_episode_steps`` is accepted
     as an alias).  See the module docstring for spaces, reward and ends.
     """
@@ -92,6 +92,8 @@ class MRMTParallelEnv(ParallelEnv):
         max_episode_steps: int | None = None,
         target_reward: float | None = None,
         render_mode: str | None = None,
+        layout: str | None = None,
+        layout_options: dict | None = None,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         if max_cycles is not None and max_episode_steps is not None and max_cycles != max_episode_steps:
@@ -104,7 +106,7 @@ class MRMTParallelEnv(ParallelEnv):
         self.render_mode = render_mode
         self.source = WorldSource(
             world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement,
+            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options, grid_env=True,
         )
         r, h, w = self.source.n_robots, self.source.height, self.source.width
         self.n_robots = r

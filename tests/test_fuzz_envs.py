@@ -26,12 +26,17 @@ ALL_IDS = GRID_IDS + ASSIGN_IDS
 SMALL = {"height": 5, "width": 5, "obstacle_density": 0.04, "n_robots": 2, "n_targets": 3}
 
 
+def _small(env_id: str) -> dict:
+    """:data:`SMALL` for ``env_id``: a small uniform world also for the ids of other map families."""
+    return {**SMALL, "layout": "uniform"} if "layout" in gym.spec(env_id).kwargs else dict(SMALL)
+
+
 def _direct(env_id: str, limit: int | None, small: bool):
     """The id's env class built directly, with its own step limit (no TimeLimit wrapper)."""
     spec = gym.spec(env_id)
     kwargs = dict(spec.kwargs)
     if small:
-        kwargs.update(SMALL)
+        kwargs.update(_small(env_id))
     return load_env_creator(spec.entry_point)(**kwargs, max_episode_steps=limit)
 
 
@@ -244,7 +249,7 @@ def test_aec_envs_with_anything(assign, seed, data):
 @given(env_id=st.sampled_from(ALL_IDS), mode=st.sampled_from(["NextStep", "SameStep"]), data=st.data())
 def test_vector_envs_refuse_bad_actions_and_keep_autoresetting(env_id, mode, data):
     env = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point", autoreset_mode=mode,
-                       max_episode_steps=4, **SMALL)
+                       max_episode_steps=4, **_small(env_id))
     env.reset(seed=data.draw(st.integers(0, 2**32)))
     ends = 0
     with no_hang():

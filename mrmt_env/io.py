@@ -62,8 +62,8 @@ MAX_FIELD_CELLS = 2**27
 
 def example_world_path(lines: bool = False) -> Path:
     """An example world file shipped with the package: ``example_world.json`` (one world of the
-    paper's set-up: 10x10, 20 obstacles, 3 robots, 10 targets; ``generate_world(0)``) or, with
-    ``lines=True``, ``example_worlds.jsonl`` (``generate_world(0 .. 4)``, JSON Lines)."""
+    paper's set-up: 10x10, 20 obstacles, 3 robots, 10 targets) or, with ``lines=True``,
+    ``example_worlds.jsonl`` (five such worlds, the first the same, as JSON Lines)."""
     return Path(__file__).with_name("data") / ("example_worlds.jsonl" if lines else "example_world.json")
 
 

@@ -12,7 +12,9 @@ and :data:`MAX_FIELD_CELLS`.
 
 from __future__ import annotations
 
+import heapq
 import json
+import math
 import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -21,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from mrmt_env.distances import bfs_distance_field
-from mrmt_env.generation import _largest_component
+from mrmt_env.generation import MAX_FIELD_CELLS, MAX_GRID_CELLS, _largest_component
 from mrmt_env.world import World, WorldError
 
 __all__ = [
@@ -46,6 +48,10 @@ __all__ = [
     "read_movingai_map",
     "read_movingai_scen",
     "world_from_movingai",
+    "write_movingai_map",
+    "write_movingai_scen",
+    "octile_distance_field",
+    "example_map_path",
 ]
 
 PASSABLE = frozenset(".GS")
@@ -53,11 +59,8 @@ IMPASSABLE = frozenset("@OTW")
 
 #: Largest file a reader takes (bytes): world JSON / JSON Lines, MovingAI ``.map`` and ``.scen``.
 MAX_FILE_BYTES = 64 * 2**20
-#: Largest grid of a world or map read from a file (cells; 2048 x 2048).
-MAX_GRID_CELLS = 2**22
-#: Most BFS distance-field cells, ``(robots + targets) x H x W``, a world read from a file may need
-#: (int32 each: 512 MiB).
-MAX_FIELD_CELLS = 2**27
+# MAX_GRID_CELLS (2**22 cells, 2048 x 2048) and MAX_FIELD_CELLS (2**27 distance-field cells
+# (robots + targets) x H x W, 512 MiB of int32) are the generator's limits, shared with world files.
 
 
 def example_world_path(lines: bool = False) -> Path:
@@ -65,6 +68,13 @@ def example_world_path(lines: bool = False) -> Path:
     paper's set-up: 10x10, 20 obstacles, 3 robots, 10 targets) or, with ``lines=True``,
     ``example_worlds.jsonl`` (five such worlds, the first the same, as JSON Lines)."""
     return Path(__file__).with_name("data") / ("example_worlds.jsonl" if lines else "example_world.json")
+
+
+def example_map_path(scen: bool = False) -> Path:
+    """The MovingAI map shipped with the package: ``warehouse_32x32.map`` (a 32 x 32 warehouse of
+    :mod:`mrmt_env.maps`) or, with ``scen=True``, its ``.scen`` (100 scenarios: robots' starts to
+    targets, for ``world_from_movingai(map, scen, n_robots=10, n_targets=100)``)."""
+    return Path(__file__).with_name("data") / ("warehouse_32x32.scen" if scen else "warehouse_32x32.map")
 
 
 # --------------------------------------------------------------------- grids
@@ -512,3 +522,63 @@ def world_from_movingai(
         if targets is None:
             targets = chosen[:k_t]
     return World(grid, np.asarray(robots, dtype=np.int64).reshape(-1, 2), np.asarray(targets, dtype=np.int64).reshape(-1, 2))
+
+
+def write_movingai_map(grid, path) -> None:
+    """Write an obstacle grid as a MovingAI ``.map`` file (``type octile``; ``.`` free, ``@`` obstacle)."""
+    grid = np.asarray(grid, dtype=bool)
+    rows = grid_to_rows(grid)
+    text = f"type octile\nheight {grid.shape[0]}\nwidth {grid.shape[1]}\nmap\n" + "\n".join(rows) + "\n"
+    Path(path).write_text(text, encoding="utf-8")
+
+
+def octile_distance_field(grid, start) -> np.ndarray:
+    """``(H, W)`` float64 shortest 8-neighbour path lengths from ``start`` (``inf``: unreachable).
+
+    MovingAI's rule: a straight move costs 1, a diagonal one sqrt(2) and needs
+    both cells it passes between free (no corner cutting).
+    """
+    grid = np.asarray(grid, dtype=bool)
+    h, w = grid.shape
+    dist = np.full((h, w), np.inf)
+    r0, c0 = int(start[0]), int(start[1])
+    dist[r0, c0] = 0.0
+    heap = [(0.0, r0, c0)]
+    steps = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    while heap:
+        d, r, c = heapq.heappop(heap)
+        if d > dist[r, c]:
+            continue
+        for dr, dc in steps:
+            nr, nc = r + dr, c + dc
+            if not (0 <= nr < h and 0 <= nc < w) or grid[nr, nc]:
+                continue
+            if dr and dc and (grid[r + dr, c] or grid[r, c + dc]):
+                continue
+            nd = d + (math.sqrt(2.0) if dr and dc else 1.0)
+            if nd < dist[nr, nc]:
+                dist[nr, nc] = nd
+                heapq.heappush(heap, (nd, nr, nc))
+    return dist
+
+
+def write_movingai_scen(world: World, path, map_name: str) -> None:
+    """Write a world's robots and targets as a MovingAI ``.scen`` file that
+    :func:`world_from_movingai` reads back (``n_robots=R, n_targets=N``).
+
+    Scenario ``i`` (``max(R, N)`` of them) runs from robot ``i mod R``'s start
+    to target ``i`` (``i mod N``; its own start when there are no targets);
+    ``optimal_length`` is the 8-neighbour length of :func:`octile_distance_field`
+    and ``bucket`` its quarter, rounded down, as in MovingAI's files.
+    """
+    fields = {}
+    lines = ["version 1"]
+    for i in range(max(world.n_robots, world.n_targets)):
+        start = tuple(int(v) for v in world.robots[i % world.n_robots])
+        goal = tuple(int(v) for v in world.targets[i % world.n_targets]) if world.n_targets else start
+        if start not in fields:
+            fields[start] = octile_distance_field(world.grid, start)
+        opt = float(fields[start][goal])
+        lines.append("\t".join([str(int(opt // 4)), map_name, str(world.width), str(world.height), str(start[1]),
+                                str(start[0]), str(goal[1]), str(goal[0]), f"{opt:.8f}"]))
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")

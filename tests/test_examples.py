@@ -24,7 +24,8 @@ def run_example(name: str, *args: str) -> str:
 
 
 def test_every_example_is_tested():
-    tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py"}
+    tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
+              "map_families.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -37,6 +38,18 @@ def test_quickstart_ising():
 def test_movingai_map():
     out = run_example("movingai_map.py", "--robots", "2", "--targets", "5")
     assert "12x16 map, 2 robots, 5 targets" in out and "success=True" in out
+
+
+def test_map_families(tmp_path):
+    out = run_example("map_families.py", "--size", "24", "--robots", "3", "--targets", "10", "--worlds", "1",
+                      "--export", str(tmp_path), "--png", str(tmp_path / "maps.png"))
+    for family in ("uniform", "warehouse", "rooms", "maze"):
+        assert any(line.startswith(family) and line.endswith("1/1") for line in out.splitlines()), out
+    data = ROOT / "examples" / "data"
+    for name in ("warehouse_32x32", "rooms_24x24", "maze_31x31"):  # the shipped maps are what --export writes
+        for ext in (".map", ".scen"):
+            assert (tmp_path / (name + ext)).read_text() == (data / (name + ext)).read_text()
+    assert (tmp_path / "maps.png").stat().st_size > 0
 
 
 def test_custom_chip():

@@ -47,6 +47,13 @@ CASES = [
     ("mrmt_env/MRMT-Centre-v0", {"max_episode_steps": 30}),
     ("mrmt_env/MRMT-Assign-v0", {}),
     ("mrmt_env/MRMT-Assign-v0", {"height": 6, "width": 6, "n_robots": 2, "n_targets": 4, "max_episode_steps": 5}),
+    # map families go through generate_world in the vector envs too
+    ("mrmt_env/MRMT-v0", {"layout": "rooms", "height": 9, "width": 9, "n_robots": 2, "n_targets": 4,
+                          "max_episode_steps": 25, "layout_options": {"room_size": 3}}),
+    ("mrmt_env/MRMT-Maze-v0", {"height": 7, "width": 8, "n_robots": 2, "n_targets": 3, "max_episode_steps": 20,
+                               "placement": "centre"}),
+    ("mrmt_env/MRMT-Assign-Warehouse-v0", {"height": 10, "width": 12, "n_robots": 2, "n_targets": 4,
+                                           "layout_options": {"shelf_length": 3, "margin": 1}}),
 ]
 
 

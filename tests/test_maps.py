@@ -21,7 +21,7 @@ from mrmt_env.core import MAX_GRID_ENV_CELLS
 from mrmt_env.distances import component_labels
 from mrmt_env.generation import MAX_FIELD_CELLS, MAX_GRID_CELLS, _largest_component, draw_budget
 from mrmt_env.io import (example_map_path, example_world_path, octile_distance_field, read_movingai_map,
-                         read_movingai_scen, read_world, world_from_movingai, write_movingai_map,
+                         read_movingai_scen, world_from_dict, world_from_movingai, write_movingai_map,
                          write_movingai_scen)
 from mrmt_env.maps import LAYOUT_OPTIONS, build_layout
 
@@ -85,9 +85,23 @@ def test_shipped_maps_are_the_generators_output():
         assert shipped == generate_world(0, height=h, width=w, n_robots=robots, n_targets=targets, layout=family)
 
 
+#: generate_world(0) and generate_world(7, placement="centre") as drawn before the map families existed
+GOLDEN = [
+    ({}, {"grid": [".@.@..@...", ".....@....", "..@...@...", "..........", "..@...@...", "..@@.@.@.@", ".@......@.",
+                   "@..@......", "...@......", "..@@......"],
+          "robots": [[3, 3], [3, 4], [4, 7]],
+          "targets": [[0, 2], [1, 1], [6, 2], [6, 3], [3, 6], [0, 0], [2, 4], [9, 5], [7, 7], [9, 0]]}),
+    ({"placement": "centre"},
+     {"grid": ["@...@.....", ".@@......@", ".....@.@..", "..........", "......@@.@", ".@....@...", "......@...",
+               "..@..@@.@.", "@...@.....", ".......@.."],
+      "robots": [[4, 3], [6, 3], [5, 5]],
+      "targets": [[4, 8], [7, 7], [0, 5], [5, 4], [0, 3], [1, 0], [3, 9], [1, 4], [4, 2], [9, 5]]}),
+]
+
+
 def test_default_world_and_uniform_draws_unchanged():
-    # the shipped example world is generate_world(0) of the first release
-    assert generate_world(0) == read_world(example_world_path())
+    for (kwargs, golden), seed in zip(GOLDEN, (0, 7)):
+        assert generate_world(seed, **kwargs) == world_from_dict(golden)
     assert generate_world(0, n_robots=3, n_targets=10) == generate_world(0, layout="uniform", obstacle_density=0.2)
     assert generate_world(5, placement="centre") == generate_world(5, placement="centre", layout_options={})
 

@@ -130,7 +130,8 @@ class MRMTEnv(gym.Env):
     Without a fixed ``world``, each ``reset(seed=...)`` draws a new world with
     ``mrmt_env.generate_world`` from the env's random generator (the paper's
     set-up: exactly ``round(density * H * W)`` obstacles, robots and targets on
-    distinct cells of one 4-connected free component).  With a fixed world,
+    distinct cells of one 4-connected free component; or the map family
+    ``layout``, ``docs/maps.md``).  With a fixed world,
     every episode starts from it.  ``reset(options={"world": w})`` starts one
     episode from the ``World`` ``w`` (same ``H, W, R`` as the env).  Targets
     under a robot at reset are visited at once.
@@ -178,10 +179,12 @@ class MRMTEnv(gym.Env):
     |--------------------|----------------------|-------------|----------------------------------------------------|
     | `height`           | int                  | 10          | grid rows (generated worlds)                       |
     | `width`            | int                  | 10          | grid columns (generated worlds)                    |
-    | `obstacle_density` | float                | 0.2         | fraction of obstacle cells (generated worlds)      |
+    | `obstacle_density` | float or None        | 0.2         | obstacle share of the `uniform` layout             |
     | `n_robots`         | int                  | 3           | robots R                                           |
     | `n_targets`        | int                  | 10          | targets N                                          |
     | `placement`        | str                  | `"uniform"` | `"uniform"` or `"centre"` robot spawn              |
+    | `layout`           | str                  | `"uniform"` | map family: `uniform`, `warehouse`, `rooms`, `maze` |
+    | `layout_options`   | dict or None         | None        | the family's options (`mrmt_env.maps`)             |
     | `world`            | World, path or None  | None        | fixed world (or world file) for every episode      |
     | `max_episode_steps`| int or None          | None        | self-truncation for direct construction            |
     | `target_reward`    | float or None        | `2 * H * W` | reward per newly visited target                    |
@@ -192,7 +195,13 @@ class MRMTEnv(gym.Env):
     Registered ids: ``mrmt_env/MRMT-v0`` (10x10, density 0.2, 3 robots, 10
     targets, uniform placement, 200 steps), ``mrmt_env/MRMT-Centre-v0`` (the
     same with the paper's centre spawn), ``mrmt_env/MRMT-5x5-v0`` (5x5, 1
-    obstacle, 2 robots, 3 targets, 50 steps; for quick RL training).
+    obstacle, 2 robots, 3 targets, 50 steps; for quick RL training); big
+    worlds of 10 robots and 100 targets on 64x64: ``mrmt_env/MRMT-64x64-v0``
+    (uniform), ``mrmt_env/MRMT-Warehouse-v0``, ``mrmt_env/MRMT-Rooms-v0``
+    (1000 steps each), ``mrmt_env/MRMT-Maze-v0`` (4000 steps); and
+    ``mrmt_env/MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets, 1500
+    steps).  Grids up to ``mrmt_env.core.MAX_GRID_ENV_CELLS`` (1024x1024);
+    map families and limits: ``docs/maps.md``.
 
     ## Version History
 

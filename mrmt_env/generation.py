@@ -101,8 +101,9 @@ def generate_world(
     """
     for name, value, lo in (("height", height, 1), ("width", width, 1), ("n_robots", n_robots, 1),
                             ("n_targets", n_targets, 0)):
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)) \
-                or not np.isfinite(value) or int(value) != value or value < lo:
+        whole = isinstance(value, (int, np.integer)) or (
+            isinstance(value, (float, np.floating)) and bool(np.isfinite(value)) and float(value).is_integer())
+        if isinstance(value, (bool, np.bool_)) or not whole or value < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
     height, width, n_robots, n_targets = int(height), int(width), int(n_robots), int(n_targets)
     n_cells = height * width

@@ -219,6 +219,7 @@ def test_maze_loops_open_walls(loops):
         (dict(height=2048, width=2048, n_targets=100), f"at most {MAX_FIELD_CELLS} \\(MAX_FIELD_CELLS.*at most 32"),
         (dict(height=True), "height must be an integer >= 1, got True"),
         (dict(n_targets=float("inf")), "n_targets must be an integer >= 0, got inf"),
+        (dict(n_targets=10**400), r"\(MAX_FIELD_CELLS, 512 MiB\)"),
     ],
 )
 def test_bad_arguments_are_one_line_errors(kwargs, match):

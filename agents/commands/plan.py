@@ -7,7 +7,7 @@
 
 ``WORLDS`` is a world JSON file (one object, may span lines) or a JSON Lines
 file of worlds (:mod:`mrmt_env.io` format: ``grid`` strings, ``robots`` and
-``targets`` as ``[row, col]``).  Output: one JSON object per world, in input
+``targets`` as ``[row, col]``; docs/world_format.md).  Output: one JSON object per world, in input
 order, on stdout or ``--out`` -- :meth:`planners.plan.Plan.to_dict`
 (``robots``, ``route_cost``, ``makespan``, ``imbalance``, ``success``,
 ``compute`` and, for a failed plan, ``failure``).  Each line is written as

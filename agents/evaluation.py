@@ -25,7 +25,10 @@ episode (:func:`compute_record`):
     (physical + projected) chip calls x 0.45 uJ (the paper's Ising energy);
 ``host_energy_j``
     ``host_cpu_s`` x 15 W per core (the paper's classical energy, and the
-    host glue of the Ising pipeline); ``total_energy_j`` is their sum.
+    host glue of the Ising pipeline); ``total_energy_j`` is their sum;
+``retries``, ``fallbacks``
+    chip calls re-dispatched after a fault, and layer calls handed to the
+    classical layer (a faulty chip; see :mod:`ising_backend.health`).
 
 Worlds: episode ``i`` of every controller and seed resets the env with
 ``seed=world_seed + i``, so all controllers see the same worlds.  Seeds:
@@ -114,6 +117,8 @@ COMPUTE_KEYS = (
     "accelerator_energy_j",
     "host_energy_j",
     "total_energy_j",
+    "retries",
+    "fallbacks",
 )
 
 

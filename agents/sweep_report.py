@@ -64,6 +64,8 @@ def spec_stats(result, reference: str | None = "strong") -> list[dict]:
             "chip_time_parallel_s": _median(r.get("chip_time_parallel_s") for r in rs),
             "latency_parallel_s": _median(r.get("latency_parallel_s") for r in rs),
             "host_cpu_s": _median(r.get("host_cpu_s") for r in rs),
+            "retries": _median(r.get("retries") for r in rs),
+            "fallbacks_per_plan": float(np.mean([r.get("fallbacks") or 0 for r in rs])),
             "error": next((r["error"] for r in rs if r.get("error")), ""),
         })
     return out

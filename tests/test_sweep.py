@@ -90,6 +90,7 @@ def test_stats_pareto_and_report_files(small_sweep, tmp_path):
     by_spins = {s["n_spins"]: s for s in stats if s["spec_id"] >= 0}
     assert by_spins[4]["success_rate"] == 0.0 and by_spins[45]["success_rate"] == 1.0
     assert math.isfinite(by_spins[45]["mean_gap_pct"])
+    assert by_spins[45]["fallbacks_per_plan"] == 0.0 and by_spins[45]["retries"] == 0.0
     front = pareto_front(stats, "accelerator_energy_j")
     assert front and all(s["success_rate"] == 1.0 for s in front)
     assert 4 not in {s["n_spins"] for s in front}
@@ -109,6 +110,14 @@ def test_pareto_front_keeps_only_undominated_full_success_specs():
     stats = [s(0, 1.0, 5.0), s(1, 2.0, 1.0), s(2, 2.0, 6.0), s(3, 0.5, 0.5, ok=0.9), s(4, 1.5, 3.0),
              {"spec_id": -1, "mean_gap_pct": 0.0, "e": 0.1, "success_rate": 1.0}]
     assert [x["spec_id"] for x in pareto_front(stats, "e", "mean_gap_pct")] == [1, 4, 0]
+
+
+def test_a_fault_axis_counts_retries_and_fallbacks():
+    cfg = SweepConfig(axes=parse_axes(["program_error_prob=0,0.3"]), controllers=("ising",), n_worlds=2)
+    stats = {s["spec"]: s for s in spec_stats(run_sweep(cfg, INLINE), reference=None)}
+    assert stats["program_error_prob=0"]["retries"] == 0
+    assert stats["program_error_prob=0.3"]["retries"] > 0
+    assert all(s["success_rate"] == 1.0 for s in stats.values())
 
 
 def test_sweep_cli_writes_the_report(tmp_path, capsys):

@@ -3,7 +3,8 @@
 For N in ``--targets`` (default 10, 20, 50, 100, 200, 300) with R = max(3, N // 10) robots,
 on ``--worlds`` worlds per (map, N) of ``--side`` x ``--side`` cells (default 128; layouts
 ``uniform`` with 20 % obstacles and ``warehouse``), every pipeline in ``--pipelines``
-(default ising, strong, fast) plans each world once.  Reported per (map, N, pipeline): success,
+(default ising, ising-bfs -- the Ising pipeline with ``target_key="bfs"`` paths --, strong,
+fast) plans each world once.  Reported per (map, N, pipeline): success,
 mean route cost (and the ratio to the strong pipeline, world by world), median wall seconds per
 plan, median chip calls (physical + projected logical) and accelerator energy.  The world set-up
 (distance fields) is timed apart.  Writes ``docs/scale.png`` and the RESULTS.md section.
@@ -28,13 +29,21 @@ except ImportError:  # imported as benchmarks.scale
     from benchmarks._common import cpu_name, write_results_section
 
 SECTION = "## Scale (issue 10)"
+ORDER = ("ising", "ising-bfs", "strong", "fast")
+
+
+def _pipeline(name: str):
+    """A preset, or ``ising-bfs``: the Ising pipeline whose paths rank local targets by BFS distance."""
+    if name == "ising-bfs":
+        return make_pipeline("ising", path_options={"target_key": "bfs"})
+    return make_pipeline(name)
 
 
 def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
     for layout in layouts:  # warm-up (numba caches, lazy imports): untimed
         warm = generate_world(0, height=16, width=16, n_robots=3, n_targets=10, layout=layout)
         for name in pipelines:
-            make_pipeline(name).plan(warm, seed=0)
+            _pipeline(name).plan(warm, seed=0)
     rows = []
     for layout in layouts:
         for n in targets:
@@ -44,7 +53,7 @@ def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
                 world = generate_world(1000 + w, height=side, width=side, n_robots=r, n_targets=n, layout=layout)
                 setup = time.perf_counter() - t0
                 for name in pipelines:
-                    pipe = make_pipeline(name)
+                    pipe = _pipeline(name)
                     t0 = time.perf_counter()
                     plan = pipe.plan(world, seed=w)
                     wall = time.perf_counter() - t0
@@ -61,7 +70,7 @@ def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
 def summarize(rows) -> list[dict]:
     out = []
     keys = sorted({(r["layout"], r["n_targets"], r["pipeline"]) for r in rows},
-                  key=lambda k: (k[0], k[1], ("ising", "strong", "fast").index(k[2]) if k[2] in ("ising", "strong", "fast") else 9))
+                  key=lambda k: (k[0], k[1], ORDER.index(k[2]) if k[2] in ORDER else 9))
     strong = {(r["layout"], r["n_targets"], r["world"]): r["cost"] for r in rows if r["pipeline"] == "strong"}
     for layout, n, name in keys:
         rs = [r for r in rows if (r["layout"], r["n_targets"], r["pipeline"]) == (layout, n, name)]
@@ -86,7 +95,7 @@ def plot(summary, path) -> None:
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
     styles = {"uniform": "-", "warehouse": "--"}
-    colours = {"ising": "tab:blue", "strong": "tab:green", "fast": "tab:orange"}
+    colours = {"ising": "tab:blue", "ising-bfs": "tab:purple", "strong": "tab:green", "fast": "tab:orange"}
     for (key, label, log), ax in zip((("ratio", "route cost / strong pipeline", False),
                                       ("wall_s", "wall seconds per plan", True),
                                       ("calls", "chip calls per plan (physical + logical)", True)), axes):
@@ -113,7 +122,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", default="10,20,50,100,200,300")
     ap.add_argument("--layouts", default="uniform,warehouse")
-    ap.add_argument("--pipelines", default="ising,strong,fast")
+    ap.add_argument("--pipelines", default="ising,ising-bfs,strong,fast",
+                    help="presets, and ising-bfs (Ising paths ranking local targets by BFS distance)")
     ap.add_argument("--side", type=int, default=128)
     ap.add_argument("--worlds", type=int, default=3)
     ap.add_argument("--figure", default="docs/scale.png")

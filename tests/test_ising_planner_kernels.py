@@ -124,10 +124,16 @@ def test_rank_local_targets_matches_the_reference(seed, density, interior, merge
     padded = np.pad(grid, 2, constant_values=True)
     excluded = np.pad(rng.random((h, w)) < excl_density, 2, constant_values=False)
     comp, ranked = rank_local_targets(padded, pos[0], pos[1], goal[0], goal[1], 5, NBR, FRAME.ring, excluded,
-                                      interior, merged)
+                                      interior, merged, np.zeros((0, 0), dtype=np.int64))
     ref_comp, ref_ranked = ranked_reference(FRAME, padded, pos, goal, excluded, interior, merged)
     assert np.array_equal(comp, ref_comp)
     assert ranked.tolist() == ref_ranked
+    # a Manhattan field given explicitly ranks exactly as the built-in Manhattan key
+    rr, cc = np.indices(padded.shape)
+    manhattan = (np.abs(rr - 2 - goal[0]) + np.abs(cc - 2 - goal[1])).astype(np.int64)
+    comp2, ranked2 = rank_local_targets(padded, pos[0], pos[1], goal[0], goal[1], 5, NBR, FRAME.ring, excluded,
+                                        interior, merged, manhattan)
+    assert np.array_equal(comp2, comp) and ranked2.tolist() == ranked.tolist()
 
 
 @SETTINGS
@@ -315,7 +321,8 @@ def test_exact_route_cost_refuses_too_many_targets():
 
 # ----------------------------------------------------------------------------- compiled path loop
 @pytest.mark.parametrize("options", [{}, {"form": "degree"}, {"target_order": "merged", "num_reads": 2},
-                                     {"interior_targets": False, "backtrack": False}, {"max_attempts": 3}])
+                                     {"interior_targets": False, "backtrack": False}, {"max_attempts": 3},
+                                     {"target_key": "bfs"}, {"target_key": "bfs", "target_order": "merged"}])
 def test_compiled_path_loop_makes_the_reference_loops_decisions(options):
     """The compiled search loop (planners.ising.path.engine) against the Python loop it mirrors:
     the same paths, failures, statistics, chip charges and rng state on random worlds."""

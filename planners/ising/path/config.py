@@ -7,10 +7,11 @@ from dataclasses import dataclass, field
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
 from planners.ising.fallback import FALLBACK_MODES
 
-__all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
+__all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "TARGET_KEYS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
 
 FORMS = ("pair", "degree")
 TARGET_ORDERS = ("boundary_first", "merged")
+TARGET_KEYS = ("manhattan", "bfs")
 
 #: Chip units per QUBO weight unit before the merge styles round.
 DEFAULT_SCALE = {"pair": 16.0, "degree": 2.0}
@@ -41,6 +42,9 @@ class PathConfig(IsingConfig):
         max_attempts: local-target attempts per query (``None``: ``max(64, free cells)``).
         max_chip_calls: physical calls per query (``None``: attempts x styles x reads).
         target_order: ``"boundary_first"`` or ``"merged"``.
+        target_key: what ranks local targets: ``"manhattan"`` distance to the goal (the paper's
+            rule) or ``"bfs"``, the world's obstacle-aware BFS distance to the goal (the field the
+            world computes for its distance matrix anyway; docs/design/ising_path.md).
         scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
             ``[form]``; the value used: :attr:`chip_scale`).
         pack: block-pack the portfolio's programs into shared chip programs.
@@ -60,6 +64,7 @@ class PathConfig(IsingConfig):
     max_attempts: int | None = None
     max_chip_calls: int | None = None
     target_order: str = "boundary_first"
+    target_key: str = "manhattan"
     scale: float | None = None
     pack: bool = False
     fallback: str = "unavailable"
@@ -68,6 +73,7 @@ class PathConfig(IsingConfig):
         check_choice("form", self.form, FORMS)
         check_choice("fallback", self.fallback, FALLBACK_MODES)
         check_choice("target_order", self.target_order, TARGET_ORDERS)
+        check_choice("target_key", self.target_key, TARGET_KEYS)
         if isinstance(self.patch_size, bool) or int(self.patch_size) != self.patch_size \
                 or self.patch_size < 3 or self.patch_size % 2 == 0:
             raise ValueError(f"patch_size must be an odd integer >= 3, got {self.patch_size!r}")

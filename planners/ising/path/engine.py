@@ -130,7 +130,7 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
 
 
 @numba.njit(cache=True)
-def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
+def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
               num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric,
               beta_hot, beta_cold, mismatch, flip_prob, free_cells):
     """One query of Algorithm 1 (see the module docstring).
@@ -177,7 +177,7 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
         for t in range(nf):
             if f_pos[t, 0] == pr and f_pos[t, 1] == pc:
                 excluded[f_cell[t, 0] + rad, f_cell[t, 1] + rad] = True
-        comp, ranked = rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged)
+        comp, ranked = rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged, field)
         if ranked.shape[0] == 0:
             if backtrack and nseg > 0:
                 nseg -= 1
@@ -307,7 +307,7 @@ class CompiledSearch:
     :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
     ``chip``, ``_pool``, ``_engine_args``, ``_nbr``, ``_padded`` and ``_finish``)."""
 
-    def _run_engine(self, grid, s, g, rng):
+    def _run_engine(self, grid, s, g, rng, field):
         """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
         submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
         from ising_backend import CallLedger
@@ -317,7 +317,7 @@ class CompiledSearch:
         free = self._free_cells(grid)
         max_attempts, _per_target, max_calls = self._budgets(grid)
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, *self._pool.arrays(), self._padded(grid), s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
+            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
             fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
             cfg.num_reads, max_attempts, max_calls, *self._engine_args, free)
         if status == NEEDS_REFERENCE:

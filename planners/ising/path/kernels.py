@@ -41,7 +41,7 @@ def _neighbour_table(size: int) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged):
+def rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged, field):
     """Component of the robot cell and its ranked local targets.
 
     Args:
@@ -52,6 +52,8 @@ def rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interi
             (the robot's walk, targets that failed from this position).
         interior: interior cells are targets after the boundary; merged: rank boundary and
             interior cells together (``target_order="merged"``).
+        field: ``(H + 2r, W + 2r)`` int64 distance to the goal per cell (``target_key="bfs"``),
+            or an empty ``(0, 0)`` array for the Manhattan distance (the paper's rule).
 
     Returns ``(comp (n,) bool, ranked (m,) int64 patch-cell indices)``.
     """
@@ -95,12 +97,15 @@ def rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interi
             cls = 2
         if cls == 2 and not interior:
             continue
-        to_goal = abs(r - gr) + abs(c - gc)
+        if field.shape[0] > 0:
+            to_goal = np.int64(field[r + rad, c + rad])
+        else:
+            to_goal = np.int64(abs(r - gr) + abs(c - gc))
         from_pos = abs(dr) + abs(dc)
         if merged:  # lexsort((idx, from_pos, cls, to_goal, cls != 0))
-            key = (((np.int64(cls != 0) * 1048576 + to_goal) * 4 + cls) * 1024 + from_pos) * 4096 + i
+            key = (((np.int64(cls != 0) * 4294967296 + to_goal) * 4 + cls) * 1024 + from_pos) * 4096 + i
         else:  # lexsort((idx, from_pos, to_goal, cls))
-            key = ((np.int64(cls) * 1048576 + to_goal) * 1024 + from_pos) * 4096 + i
+            key = ((np.int64(cls) * 4294967296 + to_goal) * 1024 + from_pos) * 4096 + i
         keys[m] = key
         cand[m] = i
         m += 1

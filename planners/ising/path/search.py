@@ -240,17 +240,31 @@ class IsingPath(CompiledSearch, ConfigAttributes):
             if grid[r, c]:
                 return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
         rng = np.random.default_rng() if rng is None else rng
+        field = self._goal_field(world, g)
         result = None
         if self._engine_args is not None:
             state = rng.bit_generator.state
-            result = self._run_engine(grid, s, g, rng)
+            result = self._run_engine(grid, s, g, rng, field)
             if result is None:
                 rng.bit_generator.state = state  # a program the chip cannot take: the reference loop names it
         if result is None:
-            result = self._search(grid, s, g, rng)
+            result = self._search(grid, s, g, rng, field)
         return path_fallback(self.config.fallback, world, s, g, rng, result)
 
-    def _search(self, grid, s, g, rng):
+    def _goal_field(self, world, g) -> np.ndarray:
+        """The ranking key's distance field, padded like the grid (``target_key="bfs"``): the
+        world's BFS field of the goal (a target's is already computed), unreachable and outside
+        cells last; an empty array for the paper's Manhattan key."""
+        if self.config.target_key != "bfs":
+            return np.zeros((0, 0), dtype=np.int64)
+        targets = np.asarray(world.targets)
+        hit = np.flatnonzero((targets[:, 0] == g[0]) & (targets[:, 1] == g[1])) if len(targets) else []
+        field = world.target_fields[int(hit[0])] if len(hit) else world.distance_field(g)
+        far = np.int64(2**40)
+        field = np.where(field < 0, far, field.astype(np.int64))
+        return np.pad(field, self.frame.radius, constant_values=far)
+
+    def _search(self, grid, s, g, rng, field=None):
         """The search loop in Python: the reference of :mod:`.engine` (and the loop for other chips,
         ``pack``, ``targets_per_call > 1`` and patches above 7x7)."""
         fr = self.frame
@@ -258,6 +272,8 @@ class IsingPath(CompiledSearch, ConfigAttributes):
         rad = fr.radius
         offsets = fr.offsets
         padded = self._padded(grid)
+        if field is None:
+            field = np.zeros((0, 0), dtype=np.int64)
         solver = MeteredSolver(self.chip)
         mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in self.config.styles}
         counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
@@ -286,7 +302,7 @@ class IsingPath(CompiledSearch, ConfigAttributes):
             else:
                 excluded = visited_mask
             comp, ranked_idx = rank_local_targets(padded, pos[0], pos[1], g[0], g[1], fr.size, self._nbr, fr.ring,
-                                                  excluded, cfg.interior_targets, cfg.target_order == "merged")
+                                                  excluded, cfg.interior_targets, cfg.target_order == "merged", field)
             if len(ranked_idx) == 0:
                 if cfg.backtrack and stack:
                     seg = stack.pop()

@@ -149,3 +149,16 @@ def test_compare_max_steps_truncates_episodes(tmp_path, capsys):
                  "--no-progress", "--out", str(out)]) == 0
     rows = json.loads((out / "episodes.json").read_text())["rows"]
     assert rows[0]["steps"] == 2 and rows[0]["truncated"] is True
+
+
+def test_compare_layout_option_plans_on_that_map_family(tmp_path):
+    import json
+
+    from agents.cli import main
+
+    out = tmp_path / "c"
+    assert main(["compare", "--worlds", "2", "--controllers", "strong", "--layout", "maze", "--height", "15",
+                 "--width", "15", "--jobs", "1", "--no-progress", "--out", str(out)]) == 0
+    data = json.loads((out / "episodes.json").read_text())
+    assert data["config"]["env_kwargs"]["layout"] == "maze"
+    assert all(r["is_success"] for r in data["rows"])

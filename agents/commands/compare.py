@@ -30,6 +30,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
     parser.add_argument("--density", type=float, default=None, help="obstacle density (default: the env id's, 0.2)")
     parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
+    from mrmt_env.maps import LAYOUTS
+
+    parser.add_argument("--layout", default=None, choices=LAYOUTS,
+                        help="map family (default: the env id's; docs/maps.md)")
     parser.add_argument(
         "--controllers",
         default="fast,strong,ising",
@@ -75,6 +79,7 @@ def run(args) -> int:
         "width": args.width,
         "obstacle_density": args.density,
         "placement": args.placement,
+        "layout": args.layout,
     }
     env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:

@@ -42,6 +42,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
     parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
     parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
+    from mrmt_env.maps import LAYOUTS
+
+    parser.add_argument("--layout", default=None, choices=LAYOUTS,
+                        help="map family (default: the env id's; docs/maps.md)")
     parser.add_argument("--max-steps", type=int, default=None, help="episode step limit (default as mrmt compare)")
     add_runner_arguments(parser)
     parser.add_argument("--out", required=True, help="output directory")
@@ -68,7 +72,7 @@ def run(args) -> int:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
         return fail(f"unknown env id {args.env_id!r}; registered: {known}")
     given = {"n_robots": args.robots, "n_targets": args.targets, "height": args.height, "width": args.width,
-             "placement": args.placement}
+             "placement": args.placement, "layout": args.layout}
     try:
         from ising_backend import ChipSpec
 

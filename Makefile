@@ -1,14 +1,15 @@
 # Two commands do everything on a fresh clone (see README):
 #   make demo   - set up .venv with the base package only (no torch), then run the planner comparison
-#   make test   - add torch (CPU build), stable-baselines3, Ray and the test tools, then run the test suite
-# torch comes from PyTorch's CPU index (TORCH_INDEX) *before* stable-baselines3, so pip does not pull
-# the multi-GB CUDA build that plain PyPI serves on Linux.  `make test TORCH_INDEX=` uses plain PyPI.
+#   make test   - add torch, stable-baselines3, Ray and the test tools, then run the test suite
+# torch==2.13.0 is installed *before* stable-baselines3, from wherever pip finds it: a local CPU wheel
+# where the machine has one, else plain PyPI, which on Linux serves the multi-GB CUDA build.  For the
+# CPU build from PyTorch's own index: make test TORCH_INDEX=https://download.pytorch.org/whl/cpu
 
 PYTHON      ?= python3
 VENV        ?= .venv
 PY          := $(VENV)/bin/python
 TORCH       ?= torch==2.13.0
-TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
+TORCH_INDEX ?=
 BASE_STAMP  := $(VENV)/.base-stamp
 FULL_STAMP  := $(VENV)/.full-stamp
 

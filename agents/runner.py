@@ -105,9 +105,13 @@ def run_tasks(fn: Callable, tasks: Sequence[tuple], config: RunConfig | None = N
 
 
 def _run_process(fn, chunks, config: RunConfig, bar) -> list:
+    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(max_workers=config.jobs) as pool:
+    # Forking a process that runs Ray's (gRPC) threads can deadlock the child: once Ray has been
+    # imported here, workers come from a clean forkserver instead of a fork of this process.
+    context = multiprocessing.get_context("forkserver") if "ray" in sys.modules else None
+    with ProcessPoolExecutor(max_workers=config.jobs, mp_context=context) as pool:
         futures = {pool.submit(_run_chunk, fn, chunk): k for k, chunk in enumerate(chunks)}
         parts: list = [None] * len(chunks)
         for fut in as_completed(futures):

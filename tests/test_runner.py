@@ -95,6 +95,13 @@ def test_ray_backend_matches_the_process_backend():
         pytest.skip("Ray is not installed (pip install 'mrmt-ising[distributed]')")
     if "ray" in sys.modules and os.environ.get(LOOPBACK_ENV) != "0":
         pytest.skip("ray was imported before the runner could ask for a loopback-only instance")
+    # the process-backend references first, before Ray's threads exist in this process
+    keys = ("controller", "seed", "world_seed", "route_cost", "makespan", "is_success", "chip_calls",
+            "logical_calls", "accelerator_energy_j")
+    kw = dict(n_worlds=3, seeds=(0, 1), progress=False)
+    b = evaluate("strong,ising", n_jobs=2, backend="process", **kw)
+    cfg = SweepConfig(axes={"j_range": ["7", "15"]}, controllers=("ising", "strong"), n_worlds=2)
+    sb = run_sweep(cfg, RunConfig(backend="process", jobs=2, progress=False))
     on_ray = RunConfig(backend="ray", jobs=2, chunk_size=4, progress=False)
     ray = _ray()
     # Ray workers import task functions by name: builtins here, package functions below
@@ -107,16 +114,13 @@ def test_ray_backend_matches_the_process_backend():
         with pytest.raises(ValueError, match="invalid literal"):  # the task's own exception type
             run_tasks(int, [("1",), ("2",), ("3x",)], on_ray)
 
-        keys = ("controller", "seed", "world_seed", "route_cost", "makespan", "is_success", "chip_calls",
-                "logical_calls", "accelerator_energy_j")
-        kw = dict(n_worlds=3, seeds=(0, 1), progress=False)
         a = evaluate("strong,ising", n_jobs=2, backend="ray", **kw)
-        b = evaluate("strong,ising", n_jobs=2, backend="process", **kw)
         assert [[r[k] for k in keys] for r in a.rows] == [[r[k] for k in keys] for r in b.rows]
 
-        cfg = SweepConfig(axes={"j_range": ["7", "15"]}, controllers=("ising", "strong"), n_worlds=2)
         sa = run_sweep(cfg, on_ray)
-        sb = run_sweep(cfg, RunConfig(backend="process", jobs=2, progress=False))
+        # a process pool started while Ray runs here uses a forkserver (no fork of Ray's threads)
+        assert run_tasks(pow, [(i, 2) for i in range(6)], RunConfig(backend="process", jobs=2, progress=False)) \
+            == [i * i for i in range(6)]
         keys = ("spec_id", "j_range", "controller", "world_seed", "route_cost", "chip_calls", "error")
         assert [[r.get(k) for k in keys] for r in sa.rows] == [[r.get(k) for k in keys] for r in sb.rows]
     finally:

@@ -223,7 +223,7 @@ def uses_chip(spec: str) -> bool:
                for kind, name in zip(("sharing", "tour", "path"), layers))
 
 
-def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=None):
+def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=None, env_kwargs: dict | None = None):
     """Build the controller a spec names (see :func:`validate_controller_spec`) for the env ``env_id``.
 
     Planners become :class:`agents.policy.PlannerPolicy` in a grid env and
@@ -233,6 +233,8 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
     ``predict(obs, state, episode_start, deterministic)`` and
     ``episode_compute(index)``.  ``chip`` (an :class:`ising_backend.ChipSpec`) is the emulated
     chip of planners with Ising layers.
+    ``env_id`` / ``env_kwargs`` also tell the safe model loader which env a model without a
+    sidecar acts in (its spaces are rebuilt from it; nothing is unpickled from the file).
     """
     spec = validate_controller_spec(spec)
     from agents.env_ids import is_assign_env
@@ -240,7 +242,7 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
     if spec.startswith("ppo:"):
         from agents.learned import load_policy
 
-        return load_policy(spec[4:], seed=seed)
+        return load_policy(spec[4:], seed=seed, env_id=env_id, env_kwargs=env_kwargs)
     if spec.startswith("ppo-ms:"):
         from agents.assign_search import MultiStartPolicy
         from agents.learned import load_policy
@@ -248,7 +250,7 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
         if env_id is None or not is_assign_env(env_id):
             raise ControllerError(f"{spec!r}: multi-start decoding needs the plan-level env (mrmt_env/MRMT-Assign-v0)")
         try:
-            return MultiStartPolicy(load_policy(spec[7:], seed=seed))
+            return MultiStartPolicy(load_policy(spec[7:], seed=seed, env_id=env_id, env_kwargs=env_kwargs))
         except ValueError as exc:
             raise ControllerError(f"{spec!r}: {exc}") from None
 
@@ -366,20 +368,20 @@ def _episode_task(spec, seed: int, world_seed: int, env_id: str, env_kwargs: dic
                   chip=None, max_steps: int | None = None) -> dict:
     env = _env_for(env_id, env_kwargs, max_steps)
     name = spec if isinstance(spec, str) else spec[0]
-    ctrl = cached_controller(spec, seed, env, env_id, warmup, chip)
+    ctrl = cached_controller(spec, seed, env, env_id, warmup, chip, env_kwargs)
     row = {"controller": name, "seed": int(seed), "world_seed": int(world_seed)}
     row.update(run_episode(env, ctrl, world_seed))
     return row
 
 
-def cached_controller(spec, seed: int, env, env_id: str, warmup: bool = True, chip=None):
+def cached_controller(spec, seed: int, env, env_id: str, warmup: bool = True, chip=None, env_kwargs=None):
     """This worker's controller for ``(spec, seed, env_id, chip)``, built (and warmed up with one
     untimed episode in ``env``) on first use; ``spec`` is a spec string or ``(name, factory)``."""
     name, factory = (spec, None) if isinstance(spec, str) else spec
     ckey = (name, seed, env_id, chip)
     ctrl = _CONTROLLERS.get(ckey)
     if ctrl is None:
-        ctrl = (make_controller(name, seed=seed, env_id=env_id, chip=chip) if factory is None
+        ctrl = (make_controller(name, seed=seed, env_id=env_id, chip=chip, env_kwargs=env_kwargs) if factory is None
                 else factory(seed))
         if warmup:  # first use in this process pays numba/torch start-up: not part of any episode
             run_episode(env, ctrl, WARMUP_WORLD_SEED)

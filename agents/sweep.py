@@ -165,7 +165,7 @@ def _sweep_task(spec_id: int, labels: dict, chip, controller: str, seed: int, wo
     row = {"controller": controller, "seed": int(seed), "world_seed": int(world_seed)}
     env = _env_for(env_id, env_kwargs, max_steps)
     try:
-        ctrl = cached_controller(controller, seed, env, env_id, True, chip)
+        ctrl = cached_controller(controller, seed, env, env_id, True, chip, env_kwargs)
     except ValueError as exc:  # the controller does not fit this chip
         row.update({k: None for k in ROUTE_KEYS})
         row["is_success"] = False

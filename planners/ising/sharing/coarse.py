@@ -16,9 +16,14 @@ possible radius for that many clusters).  Measurements: docs/design/ising_sharin
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
-__all__ = ["farthest_point_clusters", "coarsen", "expand_sides"]
+from planners.ising.sharing.bundles import SharingFailure
+from planners.ising.sharing.qubo import cut_value
+
+__all__ = ["farthest_point_clusters", "coarsen", "expand_sides", "CoarseSplit", "CoarseSplits"]
 
 
 def farthest_point_clusters(w: np.ndarray, k: int) -> np.ndarray:
@@ -59,3 +64,44 @@ def expand_sides(members, side0, side1) -> tuple[np.ndarray, np.ndarray]:
         parts = [members[int(i)] for i in side]
         return np.sort(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
     return grow(side0), grow(side1)
+
+
+@dataclass
+class CoarseSplit:
+    """A split solved on target clusters: its group and its expanded candidates, best cut first."""
+
+    nodes: np.ndarray
+    cands: list = field(default_factory=list)
+
+
+
+
+class CoarseSplits:
+    """:class:`~planners.ising.sharing.IsingSharing`'s splits of groups too large for the chip
+    (needs its ``chip``, ``_stage`` and ``_memo``)."""
+
+    def _coarse_split(self, w, R, g, kind, rng, stats) -> "CoarseSplit":
+        """The split of a group too large for the chip, solved on target clusters
+        (:mod:`planners.ising.sharing.coarse`): as many clusters as fit the chip without branching."""
+        g = np.asarray(g, dtype=np.int64)
+        n_spins = int(self.chip.spec.n_spins)
+        robots = int((g < R).sum())
+        n_clusters = n_spins + 2 - robots
+        if n_clusters < 1:  # robots + one target cluster, less the two anchors, must fit
+            raise SharingFailure(
+                f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the chip: "
+                f"its robots and one cluster of targets need {robots - 1} free spins, the chip has {n_spins}")
+        members, wc = coarsen(w, g, R, n_clusters)
+        outer, self._memo = self._memo, {}  # coarse node indices must not meet the fine memo
+        try:
+            (problem,) = self._stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)
+        finally:
+            self._memo = outer
+        cands = []
+        for _cut, side0, side1, _ in problem.cands:
+            f0, f1 = expand_sides(members, side0, side1)
+            cands.append((cut_value(w, f0, f1), f0, f1, None))
+        cands.sort(key=lambda c: -c[0])
+        stats["coarse_splits"] = stats.get("coarse_splits", 0) + 1
+        return CoarseSplit(nodes=g, cands=cands)
+

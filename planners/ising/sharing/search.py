@@ -14,8 +14,6 @@ SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/d
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from ising_backend import (
@@ -27,23 +25,16 @@ from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
-from planners.ising.sharing.coarse import coarsen, expand_sides
+from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
+from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
-__all__ = ["IsingSharing", "CoarseSplit"]
+__all__ = ["IsingSharing"]
 
 
-@dataclass
-class CoarseSplit:
-    """A split solved on target clusters: its group and its expanded candidates, best cut first."""
-
-    nodes: np.ndarray
-    cands: list = field(default_factory=list)
-
-
-class IsingSharing(ConfigAttributes):
+class IsingSharing(ConfigAttributes, Components, CoarseSplits):
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:
@@ -130,46 +121,6 @@ class IsingSharing(ConfigAttributes):
                                      stats=flag(stats, "sharing", reason))
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats)
-
-    def _assign_components(self, dist, R: int, tour, rng, stats) -> SharingResult:
-        """Sharing on a world of several connected components (infinite distances between them):
-        each component's targets are shared among that component's robots, one after another
-        (a component with one robot takes all its targets, no chip call).  A target no robot
-        can reach is a failure naming it."""
-        n = dist.shape[0]
-        comp = np.full(n, -1, dtype=np.int64)
-        for v in range(n):
-            if comp[v] < 0:
-                comp[np.isfinite(dist[v])] = v  # finite BFS distance: same component
-        assignment: list[list[int]] = [[] for _ in range(R)]
-        compute = ComputeReport()
-        empty = tuple(() for _ in range(R))
-        same = comp[:, None] == comp[None, :]
-        if (same != np.isfinite(dist)).any():  # reachability must split the nodes into components
-            i, j = (int(v) for v in np.argwhere(~np.isfinite(dist))[0])
-            msg = (f"node {i} cannot reach node {j} (distance {dist[i, j]}), but the other distances join them: "
-                   "the distance matrix does not split into connected components")
-            return SharingResult(assignment=empty, compute=compute, stats=stats, failure=msg)
-        for c in np.unique(comp):
-            robots = [v for v in range(R) if comp[v] == c]
-            targets = [v for v in range(R, n) if comp[v] == c]
-            if not targets:
-                continue
-            if not robots:
-                msg = (f"target(s) {[t - R for t in targets]} cannot be reached by any robot "
-                       f"(node {targets[0]} has infinite distance to every robot)")
-                return SharingResult(assignment=empty, compute=compute, stats=stats, failure=msg)
-            nodes = robots + targets
-            res = self.assign(dist[np.ix_(nodes, nodes)], len(robots), tour, rng)
-            compute = compute + res.compute
-            _add_counts(stats, res.stats)
-            if res.failure is not None:
-                return SharingResult(assignment=empty, compute=compute, stats=stats,
-                                     failure=f"component of robots {robots}: {res.failure}")
-            for k, group in zip(robots, res.assignment):
-                assignment[k].extend(targets[t] - R for t in group)
-        stats["components"] = int(len(np.unique(comp)))
-        return SharingResult(assignment=tuple(tuple(sorted(g)) for g in assignment), compute=compute, stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus
@@ -309,31 +260,6 @@ class IsingSharing(ConfigAttributes):
             pending = failed
         memo.update(fresh)
         return [memo[key] for key in keys]
-
-    def _coarse_split(self, w, R, g, kind, rng, stats) -> "CoarseSplit":
-        """The split of a group too large for the chip, solved on target clusters
-        (:mod:`planners.ising.sharing.coarse`): as many clusters as fit the chip without branching."""
-        g = np.asarray(g, dtype=np.int64)
-        n_spins = int(self.chip.spec.n_spins)
-        robots = int((g < R).sum())
-        n_clusters = n_spins + 2 - robots
-        if n_clusters < 1:  # robots + one target cluster, less the two anchors, must fit
-            raise SharingFailure(
-                f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the chip: "
-                f"its robots and one cluster of targets need {robots - 1} free spins, the chip has {n_spins}")
-        members, wc = coarsen(w, g, R, n_clusters)
-        outer, self._memo = self._memo, {}  # coarse node indices must not meet the fine memo
-        try:
-            (problem,) = self._stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)
-        finally:
-            self._memo = outer
-        cands = []
-        for _cut, side0, side1, _ in problem.cands:
-            f0, f1 = expand_sides(members, side0, side1)
-            cands.append((cut_value(w, f0, f1), f0, f1, None))
-        cands.sort(key=lambda c: -c[0])
-        stats["coarse_splits"] = stats.get("coarse_splits", 0) + 1
-        return CoarseSplit(nodes=g, cands=cands)
 
     def _valid(self, R, side0, side1, kind) -> bool:
         if self.config.reject_empty_robot_side and kind == "robots":
@@ -491,12 +417,3 @@ class IsingSharing(ConfigAttributes):
             cands = [(cut_value(dist, c[0], c[1]), c[0], c[1], None) for c in found[k].values()]
             order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
             p.cands = [cands[i] for i in order]
-
-
-def _add_counts(into: dict, new: dict) -> None:
-    """Add the counters of ``new`` (numbers, nested dicts of numbers) into ``into``."""
-    for key, value in new.items():
-        if isinstance(value, dict):
-            _add_counts(into.setdefault(key, {}), value)
-        elif isinstance(value, (int, float)) and not isinstance(value, bool):
-            into[key] = into.get(key, 0) + value

@@ -189,6 +189,11 @@ def _env_for(env_id: str, env_kwargs: dict, max_steps: int | None = None):
 _BASE_WORLD = {"height": 10, "width": 10, "n_targets": 10}
 
 
+def resolve_max_steps(env_id: str, env_kwargs: dict, max_steps) -> int:
+    """``max_steps`` checked, or :func:`step_limit` when it is ``None``."""
+    return step_limit(env_id, env_kwargs) if max_steps is None else check_max_steps(max_steps)
+
+
 def check_max_steps(max_steps) -> int:
     if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 1:
         raise ValueError(f"max_steps = {max_steps!r} must be an integer >= 1")
@@ -454,7 +459,7 @@ def evaluate(
         raise ControllerError(f"a chip spec was given, but none of the controllers {specs} runs on a chip "
                               "(add ising or a layer triple with an ising layer)")
     run = RunConfig.from_jobs(n_jobs, progress=progress, backend=backend, address=address)
-    max_steps = step_limit(env_id, env_kwargs) if max_steps is None else check_max_steps(max_steps)
+    max_steps = resolve_max_steps(env_id, env_kwargs, max_steps)
     tasks = [
         (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup), chip, max_steps)
         for entry in entries

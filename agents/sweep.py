@@ -178,8 +178,9 @@ def _sweep_task(spec_id: int, labels: dict, chip, controller: str, seed: int, wo
 
 def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = True) -> SweepResult:
     """Run the sweep on the task runner ``run`` (a :class:`agents.runner.RunConfig`)."""
-    from agents.evaluation import check_max_steps, step_limit, uses_chip
+    from agents.evaluation import resolve_max_steps, uses_chip
     from agents.runner import RunConfig, run_tasks
+    from ising_backend import ChipSpec
 
     run = run or RunConfig(progress=progress)
     grid = chip_grid(config.axes, base_chip)
@@ -188,7 +189,7 @@ def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = Tr
         raise ValueError(f"none of the controllers {list(config.controllers)} runs on a chip; "
                          "add ising or a layer triple with an ising layer")
     env_kwargs = dict(config.env_kwargs)
-    max_steps = step_limit(config.env_id, env_kwargs) if config.max_steps is None else check_max_steps(config.max_steps)
+    max_steps = resolve_max_steps(config.env_id, env_kwargs, config.max_steps)
     worlds = [int(config.world_seed) + i for i in range(int(config.n_worlds))]
     tasks = []
     # specs innermost: every spec's host time is measured over the same stretch of the run (the
@@ -211,7 +212,7 @@ def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = Tr
         "env_id": config.env_id,
         "env_kwargs": env_kwargs,
         "max_steps": max_steps,
-        "base_chip": (base_chip or grid[0][1].__class__()).to_dict(),
+        "base_chip": (base_chip or ChipSpec()).to_dict(),
         "specs": [{"spec_id": i, "labels": labels, **spec_columns(chip)} for i, (labels, chip) in enumerate(grid)],
     }
     return SweepResult(rows=rows, specs=grid, config=cfg)

@@ -38,3 +38,12 @@ def cpu_name() -> str:
     except OSError:
         pass
     return cpu
+
+
+def finish(section: str, lines: list[str], write: bool) -> str:
+    """Print the section built from ``lines`` and, with ``write``, put it into RESULTS.md."""
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if write:
+        write_results_section(section, text)
+    return text

@@ -26,9 +26,9 @@ from agents.sweep import SweepConfig, SweepResult, parse_axes, run_sweep
 from agents.sweep_report import pareto_front, plot_pareto, spec_stats, write_summary
 
 try:
-    from _common import write_results_section  # run as a script: python benchmarks/<name>.py
+    from _common import finish  # run as a script: python benchmarks/<name>.py
 except ImportError:  # imported as benchmarks.chip_sweep
-    from benchmarks._common import write_results_section
+    from benchmarks._common import finish
 
 SECTION = "## Chip sweep (issue 12)"
 FAMILIES = {"paper": ({}, 100), "32x32": ({"height": 32, "width": 32}, 20)}
@@ -80,10 +80,7 @@ def main() -> None:
         print("\n".join(lines[-6:]), flush=True)
     lines.append(f"Files: `{args.out}/<family>/summary.md`, `specs.csv`, `pareto.png`. "
                  "Command: `flock /tmp/mrmt-bench.lock python benchmarks/chip_sweep.py --write-results`.")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.write_results:
-        write_results_section(SECTION, text)
+    finish(SECTION, lines, args.write_results)
 
 
 if __name__ == "__main__":

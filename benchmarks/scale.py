@@ -24,9 +24,9 @@ from mrmt_env.generation import generate_world
 from planners.pipeline import make_pipeline
 
 try:
-    from _common import cpu_name, write_results_section  # run as a script: python benchmarks/<name>.py
+    from _common import cpu_name, finish  # run as a script: python benchmarks/<name>.py
 except ImportError:  # imported as benchmarks.scale
-    from benchmarks._common import cpu_name, write_results_section
+    from benchmarks._common import cpu_name, finish
 
 SECTION = "## Scale (issue 10)"
 ORDER = ("ising", "ising-bfs", "strong", "fast")
@@ -148,10 +148,7 @@ def main() -> None:
     fails = [r for r in rows if not r["success"]]
     for r in fails[:10]:
         lines.append(f"\nFailed: {r['layout']} N={r['n_targets']} world {r['world']} {r['pipeline']}: {r['failure']}")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.write_results:
-        write_results_section(SECTION, text)
+    finish(SECTION, lines, args.write_results)
 
 
 if __name__ == "__main__":

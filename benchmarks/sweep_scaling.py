@@ -25,9 +25,9 @@ from agents.runner import RunConfig
 from agents.sweep import SweepConfig, parse_axes, run_sweep
 
 try:
-    from _common import cpu_name, write_results_section  # run as a script: python benchmarks/<name>.py
+    from _common import cpu_name, finish  # run as a script: python benchmarks/<name>.py
 except ImportError:  # imported as benchmarks.sweep_scaling
-    from benchmarks._common import cpu_name, write_results_section
+    from benchmarks._common import cpu_name, finish
 
 SECTION = "## Sweep scaling (issue 12)"
 KEYS = ("spec_id", "controller", "world_seed", "route_cost", "chip_calls", "logical_calls", "error")
@@ -77,10 +77,7 @@ def main() -> None:
     for backend, k, wall, rate, eff, same in table:
         lines.append(f"| {backend} | {k} | {wall:.1f} | {rate:.1f} | {eff:.2f} | {'yes' if same else 'NO'} |")
     lines += ["", "Command: `flock /tmp/mrmt-bench.lock python benchmarks/sweep_scaling.py --write-results`."]
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.write_results:
-        write_results_section(SECTION, text)
+    finish(SECTION, lines, args.write_results)
 
 
 if __name__ == "__main__":

@@ -52,12 +52,13 @@ def _bfs_many(grid: np.ndarray, sources: np.ndarray, out: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def bfs_flat(flat_grid, width, field, queue, n_sources) -> None:
+def bfs_flat(flat_grid, width, field, queue, n_sources) -> int:
     """Multi-source BFS on a flat grid (cells ``r * width + c``), in place, for compiled callers.
 
     On entry ``queue[:n_sources]`` holds the source cells, ``field`` is 0 at
     them and -1 elsewhere; on return ``field`` holds the moves to the nearest
-    source (-1 where none is reachable).
+    source (-1 where none is reachable) and ``queue[:k]`` the ``k`` cells reached
+    (sources included); returns ``k``.  Cells already >= 0 in ``field`` are not entered.
     """
     n = flat_grid.shape[0]
     h = n // width
@@ -75,6 +76,7 @@ def bfs_flat(flat_grid, width, field, queue, n_sources) -> None:
                     field[q] = field[p] + 1
                     queue[tail] = q
                     tail += 1
+    return tail
 
 
 def bfs_distance_fields(grid: np.ndarray, sources) -> np.ndarray:
@@ -99,29 +101,18 @@ def bfs_distance_field(grid: np.ndarray, source) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def _label(flat_grid, width, labels, sizes):  # pragma: no cover - compiled
     n = flat_grid.shape[0]
-    h = n // width
     queue = np.empty(n, dtype=np.int64)
+    field = np.full(n, -1, dtype=np.int32)  # >= 0: already labelled (bfs_flat never re-enters it)
     count = 0
     for s in range(n):
-        if flat_grid[s] or labels[s] >= 0:
+        if flat_grid[s] or field[s] >= 0:
             continue
-        labels[s] = count
+        field[s] = 0
         queue[0] = s
-        head, tail = 0, 1
-        while head < tail:
-            p = queue[head]
-            head += 1
-            r, c = p // width, p % width
-            for m in range(4):
-                nr = r + (-1, 1, 0, 0)[m]
-                nc = c + (0, 0, -1, 1)[m]
-                if 0 <= nr < h and 0 <= nc < width:
-                    q = nr * width + nc
-                    if not flat_grid[q] and labels[q] < 0:
-                        labels[q] = count
-                        queue[tail] = q
-                        tail += 1
-        sizes[count] = tail
+        reached = bfs_flat(flat_grid, width, field, queue, 1)
+        for k in range(reached):
+            labels[queue[k]] = count
+        sizes[count] = reached
         count += 1
     return count
 

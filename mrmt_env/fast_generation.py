@@ -51,7 +51,8 @@ def node_distances(flat_grid, width, nodes, out) -> None:
 @numba.njit(cache=True, nogil=True)
 def _draw_uniform(state, buf, n_cells, n_obstacles, needed, width, tries):
     """The retry loop of :func:`draw_world_arrays` on a PCG64 state (:mod:`mrmt_env.pcg64`):
-    ``(flat grid, chosen cells, ok)``, the generator advanced exactly as numpy's would be."""
+    ``(flat grid, chosen cells, ok)``, the generator advanced exactly as numpy's would be
+    (the caller guarantees ``needed <= n_cells - n_obstacles``)."""
     flat = np.zeros(n_cells, dtype=np.bool_)
     obstacles = np.empty(n_obstacles, dtype=np.int64)
     free_idx = np.empty(n_cells, dtype=np.int64)
@@ -67,8 +68,6 @@ def _draw_uniform(state, buf, n_cells, n_obstacles, needed, width, tries):
             if not flat[c]:
                 free_idx[n_free] = c
                 n_free += 1
-        if needed > n_free:
-            return flat, chosen, False
         choice_floyd(state, buf, n_free, needed, pick)
         for k in range(needed):
             chosen[k] = free_idx[pick[k]]
@@ -101,14 +100,14 @@ def draw_world_arrays(rng: np.random.Generator, params: dict, fixed: World | Non
         flat, chosen, ok = _draw_uniform(views[0], views[1], n_cells, n_obstacles, needed, width, tries)
         if ok:
             return flat, chosen[:n_robots].copy(), chosen[n_robots:].copy()
-        views = None  # the same failure as below, from numpy's own words
-    for _ in range(tries):
-        flat = np.zeros(n_cells, dtype=bool)
-        flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True
-        free_idx = np.flatnonzero(~flat)
-        chosen = rng.choice(free_idx, size=needed, replace=False)
-        if _all_connected(flat, width, chosen):
-            return flat, chosen[:n_robots].astype(np.int64), chosen[n_robots:].astype(np.int64)
+    else:  # numpy's own draws (another bit generator, a grid above MAX_POP, or too few free cells)
+        for _ in range(tries):
+            flat = np.zeros(n_cells, dtype=bool)
+            flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True
+            free_idx = np.flatnonzero(~flat)
+            chosen = rng.choice(free_idx, size=needed, replace=False)
+            if _all_connected(flat, width, chosen):
+                return flat, chosen[:n_robots].astype(np.int64), chosen[n_robots:].astype(np.int64)
     raise ValueError(  # pragma: no cover - the same limit as generate_world's
         f"no draw of {n_obstacles} obstacles on a {height}x{width} grid put {n_robots} robots and "
         f"{n_targets} targets in one connected component in {tries} tries (draw_budget); lower the density"

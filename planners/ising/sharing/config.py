@@ -35,6 +35,10 @@ class SharingConfig(IsingConfig):
         reject_empty_robot_side: reject multi-robot splits that leave robots without targets.
         retries: re-submissions of splits whose candidates were all invalid.
         max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
+        pair_rounds: rounds of boundary refinement (pooled re-splits of neighbouring robots'
+            targets, priced exactly; :mod:`planners.ising.sharing.boundary`); 0 = none (the paper).
+        pair_neighbours: each robot's nearest robots whose boundaries are refined.
+        pair_shifts: weight shifts of the re-split programs (one program per shift and rule).
         fallback: when sharing falls back to SSA (:data:`~planners.ising.fallback.FALLBACK_MODES`).
     """
 
@@ -55,6 +59,9 @@ class SharingConfig(IsingConfig):
     reject_empty_robot_side: bool = False
     retries: int = 2
     max_frozen: int = 4
+    pair_rounds: int = 0
+    pair_neighbours: int = 3
+    pair_shifts: tuple = (0.0, 0.5, 1.0)
     fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
@@ -67,11 +74,18 @@ class SharingConfig(IsingConfig):
                 raise ValueError(f"unknown quantization rule {r!r}; expected one of {_QUANTIZE_RULES}")
         object.__setattr__(self, "rules", rules)
         for name, lo in (("reads", 1), ("beam", 1), ("refine_beam", 1), ("max_states", 1),
-                         ("refine_stages", 0), ("refine_above", 1), ("retries", 0)):
+                         ("refine_stages", 0), ("refine_above", 1), ("retries", 0),
+                         ("pair_rounds", 0), ("pair_neighbours", 1)):
             check_int(name, getattr(self, name), lo)
         check_int("base_max", self.base_max, 0, none=True)
         check_int("max_frozen", self.max_frozen, 0, hi=10)
         check_choice("bundle_order", self.bundle_order, BUNDLE_ORDERS)
+        shifts = tuple(self.pair_shifts)
+        if not shifts:
+            raise ValueError("pair_shifts must hold at least one weight shift")
+        for v in shifts:
+            check_real("pair_shifts entry", v)
+        object.__setattr__(self, "pair_shifts", tuple(float(v) for v in shifts))
         check_real("balance", self.balance, lo=0.0)
         check_real("weight_power", self.weight_power, lo=0.0, lo_open=True)
         check_real("robot_weight", self.robot_weight, lo=0.0, lo_open=True)

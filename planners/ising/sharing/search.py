@@ -24,6 +24,7 @@ from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
+from planners.ising.sharing.boundary import BoundaryRefinement
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.components import Components
@@ -34,7 +35,7 @@ from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_a
 __all__ = ["IsingSharing"]
 
 
-class IsingSharing(ConfigAttributes, Components, CoarseSplits):
+class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinement):
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:
@@ -106,7 +107,10 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits):
                 total = sum(cost(k, sets[k]) for k in range(R))
                 if best is None or total < best[0] - 1e-9:  # ties: the state with the larger cuts
                     best = (total, sets)
-            assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in best[1])
+            sets = best[1]
+            if self.config.pair_rounds:
+                sets = self._refine_boundaries(dist, R, sets, cost, rng, stats)
+            assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in sets)
             self._memo = {}
         except (SharingFailure, ChipUnavailableError) as exc:
             self._memo = {}
@@ -122,15 +126,16 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits):
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats)
 
-    def split_weights(self, dist: np.ndarray, R: int) -> np.ndarray:
+    def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus
-        ``weight_shift`` x its mean over node pairs, robot-target edges then
+        ``shift`` (default ``weight_shift``) x its mean over node pairs, robot-target edges then
         multiplied by ``robot_weight`` (zero diagonal)."""
         w = np.asarray(dist, dtype=float) ** self.config.weight_power
-        if self.config.weight_shift:
+        shift = self.config.weight_shift if shift is None else shift
+        if shift:
             n = w.shape[0]
             mean = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
-            w = w - self.config.weight_shift * mean
+            w = w - shift * mean
             np.fill_diagonal(w, 0.0)
         if self.config.robot_weight != 1.0:
             w = w.copy()
@@ -246,6 +251,13 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits):
                 p.cands = [(cut_value(w, side0, side1), side0, side1, None)]
             else:
                 pending.append(p)
+        self._solve_all(w, R, pending, rng, stats)
+        memo.update(fresh)
+        return [memo[key] for key in keys]
+
+    def _solve_all(self, w, R, pending, rng, stats) -> None:
+        """Solve ``pending`` split problems on the chip, re-submitting those without a valid
+        candidate up to ``retries`` times; still none is a :class:`SharingFailure`."""
         attempts = 0
         while pending:
             self._solve(w, R, pending, rng, stats)
@@ -258,8 +270,6 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits):
                 )
             attempts += 1
             pending = failed
-        memo.update(fresh)
-        return [memo[key] for key in keys]
 
     def _valid(self, R, side0, side1, kind) -> bool:
         if self.config.reject_empty_robot_side and kind == "robots":

@@ -14,7 +14,7 @@ __all__ = ["TourConfig", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BAC
 REFINE_RULES = ("largest", "spare_first")
 CLUSTER_DISTANCES = ("min", "mean", "medoid")
 EXIT_COSTS = ("min", "mean")
-BACKENDS = ("logical", "chip")
+BACKENDS = ("logical", "chip", "chip-onehot")
 _QUANTIZE_RULES = ("linear", "clip95", "rank", "sqrt")  # ising_backend.QUANTIZE_RULES
 
 #: Default options of the logical tabu solver for this layer (tenure cap 10: one-hot moves flip four spins).
@@ -26,7 +26,10 @@ class TourConfig(IsingConfig):
     """Options of :class:`~planners.ising.tour.IsingTour`.
 
     Attributes:
-        backend: ``"logical"`` (paper) or ``"chip"`` (quantized physical runs).
+        backend: ``"logical"`` (the paper's clustered one-hot construction on the logical solver),
+            ``"chip"`` (move-selection local search on the physical chip, :mod:`.selection`) or
+            ``"chip-onehot"`` (the paper's one-hot programs quantized for the physical chip: the
+            paper's negative finding, kept to measure it).
         local_limit: largest cluster solved as one local TSP (7).
         max_clusters: ordering limit ``K`` (8).
         refine: which cluster a refinement split takes (``"largest"`` or ``"spare_first"``).
@@ -38,7 +41,11 @@ class TourConfig(IsingConfig):
         max_retries: re-issues of a program that gave no valid candidate.
         penalty_factor: one-hot penalty ``A = penalty_factor * w_max + 1`` (>= 1).
         max_branch_bits: most frozen spins for spin-budget branching (4 -> 16 programs).
-        chip_quantize: quantization rule for ``backend="chip"``.
+        chip_quantize: quantization rule for ``backend="chip-onehot"``.
+        chip_rules: mapping portfolio of the move-selection programs (``backend="chip"``).
+        max_moves: most candidate moves per selection program (capped by the chip's spins).
+        max_segment: longest segment an or-opt move relocates.
+        max_rounds: most selection rounds per start.
         n_starts: independent constructions, the cheapest final tour kept (4).
         start_patience: stop after this many non-improving starts in a row (``None``: all).
         accept_equal: also accept equal-cost patch reorders (not the paper's rule).
@@ -61,6 +68,10 @@ class TourConfig(IsingConfig):
     penalty_factor: float = 1.0
     max_branch_bits: int = 4
     chip_quantize: str = "linear"
+    chip_rules: tuple = ("linear", "rank")
+    max_moves: int = 8
+    max_segment: int = 3
+    max_rounds: int = 500
     n_starts: int = 4
     start_patience: int | None = None
     accept_equal: bool = False
@@ -75,8 +86,15 @@ class TourConfig(IsingConfig):
         check_choice("cluster_distance", self.cluster_distance, CLUSTER_DISTANCES)
         check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)
         check_choice("exit_cost", self.exit_cost, EXIT_COSTS)
+        rules = tuple(self.chip_rules)
+        if not rules:
+            raise ValueError("chip_rules must name at least one quantization rule")
+        for r in rules:
+            check_choice("chip_rules entry", r, _QUANTIZE_RULES)
+        object.__setattr__(self, "chip_rules", rules)
         for nm, lo in (("local_limit", 1), ("max_clusters", 1), ("patch_size", 1), ("num_reads", 1),
-                       ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1)):
+                       ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1),
+                       ("max_moves", 1), ("max_segment", 1), ("max_rounds", 1)):
             check_int(nm, getattr(self, nm), lo)
         check_int("patience", self.patience, 0, none=True)
         check_int("start_patience", self.start_patience, 1, none=True)

@@ -29,11 +29,12 @@ from planners.ising.tour.config import TourConfig
 from planners.ising.tour.engine import solve_order
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 from planners.ising.tour.qubo import onehot_penalty
+from planners.ising.tour.selection import MoveSelection
 
 __all__ = ["IsingTour"]
 
 
-class IsingTour(Clustering, ConfigAttributes):
+class IsingTour(Clustering, MoveSelection, ConfigAttributes):
     """Clustered Ising tour construction (see the module docstring).
 
     Args:
@@ -140,6 +141,19 @@ class IsingTour(Clustering, ConfigAttributes):
                                 f"distance {tuple(int(v) for v in bad)} is infinite: targets on different components")
         if n == 0:
             return self._result(run, (), dist)
+        if self.config.backend == "chip":
+            try:
+                return self._result(run, self._move_starts(dist, run), dist)
+            except SolverOutputError as exc:
+                return self._result(run, None, dist, f"the chip returned malformed samples: {exc}")
+            except ChipUnavailableError as exc:
+                if self.config.fallback == "never":
+                    return self._result(run, None, dist, unavailable_message(exc))
+                return self._fallback(run, dist, unavailable_message(exc))
+            except TourFailure as exc:
+                if wants_fallback(self.config.fallback, False):
+                    return self._fallback(run, dist, str(exc))
+                return self._result(run, None, dist, str(exc))
         best, best_cost, failure = None, math.inf, None
         clusters = None
         starts = 1 if n <= self.config.patch_size else self.config.n_starts
@@ -307,7 +321,9 @@ class IsingTour(Clustering, ConfigAttributes):
             "patches_accepted": 0,
             "patches_sideways": 0,
             "retries": 0,
-            "unsolved": {"ordering": 0, "local": 0, "patch": 0},
+            "moves_applied": 0,
+            "move_rounds": 0,
+            "unsolved": {"ordering": 0, "local": 0, "patch": 0, "moves": 0},
             "mapping": {"tour": {"programs": 0, "valid": 0, "physical_programs": 0, "valid_physical": 0,
                                  "reads": 0, "valid_reads": 0, "subproblems": 0, "valid_subproblems": 0}},
         }

@@ -1,0 +1,123 @@
+"""The tour on the physical chip: move-selection local search (``TourConfig.backend="chip"``).
+
+Why not the paper's model: the position-indexed one-hot QUBO needs a penalty above every
+distance, and its fields carry that penalty times the row and column sizes; scaled into the
+chip's ``[-7, 7]`` the distances fall below one level and the quantized ground state itself is
+invalid (docs/design/ising_tour.md).  Here the chip chooses among improving 2-opt and or-opt
+moves (:mod:`.moves`): coefficients are of the size of the gains, and a read is valid when the
+moves it selects do not overlap; applied, they always give a valid route.
+
+Per round the host lists the improving moves of the route (the ``max_moves`` largest gains,
+at most the chip's spins), the selection QUBO goes through the mapping portfolio
+(``chip_rules``, one program per rule, one ``anneal_batch``), each read is decoded and the
+valid read of largest total gain is applied.  A read selecting overlapping moves is invalid
+and dropped, never repaired (a gain-greedy repair would do the chip's work: with random reads
+it finds the same tours).  A round whose reads select nothing valid is re-issued up to ``max_retries`` times; a route without an
+improving move is a local optimum and ends the start.  Start 0 is the nearest-neighbour
+route, later starts random orders; the cheapest final route wins.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ising_backend import ChipProgramError, ising_from_qubo, quantize_stack
+from planners.ising.tour.cluster import TourFailure
+from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
+
+__all__ = ["MoveSelection", "nearest_neighbour_route"]
+
+
+def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
+    """``[0, t_1, ..., t_n]``: from node 0 always to the nearest unvisited node (ties: lowest index)."""
+    n = dist.shape[0] - 1
+    route = [0]
+    left = list(range(1, n + 1))
+    while left:
+        row = dist[route[-1], left]
+        route.append(left.pop(int(np.argmin(row))))
+    return np.array(route, dtype=np.int64)
+
+
+class MoveSelection:
+    """:class:`~planners.ising.tour.IsingTour`'s chip backend (needs ``config``, ``chip``, ``spec``)."""
+
+    def _move_starts(self, dist: np.ndarray, run) -> list[int]:
+        """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
+        n = dist.shape[0] - 1
+        best, best_cost = None, math.inf
+        starts = 1 if n <= 3 else self.config.n_starts
+        for s in range(starts):
+            route = nearest_neighbour_route(dist) if s == 0 else np.concatenate(
+                [[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+            route = self._select_moves(dist, route, run)
+            cost = float(dist[route[:-1], route[1:]].sum())
+            run.stats["start_costs"].append(cost)
+            if cost < best_cost - 1e-9:
+                best, best_cost = route, cost
+        return [int(t) for t in best[1:]]
+
+    def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
+        """``route`` improved by chip-selected moves until no move improves it (or the chip
+        selects nothing ``max_retries + 1`` times in a row)."""
+        cfg = self.config
+        capacity = min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), cfg.max_moves)
+        failures = 0
+        rounds = 0
+        while rounds < cfg.max_rounds:
+            moves, gains = candidate_moves(dist, route, cfg.max_segment)
+            if len(gains) == 0:
+                break
+            keep = np.argsort(-gains, kind="stable")[:capacity]
+            moves, gains = moves[keep], gains[keep]
+            taken = self._chip_round(moves, gains, run)
+            rounds += 1
+            if taken is None:
+                failures += 1
+                run.stats["retries"] += 1
+                if failures > cfg.max_retries:
+                    run.stats["unsolved"]["moves"] += 1
+                    break
+                continue
+            failures = 0
+            route = apply_moves(route, moves, taken)
+            run.stats["moves_applied"] += len(taken)
+        run.stats["move_rounds"] += rounds
+        return route
+
+    def _chip_round(self, moves: np.ndarray, gains: np.ndarray, run):
+        """One selection program per rule in one chip submission; the taken moves of the best read,
+        or ``None`` when no read selects an improving set."""
+        cfg = self.config
+        q, Q = selection_qubo(moves, gains)
+        h, J = quantize_stack(ising_from_qubo(q, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)
+        seed = int(run.rng.integers(0, 2**63 - 1))
+        try:
+            spins, _ = run.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
+        except ChipProgramError as exc:
+            raise TourFailure(f"the chip refused a move-selection program: {exc}") from exc
+        m = run.stats["mapping"]["tour"]
+        best, best_gain, best_rule = None, 0.0, None
+        for k, rule in enumerate(cfg.chip_rules):
+            clean = 0
+            for read in spins[k]:
+                taken, total = selection_gain(read > 0, moves, gains)
+                if taken is None:  # overlapping moves: an invalid read, never repaired
+                    continue
+                clean += len(taken) > 0
+                if total > best_gain + 1e-9:
+                    best, best_gain, best_rule = taken, total, rule
+            m["reads"] += cfg.num_reads
+            m["valid_reads"] += clean
+            m["valid"] += clean > 0
+            m["valid_physical"] += clean > 0
+        m["programs"] += len(cfg.chip_rules)
+        m["physical_programs"] += len(cfg.chip_rules)
+        m["subproblems"] += 1
+        m["valid_subproblems"] += best is not None
+        if best_rule is not None:
+            m.setdefault("wins", {})
+            m["wins"][best_rule] = m["wins"].get(best_rule, 0) + 1
+        return best

@@ -32,7 +32,7 @@ DEFAULT_ENV_ID = "mrmt_env/MRMT-v0"
 LEARNED_PREFIXES = ("ppo:", "ppo-ms:")
 
 #: Pipeline presets of :func:`planners.pipeline.make_pipeline`.
-PIPELINE_PRESETS = ("fast", "strong", "ising")
+PIPELINE_PRESETS = ("fast", "strong", "ising", "ising-paper", "exact")
 
 
 def _layer_names() -> dict[str, tuple[str, ...]]:

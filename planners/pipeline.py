@@ -12,7 +12,11 @@ The paper's decomposition (section 2.3, evaluated end to end in 6.2):
 
 Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
 SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the three
-Ising methods.  Any other triple is built by name from :mod:`planners.registry`
+Ising methods with this package's defaults (boundary-refined sharing, the
+move-selection tour on the physical chip, BFS-ranked patch targets),
+``ising-paper`` = the three Ising methods exactly as the paper configures them
+(what ``mrmt reproduce`` runs), ``exact`` = exact min-sum sharing + Held-Karp
+tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
 or from layer objects::
 
     make_pipeline("strong")
@@ -81,6 +85,8 @@ PRESETS: dict[str, tuple[str, str, str]] = {
     "fast": ("psa", "nn", "astar"),
     "strong": ("ssa", "3opt", "astar"),
     "ising": ("ising", "ising", "ising"),
+    "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
+    "exact": ("exact", "brute", "bfs"),
 }
 
 _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
@@ -285,7 +291,8 @@ def make_pipeline(
     """Build a :class:`Pipeline` from a preset and/or layer names or objects.
 
     Args:
-        preset: ``"fast"``, ``"strong"``, ``"ising"`` (:data:`PRESETS`) or None.
+        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``
+            (:data:`PRESETS`) or None.
         sharing, tour, path: a registry name or a layer object; overrides the
             preset's layer.  Without a preset all three are required.
         sharing_options, tour_options, path_options: keyword options for that

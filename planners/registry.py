@@ -3,9 +3,9 @@
 Three layers (paper section 2.3), each with its own namespace:
 
 =========== ==========================================================
-``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``
-``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``
-``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``
+``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``
+``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``
+``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``
 =========== ==========================================================
 
 A factory is any callable returning a layer object (a class, a function), or
@@ -51,6 +51,7 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "ssa": "planners.sharing_classical:SSASharing",
         "exact": "planners.sharing_classical:ExactSharing",
         "ising": "planners.ising.sharing:IsingSharing",
+        "ising-paper": "planners.ising.sharing:PaperIsingSharing",
     },
     "tour": {
         "nn": "planners.tours_classical:NearestNeighbourTour",
@@ -58,12 +59,14 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "3opt": "planners.tours_classical:ThreeOptTour",
         "brute": "planners.tours_classical:BruteTour",
         "ising": "planners.ising.tour:IsingTour",
+        "ising-paper": "planners.ising.tour:PaperIsingTour",
     },
     "path": {
         "bfs": "planners.paths_classical:BFSPath",
         "astar": "planners.paths_classical:AStarPath",
         "gbfs": "planners.paths_classical:GreedyBestFirstPath",
         "ising": "planners.ising.path:IsingPath",
+        "ising-paper": "planners.ising.path:PaperIsingPath",
     },
 }
 

@@ -402,7 +402,7 @@ def test_bfs_target_key_follows_shortest_paths():
     from mrmt_env.generation import generate_world
     from planners.ising.path import IsingPath
 
-    bfs, manhattan = IsingPath(EmulatedChip(), target_key="bfs"), IsingPath(EmulatedChip())
+    bfs, manhattan = IsingPath(EmulatedChip(), target_key="bfs"), IsingPath(EmulatedChip(), target_key="manhattan")
     optimal = {"bfs": 0, "manhattan": 0}
     for s in range(40):
         w = generate_world(5000 + s, n_robots=1, n_targets=1)

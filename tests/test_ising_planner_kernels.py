@@ -365,7 +365,7 @@ def test_chip_subclass_that_overrides_annealing_uses_the_reference_loop():
 @SETTINGS
 @given(st.integers(0, 10**6), st.integers(1, 9), st.sampled_from(["min", "mean"]))
 def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
-    from planners.ising.tour import IsingTour
+    from planners.ising.tour import PaperIsingTour as IsingTour  # the logical construction
 
     rng = np.random.default_rng(seed)
     n = K + int(rng.integers(0, 12))
@@ -383,7 +383,7 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options):
     the same tours, statistics, logical charges and rng state."""
     from ising_backend import EmulatedChip
     from mrmt_env.generation import generate_world
-    from planners.ising.tour import IsingTour
+    from planners.ising.tour import PaperIsingTour as IsingTour  # the logical construction
 
     fast, ref = IsingTour(EmulatedChip(), **options), IsingTour(EmulatedChip(), **options)
     assert fast._engine

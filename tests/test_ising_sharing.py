@@ -187,7 +187,8 @@ def test_quality_close_to_exact_on_centre_worlds():
 
 def test_unrefined_split_has_one_group_per_robot_and_no_bundles():
     world = generate_world(5, placement="centre")
-    res = IsingSharing(refine_stages=0, beam=1).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
+    res = IsingSharing(refine_stages=0, beam=1, pair_rounds=0).assign(world.distance_matrix, 3, TOUR,
+                                                                     np.random.default_rng(0))
     assert res.stats["bundles"] == 0 and res.stats["tour_solves"] == 0
     assert res.stats["stages"] == 2  # 3 robots: two robot stages
     _check_partition(res.assignment, 3, 10)

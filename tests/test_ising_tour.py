@@ -11,7 +11,7 @@ import pytest
 from ising_backend import ChipSpec, EmulatedChip, LogicalIsingSolver
 from mrmt_env.generation import generate_world
 from planners.base import TourResult, TourSolver
-from planners.ising.tour import IsingTour
+from planners.ising.tour import IsingTour, PaperIsingTour
 from planners.ising.tour.qubo import (
     cut_value,
     decode_onehot,
@@ -90,7 +90,7 @@ def test_maxcut_qubo_energy_is_minus_cut():
 
 
 def test_protocol_and_trivial_sizes():
-    tour = IsingTour()
+    tour = PaperIsingTour()
     assert isinstance(tour, TourSolver)
     r0 = tour.solve(np.zeros((1, 1)), np.random.default_rng(0))
     assert r0.order == () and r0.cost == 0 and r0.success
@@ -99,7 +99,7 @@ def test_protocol_and_trivial_sizes():
 
 
 def test_three_targets_on_a_line():
-    tour = IsingTour()
+    tour = PaperIsingTour()
     r = tour.solve(_line_dist([1, 2, 3]), np.random.default_rng(0))
     assert r.order == (1, 2, 3) and r.cost == 3
     r = tour.solve(_line_dist([3, 1, 2]), np.random.default_rng(0))
@@ -109,7 +109,7 @@ def test_three_targets_on_a_line():
 def test_two_separated_clusters_exact():
     # four targets near the robot, four far away: go through the near group, then the far one
     dist = _line_dist([3, 1, 4, 2, 22, 20, 23, 21])
-    r = IsingTour().solve(dist, np.random.default_rng(3))
+    r = PaperIsingTour().solve(dist, np.random.default_rng(3))
     assert r.order == (2, 4, 1, 3, 6, 8, 5, 7)
     assert r.cost == 23
 
@@ -121,14 +121,14 @@ def test_small_tours_match_exact(n):
     for seed in range(3):
         world = generate_world(seed, n_robots=1, n_targets=n)
         dist = world.distance_matrix
-        r = IsingTour().solve(dist, np.random.default_rng(seed))
+        r = PaperIsingTour().solve(dist, np.random.default_rng(seed))
         assert _is_perm(r.order, n)
         assert r.cost == pytest.approx(bt.solve(dist).cost)
 
 
 def test_random_worlds_valid_and_near_optimal():
     bt = BruteTour()
-    tour = IsingTour()
+    tour = PaperIsingTour()
     gaps = []
     for seed in range(8):
         dist = generate_world(100 + seed, n_robots=1, n_targets=10).distance_matrix
@@ -148,7 +148,7 @@ def test_random_worlds_valid_and_near_optimal():
 def test_compute_report_and_branching():
     spec = ChipSpec()
     dist = generate_world(5, n_robots=1, n_targets=10).distance_matrix
-    r = IsingTour().solve(dist, np.random.default_rng(0))
+    r = PaperIsingTour().solve(dist, np.random.default_rng(0))
     c = r.compute
     assert c.chip_calls == 0 and c.chip_batches == 0 and c.cpu_s == 0
     assert c.logical_calls >= 16  # the 8-cluster ordering model (49 vars) is branched 16 ways
@@ -163,8 +163,8 @@ def test_compute_report_and_branching():
 
 def test_deterministic_under_seed():
     dist = generate_world(7, n_robots=1, n_targets=10).distance_matrix
-    a = IsingTour().solve(dist, np.random.default_rng(42))
-    b = IsingTour().solve(dist, np.random.default_rng(42))
+    a = PaperIsingTour().solve(dist, np.random.default_rng(42))
+    b = PaperIsingTour().solve(dist, np.random.default_rng(42))
     assert a.order == b.order and a.cost == b.cost and a.compute == b.compute
     assert a.stats == b.stats
 
@@ -173,7 +173,7 @@ def test_unreachable_target_is_a_clear_failure():
     dist = _line_dist([1, 2, 3])
     dist[2, :] = dist[:, 2] = np.inf
     dist[2, 2] = 0
-    r = IsingTour().solve(dist, np.random.default_rng(0))
+    r = PaperIsingTour().solve(dist, np.random.default_rng(0))
     assert not r.success and r.order == () and math.isinf(r.cost)
     assert "infinite" in r.failure
 
@@ -202,7 +202,7 @@ class _NoisySolver(_GarbageSolver):
 @pytest.mark.parametrize("n", [3, 10])
 def test_garbage_solver_ends_in_clear_failure(n):
     dist = generate_world(3, n_robots=1, n_targets=n).distance_matrix
-    r = IsingTour(solver=_GarbageSolver(), max_retries=2).solve(dist, np.random.default_rng(0))
+    r = PaperIsingTour(solver=_GarbageSolver(), max_retries=2).solve(dist, np.random.default_rng(0))
     assert isinstance(r, TourResult)
     assert not r.success and r.order == () and "degenerate" in r.failure
     assert r.compute.logical_calls > 0
@@ -211,7 +211,7 @@ def test_garbage_solver_ends_in_clear_failure(n):
 def test_many_targets_hierarchical_ordering():
     # 70 targets: more clusters of <= 7 than the ordering limit, and a first split above the spin budget
     dist = generate_world(1, height=20, width=20, n_robots=1, n_targets=70).distance_matrix
-    r = IsingTour(n_starts=1).solve(dist, np.random.default_rng(0))
+    r = PaperIsingTour(n_starts=1).solve(dist, np.random.default_rng(0))
     assert r.success and _is_perm(r.order, 70)
     assert r.cost == pytest.approx(route_cost(dist, r.order))
     assert r.stats["ordering_splits"] >= 1 and len(r.stats["clusters"]) > 8
@@ -220,17 +220,17 @@ def test_many_targets_hierarchical_ordering():
 def test_noisy_solver_never_gives_invalid_tour():
     for seed in range(4):
         dist = generate_world(seed, n_robots=1, n_targets=6).distance_matrix
-        r = IsingTour(solver=_NoisySolver()).solve(dist, np.random.default_rng(seed))
+        r = PaperIsingTour(solver=_NoisySolver()).solve(dist, np.random.default_rng(seed))
         if r.success:
             assert _is_perm(r.order, 6) and r.cost == pytest.approx(route_cost(dist, r.order))
         else:
             assert r.order == () and r.failure
 
 
-def test_chip_backend_reports_physical_validity():
+def test_onehot_chip_backend_reports_physical_validity():
     chip = EmulatedChip(ChipSpec(), seed=0)
     dist = generate_world(2, n_robots=1, n_targets=5).distance_matrix
-    r = IsingTour(chip=chip, backend="chip").solve(dist, np.random.default_rng(0))
+    r = IsingTour(chip=chip, backend="chip-onehot").solve(dist, np.random.default_rng(0))
     m = r.stats["mapping"]["tour"]
     assert m["physical_programs"] == m["programs"] > 0
     assert 0 <= m["valid_physical"] <= m["physical_programs"]
@@ -257,7 +257,7 @@ class _GarbageChip:
 
 def test_garbage_chip_ends_in_clear_failure():
     dist = generate_world(4, n_robots=1, n_targets=6).distance_matrix
-    r = IsingTour(chip=_GarbageChip(), backend="chip").solve(dist, np.random.default_rng(0))
+    r = IsingTour(chip=_GarbageChip(), backend="chip-onehot").solve(dist, np.random.default_rng(0))
     assert not r.success and r.order == () and r.failure
     assert r.compute.chip_calls > 0 and r.compute.logical_calls == 0
 
@@ -266,17 +266,22 @@ def test_bad_options_are_refused():
     with pytest.raises(ValueError, match="backend"):
         IsingTour(backend="quantum")
     with pytest.raises(ValueError, match="64 variables"):
-        IsingTour(patch_size=8)
+        PaperIsingTour(patch_size=8)
     with pytest.raises(ValueError, match="penalty_factor"):
-        IsingTour(penalty_factor=0.5)
+        PaperIsingTour(penalty_factor=0.5)
     with pytest.raises(ValueError, match="dist"):
-        IsingTour().solve(np.zeros((2, 3)))
+        PaperIsingTour().solve(np.zeros((2, 3)))
 
 
-def test_in_the_pipeline():
+@pytest.mark.parametrize("name", ["ising", "ising-paper"])
+def test_in_the_pipeline(name):
+    """``ising`` runs the tour on the physical chip, ``ising-paper`` on the logical solver."""
     world = generate_world(11, n_robots=2, n_targets=8)
-    plan = make_pipeline(sharing="ssa", tour="ising", path="astar").plan(world, seed=0)
+    plan = make_pipeline(sharing="ssa", tour=name, path="astar").plan(world, seed=0)
     assert plan.success
     validate_plan(world, plan)
-    assert plan.compute.logical_calls > 0
+    if name == "ising":
+        assert plan.compute.chip_calls > 0 and plan.compute.logical_calls == 0
+    else:
+        assert plan.compute.logical_calls > 0 and plan.compute.chip_calls == 0
     assert plan.stats["mapping"]["tour"]["programs"] > 0

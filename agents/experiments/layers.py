@@ -6,10 +6,22 @@ loading, lazy imports) is made once untimed.
 
 from __future__ import annotations
 
+#: The experiments reproduce the paper: their method ``ising`` is the paper's configuration.
+PAPER_NAMES = {"ising": "ising-paper"}
+
+
+def registry_name(method: str) -> str:
+    """The registry name (or pipeline preset) an experiment method runs: ``ising`` -> ``ising-paper``."""
+    return PAPER_NAMES.get(method, method)
+
+
 def make_layer(kind: str, name: str, chip=None):
-    """A fresh planner object for layer ``kind`` (``path``/``tour``/``sharing``) by registry name;
-    an Ising layer runs on an emulated chip of spec ``chip`` (default the paper's chip)."""
+    """A fresh planner object for layer ``kind`` (``path``/``tour``/``sharing``) by experiment method
+    name (:func:`registry_name`); an Ising layer runs on an emulated chip of spec ``chip``
+    (default the paper's chip)."""
     from planners import registry
+
+    name = registry_name(name)
 
     if chip is None:
         return registry.create(kind, name)

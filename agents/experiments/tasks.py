@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from agents.experiments.layers import _warm, make_layer
+from agents.experiments.layers import _warm, make_layer, registry_name
 from agents.experiments.records import (_compute_columns, _is_accelerated, _layer_columns, _mapping_of,
                                         _plan_valid)
 from planners.compute import stopwatch
@@ -115,8 +115,9 @@ def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int
     world = generate_world(seed + i, n_robots=n_robots, n_targets=n_targets, placement=placement)
     rows = []
     for m in methods:
-        pipe = planner_pipeline(m, chip) if chip is not None else make_pipeline(m)
-        _warm(("pipeline", m), lambda: make_pipeline(m).plan(world, seed=0))
+        name = registry_name(m)
+        pipe = planner_pipeline(name, chip) if chip is not None else make_pipeline(name)
+        _warm(("pipeline", m), lambda: make_pipeline(name).plan(world, seed=0))
         plan = pipe.plan(world, seed=seed + i)
         ok = _plan_valid(world, plan)
         row = {"instance": i, "world_seed": seed + i, "method": m, "success": ok}

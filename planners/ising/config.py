@@ -72,10 +72,11 @@ class IsingConfig:
         return dataclasses.asdict(self)
 
 
-def resolve_config(cls, config, options: dict):
-    """``config`` (an instance of ``cls`` or ``None``) with keyword ``options`` applied."""
+def resolve_config(cls, config, options: dict, default=None):
+    """``config`` (an instance of ``cls``; ``None``: ``default``, else ``cls()``) with keyword
+    ``options`` applied."""
     if config is None:
-        config = cls()
+        config = cls() if default is None else default
     elif not isinstance(config, cls):
         raise TypeError(f"config must be a {cls.__name__}, got {type(config).__name__}")
     return config.replace(**options) if options else config

@@ -42,9 +42,10 @@ class PathConfig(IsingConfig):
         max_attempts: local-target attempts per query (``None``: ``max(64, free cells)``).
         max_chip_calls: physical calls per query (``None``: attempts x styles x reads).
         target_order: ``"boundary_first"`` or ``"merged"``.
-        target_key: what ranks local targets: ``"manhattan"`` distance to the goal (the paper's
-            rule) or ``"bfs"``, the world's obstacle-aware BFS distance to the goal (the field the
-            world computes for its distance matrix anyway; docs/design/ising_path.md).
+        target_key: what ranks local targets: ``"bfs"``, the world's obstacle-aware BFS distance
+            to the goal (the field the world computes for its distance matrix anyway; the
+            default), or ``"manhattan"`` distance to the goal (the paper's rule;
+            docs/design/ising_path.md).
         scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
             ``[form]``; the value used: :attr:`chip_scale`).
         pack: block-pack the portfolio's programs into shared chip programs.
@@ -64,7 +65,7 @@ class PathConfig(IsingConfig):
     max_attempts: int | None = None
     max_chip_calls: int | None = None
     target_order: str = "boundary_first"
-    target_key: str = "manhattan"
+    target_key: str = "bfs"
     scale: float | None = None
     pack: bool = False
     fallback: str = "unavailable"
@@ -103,6 +104,11 @@ class PathConfig(IsingConfig):
         object.__setattr__(self, "patch_size", int(self.patch_size))
         for name in ("interior_targets", "backtrack", "cut_loops", "pack"):
             object.__setattr__(self, name, bool(getattr(self, name)))
+
+    @classmethod
+    def paper(cls, **options) -> "PathConfig":
+        """The paper's configuration (section 5.1): local targets ranked by Manhattan distance."""
+        return cls(target_key="manhattan").replace(**options)
 
     @property
     def full_weights(self) -> dict:

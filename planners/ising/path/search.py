@@ -25,7 +25,7 @@ from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capab
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
 
-__all__ = ["IsingPath"]
+__all__ = ["IsingPath", "PaperIsingPath"]
 
 
 class _LRU(OrderedDict):
@@ -61,12 +61,13 @@ class IsingPath(CompiledSearch, ConfigAttributes):
 
     name = "ising"
     config_class = PathConfig
+    defaults: PathConfig | None = None  # None: PathConfig()
 
     def __init__(self, chip=None, config: PathConfig | None = None, **options):
         from ising_backend import ChipSpec, EmulatedChip
 
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
-        cfg = resolve_config(PathConfig, config, options)
+        cfg = resolve_config(PathConfig, config, options, self.defaults)
         # a patch not given explicitly shrinks to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.chip.spec.n_spins, keep=set(options))
         self.frame = patch_frame(cfg.patch_size)
@@ -415,3 +416,10 @@ class IsingPath(CompiledSearch, ConfigAttributes):
                               failure="internal error: the stitched walk is not a valid 4-neighbour path")
         stats["path_length"] = len(path) - 1
         return PathResult(path, compute=compute, stats=stats)
+
+
+class PaperIsingPath(IsingPath):
+    """:class:`IsingPath` with the paper's configuration (:meth:`PathConfig.paper`)."""
+
+    name = "ising-paper"
+    defaults = PathConfig.paper()

@@ -7,7 +7,7 @@
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.config import BUNDLE_ORDERS, SharingConfig
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
-from planners.ising.sharing.search import IsingSharing
+from planners.ising.sharing.search import IsingSharing, PaperIsingSharing
 
-__all__ = ["IsingSharing", "SharingConfig", "BUNDLE_ORDERS", "SplitProblem", "build_split_qubo", "choose_anchors",
+__all__ = ["IsingSharing", "PaperIsingSharing", "SharingConfig", "BUNDLE_ORDERS", "SplitProblem", "build_split_qubo", "choose_anchors",
            "cut_value", "decode_split", "BundlePricer", "SharingFailure", "assign_bundles"]

@@ -72,6 +72,7 @@ class BoundaryRefinement:
                         problems.append((j, self._problem(w, R, g, "pair")))
             pending = [p for _, p in problems if not isinstance(p, CoarseSplit)]
             if pending:
+                stats["splits"] += len(pending)
                 self._solve_all(weights[0], R, pending, rng, stats)
             stats["pair_resplits"] = stats.get("pair_resplits", 0) + len(pairs)
             gains = []

@@ -59,9 +59,9 @@ class SharingConfig(IsingConfig):
     reject_empty_robot_side: bool = False
     retries: int = 2
     max_frozen: int = 4
-    pair_rounds: int = 0
+    pair_rounds: int = 3
     pair_neighbours: int = 3
-    pair_shifts: tuple = (0.0, 0.5, 1.0)
+    pair_shifts: tuple = (-0.5, 0.0, 0.5, 1.0, 1.5)
     fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
@@ -105,6 +105,11 @@ class SharingConfig(IsingConfig):
         for name in ("balance", "weight_power", "robot_weight", "weight_shift"):
             object.__setattr__(self, name, float(getattr(self, name)))
         object.__setattr__(self, "reject_empty_robot_side", bool(self.reject_empty_robot_side))
+
+    @classmethod
+    def paper(cls, **options) -> "SharingConfig":
+        """The paper's configuration (section 5.3): no boundary refinement."""
+        return cls(pair_rounds=0).replace(**options)
 
     @property
     def resolved_base_max(self) -> int:

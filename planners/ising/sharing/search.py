@@ -32,7 +32,7 @@ from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
-__all__ = ["IsingSharing"]
+__all__ = ["IsingSharing", "PaperIsingSharing"]
 
 
 class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinement):
@@ -46,11 +46,12 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinemen
 
     name = "ising"
     config_class = SharingConfig
+    defaults: SharingConfig | None = None  # None: SharingConfig()
 
     def __init__(self, chip=None, config: SharingConfig | None = None, **options) -> None:
         from ising_backend import ChipSpec, EmulatedChip
 
-        self.config = resolve_config(SharingConfig, config, options)
+        self.config = resolve_config(SharingConfig, config, options, self.defaults)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
         from ising_backend import QUANTIZE_RULE_IDS
 
@@ -427,3 +428,10 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinemen
             cands = [(cut_value(dist, c[0], c[1]), c[0], c[1], None) for c in found[k].values()]
             order = sorted(range(len(cands)), key=lambda i: (-cands[i][0], i))
             p.cands = [cands[i] for i in order]
+
+
+class PaperIsingSharing(IsingSharing):
+    """:class:`IsingSharing` with the paper's configuration (:meth:`SharingConfig.paper`)."""
+
+    name = "ising-paper"
+    defaults = SharingConfig.paper()

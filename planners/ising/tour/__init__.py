@@ -9,7 +9,7 @@ from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.config import (
     BACKENDS, CLUSTER_DISTANCES, DEFAULT_SOLVER_OPTIONS, EXIT_COSTS, REFINE_RULES, TourConfig,
 )
-from planners.ising.tour.search import IsingTour
+from planners.ising.tour.search import IsingTour, PaperIsingTour
 
-__all__ = ["IsingTour", "TourConfig", "TourFailure", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS",
+__all__ = ["IsingTour", "PaperIsingTour", "TourConfig", "TourFailure", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS",
            "DEFAULT_SOLVER_OPTIONS"]

@@ -54,7 +54,7 @@ class TourConfig(IsingConfig):
         fallback: when a solve falls back to 3-opt (:data:`~planners.ising.fallback.FALLBACK_MODES`).
     """
 
-    backend: str = "logical"
+    backend: str = "chip"
     local_limit: int = 7
     max_clusters: int = 8
     refine: str = "largest"
@@ -108,6 +108,12 @@ class TourConfig(IsingConfig):
             object.__setattr__(self, nm, float(getattr(self, nm)))
         for nm in ("accept_equal", "share_clusters"):
             object.__setattr__(self, nm, bool(getattr(self, nm)))
+
+    @classmethod
+    def paper(cls, **options) -> "TourConfig":
+        """The paper's configuration (section 5.2): the clustered one-hot construction on the
+        logical solver."""
+        return cls(backend="logical").replace(**options)
 
     def fit_spins(self, n_spins: int, keep=()) -> "TourConfig":
         """This config with ``local_limit``, ``patch_size`` and ``max_clusters`` shrunk (never grown)

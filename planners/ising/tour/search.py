@@ -31,7 +31,7 @@ from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branch
 from planners.ising.tour.qubo import onehot_penalty
 from planners.ising.tour.selection import MoveSelection
 
-__all__ = ["IsingTour"]
+__all__ = ["IsingTour", "PaperIsingTour"]
 
 
 class IsingTour(Clustering, MoveSelection, ConfigAttributes):
@@ -48,13 +48,14 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
 
     name = "ising"
     config_class = TourConfig
+    defaults: TourConfig | None = None  # None: TourConfig()
 
     def __init__(self, chip=None, config: TourConfig | None = None, *, solver=None, **options) -> None:
         from ising_backend import ChipSpec, EmulatedChip
 
         self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
         self.spec = self.chip.spec
-        cfg = resolve_config(TourConfig, config, options)
+        cfg = resolve_config(TourConfig, config, options, self.defaults)
         # sizes not given explicitly shrink to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.spec.n_spins, keep=set(options))
         self._budget = int(self.spec.n_spins)
@@ -335,6 +336,11 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         return TourResult(order=tuple(order), cost=_tour_cost(dist, list(order)), compute=compute, stats=run.stats)
 
 
+class PaperIsingTour(IsingTour):
+    """:class:`IsingTour` with the paper's configuration (:meth:`TourConfig.paper`)."""
+
+    name = "ising-paper"
+    defaults = TourConfig.paper()
 
 
 def _tour_cost(dist: np.ndarray, tour: list[int]) -> float:

@@ -47,25 +47,35 @@ class MoveSelection:
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
-        best, best_cost = None, math.inf
+        best, best_cost, failure = None, math.inf, None
         starts = 1 if n <= 3 else self.config.n_starts
         for s in range(starts):
             route = nearest_neighbour_route(dist) if s == 0 else np.concatenate(
                 [[0], 1 + run.rng.permutation(n)]).astype(np.int64)
-            route = self._select_moves(dist, route, run)
+            try:
+                route = self._select_moves(dist, route, run)
+            except TourFailure as exc:  # this start gave up; other starts may still succeed
+                failure = exc
+                run.stats["failed_starts"] += 1
+                continue
             cost = float(dist[route[:-1], route[1:]].sum())
             run.stats["start_costs"].append(cost)
             if cost < best_cost - 1e-9:
                 best, best_cost = route, cost
+        if best is None:
+            raise failure
         return [int(t) for t in best[1:]]
 
     def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """``route`` improved by chip-selected moves until no move improves it (or the chip
-        selects nothing ``max_retries + 1`` times in a row)."""
+        selects nothing valid ``max_retries + 1`` times in a row).  A chip that never selects a
+        valid improving set for a route that has improving moves fails the start
+        (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
         capacity = min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), cfg.max_moves)
         failures = 0
         rounds = 0
+        applied = 0
         while rounds < cfg.max_rounds:
             moves, gains = candidate_moves(dist, route, cfg.max_segment)
             if len(gains) == 0:
@@ -79,9 +89,13 @@ class MoveSelection:
                 run.stats["retries"] += 1
                 if failures > cfg.max_retries:
                     run.stats["unsolved"]["moves"] += 1
+                    if not applied:
+                        raise TourFailure(f"the chip selected no valid improving move set in {failures} "
+                                          f"submissions of {len(cfg.chip_rules)} programs")
                     break
                 continue
             failures = 0
+            applied += len(taken)
             route = apply_moves(route, moves, taken)
             run.stats["moves_applied"] += len(taken)
         run.stats["move_rounds"] += rounds

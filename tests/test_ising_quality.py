@@ -1,0 +1,246 @@
+"""The planning-quality methods beyond the paper: move-selection tours on the physical chip,
+boundary refinement of sharing, and the ``ising`` / ``ising-paper`` presets."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ising_backend import ChipSpec, EmulatedChip
+from mrmt_env.generation import generate_world
+from planners import registry
+from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
+from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
+from planners.ising.sharing.boundary import neighbour_pairs
+from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
+from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
+from planners.ising.tour.selection import nearest_neighbour_route
+from planners.pipeline import make_pipeline
+from planners.plan import validate_plan
+from planners.tours_classical import BruteTour, exact_route_cost
+
+
+def _cost(d, r):
+    return float(d[r[:-1], r[1:]].sum())
+
+
+@st.composite
+def _routes(draw):
+    n = draw(st.integers(1, 11))
+    pts = np.array(draw(st.lists(st.tuples(st.integers(0, 9), st.integers(0, 9)), min_size=n + 1, max_size=n + 1)))
+    d = np.abs(pts[:, None] - pts[None]).sum(-1).astype(float)
+    perm = draw(st.permutations(list(range(1, n + 1))))
+    return d, np.array([0] + list(perm), dtype=np.int64)
+
+
+# ------------------------------------------------------------------ moves
+@settings(max_examples=150, deadline=None)
+@given(_routes(), st.integers(1, 3))
+def test_every_candidate_gain_is_the_route_cost_change(case, seg):
+    d, r = case
+    moves, gains = candidate_moves(d, r, seg)
+    assert (gains > 0).all()
+    for m in range(len(gains)):
+        new = apply_moves(r, moves, [m])
+        assert new[0] == 0 and sorted(new.tolist()) == sorted(r.tolist())
+        assert _cost(d, r) - _cost(d, new) == pytest.approx(gains[m])
+        assert moves[m, 4] <= moves[m, 5]
+        changed = np.flatnonzero(new != r)  # only positions inside the span move
+        assert changed.size == 0 or (changed.min() > moves[m, 4] and changed.max() <= moves[m, 5])
+
+
+@settings(max_examples=100, deadline=None)
+@given(_routes(), st.randoms(use_true_random=False))
+def test_disjoint_moves_add_and_overlapping_reads_are_invalid(case, rnd):
+    d, r = case
+    moves, gains = candidate_moves(d, r, 3)
+    if len(gains) == 0:
+        return
+    chosen = np.array([rnd.random() < 0.4 for _ in gains])
+    taken, total = selection_gain(chosen, moves, gains)
+    idx = np.flatnonzero(chosen)
+    overlap = any(moves[a, 4] <= moves[b, 5] and moves[b, 4] <= moves[a, 5] for a, b in itertools.combinations(idx, 2))
+    if overlap:
+        assert taken is None
+    else:
+        assert list(taken) == list(idx)
+        assert _cost(d, r) - _cost(d, apply_moves(r, moves, taken)) == pytest.approx(total)
+
+
+def test_no_candidates_at_a_local_optimum_and_none_for_one_target():
+    d = np.array([[0.0, 1.0], [1.0, 0.0]])
+    moves, gains = candidate_moves(d, np.array([0, 1]), 3)
+    assert moves.shape == (0, 6) and gains.shape == (0,)
+    dist = generate_world(3, n_robots=1, n_targets=8).distance_matrix
+    best = BruteTour().solve(dist)
+    assert len(candidate_moves(dist, np.array((0,) + best.order), 3)[1]) == 0
+
+
+def test_selection_qubo_ground_state_is_the_best_compatible_set():
+    dist = generate_world(7, n_robots=1, n_targets=9).distance_matrix
+    r = np.concatenate([[0], np.arange(9, 0, -1)])
+    moves, gains = candidate_moves(dist, r, 3)
+    keep = np.argsort(-gains, kind="stable")[:12]
+    moves, gains = moves[keep], gains[keep]
+    q, Q = selection_qubo(moves, gains)
+    X = np.array(list(itertools.product([0, 1], repeat=len(gains))), dtype=float)
+    E = X @ q + np.einsum("si,ij,sj->s", X, Q, X)
+    best = X[np.argmin(E)].astype(bool)
+    taken, total = selection_gain(best, moves, gains)
+    assert taken is not None
+    feasible = [selection_gain(x.astype(bool), moves, gains)[1] for x in X
+                if selection_gain(x.astype(bool), moves, gains)[0] is not None]
+    assert total == pytest.approx(max(feasible)) and -E.min() == pytest.approx(total)
+
+
+def test_nearest_neighbour_route():
+    d = np.array([[0, 5, 1, 9], [5, 0, 4, 2], [1, 4, 0, 8], [9, 2, 8, 0]], dtype=float)
+    assert nearest_neighbour_route(d).tolist() == [0, 2, 1, 3]
+
+
+# ------------------------------------------------------------------ chip tour
+def test_chip_tour_is_valid_near_optimal_and_runs_on_the_physical_chip():
+    chip = EmulatedChip(ChipSpec(), seed=0)
+    tour = IsingTour(chip=chip)
+    assert tour.config.backend == "chip"
+    gaps, calls = [], 0
+    for s in range(12):
+        dist = generate_world(300 + s, n_robots=1, n_targets=10).distance_matrix
+        r = tour.solve(dist, np.random.default_rng(s))
+        assert r.success and sorted(r.order) == list(range(1, 11))
+        assert r.cost == pytest.approx(_cost(dist, np.array((0,) + r.order)))
+        assert r.compute.chip_calls > 0 and r.compute.logical_calls == 0
+        m = r.stats["mapping"]["tour"]
+        assert m["physical_programs"] == m["programs"] > 0 and 0 < m["valid_reads"] <= m["reads"]
+        gaps.append(r.cost / BruteTour().solve(dist).cost - 1)
+        calls += r.compute.chip_calls
+    assert np.mean(gaps) <= 0.03
+    assert chip.ledger.physical_calls == calls  # every call metered on the chip's own ledger
+
+
+def test_chip_tour_is_deterministic():
+    dist = generate_world(5, n_robots=1, n_targets=10).distance_matrix
+    a = IsingTour(EmulatedChip()).solve(dist, np.random.default_rng(4))
+    b = IsingTour(EmulatedChip()).solve(dist, np.random.default_rng(4))
+    assert a.order == b.order and a.compute.chip_calls == b.compute.chip_calls
+
+
+class _StuckChip:
+    """An emulated chip whose read-out is stuck at -1: every read selects no move."""
+
+    def __init__(self):
+        self.inner = EmulatedChip(ChipSpec(), seed=0)
+        self.spec, self.ledger = self.inner.spec, self.inner.ledger
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        spins, energies = self.inner.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        self.last_call = self.inner.last_call
+        return -np.ones_like(spins), energies
+
+
+class _RandomChip(_StuckChip):
+    """Charges the calls and returns fair coin flips instead of annealed reads."""
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        spins, energies = self.inner.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        self.last_call = self.inner.last_call
+        coin = np.random.default_rng(seed).random(spins.shape) < 0.5
+        return np.where(coin, 1, -1).astype(np.int8), energies
+
+
+def test_a_chip_that_selects_nothing_is_a_failure_not_the_host_route():
+    dist = generate_world(4, n_robots=1, n_targets=8).distance_matrix
+    r = IsingTour(chip=_StuckChip()).solve(dist, np.random.default_rng(0))
+    assert not r.success and r.order == () and "no valid improving move set" in r.failure
+    assert r.compute.chip_calls > 0
+    r = IsingTour(chip=_StuckChip(), fallback="failure").solve(dist, np.random.default_rng(0))
+    assert r.success and r.stats["fallback"]["tour"] and r.compute.fallbacks == 1
+
+
+def test_the_annealed_reads_do_the_work():
+    """Invalid reads are dropped, never repaired: coin-flip reads leave tours far from optimal
+    where the annealed reads reach them."""
+    gaps = {"chip": [], "coin": []}
+    for s in range(10):
+        dist = generate_world(900 + s, n_robots=1, n_targets=10).distance_matrix
+        opt = BruteTour().solve(dist).cost
+        for name, chip in (("chip", EmulatedChip(seed=s)), ("coin", _RandomChip())):
+            r = IsingTour(chip=chip, chip_rules=("linear",)).solve(dist, np.random.default_rng(s))
+            gaps[name].append(r.cost / opt - 1 if r.success else 1.0)
+    assert np.mean(gaps["chip"]) < 0.5 * np.mean(gaps["coin"])
+
+
+# ------------------------------------------------------------------ sharing
+def test_neighbour_pairs():
+    world = generate_world(2, n_robots=4, n_targets=8)
+    d = world.distance_matrix
+    sets = [[4, 5], [6, 7], [8, 9], [10, 11]]
+    assert neighbour_pairs(d, sets, 4, 3) == [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    one = neighbour_pairs(d, sets, 4, 1)
+    assert 2 <= len(one) <= 4 and all(k < l for k, l in one)
+    assert neighbour_pairs(d, [[2, 3]], 1, 3) == []
+
+
+def _exact_total(dist, R, assignment):
+    return sum(exact_route_cost(dist, [k] + [R + t for t in a]) if a else 0.0 for k, a in enumerate(assignment))
+
+
+def test_boundary_refinement_only_lowers_the_route_cost():
+    better = 0
+    for s in range(10):
+        world = generate_world(60 + s, n_robots=3, n_targets=10)
+        d = world.distance_matrix
+        plain = IsingSharing(pair_rounds=0).assign(d, 3, None, np.random.default_rng(s))
+        refined = IsingSharing().assign(d, 3, None, np.random.default_rng(s))
+        a, b = _exact_total(d, 3, plain.assignment), _exact_total(d, 3, refined.assignment)
+        assert sorted(t for g in refined.assignment for t in g) == list(range(10))
+        assert b <= a + 1e-9
+        better += b < a - 1e-9
+        st_ = refined.stats
+        assert st_["pair_resplits"] >= 3 and refined.compute.chip_calls > plain.compute.chip_calls
+        assert sum(v["wins"] for v in st_["mapping"]["sharing"].values()) == st_["splits"] - st_["trivial_splits"]
+    assert better >= 1
+
+
+def test_bad_pair_options_are_refused():
+    with pytest.raises(ValueError, match="pair_rounds"):
+        SharingConfig(pair_rounds=-1)
+    with pytest.raises(ValueError, match="pair_shifts"):
+        SharingConfig(pair_shifts=())
+    with pytest.raises(ValueError, match="pair_shifts entry"):
+        SharingConfig(pair_shifts=(0.5, float("nan")))
+    with pytest.raises(ValueError, match="chip_rules entry"):
+        TourConfig(chip_rules=("linear", "cubic"))
+    with pytest.raises(ValueError, match="max_moves"):
+        TourConfig(max_moves=0)
+
+
+# ------------------------------------------------------------------ presets
+def test_paper_configs_differ_from_the_defaults_only_where_documented():
+    assert PathConfig.paper() == PathConfig(target_key="manhattan")
+    assert TourConfig.paper() == TourConfig(backend="logical")
+    assert SharingConfig.paper() == SharingConfig(pair_rounds=0)
+    assert PaperIsingPath().config == PathConfig.paper() and PaperIsingTour().config == TourConfig.paper()
+    assert PaperIsingSharing().config == SharingConfig.paper()
+    assert PaperIsingTour(n_starts=2).config == TourConfig.paper(n_starts=2)  # options still override
+    assert IsingPath().config.target_key == "bfs"
+
+
+def test_presets_share_one_chip_and_plan_validly():
+    world = generate_world(17, n_robots=3, n_targets=10)
+    costs = {}
+    for preset in ("ising", "ising-paper", "exact", "strong"):
+        pipe = make_pipeline(preset)
+        plan = pipe.plan(world, seed=0)
+        assert plan.success, plan.failure
+        validate_plan(world, plan)
+        costs[preset] = plan.route_cost
+        if preset.startswith("ising"):
+            assert pipe.sharing.chip is pipe.tour.chip is pipe.path.chip
+            assert type(pipe.tour).__name__ == ("IsingTour" if preset == "ising" else "PaperIsingTour")
+    assert costs["exact"] <= min(costs.values())
+    assert registry.get_factory("tour", "ising-paper") is PaperIsingTour

@@ -3,8 +3,8 @@
 For N in ``--targets`` (default 10, 20, 50, 100, 200, 300) with R = max(3, N // 10) robots,
 on ``--worlds`` worlds per (map, N) of ``--side`` x ``--side`` cells (default 128; layouts
 ``uniform`` with 20 % obstacles and ``warehouse``), every pipeline in ``--pipelines``
-(default ising, ising-bfs -- the Ising pipeline with ``target_key="bfs"`` paths --, strong,
-fast) plans each world once.  Reported per (map, N, pipeline): success,
+(default ising -- this package's defaults --, ising-paper -- the paper's configuration --,
+strong, fast) plans each world once.  Reported per (map, N, pipeline): success,
 mean route cost (and the ratio to the strong pipeline, world by world), median wall seconds per
 plan, median chip calls (physical + projected logical) and accelerator energy.  The world set-up
 (distance fields) is timed apart.  Writes ``docs/scale.png`` and the RESULTS.md section.
@@ -29,13 +29,11 @@ except ImportError:  # imported as benchmarks.scale
     from benchmarks._common import cpu_name, finish
 
 SECTION = "## Scale (issue 10)"
-ORDER = ("ising", "ising-bfs", "strong", "fast")
+ORDER = ("ising", "ising-paper", "strong", "fast")
 
 
 def _pipeline(name: str):
-    """A preset, or ``ising-bfs``: the Ising pipeline whose paths rank local targets by BFS distance."""
-    if name == "ising-bfs":
-        return make_pipeline("ising", path_options={"target_key": "bfs"})
+    """The pipeline of a preset name."""
     return make_pipeline(name)
 
 
@@ -95,7 +93,7 @@ def plot(summary, path) -> None:
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
     styles = {"uniform": "-", "warehouse": "--"}
-    colours = {"ising": "tab:blue", "ising-bfs": "tab:purple", "strong": "tab:green", "fast": "tab:orange"}
+    colours = {"ising": "tab:blue", "ising-paper": "tab:purple", "strong": "tab:green", "fast": "tab:orange"}
     for (key, label, log), ax in zip((("ratio", "route cost / strong pipeline", False),
                                       ("wall_s", "wall seconds per plan", True),
                                       ("calls", "chip calls per plan (physical + logical)", True)), axes):
@@ -122,8 +120,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--targets", default="10,20,50,100,200,300")
     ap.add_argument("--layouts", default="uniform,warehouse")
-    ap.add_argument("--pipelines", default="ising,ising-bfs,strong,fast",
-                    help="presets, and ising-bfs (Ising paths ranking local targets by BFS distance)")
+    ap.add_argument("--pipelines", default="ising,ising-paper,strong,fast", help="pipeline presets")
     ap.add_argument("--side", type=int, default=128)
     ap.add_argument("--worlds", type=int, default=3)
     ap.add_argument("--figure", default="docs/scale.png")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import resource
 import time
 
 import numpy as np
@@ -59,7 +60,8 @@ def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
                     rows.append(dict(layout=layout, n_targets=n, n_robots=r, world=w, pipeline=name,
                                      success=bool(plan.success), cost=float(plan.route_cost) if plan.success else math.nan,
                                      wall_s=wall, setup_s=setup, calls=c.chip_calls + c.logical_calls,
-                                     accel_j=c.accelerator_energy_j, failure=plan.failure))
+                                     accel_j=c.accelerator_energy_j, failure=plan.failure,
+                                     peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
                     print(f"{layout:9s} N={n:3d} R={r:2d} world {w} {name:6s} ok={plan.success} "
                           f"cost={plan.route_cost:7.0f} {wall:6.2f} s calls={rows[-1]['calls']}", flush=True)
     return rows
@@ -81,11 +83,12 @@ def summarize(rows) -> list[dict]:
                         wall_s=float(np.median([r["wall_s"] for r in rs])),
                         setup_s=float(np.median([r["setup_s"] for r in rs])),
                         calls=float(np.median([r["calls"] for r in rs])),
-                        accel_j=float(np.median([r["accel_j"] for r in rs]))))
+                        accel_j=float(np.median([r["accel_j"] for r in rs])),
+                        peak_mib=float(max(r["peak_mib"] for r in rs))))
     return out
 
 
-def plot(summary, path) -> None:
+def plot(summary, path, side: int = 128) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -110,7 +113,7 @@ def plot(summary, path) -> None:
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle("scaling on 128x128 maps: uniform (solid) and warehouse (dashed)", fontsize=9)
+    fig.suptitle(f"scaling on {side}x{side} maps: uniform (solid) and warehouse (dashed)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -130,22 +133,23 @@ def main() -> None:
                args.side, args.worlds)
     summary = summarize(rows)
     if args.figure:
-        plot(summary, args.figure)
+        plot(summary, args.figure, args.side)
     lines = [SECTION, "",
              f"`python benchmarks/scale.py` on {cpu_name()}: {args.worlds} worlds per (map, N) of "
              f"{args.side}x{args.side}, R = max(3, N // 10) robots; mean route cost and its ratio to the strong "
              "pipeline on the same worlds, medians of wall seconds per plan (world set-up apart), chip calls "
-             "(physical + projected logical) and accelerator energy. Figure: `docs/scale.png`.", "",
-             "| map | N | R | pipeline | success | mean cost | vs strong | wall s/plan | world set-up s | chip calls | accel energy |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "(physical + projected logical) and accelerator energy; peak RSS = the benchmark process's "
+             f"high-water mark so far (everything run before included). Figure: `{args.figure}`.", "",
+             "| map | N | R | pipeline | success | mean cost | vs strong | wall s/plan | world set-up s | chip calls | accel energy | peak RSS |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for x in summary:
         lines.append(f"| {x['layout']} | {x['n_targets']} | {x['n_robots']} | {x['pipeline']} | "
                      f"{100 * x['success']:.0f} % | {x['cost']:.1f} | {x['ratio']:.3f} | {x['wall_s']:.3g} | "
-                     f"{x['setup_s']:.3g} | {x['calls']:.0f} | {1e6 * x['accel_j']:.0f} uJ |")
+                     f"{x['setup_s']:.3g} | {x['calls']:.0f} | {1e6 * x['accel_j']:.0f} uJ | {x['peak_mib']:.0f} MiB |")
     fails = [r for r in rows if not r["success"]]
     for r in fails[:10]:
         lines.append(f"\nFailed: {r['layout']} N={r['n_targets']} world {r['world']} {r['pipeline']}: {r['failure']}")
-    finish(SECTION, lines, args.write_results)
+    finish(SECTION if args.side == 128 else f"{SECTION}, {args.side}x{args.side}", lines, args.write_results)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfi
 from planners.ising.sharing.boundary import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
 from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
-from planners.ising.tour.selection import nearest_neighbour_route
+from planners.ising.tour.selection import double_bridge, nearest_neighbour_route
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan
 from planners.tours_classical import BruteTour, exact_route_cost
@@ -100,6 +100,26 @@ def test_selection_qubo_ground_state_is_the_best_compatible_set():
 def test_nearest_neighbour_route():
     d = np.array([[0, 5, 1, 9], [5, 0, 4, 2], [1, 4, 0, 8], [9, 2, 8, 0]], dtype=float)
     assert nearest_neighbour_route(d).tolist() == [0, 2, 1, 3]
+
+
+def test_double_bridge_keeps_the_start_and_every_target():
+    rng = np.random.default_rng(0)
+    for n in (4, 5, 9, 30):
+        route = np.concatenate([[0], 1 + rng.permutation(n)])
+        kicked = double_bridge(route, rng)
+        assert kicked[0] == 0 and sorted(kicked.tolist()) == list(range(n + 1))
+        assert not np.array_equal(kicked, route)
+
+
+def test_big_tours_kick_the_best_route_instead_of_restarting():
+    """Above 16 targets later starts perturb the best route (fewer calls, no worse here)."""
+    dist = generate_world(500, height=64, width=64, n_robots=1, n_targets=40, layout="warehouse").distance_matrix
+    auto = IsingTour(EmulatedChip()).solve(dist, np.random.default_rng(0))
+    rand = IsingTour(EmulatedChip(), chip_restart="random").solve(dist, np.random.default_rng(0))
+    assert auto.success and rand.success and sorted(auto.order) == list(range(1, 41))
+    assert auto.compute.chip_calls < rand.compute.chip_calls
+    with pytest.raises(ValueError, match="chip_restart"):
+        TourConfig(chip_restart="sometimes")
 
 
 # ------------------------------------------------------------------ chip tour

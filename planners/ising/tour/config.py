@@ -15,6 +15,7 @@ REFINE_RULES = ("largest", "spare_first")
 CLUSTER_DISTANCES = ("min", "mean", "medoid")
 EXIT_COSTS = ("min", "mean")
 BACKENDS = ("logical", "chip", "chip-onehot")
+CHIP_RESTARTS = ("auto", "random", "kick")
 _QUANTIZE_RULES = ("linear", "clip95", "rank", "sqrt")  # ising_backend.QUANTIZE_RULES
 
 #: Default options of the logical tabu solver for this layer (tenure cap 10: one-hot moves flip four spins).
@@ -46,6 +47,8 @@ class TourConfig(IsingConfig):
         max_moves: most candidate moves per selection program (capped by the chip's spins).
         max_segment: longest segment an or-opt move relocates.
         max_rounds: most selection rounds per start.
+        chip_restart: later starts of ``backend="chip"``: ``"random"`` orders, ``"kick"``s of the
+            best route, or ``"auto"`` (random up to 16 targets, kicks beyond).
         n_starts: independent constructions, the cheapest final tour kept (4).
         start_patience: stop after this many non-improving starts in a row (``None``: all).
         accept_equal: also accept equal-cost patch reorders (not the paper's rule).
@@ -72,6 +75,7 @@ class TourConfig(IsingConfig):
     max_moves: int = 8
     max_segment: int = 3
     max_rounds: int = 500
+    chip_restart: str = "auto"
     n_starts: int = 4
     start_patience: int | None = None
     accept_equal: bool = False
@@ -86,6 +90,7 @@ class TourConfig(IsingConfig):
         check_choice("cluster_distance", self.cluster_distance, CLUSTER_DISTANCES)
         check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)
         check_choice("exit_cost", self.exit_cost, EXIT_COSTS)
+        check_choice("chip_restart", self.chip_restart, CHIP_RESTARTS)
         rules = tuple(self.chip_rules)
         if not rules:
             raise ValueError("chip_rules must name at least one quantization rule")

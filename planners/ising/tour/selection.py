@@ -12,9 +12,12 @@ at most the chip's spins), the selection QUBO goes through the mapping portfolio
 (``chip_rules``, one program per rule, one ``anneal_batch``), each read is decoded and the
 valid read of largest total gain is applied.  A read selecting overlapping moves is invalid
 and dropped, never repaired (a gain-greedy repair would do the chip's work: with random reads
-it finds the same tours).  A round whose reads select nothing valid is re-issued up to ``max_retries`` times; a route without an
-improving move is a local optimum and ends the start.  Start 0 is the nearest-neighbour
-route, later starts random orders; the cheapest final route wins.
+it finds the same tours).  A round whose reads select nothing valid is re-issued up to
+``max_retries`` times; a route without an improving move is a local optimum and ends the
+start.  Start 0 is the nearest-neighbour route; later starts are random orders
+(``chip_restart="random"``) or double-bridge kicks of the best route so far (``"kick"``,
+iterated local search); ``"auto"`` kicks above :data:`KICK_ABOVE` targets, where local search
+from a random order ends far above the nearest-neighbour start.  The cheapest route wins.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from ising_backend import ChipProgramError, ising_from_qubo, quantize_stack
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
 
-__all__ = ["MoveSelection", "nearest_neighbour_route"]
+__all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
 
 
 def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
@@ -41,6 +44,18 @@ def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
     return np.array(route, dtype=np.int64)
 
 
+#: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
+KICK_ABOVE = 16
+
+
+def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``route`` with its targets cut at three random points and the middle pieces swapped
+    (``A B C D -> A C B D``; node 0 stays first): the classic kick of iterated local search."""
+    n = len(route) - 1
+    i, j, k = np.sort(rng.choice(np.arange(1, n), size=3, replace=False)) if n > 3 else (1, 2, 3)
+    return np.concatenate([route[:i], route[j:k], route[i:j], route[k:]]).astype(np.int64)
+
+
 class MoveSelection:
     """:class:`~planners.ising.tour.IsingTour`'s chip backend (needs ``config``, ``chip``, ``spec``)."""
 
@@ -50,8 +65,13 @@ class MoveSelection:
         best, best_cost, failure = None, math.inf, None
         starts = 1 if n <= 3 else self.config.n_starts
         for s in range(starts):
-            route = nearest_neighbour_route(dist) if s == 0 else np.concatenate(
-                [[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+            if s == 0:
+                route = nearest_neighbour_route(dist)
+            elif best is not None and n >= 4 and (self.config.chip_restart == "kick" or (
+                    self.config.chip_restart == "auto" and n > KICK_ABOVE)):
+                route = double_bridge(best, run.rng)
+            else:
+                route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
             try:
                 route = self._select_moves(dist, route, run)
             except TourFailure as exc:  # this start gave up; other starts may still succeed

@@ -17,7 +17,7 @@ from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
 from planners.ising.sharing.boundary import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
-from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
+from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
 from planners.ising.tour.selection import double_bridge, nearest_neighbour_route
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan
@@ -69,6 +69,21 @@ def test_disjoint_moves_add_and_overlapping_reads_are_invalid(case, rnd):
     else:
         assert list(taken) == list(idx)
         assert _cost(d, r) - _cost(d, apply_moves(r, moves, taken)) == pytest.approx(total)
+
+
+@settings(max_examples=100, deadline=None)
+@given(_routes(), st.integers(1, 12), st.integers(0, 4))
+def test_picked_candidates_respect_the_overlap_cap(case, k, cap):
+    d, r = case
+    moves, gains = candidate_moves(d, r, 3)
+    picked = pick_candidates(moves, gains, k, cap)
+    assert len(picked) <= k and len(set(picked.tolist())) == len(picked)
+    assert all(gains[a] >= gains[b] for a, b in zip(picked[:-1], picked[1:]))
+    for i, m in enumerate(picked):
+        hits = sum(moves[m, 4] <= moves[o, 5] and moves[o, 4] <= moves[m, 5] for o in picked[:i])
+        assert hits <= cap
+    if len(gains):
+        assert picked[0] == np.argsort(-gains, kind="mergesort")[0]  # the best move is always offered
 
 
 def test_no_candidates_at_a_local_optimum_and_none_for_one_target():
@@ -182,16 +197,32 @@ def test_a_chip_that_selects_nothing_is_a_failure_not_the_host_route():
 
 
 def test_the_annealed_reads_do_the_work():
-    """Invalid reads are dropped, never repaired: coin-flip reads leave tours far from optimal
-    where the annealed reads reach them."""
+    """Invalid reads are dropped, never repaired, so the chip's choices set the pace: coin-flip
+    reads reach tours as good only with far more chip calls (measured: 2.2x on 100 worlds)."""
+    calls = {"chip": 0, "coin": 0}
     gaps = {"chip": [], "coin": []}
     for s in range(10):
         dist = generate_world(900 + s, n_robots=1, n_targets=10).distance_matrix
         opt = BruteTour().solve(dist).cost
         for name, chip in (("chip", EmulatedChip(seed=s)), ("coin", _RandomChip())):
-            r = IsingTour(chip=chip, chip_rules=("linear",)).solve(dist, np.random.default_rng(s))
-            gaps[name].append(r.cost / opt - 1 if r.success else 1.0)
-    assert np.mean(gaps["chip"]) < 0.5 * np.mean(gaps["coin"])
+            r = IsingTour(chip=chip).solve(dist, np.random.default_rng(s))
+            assert r.success
+            gaps[name].append(r.cost / opt - 1)
+            calls[name] += r.compute.chip_calls
+    assert np.mean(gaps["chip"]) <= 0.01
+    assert calls["chip"] < 0.7 * calls["coin"]
+
+
+def test_without_sparse_candidates_coin_flips_stall():
+    """With every improving move offered (dense overlaps) and no halving, coin-flip reads rarely
+    pick a valid set; the annealed reads still do."""
+    fails = {"chip": 0, "coin": 0}
+    for s in range(8):
+        dist = generate_world(950 + s, n_robots=1, n_targets=10).distance_matrix
+        for name, chip in (("chip", EmulatedChip(seed=s)), ("coin", _RandomChip())):
+            r = IsingTour(chip=chip, max_overlap=99, max_moves=45).solve(dist, np.random.default_rng(s))
+            fails[name] += r.stats["unsolved"]["moves"]
+    assert fails["chip"] < fails["coin"]
 
 
 # ------------------------------------------------------------------ sharing

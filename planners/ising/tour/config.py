@@ -46,6 +46,7 @@ class TourConfig(IsingConfig):
         chip_rules: mapping portfolio of the move-selection programs (``backend="chip"``).
         max_moves: most candidate moves per selection program (capped by the chip's spins).
         max_segment: longest segment an or-opt move relocates.
+        max_overlap: a candidate move overlaps at most this many better-gain candidates of its program.
         max_rounds: most selection rounds per start.
         chip_restart: later starts of ``backend="chip"``: ``"random"`` orders, ``"kick"``s of the
             best route, or ``"auto"`` (random up to 16 targets, kicks beyond).
@@ -74,6 +75,7 @@ class TourConfig(IsingConfig):
     chip_rules: tuple = ("linear", "rank")
     max_moves: int = 8
     max_segment: int = 3
+    max_overlap: int = 4
     max_rounds: int = 500
     chip_restart: str = "auto"
     n_starts: int = 4
@@ -99,7 +101,7 @@ class TourConfig(IsingConfig):
         object.__setattr__(self, "chip_rules", rules)
         for nm, lo in (("local_limit", 1), ("max_clusters", 1), ("patch_size", 1), ("num_reads", 1),
                        ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1),
-                       ("max_moves", 1), ("max_segment", 1), ("max_rounds", 1)):
+                       ("max_moves", 1), ("max_segment", 1), ("max_rounds", 1), ("max_overlap", 0)):
             check_int(nm, getattr(self, nm), lo)
         check_int("patience", self.patience, 0, none=True)
         check_int("start_patience", self.start_patience, 1, none=True)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["candidate_moves", "selection_qubo", "selection_gain", "apply_moves", "MOVE_FIELDS"]
+__all__ = ["candidate_moves", "pick_candidates", "selection_qubo", "selection_gain", "apply_moves", "MOVE_FIELDS"]
 
 #: Columns of a move row: kind (0 = 2-opt, 1 = or-opt, 2 = or-opt reversed), i/a, j/b, c, lo, hi.
 MOVE_FIELDS = ("kind", "p", "q", "c", "lo", "hi")
@@ -78,6 +78,30 @@ def candidate_moves(d, r, max_segment):
                         gains[m] = g
                         m += 1
     return moves[:m].copy(), gains[:m].copy()
+
+
+@numba.njit(cache=True)
+def pick_candidates(moves, gains, k, max_overlap):
+    """Indices of at most ``k`` moves for one selection program: by gain (ties: index), each
+    overlapping at most ``max_overlap`` moves picked before it (a sparse conflict graph keeps the
+    penalties -- and so the quantized fields -- small)."""
+    order = np.argsort(-gains, kind="mergesort")
+    picked = np.empty(min(k, order.shape[0]), dtype=np.int64)
+    n = 0
+    for m in order:
+        if n == picked.shape[0]:
+            break
+        hits = 0
+        for t in range(n):
+            o = picked[t]
+            if moves[m, 4] <= moves[o, 5] and moves[o, 4] <= moves[m, 5]:
+                hits += 1
+                if hits > max_overlap:
+                    break
+        if hits <= max_overlap:
+            picked[n] = m
+            n += 1
+    return picked[:n].copy()
 
 
 def selection_qubo(moves: np.ndarray, gains: np.ndarray, margin: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

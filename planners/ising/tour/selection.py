@@ -7,8 +7,9 @@ invalid (docs/design/ising_tour.md).  Here the chip chooses among improving 2-op
 moves (:mod:`.moves`): coefficients are of the size of the gains, and a read is valid when the
 moves it selects do not overlap; applied, they always give a valid route.
 
-Per round the host lists the improving moves of the route (the ``max_moves`` largest gains,
-at most the chip's spins), the selection QUBO goes through the mapping portfolio
+Per round the host lists the improving moves of the route and offers the chip up to
+``max_moves`` of them (by gain, each overlapping at most ``max_overlap`` better ones; at most the
+chip's spins; halved on every re-issue of the round), the selection QUBO goes through the mapping portfolio
 (``chip_rules``, one program per rule, one ``anneal_batch``), each read is decoded and the
 valid read of largest total gain is applied.  A read selecting overlapping moves is invalid
 and dropped, never repaired (a gain-greedy repair would do the chip's work: with random reads
@@ -28,7 +29,7 @@ import numpy as np
 
 from ising_backend import ChipProgramError, ising_from_qubo, quantize_stack
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.moves import apply_moves, candidate_moves, selection_gain, selection_qubo
+from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
 
 __all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
 
@@ -100,7 +101,8 @@ class MoveSelection:
             moves, gains = candidate_moves(dist, route, cfg.max_segment)
             if len(gains) == 0:
                 break
-            keep = np.argsort(-gains, kind="stable")[:capacity]
+            # a round re-issued after reads that selected nothing valid offers fewer moves
+            keep = pick_candidates(moves, gains, max(1, capacity >> failures), cfg.max_overlap)
             moves, gains = moves[keep], gains[keep]
             taken = self._chip_round(moves, gains, run)
             rounds += 1

@@ -1,6 +1,7 @@
 """How the pipelines scale with the number of targets, on random and warehouse maps.
 
-For N in ``--targets`` (default 10, 20, 50, 100, 200, 300) with R = max(3, N // 10) robots,
+For N in ``--targets`` (default 10, 20, 50, 100, 200, 300) with R = max(3, N // 10) robots
+(or ``--robots``),
 on ``--worlds`` worlds per (map, N) of ``--side`` x ``--side`` cells (default 128; layouts
 ``uniform`` with 20 % obstacles and ``warehouse``), every pipeline in ``--pipelines``
 (default ising -- this package's defaults --, ising-paper -- the paper's configuration --,
@@ -38,7 +39,7 @@ def _pipeline(name: str):
     return make_pipeline(name)
 
 
-def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
+def run(layouts, targets, pipelines, side: int, n_worlds: int, robots: int | None = None) -> list[dict]:
     for layout in layouts:  # warm-up (numba caches, lazy imports): untimed
         warm = generate_world(0, height=16, width=16, n_robots=3, n_targets=10, layout=layout)
         for name in pipelines:
@@ -46,7 +47,7 @@ def run(layouts, targets, pipelines, side: int, n_worlds: int) -> list[dict]:
     rows = []
     for layout in layouts:
         for n in targets:
-            r = max(3, n // 10)
+            r = max(3, n // 10) if robots is None else robots
             for w in range(n_worlds):
                 t0 = time.perf_counter()
                 world = generate_world(1000 + w, height=side, width=side, n_robots=r, n_targets=n, layout=layout)
@@ -126,17 +127,21 @@ def main() -> None:
     ap.add_argument("--pipelines", default="ising,ising-paper,strong,fast", help="pipeline presets")
     ap.add_argument("--side", type=int, default=128)
     ap.add_argument("--worlds", type=int, default=3)
+    ap.add_argument("--robots", type=int, default=None, help="robots per world (default max(3, N // 10))")
     ap.add_argument("--figure", default="docs/scale.png")
     ap.add_argument("--write-results", action="store_true")
     args = ap.parse_args()
     rows = run(args.layouts.split(","), [int(n) for n in args.targets.split(",")], args.pipelines.split(","),
-               args.side, args.worlds)
+               args.side, args.worlds, args.robots)
     summary = summarize(rows)
     if args.figure:
         plot(summary, args.figure, args.side)
-    lines = [SECTION, "",
+    suffix = "" if args.side == 128 else f", {args.side}x{args.side}"
+    suffix += "" if args.robots is None else f", {args.robots} robots"
+    lines = [SECTION + suffix, "",
              f"`python benchmarks/scale.py` on {cpu_name()}: {args.worlds} worlds per (map, N) of "
-             f"{args.side}x{args.side}, R = max(3, N // 10) robots; mean route cost and its ratio to the strong "
+             f"{args.side}x{args.side}, " + ("R = max(3, N // 10)" if args.robots is None else f"R = {args.robots}")
+             + " robots; mean route cost and its ratio to the strong "
              "pipeline on the same worlds, medians of wall seconds per plan (world set-up apart), chip calls "
              "(physical + projected logical) and accelerator energy; peak RSS = the benchmark process's "
              f"high-water mark so far (everything run before included). Figure: `{args.figure}`.", "",
@@ -149,7 +154,7 @@ def main() -> None:
     fails = [r for r in rows if not r["success"]]
     for r in fails[:10]:
         lines.append(f"\nFailed: {r['layout']} N={r['n_targets']} world {r['world']} {r['pipeline']}: {r['failure']}")
-    finish(SECTION if args.side == 128 else f"{SECTION}, {args.side}x{args.side}", lines, args.write_results)
+    finish(SECTION + suffix, lines, args.write_results)
 
 
 if __name__ == "__main__":

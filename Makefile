@@ -31,7 +31,7 @@ $(FULL_STAMP): pyproject.toml $(BASE_STAMP)
 	touch $(FULL_STAMP)
 
 demo: $(BASE_STAMP)
-	$(VENV)/bin/mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising --out results/demo
+	$(VENV)/bin/mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising,ising-paper --out results/demo
 
 test: $(FULL_STAMP)
 	$(PY) -m pytest -q -n 2 --durations=15

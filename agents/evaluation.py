@@ -377,6 +377,7 @@ def _fmt(v, pattern):
 def _si(v: float, unit: str) -> str:
     if v is None or math.isnan(v):
         return "-"
+    v = float(f"{v:.3g}")  # round first: 999.6 us is shown as 1 ms, not "1e+03 us"
     if v == 0:
         return f"0 {unit}"
     for scale, prefix in ((1, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n")):

@@ -118,3 +118,12 @@ def test_ising_route_metrics_do_not_depend_on_workers():
     b = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=2, progress=False)
     assert _route_view(a.rows) == _route_view(b.rows)
     assert [r["chip_calls"] for r in a.rows] == [r["chip_calls"] for r in b.rows]
+
+
+def test_si_units_round_before_choosing_the_prefix():
+    from agents.evaluation import _si
+
+    assert _si(0.0009996, "s") == "1 ms"
+    assert _si(0.000123456, "s") == "123 us"
+    assert _si(1.5e-5, "J") == "15 uJ"
+    assert _si(0.0, "J") == "0 J" and _si(float("nan"), "s") == "-"

@@ -79,6 +79,7 @@ class IsingPath(CompiledSearch, ConfigAttributes):
             )
         self._problem_cache = _LRU(4096)
         self._padded_for = None
+        self._fields_for = None  # (world, padded target fields, {target cell: index}) of the last world
         self._nbr = neighbour_table(self.frame)
         from ising_backend import MERGE_STYLE_IDS
 
@@ -258,12 +259,22 @@ class IsingPath(CompiledSearch, ConfigAttributes):
         cells last; an empty array for the paper's Manhattan key."""
         if self.config.target_key != "bfs":
             return np.zeros((0, 0), dtype=np.int64)
-        targets = np.asarray(world.targets)
-        hit = np.flatnonzero((targets[:, 0] == g[0]) & (targets[:, 1] == g[1])) if len(targets) else []
-        field = world.target_fields[int(hit[0])] if len(hit) else world.distance_field(g)
+        cached = self._fields_for
+        if cached is None or cached[0] is not world:  # every target's padded field at once, per world
+            self._fields_for = cached = (world, self._pad_fields(world.target_fields), {})
+        _, stack, index = cached
+        if not index and len(world.targets):
+            index.update({(int(r), int(c)): k for k, (r, c) in enumerate(np.asarray(world.targets))})
+        k = index.get((int(g[0]), int(g[1])))
+        return stack[k] if k is not None else self._pad_fields(world.distance_field(g)[None])[0]
+
+    def _pad_fields(self, fields: np.ndarray) -> np.ndarray:
+        """``(k, H, W)`` BFS fields -> int64, padded by the patch radius; unreachable and outside cells
+        get a distance beyond any path."""
         far = np.int64(2**40)
-        field = np.where(field < 0, far, field.astype(np.int64))
-        return np.pad(field, self.frame.radius, constant_values=far)
+        fields = np.where(fields < 0, far, fields.astype(np.int64))
+        r = self.frame.radius
+        return np.pad(fields, ((0, 0), (r, r), (r, r)), constant_values=far)
 
     def _search(self, grid, s, g, rng, field=None):
         """The search loop in Python: the reference of :mod:`.engine` (and the loop for other chips,

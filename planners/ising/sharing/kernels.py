@@ -231,3 +231,33 @@ def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject):
                             cand_side[M, i] = blocks[row, i] > 0
                         M += 1
     return n_valid, best, cand_split[:M], cand_cut[:M], cand_side[:M]
+
+
+@numba.njit(cache=True)
+def candidate_sides(c_split, c_side, free, sizes, anchors):
+    """The sides of every candidate of :func:`score_stage`: ``(side0 (M, f + 1), n0 (M,), side1,
+    n1)``, row ``m`` holding the sorted global nodes of each side (anchor ``a`` on side 0, ``b``
+    on side 1) in its first ``n0[m]`` / ``n1[m]`` entries."""
+    M = c_split.shape[0]
+    f = free.shape[1]
+    side0 = np.zeros((M, f + 1), dtype=np.int64)
+    side1 = np.zeros((M, f + 1), dtype=np.int64)
+    n0 = np.zeros(M, dtype=np.int64)
+    n1 = np.zeros(M, dtype=np.int64)
+    for m in range(M):
+        p = c_split[m]
+        side0[m, 0] = anchors[p, 0]
+        side1[m, 0] = anchors[p, 1]
+        a, b = 1, 1
+        for i in range(sizes[p]):
+            if c_side[m, i]:
+                side1[m, b] = free[p, i]
+                b += 1
+            else:
+                side0[m, a] = free[p, i]
+                a += 1
+        side0[m, :a].sort()
+        side1[m, :b].sort()
+        n0[m] = a
+        n1[m] = b
+    return side0, n0, side1, n1

@@ -29,7 +29,7 @@ from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.kernels import map_stage, score_stage, split_model
+from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
@@ -336,12 +336,9 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinemen
         n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject)
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]
-        for m, k in enumerate(c_split.tolist()):
-            p = problems[k]
-            x = c_side[m, : len(p.free)]
-            side1 = np.sort(np.concatenate([[p.b], p.free[x]])).astype(int)
-            side0 = np.sort(np.concatenate([[p.a], p.free[~x]])).astype(int)
-            cands[k].append((float(c_cut[m]), side0, side1, None))
+        s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
+        for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
+            cands[k].append((cut, s0[m, :a], s1[m, :b], None))
         n_valid, best = n_valid.tolist(), best.tolist()
         for k, p in enumerate(problems):
             for r, rule in enumerate(rules):

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["candidate_moves", "pick_candidates", "selection_qubo", "selection_gain", "apply_moves", "MOVE_FIELDS"]
+__all__ = ["candidate_moves", "pick_candidates", "selection_qubo", "selection_gain", "score_reads", "apply_moves", "MOVE_FIELDS"]
 
 #: Columns of a move row: kind (0 = 2-opt, 1 = or-opt, 2 = or-opt reversed), i/a, j/b, c, lo, hi.
 MOVE_FIELDS = ("kind", "p", "q", "c", "lo", "hi")
@@ -127,6 +127,26 @@ def selection_gain(chosen, moves, gains):
             if moves[m, 4] <= moves[o, 5] and moves[o, 4] <= moves[m, 5]:
                 return None, 0.0
     return idx, total
+
+
+@numba.njit(cache=True)
+def score_reads(spins, moves, gains):
+    """Every read of one round (``spins (k, reads, M)``, one program per rule) through
+    :func:`selection_gain`.  Returns ``(clean (k,), rule, read, gain)``: per rule the valid reads
+    that select a move, and the first read of largest total gain (``rule = -1``: none above 0)."""
+    k, reads, M = spins.shape
+    clean = np.zeros(k, dtype=np.int64)
+    best_k, best_r, best = -1, -1, 0.0
+    for a in range(k):
+        for r in range(reads):
+            taken, total = selection_gain(spins[a, r] > 0, moves, gains)
+            if taken is None:
+                continue
+            if taken.shape[0] > 0:
+                clean[a] += 1
+            if total > best + 1e-9:
+                best_k, best_r, best = a, r, total
+    return clean, best_k, best_r, best
 
 
 def apply_moves(r, moves: np.ndarray, taken) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 
 from ising_backend import ChipProgramError, ising_from_qubo, quantize_stack
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
+from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
 
 __all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
 
@@ -135,20 +135,14 @@ class MoveSelection:
         except ChipProgramError as exc:
             raise TourFailure(f"the chip refused a move-selection program: {exc}") from exc
         m = run.stats["mapping"]["tour"]
-        best, best_gain, best_rule = None, 0.0, None
-        for k, rule in enumerate(cfg.chip_rules):
-            clean = 0
-            for read in spins[k]:
-                taken, total = selection_gain(read > 0, moves, gains)
-                if taken is None:  # overlapping moves: an invalid read, never repaired
-                    continue
-                clean += len(taken) > 0
-                if total > best_gain + 1e-9:
-                    best, best_gain, best_rule = taken, total, rule
-            m["reads"] += cfg.num_reads
-            m["valid_reads"] += clean
-            m["valid"] += clean > 0
-            m["valid_physical"] += clean > 0
+        # overlapping moves make a read invalid: dropped, never repaired
+        clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
+        best = np.flatnonzero(spins[best_k, best_r] > 0) if best_k >= 0 else None
+        best_rule = cfg.chip_rules[best_k] if best_k >= 0 else None
+        m["reads"] += cfg.num_reads * len(cfg.chip_rules)
+        m["valid_reads"] += int(clean.sum())
+        m["valid"] += int((clean > 0).sum())
+        m["valid_physical"] += int((clean > 0).sum())
         m["programs"] += len(cfg.chip_rules)
         m["physical_programs"] += len(cfg.chip_rules)
         m["subproblems"] += 1

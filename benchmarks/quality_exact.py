@@ -44,8 +44,8 @@ def gap_stats(gaps) -> dict:
     g = 100.0 * np.asarray(gaps, dtype=float)
     ok = g[np.isfinite(g)]
     if ok.size == 0:
-        return {"n": len(g), "ok": 0}
-    return {"n": len(g), "ok": int(ok.size), "mean": float(ok.mean()), "median": float(np.median(ok)),
+        return {"n": len(g), "ok": 0, "gaps": g}
+    return {"n": len(g), "ok": int(ok.size), "gaps": g, "mean": float(ok.mean()), "median": float(np.median(ok)),
             "p90": float(np.percentile(ok, 90)), "max": float(ok.max()), "at_opt": float((ok <= 1e-9).mean())}
 
 
@@ -184,12 +184,51 @@ def render(res: dict, args, seconds: float) -> list[str]:
     return lines
 
 
+PANELS = (("tours", "tour, 1 robot x 10 targets", ("ising", "ising-paper", "3opt", "2opt")),
+          ("sharing-{p}", "sharing, 3 x 10, {p}", ("ising", "ising-paper", "ssa")),
+          ("e2e-{p}", "end to end, 3 x 10, {p}", ("ising", "ising-paper", "strong", "fast")))
+COLOURS = {"ising": "tab:blue", "ising-paper": "tab:purple", "3opt": "tab:green", "strong": "tab:green",
+           "ssa": "tab:green", "2opt": "tab:orange", "fast": "tab:orange"}
+
+
+def plot(res: dict, path: str, placement: str) -> None:
+    """Empirical distribution of the gap to the optimum, one panel per layer."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
+    for ax, (key, title, methods) in zip(axes, PANELS):
+        data = res[key.format(p=placement)]
+        for m in methods:
+            g = np.sort(data[m]["gaps"][np.isfinite(data[m]["gaps"])])
+            if not g.size:
+                continue
+            y = np.arange(1, g.size + 1) / data[m]["n"]
+            ax.step(np.concatenate([[0.0], g]), np.concatenate([[0.0], y]), where="post", color=COLOURS.get(m),
+                    label=f"{m} (mean {data[m]['mean']:.2f} %)")
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.set_xlabel("gap to the optimum (%)")
+        ax.set_title(title.format(p=placement), fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    axes[0].set_ylabel("share of worlds with at most this gap")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--worlds", type=int, default=200, help="worlds per tour / sharing / end-to-end table")
     ap.add_argument("--queries", type=int, default=200, help="single-target path queries")
     ap.add_argument("--seed", type=int, default=10000, help="first world seed")
     ap.add_argument("--placements", default="uniform,centre", help="target placements of the sharing and end-to-end tables")
+    ap.add_argument("--figure", default="docs/quality/gaps.png", help="gap distribution figure ('' for none)")
     ap.add_argument("--write-results", action="store_true", help="write the section into benchmarks/RESULTS.md")
     args = ap.parse_args(argv)
     for name in ("worlds", "queries"):
@@ -204,7 +243,11 @@ def main(argv=None) -> int:
     for placement in args.placements:
         res[f"sharing-{placement}"] = sharing(args.worlds, args.seed, placement)
         res[f"e2e-{placement}"] = endtoend(args.worlds, args.seed, placement)
-    finish(SECTION, render(res, args, time.perf_counter() - t0), args.write_results)
+    lines = render(res, args, time.perf_counter() - t0)
+    if args.figure:
+        plot(res, args.figure, args.placements[0])
+        lines += ["", f"Figure: `{args.figure}` (share of worlds within each gap, per layer).", ""]
+    finish(SECTION, lines, args.write_results)
     return 0
 
 

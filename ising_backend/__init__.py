@@ -37,7 +37,7 @@ from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
 from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
 from .faults import FaultMap
 from .health import ChipUnavailableError, HealthMonitor
-from .chip import ChipProgramError, EmulatedChip, check_program, stack_programs
+from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver, SolverOutputError
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
@@ -68,7 +68,7 @@ __all__ = [
     # models, spec, ledger
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # chip
-    "EmulatedChip", "ChipProgramError", "check_program", "stack_programs",
+    "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable",
     # faults
     "DEAD_CORE_MODES", "FaultMap", "HealthMonitor", "ChipUnavailableError",
     # logical solver

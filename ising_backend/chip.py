@@ -40,7 +40,7 @@ from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
 
-__all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs"]
+__all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable"]
 
 
 class ChipProgramError(ValueError):
@@ -88,6 +88,16 @@ def _native(h: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if fits_int64(h.dtype) and fits_int64(J.dtype):
         return np.ascontiguousarray(h, dtype=np.int64), np.ascontiguousarray(J, dtype=np.int64)
     return np.ascontiguousarray(h, dtype=np.float64), np.ascontiguousarray(J, dtype=np.float64)
+
+
+def kernel_capable(chip) -> bool:
+    """Whether ``chip`` is an :class:`EmulatedChip` whose annealing is its own, so a compiled planner
+    loop may call its kernel (:meth:`EmulatedChip.kernel_args`) and charge it
+    (:meth:`EmulatedChip.charge`); subclasses that override ``anneal_batch`` (e.g. to inject faults),
+    chips with a fault model (their calls need the fault-tolerant dispatch) and other solvers go
+    through ``anneal_batch``."""
+    return isinstance(chip, EmulatedChip) and type(chip).anneal_batch is EmulatedChip.anneal_batch \
+        and getattr(chip, "health", None) is None
 
 
 def check_program(h, J, spec: ChipSpec = ChipSpec(), native: bool = False) -> tuple[np.ndarray, np.ndarray]:

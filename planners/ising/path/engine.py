@@ -292,14 +292,10 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
 
 
 def engine_capable(chip) -> bool:
-    """Whether ``chip`` is an :class:`ising_backend.EmulatedChip` whose annealing is its own
-    (then the compiled loop may call its kernel); subclasses that override ``anneal_batch``
-    (e.g. to inject faults), chips with a fault model (their calls need the fault-tolerant
-    dispatch) and other solvers go through the reference loop."""
-    from ising_backend import EmulatedChip
+    """:func:`ising_backend.kernel_capable`: the compiled loop may call this chip's kernel."""
+    from ising_backend import kernel_capable
 
-    return isinstance(chip, EmulatedChip) and type(chip).anneal_batch is EmulatedChip.anneal_batch \
-        and hasattr(chip, "kernel_args") and getattr(chip, "health", None) is None
+    return kernel_capable(chip) and hasattr(chip, "kernel_args")
 
 
 class CompiledSearch:

@@ -27,8 +27,9 @@ import math
 
 import numpy as np
 
-from ising_backend import ChipProgramError, ising_from_qubo, quantize_stack
+from ising_backend import QUANTIZE_RULE_IDS, ChipProgramError, ising_from_qubo, kernel_capable, quantize_stack
 from planners.ising.tour.cluster import TourFailure
+from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, select_moves_loop
 from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
 
 __all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
@@ -60,6 +61,14 @@ def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 class MoveSelection:
     """:class:`~planners.ising.tour.IsingTour`'s chip backend (needs ``config``, ``chip``, ``spec``)."""
 
+    @property
+    def _rule_ids(self) -> np.ndarray:
+        return np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
+
+    @property
+    def _limits(self) -> tuple[float, float]:
+        return tuple(float(min(-int(r[0]), int(r[1]))) for r in (self.spec.h_range, self.spec.j_range))
+
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
@@ -88,6 +97,55 @@ class MoveSelection:
         return [int(t) for t in best[1:]]
 
     def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
+        """One start: the compiled loop (:mod:`.move_engine`) on a chip whose kernel it may call,
+        else :meth:`_select_moves_reference`."""
+        if kernel_capable(self.chip) and hasattr(self.chip, "kernel_args"):
+            out = self._select_moves_compiled(dist, route, run)
+            if out is not None:
+                return out
+        return self._select_moves_reference(dist, route, run)
+
+    def _select_moves_compiled(self, dist, route, run):
+        """:meth:`_select_moves_reference` in one compiled call, charged to the chip per submission."""
+        cfg = self.config
+        capacity = min(int(self.spec.n_spins), cfg.max_moves)
+        state = run.rng.bit_generator.state
+        new, status, st, clean, wins, calls, emu = select_moves_loop(
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
+            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._rule_ids, *self._limits, cfg.num_reads,
+            *self.chip.kernel_args())
+        if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
+            run.rng.bit_generator.state = state
+            return None
+        for delta in self.chip.charge(calls, emu):
+            run.solver.charged._add_in_place(delta)
+        rounds, retries, applied, valid_rounds, valid_programs = (int(v) for v in st)
+        k = len(cfg.chip_rules)
+        m = run.stats["mapping"]["tour"]
+        m["reads"] += rounds * k * cfg.num_reads
+        m["valid_reads"] += int(clean.sum())
+        m["valid"] += valid_programs
+        m["valid_physical"] += valid_programs
+        m["programs"] += rounds * k
+        m["physical_programs"] += rounds * k
+        m["subproblems"] += rounds
+        m["valid_subproblems"] += valid_rounds
+        if valid_rounds:
+            won = m.setdefault("wins", {})
+            for rule, w in zip(cfg.chip_rules, wins.tolist()):
+                if w:
+                    won[rule] = won.get(rule, 0) + w
+        run.stats["retries"] += retries
+        run.stats["moves_applied"] += applied
+        run.stats["move_rounds"] += rounds
+        if status in (STALLED, NO_PROGRESS):
+            run.stats["unsolved"]["moves"] += 1
+        if status == NO_PROGRESS:
+            raise TourFailure(f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
+                              f"submissions of {k} programs")
+        return new
+
+    def _select_moves_reference(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """``route`` improved by chip-selected moves until no move improves it (or the chip
         selects nothing valid ``max_retries + 1`` times in a row).  A chip that never selects a
         valid improving set for a route that has improving moves fails the start

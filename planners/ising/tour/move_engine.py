@@ -1,0 +1,141 @@
+"""Compiled move-selection search of the chip tour: one start in one call.
+
+Contract: :func:`select_moves_loop` makes the decisions of ``MoveSelection._select_moves`` with
+its ``_chip_round`` for one start -- candidate moves and their pick, the selection QUBO, its
+Ising form (:func:`ising_backend.ising_from_qubo`'s arithmetic), quantization by every rule of
+the portfolio (:func:`ising_backend.quantize_rules`), a chip seed drawn from the construction's
+``numpy.random.Generator``, the chip's own annealing kernel, scoring of the reads and the
+applied moves -- and returns the statistics and, per submission, the calls and measured
+emulation seconds (``objmode`` clock around the kernel) for the caller to charge to the chip
+as ``anneal_batch`` would.  The Python path in :mod:`.selection` is its reference (the tests
+compare both).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+
+from ising_backend import quantize_rules
+from ising_backend.anneal import anneal_kernel
+from planners.ising.numeric import pairwise_sum
+from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
+
+__all__ = ["select_moves_loop", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS", "NEEDS_REFERENCE"]
+
+LOCAL_OPTIMUM = 0  # no improving move left (or max_rounds reached)
+STALLED = 1  # the chip selected nothing valid max_retries + 1 times in a row, after some progress
+NO_PROGRESS = 2  # ... before any move was applied: the start fails
+NEEDS_REFERENCE = 3  # a program the quantizer could not map: the reference loop names it
+
+
+@numba.njit(cache=True)
+def _apply(route, moves, taken):
+    """:func:`.moves.apply_moves` in place (``taken``: pairwise disjoint move indices)."""
+    for m in taken:
+        kind, p, q, c = moves[m, 0], moves[m, 1], moves[m, 2], moves[m, 3]
+        if kind == 0:
+            route[p + 1:q + 1] = route[p + 1:q + 1][::-1].copy()
+            continue
+        seg = route[p:q + 1].copy()
+        if kind == 2:
+            seg = seg[::-1].copy()
+        L = seg.shape[0]
+        if c < p:
+            rest = route[c + 1:p].copy()
+            route[c + 1:c + 1 + L] = seg
+            route[c + 1 + L:q + 1] = rest
+        else:
+            rest = route[q + 1:c + 1].copy()
+            route[p:p + rest.shape[0]] = rest
+            route[p + rest.shape[0]:c + 1] = seg
+
+
+@numba.njit(cache=True)
+def _selection_ising(moves, gains, margin):
+    """The selection QUBO (:func:`.moves.selection_qubo`) in Ising form, with
+    :func:`ising_backend.ising_from_qubo`'s arithmetic: ``(h (M,), J (M, M))``."""
+    M = gains.shape[0]
+    Q = np.zeros((M, M))
+    for i in range(M):
+        for j in range(i + 1, M):
+            if moves[i, 4] <= moves[j, 5] and moves[j, 4] <= moves[i, 5]:
+                Q[i, j] = min(gains[i], gains[j]) + margin
+    h = np.empty(M)
+    J = np.zeros((M, M))
+    row = np.empty(M)
+    for i in range(M):
+        for j in range(M):
+            row[j] = Q[i, j] + Q[j, i]
+            J[i, j] = Q[i, j] / 4.0
+        h[i] = -gains[i] / 2.0 + pairwise_sum(row, 0, M) / 4.0
+    return h, J
+
+
+@numba.njit(cache=True)
+def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh,
+                      Lj, num_reads, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
+    """One start of the move-selection search (module docstring).
+
+    Returns ``(route, status, stats (5,), clean (k,), wins (k,), calls (S,), emulation_s (S,))`` with
+    stats = rounds, retries, moves applied, rounds with a valid read, programs with a valid read;
+    ``clean`` / ``wins`` per rule: valid reads that select a move, best reads.
+    """
+    route = route.copy()
+    k = rules.shape[0]
+    stats = np.zeros(5, dtype=np.int64)
+    clean_all = np.zeros(k, dtype=np.int64)
+    wins = np.zeros(k, dtype=np.int64)
+    calls = np.zeros(max_rounds, dtype=np.int64)
+    emu = np.zeros(max_rounds)
+    failures = 0
+    applied = 0
+    rounds = 0
+    status = LOCAL_OPTIMUM
+    while rounds < max_rounds:
+        moves, gains = candidate_moves(dist, route, max_segment)
+        if gains.shape[0] == 0:
+            break
+        keep = pick_candidates(moves, gains, max(1, capacity >> failures), max_overlap)
+        moves = moves[keep]
+        gains = gains[keep]
+        h, J = _selection_ising(moves, gains, 1.0)
+        st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+        for r in range(k):
+            if st[r] != 0:
+                return route, NEEDS_REFERENCE, stats, clean_all, wins, calls[:rounds], emu[:rounds]
+        seed = rng.integers(0, 9223372036854775807)
+        M = gains.shape[0]
+        spins = np.empty((k, num_reads, M), dtype=np.int8)
+        energies = np.empty((k, num_reads))
+        with numba.objmode(t0="float64"):
+            t0 = time.perf_counter()
+        anneal_kernel(hq, Jq, num_reads, np.uint64(seed), sweeps, geometric, beta_hot, beta_cold, mismatch,
+                      flip_prob, spins, energies)
+        with numba.objmode(t1="float64"):
+            t1 = time.perf_counter()
+        calls[rounds] = k * num_reads
+        emu[rounds] = t1 - t0
+        rounds += 1
+        clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
+        for r in range(k):
+            clean_all[r] += clean[r]
+            stats[4] += clean[r] > 0
+        if best_k < 0:
+            failures += 1
+            stats[1] += 1
+            if failures > max_retries:
+                status = STALLED if applied else NO_PROGRESS
+                break
+            continue
+        wins[best_k] += 1
+        stats[3] += 1
+        failures = 0
+        taken = np.flatnonzero(spins[best_k, best_r] > 0)
+        applied += taken.shape[0]
+        _apply(route, moves, taken)
+    stats[0] = rounds
+    stats[2] = applied
+    return route, status, stats, clean_all, wins, calls[:rounds], emu[:rounds]

@@ -395,3 +395,34 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options):
         assert a.order == b.order and a.cost == b.cost and a.failure == b.failure
         assert a.stats == b.stats and a.compute == b.compute
         assert r1.integers(1 << 62) == r2.integers(1 << 62)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(1, 12), min_size=1, max_size=12), st.integers(12, 45), st.integers(0, 2**31))
+def test_fill_packs_places_programs_as_the_python_loop(sizes, capacity, seed):
+    from ising_backend import plan_packs
+    from planners.ising.sharing.kernels import fill_packs
+
+    rng = np.random.default_rng(seed)
+    sizes = np.array(sizes, dtype=np.int64)
+    f = int(sizes.max())
+    qh = rng.integers(-7, 8, (len(sizes), f)).astype(float)
+    qJ = np.triu(rng.integers(-7, 8, (len(sizes), f, f)), k=1).astype(float)
+    packs = plan_packs(sizes.tolist(), capacity)
+    width = max(int(sizes[pk].sum()) for pk in packs)
+    h_ref, J_ref = np.zeros((len(packs), width)), np.zeros((len(packs), width, width))
+    where_ref = np.zeros((len(sizes), 2), dtype=np.int64)
+    for b, pk in enumerate(packs):
+        s0 = 0
+        for j in pk:
+            n = int(sizes[j])
+            h_ref[b, s0:s0 + n] = qh[j, :n]
+            J_ref[b, s0:s0 + n, s0:s0 + n] = qJ[j, :n, :n]
+            where_ref[j] = (b, s0)
+            s0 += n
+    pack_of = np.empty(len(sizes), dtype=np.int64)
+    for b, pk in enumerate(packs):
+        pack_of[pk] = b
+    order = np.array([j for pk in packs for j in pk], dtype=np.int64)
+    h, J, where = fill_packs(qh, qJ, sizes, order, pack_of, len(packs), width)
+    assert np.array_equal(h, h_ref) and np.array_equal(J, J_ref) and np.array_equal(where, where_ref)

@@ -29,7 +29,7 @@ from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage, split_model
+from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
@@ -314,17 +314,11 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinemen
         capacity = max(int(getattr(self.chip, "usable_spins", spec.n_spins)), int(prog_sizes.max()))
         packs = plan_packs(prog_sizes.tolist(), capacity)
         width = max(int(prog_sizes[pk].sum()) for pk in packs)
-        h = np.zeros((len(packs), width))
-        J = np.zeros((len(packs), width, width))
-        where = np.zeros((P * nr, 2), dtype=np.int64)
+        pack_of = np.empty(P * nr, dtype=np.int64)
         for b, pk in enumerate(packs):
-            s0 = 0
-            for j in pk:
-                n = int(prog_sizes[j])
-                h[b, s0:s0 + n] = qh[j, :n]
-                J[b, s0:s0 + n, s0:s0 + n] = qJ[j, :n, :n]
-                where[j] = (b, s0)
-                s0 += n
+            pack_of[pk] = b
+        order = np.array([j for pk in packs for j in pk], dtype=np.int64)  # placement order within packs
+        h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, len(packs), width)
         try:
             spins, _ = self._meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
         except SolverOutputError as exc:  # a broken chip: nothing to decode
@@ -339,11 +333,11 @@ class IsingSharing(ConfigAttributes, Components, CoarseSplits, BoundaryRefinemen
         s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
         for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
             cands[k].append((cut, s0[m, :a], s1[m, :b], None))
-        n_valid, best = n_valid.tolist(), best.tolist()
+        for rule, v in zip(rules, n_valid.sum(axis=0).tolist()):
+            mapping[rule]["candidates"] += cfg.reads * P
+            mapping[rule]["valid"] += v
+        best = best.tolist()
         for k, p in enumerate(problems):
-            for r, rule in enumerate(rules):
-                mapping[rule]["candidates"] += cfg.reads
-                mapping[rule]["valid"] += n_valid[k][r]
             if not cands[k]:
                 continue
             top = min(best[k])

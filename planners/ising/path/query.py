@@ -1,0 +1,74 @@
+"""The ends of one Ising path query (paper 5.1): the goal's distance field going in, the result
+coming out.
+
+``_goal_field``: the BFS field that ranks local targets (``target_key="bfs"``), padded like the
+grid; every target's field is padded once per world.  ``_finish``: the walk's loops cut, the path
+checked (never an invalid path handed out), compute and statistics attached, or the failure named.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.ising.path.decode import cut_loops
+
+__all__ = ["QueryEnds"]
+
+
+class QueryEnds:
+    """:class:`~planners.ising.path.IsingPath`'s query inputs and results (needs ``config``, ``frame``)."""
+
+    def _goal_field(self, world, g) -> np.ndarray:
+        """The ranking key's distance field, padded like the grid (``target_key="bfs"``): the
+        world's BFS field of the goal (a target's is already computed), unreachable and outside
+        cells last; an empty array for the paper's Manhattan key."""
+        if self.config.target_key != "bfs":
+            return np.zeros((0, 0), dtype=np.int64)
+        cached = self._fields_for
+        if cached is None or cached[0] is not world:  # every target's padded field at once, per world
+            self._fields_for = cached = (world, self._pad_fields(world.target_fields), {})
+        _, stack, index = cached
+        if not index and len(world.targets):
+            index.update({(int(r), int(c)): k for k, (r, c) in enumerate(np.asarray(world.targets))})
+        k = index.get((int(g[0]), int(g[1])))
+        return stack[k] if k is not None else self._pad_fields(world.distance_field(g)[None])[0]
+
+    def _pad_fields(self, fields: np.ndarray) -> np.ndarray:
+        """``(k, H, W)`` BFS fields -> int64, padded by the patch radius; unreachable and outside cells
+        get a distance beyond any path."""
+        far = np.int64(2**40)
+        fields = np.where(fields < 0, far, fields.astype(np.int64))
+        r = self.frame.radius
+        return np.pad(fields, ((0, 0), (r, r), (r, r)), constant_values=far)
+
+    def _finish(self, grid, s, g, walk, counts, mapping, delta, failure, first_map_error):
+        """The query's :class:`PathResult`: compute from the metered charge, statistics, the
+        failure (naming mapping errors) or the loop-cut, checked path."""
+        from planners.base import PathResult
+        from planners.compute import ComputeReport
+
+        compute = ComputeReport.from_ledger(delta)
+        stats = {
+            "chip_calls": int(delta.physical_calls),
+            "chip_batches": int(delta.batches),
+            **counts,
+            "walk_length": len(walk) - 1,
+            "mapping": {"path": mapping},
+        }
+        if failure is not None:
+            n_err = sum(m["map_errors"] for m in mapping.values())
+            if n_err and not any(m["programs"] for m in mapping.values()):
+                failure = (f"no patch program could be mapped onto the chip ({n_err} mapping errors; "
+                           f"first: {first_map_error}); search state: {failure}")
+            elif n_err:
+                failure += f"; {n_err} patch program(s) could not be mapped onto the chip, first: {first_map_error}"
+            return PathResult(None, compute=compute, failure=failure, stats=stats)
+        cells = cut_loops(walk) if self.config.cut_loops else walk
+        path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+        # final check (never hand out an invalid path)
+        steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
+        if (steps != 1).any() or grid[path[:, 0], path[:, 1]].any() or tuple(path[0]) != s or tuple(path[-1]) != g:
+            return PathResult(None, compute=compute, stats=stats,
+                              failure="internal error: the stitched walk is not a valid 4-neighbour path")
+        stats["path_length"] = len(path) - 1
+        return PathResult(path, compute=compute, stats=stats)

@@ -34,9 +34,10 @@ SECTION = "## Chip sweep (issue 12)"
 FAMILIES = {"paper": ({}, 100), "32x32": ({"height": 32, "width": 32}, 20)}
 
 
-def sweep(env_kwargs: dict, n_worlds: int, spins: str, ranges: str, cores: str, jobs: int) -> SweepResult:
+def sweep(env_kwargs: dict, n_worlds: int, spins: str, ranges: str, cores: str, jobs: int,
+          controller: str = "ising") -> SweepResult:
     axes = parse_axes([f"n_spins={spins}", f"coef_range={ranges}", f"n_cores={cores}"])
-    config = SweepConfig(axes=axes, controllers=("ising", "strong"), n_worlds=n_worlds, env_kwargs=env_kwargs)
+    config = SweepConfig(axes=axes, controllers=(controller, "strong"), n_worlds=n_worlds, env_kwargs=env_kwargs)
     return run_sweep(config, RunConfig(backend="process", jobs=jobs, progress=True))
 
 
@@ -49,6 +50,7 @@ def main() -> None:
     ap.add_argument("--worlds", type=int, default=None, help="worlds per family (default 100 paper, 20 32x32)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="docs/sweep")
+    ap.add_argument("--controller", default="ising", help="the Ising preset swept (ising or ising-paper)")
     ap.add_argument("--no-rows", action="store_true", help="do not write the per-episode sweep.csv")
     ap.add_argument("--write-results", action="store_true")
     args = ap.parse_args()
@@ -57,7 +59,7 @@ def main() -> None:
         env_kwargs, n = FAMILIES[family]
         n = args.worlds or n
         t0 = time.perf_counter()
-        result = sweep(env_kwargs, n, args.spins, args.ranges, args.cores, args.jobs)
+        result = sweep(env_kwargs, n, args.spins, args.ranges, args.cores, args.jobs, args.controller)
         wall = time.perf_counter() - t0
         out = Path(args.out) / family
         stats = spec_stats(result)
@@ -68,8 +70,8 @@ def main() -> None:
                                                         "solved, hollow = some failed; gap to the strong pipeline")
         write_summary(result, stats, out / "summary.md")
         ok = [s for s in stats if s["spec_id"] >= 0 and s["success_rate"] == 1.0]
-        lines.append(f"### {family} worlds ({n}), {len(result.specs)} specs, {len(result.rows)} episodes, "
-                     f"{wall:.0f} s on 2 workers")
+        lines.append(f"### {family} worlds ({n}), `{args.controller}`, {len(result.specs)} specs, "
+                     f"{len(result.rows)} episodes, {wall:.0f} s on 2 workers")
         lines.append("")
         lines.append(f"Specs solving every world: {len(ok)} of {len(result.specs)}.")
         for x, label in (("accelerator_energy_j", "accelerator energy"), ("latency_parallel_s", "latency")):

@@ -1,7 +1,9 @@
 """Recursive Ising target sharing (paper section 5.3, Algorithm 3).
 
 ``config`` (options), ``qubo`` (anchored eq. 8 split builders, decode, cut score),
-``bundles`` (bundle placement and pricing on the host), ``search`` (the staged recursion).
+``submit`` (a stage's chip submission), ``coarse`` (groups beyond the chip split on target
+clusters), ``boundary`` (pair re-splits after the recursion), ``bundles`` (bundle placement and
+pricing on the host), ``search`` (the staged recursion).
 """
 
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles

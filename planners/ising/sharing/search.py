@@ -5,9 +5,11 @@ a split that never decodes valid, a group beyond the spin budget or a refused
 program is a failure result (``result.failure``), never an invented split.
 Stages split every group with several robots, then refine one-robot groups and
 bundles; each stage's splits x quantization rules are block-packed into one chip
-submission (:func:`ising_backend.run_portfolio_batch`), decoded and scored on the
-unquantized cut; a beam of distinct candidates is carried to the complete
-assignments, which are compared by route cost.  Chip calls are metered
+submission (:mod:`.submit`), decoded and scored on the unquantized cut; a beam of
+distinct candidates is carried to the complete assignments, which are compared by
+route cost.  Then, beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the
+boundaries between neighbouring robots are re-split on the chip (:mod:`.boundary`).
+Chip calls are metered
 (:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the call to
 SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_sharing.md.
 """

@@ -1,8 +1,11 @@
-"""Clustered Ising tour construction (paper section 5.2, Algorithm 2).
+"""Ising tour construction: move selection on the physical chip, and the clustered construction
+of paper section 5.2 (Algorithm 2).
 
-``config`` (options), ``qubo`` (eq. 7 max-cut and one-hot open-path model builders,
-decoders, scorers), ``cluster`` (clustering and cluster ordering), ``search`` (the
-construction: local TSPs, patch refinement, starts).
+``config`` (options), ``moves`` (2-opt / or-opt moves and the move-selection QUBO),
+``selection`` and ``move_engine`` (the chip backend's search, Python and compiled), ``qubo``
+(eq. 7 max-cut and one-hot open-path model builders, decoders, scorers), ``cluster``
+(clustering and cluster ordering), ``search`` (``IsingTour``: local TSPs, patch refinement,
+starts; dispatch to the chip backend).
 """
 
 from planners.ising.tour.cluster import TourFailure

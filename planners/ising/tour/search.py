@@ -1,12 +1,14 @@
-"""Clustered Ising tour construction: the search of paper 5.2 (Algorithm 2).
+"""Ising tour construction: the move-selection search on the physical chip (default) and the
+clustered construction of paper 5.2 (Algorithm 2).
 
 Contract: ``IsingTour(chip, config).solve(dist, rng) -> TourResult`` orders nodes
-``1..n`` of ``dist`` into an open route from node 0; a construction that never
-decodes valid is a failure result (``result.failure``), never a repaired tour.
-Steps: clustering and ordering (:mod:`.cluster`), local one-hot TSPs, Ising patch
-refinement with patience, several independent starts.  The logical solver
-(spin budget, no coefficient range) is the paper's backend; ``backend="chip"``
-quantizes the same QUBOs for the physical chip.  Every call is metered
+``1..n`` of ``dist`` into an open route from node 0; a search that never decodes
+valid is a failure result (``result.failure``), never a repaired tour.
+``backend="chip"`` (default): :mod:`.selection`.  ``backend="logical"`` (the paper's,
+``PaperIsingTour``): clustering and ordering (:mod:`.cluster`), local one-hot TSPs,
+Ising patch refinement with patience, several independent starts on the logical solver
+(spin budget, no coefficient range); ``backend="chip-onehot"`` quantizes those one-hot
+QUBOs for the physical chip (the paper's negative result).  Every call is metered
 (:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the solve to
 3-opt (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_tour.md.
 """

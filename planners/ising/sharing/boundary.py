@@ -71,7 +71,7 @@ class BoundaryRefinement:
                     elif len(g) > 2:
                         problems.append((j, self._problem(w, R, g, "pair")))
             pending = [p for _, p in problems if not isinstance(p, CoarseSplit)]
-            if pending:
+            if pending:  # one submission; candidates ordered by the first shift's cut (the route cost decides)
                 stats["splits"] += len(pending)
                 self._solve_all(weights[0], R, pending, rng, stats)
             stats["pair_resplits"] = stats.get("pair_resplits", 0) + len(pairs)

@@ -197,6 +197,17 @@ def test_chip_tour_is_valid_near_optimal_and_runs_on_the_physical_chip():
     assert chip.ledger.physical_calls == calls  # every call metered on the chip's own ledger
 
 
+def test_chip_tour_takes_an_explicit_config_on_a_small_chip():
+    """The move-selection programs fit any chip (at most its spins); the one-hot size limits
+    concern the logical backend only."""
+    small = EmulatedChip(ChipSpec(n_spins=16))
+    dist = generate_world(8, n_robots=1, n_targets=9).distance_matrix
+    r = IsingTour(chip=small, config=TourConfig()).solve(dist, np.random.default_rng(0))
+    assert r.success and sorted(r.order) == list(range(1, 10))
+    with pytest.raises(ValueError, match="spin budget"):
+        IsingTour(chip=small, config=TourConfig.paper())
+
+
 def test_chip_tour_is_deterministic():
     dist = generate_world(5, n_robots=1, n_targets=10).distance_matrix
     a = IsingTour(EmulatedChip()).solve(dist, np.random.default_rng(4))

@@ -69,7 +69,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         self._engine = (cfg.backend == "logical" and type(self.solver) is LogicalIsingSolver
                         and self.solver.method == "tabu" and self.solver.health is None)
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
-        if largest ** 2 > self._budget + cfg.max_branch_bits:
+        if cfg.backend != "chip" and largest ** 2 > self._budget + cfg.max_branch_bits:  # one-hot models only
             raise ValueError(
                 f"one-hot models of {largest}^2 = {largest ** 2} variables exceed the spin budget {self._budget} "
                 f"+ max_branch_bits {cfg.max_branch_bits} (local_limit={cfg.local_limit}, patch_size="

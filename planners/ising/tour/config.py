@@ -93,7 +93,7 @@ class TourConfig(IsingConfig):
         check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)
         check_choice("exit_cost", self.exit_cost, EXIT_COSTS)
         check_choice("chip_restart", self.chip_restart, CHIP_RESTARTS)
-        rules = tuple(self.chip_rules)
+        rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
         if not rules:
             raise ValueError("chip_rules must name at least one quantization rule")
         for r in rules:

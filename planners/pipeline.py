@@ -45,6 +45,12 @@ calls: numbers add, booleans or, dicts merge recursively, lists concatenate,
 anything else keeps the last value (so Ising layers' ``"mapping"`` counts
 accumulate).  A ``"failure"`` entry is not merged; it fails the plan.
 
+Batched legs.  A path layer with ``find_paths(world, cells, rng)`` (the Ising path layer) plans
+a robot's legs in one call, with one compute report and one statistics dict for them; the legs
+it stops before (a failure, a query it cannot batch) go through ``find_path`` one by one, so the
+plan, its statistics and its failures are those of the per-leg calls
+(``Pipeline(..., batch_paths=False)`` makes every leg a ``find_path`` call).
+
 Shortcuts (so a layer is charged only for work it really does): with one
 robot the sharing layer is not called (every target goes to robot 0); a robot
 with fewer than two targets does not call the tour layer.  So a world with one
@@ -171,6 +177,12 @@ class Pipeline:
     tour: object
     path: object
     name: str | None = None
+    #: plan a robot's legs in one call when the path layer offers ``find_paths`` (same plans)
+    batch_paths: bool = True
+
+    @property
+    def _batch_paths(self) -> bool:
+        return self.batch_paths and callable(getattr(self.path, "find_paths", None))
 
     def __post_init__(self) -> None:
         for layer in ("sharing", "tour", "path"):
@@ -238,13 +250,24 @@ class Pipeline:
                 cells = [start] + [world.targets[t] for t in ordered]
                 pieces = [start.reshape(1, 2)]
                 reached: list[int] = []
+                batched: list = []
+                if self._batch_paths and len(ordered) > 1:  # the legs the layer plans in one call
+                    t0 = _clock()
+                    batch = self.path.find_paths(world, np.asarray(cells), rng)
+                    acc["path"].add(batch.compute, _clock() - t0)
+                    if batch.paths:
+                        merge_stats(stats, batch.stats)
+                    batched = batch.paths
                 for j in range(len(ordered)):
                     a, b = cells[j], cells[j + 1]
-                    t0 = _clock()
-                    pres: PathResult = self.path.find_path(world, a, b, rng)
-                    acc["path"].add(pres.compute, _clock() - t0)
-                    if pres.stats:
-                        merge_stats(stats, pres.stats)
+                    if j < len(batched):
+                        pres = PathResult(batched[j])
+                    else:
+                        t0 = _clock()
+                        pres: PathResult = self.path.find_path(world, a, b, rng)
+                        acc["path"].add(pres.compute, _clock() - t0)
+                        if pres.stats:
+                            merge_stats(stats, pres.stats)
                     if pres.path is None:
                         problem = pres.failure or "path layer gave no path"
                     else:

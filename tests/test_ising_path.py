@@ -418,3 +418,55 @@ def test_target_key_is_validated():
 
     with pytest.raises(ValueError, match="target_key"):
         PathConfig(target_key="euclid")
+
+
+@pytest.mark.parametrize("spec", [{}, {"n_spins": 16}, {"h_range": (-2, 2), "j_range": (-2, 2)}])
+def test_batched_legs_plan_as_the_per_leg_calls(spec):
+    """``find_paths`` (one call for a robot's legs) gives the plans, failures, statistics and
+    chip calls of one ``find_path`` call per leg, including the legs after a failure."""
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.pipeline import Pipeline, make_pipeline
+
+    def strip(stats):
+        return {k: v for k, v in stats.items() if k not in ("layers", "glue_cpu_s", "pipeline")}
+
+    failures = 0
+    for s in range(8):
+        world = generate_world(s, n_robots=3, n_targets=10, placement="centre" if s % 2 else "uniform")
+        batched = make_pipeline("ising", chip=EmulatedChip(ChipSpec(**spec)))
+        base = make_pipeline("ising", chip=EmulatedChip(ChipSpec(**spec)))
+        per_leg = Pipeline(base.sharing, base.tour, base.path, batch_paths=False)
+        a, b = batched.plan(world, seed=s), per_leg.plan(world, seed=s)
+        assert (a.success, a.failure) == (b.success, b.failure)
+        assert [r.targets for r in a.routes] == [r.targets for r in b.routes]
+        assert all(np.array_equal(x.path, y.path) for x, y in zip(a.routes, b.routes))
+        assert strip(a.stats) == strip(b.stats)
+        assert (a.compute.chip_calls, a.compute.chip_batches) == (b.compute.chip_calls, b.compute.chip_batches)
+        assert a.compute.accelerator_energy_j == pytest.approx(b.compute.accelerator_energy_j)
+        failures += not a.success
+    if spec.get("h_range"):
+        assert failures  # +-2 cannot hold every patch program: the failure path is exercised
+
+
+def test_find_paths_stops_before_a_leg_it_cannot_finish():
+    from ising_backend import EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.path import IsingPath
+
+    world = generate_world(3, n_robots=1, n_targets=4)
+    cells = np.concatenate([world.robots[:1], world.targets])
+    planner = IsingPath(EmulatedChip())
+    rng = np.random.default_rng(0)
+    batch = planner.find_paths(world, cells, rng)
+    assert len(batch.paths) == 4 and batch.compute.chip_calls == batch.stats["chip_calls"] > 0
+    for (a, b), p in zip(zip(cells[:-1], cells[1:]), batch.paths):
+        assert tuple(p[0]) == tuple(a) and tuple(p[-1]) == tuple(b)
+    blocked = cells.copy()
+    blocked[2] = np.argwhere(world.grid)[0]  # an obstacle as the second stop
+    rng = np.random.default_rng(0)
+    batch = planner.find_paths(world, blocked, rng)
+    ref = np.random.default_rng(0)
+    planner.find_path(world, blocked[0], blocked[1], ref)
+    # the first leg done, the rng left where find_path leaves it: the caller plans the bad leg itself
+    assert len(batch.paths) == 1 and rng.bit_generator.state == ref.bit_generator.state

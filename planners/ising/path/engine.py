@@ -303,11 +303,9 @@ class CompiledSearch:
     :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
     ``chip``, ``_pool``, ``_engine_args``, ``_nbr``, ``_padded`` and ``_finish``)."""
 
-    def _run_engine(self, grid, s, g, rng, field):
-        """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
-        submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
-        from ising_backend import CallLedger
-
+    def _engine_query(self, grid, s, g, rng, field):
+        """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
+        mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
         cfg = self.config
         fr = self.frame
         free = self._free_cells(grid)
@@ -316,8 +314,18 @@ class CompiledSearch:
             rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
             fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
             cfg.num_reads, max_attempts, max_calls, *self._engine_args, free)
+        return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
+
+    def _run_engine(self, grid, s, g, rng, field):
+        """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
+        submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
+        from ising_backend import CallLedger
+
+        cfg = self.config
+        status, (pr, pc), walk, counts, mp, sub_calls, sub_emu = self._engine_query(grid, s, g, rng, field)
         if status == NEEDS_REFERENCE:
             return None
+        max_attempts, _per_target, max_calls = self._budgets(grid)
         charged = CallLedger()
         for delta in self.chip.charge(sub_calls, sub_emu):
             charged._add_in_place(delta)

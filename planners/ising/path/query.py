@@ -63,12 +63,24 @@ class QueryEnds:
             elif n_err:
                 failure += f"; {n_err} patch program(s) could not be mapped onto the chip, first: {first_map_error}"
             return PathResult(None, compute=compute, failure=failure, stats=stats)
-        cells = cut_loops(walk) if self.config.cut_loops else walk
-        path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        # final check (never hand out an invalid path)
-        steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
-        if (steps != 1).any() or grid[path[:, 0], path[:, 1]].any() or tuple(path[0]) != s or tuple(path[-1]) != g:
+        path = self._checked_path(grid, s, g, walk)
+        if path is None:
             return PathResult(None, compute=compute, stats=stats,
                               failure="internal error: the stitched walk is not a valid 4-neighbour path")
         stats["path_length"] = len(path) - 1
         return PathResult(path, compute=compute, stats=stats)
+
+    def _checked_path(self, grid, s, g, walk):
+        """The walk (``(r, c)`` tuples or an ``(L, 2)`` array) with its loops cut, as an ``(L', 2)``
+        array, or ``None`` if it is not a 4-neighbour path from ``s`` to ``g`` over free cells."""
+        if isinstance(walk, np.ndarray):
+            walk = [(int(r), int(c)) for r, c in walk]
+        cells = cut_loops(walk) if self.config.cut_loops else walk
+        path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+        if not len(path):
+            return None
+        # final check (never hand out an invalid path)
+        steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
+        if (steps != 1).any() or grid[path[:, 0], path[:, 1]].any() or tuple(path[0]) != s or tuple(path[-1]) != g:
+            return None
+        return path

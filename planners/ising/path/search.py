@@ -25,6 +25,7 @@ from planners.ising.path.decode import decode_paths
 from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capable
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
+from planners.ising.path.batch import BatchedLegs
 from planners.ising.path.query import QueryEnds
 
 __all__ = ["IsingPath", "PaperIsingPath"]
@@ -51,7 +52,7 @@ class _PatchProgram(NamedTuple):
     idx: np.ndarray  # (mapped styles, N)
 
 
-class IsingPath(CompiledSearch, QueryEnds, ConfigAttributes):
+class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
     """Patch-sliding Ising pathfinder (paper Algorithm 1).
 
     Args:

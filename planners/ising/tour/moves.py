@@ -37,7 +37,7 @@ def candidate_moves(d, r, max_segment):
     Returns ``(moves (M, 6) int64, gains (M,))``, gains > 0, unsorted.
     """
     n = r.shape[0] - 1
-    cap = n * n + 3 * max(max_segment, 1) * (n + 1) * (n + 1) * 2 + 1
+    cap = n * n + 2 * max(max_segment, 1) * n * (n + 1) + 1  # 2-opt moves + or-opt moves, at most
     moves = np.empty((cap, 6), dtype=np.int64)
     gains = np.empty(cap)
     m = 0

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from planners.ising.path.engine import REACHED
+
 __all__ = ["LegBatch", "BatchedLegs"]
 
 _COUNTS = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
@@ -62,7 +64,7 @@ class BatchedLegs:
             state = rng.bit_generator.state
             status, _end, walk, leg_counts, leg_map, sub_calls, sub_emu = self._engine_query(
                 grid, s, g, rng, self._goal_field(world, g))
-            path = self._checked_path(grid, s, g, walk) if status == 0 else None
+            path = self._checked_path(grid, s, g, walk) if status == REACHED else None
             if path is None:  # find_path redoes this leg and names what went wrong
                 rng.bit_generator.state = state
                 break

@@ -79,10 +79,15 @@ class BoundaryRefinement:
             for j, (k, l) in enumerate(pairs):
                 old = cost(k, sets[k]) + cost(l, sets[l])
                 best = None
+                seen: set = set()
                 for i, p in problems:
                     if i != j:
                         continue
                     for _cut, side0, side1, _ in p.cands:
+                        key = side1.tobytes()
+                        if key in seen:  # several shifts often propose the same partition
+                            continue
+                        seen.add(key)
                         mine, theirs = (side0, side1) if k in side0 else (side1, side0)
                         tk = [int(v) for v in mine if v >= R]
                         tl = [int(v) for v in theirs if v >= R]

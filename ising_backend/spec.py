@@ -184,6 +184,12 @@ class ChipSpec:
         return self.power_w * self.solve_time_s
 
     @property
+    def coefficient_limits(self) -> tuple[int, int]:
+        """``(Lh, Lj)``: the largest magnitude every field / coupling may take (the symmetric part
+        of ``h_range`` / ``j_range``), the quantizers' scale targets."""
+        return tuple(min(-int(r[0]), int(r[1])) for r in (self.h_range, self.j_range))
+
+    @property
     def faulty(self) -> bool:
         """Whether the fault model is on (dead cores, stuck spins or program write errors)."""
         return bool(self.dead_cores or self.stuck_spins or self.program_error_prob > 0)

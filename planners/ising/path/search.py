@@ -87,7 +87,7 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
         from ising_backend import MERGE_STYLE_IDS
 
         spec = self.chip.spec
-        lim = [min(-int(r[0]), int(r[1])) for r in (spec.h_range, spec.j_range)]
+        lim = spec.coefficient_limits
         self._limits = (lim[0], lim[1], int(spec.n_spins))
         self._style_ids = np.array([MERGE_STYLE_IDS[st] for st in cfg.styles], dtype=np.int64)
         self._free_for = None

@@ -57,7 +57,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
 
         spec = self.chip.spec
         self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
-        self._limits = tuple(float(min(-int(r[0]), int(r[1]))) for r in (spec.h_range, spec.j_range))
+        self._limits = tuple(float(v) for v in spec.coefficient_limits)
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"

@@ -13,13 +13,12 @@ compare both).
 
 from __future__ import annotations
 
-import time
 
 import numba
 import numpy as np
 
 from ising_backend import quantize_rules
-from ising_backend.anneal import anneal_kernel
+from ising_backend.anneal import anneal_kernel_timed
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 
@@ -110,14 +109,9 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         M = gains.shape[0]
         spins = np.empty((k, num_reads, M), dtype=np.int8)
         energies = np.empty((k, num_reads))
-        with numba.objmode(t0="float64"):
-            t0 = time.perf_counter()
-        anneal_kernel(hq, Jq, num_reads, np.uint64(seed), sweeps, geometric, beta_hot, beta_cold, mismatch,
-                      flip_prob, spins, energies)
-        with numba.objmode(t1="float64"):
-            t1 = time.perf_counter()
+        emu[rounds] = anneal_kernel_timed(hq, Jq, num_reads, np.uint64(seed), sweeps, geometric, beta_hot, beta_cold,
+                                          mismatch, flip_prob, spins, energies)
         calls[rounds] = k * num_reads
-        emu[rounds] = t1 - t0
         rounds += 1
         clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
         for r in range(k):

@@ -67,7 +67,7 @@ class MoveSelection:
 
     @property
     def _limits(self) -> tuple[float, float]:
-        return tuple(float(min(-int(r[0]), int(r[1]))) for r in (self.spec.h_range, self.spec.j_range))
+        return tuple(float(v) for v in self.spec.coefficient_limits)
 
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""

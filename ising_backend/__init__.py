@@ -37,7 +37,7 @@ from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
 from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
 from .faults import FaultMap
 from .health import ChipUnavailableError, HealthMonitor
-from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, stack_programs
+from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, programs_fit, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver, SolverOutputError
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
@@ -45,7 +45,7 @@ from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
-from .blocks import pack_blocks, plan_packs, unpack_blocks
+from .blocks import pack_blocks, pack_layout, plan_packs, unpack_blocks
 from .portfolio import (
     BranchMapping,
     IdentityMapping,
@@ -68,7 +68,7 @@ __all__ = [
     # models, spec, ledger
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # chip
-    "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable",
+    "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit",
     # faults
     "DEAD_CORE_MODES", "FaultMap", "HealthMonitor", "ChipUnavailableError",
     # logical solver
@@ -81,7 +81,7 @@ __all__ = [
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles",
     "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
-    "pack_blocks", "plan_packs", "unpack_blocks",
+    "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks",
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",

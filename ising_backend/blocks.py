@@ -7,18 +7,20 @@ spin vector is cut back into blocks.  The packed offset is the sum of the
 offsets, so the packed energy is the sum of the block energies.
 
 :func:`plan_packs` groups program sizes into as few programs of ``capacity``
-spins as first-fit decreasing finds (a deterministic, documented heuristic).
+spins as first-fit decreasing finds (a deterministic, documented heuristic);
+:func:`pack_layout` is the same grouping compiled, for compiled planner loops.
 """
 
 from __future__ import annotations
 
 from typing import Sequence
 
+import numba
 import numpy as np
 
 from .models import IsingModel
 
-__all__ = ["pack_blocks", "unpack_blocks", "plan_packs"]
+__all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "pack_layout"]
 
 
 def pack_blocks(models: Sequence[IsingModel], n_spins: int | None = None) -> tuple[IsingModel, list[slice]]:
@@ -68,3 +70,42 @@ def plan_packs(sizes: Sequence[int], capacity: int) -> list[list[int]]:
             packs.append([k])
             room.append(capacity - sizes[k])
     return [sorted(p) for p in packs]
+
+
+@numba.njit(cache=True)
+def pack_layout(sizes, capacity):
+    """:func:`plan_packs` compiled, as arrays: ``(pack_of (P,), order (P,), n_packs, width)``.
+
+    ``pack_of[j]`` is program ``j``'s pack (packs numbered as :func:`plan_packs` lists them),
+    ``order`` lists the programs pack by pack, ascending within a pack (the placement order),
+    ``width`` is the fullest pack's total.  Sizes above ``capacity`` are the caller's to refuse.
+    """
+    P = sizes.shape[0]
+    order = np.argsort(-sizes, kind="mergesort")  # stable: ties by index, as plan_packs
+    room = np.empty(P, dtype=np.int64)
+    pack_of = np.empty(P, dtype=np.int64)
+    n_packs = 0
+    for j in order:
+        placed = False
+        for b in range(n_packs):
+            if room[b] >= sizes[j]:
+                pack_of[j] = b
+                room[b] -= sizes[j]
+                placed = True
+                break
+        if not placed:
+            pack_of[j] = n_packs
+            room[n_packs] = capacity - sizes[j]
+            n_packs += 1
+    within = np.empty(P, dtype=np.int64)
+    k = 0
+    width = 0
+    for b in range(n_packs):
+        total = 0
+        for j in range(P):
+            if pack_of[j] == b:
+                within[k] = j
+                k += 1
+                total += sizes[j]
+        width = max(width, total)
+    return pack_of, within, n_packs, width

@@ -40,7 +40,7 @@ from .ledger import CallLedger
 from .models import IsingModel
 from .spec import ChipSpec
 
-__all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable"]
+__all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit"]
 
 
 class ChipProgramError(ValueError):
@@ -78,6 +78,12 @@ def _all_fit(h, J, hlo, hhi, jlo, jhi) -> bool:
             for j in range(i + 1):
                 bad += np.int64(J[b, i, j] != 0)
     return bad == 0
+
+
+#: The compiled test of :func:`check_program` (``(h (B, n), J (B, n, n), h_lo, h_hi, j_lo, j_hi)
+#: -> bool``), for compiled planner loops that program the chip's kernel themselves: a stack that
+#: fails it goes through ``anneal_batch``, which names the violation.
+programs_fit = _all_fit
 
 
 def _native(h: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

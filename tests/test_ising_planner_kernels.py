@@ -426,3 +426,69 @@ def test_fill_packs_places_programs_as_the_python_loop(sizes, capacity, seed):
     order = np.array([j for pk in packs for j in pk], dtype=np.int64)
     h, J, where = fill_packs(qh, qJ, sizes, order, pack_of, len(packs), width)
     assert np.array_equal(h, h_ref) and np.array_equal(J, J_ref) and np.array_equal(where, where_ref)
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.integers(0, 45), min_size=1, max_size=24), st.integers(45, 90))
+def test_pack_layout_is_plan_packs(sizes, capacity):
+    """The compiled first-fit-decreasing layout against ising_backend.plan_packs (empty programs,
+    one program, programs that fill a pack exactly)."""
+    from ising_backend import pack_layout, plan_packs
+
+    packs = plan_packs(sizes, capacity)
+    pack_of, order, n_packs, width = pack_layout(np.array(sizes, dtype=np.int64), capacity)
+    assert n_packs == len(packs)
+    assert order.tolist() == [j for pk in packs for j in pk]
+    assert all(pack_of[j] == b for b, pk in enumerate(packs) for j in pk)
+    assert width == max(sum(sizes[j] for j in pk) for pk in packs)
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(1, 40), st.booleans(), st.booleans())
+def test_cut_walk_is_the_checked_path(seed, steps, cut, corrupt):
+    """The compiled loop cut and path check of the batched legs against QueryEnds._checked_path:
+    random walks with loops, walks through obstacles, broken steps and wrong ends."""
+    from planners.ising.path import IsingPath
+    from planners.ising.path.batch import cut_walk
+
+    rng = np.random.default_rng(seed)
+    grid = rng.random((6, 7)) < 0.15
+    r, c = int(rng.integers(6)), int(rng.integers(7))
+    walk = [(r, c)]
+    for _ in range(steps):
+        dr, dc = [(0, 1), (1, 0), (0, -1), (-1, 0)][int(rng.integers(4))]
+        r, c = min(max(r + dr, 0), 5), min(max(c + dc, 0), 6)
+        walk.append((r, c))
+    if corrupt and len(walk) > 2:
+        walk[int(rng.integers(1, len(walk)))] = (int(rng.integers(6)), int(rng.integers(7)))
+    s, g = walk[0], walk[-1] if rng.random() < 0.9 else (int(rng.integers(6)), int(rng.integers(7)))
+    planner = IsingPath(cut_loops=cut)
+    ref = planner._checked_path(grid, s, g, walk)
+    ok, path = cut_walk(np.array(walk, dtype=np.int64), grid, s[0], s[1], g[0], g[1], cut)
+    assert ok == (ref is not None)
+    if ok:
+        assert np.array_equal(path, ref)
+
+
+@pytest.mark.parametrize("spec", [{}, {"n_spins": 16}, {"n_spins": 24, "h_range": (-3, 3), "j_range": (-3, 3)}])
+def test_compiled_stage_submission_makes_the_reference_decisions(spec):
+    """planners.ising.sharing.engine.run_stage (one compiled call per stage) against the submission
+    through anneal_batch it mirrors: the same assignments, statistics, chip charges and rng state."""
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.sharing import IsingSharing
+    from planners.tours_classical import ThreeOptTour
+
+    fast = IsingSharing(EmulatedChip(ChipSpec(**spec)))
+    ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
+    assert fast._kernel_args is not None
+    ref._kernel_args = None  # force the reference submission
+    for s in range(10):
+        w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")
+        r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
+        a = fast.assign(w.distance_matrix, w.n_robots, ThreeOptTour(), r1)
+        b = ref.assign(w.distance_matrix, w.n_robots, ThreeOptTour(), r2)
+        assert a.assignment == b.assignment and a.failure == b.failure and a.stats == b.stats
+        assert (a.compute.chip_calls, a.compute.chip_batches) == (b.compute.chip_calls, b.compute.chip_batches)
+        assert a.compute.accelerator_energy_j == pytest.approx(b.compute.accelerator_energy_j)
+        assert r1.integers(1 << 62) == r2.integers(1 << 62)

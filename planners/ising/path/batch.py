@@ -2,24 +2,26 @@
 
 Contract: ``IsingPath.find_paths(world, cells, rng) -> LegBatch`` plans the legs ``cells[j] ->
 cells[j + 1]`` one after another exactly as ``find_path`` would (same compiled query loop, same
-random stream, same paths), but builds one compute report and one statistics dict for all of
+random stream, same paths), but in one compiled call (:func:`run_legs`: every leg's query, its
+loops cut and its path checked) with one compute report and one statistics dict for all of
 them (equal to the merge of the per-leg ones) instead of a result per leg.  It stops before the
 first leg the compiled loop does not reach the goal of (a failure, a program it cannot map, an
-invalid cell): the rng is left as it was before that leg and ``LegBatch.paths`` holds the legs
-done, so the caller plans the rest with ``find_path``, which gives that leg its own result,
-failure and fallback.  Only chips the compiled loop may drive are batched (``paths`` empty
-otherwise).
+invalid cell): the rng is left as it was before that leg (the legs before it are replayed from
+the saved state, which gives the same draws) and ``LegBatch.paths`` holds the legs done, so the
+caller plans the rest with ``find_path``, which gives that leg its own result, failure and
+fallback.  Only chips the compiled loop may drive are batched (``paths`` empty otherwise).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
-from planners.ising.path.engine import REACHED
+from planners.ising.path.engine import REACHED, run_query
 
-__all__ = ["LegBatch", "BatchedLegs"]
+__all__ = ["LegBatch", "BatchedLegs", "run_legs", "cut_walk"]
 
 _COUNTS = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 
@@ -33,9 +35,99 @@ class LegBatch:
     stats: dict = field(default_factory=dict)
 
 
+@numba.njit(cache=True)
+def cut_walk(walk, grid, sr, sc, gr, gc, cut):
+    """:meth:`~.query.QueryEnds._checked_path` compiled: the walk ``(L, 2)`` with its loops cut
+    (:func:`~.decode.cut_loops`, when ``cut``) and ``ok`` -- whether it is a 4-neighbour path from
+    ``(sr, sc)`` to ``(gr, gc)`` over free cells.  Returns ``(ok, path (L', 2))``."""
+    H, W = grid.shape
+    n = walk.shape[0]
+    out = np.empty((n, 2), dtype=np.int64)
+    m = 0
+    if cut:
+        where = np.full(H * W, -1, dtype=np.int64)
+        for t in range(n):
+            r, c = walk[t, 0], walk[t, 1]
+            inside = 0 <= r < H and 0 <= c < W
+            k = where[r * W + c] if inside else -1
+            if k >= 0:  # a revisit: drop the loop since the first visit
+                for u in range(k + 1, m):
+                    where[out[u, 0] * W + out[u, 1]] = -1
+                m = k + 1
+            else:
+                if inside:
+                    where[r * W + c] = m
+                out[m, 0], out[m, 1] = r, c
+                m += 1
+    else:
+        out[:, :] = walk
+        m = n
+    if m == 0:
+        return False, out[:0]
+    ok = out[0, 0] == sr and out[0, 1] == sc and out[m - 1, 0] == gr and out[m - 1, 1] == gc
+    for t in range(m):
+        r, c = out[t, 0], out[t, 1]
+        if not (0 <= r < H and 0 <= c < W) or grid[r, c]:
+            ok = False
+        if t and abs(r - out[t - 1, 0]) + abs(c - out[t - 1, 1]) != 1:
+            ok = False
+    return ok, out[:m]
+
+
+@numba.njit(cache=True)
+def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields, stops, size,
+             nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls, degree,
+             coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+             free_cells, grid, cut):
+    """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each, until the first
+    leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s ranking field
+    (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
+    counts (5,), mapping (k, 4), sub_calls, sub_emu, walked)``: leg ``j``'s path is
+    ``points[ends[j]:ends[j + 1]]``; counts, mapping, submissions and walk steps are those of the
+    legs done."""
+    L = stops.shape[0] - 1
+    k = style_ids.shape[0]
+    cap = 64
+    points = np.empty((cap, 2), dtype=np.int64)
+    ends = np.zeros(L + 1, dtype=np.int64)
+    counts = np.zeros(5, dtype=np.int64)
+    mapping = np.zeros((k, 4), dtype=np.int64)
+    calls = np.empty(0, dtype=np.int64)
+    emu = np.empty(0)
+    walked = 0
+    done = 0
+    for j in range(L):
+        sr, sc, gr, gc = stops[j, 0], stops[j, 1], stops[j + 1, 0], stops[j + 1, 1]
+        status, _pr, _pc, walk, leg_counts, leg_map, sub_calls, sub_emu = run_query(
+            rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields[j], sr, sc, gr,
+            gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls,
+            degree, coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric, beta_hot, beta_cold, mismatch,
+            flip_prob, free_cells)
+        if status != REACHED:
+            break
+        ok, path = cut_walk(walk, grid, sr, sc, gr, gc, cut)
+        if not ok:
+            break
+        top = ends[j]
+        if top + path.shape[0] > cap:
+            cap = 2 * (top + path.shape[0])
+            grown = np.empty((cap, 2), dtype=np.int64)
+            grown[:top] = points[:top]
+            points = grown
+        points[top: top + path.shape[0]] = path
+        ends[j + 1] = top + path.shape[0]
+        counts += leg_counts
+        mapping += leg_map
+        calls = np.concatenate((calls, sub_calls))
+        emu = np.concatenate((emu, sub_emu))
+        walked += walk.shape[0] - 1
+        done += 1
+    return done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked
+
+
 class BatchedLegs:
-    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``chip``,
-    ``_engine_args``, ``_goal_field``, ``_engine_query`` and ``_checked_path``)."""
+    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``chip``, ``frame``,
+    ``_pool``, ``_engine_args``, ``_goal_fields``, ``_padded``, ``_budgets`` and ``_free_cells``)."""
 
     def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
@@ -46,46 +138,47 @@ class BatchedLegs:
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
         grid = world.grid
         h, w = grid.shape
-        paths: list = []
         if self._engine_args is None or len(cells) < 2:
             return LegBatch(compute=ComputeReport())
         inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
-        styles = self.config.styles
-        counts = np.zeros(len(_COUNTS), dtype=np.int64)
-        mapping = np.zeros((len(styles), 4), dtype=np.int64)
-        calls: list = []
-        emu: list = []
-        walked = 0
-        for j in range(len(cells) - 1):
-            if not (inside[j] and inside[j + 1]) or grid[cells[j, 0], cells[j, 1]] or grid[cells[j + 1, 0], cells[j + 1, 1]]:
-                break  # find_path names the bad cell
-            s = (int(cells[j, 0]), int(cells[j, 1]))
-            g = (int(cells[j + 1, 0]), int(cells[j + 1, 1]))
-            state = rng.bit_generator.state
-            status, _end, walk, leg_counts, leg_map, sub_calls, sub_emu = self._engine_query(
-                grid, s, g, rng, self._goal_field(world, g))
-            path = self._checked_path(grid, s, g, walk) if status == REACHED else None
-            if path is None:  # find_path redoes this leg and names what went wrong
-                rng.bit_generator.state = state
-                break
-            paths.append(path)
-            counts += leg_counts
-            mapping += leg_map
-            calls.append(sub_calls)
-            emu.append(sub_emu)
-            walked += len(walk) - 1
-        if not paths:
+        usable = inside.copy()
+        usable[inside] = ~grid[cells[inside, 0], cells[inside, 1]]
+        # legs up to the first bad cell (find_path names it)
+        n_legs = len(cells) - 1 if usable.all() else max(int(np.argmin(usable)) - 1, 0)
+        if n_legs == 0:
             return LegBatch(compute=ComputeReport())
+        stops = cells[: n_legs + 1]
+        state = rng.bit_generator.state
+        done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops, rng)
+        if done < n_legs:  # rewind to the start of the leg not done: replay the legs before it
+            rng.bit_generator.state = state
+            if done:
+                done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops[: done + 1], rng)
+        if not done:
+            return LegBatch(compute=ComputeReport())
+        paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
         charged = CallLedger()
-        for delta in self.chip.charge(np.concatenate(calls), np.concatenate(emu)):
+        for delta in self.chip.charge(calls, emu):
             charged._add_in_place(delta)
+        styles = self.config.styles
         stats = {
             "chip_calls": int(charged.physical_calls),
             "chip_batches": int(charged.batches),
-            **{name: int(v) for name, v in zip(_COUNTS, counts)},
-            "walk_length": walked,
-            "mapping": {"path": {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]),
-                                      "map_errors": int(r[3])} for st, r in zip(styles, mapping)}},
-            "path_length": sum(len(p) - 1 for p in paths),
+            **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
+            "walk_length": int(walked),
+            "mapping": {"path": {st: {"programs": r[0], "valid": r[1], "wins": r[2], "map_errors": r[3]}
+                                 for st, r in zip(styles, mapping.tolist())}},
+            "path_length": int(ends[done] - done),
         }
         return LegBatch(paths=paths, compute=ComputeReport.from_ledger(charged), stats=stats)
+
+    def _run_legs(self, world, stops, rng):
+        """:func:`run_legs` with this planner's pool, frame, budgets and chip arguments."""
+        cfg = self.config
+        fr = self.frame
+        grid = world.grid
+        max_attempts, _per_target, max_calls = self._budgets(grid)
+        return run_legs(rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]), stops,
+                        fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
+                        cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
+                        *self._engine_args, self._free_cells(grid), grid, cfg.cut_loops)

@@ -33,6 +33,18 @@ class QueryEnds:
         k = index.get((int(g[0]), int(g[1])))
         return stack[k] if k is not None else self._pad_fields(world.distance_field(g)[None])[0]
 
+    def _goal_fields(self, world, goals) -> np.ndarray:
+        """:meth:`_goal_field` of every cell of ``goals`` (``(L, 2)``), stacked: ``(L, H', W')``, or
+        ``(L, 0, 0)`` for the Manhattan key."""
+        if self.config.target_key != "bfs":
+            return np.zeros((len(goals), 0, 0), dtype=np.int64)
+        self._goal_field(world, goals[0])  # the world's padded target fields and their index
+        _, stack, index = self._fields_for
+        rows = [index.get((int(r), int(c)), -1) for r, c in goals.tolist()]
+        if min(rows) >= 0:
+            return stack[rows]
+        return np.stack([self._goal_field(world, g) for g in goals])
+
     def _pad_fields(self, fields: np.ndarray) -> np.ndarray:
         """``(k, H, W)`` BFS fields -> int64, padded by the patch radius; unreachable and outside cells
         get a distance beyond any path."""

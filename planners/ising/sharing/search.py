@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import ChipUnavailableError, MeteredSolver
+from ising_backend import ChipUnavailableError, MeteredSolver, kernel_capable
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
@@ -58,6 +58,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         spec = self.chip.spec
         self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
         self._limits = tuple(float(v) for v in spec.coefficient_limits)
+        # the chip's kernel arguments when a stage may run in one compiled call (.engine.run_stage)
+        self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) and hasattr(
+            self.chip, "kernel_args") else None
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"

@@ -17,6 +17,7 @@ from ising_backend import (
     plan_packs, quantize_stack, run_portfolio_batch,
 )
 from planners.ising.sharing.bundles import SharingFailure
+from planners.ising.sharing.engine import run_stage
 from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
 from planners.ising.sharing.qubo import cut_value, decode_split
 
@@ -25,7 +26,7 @@ __all__ = ["ChipSubmission"]
 
 class ChipSubmission:
     """:class:`~planners.ising.sharing.IsingSharing`'s chip side (needs ``config``, ``chip``, ``_meter``,
-    ``_rule_ids`` and ``_limits``)."""
+    ``_rule_ids``, ``_limits`` and ``_kernel_args``)."""
 
     def _solve_all(self, w, R, pending, rng, stats) -> None:
         """Solve ``pending`` split problems on the chip, re-submitting those without a valid
@@ -51,11 +52,12 @@ class ChipSubmission:
         return True
 
     def _solve_packed(self, w, R, problems, rng, stats) -> None:
-        """The submission of :meth:`_solve` for splits that fit the chip, in compiled calls: every
-        split x quantization rule mapped at once (:func:`.kernels.map_stage`), block-packed
-        first-fit decreasing (:func:`ising_backend.plan_packs`) into one ``anneal_batch``, every
-        read decoded, checked and scored at once (:func:`.kernels.score_stage`); each distinct
-        valid partition becomes a candidate."""
+        """The submission of :meth:`_solve` for splits that fit the chip: every split x quantization
+        rule mapped, block-packed first-fit decreasing into one submission, every read decoded,
+        checked and scored on the unquantized cut -- in one compiled call
+        (:func:`.engine.run_stage`) on a chip whose kernel it may drive, else through
+        ``anneal_batch`` (:meth:`_submit_checked`); each distinct valid partition becomes a
+        candidate."""
         cfg = self.config
         spec = self.chip.spec
         seed = int(rng.integers(2**63 - 1))
@@ -73,9 +75,54 @@ class ChipSubmission:
             q[k, :n] = p.q
             Q[k, :n, :n] = p.Q
             free[k, :n] = p.free
+        anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
+        reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
+        out = None
+        if self._kernel_args is not None:  # the whole submission in one compiled call
+            out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, int(spec.n_spins), cfg.reads,
+                            np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
+            if out[0]:
+                delta = self.chip.charge([out[1]], [out[2]])[0]
+                self._meter.charged._add_in_place(delta)
+                n_valid, best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
+            else:
+                out = None
+        if out is None:
+            n_valid, best, c_split, c_cut, s0, n0, s1, n1 = self._submit_checked(
+                w, R, problems, q, Q, free, sizes, anchors, reject, seed)
+        mapping = stats["mapping"]["sharing"]
+        cands: list = [[] for _ in problems]
+        for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
+            cands[k].append((cut, s0[m, :a], s1[m, :b], None))
+        for rule, v in zip(rules, n_valid.sum(axis=0).tolist()):
+            mapping[rule]["candidates"] += cfg.reads * P
+            mapping[rule]["valid"] += v
+        best = best.tolist()
+        for k, p in enumerate(problems):
+            if not cands[k]:
+                continue
+            top = min(best[k])
+            tol = 1e-9 * max(1.0, abs(top))
+            winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
+            # ties between rules (common: several rules find the same split) are
+            # broken at random so integer win counts stay unbiased
+            win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
+            mapping[win]["wins"] += 1
+            c = cands[k]
+            order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
+            p.cands = [c[i] for i in order]
+
+    def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, seed):
+        """:meth:`_solve_packed`'s submission through ``anneal_batch`` (any chip; the reference of
+        :func:`.engine.run_stage`): map, pack, anneal, score; errors become :class:`SharingFailure`."""
+        cfg = self.config
+        spec = self.chip.spec
+        rules = cfg.rules
+        nr = len(rules)
+        P = len(problems)
         status, qh, qJ = map_stage(q, Q, sizes, self._rule_ids, *self._limits)
         if status.any():  # a non-finite quantized coefficient: the checked path names it
-            for k, p in enumerate(problems):
+            for p in problems:
                 try:
                     quantize_stack(ising_from_qubo(p.q, p.Q, p.offset), rules, spec.h_range, spec.j_range)
                 except (QuantizeError, ModelError) as exc:
@@ -96,31 +143,9 @@ class ChipSubmission:
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
-        reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
         n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject)
-        mapping = stats["mapping"]["sharing"]
-        cands: list = [[] for _ in problems]
         s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
-        for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
-            cands[k].append((cut, s0[m, :a], s1[m, :b], None))
-        for rule, v in zip(rules, n_valid.sum(axis=0).tolist()):
-            mapping[rule]["candidates"] += cfg.reads * P
-            mapping[rule]["valid"] += v
-        best = best.tolist()
-        for k, p in enumerate(problems):
-            if not cands[k]:
-                continue
-            top = min(best[k])
-            tol = 1e-9 * max(1.0, abs(top))
-            winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
-            # ties between rules (common: several rules find the same split) are
-            # broken at random so integer win counts stay unbiased
-            win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
-            mapping[win]["wins"] += 1
-            c = cands[k]
-            order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
-            p.cands = [c[i] for i in order]
+        return n_valid, best, c_split, c_cut, s0, n0, s1, n1
 
     def _solve(self, dist, R, problems, rng, stats) -> None:
         """One chip submission for every mapped program of ``problems``.

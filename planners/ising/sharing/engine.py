@@ -1,0 +1,55 @@
+"""A stage's chip submission of Ising target sharing (paper 5.3) in one compiled call.
+
+Contract: :func:`run_stage` does what :meth:`~.submit.ChipSubmission._solve_packed` does with
+its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
+decreasing (:func:`ising_backend.pack_layout`), placed (:func:`.kernels.fill_packs`), annealed by
+the chip's own kernel (:meth:`~ising_backend.EmulatedChip.kernel_args`, the seed ``anneal_batch``
+would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
+and returns the same arrays, the calls and the measured emulation seconds for
+:meth:`~ising_backend.EmulatedChip.charge`.  A stage it cannot run as the chip would (a
+non-finite quantized coefficient, a program the chip's check refuses) comes back with
+``ok=False`` and nothing annealed, so the caller takes the checked path, which names the error.
+Only chips :func:`ising_backend.kernel_capable` admits take this path.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ising_backend import pack_layout, programs_fit
+from ising_backend.anneal import anneal_kernel_timed
+from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
+
+__all__ = ["run_stage"]
+
+
+@numba.njit(cache=True)
+def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
+              mismatch, flip_prob, free, anchors, dist, n_robots, reject):
+    """One stage submission (module docstring).  Returns ``(ok, calls, emulation_s, n_valid, best,
+    c_split, c_cut, side0, n0, side1, n1)`` (the last seven as :func:`.kernels.score_stage` and
+    :func:`.kernels.candidate_sides`)."""
+    P = sizes.shape[0]
+    k = rules.shape[0]
+    f = free.shape[1]
+    status, qh, qJ = map_stage(q, Q, sizes, rules, Lh, Lj)
+    prog_sizes = np.empty(P * k, dtype=np.int64)
+    for p in range(P):
+        for r in range(k):
+            prog_sizes[p * k + r] = sizes[p]
+    pack_of, order, n_packs, width = pack_layout(prog_sizes, capacity)
+    h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
+    ok = not status.any() and programs_fit(h, J, -Lh, Lh, -Lj, Lj)
+    if not ok:
+        e = np.zeros(0, dtype=np.int64)
+        return (False, 0, 0.0, np.zeros((P, k), dtype=np.int64), np.zeros((P, k)), e, np.zeros(0),
+                np.zeros((0, f + 1), dtype=np.int64), e, np.zeros((0, f + 1), dtype=np.int64), e)
+    spins = np.empty((n_packs, num_reads, width), dtype=np.int8)
+    energies = np.empty((n_packs, num_reads))
+    emu = anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                              spins, energies)
+    calls = n_packs * num_reads if width > 0 else 0
+    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject)
+    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
+    return True, calls, emu, n_valid, best, c_split, c_cut, s0, n0, s1, n1

@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 __all__ = ["ComputeReport", "CPU_WATTS_PER_CORE", "RECORD_KEYS", "stopwatch"]
 
@@ -109,7 +109,12 @@ class ComputeReport:
     def __add__(self, other: "ComputeReport") -> "ComputeReport":
         if not isinstance(other, ComputeReport):
             return NotImplemented
-        return ComputeReport(*[getattr(self, name) + getattr(other, name) for name in _FIELDS])
+        return ComputeReport(
+            self.cpu_s + other.cpu_s, self.chip_calls + other.chip_calls, self.chip_batches + other.chip_batches,
+            self.logical_calls + other.logical_calls, self.chip_time_s + other.chip_time_s,
+            self.chip_time_parallel_s + other.chip_time_parallel_s,
+            self.accelerator_energy_j + other.accelerator_energy_j, self.emulation_s + other.emulation_s,
+            self.retries + other.retries, self.fallbacks + other.fallbacks)
 
     def replace(self, **changes) -> "ComputeReport":
         return dataclasses.replace(self, **changes)
@@ -154,7 +159,6 @@ class ComputeReport:
     to_dict = to_record
 
 
-_FIELDS = tuple(f.name for f in fields(ComputeReport))
 
 #: Keys of :meth:`ComputeReport.to_record`, in order.
 RECORD_KEYS = tuple(ComputeReport().to_record())

@@ -115,8 +115,8 @@ class _Account:
 
     def add(self, compute: ComputeReport, seconds: float) -> None:
         self.cpu_s += seconds
-        if compute is not _ZERO and compute != _ZERO:
-            self.report = self.report + compute.replace(cpu_s=0.0)
+        if compute is not _ZERO:  # the layers' cpu_s is replaced by the measured seconds in total()
+            self.report = self.report + compute
 
     def total(self) -> ComputeReport:
         if self.report is _ZERO:

@@ -100,6 +100,13 @@ def test_compute_reports_add():
     assert (c.cpu_s, c.chip_calls, c.logical_calls, c.chip_batches) == (1.5, 2, 3, 1)
     assert c.total_energy_j == pytest.approx(1.5 * 15 + 9e-7)
     assert a.replace(cpu_s=0.0).chip_calls == 2
+    # every field adds, whatever its place in the dataclass
+    from dataclasses import fields
+
+    names = [f.name for f in fields(ComputeReport)]
+    x = ComputeReport(**{n: i + 1 for i, n in enumerate(names)})
+    y = ComputeReport(**{n: 10 * (i + 1) for i, n in enumerate(names)})
+    assert [getattr(x + y, n) for n in names] == [11 * (i + 1) for i in range(len(names))]
 
 
 def test_reused_ising_pipeline_reports_bit_identical_accelerator_figures():

@@ -88,9 +88,10 @@ class BoundaryRefinement:
                         if key in seen:  # several shifts often propose the same partition
                             continue
                         seen.add(key)
-                        mine, theirs = (side0, side1) if k in side0 else (side1, side0)
-                        tk = [int(v) for v in mine if v >= R]
-                        tl = [int(v) for v in theirs if v >= R]
+                        # each side holds one of the two robots, its smallest node (robots come first)
+                        mine, theirs = (side0, side1) if side0[0] == k else (side1, side0)
+                        tk = mine[1:].tolist()
+                        tl = theirs[1:].tolist()
                         new = cost(k, tk) + cost(l, tl)
                         if new < old - 1e-9 and (best is None or new < best[0] - 1e-9):
                             best = (new, tk, tl)

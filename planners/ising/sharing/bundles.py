@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.tours_classical import MAX_BRUTE_TARGETS, exact_route_cost
+from planners.tours_classical import MAX_BRUTE_TARGETS, _exact_route_cost
 
 __all__ = ["SharingFailure", "BundlePricer", "assign_bundles"]
 
@@ -55,8 +55,8 @@ class BundlePricer:
         if hit is None:
             if not targets:
                 hit = 0.0
-            elif self._exact and len(targets) <= MAX_BRUTE_TARGETS:
-                hit = exact_route_cost(self.dist, [k] + sorted(targets))
+            elif self._exact and len(targets) <= MAX_BRUTE_TARGETS:  # exact_route_cost's kernel, dist is float64
+                hit = float(_exact_route_cost(self.dist, np.array([k] + sorted(targets), dtype=np.int64)))
                 self.stats["tour_solves"] += 1
             else:
                 nodes = [k] + sorted(targets)

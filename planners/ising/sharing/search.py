@@ -59,6 +59,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
         self._limits = tuple(float(v) for v in spec.coefficient_limits)
         # the chip's kernel arguments when a stage may run in one compiled call (.engine.run_stage)
+        self._powered_for = None
         self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) and hasattr(
             self.chip, "kernel_args") else None
 
@@ -96,6 +97,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             return SharingResult(assignment=(tuple(range(N)),), compute=ComputeReport(), stats=stats)
 
         self._meter = MeteredSolver(self.chip)
+        self._powered_for = None  # the split weights' base is this call's
         pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
         cost = pricer.cost
 
@@ -134,11 +136,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus
         ``shift`` (default ``weight_shift``) x its mean over node pairs, robot-target edges then
         multiplied by ``robot_weight`` (zero diagonal)."""
-        w = np.asarray(dist, dtype=float) ** self.config.weight_power
+        w, mean = self._powered(dist)
         shift = self.config.weight_shift if shift is None else shift
         if shift:
-            n = w.shape[0]
-            mean = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
             w = w - shift * mean
             np.fill_diagonal(w, 0.0)
         if self.config.robot_weight != 1.0:
@@ -146,6 +146,18 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             w[:R, R:] *= self.config.robot_weight
             w[R:, :R] *= self.config.robot_weight
         return w
+
+    def _powered(self, dist: np.ndarray) -> tuple[np.ndarray, float]:
+        """``dist ** weight_power`` and its mean over node pairs ``i < j``, kept for the last ``dist``
+        (a planning call asks for the weights of several shifts)."""
+        cached = self._powered_for
+        if cached is not None and cached[0] is dist:
+            return cached[1], cached[2]
+        w = np.asarray(dist, dtype=float) ** self.config.weight_power
+        n = w.shape[0]
+        mean = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
+        self._powered_for = (dist, w, mean)
+        return w, mean
 
     # -------------------------------------------------------------- helpers
 

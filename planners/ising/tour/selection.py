@@ -24,6 +24,7 @@ from a random order ends far above the nearest-neighbour start.  The cheapest ro
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 
@@ -61,13 +62,12 @@ def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 class MoveSelection:
     """:class:`~planners.ising.tour.IsingTour`'s chip backend (needs ``config``, ``chip``, ``spec``)."""
 
-    @property
-    def _rule_ids(self) -> np.ndarray:
-        return np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
-
-    @property
-    def _limits(self) -> tuple[float, float]:
-        return tuple(float(v) for v in self.spec.coefficient_limits)
+    @cached_property
+    def _move_args(self) -> tuple:
+        """The compiled loop's fixed arguments: rule ids, coefficient limits, the chip's kernel arguments."""
+        rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
+        return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads,
+                *self.chip.kernel_args())
 
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
@@ -112,8 +112,7 @@ class MoveSelection:
         state = run.rng.bit_generator.state
         new, status, st, clean, wins, calls, emu = select_moves_loop(
             run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
-            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._rule_ids, *self._limits, cfg.num_reads,
-            *self.chip.kernel_args())
+            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
             return None

@@ -47,9 +47,14 @@ class BundlePricer:
             self._pricer = lambda n: pricing_tour  # noqa: E731
 
     def cost(self, k: int, targets) -> float:
+        """Route cost of robot ``k`` over ``targets`` (global node indices)."""
         mask = 0
         for t in targets:
             mask |= 1 << t
+        return self.cost_mask(k, mask, targets)
+
+    def cost_mask(self, k: int, mask: int, targets) -> float:
+        """:meth:`cost` for a caller that keeps the set's bit mask (``sum(1 << t)``) itself."""
         key = (k, mask)
         hit = self._cache.get(key)
         if hit is None:
@@ -72,7 +77,10 @@ class BundlePricer:
 
 def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -> list[list[int]]:
     """Robot base sets plus every bundle placed on the robot whose route cost
-    (``cost(k, targets)``, the downstream tour) grows least.  Global node indices."""
+    (``cost(k, targets)``, the downstream tour) grows least.  Global node indices.
+
+    ``cost`` is a :class:`BundlePricer` (its cache keyed by bit masks kept here as sets grow) or
+    any callable ``cost(k, targets)``."""
     base: list[list[int]] = [[] for _ in range(R)]
     bundles: list[list[int]] = []
     for g in groups:
@@ -101,9 +109,20 @@ def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -
     else:
         order = list(range(len(bundles)))
     current = [list(b) for b in base]
+    if isinstance(cost, BundlePricer):
+        price = cost.cost_mask
+        masks = [sum(1 << t for t in c) for c in current]
+        for i in order:
+            b = bundles[i]
+            bm = sum(1 << t for t in b)
+            inc = [price(k, masks[k] | bm, current[k] + b) - price(k, masks[k], current[k]) for k in range(R)]
+            k = inc.index(min(inc))  # the first robot of least increase (np.argmin's tie rule)
+            current[k].extend(b)
+            masks[k] |= bm
+        return current
     for i in order:
         b = bundles[i]
         inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
-        k = inc.index(min(inc))  # the first robot of least increase (np.argmin's tie rule)
+        k = inc.index(min(inc))
         current[k].extend(b)
     return current

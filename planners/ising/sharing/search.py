@@ -106,7 +106,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             states = self._split_all(self.split_weights(dist, R), R, rng, stats)
             best = None
             for groups in states:
-                sets = assign_bundles(dist, R, groups, cost, self.config.bundle_order, stats)
+                sets = assign_bundles(dist, R, groups, pricer, self.config.bundle_order, stats)
                 if len(states) == 1:
                     best = (0.0, sets)
                     break

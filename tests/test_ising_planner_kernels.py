@@ -492,3 +492,31 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
         assert (a.compute.chip_calls, a.compute.chip_batches) == (b.compute.chip_calls, b.compute.chip_batches)
         assert a.compute.accelerator_energy_j == pytest.approx(b.compute.accelerator_energy_j)
         assert r1.integers(1 << 62) == r2.integers(1 << 62)
+
+
+def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
+    """run_stage anneals nothing (``ok`` False, no calls) for a non-finite split model or programs the
+    chip's check refuses, so the caller takes the checked path that names the error."""
+    from ising_backend import QUANTIZE_RULE_IDS, EmulatedChip
+    from planners.ising.sharing.engine import run_stage
+
+    chip = EmulatedChip()
+    rules = np.array([QUANTIZE_RULE_IDS["linear"]], dtype=np.int64)
+    dist = np.abs(np.arange(6)[:, None] - np.arange(6)[None]).astype(float)
+    free = np.array([[2, 3, 4, 5]], dtype=np.int64)
+    anchors = np.array([[0, 1]], dtype=np.int64)
+    sizes = np.array([4], dtype=np.int64)
+    q = np.array([[1.0, -2.0, 0.5, 3.0]])
+    Q = np.triu(np.ones((1, 4, 4)), k=1)
+
+    def run(q, Lh=7.0, Lj=7.0):
+        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), *chip.kernel_args(), free, anchors, dist, 2,
+                         np.zeros(1, dtype=np.bool_))
+
+    good = run(q)
+    assert good[0] and good[1] == 2 and good[3].sum() <= 2
+    bad = q.copy()
+    bad[0, 1] = np.nan
+    out = run(bad)
+    assert not out[0] and out[1] == 0 and len(out[5]) == 0
+    assert not run(q, Lh=7.5)[0]  # a non-integer limit: the quantized fields are not the chip's integers

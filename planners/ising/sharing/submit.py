@@ -62,7 +62,6 @@ class ChipSubmission:
         spec = self.chip.spec
         seed = int(rng.integers(2**63 - 1))
         rules = cfg.rules
-        nr = len(rules)
         P = len(problems)
         f = max(len(p.free) for p in problems)
         q = np.zeros((P, f))

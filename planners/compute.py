@@ -159,7 +159,6 @@ class ComputeReport:
     to_dict = to_record
 
 
-
 #: Keys of :meth:`ComputeReport.to_record`, in order.
 RECORD_KEYS = tuple(ComputeReport().to_record())
 

@@ -126,8 +126,8 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
 
 
 class BatchedLegs:
-    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``chip``, ``frame``,
-    ``_pool``, ``_engine_args``, ``_goal_fields``, ``_padded``, ``_budgets`` and ``_free_cells``)."""
+    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``chip``, ``_engine_args``,
+    ``_pool``, ``_goal_fields``, ``_padded`` and ``_loop_args``)."""
 
     def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
@@ -173,12 +173,7 @@ class BatchedLegs:
         return LegBatch(paths=paths, compute=ComputeReport.from_ledger(charged), stats=stats)
 
     def _run_legs(self, world, stops, rng):
-        """:func:`run_legs` with this planner's pool, frame, budgets and chip arguments."""
-        cfg = self.config
-        fr = self.frame
+        """:func:`run_legs` with this planner's pool and the query loop's arguments."""
         grid = world.grid
-        max_attempts, _per_target, max_calls = self._budgets(grid)
         return run_legs(rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]), stops,
-                        fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
-                        cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
-                        *self._engine_args, self._free_cells(grid), grid, cfg.cut_loops)
+                        *self._loop_args(grid), grid, self.config.cut_loops)

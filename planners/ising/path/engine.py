@@ -300,15 +300,19 @@ class CompiledSearch:
     def _engine_query(self, grid, s, g, rng, field):
         """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
         mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
+        status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
+            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], *self._loop_args(grid))
+        return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
+
+    def _loop_args(self, grid) -> tuple:
+        """:func:`run_query`'s arguments after the goal: the patch frame, the search options, the
+        budgets on ``grid``, the mapping and chip arguments and the free-cell count."""
         cfg = self.config
         fr = self.frame
-        free = self._free_cells(grid)
         max_attempts, _per_target, max_calls = self._budgets(grid)
-        status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], fr.size, self._nbr, fr.ring,
-            fr.offsets, fr.adj4, fr.diag, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
-            cfg.num_reads, max_attempts, max_calls, *self._engine_args, free)
-        return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
+        return (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
+                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
+                *self._engine_args, self._free_cells(grid))
 
     def _run_engine(self, grid, s, g, rng, field):
         """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per

@@ -24,12 +24,7 @@ class QueryEnds:
         cells last; an empty array for the paper's Manhattan key."""
         if self.config.target_key != "bfs":
             return np.zeros((0, 0), dtype=np.int64)
-        cached = self._fields_for
-        if cached is None or cached[0] is not world:  # every target's padded field at once, per world
-            self._fields_for = cached = (world, self._pad_fields(world.target_fields), {})
-        _, stack, index = cached
-        if not index and len(world.targets):
-            index.update({(int(r), int(c)): k for k, (r, c) in enumerate(np.asarray(world.targets))})
+        stack, index = self._target_fields(world)
         k = index.get((int(g[0]), int(g[1])))
         return stack[k] if k is not None else self._pad_fields(world.distance_field(g)[None])[0]
 
@@ -38,12 +33,19 @@ class QueryEnds:
         ``(L, 0, 0)`` for the Manhattan key."""
         if self.config.target_key != "bfs":
             return np.zeros((len(goals), 0, 0), dtype=np.int64)
-        self._goal_field(world, goals[0])  # the world's padded target fields and their index
-        _, stack, index = self._fields_for
+        stack, index = self._target_fields(world)
         rows = [index.get((int(r), int(c)), -1) for r, c in goals.tolist()]
         if min(rows) >= 0:
             return stack[rows]
         return np.stack([self._goal_field(world, g) for g in goals])
+
+    def _target_fields(self, world) -> tuple[np.ndarray, dict]:
+        """Every target's padded field ``(N, H', W')`` and ``{target cell: index}``, built once per world."""
+        cached = self._fields_for
+        if cached is None or cached[0] is not world:
+            index = {(int(r), int(c)): k for k, (r, c) in enumerate(np.asarray(world.targets).tolist())}
+            self._fields_for = cached = (world, self._pad_fields(world.target_fields), index)
+        return cached[1], cached[2]
 
     def _pad_fields(self, fields: np.ndarray) -> np.ndarray:
         """``(k, H, W)`` BFS fields -> int64, padded by the patch radius; unreachable and outside cells

@@ -7,7 +7,8 @@ the chip's own kernel (:meth:`~ising_backend.EmulatedChip.kernel_args`, the seed
 would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
 and returns the same arrays, the calls and the measured emulation seconds for
 :meth:`~ising_backend.EmulatedChip.charge`.  A stage it cannot run as the chip would (a
-non-finite quantized coefficient, a program the chip's check refuses) comes back with
+non-finite quantized coefficient, a program outside the chip's symmetric coefficient limits, which
+the chip's own check (:func:`ising_backend.programs_fit`) refuses) comes back with
 ``ok=False`` and nothing annealed, so the caller takes the checked path, which names the error.
 Only chips :func:`ising_backend.kernel_capable` admits take this path.
 """

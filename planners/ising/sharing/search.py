@@ -58,10 +58,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         spec = self.chip.spec
         self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
         self._limits = tuple(float(v) for v in spec.coefficient_limits)
+        self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         # the chip's kernel arguments when a stage may run in one compiled call (.engine.run_stage)
-        self._powered_for = None
-        self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) and hasattr(
-            self.chip, "kernel_args") else None
+        self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) else None
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"
@@ -97,7 +96,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             return SharingResult(assignment=(tuple(range(N)),), compute=ComputeReport(), stats=stats)
 
         self._meter = MeteredSolver(self.chip)
-        self._powered_for = None  # the split weights' base is this call's
+        self._powered_for = None  # a new call: the split weights' base is recomputed
         pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
         cost = pricer.cost
 

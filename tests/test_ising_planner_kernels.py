@@ -482,6 +482,7 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
     fast = IsingSharing(EmulatedChip(ChipSpec(**spec)))
     ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
     assert fast._kernel_args is not None
+    fast._compiled = ref._compiled = None  # the Python search: stage by stage
     ref._kernel_args = None  # force the reference submission
     for s in range(10):
         w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")

@@ -21,11 +21,14 @@ import numpy as np
 from ising_backend import ChipUnavailableError, MeteredSolver, kernel_capable
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
+from planners.tours_classical import MAX_BRUTE_TARGETS
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.boundary import BoundaryRefinement
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
+from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel
+from planners.ising.sharing.compiled_stages import COUNTERS, mask_nodes
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import split_model
@@ -61,6 +64,16 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         # the chip's kernel arguments when a stage may run in one compiled call (.engine.run_stage)
         self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) else None
+        cfg = self.config
+        # the arguments of the whole sharing in one compiled call (.compiled_assign), where it applies
+        self._compiled = None
+        if self._kernel_args is not None and not cfg.balance and cfg.pricing_tour == "auto":
+            chip_args = (self._rule_ids, *self._limits, int(spec.n_spins), cfg.reads, *self._kernel_args)
+            opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
+                    cfg.refine_above, int(cfg.reject_empty_robot_side))
+            pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
+            self._compiled = (chip_args, cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
+                              (cfg.weight_shift, cfg.robot_weight), np.array(cfg.pair_shifts), pair_opts)
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"
@@ -97,6 +110,10 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
 
         self._meter = MeteredSolver(self.chip)
         self._powered_for = None  # a new call: the split weights' base is recomputed
+        if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62:
+            result = self._assign_compiled(dist, R, rng, stats)
+            if result is not None:
+                return result
         pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
         cost = pricer.cost
 
@@ -109,7 +126,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                 if len(states) == 1:
                     best = (0.0, sets)
                     break
-                total = sum(cost(k, sets[k]) for k in range(R))
+                total = 0.0
+                for k in range(R):  # left to right, as the compiled search sums
+                    total += cost(k, sets[k])
                 if best is None or total < best[0] - 1e-9:  # ties: the state with the larger cuts
                     best = (total, sets)
             sets = best[1]
@@ -130,6 +149,34 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                                      stats=flag(stats, "sharing", reason))
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats)
+
+    def _assign_compiled(self, dist, R, rng, stats) -> SharingResult | None:
+        """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
+        counted as the reference would; ``None`` (the rng rewound) where the reference takes another path."""
+        cfg = self.config
+        powered, mean = self._powered(dist)
+        subs = (R + cfg.refine_stages + cfg.pair_rounds + 1) * (cfg.retries + 1)  # room for every submission
+        book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
+                np.zeros(subs, dtype=np.int64), np.zeros(subs))
+        state = rng.bit_generator.state
+        ok, sets = assign_kernel(dist, powered, mean, R, rng, *self._compiled, book)
+        if not ok:
+            rng.bit_generator.state = state
+            return None
+        mapping, counters, calls, emu = book
+        counts = dict(zip(COUNTERS, counters.tolist()))
+        n = counts.pop("submissions")
+        for key in ("pair_resplits", "pair_accepted"):  # present once the refinement made them
+            if not counts[key]:
+                del counts[key]
+        for key, value in counts.items():
+            stats[key] = stats.get(key, 0) + value
+        for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
+            stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
+        for delta in self.chip.charge(calls[:n], emu[:n]):
+            self._meter.charged._add_in_place(delta)
+        assignment = tuple(tuple(t - R for t in mask_nodes(m).tolist()) for m in sets.tolist())
+        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus
@@ -228,7 +275,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                 combos = [(sc + c[0], combo + (c,)) for sc, combo in combos for c in mine[gi].cands[:width]]
                 order = sorted(range(len(combos)), key=lambda i: (-combos[i][0], i))
                 combos = [combos[i] for i in order[: self.config.max_states]]
-            for _, combo in combos:
+            for sc, combo in combos:  # sc: the combo's cuts summed left to right
                 chosen = dict(zip(keys, combo))
                 groups: list[np.ndarray] = []
                 for gi, g in enumerate(st):
@@ -236,7 +283,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                         groups.extend([chosen[gi][1], chosen[gi][2]])
                     else:
                         groups.append(g)
-                expanded.append((score + sum(c[0] for c in combo), groups))
+                expanded.append((score + sc, groups))
         order = sorted(range(len(expanded)), key=lambda i: (-expanded[i][0], i))
         return [expanded[i] for i in order[: self.config.max_states]]
 

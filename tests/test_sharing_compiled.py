@@ -1,0 +1,115 @@
+"""The whole Ising target sharing in one compiled call against the Python search it mirrors.
+
+``planners.ising.sharing.compiled_assign.assign_kernel`` must make every decision of
+``IsingSharing``'s Python search (stages, memo, beam, bundle placement, state choice, boundary
+refinement): the same assignment, statistics, chip charges and rng state, for every option the
+compiled call takes; where the Python search takes another path (a group beyond the chip), the
+compiled call gives up, the rng is rewound and the Python search runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ising_backend import ChipSpec, EmulatedChip
+from mrmt_env.generation import generate_world
+from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
+from planners.ising.sharing.compiled_assign import split_weights_kernel
+from planners.tours_classical import ThreeOptTour
+
+CONFIGS = [
+    {},
+    {"bundle_order": "far_first", "pair_neighbours": 1},
+    {"bundle_order": "near_first", "beam": 1, "max_states": 4},
+    {"bundle_order": "largest_first", "refine_stages": 0, "pair_neighbours": 2},
+    {"reject_empty_robot_side": True, "robot_weight": 0.5, "weight_shift": 0.0},
+    {"weight_power": 2.0, "retries": 0, "reads": 1, "rules": ("linear", "rank"), "base_max": None},
+    {"pair_shifts": (0.0,), "pair_rounds": 1, "refine_beam": 3},
+]
+
+
+def _pair(config: SharingConfig, spec: ChipSpec = ChipSpec(), paper: bool = False):
+    cls = PaperIsingSharing if paper else IsingSharing
+    fast, ref = cls(EmulatedChip(spec), config), cls(EmulatedChip(spec), config)
+    ref._compiled = None  # the Python search
+    return fast, ref
+
+
+def _same(fast, ref, dist, R, seed):
+    r1, r2 = np.random.default_rng(seed), np.random.default_rng(seed)
+    a = fast.assign(dist, R, ThreeOptTour(), r1)
+    b = ref.assign(dist, R, ThreeOptTour(), r2)
+    assert a.assignment == b.assignment and a.failure == b.failure
+    assert a.stats == b.stats
+    assert (a.compute.chip_calls, a.compute.chip_batches) == (b.compute.chip_calls, b.compute.chip_batches)
+    assert a.compute.accelerator_energy_j == pytest.approx(b.compute.accelerator_energy_j)
+    assert fast.chip.ledger.physical_calls == ref.chip.ledger.physical_calls
+    assert r1.bit_generator.state == r2.bit_generator.state
+    return a
+
+
+@pytest.mark.parametrize("options", CONFIGS + ["paper"])
+def test_compiled_sharing_makes_the_python_searchs_decisions(options):
+    paper = options == "paper"
+    fast, ref = _pair(SharingConfig.paper() if paper else SharingConfig(**options), paper=paper)
+    assert fast._compiled is not None
+
+    handed = []
+    python_search = fast._split_all
+    fast._split_all = lambda *a: handed.append(1) or python_search(*a)
+    resplits = accepted = 0
+    for s in range(20, 32):
+        R, N = 2 + s % 4, 4 + s % 10
+        w = generate_world(s, n_robots=R, n_targets=N, placement="centre" if s % 2 else "uniform")
+        handed.clear()
+        res = _same(fast, ref, w.distance_matrix, R, s)
+        if res.failure is not None:  # a split with no valid candidate: the Python search names it
+            assert handed and "invalid after" in res.failure
+            continue
+        assert not handed, "the compiled sharing handed a world to the Python search"
+        assert sorted(t for ts in res.assignment for t in ts) == list(range(N))
+        resplits += res.stats.get("pair_resplits", 0)
+        accepted += res.stats.get("pair_accepted", 0)
+    assert (resplits > 0) == (not paper)  # the boundary refinement ran, in both searches
+    if options == {}:
+        assert accepted > 0  # and moved targets
+
+
+@pytest.mark.parametrize("spec, R, N", [(ChipSpec(n_spins=8), 2, 12),  # 12 free spins: spin-budget branching
+                                        (ChipSpec(n_spins=6), 2, 13)])  # 13 free spins > 6 + max_frozen: coarse
+def test_a_group_beyond_the_chip_rewinds_to_the_python_search(spec, R, N):
+    fast, ref = _pair(SharingConfig(), spec)
+    calls = []
+    python_search = fast._split_all
+    fast._split_all = lambda *a: calls.append(1) or python_search(*a)
+    w = generate_world(3, n_robots=R, n_targets=N)
+    res = _same(fast, ref, w.distance_matrix, R, 3)
+    assert calls and res.failure is None
+    assert (res.stats.get("coarse_splits", 0) > 0) == (spec.n_spins == 6)
+
+
+def test_worlds_outside_the_compiled_call_take_the_python_search():
+    """More targets than the exact pricing tour takes, a balance term, a pricing tour by name."""
+    w = generate_world(5, n_robots=3, n_targets=15)
+    _same(*_pair(SharingConfig()), w.distance_matrix, 3, 5)
+    for config in (SharingConfig(balance=0.5), SharingConfig(pricing_tour="3opt")):
+        fast, ref = _pair(config)
+        assert fast._compiled is None
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 2**31), st.integers(2, 9), st.integers(1, 4), st.sampled_from([0.0, 0.5, -1.0]),
+       st.sampled_from([1.0, 0.25, 3.0]), st.sampled_from([1.0, 2.0]))
+def test_split_weights_kernel_is_split_weights(seed, n, R, shift, robot_weight, power):
+    R = min(R, n)
+    x = np.random.default_rng(seed).integers(0, 20, size=(n, n)).astype(float)
+    dist = x + x.T
+    np.fill_diagonal(dist, 0.0)
+    sharing = IsingSharing(config=SharingConfig(robot_weight=robot_weight, weight_power=power))
+    powered, mean = sharing._powered(dist)
+    got = split_weights_kernel(powered, mean, shift, R, robot_weight)
+    assert np.array_equal(got, sharing.split_weights(dist, R, shift=shift))
+    assert np.array_equal(powered, dist ** power)  # the base is not changed in place

@@ -88,6 +88,40 @@ class CallLedger:
         seconds each), exactly as that many ``record_physical`` / ``record_logical`` calls."""
         return [self._record(c, spec, float(t), logical) for c, t in zip(calls, seconds)]
 
+    def record_into(self, calls, seconds, spec: ChipSpec, into: "CallLedger", logical: bool = False) -> "CallLedger | None":
+        """:meth:`record_each` for a caller that adds every submission's ledger to ``into``: each
+        submission is charged in order to this ledger, its live snapshots and ``into`` (the same
+        float additions, so the same bits), without a ledger object per submission.  Returns the
+        last submission's ledger (``None`` for no submission)."""
+        calls = [int(c) for c in calls]
+        seconds = [float(t) for t in seconds]
+        if len(calls) != len(seconds):
+            raise ValueError(f"record_into: {len(calls)} call counts for {len(seconds)} emulation times")
+        for c in calls:
+            if c < 0:
+                raise ValueError(f"calls = {c} must be >= 0")
+        ck, bk = ("logical_calls", "logical_batches") if logical else ("physical_calls", "batches")
+        totals = [self.__dict__, into.__dict__]
+        if self._taps:
+            totals += [snap._charged_since.__dict__ for snap in list(self._taps.values())]
+        n_cores, solve_s, energy = spec.n_cores, spec.solve_time_s, spec.energy_per_call_j
+        for c, t in zip(calls, seconds):
+            b = math.ceil(c / n_cores)
+            ct, pt, e = c * solve_s, b * solve_s, c * energy
+            for d in totals:
+                d[ck] += c
+                d[bk] += b
+                d["chip_time_s"] += ct
+                d["chip_time_parallel_s"] += pt
+                d["energy_j"] += e
+                d["emulation_s"] += t
+        if not calls:
+            return None
+        c, t = calls[-1], seconds[-1]
+        b = math.ceil(c / n_cores)
+        return CallLedger(**{ck: c, bk: b}, chip_time_s=c * solve_s, chip_time_parallel_s=b * solve_s,
+                          energy_j=c * energy, emulation_s=t)
+
     def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool, cores: int | None = None,
                 retries: int = 0, probe_calls: int = 0) -> "CallLedger":
         """Charge ``calls`` chip calls (physical, or logical when ``logical``); returns the delta."""

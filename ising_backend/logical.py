@@ -389,6 +389,13 @@ class LogicalIsingSolver(dimod.Sampler):
             self.last_call = out[-1]
         return out
 
+    def charge_into(self, calls, seconds, into: CallLedger) -> None:
+        """:meth:`charge`, each submission's ledger added in order to ``into`` (the caller's ledger)
+        without a ledger object per submission: the same totals, bit for bit."""
+        last = self.ledger.record_into(calls, seconds, self.spec, into, logical=True)
+        if last is not None:
+            self.last_call = last
+
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None) -> np.ndarray:
         """:meth:`solve_many` of ``B`` same-size models given as arrays (``h (B, n)``, ``J (n, n)``
         shared or ``(B, n, n)``): the same sub-seed, spins and charge, without model objects.

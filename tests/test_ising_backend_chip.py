@@ -181,3 +181,33 @@ def test_noise_knobs_change_samples_and_noise_free_available():
         ChipSpec(readout_flip_prob=0.9)
     with pytest.raises(ValueError, match="h_range"):
         ChipSpec(h_range=(1, 7))
+
+
+@pytest.mark.parametrize("logical", [False, True])
+def test_record_into_charges_as_record_each_and_adding_each_ledger(logical):
+    """CallLedger.record_into (what charge_into uses): the same totals, bit for bit, in the ledger,
+    its live snapshots and the caller's ledger as record_each followed by adding every submission's
+    ledger; the last submission's ledger; a negative count or mismatched lengths is an error."""
+    from ising_backend import CallLedger, ChipSpec
+
+    spec = ChipSpec(n_chips=3, cores_per_chip=1)
+    rng = np.random.default_rng(4)
+    calls = rng.integers(0, 40, size=25).tolist()
+    secs = (rng.random(25) * 1e-4).tolist()
+    ref, new = CallLedger(), CallLedger()
+    for led in (ref, new):
+        led._record(7, spec, 0.3, logical)
+    snap_ref, snap_new = ref.snapshot(), new.snapshot()
+    into_ref, into_new = CallLedger(energy_j=0.1, chip_time_s=0.2), CallLedger(energy_j=0.1, chip_time_s=0.2)
+    deltas = ref.record_each(calls, secs, spec, logical)
+    for d in deltas:
+        into_ref._add_in_place(d)
+    last = new.record_into(np.array(calls), np.array(secs), spec, into_new, logical)
+    assert new.to_dict() == ref.to_dict() and into_new.to_dict() == into_ref.to_dict()
+    assert new.since(snap_new).to_dict() == ref.since(snap_ref).to_dict()
+    assert last.to_dict() == deltas[-1].to_dict()
+    assert new.record_into([], [], spec, into_new) is None
+    with pytest.raises(ValueError, match="calls = -1"):
+        new.record_into([3, -1], [0.0, 0.0], spec, into_new)
+    with pytest.raises(ValueError, match="2 call counts for 1"):
+        new.record_into([3, 1], [0.0], spec, into_new)

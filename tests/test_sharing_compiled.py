@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.compiled_assign import split_weights_kernel
+from planners.ising.sharing.compiled_assign import pair_mean, split_weights_kernel
 from planners.tours_classical import ThreeOptTour
 
 CONFIGS = [
@@ -113,3 +113,11 @@ def test_split_weights_kernel_is_split_weights(seed, n, R, shift, robot_weight, 
     got = split_weights_kernel(powered, mean, shift, R, robot_weight)
     assert np.array_equal(got, sharing.split_weights(dist, R, shift=shift))
     assert np.array_equal(powered, dist ** power)  # the base is not changed in place
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 2**31), st.integers(0, 40))
+def test_pair_mean_is_numpys_mean_over_pairs(seed, n):
+    w = np.random.default_rng(seed).normal(size=(n, n)) * 10.0 ** np.random.default_rng(seed).integers(-3, 4)
+    want = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
+    assert pair_mean(w) == want

@@ -158,8 +158,7 @@ class BatchedLegs:
             return LegBatch(compute=ComputeReport())
         paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
         charged = CallLedger()
-        for delta in self.chip.charge(calls, emu):
-            charged._add_in_place(delta)
+        self.chip.charge_into(calls, emu, charged)
         styles = self.config.styles
         stats = {
             "chip_calls": int(charged.physical_calls),

@@ -325,8 +325,7 @@ class CompiledSearch:
             return None
         max_attempts, _per_target, max_calls = self._budgets(grid)
         charged = CallLedger()
-        for delta in self.chip.charge(sub_calls, sub_emu):
-            charged._add_in_place(delta)
+        self.chip.charge_into(sub_calls, sub_emu, charged)
         counts = dict(zip(("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves"),
                           (int(v) for v in counts)))
         mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}

@@ -17,16 +17,33 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
+from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.compiled_stages import (
     BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, popcount, problems_of, reserve,
     solve_problems, split_states,
 )
 from planners.tours_classical import _exact_route_cost
 
-__all__ = ["assign_kernel", "split_weights_kernel", "ORDER_IDS"]
+__all__ = ["assign_kernel", "split_weights_kernel", "pair_mean", "ORDER_IDS"]
 
 _PAIR_KEY = types.UniTuple(types.int64, 4)  # (k, l, targets of k, targets of l)
 ORDER_IDS = {"creation": 0, "far_first": 1, "near_first": 2, "largest_first": 3}  # config.BUNDLE_ORDERS
+
+
+@numba.njit(cache=True)
+def pair_mean(w):
+    """``w[np.triu_indices(n, 1)].mean()`` (numpy's summation order), 0.0 for ``n < 2``."""
+    n = w.shape[0]
+    m = n * (n - 1) // 2
+    if m == 0:
+        return 0.0
+    flat = np.empty(m)
+    t = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            flat[t] = w[i, j]
+            t += 1
+    return pairwise_sum(flat, 0, m) / m
 
 
 @numba.njit(cache=True)

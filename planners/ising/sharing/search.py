@@ -27,7 +27,7 @@ from planners.ising.fallback import counted, flag, unavailable_message, wants_fa
 from planners.ising.sharing.boundary import BoundaryRefinement
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
-from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel
+from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel, pair_mean
 from planners.ising.sharing.compiled_stages import COUNTERS, mask_nodes
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
@@ -173,8 +173,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             stats[key] = stats.get(key, 0) + value
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
-        for delta in self.chip.charge(calls[:n], emu[:n]):
-            self._meter.charged._add_in_place(delta)
+        self.chip.charge_into(calls[:n], emu[:n], self._meter.charged)
         assignment = tuple(tuple(t - R for t in mask_nodes(m).tolist()) for m in sets.tolist())
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
 
@@ -187,8 +186,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         if shift:
             w = w - shift * mean
             np.fill_diagonal(w, 0.0)
+        else:
+            w = w.copy()  # the caller's own array: the base is cached (and may be ``dist`` itself)
         if self.config.robot_weight != 1.0:
-            w = w.copy()
             w[:R, R:] *= self.config.robot_weight
             w[R:, :R] *= self.config.robot_weight
         return w
@@ -199,9 +199,10 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         cached = self._powered_for
         if cached is not None and cached[0] is dist:
             return cached[1], cached[2]
-        w = np.asarray(dist, dtype=float) ** self.config.weight_power
-        n = w.shape[0]
-        mean = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
+        power = self.config.weight_power
+        w = np.asarray(dist, dtype=float)
+        w = w ** power if power != 1.0 else w  # x ** 1.0 is x; the weights are never changed in place
+        mean = float(pair_mean(w))  # the mean over pairs i < j, numpy's bits
         self._powered_for = (dist, w, mean)
         return w, mean
 

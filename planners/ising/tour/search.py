@@ -295,8 +295,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
                                             cfg.num_reads, *self.solver.kernel_args(s * s))
         charged = run.solver.charged
-        for delta in self.solver.charge(calls, emu):
-            charged._add_in_place(delta)
+        self.solver.charge_into(calls, emu, charged)
         m = run.stats["mapping"]["tour"]
         m["programs"] += int(st[0])
         m["reads"] += int(st[1])

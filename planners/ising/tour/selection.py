@@ -116,8 +116,7 @@ class MoveSelection:
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
             return None
-        for delta in self.chip.charge(calls, emu):
-            run.solver.charged._add_in_place(delta)
+        self.chip.charge_into(calls, emu, run.solver.charged)
         rounds, retries, applied, valid_rounds, valid_programs = (int(v) for v in st)
         k = len(cfg.chip_rules)
         m = run.stats["mapping"]["tour"]

@@ -167,14 +167,30 @@ class _PlainChip(EmulatedChip):
         return super().anneal_batch(*args, **kwargs)
 
 
-@pytest.mark.parametrize("n", [1, 2, 4, 7, 10, 14, 25])
-def test_compiled_chip_tour_makes_the_reference_decisions(n):
+@pytest.mark.parametrize("n, restart", [(1, "auto"), (2, "auto"), (4, "auto"), (7, "auto"), (10, "auto"),
+                                        (14, "auto"), (25, "auto"), (25, "random"), (9, "kick")])
+def test_compiled_chip_tour_makes_the_reference_decisions(n, restart):
+    """All starts in one compiled call (random restarts), or one call per start (kicks), against the
+    Python loop: the same tour, statistics, charges and rng state."""
     for s in range(4):
         dist = generate_world(40 * n + s, height=20, width=20, n_robots=1, n_targets=n).distance_matrix
-        fast = IsingTour(EmulatedChip()).solve(dist, np.random.default_rng(s))
-        ref = IsingTour(_PlainChip()).solve(dist, np.random.default_rng(s))
+        r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
+        fast = IsingTour(EmulatedChip(), chip_restart=restart).solve(dist, r1)
+        ref = IsingTour(_PlainChip(), chip_restart=restart).solve(dist, r2)
         assert fast.order == ref.order and fast.cost == ref.cost and fast.stats == ref.stats
         assert (fast.compute.chip_calls, fast.compute.chip_batches) == (ref.compute.chip_calls, ref.compute.chip_batches)
+        assert fast.compute.accelerator_energy_j == ref.compute.accelerator_energy_j
+        assert r1.bit_generator.state == r2.bit_generator.state
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**31), st.integers(1, 14), st.integers(1, 6))
+def test_compiled_nearest_neighbour_route_is_the_reference(seed, n, spread):
+    """Small integer distances: many ties, which go to the lowest index in both."""
+    from planners.ising.tour.move_engine import nearest_neighbour_kernel
+
+    d = np.random.default_rng(seed).integers(0, spread, size=(n + 1, n + 1)).astype(float)
+    assert nearest_neighbour_kernel(d).tolist() == nearest_neighbour_route(d).tolist()
 
 
 # ------------------------------------------------------------------ chip tour

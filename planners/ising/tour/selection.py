@@ -30,7 +30,7 @@ import numpy as np
 
 from ising_backend import QUANTIZE_RULE_IDS, ChipProgramError, ising_from_qubo, kernel_capable, quantize_stack
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, select_moves_loop
+from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, move_starts_loop, select_moves_loop
 from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
 
 __all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
@@ -72,8 +72,13 @@ class MoveSelection:
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
-        best, best_cost, failure = None, math.inf, None
         starts = 1 if n <= 3 else self.config.n_starts
+        kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
+        if not kicks and kernel_capable(self.chip) and hasattr(self.chip, "kernel_args"):
+            out = self._move_starts_compiled(dist, run, starts)
+            if out is not None:
+                return out
+        best, best_cost, failure = None, math.inf, None
         for s in range(starts):
             if s == 0:
                 route = nearest_neighbour_route(dist)
@@ -117,6 +122,22 @@ class MoveSelection:
             run.rng.bit_generator.state = state
             return None
         self.chip.charge_into(calls, emu, run.solver.charged)
+        self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
+        if status == NO_PROGRESS:
+            raise TourFailure(self._no_progress)
+        return new
+
+    @property
+    def _no_progress(self) -> str:
+        cfg = self.config
+        return (f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
+                f"submissions of {len(cfg.chip_rules)} programs")
+
+    def _count_starts(self, run, st, clean, wins, statuses) -> None:
+        """The statistics of compiled starts: ``st`` (rounds, retries, moves applied, rounds and
+        programs with a valid read) and ``clean`` (valid reads per rule) summed over the starts,
+        ``wins`` (best reads per rule) and the status of each start."""
+        cfg = self.config
         rounds, retries, applied, valid_rounds, valid_programs = (int(v) for v in st)
         k = len(cfg.chip_rules)
         m = run.stats["mapping"]["tour"]
@@ -128,20 +149,42 @@ class MoveSelection:
         m["physical_programs"] += rounds * k
         m["subproblems"] += rounds
         m["valid_subproblems"] += valid_rounds
-        if valid_rounds:
-            won = m.setdefault("wins", {})
-            for rule, w in zip(cfg.chip_rules, wins.tolist()):
-                if w:
-                    won[rule] = won.get(rule, 0) + w
+        for row in wins.tolist():  # start by start
+            if any(row):
+                won = m.setdefault("wins", {})
+                for rule, w in zip(cfg.chip_rules, row):
+                    if w:
+                        won[rule] = won.get(rule, 0) + w
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds
-        if status in (STALLED, NO_PROGRESS):
-            run.stats["unsolved"]["moves"] += 1
-        if status == NO_PROGRESS:
-            raise TourFailure(f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
-                              f"submissions of {k} programs")
-        return new
+        for status in statuses:
+            if status in (STALLED, NO_PROGRESS):
+                run.stats["unsolved"]["moves"] += 1
+
+    def _move_starts_compiled(self, dist, run, starts: int):
+        """:meth:`_move_starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
+        charged and counted as the per-start calls; ``None`` (the rng rewound) at a program the
+        quantizer refuses, which the per-start path names."""
+        cfg = self.config
+        capacity = min(int(self.spec.n_spins), cfg.max_moves)
+        state = run.rng.bit_generator.state
+        ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
+            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
+        if not ok:
+            run.rng.bit_generator.state = state
+            return None
+        self.chip.charge_into(calls, emu, run.solver.charged)
+        self._count_starts(run, st, clean, wins, status.tolist())
+        for s, code in enumerate(status.tolist()):
+            if code == NO_PROGRESS:
+                run.stats["failed_starts"] += 1
+            else:
+                run.stats["start_costs"].append(float(costs[s]))
+        if not len(best):
+            raise TourFailure(self._no_progress)
+        return [int(t) for t in best[1:]]
 
     def _select_moves_reference(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """``route`` improved by chip-selected moves until no move improves it (or the chip

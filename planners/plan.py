@@ -119,6 +119,15 @@ def _path_ok(grid, p, ar, ac, br, bc):
     return True
 
 
+@numba.njit(cache=True, nogil=True)
+def _first_visit(p, pos, r, c):
+    """The first step ``>= pos`` of path ``p`` at cell ``(r, c)``, or -1."""
+    for i in range(pos, p.shape[0]):
+        if p[i, 0] == r and p[i, 1] == c:
+            return i
+    return -1
+
+
 def path_problem(world: World, path, a, b) -> str | None:
     """Why ``path`` is not a legal leg from cell ``a`` to cell ``b`` on ``world`` (``None`` if it is).
 
@@ -159,6 +168,7 @@ def validate_plan(world: World, plan: Plan, require_complete: bool = True) -> No
     if len(plan.routes) != world.n_robots:
         raise PlanError(f"plan has {len(plan.routes)} routes for {world.n_robots} robots")
     listed: dict[int, int] = {}
+    targets = np.asarray(world.targets).tolist()
     for k, route in enumerate(plan.routes):
         path = route.path
         if len(path) == 0:
@@ -188,13 +198,18 @@ def validate_plan(world: World, plan: Plan, require_complete: bool = True) -> No
             if t in listed:
                 raise PlanError(f"robot {k}: target {t} is already assigned to robot {listed[t]}")
             listed[t] = k
-            hits = np.flatnonzero((path[pos:] == world.targets[t]).all(axis=1))
-            if len(hits) == 0:
+            r, c = targets[t]
+            if fast_ok:  # an int64 path: the compiled scan
+                hit = int(_first_visit(path, pos, r, c))
+            else:
+                hits = np.flatnonzero((path[pos:, 0] == r) & (path[pos:, 1] == c))
+                hit = pos + int(hits[0]) if len(hits) else -1
+            if hit < 0:
                 raise PlanError(
-                    f"robot {k}: path never reaches target {t} at {world.targets[t].tolist()} "
+                    f"robot {k}: path never reaches target {t} at {[r, c]} "
                     f"after step {pos} (targets must be reached in the listed order)"
                 )
-            pos += int(hits[0])
+            pos = hit
     if require_complete:
         missed = [t for t in range(world.n_targets) if t not in listed]
         if missed:

@@ -131,14 +131,14 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         dist = np.asarray(dist, dtype=np.float64)
         if dist.ndim != 2 or dist.shape[0] != dist.shape[1] or dist.shape[0] < 1:
             raise ValueError(f"dist must be a square (n+1, n+1) matrix, got shape {dist.shape}")
-        if np.any(np.isnan(dist)) or np.any(dist < 0):
+        if np.isnan(dist).any() or (dist < 0).any():
             raise ValueError("dist must hold non-negative distances (no NaN)")
         rng = np.random.default_rng() if rng is None else rng
         n = dist.shape[0] - 1
         run = _Run(rng=rng, stats=self._empty_stats())
         run.solver = MeteredSolver(self.solver)
         run.chip = MeteredSolver(self.chip, run.solver.charged)
-        if not np.all(np.isfinite(dist)):
+        if not np.isfinite(dist).all():
             bad = np.argwhere(~np.isfinite(dist))[0]
             return self._result(run, None, dist,
                                 f"distance {tuple(int(v) for v in bad)} is infinite: targets on different components")

@@ -62,18 +62,33 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
     used = n
     excess = np.zeros(n)
     exj = np.zeros(n, dtype=np.int64)
-    while True:
-        bad_h = False
-        bad_j = False
-        for i in range(n):
-            exj[i] = 0
+    # integral limits: the coupling excesses are integers, kept per pair and updated for the
+    # copied spin's pairs only (the same sums as recomputing them every round)
+    incremental = Lj == np.floor(Lj)
+    pair = np.zeros((n, n), dtype=np.int64)
+    n_bad = 0
+    if incremental:
         for i in range(n):
             for j in range(i + 1, n):
                 e = abs(C[b, i, j]) - Lj * a[i] * a[j]
                 if e > 0:
-                    bad_j = True
+                    pair[i, j] = e
+                    n_bad += 1
                     exj[i] += e
                     exj[j] += e
+    while True:
+        bad_h = False
+        bad_j = n_bad > 0
+        if not incremental:
+            for i in range(n):
+                exj[i] = 0
+            for i in range(n):
+                for j in range(i + 1, n):
+                    e = abs(C[b, i, j]) - Lj * a[i] * a[j]
+                    if e > 0:
+                        bad_j = True
+                        exj[i] += e
+                        exj[j] += e
         for i in range(n):
             e = abs(H[b, i]) - Lh * a[i]
             if e > 0:
@@ -160,6 +175,20 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
                     first = False
         a[pick] += 1
         used += 1
+        if incremental:  # the copied spin's couplings have a larger capacity now
+            for j in range(n):
+                if j == pick:
+                    continue
+                lo, hi = (pick, j) if pick < j else (j, pick)
+                old = pair[lo, hi]
+                if old > 0:
+                    e = abs(C[b, lo, hi]) - Lj * a[lo] * a[hi]
+                    new = np.int64(e) if e > 0 else np.int64(0)
+                    exj[lo] += new - old
+                    exj[hi] += new - old
+                    pair[lo, hi] = new
+                    if new == 0:
+                        n_bad -= 1
 
 
 @numba.njit(cache=True, inline="always")

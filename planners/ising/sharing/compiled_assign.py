@@ -18,6 +18,7 @@ from numba import types
 from numba.typed import Dict
 
 from planners.ising.numeric import pairwise_sum
+from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
     BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, popcount, problems_of, reserve,
     solve_problems, split_states,
@@ -27,7 +28,7 @@ from planners.tours_classical import _exact_route_cost
 __all__ = ["assign_kernel", "split_weights_kernel", "pair_mean", "ORDER_IDS"]
 
 _PAIR_KEY = types.UniTuple(types.int64, 4)  # (k, l, targets of k, targets of l)
-ORDER_IDS = {"creation": 0, "far_first": 1, "near_first": 2, "largest_first": 3}  # config.BUNDLE_ORDERS
+ORDER_IDS = {name: i for i, name in enumerate(BUNDLE_ORDERS)}  # creation, far_first, near_first, largest_first
 
 
 @numba.njit(cache=True)

@@ -69,12 +69,17 @@ class MoveSelection:
         return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads,
                 *self.chip.kernel_args())
 
+    @cached_property
+    def _kernel_chip(self) -> bool:
+        """Whether the compiled loops may call this chip's kernel (:func:`ising_backend.kernel_capable`)."""
+        return kernel_capable(self.chip) and hasattr(self.chip, "kernel_args")
+
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
-        if not kicks and kernel_capable(self.chip) and hasattr(self.chip, "kernel_args"):
+        if not kicks and self._kernel_chip:
             out = self._move_starts_compiled(dist, run, starts)
             if out is not None:
                 return out
@@ -104,7 +109,7 @@ class MoveSelection:
     def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """One start: the compiled loop (:mod:`.move_engine`) on a chip whose kernel it may call,
         else :meth:`_select_moves_reference`."""
-        if kernel_capable(self.chip) and hasattr(self.chip, "kernel_args"):
+        if self._kernel_chip:
             out = self._select_moves_compiled(dist, route, run)
             if out is not None:
                 return out

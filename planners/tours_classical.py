@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from planners.base import TourResult
 
@@ -290,37 +291,46 @@ def _three_opt_open(d, full):
 def _held_karp_dp(d, par, best):
     """Held-Karp table over nodes 1..n: ``dp[s, j]`` is the cheapest open route from
     node 0 visiting exactly the bitmask ``s`` (bit ``j`` = node ``j + 1``) and ending
-    at node ``j + 1``.  Parents go into ``par`` (same shape) unless it is ``(0, 0)``;
-    ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best`` is empty."""
+    at node ``j + 1`` (defined for ``j`` in ``s``).  Parents go into ``par`` (same shape)
+    unless it is ``(0, 0)``; ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best``
+    is empty.
+
+    Each entry is pulled from its predecessor set, whose members are walked by their set
+    bits in increasing order; a strictly smaller sum wins, so the parent is the smallest
+    ``j`` of least cost and every value is the same float sum as in any other order."""
     m = d.shape[0]
     n = m - 1
     size = 1 << n
     track = par.shape[0] > 0
     subsets = best.shape[0] > 0
-    dp = np.full((size, n), np.inf)
+    dp = np.empty((size, n))
     if subsets:
         best[0] = 0.0
-    for j in range(n):
-        dp[1 << j, j] = d[0, j + 1]
     for s in range(1, size):
         bs = np.inf
-        for j in range(n):
-            if not (s >> j) & 1:
-                continue
-            cur = dp[s, j]
-            if cur < bs:
-                bs = cur
-            if cur == np.inf:
-                continue
-            for x in range(n):
-                if (s >> x) & 1:
-                    continue
-                ns = s | (1 << x)
-                v = cur + d[j + 1, x + 1]
-                if v < dp[ns, x]:
-                    dp[ns, x] = v
-                    if track:
-                        par[ns, x] = j
+        xs = s
+        while xs:
+            x = trailing_zeros(xs)
+            xs &= xs - 1
+            prev = s ^ (1 << x)
+            if prev == 0:
+                v = d[0, x + 1]
+            else:
+                v = np.inf
+                pj = -1
+                js = prev
+                while js:
+                    j = trailing_zeros(js)
+                    js &= js - 1
+                    c = dp[prev, j] + d[j + 1, x + 1]
+                    if c < v:
+                        v = c
+                        pj = j
+                if track and pj >= 0:
+                    par[s, x] = pj
+            dp[s, x] = v
+            if v < bs:
+                bs = v
         if subsets:
             best[s] = bs
     return dp

@@ -4,11 +4,14 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mrmt_env import generate_world
 from planners.tours_classical import (
     MAX_BRUTE_TARGETS,
     BruteTour,
+    _held_karp_dp,
     NearestNeighbourTour,
     ThreeOptTour,
     TwoOptTour,
@@ -115,3 +118,46 @@ def test_held_karp_subset_costs_match_brute():
         nodes = [j + 1 for j in range(6) if mask >> j & 1]
         sub = d[np.ix_([0] + nodes, [0] + nodes)]
         assert best[mask] == pytest.approx(_enumerate(sub))
+
+
+def _held_karp_push(d):
+    """The textbook push-form Held-Karp (the reference of the compiled pull form)."""
+    n = d.shape[0] - 1
+    dp = np.full((1 << n, n), np.inf)
+    par = np.full((1 << n, n), -1, dtype=np.int64)
+    best = np.full(1 << n, np.inf)
+    best[0] = 0.0
+    for j in range(n):
+        dp[1 << j, j] = d[0, j + 1]
+    for s in range(1, 1 << n):
+        best[s] = min(dp[s, j] for j in range(n) if s >> j & 1)
+        for j in range(n):
+            if not s >> j & 1 or dp[s, j] == np.inf:
+                continue
+            for x in range(n):
+                if not s >> x & 1 and dp[s, j] + d[j + 1, x + 1] < dp[s | 1 << x, x]:
+                    dp[s | 1 << x, x] = dp[s, j] + d[j + 1, x + 1]
+                    par[s | 1 << x, x] = j
+    return dp, par, best
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 7), st.integers(0, 2**32 - 1), st.sampled_from(["ties", "euclid", "inf"]))
+def test_held_karp_table_matches_push_reference(n, seed, kind):
+    """Same values (bit for bit), parents (the smallest j of least cost) and subset minima,
+    on tie-heavy integer, Euclidean and partly unreachable instances."""
+    rng = np.random.default_rng(seed)
+    if kind == "euclid":
+        d = _instance(seed % 1000, n, "euclid")
+    else:
+        d = rng.integers(1, 4, (n + 1, n + 1)).astype(float)
+        if kind == "inf":
+            d[rng.random(d.shape) < 0.3] = np.inf
+    ref_dp, ref_par, ref_best = _held_karp_push(d)
+    par = np.full((1 << n, n), -1, dtype=np.int64)
+    best = np.full(1 << n, -1.0)
+    dp = _held_karp_dp(d, par, best)
+    member = np.array([[s >> j & 1 for j in range(n)] for s in range(1 << n)], dtype=bool)
+    assert np.array_equal(dp[member], ref_dp[member])
+    assert np.array_equal(par, ref_par)
+    assert np.array_equal(best, ref_best)

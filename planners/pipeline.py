@@ -128,28 +128,40 @@ def merge_stats(into: dict, new: dict) -> dict:
     """Merge layer ``new`` stats into ``into`` in place (rules in the module docstring)."""
     for key, value in new.items():
         old = into.get(key)
-        tv, to = type(value), type(old)
-        if (tv is int or tv is float) and (to is int or to is float):  # fast path: counters
-            into[key] = old + value
-            continue
+        tv = type(value)
+        if tv is int or tv is float:  # fast path: counters
+            to = type(old)
+            if to is int or to is float:
+                into[key] = old + value
+                continue
         if key == "failure":
             continue
-        if isinstance(value, dict):
+        if tv is dict:
             into[key] = merge_stats(old if isinstance(old, dict) else {}, value)
-        elif isinstance(value, list):
-            into[key] = (list(old) if isinstance(old, list) else []) + list(value)
-        elif isinstance(value, (bool, np.bool_)) and isinstance(old, (bool, np.bool_)):
-            into[key] = bool(old or value)
-        elif (
-            isinstance(value, (int, float, np.integer, np.floating))
-            and not isinstance(value, (bool, np.bool_))
-            and isinstance(old, (int, float, np.integer, np.floating))
-            and not isinstance(old, (bool, np.bool_))
-        ):
-            into[key] = old + value
+        elif old is None:  # a new entry: a copy of a list or dict, any other value as it is
+            into[key] = merge_stats({}, value) if isinstance(value, dict) else (
+                list(value) if isinstance(value, list) else value)
         else:
-            into[key] = value
+            into[key] = _merged(old, value)
     return into
+
+
+def _merged(old, value):
+    """The merged value of an entry already in the stats (the general rules)."""
+    if isinstance(value, dict):
+        return merge_stats(old if isinstance(old, dict) else {}, value)
+    if isinstance(value, list):
+        return (list(old) if isinstance(old, list) else []) + list(value)
+    if isinstance(value, (bool, np.bool_)) and isinstance(old, (bool, np.bool_)):
+        return bool(old or value)
+    if (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, (bool, np.bool_))
+        and isinstance(old, (int, float, np.integer, np.floating))
+        and not isinstance(old, (bool, np.bool_))
+    ):
+        return old + value
+    return value
 
 
 def _assignment_problem(assignment, n_robots: int, n_targets: int) -> str | None:

@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mrmt_env import World, generate_world
 from planners import registry
@@ -126,6 +128,62 @@ def test_merge_stats_rules():
     acc = merge_stats({}, {"n": 1, "f": True, "d": {"a": 1.5}, "l": [1], "s": "a", "failure": "x"})
     merge_stats(acc, {"n": 2, "f": False, "d": {"a": 1.0, "b": 2}, "l": [2], "s": "b"})
     assert acc == {"n": 3, "f": True, "d": {"a": 2.5, "b": 2}, "l": [1, 2], "s": "b"}
+
+
+def _merge_reference(into: dict, new: dict) -> dict:
+    """The merge rules written out one by one (the reference of the fast paths)."""
+    for key, value in new.items():
+        old = into.get(key)
+        tv, to = type(value), type(old)
+        if (tv is int or tv is float) and (to is int or to is float):
+            into[key] = old + value
+            continue
+        if key == "failure":
+            continue
+        num, truth = (int, float, np.integer, np.floating), (bool, np.bool_)
+        if isinstance(value, dict):
+            into[key] = _merge_reference(old if isinstance(old, dict) else {}, value)
+        elif isinstance(value, list):
+            into[key] = (list(old) if isinstance(old, list) else []) + list(value)
+        elif isinstance(value, truth) and isinstance(old, truth):
+            into[key] = bool(old or value)
+        elif (isinstance(value, num) and not isinstance(value, truth)
+              and isinstance(old, num) and not isinstance(old, truth)):
+            into[key] = old + value
+        else:
+            into[key] = value
+    return into
+
+
+_leaf = st.one_of(st.integers(-5, 5), st.floats(-2, 2), st.booleans(), st.none(), st.text(max_size=2),
+                  st.integers(0, 3).map(np.int64), st.booleans().map(np.bool_), st.lists(st.integers(0, 3), max_size=3))
+_stats = st.recursive(_leaf, lambda inner: st.dictionaries(st.sampled_from(["a", "b", "failure", "n"]), inner,
+                                                           max_size=4), max_leaves=12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.dictionaries(st.sampled_from(["a", "b", "c", "failure", "mapping"]), _stats, max_size=5),
+                min_size=1, max_size=4))
+def test_merge_stats_matches_the_rules(layers):
+    """Merging layer after layer gives what the rules say, with the same types, and never
+    shares a list or dict with a layer's stats."""
+    import copy
+
+    kept = copy.deepcopy(layers)
+    fast, ref = {}, {}
+    for new in layers:
+        merge_stats(fast, new)
+        _merge_reference(ref, copy.deepcopy(new))
+        assert repr(fast) == repr(ref)
+    assert repr(layers) == repr(kept)
+
+    def containers(x):
+        if isinstance(x, (dict, list)):
+            yield id(x)
+            for v in (x.values() if isinstance(x, dict) else x):
+                yield from containers(v)
+
+    assert not set(containers(fast)) & set(containers(layers))
 
 
 class FailingPath:

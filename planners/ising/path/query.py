@@ -51,9 +51,13 @@ class QueryEnds:
         """``(k, H, W)`` BFS fields -> int64, padded by the patch radius; unreachable and outside cells
         get a distance beyond any path."""
         far = np.int64(2**40)
-        fields = np.where(fields < 0, far, fields.astype(np.int64))
         r = self.frame.radius
-        return np.pad(fields, ((0, 0), (r, r), (r, r)), constant_values=far)
+        k, h, w = fields.shape
+        out = np.full((k, h + 2 * r, w + 2 * r), far, dtype=np.int64)
+        inner = out[:, r: r + h, r: r + w]
+        inner[...] = fields
+        inner[fields < 0] = far
+        return out
 
     def _finish(self, grid, s, g, walk, counts, mapping, delta, failure, first_map_error):
         """The query's :class:`PathResult`: compute from the metered charge, statistics, the

@@ -110,7 +110,10 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
         cached = self._padded_for
         if cached is not None and cached[0] is grid:
             return cached[1]
-        padded = np.pad(np.asarray(grid, dtype=bool), self.frame.radius, constant_values=True)
+        r = self.frame.radius
+        h, w = grid.shape
+        padded = np.ones((h + 2 * r, w + 2 * r), dtype=bool)
+        padded[r: r + h, r: r + w] = grid
         self._padded_for = (grid, padded)
         return padded
 

@@ -177,7 +177,8 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
                   mismatch, flip_prob, out_spins, out_energy):
     """Anneal ``B`` programs x ``num_reads`` reads in place into ``out_spins`` / ``out_energy``.
 
-    ``h`` / ``J`` are int64 or float64 (compiled once per dtype; same samples).
+    ``h`` / ``J`` are int16, int64 or float64 (compiled once per dtype; same samples): a
+    compiled planner hands its integer chip programs over as they are.
 
     ``beta_hot <= 0`` selects the automatic per-program range.  ``mismatch`` is
     ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)`` for none); read ``k`` runs

@@ -108,6 +108,29 @@ def test_shapes_dtypes_energies_and_determinism():
     assert np.array_equal(ss1.record.sample, ss2.record.sample)
 
 
+@pytest.mark.parametrize("mismatch", [False, True])
+def test_kernel_gives_the_same_samples_for_every_coefficient_dtype(mismatch):
+    """Integer programs handed to the kernel as int16 (the compiled path planner), int64 or
+    float64 anneal to the same spins and energies."""
+    from ising_backend.anneal import anneal_kernel
+
+    rng = np.random.default_rng(11)
+    B, n, R = 5, 17, 2
+    h = rng.integers(-7, 8, (B, n))
+    J = np.triu(rng.integers(-7, 8, (B, n, n)), 1)
+    chip = EmulatedChip(ChipSpec(readout_flip_prob=0.1), seed=4) if mismatch else EmulatedChip(ChipSpec().noise_free())
+    sweeps, geometric, hot, cold, mm, flip = chip.kernel_args()
+    out = []
+    for dtype in (np.int16, np.int64, np.float64):
+        spins = np.empty((B, R, n), dtype=np.int8)
+        energies = np.empty((B, R))
+        anneal_kernel(h.astype(dtype), J.astype(dtype), R, np.uint64(9), sweeps, geometric, hot, cold, mm, flip,
+                      spins, energies)
+        out.append((spins, energies))
+    for spins, energies in out[1:]:
+        assert np.array_equal(spins, out[0][0]) and np.array_equal(energies, out[0][1])
+
+
 def test_single_program_entry_and_empty_programs():
     chip = EmulatedChip(seed=0)
     s, e = chip.anneal_batch([1, -1], [[0, -2], [0, 0]], num_reads=2)

@@ -49,8 +49,10 @@ class ProgramPool:
         self.lJ = np.zeros((cap, nv, nv))
         self.loff = np.zeros(cap)
         self.width = np.zeros(cap, dtype=np.int64)
-        self.ph = np.zeros((cap, n_styles, N), dtype=np.int16)
-        self.pJ = np.zeros((cap, n_styles, N, N), dtype=np.int16)
+        # a slot's k chip programs of width w, C order in the first k*w (k*w*w) entries: the
+        # integer coefficients the chip takes, handed to its kernel as they are
+        self.ph = np.zeros((cap, n_styles * N), dtype=np.int16)
+        self.pJ = np.zeros((cap, n_styles * N * N), dtype=np.int16)
         self.ptr = np.zeros((cap, n_styles, nv + 1), dtype=np.int64)
         self.idx = np.zeros((cap, n_styles, N), dtype=np.int64)
 
@@ -120,10 +122,10 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
     if m > 0:
         for s in range(k):
             for i in range(w):
-                ph[slot, s, i] = np.int16(hp[s, i])
+                ph[slot, s * w + i] = np.int16(hp[s, i])
                 idx[slot, s, i] = ii[s, i]
                 for j in range(w):
-                    pJ[slot, s, i, j] = np.int16(Jp[s, i, j])
+                    pJ[slot, (s * w + i) * w + j] = np.int16(Jp[s, i, j])
             ptr[slot, s, : m + 1] = pp[s]
     return slot
 
@@ -209,17 +211,12 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
         else:
             seed = rng.integers(0, 9223372036854775807)
             w = width[slot]
-            hf = np.empty((k, w))
-            Jf = np.empty((k, w, w))
-            for s in range(k):
-                for i in range(w):
-                    hf[s, i] = ph[slot, s, i]
-                    for j in range(w):
-                        Jf[s, i, j] = pJ[slot, s, i, j]
             spins = np.empty((k, num_reads, w), dtype=np.int8)
             energies = np.empty((k, num_reads))
-            sub_emu[nsub] = anneal_kernel_timed(hf, Jf, num_reads, np.uint64(seed), sweeps, geometric, beta_hot,
-                                                beta_cold, mismatch, flip_prob, spins, energies)
+            sub_emu[nsub] = anneal_kernel_timed(ph[slot, : k * w].reshape((k, w)),
+                                                pJ[slot, : k * w * w].reshape((k, w, w)), num_reads,
+                                                np.uint64(seed), sweeps, geometric, beta_hot, beta_cold, mismatch,
+                                                flip_prob, spins, energies)
             sub_calls[nsub] = k * num_reads
             nsub += 1
             used += k * num_reads

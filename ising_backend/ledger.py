@@ -93,10 +93,12 @@ class CallLedger:
         submission is charged in order to this ledger, its live snapshots and ``into`` (the same
         float additions, so the same bits), without a ledger object per submission.  Returns the
         last submission's ledger (``None`` for no submission)."""
-        calls = [int(c) for c in calls]
-        seconds = [float(t) for t in seconds]
+        calls = calls.tolist() if hasattr(calls, "tolist") else [int(c) for c in calls]
+        seconds = seconds.tolist() if hasattr(seconds, "tolist") else [float(t) for t in seconds]
         if len(calls) != len(seconds):
             raise ValueError(f"record_into: {len(calls)} call counts for {len(seconds)} emulation times")
+        if not calls:
+            return None
         for c in calls:
             if c < 0:
                 raise ValueError(f"calls = {c} must be >= 0")
@@ -105,22 +107,32 @@ class CallLedger:
         if self._taps:
             totals += [snap._charged_since.__dict__ for snap in list(self._taps.values())]
         n_cores, solve_s, energy = spec.n_cores, spec.solve_time_s, spec.energy_per_call_j
-        for c, t in zip(calls, seconds):
-            b = math.ceil(c / n_cores)
-            ct, pt, e = c * solve_s, b * solve_s, c * energy
+        batches = [math.ceil(c / n_cores) for c in calls]
+        n_calls, n_batches = sum(calls), sum(batches)
+        ct = [c * solve_s for c in calls]
+        pt = [b * solve_s for b in batches]
+        en = [c * energy for c in calls]
+        if len({id(d) for d in totals}) < len(totals):  # a ledger charged twice: submission by submission
+            for i in range(len(calls)):
+                for d in totals:
+                    d[ck] += calls[i]
+                    d[bk] += batches[i]
+                    d["chip_time_s"] += ct[i]
+                    d["chip_time_parallel_s"] += pt[i]
+                    d["energy_j"] += en[i]
+                    d["emulation_s"] += seconds[i]
+        else:  # each total on its own: the same additions in the same order
             for d in totals:
-                d[ck] += c
-                d[bk] += b
-                d["chip_time_s"] += ct
-                d["chip_time_parallel_s"] += pt
-                d["energy_j"] += e
-                d["emulation_s"] += t
-        if not calls:
-            return None
-        c, t = calls[-1], seconds[-1]
-        b = math.ceil(c / n_cores)
-        return CallLedger(**{ck: c, bk: b}, chip_time_s=c * solve_s, chip_time_parallel_s=b * solve_s,
-                          energy_j=c * energy, emulation_s=t)
+                d[ck] += n_calls
+                d[bk] += n_batches
+                for field, adds in (("chip_time_s", ct), ("chip_time_parallel_s", pt), ("energy_j", en),
+                                    ("emulation_s", seconds)):
+                    v = d[field]
+                    for x in adds:
+                        v += x
+                    d[field] = v
+        return CallLedger(**{ck: calls[-1], bk: batches[-1]}, chip_time_s=ct[-1], chip_time_parallel_s=pt[-1],
+                          energy_j=en[-1], emulation_s=seconds[-1])
 
     def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool, cores: int | None = None,
                 retries: int = 0, probe_calls: int = 0) -> "CallLedger":

@@ -234,3 +234,9 @@ def test_record_into_charges_as_record_each_and_adding_each_ledger(logical):
         new.record_into([3, -1], [0.0, 0.0], spec, into_new)
     with pytest.raises(ValueError, match="2 call counts for 1"):
         new.record_into([3, 1], [0.0], spec, into_new)
+    # charging a ledger into itself adds each submission twice, one after the other
+    for c, t in zip(calls, secs):
+        ref._add_in_place(ref._record(c, spec, t, logical))
+    new.record_into(calls, secs, spec, new, logical)
+    assert new.to_dict() == ref.to_dict()
+    assert new.since(snap_new).to_dict() == ref.since(snap_ref).to_dict()

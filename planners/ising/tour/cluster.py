@@ -8,9 +8,9 @@ ordering limit).  Choices: docs/design/ising_tour.md.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
+
+from ising_backend import CallLedger, MeteredSolver
 
 from planners.ising.tour.kernels import cluster_distances, maxcut_ising
 from planners.ising.tour.qubo import cut_value
@@ -18,15 +18,32 @@ from planners.ising.tour.qubo import cut_value
 __all__ = ["TourFailure", "Clustering"]
 
 
-@dataclass
 class _Run:
-    """Per-solve bookkeeping of :class:`~planners.ising.tour.IsingTour`: the rng, statistics and
-    the metered solvers (``ising_backend.MeteredSolver``)."""
+    """Per-solve bookkeeping of :class:`~planners.ising.tour.IsingTour`: the rng, statistics, the
+    solve's charge and its metered solvers (``ising_backend.MeteredSolver`` of the tour's logical
+    solver and chip, made on first use, both charging ``charged``)."""
 
-    rng: np.random.Generator
-    stats: dict = field(default_factory=dict)
-    solver: object = None
-    chip: object = None
+    __slots__ = ("rng", "stats", "charged", "_tour", "_solver", "_chip")
+
+    def __init__(self, rng: np.random.Generator, stats: dict, tour=None):
+        self.rng = rng
+        self.stats = stats
+        self.charged = CallLedger()
+        self._tour = tour
+        self._solver = None
+        self._chip = None
+
+    @property
+    def solver(self) -> MeteredSolver:
+        if self._solver is None:
+            self._solver = MeteredSolver(self._tour.solver, self.charged)
+        return self._solver
+
+    @property
+    def chip(self) -> MeteredSolver:
+        if self._chip is None:
+            self._chip = MeteredSolver(self._tour.chip, self.charged)
+        return self._chip
 
 
 class TourFailure(RuntimeError):

@@ -7,6 +7,8 @@
   into ``2^k`` reduced programs as stacked arrays; :func:`expand_branches` puts the frozen
   spins back into every read.
 * :func:`best_onehot` -- one-hot decode of every read and the cheapest valid order.
+* :func:`dist_flags` / :func:`route_cost` -- the solve's input check and the cost of its route
+  (numpy's summation order).
 
 The numpy functions of :mod:`.qubo` and :mod:`ising_backend.branching` are the references
 the tests compare these against.
@@ -19,7 +21,8 @@ import numpy as np
 
 from planners.ising.numeric import pairwise_sum
 
-__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances"]
+__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances",
+           "dist_flags", "route_cost"]
 
 
 @numba.njit(cache=True)
@@ -211,3 +214,32 @@ def cluster_distances(dist, flat, ptr, mean):
                         best = v
             D[a, b] = pairwise_sum(buf, 0, m) / m if mean else best
     return D
+
+
+@numba.njit(cache=True)
+def dist_flags(dist):
+    """``(code, r, c)``: code 1 if an entry is NaN or negative; else 2 if one is infinite, ``(r, c)``
+    the first in row-major order; else 0."""
+    ir = -1
+    ic = -1
+    for i in range(dist.shape[0]):
+        for j in range(dist.shape[1]):
+            v = dist[i, j]
+            if not v >= 0.0:
+                return 1, i, j
+            if ir < 0 and v == np.inf:
+                ir = i
+                ic = j
+    return (2, ir, ic) if ir >= 0 else (0, -1, -1)
+
+
+@numba.njit(cache=True)
+def route_cost(dist, order):
+    """Cost of the open route ``0, order[0], order[1], ...`` under ``dist`` (``np.sum``'s bits)."""
+    n = order.shape[0]
+    legs = np.empty(n)
+    prev = 0
+    for i in range(n):
+        legs[i] = dist[prev, order[i]]
+        prev = order[i]
+    return pairwise_sum(legs, 0, n)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ising_backend import (
-    ChipUnavailableError, IsingModel, LogicalIsingSolver, MeteredSolver, SolverOutputError, freeze_order, quantize,
+    ChipUnavailableError, IsingModel, LogicalIsingSolver, SolverOutputError, freeze_order, quantize,
 )
 from planners.base import TourResult
 from planners.compute import ComputeReport
@@ -29,7 +29,7 @@ from planners.ising.fallback import counted, flag, unavailable_message, wants_fa
 from planners.ising.tour.cluster import Clustering, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.engine import solve_order
-from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
+from planners.ising.tour.kernels import best_onehot, branch_stack, dist_flags, expand_branches, onehot_ising, route_cost
 from planners.ising.tour.qubo import onehot_penalty
 from planners.ising.tour.selection import MoveSelection
 
@@ -131,17 +131,15 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         dist = np.asarray(dist, dtype=np.float64)
         if dist.ndim != 2 or dist.shape[0] != dist.shape[1] or dist.shape[0] < 1:
             raise ValueError(f"dist must be a square (n+1, n+1) matrix, got shape {dist.shape}")
-        if np.isnan(dist).any() or (dist < 0).any():
+        flag, r, c = dist_flags(dist)
+        if flag == 1:
             raise ValueError("dist must hold non-negative distances (no NaN)")
         rng = np.random.default_rng() if rng is None else rng
         n = dist.shape[0] - 1
-        run = _Run(rng=rng, stats=self._empty_stats())
-        run.solver = MeteredSolver(self.solver)
-        run.chip = MeteredSolver(self.chip, run.solver.charged)
-        if not np.isfinite(dist).all():
-            bad = np.argwhere(~np.isfinite(dist))[0]
+        run = _Run(rng, self._empty_stats(), self)
+        if flag == 2:
             return self._result(run, None, dist,
-                                f"distance {tuple(int(v) for v in bad)} is infinite: targets on different components")
+                                f"distance {(int(r), int(c))} is infinite: targets on different components")
         if n == 0:
             return self._result(run, (), dist)
         if self.config.backend == "chip":
@@ -200,7 +198,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
 
         res = ThreeOptTour().solve(dist, run.rng)
         return TourResult(order=res.order, cost=res.cost, stats=flag(run.stats, "tour", reason),
-                          compute=counted(ComputeReport.from_ledger(run.solver.charged), res.compute))
+                          compute=counted(ComputeReport.from_ledger(run.charged), res.compute))
 
 
     # ------------------------------------------------------------------ 3. local TSPs
@@ -294,7 +292,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         s = d.shape[0]
         order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
                                             cfg.num_reads, *self.solver.kernel_args(s * s))
-        charged = run.solver.charged
+        charged = run.charged
         self.solver.charge_into(calls, emu, charged)
         m = run.stats["mapping"]["tour"]
         m["programs"] += int(st[0])
@@ -331,7 +329,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         }
 
     def _result(self, run: _Run, order, dist, failure: str | None = None) -> TourResult:
-        compute = ComputeReport.from_ledger(run.solver.charged)
+        compute = ComputeReport.from_ledger(run.charged)
         if failure is not None:
             return TourResult(order=(), cost=math.inf, compute=compute, stats=run.stats, failure=failure)
         return TourResult(order=tuple(order), cost=_tour_cost(dist, list(order)), compute=compute, stats=run.stats)
@@ -345,7 +343,6 @@ class PaperIsingTour(IsingTour):
 
 
 def _tour_cost(dist: np.ndarray, tour: list[int]) -> float:
-    if not tour:
+    if not len(tour):
         return 0.0
-    nodes = np.asarray([0] + list(tour))
-    return float(dist[nodes[:-1], nodes[1:]].sum())
+    return float(route_cost(dist, np.asarray(tour, dtype=np.int64)))

@@ -126,7 +126,7 @@ class MoveSelection:
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
             return None
-        self.chip.charge_into(calls, emu, run.solver.charged)
+        self.chip.charge_into(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
@@ -180,7 +180,7 @@ class MoveSelection:
         if not ok:
             run.rng.bit_generator.state = state
             return None
-        self.chip.charge_into(calls, emu, run.solver.charged)
+        self.chip.charge_into(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins, status.tolist())
         for s, code in enumerate(status.tolist()):
             if code == NO_PROGRESS:

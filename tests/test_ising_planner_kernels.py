@@ -20,7 +20,9 @@ from planners.ising.path.kernels import extract_path, neighbour_table, rank_loca
 from planners.ising.path.qubo import build_patch_qubo, build_patch_qubo_reference, component_of, patch_frame
 from planners.ising.sharing.kernels import score_split_reads, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
-from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, maxcut_ising, onehot_ising
+from planners.ising.tour.kernels import (
+    best_onehot, branch_stack, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,
+)
 from planners.ising.tour.qubo import decode_onehot_batch, maxcut_qubo, onehot_penalty, open_path_qubo
 from planners.tours_classical import BruteTour, exact_route_cost
 
@@ -521,3 +523,35 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     out = run(bad)
     assert not out[0] and out[1] == 0 and len(out[5]) == 0
     assert not run(q, Lh=7.5)[0]  # a non-integer limit: the quantized fields are not the chip's integers
+
+
+# ----------------------------------------------------------------------------- tour solve helpers
+@SETTINGS
+@given(st.integers(1, 40), st.integers(0, 2**32 - 1), st.booleans())
+def test_route_cost_is_numpy_sum(n, seed, integral):
+    """The compiled route cost has the bits of ``dist[nodes[:-1], nodes[1:]].sum()`` (pairwise
+    summation above 8 legs)."""
+    rng = np.random.default_rng(seed)
+    d = rng.integers(0, 30, (n + 1, n + 1)).astype(float) if integral else rng.random((n + 1, n + 1)) * 1e3
+    order = rng.permutation(np.arange(1, n + 1))
+    nodes = np.concatenate([[0], order])
+    assert route_cost(d, order) == d[nodes[:-1], nodes[1:]].sum()
+
+
+@SETTINGS
+@given(st.integers(1, 6), st.integers(0, 2**32 - 1), st.floats(0.0, 0.3), st.floats(0.0, 0.3), st.floats(0.0, 0.3))
+def test_dist_flags_is_the_numpy_checks(n, seed, p_nan, p_neg, p_inf):
+    """Code 1 iff an entry is NaN or negative, else 2 with the first infinite entry (row-major) iff
+    one is infinite, else 0."""
+    rng = np.random.default_rng(seed)
+    d = rng.random((n, n)) * 10
+    d[rng.random((n, n)) < p_inf] = np.inf
+    d[rng.random((n, n)) < p_nan] = np.nan
+    d[rng.random((n, n)) < p_neg] = -1.0
+    code, r, c = dist_flags(d)
+    if np.isnan(d).any() or (d < 0).any():
+        assert code == 1
+    elif not np.isfinite(d).all():
+        assert code == 2 and (r, c) == tuple(np.argwhere(~np.isfinite(d))[0])
+    else:
+        assert (code, r, c) == (0, -1, -1)

@@ -259,13 +259,15 @@ class Pipeline:
                         ordered = []
                     else:
                         ordered = [group[i - 1] for i in tres.order]
-                cells = [start] + [world.targets[t] for t in ordered]
+                cells = np.empty((len(ordered) + 1, 2), dtype=np.int64)  # the start, then the stops
+                cells[0] = start
+                cells[1:] = world.targets[ordered]
                 pieces = [start.reshape(1, 2)]
                 reached: list[int] = []
                 batched: list = []
                 if self._batch_paths and len(ordered) > 1:  # the legs the layer plans in one call
                     t0 = _clock()
-                    batch = self.path.find_paths(world, np.asarray(cells), rng)
+                    batch = self.path.find_paths(world, cells, rng)
                     acc["path"].add(batch.compute, _clock() - t0)
                     if batch.paths:
                         merge_stats(stats, batch.stats)
@@ -273,23 +275,24 @@ class Pipeline:
                 for j in range(len(ordered)):
                     a, b = cells[j], cells[j + 1]
                     if j < len(batched):
-                        pres = PathResult(batched[j])
+                        path, failure = batched[j], None
                     else:
                         t0 = _clock()
                         pres: PathResult = self.path.find_path(world, a, b, rng)
                         acc["path"].add(pres.compute, _clock() - t0)
                         if pres.stats:
                             merge_stats(stats, pres.stats)
-                    if pres.path is None:
-                        problem = pres.failure or "path layer gave no path"
+                        path, failure = pres.path, pres.failure
+                    if path is None:
+                        problem = failure or "path layer gave no path"
                     else:
-                        problem = path_problem(world, pres.path, a, b)
+                        problem = path_problem(world, path, a, b)
                     if problem:
                         failures.append(
                             f"robot {k} leg {j} ({a.tolist()} -> target {ordered[j]} at {b.tolist()}): {problem}"
                         )
                         break
-                    pieces.append(np.asarray(pres.path, dtype=np.int64)[1:])
+                    pieces.append(np.asarray(path, dtype=np.int64)[1:])
                     reached.append(ordered[j])
                 routes.append(RobotRoute(tuple(reached), np.concatenate(pieces, axis=0)))
             routes = tuple(routes)

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from ising_backend import CallLedger
+from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 
 __all__ = ["LegBatch", "BatchedLegs", "run_legs", "cut_walk"]
@@ -72,6 +74,18 @@ def cut_walk(walk, grid, sr, sc, gr, gc, cut):
         if t and abs(r - out[t - 1, 0]) + abs(c - out[t - 1, 1]) != 1:
             ok = False
     return ok, out[:m]
+
+
+@numba.njit(cache=True)
+def usable_legs(cells, grid):
+    """The legs of ``cells`` ``(L + 1, 2)`` before the first cell off ``grid`` or on an obstacle (the
+    leg into it and, for a bad start, the first leg are left to ``find_path``, which names it)."""
+    H, W = grid.shape
+    for i in range(cells.shape[0]):
+        r, c = cells[i, 0], cells[i, 1]
+        if not (0 <= r < H and 0 <= c < W) or grid[r, c]:
+            return max(i - 1, 0)
+    return cells.shape[0] - 1
 
 
 @numba.njit(cache=True)
@@ -132,19 +146,10 @@ class BatchedLegs:
     def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
         the compiled loop cannot finish (module docstring)."""
-        from ising_backend import CallLedger
-        from planners.compute import ComputeReport
-
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        grid = world.grid
-        h, w = grid.shape
         if self._engine_args is None or len(cells) < 2:
             return LegBatch(compute=ComputeReport())
-        inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
-        usable = inside.copy()
-        usable[inside] = ~grid[cells[inside, 0], cells[inside, 1]]
-        # legs up to the first bad cell (find_path names it)
-        n_legs = len(cells) - 1 if usable.all() else max(int(np.argmin(usable)) - 1, 0)
+        n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
         if n_legs == 0:
             return LegBatch(compute=ComputeReport())
         stops = cells[: n_legs + 1]

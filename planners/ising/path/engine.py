@@ -56,9 +56,11 @@ class ProgramPool:
         self.ptr = np.zeros((cap, n_styles, nv + 1), dtype=np.int64)
         self.idx = np.zeros((cap, n_styles, N), dtype=np.int64)
 
+        self._arrays = (self.keys, self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width,
+                        self.ph, self.pJ, self.ptr, self.idx)
+
     def arrays(self) -> tuple:
-        return (self.keys, self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width, self.ph,
-                self.pJ, self.ptr, self.idx)
+        return self._arrays
 
 
 @numba.njit(cache=True)
@@ -303,13 +305,19 @@ class CompiledSearch:
 
     def _loop_args(self, grid) -> tuple:
         """:func:`run_query`'s arguments after the goal: the patch frame, the search options, the
-        budgets on ``grid``, the mapping and chip arguments and the free-cell count."""
+        budgets on ``grid``, the mapping and chip arguments and the free-cell count (memoised for
+        the last grid)."""
+        cached = self._loop_for
+        if cached is not None and cached[0] is grid:
+            return cached[1]
         cfg = self.config
         fr = self.frame
         max_attempts, _per_target, max_calls = self._budgets(grid)
-        return (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
+        args = (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
                 cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
                 *self._engine_args, self._free_cells(grid))
+        self._loop_for = (grid, args)
+        return args
 
     def _run_engine(self, grid, s, g, rng, field):
         """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per

@@ -91,6 +91,7 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
         self._limits = (lim[0], lim[1], int(spec.n_spins))
         self._style_ids = np.array([MERGE_STYLE_IDS[st] for st in cfg.styles], dtype=np.int64)
         self._free_for = None
+        self._loop_for = None  # (grid, the compiled loop's arguments on it) of the last grid
         self._engine_args = None
         if engine_capable(self.chip) and not cfg.pack and cfg.targets_per_call == 1 and cfg.patch_size <= 7:
             w = cfg.full_weights

@@ -90,6 +90,18 @@ def split_model(dist, nodes, n_robots):
     return a, b, free, q, Q, offset
 
 
+@numba.njit(cache=True, inline="always")
+def _sort_small(a, n):
+    """Sort ``a[:n]`` (integers) in place by insertion: no work array, as ``np.sort`` would need."""
+    for i in range(1, n):
+        v = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > v:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = v
+
+
 @numba.njit(cache=True)
 def score_split_reads(blocks, free, a, b, dist, n_robots, reject_empty_robot_side):
     """Decode, check and score the reads ``blocks (m, f)`` (+-1, one per free node) of one split.
@@ -132,23 +144,24 @@ def score_split_reads(blocks, free, a, b, dist, n_robots, reject_empty_robot_sid
             else:
                 s0[n0] = free[i]
                 n0 += 1
-        x0 = np.sort(s0[:n0])
-        x1 = np.sort(s1[:n1])
+        _sort_small(s0, n0)
+        _sort_small(s1, n1)
         ok = True
         if reject_empty_robot_side:
-            for side in (x0, x1):
-                rob = 0
-                for v in side:
-                    rob += v < n_robots
-                if rob > 0 and rob == side.shape[0]:
-                    ok = False
+            rob0 = 0
+            for i in range(n0):
+                rob0 += s0[i] < n_robots
+            rob1 = 0
+            for i in range(n1):
+                rob1 += s1[i] < n_robots
+            ok = not (rob0 > 0 and rob0 == n0) and not (rob1 > 0 and rob1 == n1)
         if not ok:
             continue
         valid[r] = True
         k = 0
         for i in range(n0):
             for j in range(n1):
-                prod[k] = dist[x0[i], x1[j]]
+                prod[k] = dist[s0[i], s1[j]]
                 k += 1
         cut[r] = pairwise_sum(prod, 0, k)
     return valid, cut, first
@@ -256,8 +269,8 @@ def candidate_sides(c_split, c_side, free, sizes, anchors):
             else:
                 side0[m, a] = free[p, i]
                 a += 1
-        side0[m, :a].sort()
-        side1[m, :b].sort()
+        _sort_small(side0[m], a)
+        _sort_small(side1[m], b)
         n0[m] = a
         n1[m] = b
     return side0, n0, side1, n1

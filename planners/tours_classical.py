@@ -292,8 +292,8 @@ def _held_karp_dp(d, par, best):
     """Held-Karp table over nodes 1..n: ``dp[s, j]`` is the cheapest open route from
     node 0 visiting exactly the bitmask ``s`` (bit ``j`` = node ``j + 1``) and ending
     at node ``j + 1`` (defined for ``j`` in ``s``).  Parents go into ``par`` (same shape)
-    unless it is ``(0, 0)``; ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best``
-    is empty.
+    unless it is ``None``; ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best``
+    is ``None`` (a ``None`` argument compiles its branch away).
 
     Each entry is pulled from its predecessor set, whose members are walked by their set
     bits in increasing order; a strictly smaller sum wins, so the parent is the smallest
@@ -301,10 +301,8 @@ def _held_karp_dp(d, par, best):
     m = d.shape[0]
     n = m - 1
     size = 1 << n
-    track = par.shape[0] > 0
-    subsets = best.shape[0] > 0
     dp = np.empty((size, n))
-    if subsets:
+    if best is not None:
         best[0] = 0.0
     for s in range(1, size):
         bs = np.inf
@@ -326,12 +324,12 @@ def _held_karp_dp(d, par, best):
                     if c < v:
                         v = c
                         pj = j
-                if track and pj >= 0:
+                if par is not None and pj >= 0:
                     par[s, x] = pj
             dp[s, x] = v
             if v < bs:
                 bs = v
-        if subsets:
+        if best is not None:
             best[s] = bs
     return dp
 
@@ -343,7 +341,7 @@ def _held_karp(d):
     n = m - 1
     full = (1 << n) - 1
     par = np.full((1 << n, n), -1, dtype=np.int64)
-    dp = _held_karp_dp(d, par, np.empty(0))
+    dp = _held_karp_dp(d, par, None)
     best = 0
     for j in range(1, n):
         if dp[full, j] < dp[full, best]:
@@ -372,7 +370,7 @@ def _exact_route_cost(dist, nodes):
             d[i, j] = dist[nodes[i], nodes[j]]
     if n == 1:
         return d[0, 1]
-    dp = _held_karp_dp(d, np.empty((0, 0), dtype=np.int64), np.empty(0))
+    dp = _held_karp_dp(d, None, None)
     full = (1 << n) - 1
     best = dp[full, 0]
     for j in range(1, n):
@@ -398,7 +396,7 @@ def _held_karp_subsets(d):
     node ``j + 1``); ``best[0] = 0``.
     """
     best = np.full(1 << (d.shape[0] - 1), np.inf)
-    _held_karp_dp(d, np.empty((0, 0), dtype=np.int64), best)
+    _held_karp_dp(d, None, best)
     return best
 
 

@@ -161,3 +161,5 @@ def test_held_karp_table_matches_push_reference(n, seed, kind):
     assert np.array_equal(dp[member], ref_dp[member])
     assert np.array_equal(par, ref_par)
     assert np.array_equal(best, ref_best)
+    bare = _held_karp_dp(d, None, None)  # no parents, no subset minima: the same table
+    assert np.array_equal(bare[member], ref_dp[member])

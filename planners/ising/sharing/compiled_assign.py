@@ -62,7 +62,7 @@ def split_weights_kernel(powered, mean, shift, R, robot_weight):
     return w
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _price(dist, k, mask, memo, counters):
     """:meth:`~.bundles.BundlePricer.cost_mask` with the exact pricing tour (sets of at most 13 targets)."""
     if mask == 0:
@@ -70,10 +70,17 @@ def _price(dist, k, mask, memo, counters):
     key = mask | k  # target bits start at R > k
     if key in memo:
         return memo[key]
-    t = mask_nodes(mask)
-    nodes = np.empty(t.shape[0] + 1, dtype=np.int64)
+    nodes = np.empty(popcount(mask) + 1, dtype=np.int64)  # k, then the targets ascending
     nodes[0] = k
-    nodes[1:] = t
+    i = 1
+    v = 0
+    m = mask
+    while m:
+        if m & 1:
+            nodes[i] = v
+            i += 1
+        m >>= 1
+        v += 1
     c = _exact_route_cost(dist, nodes)
     counters[TOUR_SOLVES] += 1
     memo[key] = c

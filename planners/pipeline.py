@@ -265,7 +265,7 @@ class Pipeline:
                 pieces = [start.reshape(1, 2)]
                 reached: list[int] = []
                 batched: list = []
-                if self._batch_paths and len(ordered) > 1:  # the legs the layer plans in one call
+                if self._batch_paths and ordered:  # the legs the layer plans in one call
                     t0 = _clock()
                     batch = self.path.find_paths(world, cells, rng)
                     acc["path"].add(batch.compute, _clock() - t0)

@@ -57,6 +57,30 @@ def _percentile(sorted_vals, p):
     return a + d * g
 
 
+_SMALL_SORT = 128  # value counts sorted by insertion in the work arrays (no sort buffers); above: np.argsort
+
+
+@numba.njit(cache=True, inline="always")
+def _before(a, b):
+    """``a`` sorts before ``b`` as numpy sorts floats (NaN last)."""
+    return a < b or (b != b and a == a)
+
+
+@numba.njit(cache=True)
+def _sort_values(vals, m, out, order):
+    """``out[:m]`` = ``vals[:m]`` sorted as ``np.sort`` sorts them and ``order[:m]`` a permutation
+    with ``vals[order] == out`` (ties in any order), by insertion."""
+    for u in range(m):
+        x = vals[u]
+        j = u - 1
+        while j >= 0 and _before(x, out[j]):
+            out[j + 1] = out[j]
+            order[j + 1] = order[j]
+            j -= 1
+        out[j + 1] = x
+        order[j + 1] = u
+
+
 @numba.njit(cache=True, error_model="numpy")  # IEEE division (x / 0), as numpy
 def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     """Quantize one model (``h (n,)``, ``J (n, n)`` upper triangular, float64) under ``rules``.
@@ -72,8 +96,10 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     n = h.shape[0]
     k = rules.shape[0]
     L = n + n * (n - 1) // 2
-    c = np.empty(L)
-    lim = np.empty(L)
+    work = np.empty(7 * L)  # c, lim, q, v, rel, rel0, sorted |c| / limit (views: one allocation)
+    iwork = np.empty(3 * L, dtype=np.int64)  # nzi, level, order
+    c = work[:L]
+    lim = work[L: 2 * L]
     t = 0
     for i in range(n):
         c[t] = h[i]
@@ -84,7 +110,7 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
             c[t] = J[i, j]
             lim[t] = Lj
             t += 1
-    nzi = np.empty(L, dtype=np.int64)
+    nzi = iwork[:L]
     m = 0
     for t in range(L):
         if c[t] != 0:
@@ -93,12 +119,13 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     status = np.zeros(k, dtype=np.int64)
     out_h = np.zeros((k, n))
     out_J = np.zeros((k, n, n))
-    q = np.zeros(L)
-    v = np.empty(L)
-    rel = np.empty(m)
+    q = work[2 * L: 3 * L]
+    q[:] = 0.0
+    v = work[3 * L: 4 * L]
+    rel = work[4 * L: 4 * L + m]
     # |c| / limit of the non-zero coefficients, sorted once for rank and clip95 (both rules see
     # exactly these values); rank also needs each value's level among the distinct ones
-    rel0 = np.empty(m)
+    rel0 = work[5 * L: 5 * L + m]
     for u in range(m):
         rel0[u] = abs(c[nzi[u]]) / lim[nzi[u]]
     need_rank = False
@@ -106,19 +133,23 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     for r in range(k):
         need_rank |= rules[r] == 2
         need_sorted |= rules[r] == 1 or rules[r] == 2
-    level = np.zeros(m, dtype=np.int64)
+    level = iwork[L: L + m]
+    level[:] = 0
     top = 0  # the highest level
-    if m > 0 and need_rank:
-        order = np.argsort(rel0)
-        sorted0 = rel0[order]
-        for u in range(1, m):
-            if sorted0[u] != sorted0[u - 1]:
-                top += 1
-            level[order[u]] = top
-    elif m > 0 and need_sorted:
-        sorted0 = np.sort(rel0)
-    else:
-        sorted0 = rel0
+    sorted0 = rel0
+    if m > 0 and need_sorted:
+        if m <= _SMALL_SORT:
+            sorted0 = work[6 * L: 6 * L + m]
+            order = iwork[2 * L: 2 * L + m]
+            _sort_values(rel0, m, sorted0, order)
+        else:
+            order = np.argsort(rel0)
+            sorted0 = rel0[order]
+        if need_rank:  # ties share a level, so any order of equal values gives the same levels
+            for u in range(1, m):
+                if sorted0[u] != sorted0[u - 1]:
+                    top += 1
+                level[order[u]] = top
     for r in range(k):
         rule = rules[r]
         if m == 0:

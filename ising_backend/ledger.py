@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import math
 import weakref
+from functools import reduce
+from operator import add
 from dataclasses import asdict, dataclass, fields
 
 from .spec import ChipSpec
@@ -127,10 +129,7 @@ class CallLedger:
                 d[bk] += n_batches
                 for field, adds in (("chip_time_s", ct), ("chip_time_parallel_s", pt), ("energy_j", en),
                                     ("emulation_s", seconds)):
-                    v = d[field]
-                    for x in adds:
-                        v += x
-                    d[field] = v
+                    d[field] = reduce(add, adds, d[field])  # ((total + a0) + a1) + ...: no compensation
         return CallLedger(**{ck: calls[-1], bk: batches[-1]}, chip_time_s=ct[-1], chip_time_parallel_s=pt[-1],
                           energy_j=en[-1], emulation_s=seconds[-1])
 

@@ -28,7 +28,7 @@ from planners.ising.sharing.boundary import BoundaryRefinement
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel, pair_mean
-from planners.ising.sharing.compiled_stages import COUNTERS, mask_nodes
+from planners.ising.sharing.compiled_stages import COUNTERS
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import split_model
@@ -174,7 +174,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
         self.chip.charge_into(calls[:n], emu[:n], self._meter.charged)
-        assignment = tuple(tuple(t - R for t in mask_nodes(m).tolist()) for m in sets.tolist())
+        assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
 
     def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:

@@ -143,11 +143,11 @@ class MoveSelection:
         programs with a valid read) and ``clean`` (valid reads per rule) summed over the starts,
         ``wins`` (best reads per rule) and the status of each start."""
         cfg = self.config
-        rounds, retries, applied, valid_rounds, valid_programs = (int(v) for v in st)
+        rounds, retries, applied, valid_rounds, valid_programs = st.tolist()
         k = len(cfg.chip_rules)
         m = run.stats["mapping"]["tour"]
         m["reads"] += rounds * k * cfg.num_reads
-        m["valid_reads"] += int(clean.sum())
+        m["valid_reads"] += sum(clean.tolist())
         m["valid"] += valid_programs
         m["valid_physical"] += valid_programs
         m["programs"] += rounds * k

@@ -20,8 +20,8 @@ from numba.typed import Dict
 from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
-    BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, popcount, problems_of, reserve,
-    solve_problems, split_states,
+    BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount, problems_of,
+    reserve, solve_problems, split_states,
 )
 from planners.tours_classical import _exact_route_cost
 
@@ -72,15 +72,7 @@ def _price(dist, k, mask, memo, counters):
         return memo[key]
     nodes = np.empty(popcount(mask) + 1, dtype=np.int64)  # k, then the targets ascending
     nodes[0] = k
-    i = 1
-    v = 0
-    m = mask
-    while m:
-        if m & 1:
-            nodes[i] = v
-            i += 1
-        m >>= 1
-        v += 1
+    mask_nodes_into(mask, nodes, 1)
     c = _exact_route_cost(dist, nodes)
     counters[TOUR_SOLVES] += 1
     memo[key] = c

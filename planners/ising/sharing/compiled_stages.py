@@ -24,7 +24,7 @@ from numba.typed import Dict
 from planners.ising.sharing.engine import run_stage
 from planners.ising.sharing.kernels import split_model
 
-__all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "popcount", "mask_nodes"]
+__all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "popcount", "mask_nodes", "mask_nodes_into"]
 
 COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
             "pair_accepted", "submissions")
@@ -41,11 +41,9 @@ def popcount(m):
     return n
 
 
-@numba.njit(cache=True)
-def mask_nodes(mask):
-    """The nodes of a bit mask, ascending."""
-    out = np.empty(popcount(mask), dtype=np.int64)
-    i = 0
+@numba.njit(cache=True, inline="always")
+def mask_nodes_into(mask, out, i):
+    """Write the nodes of a bit mask, ascending, into ``out`` from index ``i``."""
     v = 0
     while mask:
         if mask & 1:
@@ -53,6 +51,13 @@ def mask_nodes(mask):
             i += 1
         mask >>= 1
         v += 1
+
+
+@numba.njit(cache=True)
+def mask_nodes(mask):
+    """The nodes of a bit mask, ascending."""
+    out = np.empty(popcount(mask), dtype=np.int64)
+    mask_nodes_into(mask, out, 0)
     return out
 
 

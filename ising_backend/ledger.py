@@ -95,8 +95,10 @@ class CallLedger:
         submission is charged in order to this ledger, its live snapshots and ``into`` (the same
         float additions, so the same bits), without a ledger object per submission.  Returns the
         last submission's ledger (``None`` for no submission)."""
-        calls = calls.tolist() if hasattr(calls, "tolist") else [int(c) for c in calls]
-        seconds = seconds.tolist() if hasattr(seconds, "tolist") else [float(t) for t in seconds]
+        kind = getattr(getattr(calls, "dtype", None), "kind", None)
+        calls = calls.tolist() if kind in ("i", "u") else [int(c) for c in calls]
+        kind = getattr(getattr(seconds, "dtype", None), "kind", None)
+        seconds = seconds.tolist() if kind == "f" else [float(t) for t in seconds]
         if len(calls) != len(seconds):
             raise ValueError(f"record_into: {len(calls)} call counts for {len(seconds)} emulation times")
         if not calls:

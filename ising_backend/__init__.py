@@ -19,7 +19,8 @@ Modules:
 * :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
-* :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule).
+* :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
+* :mod:`.compiled_rng` -- :func:`rng_handle` / :func:`as_generator`: a numpy Generator handed to compiled code by address.
 
 Example::
 
@@ -63,6 +64,7 @@ from .portfolio import (
     run_portfolio_batch,
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
+from .compiled_rng import as_generator, rng_handle
 
 __all__ = [
     # models, spec, ledger
@@ -88,4 +90,6 @@ __all__ = [
     "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
     # dimod composite
     "QuantizeComposite", "COMPOSITE_RULES",
+    # compiled code
+    "rng_handle", "as_generator",
 ]

@@ -23,7 +23,8 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend.anneal import anneal_kernel_timed
-from ising_backend import merge_styles
+from ising_backend import merge_styles, rng_handle
+from ising_backend.compiled_rng import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
@@ -142,6 +143,7 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     counts = patch_solves, anneal_calls, segments, backtracks, direct_moves; mapping rows per
     style = programs, valid, wins, map_errors; per chip submission its calls and emulation seconds.
     """
+    rng = as_generator(rng)  # a Generator or its rng_handle
     rad = size // 2
     n = size * size
     centre = n // 2
@@ -300,7 +302,7 @@ class CompiledSearch:
         """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
         mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], *self._loop_args(grid))
+            rng_handle(rng), *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], *self._loop_args(grid))
         return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
 
     def _loop_args(self, grid) -> tuple:

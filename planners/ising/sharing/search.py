@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import ChipUnavailableError, MeteredSolver, kernel_capable
+from ising_backend import ChipUnavailableError, MeteredSolver, kernel_capable, rng_handle
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.tours_classical import MAX_BRUTE_TARGETS
@@ -159,7 +159,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
                 np.zeros(subs, dtype=np.int64), np.zeros(subs))
         state = rng.bit_generator.state
-        ok, sets = assign_kernel(dist, powered, mean, R, rng, *self._compiled, book)
+        ok, sets = assign_kernel(dist, powered, mean, R, rng_handle(rng), *self._compiled, book)
         if not ok:
             rng.bit_generator.state = state
             return None

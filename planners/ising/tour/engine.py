@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from ising_backend.logical import mix_seed, tabu_kernel
+from ising_backend.compiled_rng import as_generator
 from planners.ising.tour.kernels import best_onehot, onehot_ising
 
 __all__ = ["solve_order"]
@@ -31,6 +32,7 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, restar
     Returns ``(order (s,) or (0,), stats (6,), calls (attempts,), emulation_s (attempts,))`` with
     stats = programs, reads, valid_reads, valid programs, retries, unsolved (0/1).
     """
+    rng = as_generator(rng)  # a Generator or its rng_handle
     s = d.shape[0]
     n = s * s
     w_max = 0.0

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ising_backend import (
-    ChipUnavailableError, IsingModel, LogicalIsingSolver, SolverOutputError, freeze_order, quantize,
+    ChipUnavailableError, IsingModel, LogicalIsingSolver, SolverOutputError, freeze_order, quantize, rng_handle,
 )
 from planners.base import TourResult
 from planners.compute import ComputeReport
@@ -290,7 +290,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         logical solver attempt by attempt as ``solve_stack`` charges."""
         cfg = self.config
         s = d.shape[0]
-        order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
+        order, st, calls, emu = solve_order(rng_handle(run.rng), d, entry, ex, cfg.penalty_factor, cfg.max_retries,
                                             cfg.num_reads, *self.solver.kernel_args(s * s))
         charged = run.charged
         self.solver.charge_into(calls, emu, charged)

@@ -28,7 +28,9 @@ from functools import cached_property
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULE_IDS, ChipProgramError, ising_from_qubo, kernel_capable, quantize_stack
+from ising_backend import (
+    QUANTIZE_RULE_IDS, ChipProgramError, ising_from_qubo, kernel_capable, quantize_stack, rng_handle,
+)
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, move_starts_loop, select_moves_loop
 from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
@@ -121,7 +123,7 @@ class MoveSelection:
         capacity = min(int(self.spec.n_spins), cfg.max_moves)
         state = run.rng.bit_generator.state
         new, status, st, clean, wins, calls, emu = select_moves_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
+            rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
@@ -175,7 +177,7 @@ class MoveSelection:
         capacity = min(int(self.spec.n_spins), cfg.max_moves)
         state = run.rng.bit_generator.state
         ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
+            rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if not ok:
             run.rng.bit_generator.state = state

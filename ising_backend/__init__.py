@@ -44,7 +44,7 @@ from .meter import MeteredSolver, SolverOutputError
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
 from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
-from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles
+from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import pack_blocks, pack_layout, plan_packs, unpack_blocks
 from .portfolio import (
@@ -80,7 +80,7 @@ __all__ = [
     # mapping toolkit
     "QUANTIZE_RULES", "QuantizeError", "quantize", "quantize_stack", "saturate", "quantize_rules",
     "QUANTIZE_RULE_IDS",
-    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles",
+    "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
     "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks",

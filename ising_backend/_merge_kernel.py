@@ -8,7 +8,8 @@ Contract (see :func:`.merge.merge_spins` for the algorithm; design notes in
   merge styles in one call; :func:`merge_batch` maps several (zero-padded) models.  It reproduces :func:`.merge.merge_spins` exactly:
   the same duplication choices (same float keys, ties on the lowest index), the
   same physical layout (originals ``0..n-1``, then the extra copies grouped by
-  spin) and the same splits, so ``h`` / ``J`` are bit-identical.
+  spin) and the same splits, so ``h`` / ``J`` are bit-identical;
+  :func:`merge_styles_flat` writes the same mappings into a caller's buffers.
 * :func:`decode_copies` decodes physical spins of many (program, read) samples
   back to logical spins through a flat copy layout (``ptr`` / ``idx``, CSR style:
   the copies of logical spin ``i`` are ``idx[ptr[i]:ptr[i + 1]]``, original first).
@@ -25,7 +26,7 @@ import numpy as np
 
 __all__ = [
     "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
-    "merge_batch", "merge_styles", "decode_copies",
+    "merge_batch", "merge_styles", "merge_styles_flat", "decode_copies",
 ]
 
 #: merge style name -> style id of the kernels (the order of ``MERGE_STYLES``)
@@ -44,9 +45,9 @@ _EVEN = (False, True, False, True)  # split mode per style id: spill (False) or 
 
 
 @numba.njit(cache=True)
-def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
+def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, excess, exj, pair):
     """The duplication loop of one style on model ``b`` (``n`` spins): copy counts into ``a``;
-    returns a status code.
+    returns a status code (``excess``, ``exj``, ``pair``: work arrays of at least ``n`` / ``n x n``).
 
     Each round recomputes, as the reference does, the excess of every field
     (``|H_i| - Lh a_i``) and coupling (``|C_ij| - Lj a_i a_j``), the per-spin total
@@ -60,12 +61,11 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
         err[1] = n_spins
         return MERGE_TOO_MANY_SPINS
     used = n
-    excess = np.zeros(n)
-    exj = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        exj[i] = 0
     # integral limits: the coupling excesses are integers, kept per pair and updated for the
     # copied spin's pairs only (the same sums as recomputing them every round)
     incremental = Lj == np.floor(Lj)
-    pair = np.zeros((n, n), dtype=np.int64)
     n_bad = 0
     if incremental:
         for i in range(n):
@@ -76,6 +76,8 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err):
                     n_bad += 1
                     exj[i] += e
                     exj[j] += e
+                else:
+                    pair[i, j] = 0
     while True:
         bad_h = False
         bad_j = n_bad > 0
@@ -249,6 +251,32 @@ def _fill(H, C, b, n, a, even, Lh, Lj, tie, start, hp, Jp):
 
 
 @numba.njit(cache=True)
+def _spin_stats(C, b, n, degree, strength):
+    """Per spin of model ``b``: its non-zero couplings and total ``|coupling|`` (``|C| + |C|.T``)."""
+    for i in range(n):
+        degree[i] = 0
+        strength[i] = 0
+        for j in range(n):
+            v = abs(C[b, i, j]) + abs(C[b, j, i])
+            degree[i] += v != 0
+            strength[i] += v
+
+
+@numba.njit(cache=True)
+def _layout(a, n, start, ptr, idx):
+    """The copy layout of one mapping from its copy counts ``a``: ``start[i]`` (the physical index of
+    spin ``i``'s first extra copy), ``ptr[: n + 1]`` and ``idx[: a.sum()]`` (module docstring)."""
+    nxt = n
+    ptr[0] = 0
+    for i in range(n):
+        start[i] = nxt
+        nxt += a[i] - 1
+        ptr[i + 1] = ptr[i] + a[i]
+        for m in range(a[i]):
+            idx[ptr[i] + m] = _phys(i, m, start)
+
+
+@numba.njit(cache=True)
 def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
     """Merge ``B`` logical models with each of ``styles`` (style ids, see :data:`STYLE_IDS`).
 
@@ -280,19 +308,17 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
     err = np.full((R, 2), -1, dtype=np.int64)
     a = np.zeros((R, n_max), dtype=np.int64)
     n_phys = np.zeros(R, dtype=np.int64)
+    excess = np.empty(n_max)
+    exj = np.empty(n_max, dtype=np.int64)
+    pair = np.empty((n_max, n_max), dtype=np.int64)
     N = 0
     for b in range(B):
         nb = n[b]
-        for i in range(nb):  # absC = |C| + |C|.T: non-zero couplings and total |coupling| per spin
-            degree[i] = 0
-            strength[i] = 0
-            for j in range(nb):
-                v = abs(C[b, i, j]) + abs(C[b, j, i])
-                degree[i] += v != 0
-                strength[i] += v
+        _spin_stats(C, b, nb, degree, strength)
         for s in range(k):
             r = b * k + s
-            status[r] = _copy_counts(H, C, b, nb, styles[s], Lh, Lj, n_spins, degree, strength, a[r], err[r])
+            status[r] = _copy_counts(H, C, b, nb, styles[s], Lh, Lj, n_spins, degree, strength, a[r], err[r],
+                                     excess, exj, pair)
             if status[r] == MERGE_OK:
                 n_phys[r] = a[r].sum()
                 N = max(N, n_phys[r])
@@ -307,13 +333,7 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
             continue
         b = r // k
         nb = n[b]
-        nxt = nb
-        for i in range(nb):
-            start[i] = nxt
-            nxt += a[r, i] - 1
-            ptr[r, i + 1] = ptr[r, i] + a[r, i]
-            for m in range(a[r, i]):
-                idx[r, ptr[r, i] + m] = _phys(i, m, start)
+        _layout(a[r], nb, start, ptr[r], idx[r])
         for i in range(nb + 1, n_max + 1):
             ptr[r, i] = ptr[r, nb]
         even = _EVEN[styles[r % k]]
@@ -328,6 +348,46 @@ def merge_styles(H, C, styles, Lh, Lj, tie, n_spins):
     n = H.shape[0]
     sizes = np.full(1, n, dtype=np.int64)
     return merge_batch(H.reshape(1, n), C.reshape(1, n, n), sizes, styles, Lh, Lj, tie, n_spins)
+
+
+@numba.njit(cache=True)
+def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx):
+    """:func:`merge_styles` written into the caller's buffers in the chip's program layout (the
+    same mappings, coefficient for coefficient), for a caller that keeps the programs.
+
+    Returns ``(ok, w)``: ``w`` is the widest mapping's physical spins; style ``s``'s fields are
+    ``h_out[s * w:(s + 1) * w]`` and its couplings ``J_out[s * w * w:(s + 1) * w * w]`` (``w x w``,
+    C order, upper triangular), zero-padded to ``w``; its copy layout is ``ptr[s, : n + 1]`` and
+    ``idx[s, :w]`` (zero beyond its spins).  ``ok`` is False, and nothing is written, when a style
+    does not fit (:func:`merge_styles` names the term).  Outputs of any integer or float dtype
+    (the coefficients are integers within the limits)."""
+    n = H.shape[0]
+    k = styles.shape[0]
+    H1 = H.reshape(1, n)
+    C1 = C.reshape(1, n, n)
+    degree = np.empty(n, dtype=np.int64)
+    strength = np.empty(n, dtype=np.int64)
+    a = np.empty((k, n), dtype=np.int64)
+    err = np.empty(2, dtype=np.int64)
+    excess = np.empty(n)
+    exj = np.empty(n, dtype=np.int64)
+    pair = np.empty((n, n), dtype=np.int64)
+    _spin_stats(C1, 0, n, degree, strength)
+    w = 0
+    for s in range(k):
+        if _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj,
+                        pair) != MERGE_OK:
+            return False, 0
+        w = max(w, a[s].sum())
+    h_out[: k * w] = 0
+    J_out[: k * w * w] = 0
+    start = exj  # free again: the first extra copy of each spin
+    for s in range(k):
+        _layout(a[s], n, start, ptr[s], idx[s])
+        idx[s, a[s].sum(): w] = 0
+        _fill(H1, C1, 0, n, a[s], _EVEN[styles[s]], Lh, Lj, tie, start, h_out[s * w:(s + 1) * w],
+              J_out[s * w * w:(s + 1) * w * w].reshape((w, w)))
+    return True, w
 
 
 @numba.njit(cache=True)

@@ -34,6 +34,7 @@ from ising_backend._merge_kernel import (
     decode_copies,
     merge_batch,
     merge_styles,
+    merge_styles_flat,
 )
 from ising_backend._quantize_kernel import RULE_IDS, quantize_rules
 from ising_backend._reference import decode_ref, merge_spins_ref, quantize_ref, saturate_ref
@@ -132,6 +133,37 @@ def test_merge_batch_matches_single_styles(seed, n, kind, mag, density, budget, 
         assert np.array_equal(a[k], [len(c) for c in ref.copies])
         for i, c in enumerate(ref.copies):
             assert np.array_equal(idx[k, ptr[k, i]:ptr[k, i + 1]], c)
+
+
+@settings(max_examples=80, **SETTINGS)
+@given(**model_params, budget=st.integers(0, 45), tie=st.sampled_from([7, 3]),
+       dtype=st.sampled_from([np.int16, np.int64, np.float64]), styles=st.lists(st.integers(0, 3), max_size=5))
+def test_merge_styles_flat_writes_merge_styles_mappings(seed, n, kind, mag, density, budget, tie, dtype, styles):
+    rng = np.random.default_rng(seed)
+    model = _random_model(rng, n, kind, mag, density)
+    n_spins = max(1, min(45, n + budget))
+    H = np.rint(model.h).astype(np.int64)
+    C = np.rint(model.J).astype(np.int64)
+    ids = np.array(styles, dtype=np.int64)
+    k = len(ids)
+    status, _err, a, n_phys, h, J, _off, ptr, idx = merge_styles(H, C, ids, 7, 7, tie, n_spins)
+    # buffers full of garbage: everything a mapping owns must be written
+    h_out = rng.integers(-9, 10, k * 45 + 3).astype(dtype)
+    J_out = rng.integers(-9, 10, k * 45 * 45 + 3).astype(dtype)
+    ptr_out = rng.integers(-9, 10, (k, n + 4))
+    idx_out = rng.integers(-9, 10, (k, 46))
+    before = (h_out.copy(), J_out.copy(), ptr_out.copy(), idx_out.copy())
+    ok, w = merge_styles_flat(H, C, ids, 7, 7, tie, n_spins, h_out, J_out, ptr_out, idx_out)
+    if not (status == MERGE_OK).all():
+        assert not ok and w == 0
+        for got, was in zip((h_out, J_out, ptr_out, idx_out), before):
+            assert np.array_equal(got, was)  # nothing written
+        return
+    assert ok and w == h.shape[1] == max(n_phys, default=0)
+    assert np.array_equal(h_out[: k * w].reshape(k, w), h) and np.array_equal(h_out[k * w:], before[0][k * w:])
+    assert np.array_equal(J_out[: k * w * w].reshape(k, w, w), J)
+    assert np.array_equal(J_out[k * w * w:], before[1][k * w * w:])
+    assert np.array_equal(ptr_out[:, : n + 1], ptr) and np.array_equal(idx_out[:, :w], idx)
 
 
 @settings(max_examples=60, **SETTINGS)

@@ -5,7 +5,7 @@ Contract: :func:`run_query` makes, for one query, the decisions of the Python lo
 chip seeds (drawn from the query's ``numpy.random.Generator``), annealing kernel and padding
 (the chip's own :func:`~ising_backend.anneal.anneal_kernel` with
 :meth:`~ising_backend.EmulatedChip.kernel_args`), decoding, scoring, win draws and
-bookkeeping.  Each submission's calls and its measured emulation seconds (``objmode`` clock
+bookkeeping.  Each submission's calls and its measured emulation seconds (a monotonic clock
 around the kernel) are returned, so the caller charges the chip exactly as
 :meth:`~ising_backend.EmulatedChip.anneal_batch` would.
 
@@ -23,7 +23,7 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend.anneal import anneal_kernel_timed
-from ising_backend import merge_styles, rng_handle
+from ising_backend import merge_styles_flat, rng_handle
 from ising_backend.compiled_rng import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
@@ -96,24 +96,21 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
                                           coef[3], coef[4])
     m = var.shape[0]
     h, J, o = _ising_of_qubo(qv, Qv, off)
-    k = style_ids.shape[0]
+    if count[0] >= n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
+        keys.clear()
+        count[0] = 0
+    slot = count[0]
     w = 0
-    if m > 0:
+    if m > 0:  # every style's mapping, straight into the slot (kept only if all fit)
         H = np.empty(m, dtype=np.int64)
         C = np.empty((m, m), dtype=np.int64)
         for i in range(m):
             H[i] = np.int64(np.rint(h[i] * scale))
             for j in range(m):
                 C[i, j] = np.int64(np.rint(J[i, j] * scale))
-        status, _err, _a, n_phys, hp, Jp, _oa, pp, ii = merge_styles(H, C, style_ids, Lh, Lj, Lj, n_spins)
-        for s in range(k):
-            if status[s] != 0:
-                return -1
-        w = hp.shape[1]
-    if count[0] >= n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
-        keys.clear()
-        count[0] = 0
-    slot = count[0]
+        ok, w = merge_styles_flat(H, C, style_ids, Lh, Lj, Lj, n_spins, ph[slot], pJ[slot], ptr[slot], idx[slot])
+        if not ok:
+            return -1
     count[0] += 1
     keys[key] = slot
     n_var[slot] = m
@@ -122,14 +119,6 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
     lJ[slot, :m, :m] = J
     loff[slot] = o
     width[slot] = w
-    if m > 0:
-        for s in range(k):
-            for i in range(w):
-                ph[slot, s * w + i] = np.int16(hp[s, i])
-                idx[slot, s, i] = ii[s, i]
-                for j in range(w):
-                    pJ[slot, (s * w + i) * w + j] = np.int16(Jp[s, i, j])
-            ptr[slot, s, : m + 1] = pp[s]
     return slot
 
 

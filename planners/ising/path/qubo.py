@@ -184,12 +184,24 @@ def _patch_qubo_kernel(adj4, diag, allowed, start, goal, degree, C, B, Dg, A_end
                 W[i, j] += -C * A4[i, j] + Dg * dg
             q[i] += B * free[i]
     else:
-        # D = A4 * free[:, None]; M = D.T @ D; q += A diag(M); W += 2A (M - diag M); W += -4A (D + D.T)
+        # D = A4 * free[:, None]; M = D.T @ D; q += A diag(M); W += 2A (M - diag M); W += -4A (D + D.T).
+        # M[i, j] counts the free cells next to both i and j: whole numbers, the same in any order,
+        # so they are gathered from each free cell's few neighbours rather than summed over all cells
+        M = np.zeros((n, n))
+        nbrs = np.empty(n, dtype=np.int64)
+        for k in range(n):
+            if free[k]:
+                c = 0
+                for i in range(n):
+                    if A4[k, i] != 0.0:
+                        nbrs[c] = i
+                        c += 1
+                for x in range(c):
+                    for y in range(c):
+                        M[nbrs[x], nbrs[y]] += 1.0
         for i in range(n):
             for j in range(n):
-                m = 0.0
-                for k in range(n):
-                    m += (A4[k, i] * free[k]) * (A4[k, j] * free[k])
+                m = M[i, j]
                 if i == j:
                     q[i] += A * m
                 else:

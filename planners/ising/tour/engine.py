@@ -6,18 +6,17 @@ one-hot model fits the spin budget: the penalty, the Ising model, per attempt a 
 from the construction's ``numpy.random.Generator`` and its solve-group sub-seed
 (:func:`ising_backend.logical.mix_seed`), the logical solver's own tabu kernel
 (:meth:`~ising_backend.LogicalIsingSolver.kernel_args`), decode, the cheapest valid order and
-the statistics.  Each attempt's calls and measured emulation seconds (``objmode`` clock around
+the statistics.  Each attempt's calls and measured emulation seconds (a monotonic clock around
 the kernel) are returned so the caller charges the solver as ``solve_stack`` would.  The
 Python path in :mod:`.search` is its reference (the tests compare both).
 """
 
 from __future__ import annotations
 
-import time
-
 import numba
 import numpy as np
 
+from ising_backend._clock import clock_ns
 from ising_backend.logical import mix_seed, tabu_kernel
 from ising_backend.compiled_rng import as_generator
 from planners.ising.tour.kernels import best_onehot, onehot_ising
@@ -52,13 +51,10 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, restar
         seed = rng.integers(0, 9223372036854775807)
         spins = np.empty((1, num_reads, n), dtype=np.int8)
         energies = np.zeros((1, num_reads))
-        with numba.objmode(t0="float64"):
-            t0 = time.perf_counter()
+        t0 = clock_ns()
         tabu_kernel(hb, Jb, num_reads, mix_seed(seed, n), restarts, iterations, tenure, spins, energies)
-        with numba.objmode(t1="float64"):
-            t1 = time.perf_counter()
         calls[attempt] = num_reads
-        emu[attempt] = t1 - t0
+        emu[attempt] = (clock_ns() - t0) * 1e-9
         for r in range(num_reads):
             for v in range(n):
                 bits[r, v] = 1 if spins[0, r, v] > 0 else 0

@@ -6,7 +6,7 @@ Ising form (:func:`ising_backend.ising_from_qubo`'s arithmetic), quantization by
 the portfolio (:func:`ising_backend.quantize_rules`), a chip seed drawn from the construction's
 ``numpy.random.Generator``, the chip's own annealing kernel, scoring of the reads and the
 applied moves -- and returns the statistics and, per submission, the calls and measured
-emulation seconds (``objmode`` clock around the kernel) for the caller to charge to the chip
+emulation seconds (a monotonic clock around the kernel) for the caller to charge to the chip
 as ``anneal_batch`` would.  The Python path in :mod:`.selection` is its reference (the tests
 compare both).
 """

@@ -25,7 +25,7 @@ __all__ = ["candidate_moves", "pick_candidates", "selection_qubo", "selection_ga
 MOVE_FIELDS = ("kind", "p", "q", "c", "lo", "hi")
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")  # called per candidate: no call (and no array reference counting)
 def _edge(d, r, p, n):
     return d[r[p], r[p + 1]] if p < n else 0.0
 

@@ -45,14 +45,30 @@ _EVEN = (False, True, False, True)  # split mode per style id: spill (False) or 
 
 
 @numba.njit(cache=True)
-def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, excess, exj, pair):
+def _over_pairs(C, b, n, Lj, out):
+    """The couplings ``i < j`` of model ``b`` above one copy's capacity (``|C_ij| > Lj``) as
+    ``i * n + j``, row-major; returns their count.  No other coupling ever exceeds its capacity
+    ``Lj a_i a_j`` (copies only raise it), so the duplication loop scans these alone."""
+    m = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if abs(C[b, i, j]) > Lj:
+                out[m] = i * n + j
+                m += 1
+    return m
+
+
+@numba.njit(cache=True)
+def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, excess, exj, over, n_over, pex):
     """The duplication loop of one style on model ``b`` (``n`` spins): copy counts into ``a``;
-    returns a status code (``excess``, ``exj``, ``pair``: work arrays of at least ``n`` / ``n x n``).
+    returns a status code.  ``over[:n_over]``: :func:`_over_pairs` of the model; ``excess``,
+    ``exj``, ``pex``: work arrays (at least ``n``, ``n``, ``n_over``).
 
     Each round recomputes, as the reference does, the excess of every field
     (``|H_i| - Lh a_i``) and coupling (``|C_ij| - Lj a_i a_j``), the per-spin total
     excess (float64: ``float(field excess) + float(coupling excesses)``), and adds
-    one copy to the spin the style picks.
+    one copy to the spin the style picks.  Couplings outside ``over`` have no excess, so every
+    scan over pairs visits ``over`` alone, in the reference's row-major order.
     """
     for i in range(n):
         a[i] = 1
@@ -68,29 +84,29 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, e
     incremental = Lj == np.floor(Lj)
     n_bad = 0
     if incremental:
-        for i in range(n):
-            for j in range(i + 1, n):
-                e = abs(C[b, i, j]) - Lj * a[i] * a[j]
-                if e > 0:
-                    pair[i, j] = e
-                    n_bad += 1
-                    exj[i] += e
-                    exj[j] += e
-                else:
-                    pair[i, j] = 0
+        for t in range(n_over):
+            i, j = over[t] // n, over[t] % n
+            e = abs(C[b, i, j]) - Lj * a[i] * a[j]
+            if e > 0:
+                pex[t] = e
+                n_bad += 1
+                exj[i] += e
+                exj[j] += e
+            else:
+                pex[t] = 0
     while True:
         bad_h = False
         bad_j = n_bad > 0
         if not incremental:
             for i in range(n):
                 exj[i] = 0
-            for i in range(n):
-                for j in range(i + 1, n):
-                    e = abs(C[b, i, j]) - Lj * a[i] * a[j]
-                    if e > 0:
-                        bad_j = True
-                        exj[i] += e
-                        exj[j] += e
+            for t in range(n_over):
+                i, j = over[t] // n, over[t] % n
+                e = abs(C[b, i, j]) - Lj * a[i] * a[j]
+                if e > 0:
+                    bad_j = True
+                    exj[i] += e
+                    exj[j] += e
         for i in range(n):
             e = abs(H[b, i]) - Lh * a[i]
             if e > 0:
@@ -116,13 +132,13 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, e
             best = 0
             bi = 0
             bj = 0
-            for i in range(n):
-                for j in range(i + 1, n):
-                    e = abs(C[b, i, j]) - Lj * a[i] * a[j]
-                    if e > best:
-                        best = e
-                        bi = i
-                        bj = j
+            for t in range(n_over):
+                i, j = over[t] // n, over[t] % n
+                e = abs(C[b, i, j]) - Lj * a[i] * a[j]
+                if e > best:
+                    best = e
+                    bi = i
+                    bj = j
             err[0] = bi
             err[1] = bj
             return MERGE_COUPLING_UNFIT
@@ -145,14 +161,14 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, e
             rj = 0.0
             ii = 0
             jj = 0
-            for i in range(n):
-                for j in range(i + 1, n):
-                    cap = Lj * a[i] * a[j]
-                    r = abs(C[b, i, j]) / max(cap, 1) if abs(C[b, i, j]) > cap else 0.0
-                    if r > rj:
-                        rj = r
-                        ii = i
-                        jj = j
+            for t in range(n_over):
+                i, j = over[t] // n, over[t] % n
+                cap = Lj * a[i] * a[j]
+                r = abs(C[b, i, j]) / max(cap, 1) if abs(C[b, i, j]) > cap else 0.0
+                if r > rj:
+                    rj = r
+                    ii = i
+                    jj = j
             if rh >= rj:
                 pick = ih
             elif a[ii] < a[jj] or (a[ii] == a[jj] and strength[ii] >= strength[jj]):
@@ -178,17 +194,17 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, e
         a[pick] += 1
         used += 1
         if incremental:  # the copied spin's couplings have a larger capacity now
-            for j in range(n):
-                if j == pick:
-                    continue
-                lo, hi = (pick, j) if pick < j else (j, pick)
-                old = pair[lo, hi]
+            for t in range(n_over):
+                old = pex[t]
                 if old > 0:
+                    lo, hi = over[t] // n, over[t] % n
+                    if lo != pick and hi != pick:
+                        continue
                     e = abs(C[b, lo, hi]) - Lj * a[lo] * a[hi]
                     new = np.int64(e) if e > 0 else np.int64(0)
                     exj[lo] += new - old
                     exj[hi] += new - old
-                    pair[lo, hi] = new
+                    pex[t] = new
                     if new == 0:
                         n_bad -= 1
 
@@ -310,15 +326,17 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
     n_phys = np.zeros(R, dtype=np.int64)
     excess = np.empty(n_max)
     exj = np.empty(n_max, dtype=np.int64)
-    pair = np.empty((n_max, n_max), dtype=np.int64)
+    over = np.empty(n_max * n_max, dtype=np.int64)
+    pex = np.empty(n_max * n_max, dtype=np.int64)
     N = 0
     for b in range(B):
         nb = n[b]
         _spin_stats(C, b, nb, degree, strength)
+        n_over = _over_pairs(C, b, nb, Lj, over)
         for s in range(k):
             r = b * k + s
             status[r] = _copy_counts(H, C, b, nb, styles[s], Lh, Lj, n_spins, degree, strength, a[r], err[r],
-                                     excess, exj, pair)
+                                     excess, exj, over, n_over, pex)
             if status[r] == MERGE_OK:
                 n_phys[r] = a[r].sum()
                 N = max(N, n_phys[r])
@@ -371,12 +389,14 @@ def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx
     err = np.empty(2, dtype=np.int64)
     excess = np.empty(n)
     exj = np.empty(n, dtype=np.int64)
-    pair = np.empty((n, n), dtype=np.int64)
+    over = np.empty(n * n, dtype=np.int64)
+    pex = np.empty(n * n, dtype=np.int64)
     _spin_stats(C1, 0, n, degree, strength)
+    n_over = _over_pairs(C1, 0, n, Lj, over)
     w = 0
     for s in range(k):
-        if _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj,
-                        pair) != MERGE_OK:
+        if _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj, over,
+                        n_over, pex) != MERGE_OK:
             return False, 0
         w = max(w, a[s].sum())
     h_out[: k * w] = 0

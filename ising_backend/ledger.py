@@ -103,20 +103,27 @@ class CallLedger:
             raise ValueError(f"record_into: {len(calls)} call counts for {len(seconds)} emulation times")
         if not calls:
             return None
-        for c in calls:
-            if c < 0:
-                raise ValueError(f"calls = {c} must be >= 0")
+        if min(calls) < 0:
+            raise ValueError(f"calls = {min(calls)} must be >= 0")
         ck, bk = ("logical_calls", "logical_batches") if logical else ("physical_calls", "batches")
         totals = [self.__dict__, into.__dict__]
         if self._taps:
             totals += [snap._charged_since.__dict__ for snap in list(self._taps.values())]
         n_cores, solve_s, energy = spec.n_cores, spec.solve_time_s, spec.energy_per_call_j
-        batches = [math.ceil(c / n_cores) for c in calls]
-        n_calls, n_batches = sum(calls), sum(batches)
+        batches = [-(-c // n_cores) for c in calls]  # ceil(c / n_cores) in integers
         ct = [c * solve_s for c in calls]
         pt = [b * solve_s for b in batches]
         en = [c * energy for c in calls]
-        if len({id(d) for d in totals}) < len(totals):  # a ledger charged twice: submission by submission
+        if len({id(d) for d in totals}) == len(totals):  # each total on its own: the same additions in order
+            n_calls, n_batches = sum(calls), sum(batches)
+            for d in totals:
+                d[ck] += n_calls
+                d[bk] += n_batches
+                d["chip_time_s"] = reduce(add, ct, d["chip_time_s"])  # ((total + a0) + a1) + ...: no compensation
+                d["chip_time_parallel_s"] = reduce(add, pt, d["chip_time_parallel_s"])
+                d["energy_j"] = reduce(add, en, d["energy_j"])
+                d["emulation_s"] = reduce(add, seconds, d["emulation_s"])
+        else:  # a ledger charged twice: submission by submission
             for i in range(len(calls)):
                 for d in totals:
                     d[ck] += calls[i]
@@ -125,15 +132,10 @@ class CallLedger:
                     d["chip_time_parallel_s"] += pt[i]
                     d["energy_j"] += en[i]
                     d["emulation_s"] += seconds[i]
-        else:  # each total on its own: the same additions in the same order
-            for d in totals:
-                d[ck] += n_calls
-                d[bk] += n_batches
-                for field, adds in (("chip_time_s", ct), ("chip_time_parallel_s", pt), ("energy_j", en),
-                                    ("emulation_s", seconds)):
-                    d[field] = reduce(add, adds, d[field])  # ((total + a0) + a1) + ...: no compensation
-        return CallLedger(**{ck: calls[-1], bk: batches[-1]}, chip_time_s=ct[-1], chip_time_parallel_s=pt[-1],
-                          energy_j=en[-1], emulation_s=seconds[-1])
+        last = CallLedger(chip_time_s=ct[-1], chip_time_parallel_s=pt[-1], energy_j=en[-1], emulation_s=seconds[-1])
+        setattr(last, ck, calls[-1])
+        setattr(last, bk, batches[-1])
+        return last
 
     def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool, cores: int | None = None,
                 retries: int = 0, probe_calls: int = 0) -> "CallLedger":

@@ -110,7 +110,7 @@ class CallLedger:
         if self._taps:
             totals += [snap._charged_since.__dict__ for snap in list(self._taps.values())]
         n_cores, solve_s, energy = spec.n_cores, spec.solve_time_s, spec.energy_per_call_j
-        batches = [-(-c // n_cores) for c in calls]  # ceil(c / n_cores) in integers
+        batches = [math.ceil(c / n_cores) for c in calls]
         ct = [c * solve_s for c in calls]
         pt = [b * solve_s for b in batches]
         en = [c * energy for c in calls]
@@ -132,10 +132,8 @@ class CallLedger:
                     d["chip_time_parallel_s"] += pt[i]
                     d["energy_j"] += en[i]
                     d["emulation_s"] += seconds[i]
-        last = CallLedger(chip_time_s=ct[-1], chip_time_parallel_s=pt[-1], energy_j=en[-1], emulation_s=seconds[-1])
-        setattr(last, ck, calls[-1])
-        setattr(last, bk, batches[-1])
-        return last
+        return CallLedger(**{ck: calls[-1], bk: batches[-1]}, chip_time_s=ct[-1], chip_time_parallel_s=pt[-1],
+                          energy_j=en[-1], emulation_s=seconds[-1])
 
     def _record(self, calls: int, spec: ChipSpec, seconds: float, logical: bool, cores: int | None = None,
                 retries: int = 0, probe_calls: int = 0) -> "CallLedger":

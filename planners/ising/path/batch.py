@@ -19,8 +19,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ising_backend import CallLedger, rng_handle
-from ising_backend.compiled_rng import as_generator
+from ising_backend import CallLedger, as_generator, rng_handle
 from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 
@@ -181,5 +180,5 @@ class BatchedLegs:
     def _run_legs(self, world, stops, rng):
         """:func:`run_legs` with this planner's pool and the query loop's arguments."""
         grid = world.grid
-        return run_legs(rng_handle(rng), *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]), stops,
-                        *self._loop_args(grid), grid, self.config.cut_loops)
+        return run_legs(rng_handle(rng), *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
+                        stops, *self._loop_args(grid), grid, self.config.cut_loops)

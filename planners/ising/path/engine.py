@@ -22,9 +22,8 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
+from ising_backend import as_generator, merge_styles_flat, rng_handle
 from ising_backend.anneal import anneal_kernel_timed
-from ising_backend import merge_styles_flat, rng_handle
-from ising_backend.compiled_rng import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
@@ -291,7 +290,8 @@ class CompiledSearch:
         """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
         mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng_handle(rng), *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], *self._loop_args(grid))
+            rng_handle(rng), *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
+            *self._loop_args(grid))
         return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
 
     def _loop_args(self, grid) -> tuple:

@@ -17,7 +17,7 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend.compiled_rng import as_generator
+from ising_backend import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ising_backend import as_generator
 from ising_backend._clock import clock_ns
 from ising_backend.logical import mix_seed, tabu_kernel
-from ising_backend.compiled_rng import as_generator
 from planners.ising.tour.kernels import best_onehot, onehot_ising
 
 __all__ = ["solve_order"]

@@ -17,9 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import quantize_rules
+from ising_backend import as_generator, quantize_rules
 from ising_backend.anneal import anneal_kernel_timed
-from ising_backend.compiled_rng import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 

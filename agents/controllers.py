@@ -93,15 +93,16 @@ def parse_controllers(text: str) -> list[str]:
 
 
 def planner_pipeline(spec: str, chip):
-    """The pipeline a planner spec names, on an emulated chip of spec ``chip`` when given
+    """The pipeline a planner spec names, on the chip ``chip`` when given (a ``ChipSpec``: the emulator;
+    a ``MachineSpec``: a sampler)
     (layers without a chip ignore it); ``None`` without a chip (the policy builds the preset)."""
     from planners.pipeline import make_pipeline
 
     shared = {}
     if chip is not None:
-        from ising_backend import EmulatedChip
+        from ising_backend import build_machine
 
-        shared["chip"] = EmulatedChip(chip)
+        shared["chip"] = build_machine(chip)
     if "+" in spec:
         sharing, tour, path = spec.split("+")
         kw = dict(sharing=sharing, tour=tour, path=path)

@@ -75,9 +75,10 @@ def chip_grid(axes: dict[str, list[str]], base=None) -> list[tuple[dict, object]
     """The product of the axes as ``[(labels, ChipSpec), ...]`` in axis order (last axis fastest);
     ``labels`` maps each axis to its value as given.  Bad keys or values raise ``ValueError``
     listing the valid fields."""
-    from ising_backend import ChipSpec
+    from ising_backend import ChipSpec, MachineSpec
 
-    base = ChipSpec() if base is None else base
+    machine = base if isinstance(base, MachineSpec) else None  # a sampler held to each spec of the grid
+    base = ChipSpec() if base is None else (base.spec if machine else base)
     n = 1
     for vals in axes.values():
         n *= len(vals)
@@ -94,7 +95,7 @@ def chip_grid(axes: dict[str, list[str]], base=None) -> list[tuple[dict, object]
                 valid = ", ".join(sorted({*ChipSpec.__dataclass_fields__, *ALIASES}))
                 msg = str(exc)
                 raise ValueError(msg if "valid fields" in msg else f"{msg} (valid fields: {valid})") from None
-        grid.append((labels, spec))
+        grid.append((labels, machine.replace_spec(spec) if machine else spec))
     return grid
 
 

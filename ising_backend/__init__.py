@@ -16,6 +16,8 @@ Modules:
   spins, write errors) and graceful degradation (:class:`HealthMonitor`: probe, quarantine,
   placement around stuck spins, re-dispatch; :class:`ChipUnavailableError`);
 * :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
+* :mod:`.machine` -- :class:`IsingMachine` (the interface every planner drives), :class:`MachineBase`
+  (a device driver implements one method), :class:`SamplerChip` (any ``dimod.Sampler``), :class:`MachineSpec`;
 * :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
@@ -65,10 +67,15 @@ from .portfolio import (
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
 from .compiled_rng import as_generator, rng_handle
+from .machine import (SAMPLERS, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
+                      program_energies, sampler_names)
 
 __all__ = [
     # models, spec, ledger
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
+    # Ising machines
+    "IsingMachine", "MachineBase", "SamplerChip", "MachineSpec", "SAMPLERS", "as_machine", "build_machine",
+    "sampler_names", "program_energies",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit",
     # faults

@@ -364,6 +364,10 @@ def make_pipeline(
         from ising_backend import ChipSpec, EmulatedChip
 
         shared = {**shared, "chip": EmulatedChip(ChipSpec())}
+    elif shared.get("chip") is not None:
+        from ising_backend import as_machine
+
+        shared = {**shared, "chip": as_machine(shared["chip"])}  # a bare dimod sampler: wrapped once, one ledger
     used: set[str] = set()
     layers = {}
     for layer, spec in chosen.items():

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import (add_chip_argument, add_runner_arguments, check_positive, check_seed,
+from agents.commands.options import (add_chip_argument, chip_from_args, add_runner_arguments, check_positive, check_seed,
                                      runner_from_args)
 
 NAME = "compare"
@@ -84,11 +84,7 @@ def run(args) -> int:
     env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:
         run = runner_from_args(args)
-        chip = None
-        if args.chip:
-            from ising_backend import ChipSpec
-
-            chip = ChipSpec.from_options(args.chip)
+        chip = chip_from_args(args)
         result = evaluate(
             specs,
             n_worlds=args.worlds,

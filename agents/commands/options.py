@@ -37,10 +37,54 @@ def runner_from_args(args):
     return run
 
 
-def add_chip_argument(parser, who: str = "the Ising planners") -> None:
-    parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
-                        help=f"the emulated chip of {who}: any ChipSpec field (e.g. n_spins=64, "
-                             "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
+def add_chip_argument(parser, who: str = "the Ising planners", chip: bool = True) -> None:
+    """``--chip`` (unless ``chip=False``: the command has its own), ``--sampler`` and ``--sampler-option``."""
+    from ising_backend import SAMPLERS
+
+    if chip:
+        parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                            help=f"the chip of {who}: any ChipSpec field (e.g. n_spins=64, "
+                                 "j_range=15 meaning (-15, 15)) or a JSON file of fields; repeatable")
+    parser.add_argument("--sampler", default=None, metavar="NAME",
+                        help=f"an Ising sampler behind {who} instead of the emulator, held to the --chip spec "
+                             f"(refused programs, calls charged by it): {', '.join(SAMPLERS)}")
+    parser.add_argument("--sampler-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="a parameter of the --sampler, e.g. num_sweeps=100 or timeout=2 (repeatable)")
+
+
+def _option_value(text: str):
+    """A ``--sampler-option`` value: JSON when it parses (numbers, true/false, null), else the string."""
+    import json
+
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def chip_from_args(args, key: str = "chip"):
+    """The chip the options ask for: ``None`` (none given), a :class:`~ising_backend.ChipSpec`
+    (the emulator) or a :class:`~ising_backend.MachineSpec` (``--sampler``); a bad field, an
+    unknown sampler or option, or a missing package raises ``ValueError`` in one line."""
+    from ising_backend import ChipSpec, MachineSpec
+
+    items = getattr(args, key, None) or []
+    spec = ChipSpec.from_options(items) if items else None
+    sampler = getattr(args, "sampler", None)
+    options = getattr(args, "sampler_option", None) or []
+    if sampler is None:
+        if options:
+            raise ValueError("--sampler-option given without --sampler")
+        return spec
+    pairs = []
+    for item in options:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"--sampler-option {item!r} must look like KEY=VALUE (e.g. num_sweeps=100)")
+        pairs.append((name.strip(), _option_value(value.strip())))
+    machine = MachineSpec(spec or ChipSpec(), sampler, tuple(pairs))
+    machine.build()  # fail now, in one line: a missing package, an unknown parameter, a faulty spec
+    return machine
 
 
 def check_seed(name: str, value: int, count: int = 1) -> str | None:

@@ -45,6 +45,8 @@ import json
 import sys
 from pathlib import Path
 
+from agents.commands.options import add_chip_argument, chip_from_args
+
 NAME = "plan"
 HELP = "plan worlds from a JSON / JSON Lines file; one plan (JSON) per world"
 
@@ -66,8 +68,9 @@ def add_arguments(parser) -> None:
         help="layer factory option, e.g. tour.moves=7 or sharing.bid=tour (repeatable)",
     )
     parser.add_argument("--chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
-                        help="the emulated chip of the Ising layers: any ChipSpec field (e.g. n_spins=64, "
+                        help="the chip of the Ising layers: any ChipSpec field (e.g. n_spins=64, "
                              "j_range=15 meaning (-15, 15), cores_per_chip=4) or a JSON file of fields; repeatable")
+    add_chip_argument(parser, "the Ising layers", chip=False)
     parser.add_argument("--out", default=None, help="write the plans here (JSON Lines) instead of stdout")
     parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
     parser.add_argument("--keep-going", action="store_true", help='continue past bad lines: each gets {"error": ..., "line": N} in its output place (still exit 2)')
@@ -104,10 +107,11 @@ def build_pipeline(args):
     if preset is None and not (args.sharing and args.tour and args.path):
         preset = "strong"
     shared = {}
-    if getattr(args, "chip", None):
-        from ising_backend import ChipSpec, EmulatedChip
+    chip = chip_from_args(args)
+    if chip is not None:
+        from ising_backend import build_machine
 
-        shared["chip"] = EmulatedChip(ChipSpec.from_options(args.chip))
+        shared["chip"] = build_machine(chip)
     try:
         return make_pipeline(
             preset,
@@ -121,7 +125,7 @@ def build_pipeline(args):
         )
     except TypeError as exc:
         if shared and "accepted by no layer" in str(exc):
-            raise ValueError("--chip given, but no layer of this pipeline runs on a chip (use --pipeline ising "
+            raise ValueError("--chip or --sampler given, but no layer of this pipeline runs on a chip (use --pipeline ising "
                              "or an ising layer)") from None
         raise
 

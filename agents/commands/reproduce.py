@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import add_chip_argument, add_runner_arguments, check_seed, runner_from_args
+from agents.commands.options import add_chip_argument, add_runner_arguments, chip_from_args, check_seed, runner_from_args
 
 NAME = "reproduce"
 HELP = "run the paper's section-6 experiments and write CSV/JSON, PNG figures and summary.md"
@@ -70,15 +70,11 @@ def run(args) -> int:
     if problem:
         print(f"mrmt reproduce: error: {problem}", file=sys.stderr)
         return 2
-    chip = None
-    if args.chip:
-        from ising_backend import ChipSpec
-
-        try:
-            chip = ChipSpec.from_options(args.chip)
-        except ValueError as exc:
-            print(f"mrmt reproduce: error: {exc}", file=sys.stderr)
-            return 2
+    try:
+        chip = chip_from_args(args)
+    except ValueError as exc:
+        print(f"mrmt reproduce: error: {exc}", file=sys.stderr)
+        return 2
     out = reproduce(
         args.out, quick=args.quick, seed=args.seed, n_jobs=args.jobs, progress=not args.no_progress,
         sizes=sizes, experiments=names, chip=chip, run=runner,

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import add_runner_arguments, check_positive, check_seed, runner_from_args
+from agents.commands.options import add_chip_argument, add_runner_arguments, chip_from_args, check_positive, check_seed, runner_from_args
 
 NAME = "sweep"
 HELP = "sweep chip specs (a grid of ChipSpec values) over worlds and controllers; Pareto figures and a summary"
@@ -27,6 +27,7 @@ def add_arguments(parser) -> None:
                              "grid is the product")
     parser.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
                         help="fixed ChipSpec fields under the grid (as --chip of mrmt plan); repeatable")
+    add_chip_argument(parser, "the chip controllers (each spec of the grid)", chip=False)
     parser.add_argument("--controllers", default="ising,strong",
                         help="comma-separated controllers (as mrmt compare); those with an Ising layer run once "
                              "per spec, the others once (default ising,strong)")
@@ -74,10 +75,8 @@ def run(args) -> int:
     given = {"n_robots": args.robots, "n_targets": args.targets, "height": args.height, "width": args.width,
              "placement": args.placement, "layout": args.layout}
     try:
-        from ising_backend import ChipSpec
-
         run_cfg = runner_from_args(args)
-        base = ChipSpec.from_options(args.base_chip) if args.base_chip else None
+        base = chip_from_args(args, key="base_chip")
         config = SweepConfig(axes=parse_axes(args.chip), controllers=tuple(args.controllers.split(",")),
                              n_worlds=args.worlds, world_seed=args.seed, seeds=tuple(range(args.seeds)),
                              env_id=args.env_id, env_kwargs={k: v for k, v in given.items() if v is not None},

@@ -25,9 +25,9 @@ def make_layer(kind: str, name: str, chip=None):
 
     if chip is None:
         return registry.create(kind, name)
-    from ising_backend import EmulatedChip
+    from ising_backend import build_machine
 
-    return registry.create(kind, name, shared={"chip": EmulatedChip(chip)})
+    return registry.create(kind, name, shared={"chip": build_machine(chip)})
 
 
 _WARMED: set = set()

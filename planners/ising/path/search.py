@@ -67,9 +67,9 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
     defaults: PathConfig | None = None  # None: PathConfig()
 
     def __init__(self, chip=None, config: PathConfig | None = None, **options):
-        from ising_backend import ChipSpec, EmulatedChip
+        from ising_backend import ChipSpec, EmulatedChip, as_machine
 
-        self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
         cfg = resolve_config(PathConfig, config, options, self.defaults)
         # a patch not given explicitly shrinks to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.chip.spec.n_spins, keep=set(options))

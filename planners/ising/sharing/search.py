@@ -52,10 +52,10 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
     defaults: SharingConfig | None = None  # None: SharingConfig()
 
     def __init__(self, chip=None, config: SharingConfig | None = None, **options) -> None:
-        from ising_backend import ChipSpec, EmulatedChip
+        from ising_backend import ChipSpec, EmulatedChip, as_machine
 
         self.config = resolve_config(SharingConfig, config, options, self.defaults)
-        self.chip = EmulatedChip(ChipSpec()) if chip is None else chip
+        self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
         from ising_backend import QUANTIZE_RULE_IDS
 
         spec = self.chip.spec

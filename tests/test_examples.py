@@ -25,7 +25,7 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested():
     tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
-              "map_families.py"}
+              "map_families.py", "socket_chip.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -33,6 +33,11 @@ def test_quickstart_ising():
     out = run_example("quickstart.py", "--seed", "1")
     assert "pipeline ising: success=True" in out
     assert "chip calls" in out and "accelerator energy" in out
+
+
+def test_socket_chip():
+    out = run_example("socket_chip.py")
+    assert "plan valid: True" in out and "chip calls" in out
 
 
 def test_movingai_map():

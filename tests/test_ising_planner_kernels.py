@@ -513,7 +513,7 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     Q = np.triu(np.ones((1, 4, 4)), k=1)
 
     def run(q, Lh=7.0, Lj=7.0):
-        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), *chip.kernel_args(), free, anchors, dist, 2,
+        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), -1, *chip.kernel_args(), free, anchors, dist, 2,
                          np.zeros(1, dtype=np.bool_))
 
     good = run(q)

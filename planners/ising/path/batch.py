@@ -91,8 +91,8 @@ def usable_legs(cells, grid):
 @numba.njit(cache=True)
 def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields, stops, size,
              nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls, degree,
-             coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-             free_cells, grid, cut):
+             coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
+             flip_prob, free_cells, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each, until the first
     leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s ranking field
     (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
@@ -116,8 +116,8 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
         status, _pr, _pc, walk, leg_counts, leg_map, sub_calls, sub_emu = run_query(
             rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields[j], sr, sc, gr,
             gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls,
-            degree, coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric, beta_hot, beta_cold, mismatch,
-            flip_prob, free_cells)
+            degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold,
+            mismatch, flip_prob, free_cells)
         if status != REACHED:
             break
         ok, path = cut_walk(walk, grid, sr, sc, gr, gc, cut)
@@ -148,7 +148,8 @@ class BatchedLegs:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
         the compiled loop cannot finish (module docstring)."""
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        if self._engine_args is None or len(cells) < 2:
+        if self._engine_args is None or not self._link.direct or len(cells) < 2:
+            # (a machine behind a callback is not batched: a leg not done is replayed, its calls would run twice)
             return LegBatch(compute=ComputeReport())
         n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
         if n_legs == 0:
@@ -164,7 +165,7 @@ class BatchedLegs:
             return LegBatch(compute=ComputeReport())
         paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
         charged = CallLedger()
-        self.chip.charge_into(calls, emu, charged)
+        self._link.settle(calls, emu, charged)
         styles = self.config.styles
         stats = {
             "chip_calls": int(charged.physical_calls),

@@ -23,15 +23,16 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend import as_generator, merge_styles_flat, rng_handle
-from ising_backend.anneal import anneal_kernel_timed
+from ising_backend.link import anneal_submit
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "CompiledSearch", "engine_capable", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED",
+__all__ = ["ProgramPool", "CompiledSearch", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED",
            "NEEDS_REFERENCE"]
 
 REACHED, BUDGET_SPENT, EXHAUSTED, NEEDS_REFERENCE = 0, 1, 2, 3
+_COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 
 
 class ProgramPool:
@@ -123,8 +124,8 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
 
 @numba.njit(cache=True)
 def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
-              num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, sweeps, geometric,
-              beta_hot, beta_cold, mismatch, flip_prob, free_cells):
+              num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps,
+              geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells):
     """One query of Algorithm 1 (see the module docstring).
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu)``:
@@ -205,10 +206,10 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
             w = width[slot]
             spins = np.empty((k, num_reads, w), dtype=np.int8)
             energies = np.empty((k, num_reads))
-            sub_emu[nsub] = anneal_kernel_timed(ph[slot, : k * w].reshape((k, w)),
-                                                pJ[slot, : k * w * w].reshape((k, w, w)), num_reads,
-                                                np.uint64(seed), sweeps, geometric, beta_hot, beta_cold, mismatch,
-                                                flip_prob, spins, energies)
+            sub_emu[nsub] = anneal_submit(ph[slot, : k * w].reshape((k, w)),
+                                          pJ[slot, : k * w * w].reshape((k, w, w)), num_reads,
+                                          np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
+                                          flip_prob, spins, energies)
             sub_calls[nsub] = k * num_reads
             nsub += 1
             used += k * num_reads
@@ -274,13 +275,6 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]
 
 
-def engine_capable(chip) -> bool:
-    """:func:`ising_backend.kernel_capable`: the compiled loop may call this chip's kernel."""
-    from ising_backend import kernel_capable
-
-    return kernel_capable(chip) and hasattr(chip, "kernel_args")
-
-
 class CompiledSearch:
     """:class:`~planners.ising.path.IsingPath`'s side of the compiled loop: run a query with
     :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
@@ -315,15 +309,27 @@ class CompiledSearch:
         submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
         from ising_backend import CallLedger
 
+        from ising_backend import ChipUnavailableError, SolverOutputError
+        from planners.ising.fallback import unavailable_message
+
         cfg = self.config
-        status, (pr, pc), walk, counts, mp, sub_calls, sub_emu = self._engine_query(grid, s, g, rng, field)
+        self._link.charged = CallLedger()
+        try:
+            status, (pr, pc), walk, counts, mp, sub_calls, sub_emu = self._engine_query(grid, s, g, rng, field)
+        except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
+            unavailable = isinstance(exc, ChipUnavailableError)
+            failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
+            counts = dict.fromkeys(_COUNT_NAMES, 0)
+            if unavailable:
+                counts["chip_unavailable"] = 1
+            mapping = {st: dict.fromkeys(("programs", "valid", "wins", "map_errors"), 0) for st in cfg.styles}
+            return self._finish(grid, s, g, [s], counts, mapping, self._link.charged, failure, None)
         if status == NEEDS_REFERENCE:
             return None
         max_attempts, _per_target, max_calls = self._budgets(grid)
-        charged = CallLedger()
-        self.chip.charge_into(sub_calls, sub_emu, charged)
-        counts = dict(zip(("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves"),
-                          (int(v) for v in counts)))
+        charged = self._link.charged
+        self._link.settle(sub_calls, sub_emu, charged)
+        counts = dict(zip(_COUNT_NAMES, (int(v) for v in counts)))
         mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}
                    for st, r in zip(cfg.styles, mp)}
         failure = None

@@ -22,7 +22,7 @@ from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import path_fallback, unavailable_message
 from planners.ising.path.config import PathConfig
 from planners.ising.path.decode import decode_paths
-from planners.ising.path.engine import CompiledSearch, ProgramPool, engine_capable
+from planners.ising.path.engine import CompiledSearch, ProgramPool
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
 from planners.ising.path.batch import BatchedLegs
@@ -93,13 +93,16 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
         self._free_for = None
         self._loop_for = None  # (grid, the compiled loop's arguments on it) of the last grid
         self._engine_args = None
-        if engine_capable(self.chip) and not cfg.pack and cfg.targets_per_call == 1 and cfg.patch_size <= 7:
+        from ising_backend import MachineLink
+
+        self._link = MachineLink(self.chip)  # the compiled loop anneals on any machine through it
+        if not cfg.pack and cfg.targets_per_call == 1 and cfg.patch_size <= 7:
             w = cfg.full_weights
             coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0) if cfg.form == "pair" else \
                 (0.0, w["B"], 0.0, w["A_end"], w["A"])
             self._engine_args = (cfg.form == "degree", np.array(coef, dtype=np.float64), float(cfg.chip_scale),
                                  self._style_ids, self._limits[0], self._limits[1], self._limits[2],
-                                 *self.chip.kernel_args())
+                                 *self._link.kernel_args)
             self._pool = ProgramPool(self.frame.n, len(cfg.styles), spec.n_spins)
 
     def __repr__(self) -> str:

@@ -117,7 +117,7 @@ def reserve(store, n):
 def solve_problems(q, Q, free, sizes, anchors, reject, pids, score_w, R, rng, chip, retries, book, store):
     """:meth:`~.submit.ChipSubmission._solve_all` with the packed submission: problem ``p``'s distinct
     valid candidates (best cut on ``score_w`` first) go to store row ``pids[p]``.  Returns ``ok``."""
-    rule_ids, Lh, Lj, n_spins, reads, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
+    rule_ids, Lh, Lj, n_spins, capacity, reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
     mapping, counters, sub_calls, sub_emu = book
     c_cut, c_m0, c_m1, c_n = store
     nk = rule_ids.shape[0]
@@ -131,8 +131,8 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, score_w, R, rng, ch
                 return False
         seed = rng.integers(0, _SEED_HIGH)
         ok, calls, emu, n_valid, best, c_split, cut, s0, n0, s1, n1 = run_stage(
-            q[pending], Q[pending], sizes[pending], rule_ids, Lh, Lj, n_spins, reads, np.uint64(seed), sweeps,
-            geometric, beta_hot, beta_cold, mismatch, flip_prob, free[pending], anchors[pending], score_w, R,
+            q[pending], Q[pending], sizes[pending], rule_ids, Lh, Lj, capacity, reads, np.uint64(seed), handle,
+            sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob, free[pending], anchors[pending], score_w, R,
             reject[pending])
         if not ok:
             return False

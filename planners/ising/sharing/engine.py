@@ -2,15 +2,14 @@
 
 Contract: :func:`run_stage` does what :meth:`~.submit.ChipSubmission._solve_packed` does with
 its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
-decreasing (:func:`ising_backend.pack_layout`), placed (:func:`.kernels.fill_packs`), annealed by
-the chip's own kernel (:meth:`~ising_backend.EmulatedChip.kernel_args`, the seed ``anneal_batch``
-would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
+decreasing (:func:`ising_backend.pack_layout`), placed (:func:`.kernels.fill_packs`), annealed on the
+chip through :func:`ising_backend.anneal_submit` (the emulator's kernel, or a callback into any
+machine's ``anneal_batch``; the seed ``anneal_batch`` would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
 and returns the same arrays, the calls and the measured emulation seconds for
 :meth:`~ising_backend.EmulatedChip.charge`.  A stage it cannot run as the chip would (a
 non-finite quantized coefficient, a program outside the chip's symmetric coefficient limits, which
 the chip's own check (:func:`ising_backend.programs_fit`) refuses) comes back with
 ``ok=False`` and nothing annealed, so the caller takes the checked path, which names the error.
-Only chips :func:`ising_backend.kernel_capable` admits take this path.
 """
 
 from __future__ import annotations
@@ -19,14 +18,14 @@ import numba
 import numpy as np
 
 from ising_backend import pack_layout, programs_fit
-from ising_backend.anneal import anneal_kernel_timed
+from ising_backend.link import anneal_submit
 from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
 
 __all__ = ["run_stage"]
 
 
 @numba.njit(cache=True)
-def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
+def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold,
               mismatch, flip_prob, free, anchors, dist, n_robots, reject):
     """One stage submission (module docstring).  Returns ``(ok, calls, emulation_s, n_valid, best,
     c_split, c_cut, side0, n0, side1, n1)`` (the last seven as :func:`.kernels.score_stage` and
@@ -39,6 +38,8 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, sweeps, geo
     for p in range(P):
         for r in range(k):
             prog_sizes[p * k + r] = sizes[p]
+    if handle >= 0:  # a machine behind the callback: packs up to its usable spins, as the checked path
+        capacity = max(capacity, prog_sizes.max())
     pack_of, order, n_packs, width = pack_layout(prog_sizes, capacity)
     h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
     ok = not status.any() and programs_fit(h, J, -Lh, Lh, -Lj, Lj)
@@ -48,8 +49,8 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, sweeps, geo
                 np.zeros((0, f + 1), dtype=np.int64), e, np.zeros((0, f + 1), dtype=np.int64), e)
     spins = np.empty((n_packs, num_reads, width), dtype=np.int8)
     energies = np.empty((n_packs, num_reads))
-    emu = anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                              spins, energies)
+    emu = anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                        spins, energies)
     calls = n_packs * num_reads if width > 0 else 0
     n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject)
     s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)

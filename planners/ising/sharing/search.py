@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import ChipUnavailableError, MeteredSolver, kernel_capable, rng_handle
+from ising_backend import ChipProgramError, ChipUnavailableError, MachineLink, MeteredSolver, SolverOutputError, rng_handle
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.tours_classical import MAX_BRUTE_TARGETS
@@ -62,13 +62,15 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
         self._limits = tuple(float(v) for v in spec.coefficient_limits)
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
-        # the chip's kernel arguments when a stage may run in one compiled call (.engine.run_stage)
-        self._kernel_args = self.chip.kernel_args() if kernel_capable(self.chip) else None
+        # how a stage's compiled call (.engine.run_stage) reaches the chip: any machine
+        self._link = MachineLink(self.chip)
+        self._kernel_args = self._link.kernel_args
         cfg = self.config
         # the arguments of the whole sharing in one compiled call (.compiled_assign), where it applies
         self._compiled = None
-        if self._kernel_args is not None and not cfg.balance and cfg.pricing_tour == "auto":
-            chip_args = (self._rule_ids, *self._limits, int(spec.n_spins), cfg.reads, *self._kernel_args)
+        if not cfg.balance and cfg.pricing_tour == "auto":
+            chip_args = (self._rule_ids, *self._limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
+                         *self._kernel_args)
             opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
                     cfg.refine_above, int(cfg.reject_empty_robot_side))
             pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
@@ -110,15 +112,15 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
 
         self._meter = MeteredSolver(self.chip)
         self._powered_for = None  # a new call: the split weights' base is recomputed
-        if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62:
-            result = self._assign_compiled(dist, R, rng, stats)
-            if result is not None:
-                return result
-        pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
-        cost = pricer.cost
-
+        pricer = None
         self._memo: dict = {}
         try:
+            if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62:
+                result = self._assign_compiled(dist, R, rng, stats)
+                if result is not None:
+                    return result
+            pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
+            cost = pricer.cost
             states = self._split_all(self.split_weights(dist, R), R, rng, stats)
             best = None
             for groups in states:
@@ -140,7 +142,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             self._memo = {}
             unavailable = isinstance(exc, ChipUnavailableError)
             reason = unavailable_message(exc) if unavailable else str(exc)
-            compute = ComputeReport.from_ledger(self._meter.charged) + pricer.compute
+            compute = ComputeReport.from_ledger(self._meter.charged)
+            if pricer is not None:
+                compute = compute + pricer.compute
             if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
                 from planners.sharing_classical import SSASharing
 
@@ -159,7 +163,17 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
                 np.zeros(subs, dtype=np.int64), np.zeros(subs))
         state = rng.bit_generator.state
-        ok, sets = assign_kernel(dist, powered, mean, R, rng_handle(rng), *self._compiled, book)
+        compiled = self._compiled
+        if not self._link.direct:  # programs packed clear of the stuck spins a faulty chip found
+            chip = compiled[0]
+            compiled = (chip[:4] + (self._capacity(),) + chip[5:], *compiled[1:])
+        self._link.charged = self._meter.charged
+        try:
+            ok, sets = assign_kernel(dist, powered, mean, R, rng_handle(rng), *compiled, book)
+        except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
+            raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
+        except ChipProgramError as exc:
+            raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
         if not ok:
             rng.bit_generator.state = state
             return None
@@ -173,7 +187,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             stats[key] = stats.get(key, 0) + value
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
-        self.chip.charge_into(calls[:n], emu[:n], self._meter.charged)
+        self._link.settle(calls[:n], emu[:n], self._meter.charged)
         assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
 

@@ -26,7 +26,14 @@ __all__ = ["ChipSubmission"]
 
 class ChipSubmission:
     """:class:`~planners.ising.sharing.IsingSharing`'s chip side (needs ``config``, ``chip``, ``_meter``,
-    ``_rule_ids``, ``_limits`` and ``_kernel_args``)."""
+    ``_rule_ids``, ``_limits``, ``_link`` and ``_kernel_args``)."""
+
+    def _capacity(self) -> int:
+        """Spins per packed program: the chip's, or those clear of the stuck spins a faulty chip's
+        health probe found (the emulator's kernel runs only on healthy chips)."""
+        if self._link.direct:
+            return int(self.chip.spec.n_spins)
+        return int(getattr(self.chip, "usable_spins", self.chip.spec.n_spins))
 
     def _solve_all(self, w, R, pending, rng, stats) -> None:
         """Solve ``pending`` split problems on the chip, re-submitting those without a valid
@@ -78,11 +85,16 @@ class ChipSubmission:
         reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
         out = None
         if self._kernel_args is not None:  # the whole submission in one compiled call
-            out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, int(spec.n_spins), cfg.reads,
-                            np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
+            self._link.charged = self._meter.charged
+            try:
+                out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, self._capacity(), cfg.reads,
+                                np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
+            except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
+                raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
+            except ChipProgramError as exc:
+                raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
             if out[0]:
-                delta = self.chip.charge([out[1]], [out[2]])[0]
-                self._meter.charged._add_in_place(delta)
+                self._link.settle([out[1]], [out[2]], self._meter.charged)
                 n_valid, best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
             else:
                 out = None

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from ising_backend import as_generator, quantize_rules
-from ising_backend.anneal import anneal_kernel_timed
+from ising_backend.link import anneal_submit
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 
@@ -75,7 +75,7 @@ def _selection_ising(moves, gains, margin):
 
 @numba.njit(cache=True)
 def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh,
-                      Lj, num_reads, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
+                      Lj, num_reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
     """One start of the move-selection search (module docstring).
 
     Returns ``(route, status, stats (5,), clean (k,), wins (k,), calls (S,), emulation_s (S,))`` with
@@ -110,8 +110,8 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         M = gains.shape[0]
         spins = np.empty((k, num_reads, M), dtype=np.int8)
         energies = np.empty((k, num_reads))
-        emu[rounds] = anneal_kernel_timed(hq, Jq, num_reads, np.uint64(seed), sweeps, geometric, beta_hot, beta_cold,
-                                          mismatch, flip_prob, spins, energies)
+        emu[rounds] = anneal_submit(hq, Jq, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold,
+                                    mismatch, flip_prob, spins, energies)
         calls[rounds] = k * num_reads
         rounds += 1
         clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
@@ -157,7 +157,7 @@ def nearest_neighbour_kernel(dist):
 
 @numba.njit(cache=True)
 def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj,
-                     num_reads, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
+                     num_reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
     """``MoveSelection._move_starts`` with random restarts in one call: the nearest-neighbour route,
     then ``starts - 1`` random orders (``rng.permutation``), each improved by
     :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
@@ -185,7 +185,7 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
             route[1:] = 1 + rng.permutation(n)
         route, st, sst, sclean, swins, scalls, semu = select_moves_loop(
             rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj, num_reads,
-            sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)
+            handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)
         if st == NEEDS_REFERENCE:
             return False, best, costs, status, stats, clean, wins, calls, emu
         status[s] = st

@@ -29,7 +29,7 @@ from functools import cached_property
 import numpy as np
 
 from ising_backend import (
-    QUANTIZE_RULE_IDS, ChipProgramError, ising_from_qubo, kernel_capable, quantize_stack, rng_handle,
+    QUANTIZE_RULE_IDS, ChipProgramError, MachineLink, ising_from_qubo, quantize_stack, rng_handle,
 )
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, move_starts_loop, select_moves_loop
@@ -69,19 +69,24 @@ class MoveSelection:
         """The compiled loop's fixed arguments: rule ids, coefficient limits, the chip's kernel arguments."""
         rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
         return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads,
-                *self.chip.kernel_args())
+                *self._link.kernel_args)
 
     @cached_property
-    def _kernel_chip(self) -> bool:
-        """Whether the compiled loops may call this chip's kernel (:func:`ising_backend.kernel_capable`)."""
-        return kernel_capable(self.chip) and hasattr(self.chip, "kernel_args")
+    def _link(self):
+        """How the compiled loops reach the chip (:class:`ising_backend.MachineLink`): any machine."""
+        return MachineLink(self.chip)
+
+    @property
+    def _capacity(self) -> int:
+        """Most moves per program: the spins a program may use (around stuck spins), at most ``max_moves``."""
+        return min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), self.config.max_moves)
 
     def _move_starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
-        if not kicks and self._kernel_chip:
+        if not kicks:
             out = self._move_starts_compiled(dist, run, starts)
             if out is not None:
                 return out
@@ -109,26 +114,26 @@ class MoveSelection:
         return [int(t) for t in best[1:]]
 
     def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-        """One start: the compiled loop (:mod:`.move_engine`) on a chip whose kernel it may call,
-        else :meth:`_select_moves_reference`."""
-        if self._kernel_chip:
-            out = self._select_moves_compiled(dist, route, run)
-            if out is not None:
-                return out
+        """One start: the compiled loop (:mod:`.move_engine`); :meth:`_select_moves_reference` names a
+        program the quantizer refused."""
+        out = self._select_moves_compiled(dist, route, run)
+        if out is not None:
+            return out
         return self._select_moves_reference(dist, route, run)
 
     def _select_moves_compiled(self, dist, route, run):
         """:meth:`_select_moves_reference` in one compiled call, charged to the chip per submission."""
         cfg = self.config
-        capacity = min(int(self.spec.n_spins), cfg.max_moves)
+        capacity = self._capacity
         state = run.rng.bit_generator.state
+        self._link.charged = run.charged
         new, status, st, clean, wins, calls, emu = select_moves_loop(
             rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
             return None
-        self.chip.charge_into(calls, emu, run.charged)
+        self._link.settle(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
@@ -174,15 +179,16 @@ class MoveSelection:
         charged and counted as the per-start calls; ``None`` (the rng rewound) at a program the
         quantizer refuses, which the per-start path names."""
         cfg = self.config
-        capacity = min(int(self.spec.n_spins), cfg.max_moves)
+        capacity = self._capacity
         state = run.rng.bit_generator.state
+        self._link.charged = run.charged
         ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
             rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if not ok:
             run.rng.bit_generator.state = state
             return None
-        self.chip.charge_into(calls, emu, run.charged)
+        self._link.settle(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins, status.tolist())
         for s, code in enumerate(status.tolist()):
             if code == NO_PROGRESS:

@@ -1,0 +1,95 @@
+"""How the planners' compiled search loops reach an Ising machine.
+
+A compiled loop anneals through :func:`anneal_submit` with the arguments of a
+:class:`MachineLink` (``link.kernel_args``, spliced where the emulator's kernel arguments
+go). For the healthy emulator (:func:`~ising_backend.chip.kernel_capable`) that is the
+emulator's own kernel, called in the loop, and the caller charges the returned calls and
+seconds afterwards with :meth:`MachineLink.settle` (bit for bit what ``anneal_batch`` would
+charge). For any other :class:`~ising_backend.machine.IsingMachine` (a faulty emulator, a
+dimod sampler, a device driver) the loop calls back into ``machine.anneal_batch`` (numba's
+object mode, a few microseconds per submission), which refuses, anneals, times and charges
+as it always does; each call's charge is also added to the ledger the caller set in
+:attr:`MachineLink.charged`. So every machine runs the same compiled search: only the anneal
+step differs. A machine's exception (``ChipUnavailableError``, ``ChipProgramError``)
+propagates out of the compiled loop unchanged.
+"""
+
+from __future__ import annotations
+
+import itertools
+import weakref
+
+import numba
+import numpy as np
+
+from .anneal import anneal_kernel_timed
+from .chip import kernel_capable
+from .ledger import CallLedger
+
+__all__ = ["MachineLink", "anneal_submit"]
+
+_LINKS: "weakref.WeakValueDictionary[int, MachineLink]" = weakref.WeakValueDictionary()
+_IDS = itertools.count()
+_NO_MISMATCH = np.zeros((0, 0, 0))
+
+
+class MachineLink:
+    """One machine as seen by compiled loops (module docstring)."""
+
+    def __init__(self, machine):
+        self.machine = machine
+        self.direct = kernel_capable(machine)
+        #: the ledger the running compiled call charges (callback machines charge it per submission)
+        self.charged: CallLedger | None = None
+        self._register()
+
+    def _register(self) -> None:
+        self.handle = -1 if self.direct else next(_IDS)
+        if not self.direct:
+            _LINKS[self.handle] = self
+        if self.direct:
+            self.kernel_args = (-1, *self.machine.kernel_args())
+        else:
+            self.kernel_args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
+
+    def __getstate__(self) -> dict:
+        return {"machine": self.machine}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["machine"])
+
+    def settle(self, calls, seconds, charged: CallLedger) -> None:
+        """Charge what a compiled call submitted: the emulator's kernel calls (``calls[i]`` calls,
+        ``seconds[i]`` emulation seconds each) to the chip and ``charged``; nothing for a callback
+        machine (each of its calls charged itself, and ``charged``, as it ran)."""
+        if self.direct:
+            self.machine.charge_into(calls, seconds, charged)
+
+
+def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
+    link = _LINKS[handle]
+    machine = link.machine
+    before = getattr(machine, "last_call", None)
+    try:
+        s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
+    finally:  # a call that failed is charged what it spent, as MeteredSolver does
+        last = getattr(machine, "last_call", None)
+        if link.charged is not None and last is not None and last is not before:
+            link.charged._add_in_place(last)
+    spins[...] = s
+    energies[...] = e
+    return 0.0
+
+
+@numba.njit(cache=True)
+def anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                  spins, energies):
+    """Anneal ``h (B, n)``, ``J (B, n, n)`` into ``spins`` / ``energies`` on the linked machine
+    (``handle, sweeps, ... flip_prob`` = :attr:`MachineLink.kernel_args`); returns the emulation
+    seconds to charge (the emulator's kernel), 0 for a machine that charged itself."""
+    if handle < 0:
+        return anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch,
+                                   flip_prob, spins, energies)
+    with numba.objmode(t="float64"):
+        t = _callback(handle, h, J, num_reads, seed, spins, energies)
+    return t

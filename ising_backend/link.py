@@ -25,6 +25,7 @@ import numpy as np
 from .anneal import anneal_kernel_timed
 from .chip import kernel_capable
 from .ledger import CallLedger
+from .meter import SolverOutputError
 
 __all__ = ["MachineLink", "anneal_submit"]
 
@@ -69,13 +70,19 @@ class MachineLink:
 def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     link = _LINKS[handle]
     machine = link.machine
-    before = getattr(machine, "last_call", None)
+    has_last = hasattr(machine, "last_call")  # else the charge is read off the ledger, as MeteredSolver does
+    before = machine.last_call if has_last else machine.ledger.snapshot()
     try:
         s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
-    finally:  # a call that failed is charged what it spent, as MeteredSolver does
-        last = getattr(machine, "last_call", None)
-        if link.charged is not None and last is not None and last is not before:
-            link.charged._add_in_place(last)
+    finally:  # a call that failed is charged what it spent
+        if link.charged is not None:
+            if not has_last:
+                link.charged._add_in_place(machine.ledger.since(before))
+            elif machine.last_call is not before:
+                link.charged._add_in_place(machine.last_call)
+    s = np.asarray(s)
+    if s.shape != spins.shape or not ((s == 1) | (s == -1)).all():
+        raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
     spins[...] = s
     energies[...] = e
     return 0.0

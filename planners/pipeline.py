@@ -364,10 +364,14 @@ def make_pipeline(
         from ising_backend import ChipSpec, EmulatedChip
 
         shared = {**shared, "chip": EmulatedChip(ChipSpec())}
-    elif shared.get("chip") is not None:
-        from ising_backend import as_machine
+    else:
+        import dimod
 
-        shared = {**shared, "chip": as_machine(shared["chip"])}  # a bare dimod sampler: wrapped once, one ledger
+        from ising_backend import IsingMachine, as_machine
+
+        chip = shared.get("chip")
+        if isinstance(chip, dimod.Sampler) and not isinstance(chip, IsingMachine):
+            shared = {**shared, "chip": as_machine(chip)}  # a bare dimod sampler: wrapped once, one ledger
     used: set[str] = set()
     layers = {}
     for layer, spec in chosen.items():

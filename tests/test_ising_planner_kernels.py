@@ -351,15 +351,28 @@ def test_compiled_path_loop_makes_the_reference_loops_decisions(options):
     assert True in outcomes
 
 
-def test_chip_subclass_that_overrides_annealing_uses_the_reference_loop():
+def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_its_anneal_batch():
     from ising_backend import EmulatedChip
+    from mrmt_env.generation import generate_world
     from planners.ising.path import IsingPath
 
-    class Noisy(EmulatedChip):
+    class Counting(EmulatedChip):
+        submissions = 0
+
         def anneal_batch(self, h, J, num_reads=1, seed=None):
+            self.submissions += 1
             return super().anneal_batch(h, J, num_reads=num_reads, seed=seed)
 
-    assert IsingPath(Noisy())._engine_args is None
+    chip = Counting()
+    planner = IsingPath(chip)
+    assert planner._engine_args is not None and not planner._link.direct
+    world = generate_world(2)
+    a = planner.find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
+    b = IsingPath(EmulatedChip()).find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
+    # the same kernel behind the callback: the same path, statistics and charges as the emulator's own loop
+    assert np.array_equal(a.path, b.path) and a.stats == b.stats
+    assert a.compute.replace(emulation_s=0.0) == b.compute.replace(emulation_s=0.0)
+    assert chip.submissions == a.stats["anneal_calls"] > 0 and chip.ledger.physical_calls == a.compute.chip_calls
     assert IsingPath(EmulatedChip(), pack=True)._engine_args is None
     assert IsingPath(EmulatedChip(), targets_per_call=2)._engine_args is None
 

@@ -52,7 +52,8 @@ def test_target_faults_plan_validly_without_fallbacks(preset):
         chip = EmulatedChip(ChipSpec(seed=seed, **TARGET))
         assert len(chip.health.quarantined.nonzero()[0]) == 1 and chip.usable_spins == 43
         pipe = make_pipeline(preset, chip=chip)
-        assert pipe.path._engine_args is None and not pipe.tour._engine  # faults: the reference loops
+        # faults: the compiled loops, annealing through the chip's fault-tolerant anneal_batch
+        assert pipe.path._engine_args is not None and not pipe.path._link.direct and not pipe.sharing._link.direct
         world = _world(seed)
         plan = pipe.plan(world, seed=seed)
         assert plan.success, plan.failure

@@ -333,9 +333,9 @@ class EmulatedChip(dimod.Sampler):
             ``(B, num_reads)`` (programmed coefficients; single program: leading
             axis dropped).  Charges ``B * num_reads`` calls to :attr:`ledger`.
         """
+        t0 = time.perf_counter()
         single = np.ndim(h) == 1
         num_reads = check_num_reads(num_reads)
-        t0 = time.perf_counter()
         hf, Jf = check_program(h, J, self.spec, native=True)
         seed = self._draw_seed(seed)
         B, n = hf.shape
@@ -346,7 +346,7 @@ class EmulatedChip(dimod.Sampler):
         else:
             hot, cold = self.spec.beta_range
         if self.health is not None and B and n:
-            return self._dispatch(hf, Jf, num_reads, seed, single, time.perf_counter() - t0)
+            return self._dispatch(hf, Jf, num_reads, seed, single, t0)
         if B:
             anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
                           hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
@@ -362,18 +362,23 @@ class EmulatedChip(dimod.Sampler):
         (``spec.n_spins`` without faults)."""
         return self.spec.n_spins if self.health is None else self.health.usable_spins
 
-    def _dispatch(self, hf, Jf, num_reads, seed, single, check_s):
-        """:meth:`anneal_batch` on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged."""
+    def _dispatch(self, hf, Jf, num_reads, seed, single, t0):
+        """:meth:`anneal_batch` on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged
+        the seconds since the last (the first from the call's start: the check and the driver's own
+        bookkeeping are the machine's time too)."""
         rounds: list[CallLedger] = []
-        extra = [check_s]
+        mark = [t0]
 
         def charge(calls, seconds, retries, probe):
-            rounds.append(self.ledger.record_physical(calls, self.spec, seconds + extra.pop() if extra else seconds,
+            now = time.perf_counter()
+            rounds.append(self.ledger.record_physical(calls, self.spec, now - mark[0],
                                                       cores=len(self.health.healthy), retries=retries))
+            mark[0] = now
 
         try:
             spins, energies = dispatch(self.health, hf, Jf, num_reads, seed, self._run_cores, charge)
         finally:
+            charge(0, 0.0, 0, 0)  # the driver's seconds after the last round: no call, the machine's time
             self.last_call = sum(rounds, CallLedger())
         if single:
             return spins[0], energies[0]

@@ -261,7 +261,7 @@ class LogicalIsingSolver(dimod.Sampler):
         t0 = time.perf_counter()
         h, J, single = self._check(h, J)
         seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
-        with self._metering():
+        with self._metering(t0):
             spins, energies = self._run(h, J, num_reads, seed)
         if self.health is None:
             calls = h.shape[0] * num_reads if h.shape[1] else 0  # a program without spins is not solved
@@ -271,20 +271,26 @@ class LogicalIsingSolver(dimod.Sampler):
         return spins, energies
 
     @contextmanager
-    def _metering(self):
-        """With ``health``: the call's dispatch rounds, summed into :attr:`last_call` (also on error)."""
+    def _metering(self, t0: float | None = None):
+        """With ``health``: the call's dispatch rounds, summed into :attr:`last_call` (also on error); each
+        round is charged the seconds since the call's start (``t0``, default now) or the round before."""
         if self.health is None:
             yield
             return
         self._rounds = []
+        self._mark = time.perf_counter() if t0 is None else t0
         try:
             yield
         finally:
+            self._charge_round(0, 0.0, 0, 0)  # the seconds after the last round: no call, the solver's time
+            self._mark = None
             self.last_call = sum(self._rounds, CallLedger())
 
     def _charge_round(self, calls, seconds, retries, probe):
-        self._rounds.append(self.ledger.record_logical(calls, self.spec, seconds, cores=len(self.health.healthy),
-                                                       retries=retries))
+        now = time.perf_counter()
+        self._rounds.append(self.ledger.record_logical(calls, self.spec, now - self._mark,
+                                                       cores=len(self.health.healthy), retries=retries))
+        self._mark = now
 
     def _run(self, h, J, num_reads, seed):
         if self.health is not None and h.shape[0] and h.shape[1]:

@@ -148,23 +148,24 @@ class BatchedLegs:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
         the compiled loop cannot finish (module docstring)."""
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        if self._engine_args is None or not self._link.direct or len(cells) < 2:
-            # (a machine behind a callback is not batched: a leg not done is replayed, its calls would run twice)
+        if self._engine_args is None or len(cells) < 2:
             return LegBatch(compute=ComputeReport())
         n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
         if n_legs == 0:
             return LegBatch(compute=ComputeReport())
         stops = cells[: n_legs + 1]
         state = rng.bit_generator.state
+        charged = self._link.charged = CallLedger()
         done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops, rng)
-        if done < n_legs:  # rewind to the start of the leg not done: replay the legs before it
+        if done < n_legs and self._link.direct:
+            # rewind to the start of the leg not done and replay the legs before it (nothing was charged yet);
+            # a machine behind the callback ran the leg not done and charged it: the search goes on from there
             rng.bit_generator.state = state
             if done:
                 done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops[: done + 1], rng)
         if not done:
-            return LegBatch(compute=ComputeReport())
+            return LegBatch(compute=ComputeReport.from_ledger(charged))
         paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
-        charged = CallLedger()
         self._link.settle(calls, emu, charged)
         styles = self.config.styles
         stats = {

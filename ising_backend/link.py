@@ -22,12 +22,14 @@ import weakref
 import numba
 import numpy as np
 
+from ._clock import clock_ns
 from .anneal import anneal_kernel_timed
 from .chip import kernel_capable
 from .ledger import CallLedger
+from .logical import LogicalIsingSolver, mix_seed, tabu_kernel
 from .meter import SolverOutputError
 
-__all__ = ["MachineLink", "anneal_submit"]
+__all__ = ["MachineLink", "anneal_submit", "solve_submit"]
 
 _LINKS: "weakref.WeakValueDictionary[int, MachineLink]" = weakref.WeakValueDictionary()
 _IDS = itertools.count()
@@ -39,7 +41,12 @@ class MachineLink:
 
     def __init__(self, machine):
         self.machine = machine
-        self.direct = kernel_capable(machine)
+        self.logical = isinstance(machine, LogicalIsingSolver)
+        if self.logical:  # the compiled tabu kernel, or the solver's solve_stack (another method, faults)
+            self.direct = (type(machine) is LogicalIsingSolver and machine.method == "tabu"
+                           and machine.health is None)
+        else:
+            self.direct = kernel_capable(machine)
         #: the ledger the running compiled call charges (callback machines charge it per submission)
         self.charged: CallLedger | None = None
         self._register()
@@ -48,10 +55,16 @@ class MachineLink:
         self.handle = -1 if self.direct else next(_IDS)
         if not self.direct:
             _LINKS[self.handle] = self
-        if self.direct:
+        if self.logical:
+            self.kernel_args = None
+        elif self.direct:
             self.kernel_args = (-1, *self.machine.kernel_args())
         else:
             self.kernel_args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
+
+    def logical_args(self, n: int) -> tuple:
+        """:func:`solve_submit`'s arguments after the seed for programs of ``n`` spins on a logical solver."""
+        return (-1, *self.machine.kernel_args(n)) if self.direct else (self.handle, 1, 1, 1)
 
     def __getstate__(self) -> dict:
         return {"machine": self.machine}
@@ -70,10 +83,19 @@ class MachineLink:
 def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     link = _LINKS[handle]
     machine = link.machine
+    if link.logical:  # energies are not used by the compiled loops of a logical solver
+        return _charged_call(link, lambda: (machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed)), None),
+                             spins, energies)
+    return _charged_call(link, lambda: machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed)),
+                         spins, energies)
+
+
+def _charged_call(link, call, spins, energies) -> float:
+    machine = link.machine
     has_last = hasattr(machine, "last_call")  # else the charge is read off the ledger, as MeteredSolver does
     before = machine.last_call if has_last else machine.ledger.snapshot()
     try:
-        s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
+        s, e = call()
     finally:  # a call that failed is charged what it spent
         if link.charged is not None:
             if not has_last:
@@ -84,7 +106,8 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     if s.shape != spins.shape or not ((s == 1) | (s == -1)).all():
         raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
     spins[...] = s
-    energies[...] = e
+    if e is not None:
+        energies[...] = e
     return 0.0
 
 
@@ -97,6 +120,20 @@ def anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, be
     if handle < 0:
         return anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch,
                                    flip_prob, spins, energies)
+    with numba.objmode(t="float64"):
+        t = _callback(handle, h, J, num_reads, seed, spins, energies)
+    return t
+
+
+@numba.njit(cache=True)
+def solve_submit(h, J, num_reads, seed, handle, restarts, iterations, tenure, spins, energies):
+    """A logical solver's ``solve_stack`` of ``h (B, n)``, ``J (B, n, n)`` into ``spins`` (``handle, restarts,
+    iterations, tenure`` = :meth:`MachineLink.logical_args`): its tabu kernel in the loop, or the callback;
+    returns the emulation seconds to charge (0 for a solver that charged itself)."""
+    if handle < 0:
+        t0 = clock_ns()
+        tabu_kernel(h, J, num_reads, mix_seed(seed, h.shape[1]), restarts, iterations, tenure, spins, energies)
+        return (clock_ns() - t0) * 1e-9
     with numba.objmode(t="float64"):
         t = _callback(handle, h, J, num_reads, seed, spins, energies)
     return t

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ising_backend import CallLedger, as_generator, rng_handle
+from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, as_generator, rng_handle
 from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 
@@ -156,7 +156,10 @@ class BatchedLegs:
         stops = cells[: n_legs + 1]
         state = rng.bit_generator.state
         charged = self._link.charged = CallLedger()
-        done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops, rng)
+        try:
+            done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops, rng)
+        except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
+            return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
         if done < n_legs and self._link.direct:
             # rewind to the start of the leg not done and replay the legs before it (nothing was charged yet);
             # a machine behind the callback ran the leg not done and charged it: the search goes on from there

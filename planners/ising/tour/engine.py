@@ -4,8 +4,8 @@ Contract: :func:`solve_order` makes the decisions of ``IsingTour._solve_path`` f
 ``_sample`` for one open-path subproblem (cluster order, local TSP or refinement patch) whose
 one-hot model fits the spin budget: the penalty, the Ising model, per attempt a seed drawn
 from the construction's ``numpy.random.Generator`` and its solve-group sub-seed
-(:func:`ising_backend.logical.mix_seed`), the logical solver's own tabu kernel
-(:meth:`~ising_backend.LogicalIsingSolver.kernel_args`), decode, the cheapest valid order and
+(:func:`ising_backend.logical.mix_seed`), the logical solver through
+:func:`ising_backend.solve_submit` (its own tabu kernel, or a callback into ``solve_stack``), decode, the cheapest valid order and
 the statistics.  Each attempt's calls and measured emulation seconds (a monotonic clock around
 the kernel) are returned so the caller charges the solver as ``solve_stack`` would.  The
 Python path in :mod:`.search` is its reference (the tests compare both).
@@ -16,16 +16,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import as_generator
-from ising_backend._clock import clock_ns
-from ising_backend.logical import mix_seed, tabu_kernel
+from ising_backend import as_generator, solve_submit
 from planners.ising.tour.kernels import best_onehot, onehot_ising
 
 __all__ = ["solve_order"]
 
 
 @numba.njit(cache=True)
-def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, restarts, iterations, tenure):
+def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, handle, restarts, iterations, tenure):
     """Best valid order of one one-hot open-path subproblem, or an empty order after the retries.
 
     Returns ``(order (s,) or (0,), stats (6,), calls (attempts,), emulation_s (attempts,))`` with
@@ -51,10 +49,8 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, restar
         seed = rng.integers(0, 9223372036854775807)
         spins = np.empty((1, num_reads, n), dtype=np.int8)
         energies = np.zeros((1, num_reads))
-        t0 = clock_ns()
-        tabu_kernel(hb, Jb, num_reads, mix_seed(seed, n), restarts, iterations, tenure, spins, energies)
+        emu[attempt] = solve_submit(hb, Jb, num_reads, seed, handle, restarts, iterations, tenure, spins, energies)
         calls[attempt] = num_reads
-        emu[attempt] = (clock_ns() - t0) * 1e-9
         for r in range(num_reads):
             for v in range(n):
                 bits[r, v] = 1 if spins[0, r, v] > 0 else 0

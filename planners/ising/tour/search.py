@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ising_backend import (
-    ChipUnavailableError, IsingModel, LogicalIsingSolver, SolverOutputError, freeze_order, quantize, rng_handle,
+    ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError, freeze_order, quantize, rng_handle,
 )
 from planners.base import TourResult
 from planners.compute import ComputeReport
@@ -65,9 +65,9 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         self.solver = solver if solver is not None else LogicalIsingSolver(
             spec=self.spec, ledger=self.chip.ledger, health=getattr(self.chip, "health", None),
             **cfg.solver_options)
-        # the compiled subproblem solve needs the logical solver's own tabu kernel (and no fault model)
-        self._engine = (cfg.backend == "logical" and type(self.solver) is LogicalIsingSolver
-                        and self.solver.method == "tabu" and self.solver.health is None)
+        # the compiled subproblem solve, on the logical solver through a link (its kernel or solve_stack)
+        self._engine = cfg.backend == "logical" and isinstance(self.solver, LogicalIsingSolver)
+        self._solver_link = MachineLink(self.solver) if self._engine else None
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
         if cfg.backend != "chip" and largest ** 2 > self._budget + cfg.max_branch_bits:  # one-hot models only
             raise ValueError(
@@ -290,10 +290,10 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         logical solver attempt by attempt as ``solve_stack`` charges."""
         cfg = self.config
         s = d.shape[0]
+        charged = self._solver_link.charged = run.charged
         order, st, calls, emu = solve_order(rng_handle(run.rng), d, entry, ex, cfg.penalty_factor, cfg.max_retries,
-                                            cfg.num_reads, *self.solver.kernel_args(s * s))
-        charged = run.charged
-        self.solver.charge_into(calls, emu, charged)
+                                            cfg.num_reads, *self._solver_link.logical_args(s * s))
+        self._solver_link.settle(calls, emu, charged)
         m = run.stats["mapping"]["tour"]
         m["programs"] += int(st[0])
         m["reads"] += int(st[1])

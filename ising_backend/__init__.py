@@ -22,7 +22,6 @@ Modules:
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
 * :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
-* :mod:`.compiled_rng` -- :func:`rng_handle` / :func:`as_generator`: a numpy Generator handed to compiled code by address.
 
 Example::
 
@@ -66,7 +65,6 @@ from .portfolio import (
     run_portfolio_batch,
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
-from .compiled_rng import as_generator, rng_handle
 from .link import MachineLink, anneal_submit, solve_submit
 from .machine import (SAMPLERS, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       program_energies, sampler_names)
@@ -98,6 +96,4 @@ __all__ = [
     "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
     # dimod composite
     "QuantizeComposite", "COMPOSITE_RULES",
-    # compiled code
-    "rng_handle", "as_generator",
 ]

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, as_generator, rng_handle
+from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
 from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 
@@ -99,7 +99,6 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     counts (5,), mapping (k, 4), sub_calls, sub_emu, walked)``: leg ``j``'s path is
     ``points[ends[j]:ends[j + 1]]``; counts, mapping, submissions and walk steps are those of the
     legs done."""
-    rng = as_generator(rng)  # a Generator or its rng_handle
     L = stops.shape[0] - 1
     k = style_ids.shape[0]
     cap = 64
@@ -185,5 +184,5 @@ class BatchedLegs:
     def _run_legs(self, world, stops, rng):
         """:func:`run_legs` with this planner's pool and the query loop's arguments."""
         grid = world.grid
-        return run_legs(rng_handle(rng), *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
+        return run_legs(rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
                         stops, *self._loop_args(grid), grid, self.config.cut_loops)

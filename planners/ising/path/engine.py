@@ -22,7 +22,7 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import as_generator, merge_styles_flat, rng_handle
+from ising_backend import merge_styles_flat
 from ising_backend.link import anneal_submit
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
@@ -132,7 +132,6 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     counts = patch_solves, anneal_calls, segments, backtracks, direct_moves; mapping rows per
     style = programs, valid, wins, map_errors; per chip submission its calls and emulation seconds.
     """
-    rng = as_generator(rng)  # a Generator or its rng_handle
     rad = size // 2
     n = size * size
     centre = n // 2
@@ -284,7 +283,7 @@ class CompiledSearch:
         """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
         mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng_handle(rng), *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
+            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
             *self._loop_args(grid))
         return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
 

@@ -17,7 +17,6 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import as_generator
 from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
@@ -267,7 +266,6 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
 
     ``weights = (weight_shift, robot_weight)``, ``opts`` as :func:`.compiled_stages.split_states`,
     ``pair_opts = (bundle order id, pair_rounds, pair_neighbours)``."""
-    rng = as_generator(rng)  # a Generator or its rng_handle
     shift, robot_weight = weights
     order_id, rounds, per_robot = pair_opts
     counters = book[1]

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import ChipProgramError, ChipUnavailableError, MachineLink, MeteredSolver, SolverOutputError, rng_handle
+from ising_backend import ChipProgramError, ChipUnavailableError, MachineLink, MeteredSolver, SolverOutputError
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.tours_classical import MAX_BRUTE_TARGETS
@@ -169,7 +169,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             compiled = (chip[:4] + (self._capacity(),) + chip[5:], *compiled[1:])
         self._link.charged = self._meter.charged
         try:
-            ok, sets = assign_kernel(dist, powered, mean, R, rng_handle(rng), *compiled, book)
+            ok, sets = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:

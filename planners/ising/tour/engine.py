@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import as_generator, solve_submit
+from ising_backend import solve_submit
 from planners.ising.tour.kernels import best_onehot, onehot_ising
 
 __all__ = ["solve_order"]
@@ -29,7 +29,6 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, handle
     Returns ``(order (s,) or (0,), stats (6,), calls (attempts,), emulation_s (attempts,))`` with
     stats = programs, reads, valid_reads, valid programs, retries, unsolved (0/1).
     """
-    rng = as_generator(rng)  # a Generator or its rng_handle
     s = d.shape[0]
     n = s * s
     w_max = 0.0

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import as_generator, quantize_rules
+from ising_backend import quantize_rules
 from ising_backend.link import anneal_submit
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
@@ -82,7 +82,6 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
     stats = rounds, retries, moves applied, rounds with a valid read, programs with a valid read;
     ``clean`` / ``wins`` per rule: valid reads that select a move, best reads.
     """
-    rng = as_generator(rng)  # a Generator or its rng_handle
     route = route.copy()
     k = rules.shape[0]
     stats = np.zeros(5, dtype=np.int64)
@@ -163,7 +162,6 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
     :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
     (starts,), stats (5,), clean (k,), wins (starts, k), calls, emulation_s)``, the statistics summed
     over the starts; ``ok`` is False (nothing to keep) at a program the quantizer could not map."""
-    rng = as_generator(rng)  # a Generator or its rng_handle
     n = dist.shape[0] - 1
     k = rules.shape[0]
     best = np.zeros(0, dtype=np.int64)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from ising_backend import (
-    ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError, freeze_order, quantize, rng_handle,
+    ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError, freeze_order, quantize,
 )
 from planners.base import TourResult
 from planners.compute import ComputeReport
@@ -291,7 +291,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         cfg = self.config
         s = d.shape[0]
         charged = self._solver_link.charged = run.charged
-        order, st, calls, emu = solve_order(rng_handle(run.rng), d, entry, ex, cfg.penalty_factor, cfg.max_retries,
+        order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
                                             cfg.num_reads, *self._solver_link.logical_args(s * s))
         self._solver_link.settle(calls, emu, charged)
         m = run.stats["mapping"]["tour"]

@@ -29,7 +29,7 @@ from functools import cached_property
 import numpy as np
 
 from ising_backend import (
-    QUANTIZE_RULE_IDS, ChipProgramError, MachineLink, ising_from_qubo, quantize_stack, rng_handle,
+    QUANTIZE_RULE_IDS, ChipProgramError, MachineLink, ising_from_qubo, quantize_stack,
 )
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, move_starts_loop, select_moves_loop
@@ -128,7 +128,7 @@ class MoveSelection:
         state = run.rng.bit_generator.state
         self._link.charged = run.charged
         new, status, st, clean, wins, calls, emu = select_moves_loop(
-            rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
             run.rng.bit_generator.state = state
@@ -183,7 +183,7 @@ class MoveSelection:
         state = run.rng.bit_generator.state
         self._link.charged = run.charged
         ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
-            rng_handle(run.rng), np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
         if not ok:
             run.rng.bit_generator.state = state

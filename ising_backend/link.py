@@ -81,21 +81,19 @@ class MachineLink:
 
 
 def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
+    """One submission of a compiled loop on the linked machine (object mode): the answer copied into
+    ``spins`` / ``energies``, the call's charge added to ``link.charged`` (also when it fails).
+    int8 spins are checked for +-1 in compiled code after the copy (:func:`_all_spins`)."""
     link = _LINKS[handle]
-    machine = link.machine
-    if link.logical:  # energies are not used by the compiled loops of a logical solver
-        return _charged_call(link, lambda: (machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed)), None),
-                             spins, energies)
-    return _charged_call(link, lambda: machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed)),
-                         spins, energies)
-
-
-def _charged_call(link, call, spins, energies) -> float:
     machine = link.machine
     has_last = hasattr(machine, "last_call")  # else the charge is read off the ledger, as MeteredSolver does
     before = machine.last_call if has_last else machine.ledger.snapshot()
+    e = None
     try:
-        s, e = call()
+        if link.logical:  # energies are not used by the compiled loops of a logical solver
+            s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
+        else:
+            s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
     finally:  # a call that failed is charged what it spent
         if link.charged is not None:
             if not has_last:
@@ -103,12 +101,21 @@ def _charged_call(link, call, spins, energies) -> float:
             elif machine.last_call is not before:
                 link.charged._add_in_place(machine.last_call)
     s = np.asarray(s)
-    if s.shape != spins.shape or not ((s == 1) | (s == -1)).all():
+    if s.shape != spins.shape or (s.dtype != np.int8 and not ((s == 1) | (s == -1)).all()):
         raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
     spins[...] = s
     if e is not None:
         energies[...] = e
     return 0.0
+
+
+@numba.njit(cache=True)
+def _all_spins(spins) -> bool:
+    flat = spins.reshape(-1)
+    bad = 0
+    for i in range(flat.size):
+        bad += (flat[i] != 1) & (flat[i] != -1)
+    return bad == 0
 
 
 @numba.njit(cache=True)
@@ -122,6 +129,8 @@ def anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, be
                                    flip_prob, spins, energies)
     with numba.objmode(t="float64"):
         t = _callback(handle, h, J, num_reads, seed, spins, energies)
+    if not _all_spins(spins):
+        raise SolverOutputError("the machine returned spins other than -1 and +1")
     return t
 
 
@@ -136,4 +145,6 @@ def solve_submit(h, J, num_reads, seed, handle, restarts, iterations, tenure, sp
         return (clock_ns() - t0) * 1e-9
     with numba.objmode(t="float64"):
         t = _callback(handle, h, J, num_reads, seed, spins, energies)
+    if not _all_spins(spins):
+        raise SolverOutputError("the machine returned spins other than -1 and +1")
     return t

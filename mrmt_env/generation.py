@@ -37,9 +37,10 @@ cells, at most :data:`MAX_FIELD_CELLS` BFS distance-field cells
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-from mrmt_env.distances import bfs_distance_field, component_labels
+from mrmt_env.distances import bfs_flat, component_labels
 from mrmt_env.maps import LAYOUTS, build_layout, check_layout
 from mrmt_env.world import World, WorldError
 
@@ -66,10 +67,6 @@ def draw_budget(n_cells: int) -> int:
     fewer on bigger grids (``MAX_DRAW_WORK // n_cells``, at least 100), so a hopeless density fails in
     seconds, not hours."""
     return min(MAX_DRAWS, max(100, MAX_DRAW_WORK // max(int(n_cells), 1)))
-
-
-def _component_of(grid: np.ndarray, cell) -> np.ndarray:
-    return bfs_distance_field(grid, cell) >= 0
 
 
 def generate_world(
@@ -144,29 +141,26 @@ def generate_world(
     rows, cols = np.divmod(np.arange(n_cells), width)
     centre = np.array([(height - 1) / 2.0, (width - 1) / 2.0])
     tries = draw_budget(n_cells)
-    for _ in range(tries):
+    if placement == "uniform":
+        drawn = draw_uniform_cells(rng, n_cells, width, n_obstacles, needed, tries)
+        if drawn is not None:
+            flat, chosen = drawn
+            cells = np.stack([rows[chosen], cols[chosen]], axis=1)
+            return World(flat.reshape(height, width), cells[:n_robots], cells[n_robots:])
+    for _ in range(tries if placement != "uniform" else 0):
         flat = np.zeros(n_cells, dtype=bool)
         flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True
         grid = flat.reshape(height, width)
-        free_idx = np.flatnonzero(~flat)
-        if placement == "uniform":
-            chosen = rng.choice(free_idx, size=needed, replace=False)
-            robots_idx, targets_idx = chosen[:n_robots], chosen[n_robots:]
-            cells = np.stack([rows[chosen], cols[chosen]], axis=1)
-            comp = _component_of(grid, cells[0])
-            if not comp[cells[:, 0], cells[:, 1]].all():
-                continue
-        else:
-            # largest free component, then the 5R cells nearest the centre
-            comp = _largest_component(grid)
-            comp_idx = np.flatnonzero(comp.ravel())
-            if len(comp_idx) < needed:
-                continue
-            d2 = (rows[comp_idx] - centre[0]) ** 2 + (cols[comp_idx] - centre[1]) ** 2
-            near = comp_idx[np.argsort(d2, kind="stable")[: 5 * n_robots]]
-            robots_idx = rng.choice(near, size=n_robots, replace=False)
-            rest = np.setdiff1d(comp_idx, robots_idx)
-            targets_idx = rng.choice(rest, size=n_targets, replace=False)
+        # centre placement: the largest free component, then the 5R cells nearest the centre
+        comp = _largest_component(grid)
+        comp_idx = np.flatnonzero(comp.ravel())
+        if len(comp_idx) < needed:
+            continue
+        d2 = (rows[comp_idx] - centre[0]) ** 2 + (cols[comp_idx] - centre[1]) ** 2
+        near = comp_idx[np.argsort(d2, kind="stable")[: 5 * n_robots]]
+        robots_idx = rng.choice(near, size=n_robots, replace=False)
+        rest = np.setdiff1d(comp_idx, robots_idx)
+        targets_idx = rng.choice(rest, size=n_targets, replace=False)
         robots = np.stack([rows[robots_idx], cols[robots_idx]], axis=1)
         targets = np.stack([rows[targets_idx], cols[targets_idx]], axis=1)
         try:
@@ -177,6 +171,35 @@ def generate_world(
         f"no draw of {n_obstacles} obstacles on a {height}x{width} grid put {n_robots} robots and "
         f"{n_targets} targets in one connected component in {tries} tries (draw_budget); lower the density"
     )
+
+
+@numba.njit(cache=True, nogil=True)
+def cells_connected(flat_grid, width, cells) -> bool:
+    """Whether the flat cells ``cells`` all lie in one 4-connected free component of ``flat_grid``."""
+    field = np.full(flat_grid.shape[0], -1, dtype=np.int32)
+    queue = np.empty(flat_grid.shape[0], dtype=np.int64)
+    field[cells[0]] = 0
+    queue[0] = cells[0]
+    bfs_flat(flat_grid, width, field, queue, 1)
+    for i in range(cells.shape[0]):
+        if field[cells[i]] < 0:
+            return False
+    return True
+
+
+def draw_uniform_cells(rng: np.random.Generator, n_cells: int, width: int, n_obstacles: int, needed: int,
+                       tries: int):
+    """The ``uniform`` layout with ``uniform`` placement, written once for every env: per try,
+    ``n_obstacles`` obstacle cells then ``needed`` distinct free cells (robots first) drawn by
+    ``rng.choice``, until all of them are connected; ``(flat grid bool (H*W,), chosen flat cells)``,
+    or ``None`` after ``tries`` draws."""
+    for _ in range(tries):
+        flat = np.zeros(n_cells, dtype=bool)
+        flat[rng.choice(n_cells, size=n_obstacles, replace=False)] = True
+        chosen = rng.choice(np.flatnonzero(~flat), size=needed, replace=False).astype(np.int64)
+        if cells_connected(flat, width, chosen):
+            return flat, chosen
+    return None
 
 
 def _largest_component(grid: np.ndarray) -> np.ndarray:

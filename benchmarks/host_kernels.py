@@ -10,7 +10,7 @@ Inputs (realistic, seed 0):
   BFS distances of a generated 10x10 world) with ``n`` free spins, as Ising
   models, quantized with each rule.
 
-For every operation, the reference (``ising_backend._reference``, the numpy code
+For every operation, the reference (``tests/mapping_reference.py``, the numpy code
 the package used before) and the public compiled path (``merge_spins``,
 ``quantize``, ``MergedModel.decode``) are checked bit-identical, then timed call by
 call (``perf_counter_ns``) over the same inputs, taking turns in blocks; the table
@@ -43,7 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._common import cpu_name, write_results_section  # noqa: E402
 from ising_backend import MERGE_STYLES, QUANTIZE_RULES, QuboModel, merge_spins, quantize  # noqa: E402
 from ising_backend._merge_kernel import STYLE_IDS, decode_copies, merge_styles  # noqa: E402
-from ising_backend._reference import decode_ref, merge_spins_ref, quantize_ref  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the oracles live with the tests
+from mapping_reference import decode_ref, merge_spins_ref, quantize_ref  # noqa: E402
 from ising_backend.quantize import quantize_stack  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.ising.path.qubo import build_patch_qubo, patch_frame  # noqa: E402
@@ -201,7 +202,7 @@ def main() -> None:
 `flock /tmp/mrmt-bench.lock python benchmarks/host_kernels.py --calls {args.calls} --write-results`
 ({when}, {platform.machine()}, {cpu_name()}, one thread; the 2 vCPUs are shared with other jobs, so
 times carry noise).  Median wall time per call over {args.calls} calls, reference (the numpy
-implementation the package used before, kept in `ising_backend/_reference.py`) and compiled path
+implementation the package used before, kept in `tests/mapping_reference.py`) and compiled path
 timed alternately on the same inputs after checking both give bit-identical results.
 Patch: 64 random 5x5 pair-form patch QUBOs ({lo}-{hi} spins, median {med}) as Ising models, merged
 at scale 16 (the `overload` view uses {c0}-{c1} copies); decode of {READS} reads.  Cut n: 16 anchored

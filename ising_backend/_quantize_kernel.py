@@ -2,7 +2,7 @@
 
 Contract: :func:`quantize_rules` computes :func:`.quantize.quantize` of one model
 under several rules in one call, bit-identical to the numpy original (kept in
-:mod:`._reference`): the same flat coefficient order (``h`` then the upper
+``tests/mapping_reference.py``): the same flat coefficient order (``h`` then the upper
 triangle of ``J`` row by row), the same float operations in the same order,
 ``np.sign`` / ``np.clip`` / ``np.rint`` semantics including signed zeros, ``rank``
 levels by sorted distinct magnitudes (as ``np.unique``), and ``clip95``'s factor

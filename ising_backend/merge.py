@@ -50,7 +50,7 @@ the range) wrapped in the same :class:`MergedModel` interface with no copies.
 The duplication loop, the layout and the decoding run in compiled kernels
 (:mod:`._merge_kernel`; :func:`~._merge_kernel.merge_styles` maps one model with
 several styles in one call); the pure-Python original is kept as the reference
-in :mod:`._reference` and the tests hold the two bit-identical.
+in ``tests/mapping_reference.py`` and the tests hold the two bit-identical.
 """
 
 from __future__ import annotations

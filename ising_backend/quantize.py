@@ -36,7 +36,7 @@ an explicit, separately named rule.
 
 Both run in compiled kernels (:mod:`._quantize_kernel`; :func:`quantize_stack`
 gives several rules of one model in one call); the numpy original is kept as the
-reference in :mod:`._reference` and the tests hold the two bit-identical.
+reference in ``tests/mapping_reference.py`` and the tests hold the two bit-identical.
 """
 
 from __future__ import annotations
@@ -93,10 +93,6 @@ def quantize(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7), *, 
     Lh, Lj = _limit(h_range, "h_range"), _limit(j_range, "j_range")
     if not (np.isfinite(percentile) and 0 < percentile <= 100):
         raise QuantizeError(f"percentile = {percentile!r} must be in (0, 100]")
-    if isinstance(percentile, np.floating) and not isinstance(percentile, float):
-        from ._reference import quantize_ref  # numpy computes in the percentile's own precision
-
-        return quantize_ref(model, rule, h_range, j_range, keep_sign=keep_sign, percentile=percentile)
     status, h, J = quantize_rules(model.h, model.J, _RULE_ARRAY[rule], float(Lh), float(Lj), bool(keep_sign),
                                   float(percentile))
     if status[0] != QUANT_OK:  # the validating constructor names the non-finite coefficient

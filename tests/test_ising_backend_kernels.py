@@ -37,7 +37,7 @@ from ising_backend._merge_kernel import (
     merge_styles_flat,
 )
 from ising_backend._quantize_kernel import RULE_IDS, quantize_rules
-from ising_backend._reference import decode_ref, merge_spins_ref, quantize_ref, saturate_ref
+from mapping_reference import decode_ref, merge_spins_ref, quantize_ref, saturate_ref
 from ising_backend.merge import merge_error_message
 from ising_backend.quantize import quantize_stack
 
@@ -376,9 +376,11 @@ def test_quantize_edge_cases():
             assert str(got.value) == str(exc)
         else:
             assert _same_model(quantize(tiny, rule), ref)
-    assert _same_model(quantize(IsingModel([0.3, -4.0], np.zeros((2, 2))), "clip95", percentile=np.float32(95.0)),
-                       quantize_ref(IsingModel([0.3, -4.0], np.zeros((2, 2))), "clip95",
-                                    percentile=np.float32(95.0)))
+    # a numpy float percentile is the same number as a Python float (one compiled path, float64)
+    m = IsingModel([0.3, -4.0, 2.5], np.triu(np.full((3, 3), 1.7), 1))
+    for p in (np.float32(80.0), np.float64(80.0), 80):
+        assert _same_model(quantize(m, "clip95", percentile=p), quantize(m, "clip95", percentile=80.0))
+    assert not _same_model(quantize(m, "clip95", percentile=80.0), quantize(m, "clip95", percentile=100.0))
     status, h, J = quantize_rules(np.zeros(0), np.zeros((0, 0)), np.array([RULE_IDS["rank"]]), 7.0, 7.0, True, 95.0)
     assert status.shape == (1,) and h.shape == (1, 0) and J.shape == (1, 0, 0)
 

@@ -1,21 +1,20 @@
-"""Pure-Python/numpy reference implementations of the compiled mapping kernels.
+"""Pure-Python/numpy oracles of the compiled mapping kernels (``ising_backend.merge`` / ``quantize``).
 
-These are the implementations :mod:`.merge` and :mod:`.quantize` used before
-their hot paths were compiled, kept unchanged as the specification: the tests
-hold the kernels bit-identical to them and ``benchmarks/host_kernels.py`` times
-both.  Not used by the package at run time.
+The implementations the package used before its hot paths were compiled, kept unchanged as the
+specification: the tests hold the kernels bit-identical to them and ``benchmarks/host_kernels.py``
+times both.  Test code only: the package never imports it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .merge import MergedModel, MergeError, _limit
-from .models import IsingModel
-from .quantize import QUANTIZE_RULES, QuantizeError
-from .quantize import _limit as _q_limit
-from .quantize import _pair
-from .spec import ChipSpec
+from ising_backend.merge import MergedModel, MergeError, _limit
+from ising_backend.models import IsingModel
+from ising_backend.quantize import QUANTIZE_RULES, QuantizeError
+from ising_backend.quantize import _limit as _q_limit
+from ising_backend.quantize import _pair
+from ising_backend.spec import ChipSpec
 
 __all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref"]
 

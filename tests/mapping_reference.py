@@ -182,7 +182,8 @@ def quantize_ref(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7),
             v = np.sign(c) * np.sqrt(np.abs(c)) if rule == "sqrt" else c
             rel = np.abs(v[nz]) / lim[nz]
             a = np.percentile(rel, percentile) if rule == "clip95" else rel.max()
-            q = np.clip(np.rint(v / a), -lim, lim)
+            with np.errstate(divide="ignore", invalid="ignore"):  # a subnormal scale underflows to 0: +-inf clips
+                q = np.clip(np.rint(v / a), -lim, lim)
         if keep_sign:
             small = nz & (q == 0)
             q[small] = np.sign(c[small])

@@ -52,7 +52,7 @@ import numba
 import numpy as np
 
 from planners.base import SharingResult, TourSolver
-from planners.tours_classical import _held_karp_subsets
+from planners.held_karp import _held_karp_subsets
 
 __all__ = [
     "RoundRobinSharing",

@@ -59,9 +59,10 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numba.cpython.unsafe.numbers import trailing_zeros
 
 from planners.base import TourResult
+from planners.held_karp import (MAX_BRUTE_TARGETS, _exact_route_cost, _held_karp, _held_karp_dp,  # noqa: F401
+                                _held_karp_subsets, exact_route_cost)
 
 __all__ = [
     "NearestNeighbourTour",
@@ -74,8 +75,6 @@ __all__ = [
     "held_karp_subset_costs",
 ]
 
-#: Largest target count :class:`BruteTour` accepts (2^13 x 13 DP states).
-MAX_BRUTE_TARGETS = 13
 
 #: The 3-opt move sets :class:`ThreeOptTour` offers.
 THREE_OPT_MOVES = ("4", "7")
@@ -285,119 +284,6 @@ def _three_opt_open(d, full):
     if cycle[(z + step * m) % (m + 1)] != m:
         out[0] = -1
     return out, passes
-
-
-@numba.njit(cache=True, nogil=True)
-def _held_karp_dp(d, par, best):
-    """Held-Karp table over nodes 1..n: ``dp[s, j]`` is the cheapest open route from
-    node 0 visiting exactly the bitmask ``s`` (bit ``j`` = node ``j + 1``) and ending
-    at node ``j + 1`` (defined for ``j`` in ``s``).  Parents go into ``par`` (same shape)
-    unless it is ``None``; ``best[s] = min_j dp[s, j]`` (``best[0] = 0``) unless ``best``
-    is ``None`` (a ``None`` argument compiles its branch away).
-
-    Each entry is pulled from its predecessor set, whose members are walked by their set
-    bits in increasing order; a strictly smaller sum wins, so the parent is the smallest
-    ``j`` of least cost and every value is the same float sum as in any other order."""
-    m = d.shape[0]
-    n = m - 1
-    size = 1 << n
-    dp = np.empty((size, n))
-    if best is not None:
-        best[0] = 0.0
-    for s in range(1, size):
-        bs = np.inf
-        xs = s
-        while xs:
-            x = trailing_zeros(xs)
-            xs &= xs - 1
-            prev = s ^ (1 << x)
-            if prev == 0:
-                v = d[0, x + 1]
-            else:
-                v = np.inf
-                pj = -1
-                js = prev
-                while js:
-                    j = trailing_zeros(js)
-                    js &= js - 1
-                    c = dp[prev, j] + d[j + 1, x + 1]
-                    if c < v:
-                        v = c
-                        pj = j
-                if par is not None and pj >= 0:
-                    par[s, x] = pj
-            dp[s, x] = v
-            if v < bs:
-                bs = v
-        if best is not None:
-            best[s] = bs
-    return dp
-
-
-@numba.njit(cache=True, nogil=True)
-def _held_karp(d):
-    """Exact open route from node 0 over nodes 1..n.  Returns (route, cost)."""
-    m = d.shape[0]
-    n = m - 1
-    full = (1 << n) - 1
-    par = np.full((1 << n, n), -1, dtype=np.int64)
-    dp = _held_karp_dp(d, par, None)
-    best = 0
-    for j in range(1, n):
-        if dp[full, j] < dp[full, best]:
-            best = j
-    route = np.empty(m, dtype=np.int64)
-    route[0] = 0
-    s = full
-    j = best
-    for pos in range(n, 0, -1):
-        route[pos] = j + 1
-        pj = par[s, j]
-        s = s & ~(1 << j)
-        j = pj
-    return route, dp[full, best]
-
-
-@numba.njit(cache=True, nogil=True)
-def _exact_route_cost(dist, nodes):
-    m = nodes.shape[0]
-    n = m - 1
-    if n <= 0:
-        return 0.0
-    d = np.empty((m, m))
-    for i in range(m):
-        for j in range(m):
-            d[i, j] = dist[nodes[i], nodes[j]]
-    if n == 1:
-        return d[0, 1]
-    dp = _held_karp_dp(d, None, None)
-    full = (1 << n) - 1
-    best = dp[full, 0]
-    for j in range(1, n):
-        if dp[full, j] < best:
-            best = dp[full, j]
-    return best
-
-
-def exact_route_cost(dist: np.ndarray, nodes) -> float:
-    """Cost of the optimal open route from ``nodes[0]`` over ``nodes[1:]`` under ``dist`` (Held-Karp,
-    no sub-matrix copy in Python): :class:`BruteTour`'s cost on ``dist[np.ix_(nodes, nodes)]``."""
-    nodes = np.asarray(nodes, dtype=np.int64)
-    if len(nodes) - 1 > MAX_BRUTE_TARGETS:
-        raise ValueError(f"exact_route_cost: {len(nodes) - 1} targets > MAX_BRUTE_TARGETS = {MAX_BRUTE_TARGETS}")
-    return float(_exact_route_cost(np.asarray(dist, dtype=np.float64), nodes))
-
-
-@numba.njit(cache=True, nogil=True)
-def _held_karp_subsets(d):
-    """Optimal open-route cost from node 0 over every subset of nodes 1..n.
-
-    Returns ``best[s]`` for each bitmask ``s`` of the ``n`` targets (bit ``j`` =
-    node ``j + 1``); ``best[0] = 0``.
-    """
-    best = np.full(1 << (d.shape[0] - 1), np.inf)
-    _held_karp_dp(d, None, best)
-    return best
 
 
 # --------------------------------------------------------------------- helpers

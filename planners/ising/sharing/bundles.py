@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.tours_classical import MAX_BRUTE_TARGETS, _exact_route_cost
+from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 
 __all__ = ["SharingFailure", "BundlePricer", "assign_bundles"]
 

@@ -23,7 +23,7 @@ from planners.ising.sharing.compiled_stages import (
     BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount, problems_of,
     reserve, solve_problems, split_states,
 )
-from planners.tours_classical import _exact_route_cost
+from planners.held_karp import _exact_route_cost
 
 __all__ = ["assign_kernel", "split_weights_kernel", "pair_mean", "ORDER_IDS"]
 

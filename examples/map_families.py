@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mrmt_env import generate_world
-from mrmt_env.io import world_from_movingai, write_movingai_map, write_movingai_scen
+from mrmt_env.movingai import world_from_movingai, write_movingai_map, write_movingai_scen
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from agents.policy import PlannerPolicy
 from mrmt_env.gym_env import MRMTEnv
-from mrmt_env.io import read_movingai_map, read_movingai_scen, world_from_movingai
+from mrmt_env.movingai import read_movingai_map, read_movingai_scen, world_from_movingai
 
 DATA = Path(__file__).resolve().parent / "data"
 

@@ -22,14 +22,8 @@ from hypothesis import strategies as st
 
 from agents.cli import main
 from mrmt_env import World, WorldError, generate_world
-from mrmt_env.io import (
-    iter_worlds_text,
-    read_movingai_map,
-    read_movingai_scen,
-    read_worlds,
-    world_from_dict,
-    world_to_dict,
-)
+from mrmt_env.io import iter_worlds_text, read_worlds, world_from_dict, world_to_dict
+from mrmt_env.movingai import read_movingai_map, read_movingai_scen
 
 json_values = st.recursive(
     st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.floats(allow_nan=True),

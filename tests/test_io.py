@@ -10,19 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mrmt_env import World, WorldError, generate_world
-from mrmt_env.io import (
-    Scenario,
-    iter_world_lines,
-    read_movingai_map,
-    read_movingai_scen,
-    read_world,
-    read_worlds,
-    world_from_dict,
-    world_from_movingai,
-    world_to_dict,
-    write_world,
-    write_worlds,
-)
+from mrmt_env.io import iter_world_lines, read_world, read_worlds, world_from_dict, world_to_dict, write_world, write_worlds
+from mrmt_env.movingai import Scenario, read_movingai_map, read_movingai_scen, world_from_movingai
 
 
 def test_dict_round_trip_and_format():

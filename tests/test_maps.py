@@ -20,9 +20,9 @@ from mrmt_env import World, generate_world
 from mrmt_env.core import MAX_GRID_ENV_CELLS
 from mrmt_env.distances import component_labels
 from mrmt_env.generation import MAX_FIELD_CELLS, MAX_GRID_CELLS, _largest_component, draw_budget
-from mrmt_env.io import (example_map_path, example_world_path, octile_distance_field, read_movingai_map,
-                         read_movingai_scen, world_from_dict, world_from_movingai, write_movingai_map,
-                         write_movingai_scen)
+from mrmt_env.io import example_map_path, example_world_path, world_from_dict
+from mrmt_env.movingai import (octile_distance_field, read_movingai_map, read_movingai_scen, world_from_movingai,
+                               write_movingai_map, write_movingai_scen)
 from mrmt_env.maps import LAYOUT_OPTIONS, build_layout
 
 FAMILIES = ("warehouse", "rooms", "maze")

@@ -142,7 +142,7 @@ def test_sidecar_and_policy_class_come_from_fixed_lists(models, tmp_path):
 
 
 def test_size_limits(models, tmp_path, monkeypatch):
-    import agents.learned as learned
+    import agents.learned_policy as learned
 
     src, _, _ = models["grid"]
     monkeypatch.setattr(learned, "MAX_MODEL_BYTES", 1000)

@@ -63,6 +63,7 @@ def test_reproduce_runs_the_ising_methods_on_the_given_chip(tmp_path, capsys):
     assert summary["chip"]["solve_time_s"] == 0.0001
     rows = json.loads((out / "endtoend.json").read_text())
     ising = [r for r in rows if r["method"] == "ising"]
+    assert len(ising) == 2 and all(r["success"] and r["chip_calls"] > 0 for r in ising)
     # 100 us per call: the chip time is calls x 100 us
     assert all(r["chip_time_s"] == pytest.approx((r["chip_calls"] + r["logical_calls"]) * 1e-4) for r in ising)
     assert main(["reproduce", "--quick", "--out", str(out), "--chip", "n_spins=x"]) == 2

@@ -25,7 +25,9 @@ def test_presets_give_valid_complete_plans(preset, seed):
     validate_plan(world, plan)
     layers = plan.stats["layers"]
     assert set(layers) == {"sharing", "tour", "path"}
-    assert plan.compute.cpu_s == pytest.approx(sum(r.cpu_s for r in layers.values()) + plan.stats["glue_cpu_s"])
+    # the layers' measured times fit inside the plan's (glue, the remainder, is never negative)
+    assert 0 < sum(r.cpu_s for r in layers.values()) <= plan.compute.cpu_s
+    assert 0 <= plan.stats["glue_cpu_s"] < plan.compute.cpu_s
     assert layers["path"].cpu_s > 0
     assert plan.compute.chip_calls == 0 and plan.compute.accelerator_energy_j == 0
     assert plan.stats["pipeline"] == preset

@@ -112,6 +112,7 @@ COMPUTE_KEYS = (
     "total_energy_j",
     "retries",
     "fallbacks",
+    "warmup_s",
 )
 
 

@@ -34,6 +34,7 @@ def test_aliases_ranges_and_base_fields():
 
 @pytest.mark.parametrize("items, match", [
     (["n_spin=32"], r"unknown chip field 'n_spin'.*valid fields"),
+    (["bogus=1,2"], r"unknown chip field 'bogus'.*valid fields: n_spins.*n_cores, coef_range"),
     (["n_spins=32", "n_spins=45"], "given twice"),
     (["n_spins"], "must be KEY=V1,V2"),
     (["n_spins=32,,45"], "empty value"),

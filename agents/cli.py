@@ -22,6 +22,7 @@ SUBCOMMANDS = {
     "reproduce": "agents.commands.reproduce",
     "watch": "agents.commands.watch",
     "sweep": "agents.commands.sweep",
+    "warmup": "agents.commands.warmup",
 }
 
 

@@ -84,6 +84,10 @@ def run(args) -> int:
     env_kwargs = {k: v for k, v in given.items() if v is not None}
     try:
         run = runner_from_args(args)
+        if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
+            from agents.warmup import warm
+
+            warm(specs, jobs=args.jobs, progress=not args.no_progress, world_kwargs=env_kwargs)
         chip = None
         if args.chip:
             from ising_backend import ChipSpec

@@ -6,7 +6,6 @@ by type and message.
 
 import copy
 import pickle
-
 import warnings
 
 import numpy as np

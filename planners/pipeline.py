@@ -177,6 +177,36 @@ def _merged(old, value):
     return value
 
 
+def _shared_frozen_arrays(root) -> dict:
+    """A :func:`copy.deepcopy` memo that shares every read-only array reachable from ``root``
+    (through containers and instance attributes): they cannot change, and a copy would be
+    writable -- another array type, so the warm-up would compile kernels the plan never calls."""
+    import types
+
+    skip = (str, bytes, int, float, complex, bool, type(None), type, types.ModuleType, types.FunctionType,
+            types.BuiltinFunctionType, types.MethodType)
+    memo: dict = {}
+    seen: set = set()
+    stack = [root]
+    while stack:
+        obj = stack.pop()
+        if isinstance(obj, skip) or id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, np.ndarray):
+            if not obj.flags.writeable:
+                memo[id(obj)] = obj
+        elif isinstance(obj, dict):
+            stack.extend(obj.values())
+        elif isinstance(obj, (list, tuple, set, frozenset)):
+            stack.extend(obj)
+        elif not type(obj).__module__.startswith(("numba", "numpy")) and not hasattr(obj, "__deepcopy__"):
+            stack.extend(getattr(obj, "__dict__", {}).values())
+            stack.extend(getattr(obj, name) for cls in type(obj).__mro__
+                         for name in getattr(cls, "__slots__", ()) if hasattr(obj, name))
+    return memo
+
+
 def _assignment_problem(assignment, n_robots: int, n_targets: int) -> str | None:
     if len(assignment) != n_robots:
         return f"assignment has {len(assignment)} groups for {n_robots} robots"
@@ -234,7 +264,8 @@ class Pipeline:
 
             world = generate_world(seed=0)
         try:
-            scratch = copy.deepcopy(self)
+            memo = _shared_frozen_arrays((self, world))
+            scratch, world = copy.deepcopy((self, world), memo)
         except Exception as exc:  # a layer holding something uncopyable (a device handle): not warmed
             self._warm_state = f"skipped: the layers cannot be deep-copied ({type(exc).__name__}: {exc})"
             return 0.0
@@ -242,7 +273,7 @@ class Pipeline:
         if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
             seed = copy.deepcopy(seed)
         t0 = _clock()
-        scratch.plan(copy.deepcopy(world), seed=seed)
+        scratch.plan(world, seed=seed)
         self.warmup_s = _clock() - t0
         self._warm_state = "warm"
         return self.warmup_s

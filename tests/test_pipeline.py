@@ -403,3 +403,28 @@ def test_warm_up_leaves_a_generator_seed_alone():
     cold.warmup_first = False
     pa, pb = make_pipeline("fast").plan(world, seed=a), cold.plan(world, seed=b)
     assert [r.targets for r in pa.routes] == [r.targets for r in pb.routes] and a.random() == b.random()
+
+
+def _kernel_signatures() -> dict:
+    """Every compiled (or cache-loaded) signature of the project's numba kernels in this process."""
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    return {(m, n): tuple(map(str, f.signatures)) for m, mod in list(sys.modules.items())
+            if m.split(".")[0] in ("planners", "ising_backend", "mrmt_env") and mod is not None
+            for n, f in list(vars(mod).items()) if isinstance(f, Dispatcher)}
+
+
+@pytest.mark.parametrize("preset", ["strong", "ising"])
+def test_the_first_plan_after_warm_up_compiles_and_loads_nothing(preset):
+    from mrmt_env.io import world_from_dict, world_to_dict
+
+    world = generate_world(21, n_robots=3, n_targets=10)
+    for same in (world, world_from_dict(world_to_dict(world))):  # a world as generated, and as read from a file
+        pipeline = make_pipeline(preset)
+        pipeline.warmup(same, seed=3)
+        before = _kernel_signatures()
+        pipeline.plan(same, seed=3)
+        after = _kernel_signatures()
+        assert {k: v for k, v in after.items() if before.get(k) != v} == {}

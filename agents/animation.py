@@ -175,6 +175,8 @@ def write_gif(frames, path, fps: float = 4.0) -> None:
         import imageio.v3 as iio
     except ImportError as exc:
         raise ImportError("writing a GIF needs imageio: pip install 'mrmt-ising[viz]'") from exc
+    if not str(path).lower().endswith(".gif"):
+        raise ValueError(f"GIF path {str(path)!r} must end in .gif")
     if not frames:
         raise ValueError("no frames to write")
     if not (np.isfinite(fps) and fps > 0):

@@ -22,6 +22,7 @@ SUBCOMMANDS = {
     "reproduce": "agents.commands.reproduce",
     "watch": "agents.commands.watch",
     "sweep": "agents.commands.sweep",
+    "warmup": "agents.commands.warmup",
 }
 
 
@@ -33,12 +34,23 @@ def _available() -> dict[str, str]:
     return found
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mrmt-ising")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mrmt",
         description="Multi-robot multi-target planning with an emulated CMOS Ising chip.",
     )
+    parser.add_argument("--version", action="version", version=f"mrmt {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser.set_defaults(_parser=parser)
     available = _available()
     wanted = None
     if argv:
@@ -52,14 +64,16 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         module = importlib.import_module(module_name)
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(_run=module.run, _parser=p)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # reported by the subcommand's parser, with its usage (argparse would show the top-level one)
+        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     return int(args._run(args) or 0)
 
 

@@ -112,6 +112,7 @@ COMPUTE_KEYS = (
     "total_energy_j",
     "retries",
     "fallbacks",
+    "warmup_s",
 )
 
 
@@ -341,8 +342,10 @@ class EvaluationResult:
 
     def format_summary(self) -> str:
         """The summary as a fixed-width text table (medians over episodes)."""
+        rows = self.summary()
+        width = max([18, *(len(s["controller"]) for s in rows)])  # the whole label: never cut
         head = (
-            ("controller", "{:<18}", lambda s: _short(s["controller"], 18)),
+            ("controller", f"{{:<{width}}}", lambda s: s["controller"]),
             ("eps", "{:>5}", lambda s: s["episodes"]),
             ("success", "{:>8}", lambda s: f"{100 * s['success_rate']:.0f}%"),
             ("visited", "{:>8}", lambda s: _fmt(100 * s["targets_visited_frac"], "{:.0f}%")),
@@ -356,7 +359,7 @@ class EvaluationResult:
             ("host E", "{:>9}", lambda s: _si(s["host_energy_j"], "J")),
         )
         lines = [" ".join(fmt.format(name) for name, fmt, _ in head)]
-        for s in self.summary():
+        for s in rows:
             lines.append(" ".join(fmt.format(get(s)) for _, fmt, get in head))
         lines.append(
             "(cost, makespan: medians over successful episodes; visited: mean share of targets visited; "
@@ -364,10 +367,6 @@ class EvaluationResult:
             "chip = the chip's time (50 us per call), E = energy: accel = chip calls x 0.45 uJ, host = host cpu x 15 W)"
         )
         return "\n".join(lines)
-
-
-def _short(name: str, width: int) -> str:
-    return name if len(name) <= width else "..." + name[-(width - 3):]
 
 
 def _fmt(v, pattern):

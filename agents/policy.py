@@ -36,7 +36,9 @@ seed and observations give the same actions.
 Compute: every plan's :class:`~planners.compute.ComputeReport` is added to the
 current episode's report (:meth:`PlannerPolicy.episode_compute`), to the
 policy's running total (:attr:`PlannerPolicy.total_compute`), and kept as
-:attr:`PlannerPolicy.last_compute`.
+:attr:`PlannerPolicy.last_compute`.  The pipeline's one-off warm-up (kernel compile) before
+its first plan is that plan's ``warmup_s``, apart from its ``cpu_s`` and energy
+(:meth:`planners.pipeline.Pipeline.warmup`).
 
 PettingZoo: :meth:`PlannerPolicy.predict_parallel` maps a dict of per-agent
 observations (``(3 + R, H, W)``: the global channels plus the agent's own

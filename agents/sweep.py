@@ -60,6 +60,10 @@ def parse_axes(items) -> dict[str, list[str]]:
 def _apply(spec, key: str, value: str):
     from ising_backend import ChipSpec
 
+    fields = ChipSpec.__dataclass_fields__
+    if key not in fields and key not in ALIASES:  # the sweep's own axis names are valid too
+        raise ValueError(f"unknown chip field {key!r} (a sweep axis); valid fields: "
+                         f"{', '.join([*fields, *ALIASES])}")
     if key in ALIASES:
         n = value.strip()
         if not n.lstrip("+").isdigit() or int(n) < 1:

@@ -92,6 +92,33 @@ def pareto_front(stats: list[dict], x: str, cost: str | None = None) -> list[dic
 def plot_pareto(stats: list[dict], path, title: str = "") -> Path:
     """Cost against accelerator energy and chip latency (the paper's convention) and against system
     energy and latency (host included), one point per spec; the chip-free reference as a star (PNG)."""
+    import matplotlib.pyplot as plt
+
+    fig = pareto_figure(stats, title)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _x_axis(ax, values, unit: str) -> None:
+    """Log scale only when the points span a decade or more (a narrower log axis labels its minor
+    ticks in full and they overlap); values with SI prefixes either way (``52.5 uJ``)."""
+    from matplotlib.ticker import EngFormatter, MaxNLocator, NullFormatter
+
+    pos = [v for v in values if v > 0 and math.isfinite(v)]
+    if pos and max(pos) >= 10 * min(pos):
+        ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    else:
+        ax.xaxis.set_major_locator(MaxNLocator(4))
+    ax.xaxis.set_major_formatter(EngFormatter(unit=unit))
+    ax.tick_params(axis="x", labelsize=7)
+
+
+def pareto_figure(stats: list[dict], title: str = ""):
+    """The figure of :func:`plot_pareto` (a matplotlib ``Figure``, Agg backend)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -121,8 +148,7 @@ def plot_pareto(stats: list[dict], path, title: str = "") -> Path:
             if s[x] > 0 and math.isfinite(s[x]):
                 y = s[cost] if cost == "mean_cost" else 0.0
                 ax.scatter([s[x]], [y], marker="*", s=110, color="tab:red", label=f"{s['controller']} (no chip)")
-        if any(s[x] > 0 for s in chips + refs if math.isfinite(s[x])):
-            ax.set_xscale("log")
+        _x_axis(ax, [s[x] for s in chips + refs], "J" if x.endswith("_j") else "s")
         if cost == "mean_gap_pct":
             ax.set_yscale("symlog", linthresh=1.0)
         ax.set_xlabel(label, fontsize=8)
@@ -133,11 +159,7 @@ def plot_pareto(stats: list[dict], path, title: str = "") -> Path:
     axes[2].legend(fontsize=7, loc="best")
     fig.suptitle(title or "chip sweep: filled = every world solved, hollow = some failed", fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return fig
 
 
 def _short_label(s: dict) -> str:

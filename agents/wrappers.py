@@ -7,7 +7,8 @@ that ends an episode (``terminated or truncated``) ``info`` gains the
 :data:`agents.evaluation.COMPUTE_KEYS` (``cpu_s``, ``chip_calls``,
 ``chip_batches``, ``logical_calls``, ``chip_time_s``, ``chip_time_parallel_s``,
 ``latency_s``, ``latency_parallel_s``, ``accelerator_energy_j``,
-``host_energy_j``, ``total_energy_j``); on every other step ``info`` is the
+``host_energy_j``, ``total_energy_j``, ``retries``, ``fallbacks``, ``warmup_s`` -- the one-off
+kernel warm-up before a pipeline's first plan, apart from ``cpu_s``); on every other step ``info`` is the
 base env's, unchanged.
 
 Where the numbers come from:

@@ -7,7 +7,10 @@ of the strong pipeline and one of the learned agent on the same unseen world.
 Robots are coloured squares; each route is solid where driven and faint
 where still to go.
 
-    python examples/watch_episode.py [--timesteps 20000] [--seed 10000] [--out episodes]
+    python examples/watch_episode.py [--timesteps 20000] [--seed 10000] [--out DIR]
+
+Without ``--out`` the GIFs go to a new temporary directory (printed), never into the
+working tree.
 """
 
 import argparse
@@ -22,10 +25,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=20000, help="MaskablePPO training steps")
     parser.add_argument("--seed", type=int, default=10_000, help="world (reset) seed of the episode")
-    parser.add_argument("--out", default="episodes", help="directory for the GIFs")
+    parser.add_argument("--out", default=None, help="directory for the GIFs (default: a new temporary directory)")
     args = parser.parse_args(argv)
 
-    out = Path(args.out)
+    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="mrmt-episodes-"))
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         model = Path(tmp) / "allocator.zip"

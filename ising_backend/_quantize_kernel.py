@@ -12,6 +12,8 @@ by numpy's default (``"linear"``) percentile.  :func:`saturate_arrays` is
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -81,6 +83,22 @@ def _sort_values(vals, m, out, order):
         order[j + 1] = u
 
 
+@numba.njit(cache=True)
+def _scale_to_unit(c):
+    """Scale ``c`` in place by the power of four that brings its largest magnitude into [1/4, 1):
+    exact, and it changes no rule's result (each is a ratio of the scaled values, and a square root
+    halves a power of four exactly), but relative sizes of tiny coefficients no longer underflow to 0
+    (``[5e-324]`` quantizes to the limit instead of 0 / 0).  Non-finite values are left to the caller."""
+    top = 0.0
+    for t in range(c.shape[0]):
+        top = max(top, abs(c[t]))
+    if top == 0.0 or not np.isfinite(top):
+        return
+    e = math.frexp(top)[1]
+    for t in range(c.shape[0]):  # ldexp: exact, and no overflow of the factor for subnormal tops
+        c[t] = math.ldexp(c[t], -(e + (e & 1)))
+
+
 @numba.njit(cache=True, error_model="numpy")  # IEEE division (x / 0), as numpy
 def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
     """Quantize one model (``h (n,)``, ``J (n, n)`` upper triangular, float64) under ``rules``.
@@ -110,6 +128,7 @@ def quantize_rules(h, J, rules, Lh, Lj, keep_sign, percentile):
             c[t] = J[i, j]
             lim[t] = Lj
             t += 1
+    _scale_to_unit(c)
     nzi = iwork[:L]
     m = 0
     for t in range(L):

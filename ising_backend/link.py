@@ -37,9 +37,15 @@ _NO_MISMATCH = np.zeros((0, 0, 0))
 
 
 class MachineLink:
-    """One machine as seen by compiled loops (module docstring)."""
+    """One machine as seen by compiled loops (module docstring).
 
-    def __init__(self, machine):
+    A callback machine is found by its ``handle`` (baked into the kernel arguments planners keep);
+    setting :attr:`charged` before a compiled call makes this link the one its handle reaches.
+    Copies of a link (a pipeline deep-copied for its warm-up, or unpickled in a worker) keep the
+    handle, and each reaches its own machine once it sets ``charged``.
+    """
+
+    def __init__(self, machine, handle: int | None = None):
         self.machine = machine
         self.logical = isinstance(machine, LogicalIsingSolver)
         if self.logical:  # the compiled tabu kernel, or the solver's solve_stack (another method, faults)
@@ -47,30 +53,35 @@ class MachineLink:
                            and machine.health is None)
         else:
             self.direct = kernel_capable(machine)
-        #: the ledger the running compiled call charges (callback machines charge it per submission)
-        self.charged: CallLedger | None = None
-        self._register()
-
-    def _register(self) -> None:
-        self.handle = -1 if self.direct else next(_IDS)
-        if not self.direct:
-            _LINKS[self.handle] = self
+        self.handle = -1 if self.direct else (next(_IDS) if handle is None else int(handle))
         if self.logical:
             self.kernel_args = None
         elif self.direct:
             self.kernel_args = (-1, *self.machine.kernel_args())
         else:
             self.kernel_args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
+        self.charged = None
+
+    @property
+    def charged(self) -> CallLedger | None:
+        """The ledger the running compiled call charges (a callback machine charges it per submission)."""
+        return self._charged
+
+    @charged.setter
+    def charged(self, ledger: CallLedger | None) -> None:
+        self._charged = ledger
+        if not self.direct:
+            _LINKS[self.handle] = self
 
     def logical_args(self, n: int) -> tuple:
         """:func:`solve_submit`'s arguments after the seed for programs of ``n`` spins on a logical solver."""
         return (-1, *self.machine.kernel_args(n)) if self.direct else (self.handle, 1, 1, 1)
 
     def __getstate__(self) -> dict:
-        return {"machine": self.machine}
+        return {"machine": self.machine, "handle": self.handle}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["machine"])
+        self.__init__(state["machine"], None if state.get("handle", -1) < 0 else state["handle"])
 
     def settle(self, calls, seconds, charged: CallLedger) -> None:
         """Charge what a compiled call submitted: the emulator's kernel calls (``calls[i]`` calls,

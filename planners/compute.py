@@ -23,6 +23,11 @@ reported as ``emulation_s`` and the host's own work is
 ``host_cpu_s = cpu_s - emulation_s``; ``host_energy_j`` is ``host_cpu_s`` x 15 W.
 For classical planners ``emulation_s`` is 0, so ``host_cpu_s == cpu_s``.
 
+Warm-up.  Compiling (or loading from numba's cache) the kernels a planner needs happens
+once per process and is start-up, not planning: ``warmup_s`` carries those wall seconds
+apart (a pipeline's first plan, :meth:`planners.pipeline.Pipeline.warmup`); they are in
+neither ``cpu_s`` nor any energy figure.
+
 Faults (docs/design/faults.md).  ``retries`` counts chip calls re-dispatched after a
 detectable failure (write error, timeout; each failed call is charged like any
 call); ``fallbacks`` counts layer calls that the Ising layer handed to its classical
@@ -62,6 +67,8 @@ class ComputeReport:
             accelerator (chip kernel and program checks, logical solver).
         retries: chip calls re-dispatched after a detected failure (faulty chips).
         fallbacks: layer calls answered by the classical fallback instead of the chip.
+        warmup_s: wall seconds of the one-off warm-up (kernel compile) run before this
+            plan, reported apart: not in ``cpu_s`` nor in any energy.
     """
 
     cpu_s: float = 0.0
@@ -75,6 +82,8 @@ class ComputeReport:
     emulation_s: float = field(default=0.0, compare=False)
     retries: int = 0
     fallbacks: int = 0
+    #: measured wall time of a warm-up, left out of ``==`` like ``emulation_s``
+    warmup_s: float = field(default=0.0, compare=False)
 
     @classmethod
     def from_ledger(cls, ledger) -> "ComputeReport":
@@ -114,7 +123,7 @@ class ComputeReport:
             self.logical_calls + other.logical_calls, self.chip_time_s + other.chip_time_s,
             self.chip_time_parallel_s + other.chip_time_parallel_s,
             self.accelerator_energy_j + other.accelerator_energy_j, self.emulation_s + other.emulation_s,
-            self.retries + other.retries, self.fallbacks + other.fallbacks)
+            self.retries + other.retries, self.fallbacks + other.fallbacks, self.warmup_s + other.warmup_s)
 
     def replace(self, **changes) -> "ComputeReport":
         return dataclasses.replace(self, **changes)
@@ -154,6 +163,7 @@ class ComputeReport:
             "paper_energy_j": float(self.accelerator_energy_j if acc else self.host_energy_j),
             "retries": int(self.retries),
             "fallbacks": int(self.fallbacks),
+            "warmup_s": float(self.warmup_s),
         }
 
     to_dict = to_record

@@ -69,12 +69,25 @@ other robots are still planned.  Exceptions a layer raises (for example
 
 Randomness: ``plan(world, seed)`` builds one ``np.random.default_rng(seed)``
 and hands it to every layer call in a fixed order, so a seed fixes the plan.
+
+Warm-up (compile time is not planning time).  The first call of a compiled kernel in a
+process compiles it (or loads it from numba's on-disk cache); that is start-up, not
+planning.  So before its first plan a pipeline warms itself (:meth:`Pipeline.warmup`):
+it plans the same world with the same seed on a deep copy of its layers (their own chip,
+ledger and memos), so exactly the kernels the plan needs are compiled and nothing of the
+real layers -- ledger, health monitor, random state, caches -- is touched; the plan is the
+same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` (and
+``plan.stats["warmup_s"]``) of that first plan, never part of ``cpu_s``; later plans report
+0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
+whatever compiling it triggers); layers that cannot be deep-copied are not warmed
+(``plan.stats["warmup_skipped"]`` says why).
 """
 
 from __future__ import annotations
 
+import copy
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -164,6 +177,36 @@ def _merged(old, value):
     return value
 
 
+def _shared_frozen_arrays(root) -> dict:
+    """A :func:`copy.deepcopy` memo that shares every read-only array reachable from ``root``
+    (through containers and instance attributes): they cannot change, and a copy would be
+    writable -- another array type, so the warm-up would compile kernels the plan never calls."""
+    import types
+
+    skip = (str, bytes, int, float, complex, bool, type(None), type, types.ModuleType, types.FunctionType,
+            types.BuiltinFunctionType, types.MethodType)
+    memo: dict = {}
+    seen: set = set()
+    stack = [root]
+    while stack:
+        obj = stack.pop()
+        if isinstance(obj, skip) or id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if isinstance(obj, np.ndarray):
+            if not obj.flags.writeable:
+                memo[id(obj)] = obj
+        elif isinstance(obj, dict):
+            stack.extend(obj.values())
+        elif isinstance(obj, (list, tuple, set, frozenset)):
+            stack.extend(obj)
+        elif not type(obj).__module__.startswith(("numba", "numpy")) and not hasattr(obj, "__deepcopy__"):
+            stack.extend(getattr(obj, "__dict__", {}).values())
+            stack.extend(getattr(obj, name) for cls in type(obj).__mro__
+                         for name in getattr(cls, "__slots__", ()) if hasattr(obj, name))
+    return memo
+
+
 def _assignment_problem(assignment, n_robots: int, n_targets: int) -> str | None:
     if len(assignment) != n_robots:
         return f"assignment has {len(assignment)} groups for {n_robots} robots"
@@ -191,6 +234,11 @@ class Pipeline:
     name: str | None = None
     #: plan a robot's legs in one call when the path layer offers ``find_paths`` (same plans)
     batch_paths: bool = True
+    #: warm up (compile) on a scratch copy of the layers before the first plan (module docstring)
+    warmup_first: bool = True
+    #: wall seconds of the warm-up run, None before it (or when it was skipped)
+    warmup_s: float | None = field(default=None, init=False, compare=False, repr=False)
+    _warm_state: str = field(default="cold", init=False, compare=False, repr=False)
 
     @property
     def _batch_paths(self) -> bool:
@@ -205,6 +253,31 @@ class Pipeline:
             self.name = "+".join(getattr(getattr(self, layer), "name", type(getattr(self, layer)).__name__)
                                  for layer in ("sharing", "tour", "path"))
 
+    def warmup(self, world: World | None = None, seed=0) -> float:
+        """Compile what planning ``world`` (default: a 10x10 world with 3 robots and 10 targets)
+        needs, by planning it on a deep copy of the layers; returns the wall seconds (0 when
+        already warm).  The real layers are not touched, so later plans are unchanged."""
+        if self._warm_state != "cold":
+            return 0.0
+        if world is None:
+            from mrmt_env.generation import generate_world
+
+            world = generate_world(seed=0)
+        try:
+            memo = _shared_frozen_arrays((self, world))
+            scratch, world = copy.deepcopy((self, world), memo)
+        except Exception as exc:  # a layer holding something uncopyable (a device handle): not warmed
+            self._warm_state = f"skipped: the layers cannot be deep-copied ({type(exc).__name__}: {exc})"
+            return 0.0
+        scratch.warmup_first = False
+        if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
+            seed = copy.deepcopy(seed)
+        t0 = _clock()
+        scratch.plan(world, seed=seed)
+        self.warmup_s = _clock() - t0
+        self._warm_state = "warm"
+        return self.warmup_s
+
     def plan(self, world: World, seed=None) -> Plan:
         """Plan every robot's route on ``world`` (see the module docstring)."""
         if not isinstance(world, World):
@@ -215,6 +288,9 @@ class Pipeline:
             raise ValueError(
                 f"seed = {seed!r} is not a numpy seed (None, an integer >= 0, a sequence of them, or a Generator): {exc}"
             ) from exc
+        warmup_s = 0.0
+        if self.warmup_first and self._warm_state == "cold":
+            warmup_s = self.warmup(world, seed if seed is not None else 0)
         with stopwatch() as total:
             acc = {"sharing": _Account(), "tour": _Account(), "path": _Account()}
             stats: dict = {}
@@ -307,7 +383,11 @@ class Pipeline:
         stats["layers"] = reports
         stats["glue_cpu_s"] = glue
         stats["pipeline"] = self.name
-        compute = reports["sharing"] + reports["tour"] + reports["path"] + ComputeReport(cpu_s=glue)
+        stats["warmup_s"] = warmup_s
+        if self._warm_state.startswith("skipped"):
+            stats["warmup_skipped"] = self._warm_state
+        compute = (reports["sharing"] + reports["tour"] + reports["path"]
+                   + ComputeReport(cpu_s=glue, warmup_s=warmup_s))
         return Plan(routes=routes, compute=compute, success=not failures,
                     failure="; ".join(failures) if failures else None, stats=stats)
 

@@ -169,6 +169,10 @@ def quantize_ref(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7),
     n = model.n
     iu = np.triu_indices(n, 1)
     c = np.concatenate([model.h, model.J[iu]])
+    top = np.abs(c).max(initial=0.0)
+    if 0 < top < np.inf:  # exact power-of-four scale: the same ratios, no underflow of tiny ones
+        e = int(np.frexp(top)[1])
+        c = np.ldexp(c, -(e + (e & 1)))
     lim = np.concatenate([np.full(n, float(Lh)), np.full(iu[0].size, float(Lj))])
     q = np.zeros_like(c)
     nz = c != 0
@@ -182,7 +186,7 @@ def quantize_ref(model: IsingModel, rule: str, h_range=(-7, 7), j_range=(-7, 7),
             v = np.sign(c) * np.sqrt(np.abs(c)) if rule == "sqrt" else c
             rel = np.abs(v[nz]) / lim[nz]
             a = np.percentile(rel, percentile) if rule == "clip95" else rel.max()
-            with np.errstate(divide="ignore", invalid="ignore"):  # a subnormal scale underflows to 0: +-inf clips
+            with np.errstate(over="ignore"):  # a ratio past the float range saturates like any large one
                 q = np.clip(np.rint(v / a), -lim, lim)
         if keep_sign:
             small = nz & (q == 0)

@@ -237,3 +237,13 @@ def test_chip_spec_file_is_data_with_a_size_limit(tmp_path):
         ChipSpec.from_options([str(broken)])
     spec = ChipSpec.from_options(["beta_range=0.1,3", "h_range=-3,5", "readout_flip_prob=0.01"])
     assert spec.beta_range == (0.1, 3.0) and spec.h_range == (-3, 5) and spec.readout_flip_prob == 0.01
+
+
+def test_first_plan_reports_the_warm_up_apart(tmp_path, worlds, capsys):
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds, src)
+    assert main(["plan", str(src), "--pipeline", "fast", "--no-progress"]) == 0
+    computes = [json.loads(line)["compute"] for line in capsys.readouterr().out.splitlines()]
+    assert computes[0]["warmup_s"] > 0 and all(c["warmup_s"] == 0 for c in computes[1:])
+    for c in computes:  # the warm-up is in no time or energy figure of the plan
+        assert c["host_energy_j"] == pytest.approx(15 * c["host_cpu_s"]) and c["latency_s"] == pytest.approx(c["host_cpu_s"])

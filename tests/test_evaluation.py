@@ -127,3 +127,17 @@ def test_si_units_round_before_choosing_the_prefix():
     assert _si(0.000123456, "s") == "123 us"
     assert _si(1.5e-5, "J") == "15 uJ"
     assert _si(0.0, "J") == "0 J" and _si(float("nan"), "s") == "-"
+
+
+def _fast_policy(seed):
+    from agents.policy import PlannerPolicy
+
+    return PlannerPolicy("fast", seed=seed)
+
+
+def test_summary_shows_long_controller_labels_whole():
+    label = "fast pipeline, a label longer than the column"
+    res = evaluate([(label, _fast_policy)], n_worlds=1, env_kwargs=SMALL, n_jobs=1, progress=False)
+    header, row = res.format_summary().splitlines()[:2]
+    assert row.startswith(label + " ") and "..." not in row
+    assert header.startswith("controller".ljust(len(label)) + " ")  # the column widens to the label

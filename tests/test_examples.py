@@ -75,3 +75,16 @@ def test_watch_episode(tmp_path):
     out = run_example("watch_episode.py", "--timesteps", "256", "--out", str(tmp_path))
     assert "strong: route cost" in out and "learned: route cost" in out
     assert (tmp_path / "strong.gif").stat().st_size > 0 and (tmp_path / "learned.gif").stat().st_size > 0
+
+
+def test_watch_episode_writes_nothing_into_the_working_tree_by_default():
+    pytest.importorskip("sb3_contrib")
+    pytest.importorskip("imageio")
+    import shutil
+    import tempfile
+
+    out = run_example("watch_episode.py", "--timesteps", "64")
+    gifs = [Path(line.rsplit("-> ", 1)[1]) for line in out.splitlines() if "-> " in line]
+    assert len(gifs) == 2 and all(g.stat().st_size > 0 for g in gifs)
+    assert all(g.resolve().is_relative_to(Path(tempfile.gettempdir()).resolve()) for g in gifs), gifs
+    shutil.rmtree(gifs[0].parent)

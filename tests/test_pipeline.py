@@ -336,3 +336,97 @@ def test_no_targets_and_robot_on_target():
         plan = make_pipeline(preset).plan(world)
         validate_plan(world, plan)
         assert plan.route_cost == 1 + 2
+
+
+# ---------------------------------------------------------------- warm-up: compile time is not planning time
+class _OneOffPath(BFSPath):
+    """A path layer that, like a numba kernel, pays a one-off cost on its first call in a process
+    (a class-level flag, shared by every copy, as a compiled kernel is)."""
+
+    paid_by: list = []
+
+    def __init__(self):
+        super().__init__()
+        self.calls = 0
+
+    def find_path(self, world, a, b, rng):
+        if not _OneOffPath.paid_by:
+            _OneOffPath.paid_by.append(id(self))
+        self.calls += 1
+        return super().find_path(world, a, b, rng)
+
+
+def test_first_plan_warms_up_on_a_scratch_copy_and_reports_it_apart():
+    _OneOffPath.paid_by.clear()
+    path = _OneOffPath()
+    pipeline = Pipeline(SSASharing(), ThreeOptTour(), path)
+    world = generate_world(3, n_robots=3, n_targets=8)
+    first = pipeline.plan(world, seed=1)
+    # the one-off cost was paid by the scratch copy, before the measured plan; the real layer only planned
+    assert _OneOffPath.paid_by and _OneOffPath.paid_by[0] != id(path)
+    assert path.calls == world.n_targets
+    assert first.compute.warmup_s > 0 and first.stats["warmup_s"] == first.compute.warmup_s
+    assert first.compute.warmup_s == pipeline.warmup_s
+    # warm-up is in no layer and not in cpu_s
+    layers = first.stats["layers"]
+    assert all(rep.warmup_s == 0 for rep in layers.values())
+    assert first.compute.cpu_s == pytest.approx(sum(r.cpu_s for r in layers.values()) + first.stats["glue_cpu_s"])
+    record = first.compute.to_record()
+    assert record["warmup_s"] == first.compute.warmup_s and record["host_cpu_s"] == pytest.approx(first.compute.cpu_s)
+    second = pipeline.plan(world, seed=1)
+    assert second.compute.warmup_s == 0 and second.stats["warmup_s"] == 0 and path.calls == 2 * world.n_targets
+    assert pipeline.warmup() == 0.0  # once per pipeline
+
+
+@pytest.mark.parametrize("preset", ["strong", "ising"])
+def test_plans_are_the_same_with_and_without_warm_up(preset):
+    world = generate_world(5, n_robots=3, n_targets=10)
+    warmed = make_pipeline(preset)
+    assert warmed.warmup(generate_world(11, n_robots=2, n_targets=6), seed=4) > 0
+    auto = make_pipeline(preset)  # warms itself on the world it plans
+    cold = make_pipeline(preset)
+    cold.warmup_first = False
+    plans = [p.plan(world, seed=2) for p in (warmed, auto, cold)]
+    for plan in plans[1:]:
+        assert [r.targets for r in plan.routes] == [r.targets for r in plans[0].routes]
+        assert all(np.array_equal(a.path, b.path) for a, b in zip(plan.routes, plans[0].routes))
+        counts = {k: v for k, v in plan.compute.to_record().items() if not k.endswith("_s") and "energy" not in k}
+        assert counts == {k: v for k, v in plans[0].compute.to_record().items() if k in counts}
+    assert plans[1].compute.warmup_s > 0 and plans[0].compute.warmup_s == 0 and plans[2].compute.warmup_s == 0
+    if preset == "ising":  # the real chip's ledger holds the plan's calls only, never the warm-up's
+        for p, plan in zip((warmed, auto, cold), plans):
+            assert p.sharing.chip.ledger.physical_calls == plan.compute.chip_calls > 0
+
+
+def test_warm_up_leaves_a_generator_seed_alone():
+    world = generate_world(2, n_robots=2, n_targets=5)
+    a, b = np.random.default_rng(9), np.random.default_rng(9)
+    cold = make_pipeline("fast")
+    cold.warmup_first = False
+    pa, pb = make_pipeline("fast").plan(world, seed=a), cold.plan(world, seed=b)
+    assert [r.targets for r in pa.routes] == [r.targets for r in pb.routes] and a.random() == b.random()
+
+
+def _kernel_signatures() -> dict:
+    """Every compiled (or cache-loaded) signature of the project's numba kernels in this process."""
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    return {(m, n): tuple(map(str, f.signatures)) for m, mod in list(sys.modules.items())
+            if m.split(".")[0] in ("planners", "ising_backend", "mrmt_env") and mod is not None
+            for n, f in list(vars(mod).items()) if isinstance(f, Dispatcher)}
+
+
+@pytest.mark.parametrize("preset", ["strong", "ising"])
+def test_the_first_plan_after_warm_up_compiles_and_loads_nothing(preset):
+    from mrmt_env.io import world_from_dict, world_to_dict
+
+    world = generate_world(21, n_robots=3, n_targets=10)
+    for same in (world, world_from_dict(world_to_dict(world))):  # a world as generated, and as read from a file
+        pipeline = make_pipeline(preset)
+        pipeline.warmup(same, seed=3)
+        before = _kernel_signatures()
+        pipeline.plan(same, seed=3)
+        after = _kernel_signatures()
+        assert {k: v for k, v in after.items() if before.get(k) != v} == {}

@@ -162,3 +162,17 @@ def test_bad_inputs_are_clear_errors():
     with pytest.raises(ValueError, match="4-neighbours"):
         move_action([0, 0], [2, 0])
     assert [move_action([1, 1], c) for c in ([1, 1], [0, 1], [2, 1], [1, 0], [1, 2])] == [0, 1, 2, 3, 4]
+
+
+def test_first_plan_of_a_policy_reports_the_warm_up_apart():
+    env = gym.make("mrmt_env/MRMT-v0")
+    warm, cold = PlannerPolicy("strong", seed=1), PlannerPolicy("strong", seed=1)
+    cold.pipeline.warmup_first = False
+    for seed in range(2):
+        assert run_loop(env, warm, seed)[0] == run_loop(env, cold, seed)[0]  # same episodes
+        assert [r.targets for r in warm.episode_plans()[0].routes] == [r.targets for r in cold.episode_plans()[0].routes]
+        if seed == 0:
+            assert warm.last_compute.warmup_s > 0 and warm.episode_compute().warmup_s == warm.last_compute.warmup_s
+        else:
+            assert warm.last_compute.warmup_s == 0
+    assert cold.total_compute.warmup_s == 0 and warm.total_compute.warmup_s == warm.pipeline.warmup_s

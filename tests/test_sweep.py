@@ -34,6 +34,7 @@ def test_aliases_ranges_and_base_fields():
 
 @pytest.mark.parametrize("items, match", [
     (["n_spin=32"], r"unknown chip field 'n_spin'.*valid fields"),
+    (["bogus=1,2"], r"unknown chip field 'bogus'.*valid fields: n_spins.*n_cores, coef_range"),
     (["n_spins=32", "n_spins=45"], "given twice"),
     (["n_spins"], "must be KEY=V1,V2"),
     (["n_spins=32,,45"], "empty value"),
@@ -157,3 +158,26 @@ def test_step_limit_scales_with_the_world_and_is_an_option():
     assert short.config["max_steps"] == 3
     with pytest.raises(ValueError, match="max_steps = 0"):
         evaluate(["strong"], n_worlds=1, n_jobs=1, progress=False, max_steps=0)
+
+
+@pytest.mark.parametrize("spread", [1.07, 1e3])  # a tiny sweep's points within a decade, and across decades
+def test_pareto_tick_labels_do_not_overlap(spread):
+    from agents.sweep_report import pareto_figure
+
+    def spec(i, e):
+        return {"spec_id": i, "success_rate": 1.0, "n_spins": 32 + 13 * i, "mean_cost": 28.0 - i, "mean_gap_pct": 1.0 - i,
+                "controller": "ising",
+                "accelerator_energy_j": e, "chip_time_parallel_s": e * 30, "total_energy_j": e * 400,
+                "latency_parallel_s": e * 60, "h_range": 7, "j_range": 7, "n_cores": 8}
+    stats = [spec(0, 5.25e-5), spec(1, 5.25e-5 * spread)]
+    fig = pareto_figure(stats)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        for labels in (ax.get_xticklabels(which="both"), ax.get_yticklabels(which="both")):
+            boxes = [t.get_window_extent(renderer) for t in labels if t.get_visible() and t.get_text()]
+            assert all(not a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:]), \
+                [t.get_text() for t in labels]
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)

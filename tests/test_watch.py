@@ -40,3 +40,15 @@ def test_watch_cli(tmp_path, capsys):
     assert "unknown controller 'nope'" in err and len(err.strip().splitlines()) == 1
     assert main(["watch", "--env-id", "mrmt_env/Nope-v0", "--out", str(out)]) == 2
     assert "unknown env id" in capsys.readouterr().err
+
+
+def test_watch_refuses_an_out_path_that_is_not_a_gif(tmp_path, capsys):
+    png = tmp_path / "out.png"
+    assert main(["watch", "--controller", "fast", "--env-id", "mrmt_env/MRMT-5x5-v0", "--out", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert "must end in .gif" in err and str(png) in err and len(err.strip().splitlines()) == 1
+    assert not png.exists()
+    frames, _ = episode_frames("fast", "mrmt_env/MRMT-5x5-v0")
+    with pytest.raises(ValueError, match=r"must end in \.gif"):
+        write_gif(frames, png)
+    assert not png.exists()

@@ -85,6 +85,10 @@ def run(args) -> int:
     try:
         run = runner_from_args(args)
         chip = chip_from_args(args)
+        if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
+            from agents.warmup import warm
+
+            warm(specs, jobs=args.jobs, progress=not args.no_progress, world_kwargs=env_kwargs)
         result = evaluate(
             specs,
             n_worlds=args.worlds,

@@ -174,8 +174,15 @@ def run(args) -> int:
                    'plans the valid ones and writes {"error": ..., "line": N} in place of each invalid one')
         return 2
 
+    import os
+
     from tqdm import tqdm
 
+    from agents.warmup import warm
+
+    spec = "+".join((args.sharing, args.tour, args.path)) if args.sharing and args.tour and args.path \
+        else (args.pipeline or "strong")
+    warm([spec], jobs=min(2, os.cpu_count() or 1), progress=not args.no_progress)  # first run only
     out = sys.stdout
     if args.out:
         try:

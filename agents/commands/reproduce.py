@@ -1,7 +1,7 @@
 """``mrmt reproduce``: every experiment of paper section 6, its figures and ``summary.md``.
 
     mrmt reproduce --out results/            # paper sizes: 1000 path queries, 100 tour/sharing/end-to-end
-    mrmt reproduce --quick --out /tmp/quick  # a small version for CI (under a minute)
+    mrmt reproduce --quick --out results/quick  # a small version for CI (under a minute)
 
 Writes, into ``--out``: ``path|tour|sharing|endtoend.csv`` and ``.json`` (one
 row per instance and method), ``fig_path|tour|sharing|endtoend.png``

@@ -88,6 +88,10 @@ def run(args) -> int:
             reference = None
         if reference is not None and reference not in config.controllers:
             return fail(f"--reference {reference!r} is not among --controllers {args.controllers!r}")
+        if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
+            from agents.warmup import warm
+
+            warm(config.controllers, jobs=args.jobs, progress=not args.no_progress, world_kwargs=config.env_kwargs)
         result = run_sweep(config, run_cfg, base_chip=base)
     except (ControllerError, ValueError) as exc:
         return fail(str(exc).splitlines()[0])

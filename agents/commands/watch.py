@@ -22,7 +22,7 @@ def add_arguments(parser) -> None:
                         help="fast, strong, ising, sharing+tour+path or ppo:MODEL.zip (default strong)")
     parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
     parser.add_argument("--seed", type=int, default=0, help="world (reset) seed (default 0)")
-    parser.add_argument("--out", required=True, help="GIF path")
+    parser.add_argument("--out", required=True, help="GIF path (must end in .gif)")
     parser.add_argument("--fps", type=float, default=4.0, help="frames per second (default 4)")
     parser.add_argument("--cell", type=int, default=24, help="pixels per grid cell (default 24)")
 
@@ -36,6 +36,8 @@ def run(args) -> int:
         return fail(f"--seed must be >= 0, got {args.seed}")
     if not args.fps > 0:
         return fail(f"--fps must be > 0, got {args.fps}")
+    if not args.out.lower().endswith(".gif"):  # an animation is a GIF; GIF bytes under another suffix mislead
+        return fail(f"--out {args.out!r} must end in .gif (the episode is written as an animated GIF)")
     try:
         import imageio  # noqa: F401
     except ImportError:

@@ -39,6 +39,7 @@ class ProgramPool:
     """Memoised patch programs of one planner as compiled arrays (cleared when full)."""
 
     def __init__(self, n_cells: int, n_styles: int, n_spins: int, budget_bytes: int = 48 << 20):
+        self._shape = (n_cells, n_styles, n_spins, budget_bytes)
         nv = max(n_cells - 2, 1)
         N = max(int(n_spins), 1)
         cap = int(max(64, min(4096, budget_bytes // max(1, n_styles * N * N * 2))))
@@ -62,6 +63,11 @@ class ProgramPool:
 
     def arrays(self) -> tuple:
         return self._arrays
+
+    def __deepcopy__(self, memo) -> "ProgramPool":
+        """An empty pool of the same size (a memo: a copy's plans are the same without its entries;
+        the typed dict cannot be copied)."""
+        return ProgramPool(*self._shape)
 
 
 @numba.njit(cache=True)

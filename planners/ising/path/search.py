@@ -34,7 +34,7 @@ __all__ = ["IsingPath", "PaperIsingPath"]
 class _LRU(OrderedDict):
     """A small least-recently-used cache (host-side memo of deterministic mapping work)."""
 
-    def __init__(self, size: int):
+    def __init__(self, size: int = 4096):  # a default, so copy/pickle can rebuild it (size comes back as state)
         super().__init__()
         self.size = size
 

@@ -269,7 +269,8 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
     shift, robot_weight = weights
     order_id, rounds, per_robot = pair_opts
     counters = book[1]
-    w = split_weights_kernel(powered, mean, shift, R, robot_weight)
+    # C-contiguous like _refine's pair weights, so the stage kernels compile for one layout only
+    w = np.ascontiguousarray(split_weights_kernel(powered, mean, shift, R, robot_weight))
     C = chip[0].shape[0] * chip[4]  # distinct candidates per split: rules x reads
     store = (np.zeros((16, C)), np.zeros((16, C), dtype=np.int64), np.zeros((16, C), dtype=np.int64),
              np.zeros(16, dtype=np.int64))

@@ -332,7 +332,7 @@ def split_states(w, R, rng, chip, retries, limit, opts, book, store):
     groups[0, 0] = (np.int64(1) << n) - 1
     ng = np.ones(1, dtype=np.int64)
     memo = Dict.empty(key_type=types.int64, value_type=types.int64)
-    n_prob = 0
+    n_prob = np.int64(0)  # int64 from the start: a literal 0 would compile _stage twice
     stage = 0
     while True:
         kind = 0 if stage == 0 else 1

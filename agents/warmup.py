@@ -1,0 +1,157 @@
+"""Cold start: compile the planners' numba kernels up front, in parallel, and say so once.
+
+Every kernel is compiled with ``cache=True``: the first run after an install (or after a kernel's
+source changed) compiles it and writes numba's on-disk cache; later processes load it in well
+under a second.  That first compile takes about a minute on two cores, most of it in the Ising
+sharing search (one compiled call), so a command that is about to pay it prints one line first
+(what, why, roughly how long, once per install) and then compiles the *parts* it needs -- the
+sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
+processes with a progress bar, longest part first.  Each part is a pipeline warm-up
+(:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
+the cache.  A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
+first use, unannounced.  ``mrmt warmup`` compiles every preset.
+
+Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,
+else ``~/.cache/...``), keyed by the package, numba and Python versions and the newest source
+file of the compiled packages, as numba's cache is; nothing there is needed for correctness
+(without it a command only compiles in its own process, silently).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
+
+#: Rough cold compile seconds of each part on a 2-core machine (benchmarks/RESULTS.md, cold start).
+PART_SECONDS = {"ising:sharing": 55, "ising:tour+path": 30, "ising-paper:sharing": 10,
+                "ising-paper:tour+path": 10, "strong": 8, "fast": 5, "exact": 5}
+
+#: A cold compile shorter than this (all parts together) is not announced nor run apart.
+LONG_S = 10
+
+_ISING = ("ising", "ising-paper")
+_PRESETS = {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"), "ising": ("ising",) * 3,
+            "ising-paper": ("ising-paper",) * 3, "exact": ("exact", "brute", "bfs")}
+
+
+def _layers(part: str) -> tuple[str, str, str]:
+    """The (sharing, tour, path) registry names whose warm-up compiles ``part``."""
+    name, _, side = part.partition(":")
+    if side == "sharing":
+        return name, "nn", "bfs"
+    if side == "tour+path":
+        return "psa", name, name
+    return _PRESETS[name] if name in _PRESETS else tuple(name.split("+"))
+
+
+def parts_for(controllers) -> list[str]:
+    """The warm-up parts of controller specs (presets and layer triples; learned models have none),
+    longest first.  An Ising preset is two parts (its sharing layer, its tour and path layers)."""
+    parts: list[str] = []
+    for spec in controllers:
+        spec = spec.strip()
+        if spec in _ISING:
+            new = [f"{spec}:sharing", f"{spec}:tour+path"]
+        elif spec in _PRESETS:
+            new = [spec]
+        elif spec.count("+") == 2:
+            s, t, p = spec.split("+")
+            new = [f"{s}+nn+bfs" if s in _ISING else None, f"psa+{t}+{p}" if t in _ISING or p in _ISING else None]
+            new = [x for x in new if x] or [spec]
+        else:
+            new = []
+        parts += [x for x in new if x not in parts]
+    return sorted(parts, key=lambda x: -PART_SECONDS.get(x, 5))
+
+
+def _fingerprint() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    import numba
+
+    try:
+        ours = version("mrmt-ising")
+    except PackageNotFoundError:
+        ours = "source"
+    root = Path(__file__).resolve().parents[1]
+    newest = max((p.stat().st_mtime_ns for pkg in ("ising_backend", "planners", "mrmt_env")
+                  for p in (root / pkg).rglob("*.py")), default=0)
+    key = f"{ours}|{numba.__version__}|{sys.version}|{root}|{newest}|{os.environ.get('NUMBA_CACHE_DIR', '')}"
+    return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def stamp_path() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "mrmt-ising" / "warm.json"
+
+
+def _read_stamp() -> set[str]:
+    try:
+        data = json.loads(stamp_path().read_text())
+        return set(data.get(_fingerprint(), []))
+    except (OSError, ValueError, AttributeError):
+        return set()
+
+
+def mark_warm(parts) -> None:
+    """Record ``parts`` as compiled for this install (what :func:`warm` does after compiling)."""
+    _write_stamp(parts)
+
+
+def _write_stamp(parts) -> None:
+    try:
+        path = stamp_path()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({_fingerprint(): sorted(_read_stamp() | set(parts))}))
+    except OSError:  # a read-only home: the notice shows again next time, nothing else changes
+        pass
+
+
+def cold_parts(controllers) -> list[str]:
+    """The parts of ``controllers`` not yet compiled for this install (as far as the stamp knows)."""
+    done = _read_stamp()
+    return [p for p in parts_for(controllers) if p not in done]
+
+
+def _warm_part(part: str, world_kwargs: dict) -> str:
+    from mrmt_env.generation import generate_world
+    from planners.pipeline import make_pipeline
+
+    sharing, tour, path = _layers(part)
+    world = generate_world(0, **world_kwargs)
+    make_pipeline(sharing=sharing, tour=tour, path=path).warmup(world, seed=0)
+    return part
+
+
+def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict | None = None,
+         stream=None, force: bool = False, minimum_s: float = LONG_S) -> list[str]:
+    """Compile the cold parts of ``controllers`` (all of them with ``force``) on ``jobs`` processes,
+    after one line on ``stream`` (default stderr) saying what and why, when they are expected to
+    take at least ``minimum_s`` seconds; returns the parts compiled."""
+    from agents.runner import RunConfig, run_tasks
+
+    todo = parts_for(controllers) if force else cold_parts(controllers)
+    if not todo or (not force and sum(PART_SECONDS.get(p, 5) for p in todo) < minimum_s):
+        return []  # nothing cold, or a few seconds: compiled on first use, in the process, silently
+    stream = sys.stderr if stream is None else stream
+    secs = [PART_SECONDS.get(p, 5) for p in todo]
+    jobs = max(1, min(jobs, len(todo)))
+    guess = max(max(secs), sum(secs) / max(1, jobs))
+    print(f"mrmt: compiling the numba kernels of {', '.join(todo)} (first run after install; cached "
+          f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s)",
+          file=stream, flush=True)
+    run = RunConfig(backend="inline" if jobs == 1 else "process", jobs=jobs, chunk_size=1, progress=progress)
+    kwargs = dict(world_kwargs or {})
+    try:
+        run_tasks(_warm_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
+    except Exception as exc:  # noqa: BLE001 -- the command itself will meet (and report) the same problem
+        print(f"mrmt: warm-up stopped ({type(exc).__name__}: {exc}); compiling on first use instead",
+              file=stream)
+        return []
+    _write_stamp(todo)
+    return todo

@@ -1,0 +1,59 @@
+"""Cold start: ``mrmt warmup`` and the one-line notice before a first compile (agents/warmup.py)."""
+
+import json
+
+import pytest
+
+from agents.cli import main
+from agents.warmup import cold_parts, parts_for, stamp_path
+
+
+@pytest.fixture(autouse=True)
+def fresh_stamp(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
+def test_parts_split_the_ising_layers_and_put_the_longest_first():
+    parts = parts_for(["fast", "ising", "ssa+3opt+ising", "ppo:model.zip"])
+    assert parts[0] == "ising:sharing" and set(parts) == {"ising:sharing", "ising:tour+path", "fast", "psa+3opt+ising"}
+    assert parts_for(["ppo:model.zip"]) == []
+
+
+def test_warmup_says_once_what_it_compiles_then_is_warm(capsys):
+    assert cold_parts(["fast"]) == ["fast"]
+    assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress"]) == 0
+    out, err = capsys.readouterr()
+    (line,) = err.strip().splitlines()  # one line: what, why, how long, that it is once per install
+    assert line.startswith("mrmt: compiling the numba kernels of fast") and "first run" in line and " s on 1 core" in line
+    assert "compiled 1 part(s)" in out
+    assert "fast" in next(iter(json.loads(stamp_path().read_text()).values()))
+    assert cold_parts(["fast"]) == []
+    assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and out.startswith("already warm: fast")
+
+
+def test_plan_prints_the_notice_only_when_cold(tmp_path, capsys):
+    from mrmt_env import generate_world
+    from mrmt_env.io import write_worlds
+
+    src = tmp_path / "w.jsonl"
+    write_worlds([generate_world(1)], src)
+    assert main(["plan", str(src), "--pipeline", "fast", "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""  # a few seconds of compiling: not announced
+    assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("mrmt: compiling the numba kernels of ising:sharing, ising:tour+path (first run")
+    assert len(err.strip().splitlines()) == 1
+    assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["warmup", "--jobs", "0"], "--jobs must be >= 1"),
+    (["warmup", "--pipelines", "nope"], "unknown controller 'nope'"),
+])
+def test_bad_input_is_one_line(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1

@@ -62,7 +62,7 @@ class MRMTLifelongEnv(gym.Env):
     ``K`` stay open; ``tasks="poisson"`` adds a Poisson number of tasks per
     step (``task_rate``, default 0.5).  New tasks go uniformly on pool cells
     without an open task: a warehouse's pick cells, else the robots' free
-    component.  An arrival that finds no free pool cell is dropped
+    component, never under a robot.  An arrival that finds no such cell is dropped
     (``info["tasks_dropped"]``).
 
     ## Collisions

@@ -11,10 +11,9 @@ One step of env ``b`` (flat cells ``r * W + c``):
 3. a robot standing on an open task's cell serves it (service time = step
    of service - step of arrival);
 4. new tasks arrive (``refill``: one per served task; ``poisson``: a
-   Poisson count per step) on cells of the task pool that hold no open task,
-   uniformly; served cells rejoin the pool only after the arrivals, so a
-   replacement never lands on the cell just served.  An arrival with no free
-   pool cell is dropped and counted.
+   Poisson count per step) uniformly on cells of the task pool that hold no
+   open task and no robot (a task never appears under a robot, so serving
+   always takes a move).  An arrival with no such cell is dropped and counted.
 
 Randomness of the task stream: a per-episode 64-bit key drawn at reset from
 the env's generator and a counter, mixed by SplitMix64 (Steele et al. 2014),
@@ -36,6 +35,9 @@ __all__ = ["COUNTERS", "lifelong_load", "lifelong_step", "resolve_block", "unifo
 COUNTERS = ("steps", "route_cost", "tasks_completed", "invalid_moves", "vertex_conflicts", "swap_conflicts",
             "blocked_moves", "service_sum", "tasks_arrived", "tasks_dropped", "open_tasks")
 (_STEPS, _COST, _DONE, _INVALID, _VERTEX, _SWAP, _BLOCKED, _SERVICE, _ARRIVED, _DROPPED, _OPEN) = range(11)
+#: Marks of a pool cell out of the free pool: it holds an open task, or a robot stands on it.
+_HAS_TASK = -2
+_HAS_ROBOT = -3
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -108,22 +110,29 @@ def lifelong_load(b, grid, width, robots, tasks, pool, succ, pos, at, task_t, fr
 
 
 @numba.njit(cache=True, nogil=True)
-def _open_task(b, cell, t, task_t, free, free_idx, n_free, ob) -> None:
-    task_t[b, cell] = t
-    ob[1, cell] = 1
+def _take(b, cell, mark, free, free_idx, n_free) -> None:
+    """Take a free pool cell out of the free pool (swap with the last free entry), marking why."""
     i = free_idx[b, cell]
-    if i >= 0:  # take the cell out of the free pool (swap with the last free entry)
+    if i >= 0:
         last = free[b, n_free[b] - 1]
         free[b, i] = last
         free_idx[b, last] = i
         free[b, n_free[b] - 1] = cell
-        free_idx[b, cell] = -2  # in the pool, not free
+        free_idx[b, cell] = mark
         n_free[b] -= 1
 
 
 @numba.njit(cache=True, nogil=True)
-def _release(b, cell, free, free_idx, n_free) -> None:
-    if free_idx[b, cell] == -2:
+def _open_task(b, cell, t, task_t, free, free_idx, n_free, ob) -> None:
+    task_t[b, cell] = t
+    ob[1, cell] = 1
+    _take(b, cell, _HAS_TASK, free, free_idx, n_free)
+
+
+@numba.njit(cache=True, nogil=True)
+def _release(b, cell, mark, free, free_idx, n_free) -> None:
+    """Put a pool cell taken out with ``mark`` back into the free pool."""
+    if free_idx[b, cell] == mark:
         free[b, n_free[b]] = cell
         free_idx[b, cell] = n_free[b]
         n_free[b] += 1
@@ -201,6 +210,7 @@ def lifelong_step(actions, live, succ, pos, at, task_t, free, free_idx, n_free, 
     tgt = np.empty(n_robots, dtype=np.int64)
     stack = np.empty(n_robots + 1, dtype=np.int64)
     served = np.empty(n_robots, dtype=np.int64)
+    held = np.empty(n_robots, dtype=np.int64)
     for b in range(actions.shape[0]):
         if not live[b]:
             rewards[b] = 0.0
@@ -261,6 +271,13 @@ def lifelong_step(actions, live, succ, pos, at, task_t, free, free_idx, n_free, 
                 served[n_served] = c
                 n_served += 1
         counters[b, _DONE] += n_served
+        n_held = 0
+        for k in range(n_robots):  # no task arrives under a robot
+            c = pb[k]
+            if free_idx[b, c] >= 0:
+                _take(b, c, _HAS_ROBOT, free, free_idx, n_free)
+                held[n_held] = c
+                n_held += 1
         if poisson:
             n_new = poisson_count(uniform01(keys[b], draws[b]), rate)
             draws[b] += np.uint64(1)
@@ -276,7 +293,9 @@ def lifelong_step(actions, live, succ, pos, at, task_t, free, free_idx, n_free, 
             _open_task(b, free[b, i], step, task_t, free, free_idx, n_free, ob)
             counters[b, _ARRIVED] += 1
         for i in range(n_served):
-            _release(b, served[i], free, free_idx, n_free)
+            _release(b, served[i], _HAS_TASK, free, free_idx, n_free)
+        for i in range(n_held):
+            _release(b, held[i], _HAS_ROBOT, free, free_idx, n_free)
         counters[b, _OPEN] = counters[b, _ARRIVED] - counters[b, _DONE]
         rewards[b] = n_served * task_reward - attempted
 

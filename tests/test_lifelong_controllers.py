@@ -92,3 +92,13 @@ def test_mrmt_compare_on_a_lifelong_id(tmp_path, capsys):
     assert main(["compare", "--env-id", WAREHOUSE, "--controllers", "greedy,nope", "--worlds", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "unknown lifelong controller 'nope'" in err
+
+
+def test_mrmt_watch_writes_a_lifelong_gif(tmp_path, capsys):
+    pytest.importorskip("imageio")
+    out = tmp_path / "life.gif"
+    assert main(["watch", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--controller", "greedy", "--steps", "8",
+                 "--cell", "8", "--out", str(out)]) == 0
+    assert "8 frames" in capsys.readouterr().out and out.stat().st_size > 0
+    assert main(["watch", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--controller", "nope", "--out", str(out)]) == 2
+    assert "unknown lifelong controller 'nope'" in capsys.readouterr().err

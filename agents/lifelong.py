@@ -19,10 +19,12 @@ robot serves which tasks and the tour layer their order (on the chip for
 ``ising``).  Only the first task of each queue guides motion, so the path
 layer is BFS (its paths are not used; a chip would only confirm them).  Each
 idle robot brings its ``candidates`` nearest unclaimed tasks; more idle robots
-than ``group_size`` are split into bands of neighbouring robots (row-major
-order), each task going to the band of its nearest idle robot, and each band
-is one planning call.  Robots take the first ``commit`` tasks of their route
+than ``group_size`` are split into groups of neighbouring robots (Z-order of
+their cells), each task going to the group of its nearest idle robot, and
+each group is one planning call.  Robots take the first ``commit`` tasks of their route
 (default 1; the rest stays unclaimed, so the next idle robot may take it).
+A robot the plan leaves without a task waits for the next event, or with
+``fill=True`` takes the nearest task still unclaimed (greedy completion).
 Defaults (4 robots, 3 candidates: at most 12 tasks per call, which the
 compiled Ising sharing search takes whole) were chosen on the 100-robot
 warehouse for throughput and latency of both pipelines alike
@@ -48,6 +50,18 @@ LIFELONG_CONTROLLERS = ("greedy",) + tuple(PIPELINE_LAYERS)
 DEFAULT_GROUP_SIZE = 4
 #: Unclaimed tasks a pipeline assigner considers per idle robot (its nearest ones).
 DEFAULT_CANDIDATES = 3
+
+
+def _spread(v: np.ndarray) -> np.ndarray:
+    v = v.astype(np.uint64) & np.uint64(0xFFFF)
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def _morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Z-order (Morton) keys of cells: sorting by them keeps nearby cells together."""
+    return (_spread(rows) << np.uint64(1)) | _spread(cols)
 
 
 class GreedyAssigner:
@@ -78,7 +92,7 @@ class PipelineAssigner:
     (see the module docstring).  ``chip``: an :class:`ising_backend.ChipSpec` for Ising layers."""
 
     def __init__(self, spec: str, chip=None, group_size: int = DEFAULT_GROUP_SIZE, commit: int | None = 1,
-                 candidates: int | None = DEFAULT_CANDIDATES) -> None:
+                 candidates: int | None = DEFAULT_CANDIDATES, fill: bool = False) -> None:
         from planners.pipeline import make_pipeline
 
         if spec in PIPELINE_LAYERS:
@@ -98,6 +112,7 @@ class PipelineAssigner:
             raise ValueError(f"candidates must be an integer >= 1 or None (every unclaimed task), got {candidates!r}")
         self.commit = commit
         self.candidates = candidates
+        self.fill = bool(fill)
         shared = {}
         if "ising" in (sharing, tour):
             from ising_backend import ChipSpec, EmulatedChip
@@ -116,6 +131,7 @@ class PipelineAssigner:
         width = grid.shape[1]
         dist = fields.fields[fields.rows(tasks)][:, idle_cells].astype(np.int64)  # (tasks, idle robots)
         dist[dist < 0] = np.iinfo(np.int64).max
+        dist_all = dist
         if self.candidates is not None and len(tasks) > self.candidates * len(idle_cells):
             k = self.candidates
             near = np.argpartition(dist, k - 1, axis=0)[:k] if k < len(tasks) else np.arange(len(tasks))[:, None]
@@ -123,7 +139,8 @@ class PipelineAssigner:
             tasks, dist, index = tasks[keep], dist[keep], keep
         else:
             index = np.arange(len(tasks))
-        order = np.argsort(idle_cells, kind="stable")  # row-major bands of neighbouring robots
+        rows, cols = np.divmod(idle_cells, width)
+        order = np.argsort(_morton(rows, cols), kind="stable")  # Z-order: consecutive robots are neighbours
         n_groups = -(-len(idle_cells) // self.group_size)
         group_of = np.empty(len(idle_cells), dtype=np.int64)
         for g, chunk in enumerate(np.array_split(order, n_groups)):
@@ -146,6 +163,15 @@ class PipelineAssigner:
                 raise RuntimeError(f"lifelong controller {self.name!r}: planning failed: {plan.failure}")
             for i, route in enumerate(plan.routes):
                 queues[int(robots[i])] = [int(index[mine[t]]) for t in route.targets[:self.commit]]
+        if self.fill:  # robots the plan left without a task take the nearest one still unclaimed
+            free = np.ones(len(dist_all), dtype=bool)
+            free[[j for q in queues for j in q]] = False
+            for i in range(len(idle_cells)):
+                if queues[i] or not free.any():
+                    continue
+                j = int(np.argmin(np.where(free, dist_all[:, i], np.iinfo(np.int64).max)))
+                queues[i] = [j]
+                free[j] = False
         return queues, compute
 
 

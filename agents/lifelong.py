@@ -236,12 +236,18 @@ class LifelongController:
 
 
 def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str = "pibt",
-                             group_size: int = DEFAULT_GROUP_SIZE) -> LifelongController:
+                             **options) -> LifelongController:
     """``greedy`` or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
-    (``pibt`` or ``windowed``); ``ValueError`` naming an unknown spec."""
+    (``pibt`` or ``windowed``); ``options`` go to :class:`PipelineAssigner` (``group_size``,
+    ``candidates``, ``commit``, ``fill``); ``ValueError`` naming an unknown spec or option."""
     from planners.mapf import EXECUTORS
 
     if executor not in EXECUTORS:
         raise ValueError(f"unknown executor {executor!r}; known: {', '.join(EXECUTORS)}")
-    assigner = GreedyAssigner() if spec == "greedy" else PipelineAssigner(spec, chip=chip, group_size=group_size)
+    if spec == "greedy":
+        if options:
+            raise ValueError(f"greedy takes no options, got {sorted(options)}")
+        assigner = GreedyAssigner()
+    else:
+        assigner = PipelineAssigner(spec, chip=chip, **options)
     return LifelongController(assigner, executor=executor, seed=seed)

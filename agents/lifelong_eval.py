@@ -60,8 +60,9 @@ def _warm_up(spec: str, chip, executor: str) -> None:
 
 
 def run_lifelong_episode(env_id: str, spec: str, seed: int, steps: int, env_kwargs: dict | None = None, chip=None,
-                         executor: str = "pibt") -> dict:
-    """One episode of ``steps`` steps; returns its record (metrics, per-decision latencies, energies)."""
+                         executor: str = "pibt", options: dict | None = None) -> dict:
+    """One episode of ``steps`` steps; returns its record (metrics, per-decision latencies, energies).
+    ``options``: the pipeline assigner's (:func:`agents.lifelong.make_lifelong_controller`)."""
     import gymnasium as gym
 
     from agents.lifelong import make_lifelong_controller
@@ -69,7 +70,7 @@ def run_lifelong_episode(env_id: str, spec: str, seed: int, steps: int, env_kwar
     _warm_up(spec, chip, executor)
     env = gym.make(env_id, max_episode_steps=steps, **(env_kwargs or {}))
     obs, info = env.reset(seed=seed)
-    ctrl = make_lifelong_controller(spec, seed=seed, chip=chip, executor=executor)
+    ctrl = make_lifelong_controller(spec, seed=seed, chip=chip, executor=executor, **(options or {}))
     latencies = np.zeros(steps)
     host_s = accel_j = 0.0
     chip_calls = 0
@@ -106,7 +107,7 @@ def run_lifelong_episode(env_id: str, spec: str, seed: int, steps: int, env_kwar
 
 
 def evaluate_lifelong(specs, env_id: str, seeds, steps: int, env_kwargs: dict | None = None, chip=None,
-                      executor: str = "pibt", progress: bool = False) -> list[dict]:
+                      executor: str = "pibt", progress: bool = False, options: dict | None = None) -> list[dict]:
     """:func:`run_lifelong_episode` for every controller spec and seed (one process: timings are not shared)."""
     rows = []
     jobs = [(s, seed) for s in specs for seed in seeds]
@@ -116,7 +117,7 @@ def evaluate_lifelong(specs, env_id: str, seeds, steps: int, env_kwargs: dict | 
 
         bar = tqdm(total=len(jobs), desc="lifelong episodes", file=sys.stderr)
     for spec, seed in jobs:
-        rows.append(run_lifelong_episode(env_id, spec, seed, steps, env_kwargs, chip, executor))
+        rows.append(run_lifelong_episode(env_id, spec, seed, steps, env_kwargs, chip, executor, options))
         if bar is not None:
             bar.update(1)
     if bar is not None:

@@ -28,7 +28,10 @@ from _common import cpu_name, write_results_section  # noqa: E402
 
 ENV_ID = "mrmt_env/MRMT-Lifelong-Warehouse-v0"
 SECTION = "## Issue 25: lifelong operation (warehouse, PIBT execution)"
-CONTROLLERS = (("greedy", "pibt"), ("strong", "pibt"), ("ising", "pibt"), ("greedy", "windowed"))
+#: (label, spec, executor, assigner options)
+CONTROLLERS = (("greedy", "greedy", "pibt", {}), ("strong", "strong", "pibt", {}), ("ising", "ising", "pibt", {}),
+               ("strong+fill", "strong", "pibt", {"fill": True}), ("ising+fill", "ising", "pibt", {"fill": True}),
+               ("greedy+windowed", "greedy", "windowed", {}))
 
 
 def _fleet(robots: int, steps: int, seeds, controllers) -> list[dict]:
@@ -36,10 +39,10 @@ def _fleet(robots: int, steps: int, seeds, controllers) -> list[dict]:
 
     kwargs = {"n_robots": robots, "n_targets": (3 * robots) // 2}
     out = []
-    for spec, executor in controllers:
-        rows = evaluate_lifelong([spec], ENV_ID, seeds, steps, kwargs, executor=executor)
+    for label, spec, executor, options in controllers:
+        rows = evaluate_lifelong([spec], ENV_ID, seeds, steps, kwargs, executor=executor, options=options)
         s = summarize(rows)[0]
-        s.update(robots=robots, executor=executor, label=spec if executor == "pibt" else f"{spec}+{executor}")
+        s.update(robots=robots, executor=executor, label=label)
         out.append(s)
         print(f"R={robots:4d} {s['label']:16s} throughput {s['throughput']:7.3f}  p50 "
               f"{1e3 * s['decision_latency_p50_s']:8.2f} ms  p99 {1e3 * s['decision_latency_p99_s']:8.2f} ms  "

@@ -186,3 +186,49 @@ def test_pettingzoo_steps_as_the_gym_env():
         go, gr, _, _, gi = g.step(a)
         po, pr, _, _, pi = p.step({f"robot_{k}": int(a[k]) for k in range(4)})
         assert np.array_equal(po["robot_0"][:-1], go) and pr["robot_0"] == gr and pi["robot_0"] == gi
+
+
+def resolve_oracle(pos, tgt):
+    """The block rule as a fixpoint, slow and plain: stayers keep their cells, movers claim in index
+    order, exchanges are refused; refusals are final and repeat until nothing changes."""
+    tgt = list(tgt)
+    at = {p: k for k, p in enumerate(pos)}
+    while True:
+        before = list(tgt)
+        claimed = {pos[k]: k for k in range(len(pos)) if tgt[k] == pos[k]}
+        for k in range(len(pos)):
+            if tgt[k] != pos[k]:
+                if tgt[k] in claimed:
+                    tgt[k] = pos[k]
+                else:
+                    claimed[tgt[k]] = k
+        for k in range(len(pos)):
+            j = at.get(before[k])
+            if before[k] != pos[k] and j is not None and j != k and before[j] == pos[k]:
+                tgt[k], tgt[j] = pos[k], pos[j]
+        if tgt == before:
+            return tgt
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data(), n=st.integers(2, 9))
+def test_block_resolution_equals_its_fixpoint_oracle(data, n):
+    from mrmt_env.lifelong_kernels import resolve_block
+
+    cells = data.draw(st.lists(st.integers(0, 11), min_size=n, max_size=n, unique=True))  # a 3 x 4 grid
+    pos = np.array(cells, dtype=np.int64)
+    tgt = pos.copy()
+    for k in range(n):
+        r, c = divmod(int(pos[k]), 4)
+        moves = [(r, c)] + [(r + dr, c + dc) for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1))
+                            if 0 <= r + dr < 3 and 0 <= c + dc < 4]
+        rr, cc = data.draw(st.sampled_from(moves))
+        tgt[k] = rr * 4 + cc
+    at = np.full(12, -1, dtype=np.int64)
+    at[pos] = np.arange(n)
+    claim = np.full(12, -1, dtype=np.int64)
+    want = tgt.copy()
+    refused = resolve_block(pos, tgt, at, claim, np.empty(n + 1, dtype=np.int64))
+    expect = resolve_oracle(pos.tolist(), want.tolist())
+    assert tgt.tolist() == expect and refused == int(np.sum((want != pos) & (tgt == pos)))
+    assert (claim == -1).all()

@@ -25,7 +25,7 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested():
     tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
-              "map_families.py"}
+              "map_families.py", "lifelong_warehouse.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -70,3 +70,8 @@ def test_watch_episode(tmp_path):
     out = run_example("watch_episode.py", "--timesteps", "256", "--out", str(tmp_path))
     assert "strong: route cost" in out and "learned: route cost" in out
     assert (tmp_path / "strong.gif").stat().st_size > 0 and (tmp_path / "learned.gif").stat().st_size > 0
+
+
+def test_lifelong_warehouse():
+    out = run_example("lifelong_warehouse.py", "--robots", "6", "--steps", "20", "--size", "16")
+    assert out.count("conflicts 0, blocked 0") == 3 and " ising: " in out

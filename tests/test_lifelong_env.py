@@ -232,3 +232,15 @@ def test_block_resolution_equals_its_fixpoint_oracle(data, n):
     expect = resolve_oracle(pos.tolist(), want.tolist())
     assert tgt.tolist() == expect and refused == int(np.sum((want != pos) & (tgt == pos)))
     assert (claim == -1).all()
+
+
+def test_pettingzoo_registry_makes_both_forms():
+    try:
+        from pettingzoo.env_registry.registration import make
+    except ImportError:
+        pytest.skip("installed PettingZoo has no registry")
+    par = make("parallel", "mrmt_env/mrmt_lifelong_v0", n_robots=2, height=5, width=5, n_targets=2)
+    aec = make("aec", "mrmt_env/mrmt_lifelong_v0", n_robots=2, height=5, width=5, n_targets=2)
+    obs, _ = par.reset(seed=0)
+    aec.reset(seed=0)
+    assert set(obs) == {"robot_0", "robot_1"} and aec.agent_selection == "robot_0"

@@ -13,7 +13,9 @@ big worlds of the map families (:mod:`mrmt_env.maps`), 10 robots and 100
 targets on 64 x 64: ``MRMT-64x64-v0`` (uniform, 20 % obstacles),
 ``MRMT-Warehouse-v0``, ``MRMT-Rooms-v0``, ``MRMT-Maze-v0``; and
 ``MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets).  Plan level:
-``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Every id takes the
+``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Lifelong (:data:`LIFELONG_IDS`: a task
+stream, collisions refused): ``MRMT-Lifelong-v0`` and ``MRMT-Lifelong-Warehouse-v0`` (PettingZoo
+``mrmt_env/mrmt_lifelong_v0``).  Every id takes the
 generator's arguments, e.g. ``gymnasium.make("mrmt_env/MRMT-v0",
 layout="rooms", height=32, width=32)``.
 """
@@ -43,6 +45,10 @@ __all__ = [
     "MRMTAssignEnv",
     "assign_aec_env",
     "MRMTAssignAECEnv",
+    "LIFELONG_IDS",
+    "MRMTLifelongEnv",
+    "lifelong_parallel_env",
+    "lifelong_env",
 ]
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
@@ -82,12 +88,26 @@ ASSIGN_IDS = {
 }
 
 
+#: Registered lifelong ids -> (kwargs, max_episode_steps): tasks keep arriving, collisions are refused
+#: (:mod:`mrmt_env.lifelong_env`).
+LIFELONG_IDS = {
+    # the paper's 10x10 world, 3 robots, 10 open tasks (refilled as they are served)
+    "mrmt_env/MRMT-Lifelong-v0": ({}, 500),
+    # the 64 x 64 warehouse of MRMT-Warehouse-v0 with a fleet: 100 robots, 150 open tasks on pick cells
+    "mrmt_env/MRMT-Lifelong-Warehouse-v0": (
+        dict(height=64, width=64, n_robots=100, n_targets=150, layout="warehouse"),
+        1000,
+    ),
+}
+
+
 def _register() -> None:
     import gymnasium
 
     for ids, entry, vector in (
         (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", "mrmt_env.grid_vector:MRMTVectorEnv"),
         (ASSIGN_IDS, "mrmt_env.assign_env:MRMTAssignEnv", "mrmt_env.assign_vector:MRMTAssignVectorEnv"),
+        (LIFELONG_IDS, "mrmt_env.lifelong_env:MRMTLifelongEnv", "mrmt_env.lifelong_vector:MRMTLifelongVectorEnv"),
     ):
         for env_id, (kwargs, steps) in ids.items():
             if env_id not in gymnasium.registry:
@@ -104,6 +124,10 @@ def _register() -> None:
         register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:parallel_env")
     if "mrmt_env/mrmt_assign_v0" not in aec_registry:
         register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign_pz:assign_aec_env")
+    if "mrmt_env/mrmt_lifelong_v0" not in aec_registry:
+        register("aec", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_env")
+    if "mrmt_env/mrmt_lifelong_v0" not in parallel_registry:
+        register("parallel", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_parallel_env")
 
 
 _register()
@@ -122,6 +146,9 @@ _LAZY = {
     "MRMTAssignEnv": "mrmt_env.assign_env",
     "assign_aec_env": "mrmt_env.assign_pz",
     "MRMTAssignAECEnv": "mrmt_env.assign_pz",
+    "MRMTLifelongEnv": "mrmt_env.lifelong_env",
+    "lifelong_parallel_env": "mrmt_env.lifelong_pz",
+    "lifelong_env": "mrmt_env.lifelong_pz",
 }
 
 

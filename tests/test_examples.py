@@ -25,7 +25,7 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested():
     tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
-              "map_families.py", "socket_chip.py"}
+              "map_families.py", "socket_chip.py", "lifelong_warehouse.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -88,3 +88,8 @@ def test_watch_episode_writes_nothing_into_the_working_tree_by_default():
     assert len(gifs) == 2 and all(g.stat().st_size > 0 for g in gifs)
     assert all(g.resolve().is_relative_to(Path(tempfile.gettempdir()).resolve()) for g in gifs), gifs
     shutil.rmtree(gifs[0].parent)
+
+
+def test_lifelong_warehouse():
+    out = run_example("lifelong_warehouse.py", "--robots", "6", "--steps", "20", "--size", "16")
+    assert out.count("conflicts 0, blocked 0") == 3 and " ising: " in out

@@ -21,7 +21,8 @@ import mrmt_env
 
 GRID_IDS = sorted(mrmt_env.GYM_IDS)
 ASSIGN_IDS = sorted(mrmt_env.ASSIGN_IDS)
-ALL_IDS = GRID_IDS + ASSIGN_IDS
+LIFELONG_IDS = sorted(mrmt_env.LIFELONG_IDS)  # grid actions, no termination
+ALL_IDS = GRID_IDS + ASSIGN_IDS + LIFELONG_IDS
 #: keyword overrides that keep the worlds small, so a fuzz episode ends within its actions
 SMALL = {"height": 5, "width": 5, "obstacle_density": 0.04, "n_robots": 2, "n_targets": 3}
 
@@ -43,6 +44,9 @@ def _direct(env_id: str, limit: int | None, small: bool):
 def _state(env) -> tuple:
     """Everything a step may change, for 'nothing changed' checks."""
     u = env.unwrapped
+    if hasattr(u, "setup"):  # the lifelong envs
+        s = u.state
+        return tuple(a.tobytes() for a in (s.pos, s.task_t, s.counters, s.moves, s.draws))
     if hasattr(u, "core"):
         c = u.core
         return (tuple(c.pos), tuple(c.visited), c.steps, c.route_cost, c.invalid_moves, c.vertex_conflicts,
@@ -149,7 +153,7 @@ def test_reset_with_anything(env_id, seed, options):
 
 def test_gym_make_env_refuses_a_step_after_termination_through_its_wrappers():
     world = mrmt_env.World(np.zeros((1, 3), bool), [[0, 0]], [[0, 1]])
-    for env_id in [i for i in ALL_IDS if not gym.spec(i).kwargs]:  # ids that take any fixed world
+    for env_id in [i for i in GRID_IDS + ASSIGN_IDS if not gym.spec(i).kwargs]:  # ids that take any fixed world
         env = gym.make(env_id, world=world)
         env.reset(seed=0)
         action = 0 if env_id in mrmt_env.ASSIGN_IDS else np.array([4])
@@ -263,7 +267,7 @@ def test_vector_envs_refuse_bad_actions_and_keep_autoresetting(env_id, mode, dat
             try:
                 env.step(action)
             except ValueError as exc:
-                assert ("0..4" if env_id in GRID_IDS else f"0..{SMALL['n_targets']}") in one_line(exc)
+                assert ("0..4" if env_id not in ASSIGN_IDS else f"0..{SMALL['n_targets']}") in one_line(exc)
             else:
                 a = np.asarray(action)
                 assert a.shape == env.action_space.shape and a.dtype.kind in "iu"

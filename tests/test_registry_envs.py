@@ -82,7 +82,8 @@ def test_info_keys_and_types(env_id):
     assert keys <= set(info)
     _, _, _, _, info = env.step(env.action_space.sample())
     assert keys <= set(info)
-    assert all(isinstance(v, (int, bool)) for k, v in info.items() if k != "action_mask")
+    floats = {"throughput", "service_time_mean"} if env_id in mrmt_env.LIFELONG_IDS else set()  # per-step rates
+    assert all(isinstance(v, float if k in floats else (int, bool)) for k, v in info.items() if k != "action_mask")
     if "action_mask" in info:
         assert np.array_equal(info["action_mask"], env.unwrapped.action_masks())
 

@@ -51,6 +51,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from agents.lifelong_eval import is_lifelong_id, run_compare
+
+    if is_lifelong_id(args.env_id):  # tasks keep arriving: greedy / pipelines through PIBT (agents.lifelong)
+        return run_compare(args)
     from agents.evaluation import ControllerError, evaluate, parse_controllers
 
     try:

@@ -25,6 +25,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", required=True, help="GIF path (must end in .gif)")
     parser.add_argument("--fps", type=float, default=4.0, help="frames per second (default 4)")
     parser.add_argument("--cell", type=int, default=24, help="pixels per grid cell (default 24)")
+    parser.add_argument("--steps", type=int, default=100,
+                        help="steps drawn of a lifelong episode (lifelong ids only; default 100)")
 
 
 def run(args) -> int:
@@ -42,6 +44,21 @@ def run(args) -> int:
         import imageio  # noqa: F401
     except ImportError:
         return fail("writing a GIF needs imageio: pip install 'mrmt-ising[viz]'")
+    from agents.lifelong_eval import is_lifelong_id
+
+    if is_lifelong_id(args.env_id):  # a task stream: greedy / pipelines through PIBT (agents.lifelong_watch)
+        from agents.animation import write_gif
+        from agents.lifelong_watch import lifelong_frames
+
+        try:
+            frames, info = lifelong_frames(args.controller, args.env_id, seed=args.seed, steps=args.steps,
+                                           cell=args.cell)
+            write_gif(frames, args.out, fps=args.fps)
+        except (ValueError, OSError) as exc:
+            return fail(" ".join(str(exc).split()))
+        print(f"wrote {args.out}: {len(frames)} frames, tasks_completed {info['tasks_completed']}, "
+              f"conflicts {info['conflicts']}")
+        return 0
     from agents.animation import episode_frames, write_gif
     from agents.evaluation import ControllerError, validate_controller_spec
 

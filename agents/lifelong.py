@@ -1,0 +1,253 @@
+"""Online controllers of the lifelong envs: task assignment on events, moves from a MAPF executor.
+
+A controller reads only the observation (obstacles, open tasks, robot
+cells), keeps a queue of tasks per robot, and each step
+
+1. drops tasks that are no longer open (served by any robot) from the queues;
+2. on an event -- a robot without tasks while tasks are unclaimed -- assigns
+   the unclaimed tasks to the idle robots (:class:`GreedyAssigner` or
+   :class:`PipelineAssigner`);
+3. moves every robot one step towards its queue's head (its own cell when
+   idle) through the executor (:class:`planners.mapf.PIBT` by default, or
+   the windowed planner), so the joint move is conflict-free.
+
+``greedy``: each idle robot (index order) takes the nearest unclaimed task
+(BFS distance).  A pipeline spec (``strong``, ``ising``, ``fast``, or a
+``sharing+tour`` pair) runs the package's sharing and tour layers on the
+sub-world of idle robots and unclaimed tasks: the sharing layer decides which
+robot serves which tasks and the tour layer their order (on the chip for
+``ising``).  Only the first task of each queue guides motion, so the path
+layer is BFS (its paths are not used; a chip would only confirm them).  Each
+idle robot brings its ``candidates`` nearest unclaimed tasks; more idle robots
+than ``group_size`` are split into groups of neighbouring robots (Z-order of
+their cells), each task going to the group of its nearest idle robot, and
+each group is one planning call.  Robots take the first ``commit`` tasks of their route
+(default 1; the rest stays unclaimed, so the next idle robot may take it).
+A robot the plan leaves without a task waits for the next event, or with
+``fill=True`` takes the nearest task still unclaimed (greedy completion).
+Defaults (4 robots, 3 candidates: at most 12 tasks per call, which the
+compiled Ising sharing search takes whole) were chosen on the 100-robot
+warehouse for throughput and latency of both pipelines alike
+(docs/lifelong.md).  Every call's :class:`~planners.compute.ComputeReport`
+is summed into :attr:`LifelongController.last_compute`, so a decision's chip
+calls are charged to it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.compute import ComputeReport
+
+__all__ = ["LifelongController", "GreedyAssigner", "PipelineAssigner", "make_lifelong_controller",
+           "LIFELONG_CONTROLLERS", "PIPELINE_LAYERS"]
+
+#: Pipeline specs and the (sharing, tour) layers they run in the lifelong loop.
+PIPELINE_LAYERS = {"fast": ("psa", "nn"), "strong": ("ssa", "3opt"), "ising": ("ising", "ising"),
+                   "ising-paper": ("ising-paper", "ising-paper")}
+LIFELONG_CONTROLLERS = ("greedy",) + tuple(PIPELINE_LAYERS)
+#: Idle robots per planning call of a pipeline assigner.
+DEFAULT_GROUP_SIZE = 4
+#: Unclaimed tasks a pipeline assigner considers per idle robot (its nearest ones).
+DEFAULT_CANDIDATES = 3
+
+
+def _spread(v: np.ndarray) -> np.ndarray:
+    v = v.astype(np.uint64) & np.uint64(0xFFFF)
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def _morton(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Z-order (Morton) keys of cells: sorting by them keeps nearby cells together."""
+    return (_spread(rows) << np.uint64(1)) | _spread(cols)
+
+
+class GreedyAssigner:
+    """Each idle robot, in index order, takes the nearest unclaimed task (BFS distance; ties: row-major)."""
+
+    name = "greedy"
+    accelerated = False
+
+    def assign(self, grid, fields, idle_cells, tasks, seed) -> tuple[list[list[int]], ComputeReport]:
+        queues: list[list[int]] = [[] for _ in idle_cells]
+        if len(tasks) == 0:
+            return queues, ComputeReport()
+        dist = fields.fields[fields.rows(tasks)][:, idle_cells].astype(np.int64)  # (tasks, idle robots)
+        dist[dist < 0] = np.iinfo(np.int64).max
+        free = np.ones(len(tasks), dtype=bool)
+        for i in range(len(idle_cells)):
+            if not free.any():
+                break
+            col = np.where(free, dist[:, i], np.iinfo(np.int64).max)
+            j = int(np.argmin(col))
+            queues[i] = [j]
+            free[j] = False
+        return queues, ComputeReport()
+
+
+class PipelineAssigner:
+    """The sharing and tour layers of a pipeline on the sub-world of idle robots and unclaimed tasks
+    (see the module docstring).  ``chip``: an :class:`ising_backend.ChipSpec` for Ising layers."""
+
+    def __init__(self, spec: str, chip=None, group_size: int = DEFAULT_GROUP_SIZE, commit: int | None = 1,
+                 candidates: int | None = DEFAULT_CANDIDATES, fill: bool = False) -> None:
+        from planners.pipeline import make_pipeline
+
+        if spec in PIPELINE_LAYERS:
+            sharing, tour = PIPELINE_LAYERS[spec]
+        elif spec.count("+") == 1 and all(spec.split("+")):
+            sharing, tour = spec.split("+")
+        else:
+            raise ValueError(f"unknown lifelong controller {spec!r}; expected one of {', '.join(LIFELONG_CONTROLLERS)} "
+                             "or a sharing+tour pair (e.g. ssa+3opt)")
+        if isinstance(group_size, bool) or int(group_size) != group_size or group_size < 1:
+            raise ValueError(f"group_size must be an integer >= 1, got {group_size!r}")
+        if commit is not None and (isinstance(commit, bool) or int(commit) != commit or commit < 1):
+            raise ValueError(f"commit must be an integer >= 1 or None (the whole route), got {commit!r}")
+        self.name = spec
+        self.group_size = int(group_size)
+        if candidates is not None and (isinstance(candidates, bool) or int(candidates) != candidates or candidates < 1):
+            raise ValueError(f"candidates must be an integer >= 1 or None (every unclaimed task), got {candidates!r}")
+        self.commit = commit
+        self.candidates = candidates
+        self.fill = bool(fill)
+        shared = {}
+        if "ising" in (sharing, tour):
+            from ising_backend import ChipSpec, build_machine
+
+            shared["chip"] = build_machine(chip if chip is not None else ChipSpec())  # a ChipSpec or MachineSpec
+        self.pipeline = make_pipeline(sharing=sharing, tour=tour, path="bfs", **shared)
+        self.accelerated = bool(shared)
+
+    def assign(self, grid, fields, idle_cells, tasks, seed) -> tuple[list[list[int]], ComputeReport]:
+        from mrmt_env.world import World
+
+        queues: list[list[int]] = [[] for _ in idle_cells]
+        compute = ComputeReport()
+        if len(tasks) == 0:
+            return queues, compute
+        width = grid.shape[1]
+        dist = fields.fields[fields.rows(tasks)][:, idle_cells].astype(np.int64)  # (tasks, idle robots)
+        dist[dist < 0] = np.iinfo(np.int64).max
+        dist_all = dist
+        if self.candidates is not None and len(tasks) > self.candidates * len(idle_cells):
+            k = self.candidates
+            near = np.argpartition(dist, k - 1, axis=0)[:k] if k < len(tasks) else np.arange(len(tasks))[:, None]
+            keep = np.unique(near)  # each idle robot's k nearest unclaimed tasks
+            tasks, dist, index = tasks[keep], dist[keep], keep
+        else:
+            index = np.arange(len(tasks))
+        rows, cols = np.divmod(idle_cells, width)
+        order = np.argsort(_morton(rows, cols), kind="stable")  # Z-order: consecutive robots are neighbours
+        n_groups = -(-len(idle_cells) // self.group_size)
+        group_of = np.empty(len(idle_cells), dtype=np.int64)
+        for g, chunk in enumerate(np.array_split(order, n_groups)):
+            group_of[chunk] = g
+        if n_groups > 1:
+            task_group = group_of[np.argmin(dist, axis=1)]
+        else:
+            task_group = np.zeros(len(tasks), dtype=np.int64)
+        for g in range(n_groups):
+            robots = np.flatnonzero(group_of == g)
+            mine = np.flatnonzero(task_group == g)
+            if len(mine) == 0:
+                continue
+            cells = idle_cells[robots]
+            world = World(grid, np.stack(np.divmod(cells, width), axis=1),
+                          np.stack(np.divmod(tasks[mine], width), axis=1))
+            plan = self.pipeline.plan(world, seed=[int(seed), g])
+            compute = compute + plan.compute
+            if not plan.success:
+                raise RuntimeError(f"lifelong controller {self.name!r}: planning failed: {plan.failure}")
+            for i, route in enumerate(plan.routes):
+                queues[int(robots[i])] = [int(index[mine[t]]) for t in route.targets[:self.commit]]
+        if self.fill:  # robots the plan left without a task take the nearest one still unclaimed
+            free = np.ones(len(dist_all), dtype=bool)
+            free[[j for q in queues for j in q]] = False
+            for i in range(len(idle_cells)):
+                if queues[i] or not free.any():
+                    continue
+                j = int(np.argmin(np.where(free, dist_all[:, i], np.iinfo(np.int64).max)))
+                queues[i] = [j]
+                free[j] = False
+        return queues, compute
+
+
+class LifelongController:
+    """Queues of tasks per robot, an assigner on events and a MAPF executor (see the module docstring).
+
+    ``act(obs) -> actions (R,)``; after it, :attr:`last_compute` holds the step's planning calls'
+    report (chip calls, emulation seconds) and :attr:`replans` counts the events so far.
+    """
+
+    def __init__(self, assigner, executor: str = "pibt", seed: int = 0, executor_options: dict | None = None) -> None:
+        self.assigner = assigner
+        self.name = assigner.name
+        self.executor_name = executor
+        self.executor_options = dict(executor_options or {})
+        self.seed = int(seed)
+        self.grid = None
+
+    def reset(self) -> None:
+        """Forget the queues (the next ``act`` starts from its observation's world)."""
+        self.grid = None
+
+    def _start(self, grid: np.ndarray, n_robots: int) -> None:
+        from planners.mapf import make_executor
+        from planners.mapf.common import GoalFields
+
+        self.grid = grid.copy()
+        self.executor = make_executor(self.executor_name, self.grid, seed=self.seed, **self.executor_options)
+        self.fields = GoalFields(self.grid, capacity=max(1024, 4 * n_robots))
+        self.queues: list[list[int]] = [[] for _ in range(n_robots)]  # flat task cells
+        self.replans = 0
+        self.steps = 0
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs)
+        n_robots = obs.shape[0] - 2
+        grid = obs[0].astype(bool)
+        if self.grid is None or self.grid.shape != grid.shape or not np.array_equal(self.grid, grid):
+            self._start(grid, n_robots)
+        pos = obs[2:].reshape(n_robots, -1).argmax(axis=1).astype(np.int64)
+        open_cells = np.flatnonzero(obs[1].reshape(-1))
+        is_open = np.zeros(grid.size, dtype=bool)
+        is_open[open_cells] = True
+        claimed = np.zeros(grid.size, dtype=bool)
+        for k, q in enumerate(self.queues):
+            if q and not all(is_open[c] for c in q):
+                self.queues[k] = q = [c for c in q if is_open[c]]
+            claimed[q] = True
+        idle = np.array([k for k, q in enumerate(self.queues) if not q], dtype=np.int64)
+        unclaimed = open_cells[~claimed[open_cells]]
+        self.last_compute = ComputeReport()
+        if len(idle) and len(unclaimed):
+            queues, compute = self.assigner.assign(grid, self.fields, pos[idle], unclaimed,
+                                                   seed=self.seed * 1_000_003 + self.steps)
+            for i, k in enumerate(idle.tolist()):
+                self.queues[k] = [int(unclaimed[j]) for j in queues[i]]
+            self.last_compute = compute
+            self.replans += 1
+        goals = np.array([q[0] if q else p for q, p in zip(self.queues, pos.tolist())], dtype=np.int64)
+        self.steps += 1
+        return self.executor.actions(pos, goals)
+
+
+def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str = "pibt",
+                             **options) -> LifelongController:
+    """``greedy`` or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
+    (``pibt`` or ``windowed``); ``options`` go to :class:`PipelineAssigner` (``group_size``,
+    ``candidates``, ``commit``, ``fill``); ``ValueError`` naming an unknown spec or option."""
+    from planners.mapf import EXECUTORS
+
+    if executor not in EXECUTORS:
+        raise ValueError(f"unknown executor {executor!r}; known: {', '.join(EXECUTORS)}")
+    if spec == "greedy":
+        if options:
+            raise ValueError(f"greedy takes no options, got {sorted(options)}")
+        assigner = GreedyAssigner()
+    else:
+        assigner = PipelineAssigner(spec, chip=chip, **options)
+    return LifelongController(assigner, executor=executor, seed=seed)

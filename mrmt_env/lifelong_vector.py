@@ -1,0 +1,83 @@
+"""Native vector env of the lifelong ids: ``B`` episodes in arrays, one compiled step.
+
+``gymnasium.make_vec("mrmt_env/MRMT-Lifelong-v0", num_envs=B,
+vectorization_mode="vector_entry_point")`` builds it.  Dynamics are those of
+:class:`mrmt_env.lifelong_env.MRMTLifelongEnv` (:mod:`mrmt_env.lifelong_kernels`,
+the same :class:`~mrmt_env.lifelong_state.LifelongBatch`); semantics, seeding
+and infos those of ``SyncVectorEnv`` over the single env
+(:mod:`mrmt_env.vector_base`); ``action_masks()`` gives ``(B, 5 * R)`` bools.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector.utils import batch_space
+
+from mrmt_env.core import N_ACTIONS, show
+from mrmt_env.lifelong_env import LifelongSetup
+from mrmt_env.observation import observation_space
+from mrmt_env.vector_base import BatchedVectorEnv
+
+__all__ = ["MRMTLifelongVectorEnv"]
+
+
+class MRMTLifelongVectorEnv(BatchedVectorEnv):
+    """``num_envs`` lifelong episodes stepped together (arguments of ``MRMTLifelongEnv`` plus ``num_envs``,
+    ``autoreset_mode`` and ``copy``: return a copy of the observation buffer)."""
+
+    metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
+                 n_targets=None, world=None, placement=None, max_episode_steps=None, target_reward=None,
+                 render_mode=None, layout=None, layout_options=None, tasks: str = "refill", task_rate=None,
+                 collisions: str = "block", autoreset_mode="NextStep", copy: bool = True) -> None:
+        if render_mode is not None:
+            raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
+        params = dict(height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
+                      n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options)
+        self.setup = LifelongSetup(world, params, tasks, task_rate, collisions, target_reward)
+        s = self.setup.source
+        self.height, self.width, self.n_robots = s.height, s.width, s.n_robots
+        self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)
+        self.single_observation_space = observation_space(self.n_robots, self.height, self.width)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.state = self.setup.batch(self.num_envs)
+
+    def _load(self, i: int, rng: np.random.Generator) -> None:
+        self.setup.start(self.state, i, rng)
+
+    def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
+        shape = (self.num_envs, self.n_robots)
+        try:
+            a = np.asarray(actions)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {show(actions)}") \
+                from None
+        if a.shape != shape or a.dtype.kind not in "iu":
+            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
+                             f"shape {a.shape}")
+        if a.dtype == np.int64 and a.flags.c_contiguous and a.min() >= 0 and a.max() < N_ACTIONS:
+            return a
+        bad = live[:, None] & ((a < 0) | (a >= N_ACTIONS))
+        if bad.any():
+            b, k = (int(v) for v in np.argwhere(bad)[0])
+            raise ValueError(f"action for env {b} robot {k} is {int(a[b, k])}; valid moves are 0..{N_ACTIONS - 1} "
+                             "(0 stay, 1 up, 2 down, 3 left, 4 right)")
+        return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
+
+    def _step(self, actions: np.ndarray, live: np.ndarray):
+        rewards = self.state.step(actions, live).copy()
+        return rewards, np.zeros(self.num_envs, dtype=bool)  # a lifelong episode only truncates
+
+    def _observe(self) -> np.ndarray:
+        return self.state.obs.reshape(self.num_envs, 2 + self.n_robots, self.height, self.width)
+
+    def _info_arrays(self) -> dict:
+        return self.state.info_arrays()
+
+    def action_masks(self) -> np.ndarray:
+        """``(B, 5 * R)``: per env and robot, stay and the moves not into an obstacle."""
+        return self.state.masks()

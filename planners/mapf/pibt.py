@@ -1,0 +1,177 @@
+"""PIBT: priority inheritance with backtracking (Okumura, Machida, Defago, Tamura, IJCAI 2019), compiled.
+
+One call plans one conflict-free joint move: robots in decreasing priority
+pick the free neighbouring cell (or their own) nearest to their goal; a robot
+whose chosen cell is occupied by a robot that has not moved yet lends it its
+priority (that robot must move away, but not into the lender's cell), and a
+robot that cannot move anywhere makes its lender try its next cell
+(backtracking).  No two robots end in one cell and no two exchange cells.
+
+Contract: :meth:`PIBT.step` ``(pos, goals) -> next cells`` (flat cells
+``r * W + c``), :meth:`PIBT.actions` the same as env actions 0..4.
+Priority = steps since the robot last stood on its goal (``elapsed``, reset to
+0 there) plus a seeded tie-breaker in [0, 1), as in the authors' lifelong
+(MAPD) code; candidate cells sort by BFS distance to the goal, ties by a
+seeded hash of ``(seed, step, robot, cell)``.  The recursion runs on an
+explicit stack (numba compiles no recursive closures); the Python oracle in
+``tests/test_mapf.py`` is the recursive form and must give the same moves.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.mapf.common import GoalFields, mix, moves_to_actions, successor_table
+
+__all__ = ["PIBT", "pibt_kernel", "candidates"]
+
+_FAR = np.int64(1 << 40)
+
+
+@numba.njit(cache=True, nogil=True)
+def candidates(succ, pos_a, field, seed, t, a, out) -> int:
+    """Distinct cells robot ``a`` may take from ``pos_a`` (stay included), nearest to its goal first,
+    ties by ``mix(seed, t, a, cell)``; written to ``out[:n]``, returns ``n``."""
+    keys = np.empty(5, dtype=np.int64)
+    ties = np.empty(5, dtype=np.uint64)
+    n = 0
+    for m in range(5):
+        v = succ[pos_a, m]
+        dup = False
+        for i in range(n):
+            if out[i] == v:
+                dup = True
+        if dup:
+            continue
+        d = field[v]
+        keys[n] = _FAR if d < 0 else d
+        ties[n] = mix(seed, t, a, v)
+        out[n] = v
+        n += 1
+    for i in range(1, n):  # insertion sort on (distance, tie)
+        j = i
+        while j > 0 and (keys[j - 1] > keys[j] or (keys[j - 1] == keys[j] and ties[j - 1] > ties[j])):
+            keys[j - 1], keys[j] = keys[j], keys[j - 1]
+            ties[j - 1], ties[j] = ties[j], ties[j - 1]
+            out[j - 1], out[j] = out[j], out[j - 1]
+            j -= 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def pibt_kernel(succ, pos, fields, rows, order, seed, t, nxt, occ_now, occ_next) -> None:
+    """One PIBT step: ``nxt[k]`` = robot ``k``'s next cell.  ``fields[rows[k]]`` is robot ``k``'s goal
+    distance field, ``order`` the robots by decreasing priority; ``occ_now`` / ``occ_next`` are
+    scratch arrays over cells, all -1 on entry and on return."""
+    r = pos.shape[0]
+    st_a = np.empty(r, dtype=np.int64)
+    st_b = np.empty(r, dtype=np.int64)
+    st_i = np.empty(r, dtype=np.int64)
+    st_n = np.empty(r, dtype=np.int64)
+    cand = np.empty((r, 5), dtype=np.int64)
+    for k in range(r):
+        occ_now[pos[k]] = k
+        nxt[k] = -1
+    for idx in range(r):
+        a0 = order[idx]
+        if nxt[a0] != -1:
+            continue
+        top = 0
+        st_a[0], st_b[0], st_i[0] = a0, -1, 0
+        st_n[0] = candidates(succ, pos[a0], fields[rows[a0]], seed, t, a0, cand[0])
+        top = 1
+        returned = False  # the frame on top gets a child's result
+        result = False
+        while top > 0:
+            f = top - 1
+            a, b = st_a[f], st_b[f]
+            if returned and result:  # the child moved away: a keeps its reserved cell
+                top -= 1
+                continue
+            returned = False
+            pushed = False
+            done = False
+            while st_i[f] < st_n[f]:
+                v = cand[f, st_i[f]]
+                st_i[f] += 1
+                if occ_next[v] != -1:
+                    continue
+                if b != -1 and v == pos[b]:
+                    continue
+                occ_next[v] = a
+                nxt[a] = v
+                c = occ_now[v]
+                if c != -1 and nxt[c] == -1:
+                    st_a[top], st_b[top], st_i[top] = c, a, 0
+                    st_n[top] = candidates(succ, pos[c], fields[rows[c]], seed, t, c, cand[top])
+                    top += 1
+                    pushed = True
+                else:
+                    done = True
+                break
+            if pushed:
+                continue
+            if not done:  # no cell left: stay (the cell is taken from whoever reserved it)
+                occ_next[pos[a]] = a
+                nxt[a] = pos[a]
+            top -= 1
+            returned = True
+            result = done
+    for k in range(r):
+        occ_now[pos[k]] = -1
+        occ_next[nxt[k]] = -1
+
+
+class PIBT:
+    """PIBT on one grid (see the module docstring).
+
+    Args:
+        grid: ``(H, W)`` bool obstacles.
+        seed: tie-breaks (robot priorities and equal-distance cells).
+    """
+
+    name = "pibt"
+
+    def __init__(self, grid: np.ndarray, seed: int = 0) -> None:
+        self.grid = np.asarray(grid, dtype=bool)
+        self.succ = successor_table(self.grid)
+        self.fields = GoalFields(self.grid)
+        self.seed = int(seed) & ((1 << 63) - 1)
+        self.t = 0
+        self.elapsed = np.zeros(0, dtype=np.int64)
+        self.tie = np.zeros(0)
+        n = self.grid.size
+        self._occ_now = np.full(n, -1, dtype=np.int64)
+        self._occ_next = np.full(n, -1, dtype=np.int64)
+
+    def _ensure(self, n_robots: int) -> None:
+        if len(self.elapsed) != n_robots:
+            self.elapsed = np.zeros(n_robots, dtype=np.int64)
+            rng = np.random.default_rng(self.seed)
+            self.tie = rng.random(n_robots)
+            self.t = 0
+
+    def order(self, n_robots: int) -> np.ndarray:
+        """The ``n_robots`` robots by decreasing priority (``elapsed + tie``)."""
+        self._ensure(n_robots)
+        return np.lexsort((-self.tie, -self.elapsed)).astype(np.int64)
+
+    def step(self, pos, goals) -> np.ndarray:
+        """Next cells ``(R,)`` of robots at flat cells ``pos`` heading to flat ``goals`` (a robot without
+        a task takes its own cell as goal); advances the priorities."""
+        pos = np.ascontiguousarray(pos, dtype=np.int64)
+        goals = np.ascontiguousarray(goals, dtype=np.int64)
+        self._ensure(len(pos))
+        rows = self.fields.rows(goals)
+        nxt = np.empty(len(pos), dtype=np.int64)
+        pibt_kernel(self.succ, pos, self.fields.fields, rows, self.order(len(pos)), self.seed, self.t, nxt,
+                    self._occ_now, self._occ_next)
+        self.elapsed = np.where(nxt == goals, 0, self.elapsed + 1)
+        self.t += 1
+        return nxt
+
+    def actions(self, pos, goals) -> np.ndarray:
+        """:meth:`step` as env actions (0 stay, 1 up, 2 down, 3 left, 4 right)."""
+        pos = np.asarray(pos, dtype=np.int64)
+        return moves_to_actions(self.succ, pos, self.step(pos, goals))

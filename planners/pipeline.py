@@ -15,7 +15,8 @@ SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the three
 Ising methods with this package's defaults (boundary-refined sharing, the
 move-selection tour on the physical chip, BFS-ranked patch targets),
 ``ising-paper`` = the three Ising methods exactly as the paper configures them
-(what ``mrmt reproduce`` runs), ``exact`` = exact min-sum sharing + Held-Karp
+(what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
+classical peer; extra ``peers``), ``exact`` = exact min-sum sharing + Held-Karp
 tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
 or from layer objects::
 
@@ -52,7 +53,8 @@ plan, its statistics and its failures are those of the per-leg calls
 (``Pipeline(..., batch_paths=False)`` makes every leg a ``find_path`` call).
 
 Shortcuts (so a layer is charged only for work it really does): with one
-robot the sharing layer is not called (every target goes to robot 0); a robot
+robot the sharing layer is not called (every target goes to robot 0) unless it orders the
+routes itself (``orders_routes``, :mod:`planners.joint_routing`); a robot
 with fewer than two targets does not call the tour layer.  So a world with one
 robot and one target exercises the path layer alone; one robot and N targets,
 tour and path.
@@ -93,6 +95,7 @@ PRESETS: dict[str, tuple[str, str, str]] = {
     "ising": ("ising", "ising", "ising"),
     "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
     "exact": ("exact", "brute", "bfs"),
+    "pyvrp": ("pyvrp", "keep", "astar"),
 }
 
 _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
@@ -224,7 +227,7 @@ class Pipeline:
 
             # ---- 1. target sharing
             assignment: tuple = (tuple(range(n)),)
-            if r > 1:
+            if r > 1 or getattr(self.sharing, "orders_routes", False):
                 t0 = _clock()
                 res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
                 acc["sharing"].add(res.compute, _clock() - t0)
@@ -329,7 +332,7 @@ def make_pipeline(
     """Build a :class:`Pipeline` from a preset and/or layer names or objects.
 
     Args:
-        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``
+        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``
             (:data:`PRESETS`) or None.
         sharing, tour, path: a registry name or a layer object; overrides the
             preset's layer.  Without a preset all three are required.

@@ -11,11 +11,12 @@ The paper's decomposition (section 2.3, evaluated end to end in 6.2):
    (start cell first).
 
 Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
-SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the three
-Ising methods with this package's defaults (boundary-refined sharing, the
-move-selection tour on the physical chip, BFS-ranked patch targets),
-``ising-paper`` = the three Ising methods exactly as the paper configures them
-(what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
+SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the Ising
+sharing and tour with this package's defaults (boundary-refined sharing, the
+move-selection tour on the physical chip) and legs as descents of the host's BFS
+fields (path layer ``field``: no chip call for a path the host already holds),
+``ising-paper`` = the three Ising methods exactly as the paper configures them,
+chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
 classical peer; extra ``peers``), ``exact`` = exact min-sum sharing + Held-Karp
 tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
 or from layer objects::
@@ -92,7 +93,7 @@ __all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
 PRESETS: dict[str, tuple[str, str, str]] = {
     "fast": ("psa", "nn", "astar"),
     "strong": ("ssa", "3opt", "astar"),
-    "ising": ("ising", "ising", "ising"),
+    "ising": ("ising", "ising", "field"),
     "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
     "exact": ("exact", "brute", "bfs"),
     "pyvrp": ("pyvrp", "keep", "astar"),

@@ -5,7 +5,7 @@ Three layers (paper section 2.3), each with its own namespace:
 =========== ==========================================================
 ``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``, ``pyvrp``
 ``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``, ``keep``
-``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``
+``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``, ``field``
 =========== ==========================================================
 
 A factory is any callable returning a layer object (a class, a function), or
@@ -69,6 +69,7 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "gbfs": "planners.paths_classical:GreedyBestFirstPath",
         "ising": "planners.ising.path:IsingPath",
         "ising-paper": "planners.ising.path:PaperIsingPath",
+        "field": "planners.paths_field:FieldPath",
     },
 }
 

@@ -260,7 +260,7 @@ def test_sharing_and_tour_failures():
 # ------------------------------------------------------------- construction
 def test_make_pipeline_presets_and_overrides():
     assert PRESETS == {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"),
-                       "ising": ("ising", "ising", "ising"),
+                       "ising": ("ising", "ising", "field"),
                        "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
                        "exact": ("exact", "brute", "bfs"), "pyvrp": ("pyvrp", "keep", "astar")}
     p = make_pipeline("strong")
@@ -292,7 +292,7 @@ def test_make_pipeline_errors():
 def test_registry_names_custom_and_shared_options():
     assert registry.sharing_names() == ("round_robin", "psa", "ssa", "exact", "ising", "ising-paper", "pyvrp")
     assert registry.tour_names() == ("nn", "2opt", "3opt", "brute", "ising", "ising-paper", "keep")
-    assert registry.path_names() == ("bfs", "astar", "gbfs", "ising", "ising-paper")
+    assert registry.path_names() == ("bfs", "astar", "gbfs", "ising", "ising-paper", "field")
     seen = {}
 
     class ChipTour(NearestNeighbourTour):

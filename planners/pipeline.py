@@ -17,7 +17,9 @@ move-selection tour on the physical chip) and legs as descents of the host's BFS
 fields (path layer ``field``: no chip call for a path the host already holds),
 ``ising-paper`` = the three Ising methods exactly as the paper configures them,
 chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
-classical peer; extra ``peers``), ``exact`` = exact min-sum sharing + Held-Karp
+classical peer; extra ``peers``), ``ising-fleet`` = SSA routes improved by chip-selected
+moves between robots in an iterated local search (:mod:`planners.ising.fleet`) + field legs,
+``exact`` = exact min-sum sharing + Held-Karp
 tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
 or from layer objects::
 
@@ -97,6 +99,7 @@ PRESETS: dict[str, tuple[str, str, str]] = {
     "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
     "exact": ("exact", "brute", "bfs"),
     "pyvrp": ("pyvrp", "keep", "astar"),
+    "ising-fleet": ("ising-fleet", "keep", "field"),
 }
 
 _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
@@ -333,7 +336,7 @@ def make_pipeline(
     """Build a :class:`Pipeline` from a preset and/or layer names or objects.
 
     Args:
-        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``
+        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``, ``"ising-fleet"``
             (:data:`PRESETS`) or None.
         sharing, tour, path: a registry name or a layer object; overrides the
             preset's layer.  Without a preset all three are required.

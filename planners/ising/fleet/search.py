@@ -1,0 +1,209 @@
+"""Fleet routing with chip-selected moves between robots: an iterated local search (issue 24, part 2).
+
+Classical logic orchestrates, the chip decides which moves are made:
+
+1. construction (host): the sequential single-item auction's insertion routes (SSA, the
+   ``strong`` pipeline's sharing), one open route per robot;
+2. local search: per round the host lists every improving granular move between and within
+   routes (:mod:`.moves`: relocate, swap, 2-opt*, 2-opt over the ``neighbours`` nearest nodes),
+   offers the chip up to ``max_moves`` of them (by gain, each clashing with at most
+   ``max_overlap`` better ones), and the chip selects a compatible set in one submission: the
+   selection QUBO ``-sum g_m x_m + sum (min(g_m, g_m') + 1) x_m x_m'`` over clashing pairs,
+   quantized by every rule of ``chip_rules``; the valid read of largest gain is applied, a read
+   selecting clashing moves is dropped, never repaired.  No improving move left: a local optimum;
+   ``max_retries`` rounds in a row without a valid read also end it;
+3. iterated local search (host): ``kicks`` times, ruin the ``ruin`` targets nearest to a random
+   target and re-insert them one by one at their cheapest place, then local search (2); the
+   result replaces the current routes when it is cheaper.
+
+The layer is a sharing layer that orders its groups (``orders_routes``: tour layer ``keep``);
+preset ``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).
+Every chip call is metered (:class:`ising_backend.MeteredSolver`) into the layer's report; the
+emulator's run time is ``emulation_s``.  Measured in docs/design/ising_fleet.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ising_backend import ChipSpec, EmulatedChip, MeteredSolver, ising_from_qubo, quantize_stack
+from planners.base import SharingResult
+from planners.compute import ComputeReport
+from planners.ising.config import ConfigAttributes, IsingConfig, check_int, check_real, resolve_config
+from planners.ising.fleet.moves import (apply_move, candidate_moves, conflicts, pick_candidates, route_cost,
+                                        score_reads, walk)
+from planners.ising.fleet.recreate import ruin_recreate
+from planners.sharing_classical import SSASharing
+
+__all__ = ["FleetConfig", "IsingFleetSharing"]
+
+
+@dataclass(frozen=True)
+class FleetConfig(IsingConfig):
+    """Options of :class:`IsingFleetSharing` (module docstring).
+
+    Attributes:
+        neighbours: nearest nodes per target whose moves are listed (granular neighbourhood).
+        max_moves: most candidate moves per selection program (capped by the chip's spins).
+        max_overlap: a candidate clashes with at most this many better-gain candidates of its program.
+        chip_rules: quantization rules, one selection program each per round.
+        num_reads: reads per program.
+        max_retries: rounds in a row without a valid read before a local search ends.
+        kicks: ruin-and-recreate steps of the iterated local search (0: local search only;
+            ``None``: ``10 N``, so the search grows with the fleet's work).
+        ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(2, N // 10)``).
+        slack: a kicked solution replaces the current one when it costs at most the best one
+            times ``1 + slack`` (record-to-record travel; 0: equal or better).
+    """
+
+    neighbours: int = 10
+    max_moves: int = 16
+    max_overlap: int = 4
+    chip_rules: tuple = ("linear", "rank")
+    num_reads: int = 1
+    max_retries: int = 2
+    kicks: int | None = None
+    ruin: int | None = None
+    slack: float = 0.005
+
+    def __post_init__(self) -> None:
+        rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
+        if not rules:
+            raise ValueError("chip_rules must name at least one quantization rule")
+        object.__setattr__(self, "chip_rules", rules)
+        for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
+                         ("max_retries", 0)):
+            check_int(name, getattr(self, name), lo)
+        check_int("kicks", self.kicks, 0, none=True)
+        check_int("ruin", self.ruin, 2, none=True)
+        check_real("slack", self.slack, lo=0.0)
+
+
+class _Search:
+    """One planning call: the routes as linked lists, the metered chip, the statistics."""
+
+    def __init__(self, d, r, neigh, config, chip, rng):
+        self.d, self.r, self.neigh, self.cfg, self.rng = d, r, neigh, config, rng
+        self.chip = chip
+        self.spec = chip.spec
+        self.capacity = min(int(getattr(chip, "usable_spins", self.spec.n_spins)), config.max_moves)
+        self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0, "reads": 0, "kicks_accepted": 0,
+                      "local_optima": 0, "chip_gave_up": 0}
+
+    def local_search(self, nxt, prv) -> None:
+        cfg, failures = self.cfg, 0
+        while True:
+            owner, pos, length = walk(nxt, self.r)
+            moves, spans, gains = candidate_moves(self.d, nxt, prv, owner, pos, length, self.neigh, self.r)
+            if len(gains) == 0:
+                self.stats["local_optima"] += 1
+                return
+            keep = pick_candidates(spans, gains, max(1, self.capacity >> failures), cfg.max_overlap)
+            clash = conflicts(spans, keep)
+            taken = self._chip_round(gains[keep], clash)
+            self.stats["rounds"] += 1
+            self.stats["offered"] += len(keep)
+            self.stats["contested_rounds"] += bool(clash.any())  # a real choice: not every move fits
+            if taken is None:
+                failures += 1
+                if failures > cfg.max_retries:
+                    self.stats["chip_gave_up"] += 1
+                    return
+                continue
+            failures = 0
+            for i in keep[taken]:
+                apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2])
+            self.stats["moves_applied"] += len(taken)
+
+    def _chip_round(self, gains, clash):
+        """The chip's selection among the offered moves: indices into them, or None."""
+        cfg = self.cfg
+        P = np.minimum(gains[:, None], gains[None, :]) + 1.0
+        Q = np.triu(np.where(clash, P, 0.0), k=1)
+        h, J = quantize_stack(ising_from_qubo(-gains, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)
+        seed = int(self.rng.integers(0, 2**63 - 1))
+        spins, _ = self.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
+        valid, p, rd, _gain = score_reads(spins, clash, gains)
+        self.stats["reads"] += spins.shape[0] * spins.shape[1]
+        self.stats["valid_reads"] += int(valid)
+        if p < 0:
+            return None
+        return np.flatnonzero(spins[p, rd] > 0)
+
+
+class IsingFleetSharing(ConfigAttributes):
+    """Sharing layer ``ising-fleet``: SSA routes improved by chip-selected moves between robots."""
+
+    name = "ising-fleet"
+    orders_routes = True
+    config_class = FleetConfig
+
+    def __init__(self, chip=None, config: FleetConfig | None = None, **options) -> None:
+        self.config = resolve_config(FleetConfig, config, options)
+        self.chip = chip if chip is not None else EmulatedChip(ChipSpec())
+
+    def assign(self, dist, n_robots: int, tour=None, rng=None) -> SharingResult:
+        rng = rng if rng is not None else np.random.default_rng()
+        base = SSASharing().assign(dist, n_robots)
+        d = np.ascontiguousarray(np.asarray(dist, dtype=np.float64))
+        r = int(n_robots)
+        m = d.shape[0]
+        n = m - r
+        if n <= 1 or base.failure:
+            return base
+        nxt = np.full(m, -1, dtype=np.int64)
+        prv = np.full(m, -1, dtype=np.int64)
+        for k, group in enumerate(base.assignment):
+            x = k
+            for t in group:
+                nxt[x], prv[r + t] = r + t, x
+                x = r + t
+        k = min(self.config.neighbours, m - 1)
+        order = np.argsort(d[r:], axis=1, kind="stable")  # nearest nodes of each target (itself first)
+        neigh = np.ascontiguousarray(order[:, 1:k + 1])
+        neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
+        metered = MeteredSolver(self.chip)
+        search = _Search(d, r, neigh, self.config, metered, rng)
+        search.local_search(nxt, prv)
+        cost = route_cost(d, nxt, r)
+        ruin = max(2, self.config.ruin or n // 10)
+        targets_near = np.ascontiguousarray(order[:, 1:] - 0)  # node ids, nearest first
+        best_nxt, best = nxt.copy(), cost
+        slack = self.config.slack
+        kicks = 10 * n if self.config.kicks is None else self.config.kicks
+        for _ in range(kicks):
+            cand_nxt, cand_prv = nxt.copy(), prv.copy()
+            seed_target = r + int(rng.integers(n))
+            q = min(int(rng.integers(2, ruin + 1)), n)
+            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, targets_near[seed_target - r], q, rng.permutation(q))
+            search.local_search(cand_nxt, cand_prv)
+            new = route_cost(d, cand_nxt, r)
+            if new <= best * (1.0 + slack) + 1e-9:  # record-to-record travel around the best routes
+                nxt, prv, cost = cand_nxt, cand_prv, new
+                search.stats["kicks_accepted"] += 1
+                if new < best - 1e-9:
+                    best_nxt, best = cand_nxt.copy(), new
+        nxt, cost = best_nxt, best
+        groups = []
+        for k_ in range(r):
+            g, x = [], nxt[k_]
+            while x >= 0:
+                g.append(int(x) - r)
+                x = nxt[x]
+            groups.append(tuple(g))
+        stats = {"fleet": {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": cost}}
+        return SharingResult(assignment=tuple(groups), compute=ComputeReport.from_ledger(metered.charged),
+                             stats=stats)
+
+    def __repr__(self) -> str:
+        return f"IsingFleetSharing(config={self.config!r})"
+
+
+def route_cost_of(d, groups, r) -> float:
+    total = 0.0
+    for k, g in enumerate(groups):
+        nodes = [k] + [r + t for t in g]
+        total += sum(d[a, b] for a, b in zip(nodes[:-1], nodes[1:]))
+    return total

@@ -4,7 +4,8 @@ Points (issue 24): 64x64 with 10 robots and 100 targets, 128x128 with 20 robots 
 each on ``uniform`` (20 % obstacles) and ``warehouse`` maps, ``--worlds`` worlds per point (world
 seeds ``1000 ..``, planning seed = world index).  Methods: ``fast``, ``strong``, ``ising`` (this
 package's defaults), ``ising-paper`` (the paper's configuration) and ``pyvrp`` at time budgets of
-0.05, 0.3 and 1 s (``--long`` adds 10 s).  Every method plans every world once, one after the
+0.05, 0.3 and 1 s (``--long`` adds 10 s), and ``ising-fleet`` (chip-selected moves between
+robots, :mod:`planners.ising.fleet`) with 3 N, 10 N (its default) and 30 N kicks.  Every method plans every world once, one after the
 other, so all see the same machine load; the world's distance fields are computed before any
 plans (both kinds of planner read them).  Per method and point: success, mean route cost and
 its mean ratio to PyVRP at 1 s (0.3 s with ``--quick``) world by world, medians of host seconds, chip calls (physical +
@@ -37,7 +38,7 @@ except ImportError:  # imported as benchmarks.fleet
 SECTION = "## Fleet scale against PyVRP (issue 24)"
 #: (side, robots, targets) of the issue's two fleet points.
 POINTS = ((64, 10, 100), (128, 20, 300))
-PRESETS = ("fast", "strong", "ising", "ising-paper")
+PRESETS = ("fast", "strong", "ising", "ising-paper", "ising-fleet@3x", "ising-fleet", "ising-fleet@30x")
 BUDGETS = (0.05, 0.3, 1.0)
 LONG_BUDGET = 10.0
 
@@ -47,9 +48,12 @@ def method_name(budget: float) -> str:
 
 
 def make_method(name: str):
-    """The pipeline of a method name: a preset, or ``pyvrp@<seconds>s``."""
+    """The pipeline of a method name: a preset, ``pyvrp@<seconds>s`` or ``ising-fleet@<k>x``
+    (``k N`` kicks; the preset's default is 10 N)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
+    if name.startswith("ising-fleet@"):
+        return make_pipeline("ising-fleet", sharing_options={"kicks": None, "kicks_per_target": int(name[12:-1])})
     return make_pipeline(name)
 
 
@@ -70,6 +74,7 @@ def run(points, layouts, methods, n_worlds: int) -> list[dict]:
                     plan = make_method(name).plan(world, seed=w)
                     rec = plan.compute.to_record()
                     solver = plan.stats.get("solver", {})
+                    fleet = plan.stats.get("fleet", {})
                     rows.append(dict(layout=layout, side=side, n_robots=r, n_targets=n, world=w, method=name,
                                      success=bool(plan.success),
                                      cost=float(plan.route_cost) if plan.success else math.nan,
@@ -78,6 +83,8 @@ def run(points, layouts, methods, n_worlds: int) -> list[dict]:
                                      latency_parallel_s=rec["latency_parallel_s"],
                                      accel_j=rec["accelerator_energy_j"], system_j=rec["total_energy_j"],
                                      stopped_by=solver.get("stopped_by"), iterations=solver.get("iterations"),
+                                     rounds=fleet.get("rounds", 0), contested=fleet.get("contested_rounds", 0),
+                                     offered=fleet.get("offered", 0),
                                      failure=plan.failure))
                     print(f"{layout:9s} {side}x{side} R={r} N={n} world {w} {name:12s} ok={plan.success} "
                           f"cost={plan.route_cost:6.0f} latency={rec['latency_s']:.3f} s calls={rows[-1]['calls']}",
@@ -119,12 +126,14 @@ def plot(summary, layout: str, side: int, path) -> None:
 
     pts = [x for x in summary if (x["layout"], x["side"]) == (layout, side)]
     colours = {"fast": "tab:orange", "strong": "tab:green", "ising": "tab:blue", "ising-paper": "tab:purple"}
+    colours.update({x["method"]: "tab:cyan" for x in pts if x["method"].startswith("ising-fleet")})
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "latency_s", "system latency per plan (s, host + chip)"),
                            (axes[1], "system_j", "energy per plan (J)")):
-        curve = sorted((x[key], x["cost"]) for x in pts if x["method"].startswith("pyvrp@"))
-        if curve:
-            ax.plot(*zip(*curve), "-", color="tab:red", alpha=0.6)
+        for prefix, colour in (("pyvrp@", "tab:red"), ("ising-fleet", "tab:cyan")):
+            curve = sorted((x[key], x["cost"]) for x in pts if x["method"].startswith(prefix))
+            if curve:
+                ax.plot(*zip(*curve), "-", color=colour, alpha=0.6)
         for x in pts:
             colour = colours.get(x["method"], "tab:red")
             ax.plot(x[key], x["cost"], "o", color=colour)
@@ -190,6 +199,14 @@ def main() -> None:
              "(host + chip time, calls one after another) and energies (accelerator: the paper's convention; "
              "system: accelerator + host x 15 W). PyVRP runs on one thread for its whole time budget "
              f"(`stopped by`). Figures: {', '.join(figures) or 'none'}.", ""] + table(summary, reference)
+    for key in dict.fromkeys((x["layout"], x["side"]) for x in rows):
+        rs = [x for x in rows if (x["layout"], x["side"]) == key and x["method"] == "ising-fleet"]
+        if rs and sum(x["rounds"] for x in rs):
+            rounds = sum(x["rounds"] for x in rs)
+            lines.append(f"\n`ising-fleet` on {key[0]} {key[1]}x{key[1]}: {rounds / len(rs):.0f} chip rounds per plan, "
+                         f"{sum(x['offered'] for x in rs) / rounds:.1f} moves offered per round, "
+                         f"{100 * sum(x['contested'] for x in rs) / rounds:.0f} % of rounds with clashing moves "
+                         "(the chip's choice is not simply all of them).")
     fails = [x for x in rows if not x["success"]]
     for x in fails[:10]:
         lines.append(f"\nFailed: {x['layout']} {x['side']} world {x['world']} {x['method']}: {x['failure']}")

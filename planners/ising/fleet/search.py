@@ -52,7 +52,8 @@ class FleetConfig(IsingConfig):
         num_reads: reads per program.
         max_retries: rounds in a row without a valid read before a local search ends.
         kicks: ruin-and-recreate steps of the iterated local search (0: local search only;
-            ``None``: ``10 N``, so the search grows with the fleet's work).
+            ``None``: ``kicks_per_target x N``, so the search grows with the fleet's work).
+        kicks_per_target: kicks per target when ``kicks`` is None.
         ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(2, N // 10)``).
         slack: a kicked solution replaces the current one when it costs at most the best one
             times ``1 + slack`` (record-to-record travel; 0: equal or better).
@@ -65,6 +66,7 @@ class FleetConfig(IsingConfig):
     num_reads: int = 1
     max_retries: int = 2
     kicks: int | None = None
+    kicks_per_target: int = 10
     ruin: int | None = None
     slack: float = 0.005
 
@@ -74,7 +76,7 @@ class FleetConfig(IsingConfig):
             raise ValueError("chip_rules must name at least one quantization rule")
         object.__setattr__(self, "chip_rules", rules)
         for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
-                         ("max_retries", 0)):
+                         ("max_retries", 0), ("kicks_per_target", 0)):
             check_int(name, getattr(self, name), lo)
         check_int("kicks", self.kicks, 0, none=True)
         check_int("ruin", self.ruin, 2, none=True)
@@ -89,8 +91,8 @@ class _Search:
         self.chip = chip
         self.spec = chip.spec
         self.capacity = min(int(getattr(chip, "usable_spins", self.spec.n_spins)), config.max_moves)
-        self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0, "reads": 0, "kicks_accepted": 0,
-                      "local_optima": 0, "chip_gave_up": 0}
+        self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0,
+                      "reads": 0, "kicks_accepted": 0, "local_optima": 0, "chip_gave_up": 0}
 
     def local_search(self, nxt, prv) -> None:
         cfg, failures = self.cfg, 0
@@ -172,7 +174,7 @@ class IsingFleetSharing(ConfigAttributes):
         targets_near = np.ascontiguousarray(order[:, 1:] - 0)  # node ids, nearest first
         best_nxt, best = nxt.copy(), cost
         slack = self.config.slack
-        kicks = 10 * n if self.config.kicks is None else self.config.kicks
+        kicks = self.config.kicks_per_target * n if self.config.kicks is None else self.config.kicks
         for _ in range(kicks):
             cand_nxt, cand_prv = nxt.copy(), prv.copy()
             seed_target = r + int(rng.integers(n))

@@ -105,3 +105,16 @@ def test_one_robot_and_options():
         FleetConfig(kicks=-1)
     with pytest.raises(ValueError, match="ruin = 1"):
         IsingFleetSharing(ruin=1)
+
+
+def test_a_dead_chip_keeps_the_routes_found_so_far_flagged():
+    from ising_backend import ChipSpec, EmulatedChip
+
+    world = generate_world(3, height=24, width=24, n_robots=4, n_targets=40)
+    plan = make_pipeline("ising-fleet", chip=EmulatedChip(ChipSpec(dead_cores=8)), kicks=20).plan(world, seed=0)
+    assert plan.success and plan.stats["fallback"] == {"sharing": 1} and plan.compute.fallbacks == 1
+    assert "every core is quarantined" in plan.stats["fallback_reasons"][0]
+    assert plan.route_cost == plan.stats["fleet"]["ssa_cost"] and plan.stats["fleet"]["moves_applied"] == 0
+    never = make_pipeline("ising-fleet", chip=EmulatedChip(ChipSpec(dead_cores=8)), fallback="never", kicks=20)
+    failed = never.plan(world, seed=0)
+    assert not failed.success and "the chip could not answer" in failed.failure

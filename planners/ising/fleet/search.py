@@ -28,10 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import ChipSpec, EmulatedChip, MeteredSolver, ising_from_qubo, quantize_stack
+from ising_backend import ChipSpec, ChipUnavailableError, EmulatedChip, MeteredSolver, ising_from_qubo, quantize_stack
 from planners.base import SharingResult
 from planners.compute import ComputeReport
-from planners.ising.config import ConfigAttributes, IsingConfig, check_int, check_real, resolve_config
+from planners.ising.config import ConfigAttributes, IsingConfig, check_choice, check_int, check_real, resolve_config
+from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
 from planners.ising.fleet.moves import (apply_move, candidate_moves, conflicts, pick_candidates, route_cost,
                                         score_reads, walk)
 from planners.ising.fleet.recreate import ruin_recreate
@@ -57,6 +58,9 @@ class FleetConfig(IsingConfig):
         ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(2, N // 10)``).
         slack: a kicked solution replaces the current one when it costs at most the best one
             times ``1 + slack`` (record-to-record travel; 0: equal or better).
+        fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the
+            call; otherwise the routes found so far (SSA's, with the moves the chip made) are kept,
+            flagged as a fallback.
     """
 
     neighbours: int = 10
@@ -69,6 +73,7 @@ class FleetConfig(IsingConfig):
     kicks_per_target: int = 10
     ruin: int | None = None
     slack: float = 0.005
+    fallback: str = "unavailable"
 
     def __post_init__(self) -> None:
         rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
@@ -81,6 +86,7 @@ class FleetConfig(IsingConfig):
         check_int("kicks", self.kicks, 0, none=True)
         check_int("ruin", self.ruin, 2, none=True)
         check_real("slack", self.slack, lo=0.0)
+        check_choice("fallback", self.fallback, FALLBACK_MODES)
 
 
 class _Search:
@@ -168,36 +174,55 @@ class IsingFleetSharing(ConfigAttributes):
         neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
         metered = MeteredSolver(self.chip)
         search = _Search(d, r, neigh, self.config, metered, rng)
+        best = {"nxt": nxt.copy(), "cost": route_cost(d, nxt, r)}  # the cheapest routes so far (always valid)
+        stats: dict = {}
+        failure = None
+        try:
+            self._improve(search, nxt, prv, order, best)
+        except ChipUnavailableError as exc:  # the routes so far stand: SSA's, with the moves the chip made
+            reason = unavailable_message(exc)
+            if self.config.fallback == "never":
+                failure = reason
+            else:
+                flag(stats, "sharing", reason + "; the routes found before are kept")
+        groups = []
+        for k_ in range(r):
+            g, x = [], best["nxt"][k_]
+            while x >= 0:
+                g.append(int(x) - r)
+                x = best["nxt"][x]
+            groups.append(tuple(g))
+        stats["fleet"] = {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)),
+                          "cost": float(best["cost"])}
+        compute = ComputeReport.from_ledger(metered.charged)
+        if "fallback" in stats:
+            compute = counted(compute)
+        if failure:
+            return SharingResult(assignment=tuple(() for _ in range(r)), compute=compute, stats=stats, failure=failure)
+        return SharingResult(assignment=tuple(groups), compute=compute, stats=stats)
+
+    def _improve(self, search: _Search, nxt, prv, order, best: dict) -> None:
+        """Local search, then the kicks (module docstring); ``best`` follows the cheapest routes."""
+        d, r, rng, cfg = search.d, search.r, search.rng, self.config
+        n = d.shape[0] - r
         search.local_search(nxt, prv)
         cost = route_cost(d, nxt, r)
-        ruin = max(2, self.config.ruin or n // 10)
-        targets_near = np.ascontiguousarray(order[:, 1:] - 0)  # node ids, nearest first
-        best_nxt, best = nxt.copy(), cost
-        slack = self.config.slack
-        kicks = self.config.kicks_per_target * n if self.config.kicks is None else self.config.kicks
+        if cost < best["cost"] - 1e-9:
+            best["nxt"], best["cost"] = nxt.copy(), cost
+        ruin = max(2, cfg.ruin or n // 10)
+        kicks = cfg.kicks_per_target * n if cfg.kicks is None else cfg.kicks
         for _ in range(kicks):
             cand_nxt, cand_prv = nxt.copy(), prv.copy()
             seed_target = r + int(rng.integers(n))
             q = min(int(rng.integers(2, ruin + 1)), n)
-            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, targets_near[seed_target - r], q, rng.permutation(q))
+            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
             search.local_search(cand_nxt, cand_prv)
             new = route_cost(d, cand_nxt, r)
-            if new <= best * (1.0 + slack) + 1e-9:  # record-to-record travel around the best routes
+            if new <= best["cost"] * (1.0 + cfg.slack) + 1e-9:  # record-to-record travel around the best
                 nxt, prv, cost = cand_nxt, cand_prv, new
                 search.stats["kicks_accepted"] += 1
-                if new < best - 1e-9:
-                    best_nxt, best = cand_nxt.copy(), new
-        nxt, cost = best_nxt, best
-        groups = []
-        for k_ in range(r):
-            g, x = [], nxt[k_]
-            while x >= 0:
-                g.append(int(x) - r)
-                x = nxt[x]
-            groups.append(tuple(g))
-        stats = {"fleet": {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": cost}}
-        return SharingResult(assignment=tuple(groups), compute=ComputeReport.from_ledger(metered.charged),
-                             stats=stats)
+                if new < best["cost"] - 1e-9:
+                    best["nxt"], best["cost"] = cand_nxt.copy(), new
 
     def __repr__(self) -> str:
         return f"IsingFleetSharing(config={self.config!r})"

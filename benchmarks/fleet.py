@@ -5,7 +5,7 @@ each on ``uniform`` (20 % obstacles) and ``warehouse`` maps, ``--worlds`` worlds
 seeds ``1000 ..``, planning seed = world index).  Methods: ``fast``, ``strong``, ``ising`` (this
 package's defaults), ``ising-paper`` (the paper's configuration) and ``pyvrp`` at time budgets of
 0.05, 0.3 and 1 s (``--long`` adds 10 s), and ``ising-fleet`` (chip-selected moves between
-robots, :mod:`planners.ising.fleet`) with 3 N, 10 N (its default) and 30 N kicks.  Every method plans every world once, one after the
+robots, :mod:`planners.ising.fleet`) with 2 N, 5 N (its default) and 15 N kicks.  Every method plans every world once, one after the
 other, so all see the same machine load; the world's distance fields are computed before any
 plans (both kinds of planner read them).  Per method and point: success, mean route cost and
 its mean ratio to PyVRP at 1 s (0.3 s with ``--quick``) world by world, medians of host seconds, chip calls (physical +
@@ -38,7 +38,7 @@ except ImportError:  # imported as benchmarks.fleet
 SECTION = "## Fleet scale against PyVRP (issue 24)"
 #: (side, robots, targets) of the issue's two fleet points.
 POINTS = ((64, 10, 100), (128, 20, 300))
-PRESETS = ("fast", "strong", "ising", "ising-paper", "ising-fleet@3x", "ising-fleet", "ising-fleet@30x")
+PRESETS = ("fast", "strong", "ising", "ising-paper", "ising-fleet@2x", "ising-fleet", "ising-fleet@15x")
 BUDGETS = (0.05, 0.3, 1.0)
 LONG_BUDGET = 10.0
 
@@ -49,7 +49,7 @@ def method_name(budget: float) -> str:
 
 def make_method(name: str):
     """The pipeline of a method name: a preset, ``pyvrp@<seconds>s`` or ``ising-fleet@<k>x``
-    (``k N`` kicks; the preset's default is 10 N)."""
+    (``k N`` kicks; the preset's default is 5 N)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
     if name.startswith("ising-fleet@"):

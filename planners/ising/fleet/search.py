@@ -70,7 +70,7 @@ class FleetConfig(IsingConfig):
     num_reads: int = 1
     max_retries: int = 2
     kicks: int | None = None
-    kicks_per_target: int = 10
+    kicks_per_target: int = 5
     ruin: int | None = None
     slack: float = 0.005
     fallback: str = "unavailable"

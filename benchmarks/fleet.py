@@ -3,18 +3,19 @@
 Points (issue 24): 64x64 with 10 robots and 100 targets, 128x128 with 20 robots and 300 targets,
 each on ``uniform`` (20 % obstacles) and ``warehouse`` maps, ``--worlds`` worlds per point (world
 seeds ``1000 ..``, planning seed = world index).  Methods: ``fast``, ``strong``, ``ising`` (this
-package's defaults), ``ising-paper`` (the paper's configuration) and ``pyvrp`` at time budgets of
-0.05, 0.3 and 1 s (``--long`` adds 10 s), and ``ising-fleet`` (chip-selected moves between
-robots, :mod:`planners.ising.fleet`) with 2 N, 5 N (its default) and 15 N kicks.  Every method plans every world once, one after the
-other, so all see the same machine load; the world's distance fields are computed before any
-plans (both kinds of planner read them).  Per method and point: success, mean route cost and
-its mean ratio to PyVRP at 1 s (0.3 s with ``--quick``) world by world, medians of host seconds, chip calls (physical +
-projected logical), system latency (host + chip time, calls one after another) and both
-energies (accelerator only, the paper's convention; system = accelerator + host x 15 W).
+package's defaults), ``ising-paper`` (the paper's configuration), ``ising-fleet`` (chip-selected
+moves between robots, :mod:`planners.ising.fleet`) with 2 N, 5 N (its default) and 15 N kicks, and
+``pyvrp`` at time budgets of 0.05, 0.3 and 1 s (``--long`` adds 10 s).  Every method plans every
+world once, one after the other, so all see the same machine load; the world's distance fields
+are computed before any plans (both kinds of planner read them).  Per method and point: success,
+mean route cost and its mean ratio to PyVRP at 1 s (0.3 s with ``--quick``) world by world,
+medians of host seconds, chip calls (physical + projected logical), system latency (host + chip
+time, calls one after another) and both energies (accelerator only, the paper's convention;
+system = accelerator + host x 15 W).
 
 Figures (``--figure-dir``, default ``docs``): ``fleet_<map>_<side>.png``, route cost against
 system latency and against system energy (accelerator energy marked apart, hollow), the PyVRP
-budgets joined as its cost-latency curve.
+budgets joined as its cost-latency curve, and the ``ising-fleet`` kick budgets as its own.
 
     flock /tmp/mrmt-bench.lock nice -n 10 python benchmarks/fleet.py --long --write-results
     python benchmarks/fleet.py --quick            # 2 worlds, 64x64 only, budgets 0.05 and 0.3 s
@@ -195,7 +196,8 @@ def main() -> None:
              f"`python benchmarks/fleet.py{' --long' if args.long else ''}{' --quick' if args.quick else ''} "
              f"--worlds {n_worlds}` on {cpu_name()} (2 cores, shared; every method on every world in the same "
              f"run): {n_worlds} worlds per point (seeds 1000..), mean route cost and its mean ratio to "
-             f"{reference} world by world, medians of host seconds, chip calls (physical + projected logical), system latency "
+             f"{reference} world by world, medians of host seconds, chip calls (physical + projected logical), "
+             "system latency "
              "(host + chip time, calls one after another) and energies (accelerator: the paper's convention; "
              "system: accelerator + host x 15 W). PyVRP runs on one thread for its whole time budget "
              f"(`stopped by`). Figures: {', '.join(figures) or 'none'}.", ""] + table(summary, reference)

@@ -53,6 +53,8 @@ def make_method(name: str):
     (``k N`` kicks; the preset's default is 5 N)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
+    if name == "ising-fleet@greedy":  # the ablation: the host picks the moves, no chip call
+        return make_pipeline("ising-fleet", sharing_options={"selection": "greedy"})
     if name.startswith("ising-fleet@"):
         return make_pipeline("ising-fleet", sharing_options={"kicks": None, "kicks_per_target": int(name[12:-1])})
     return make_pipeline(name)
@@ -172,6 +174,10 @@ def main() -> None:
     ap.add_argument("--layouts", default="uniform,warehouse")
     ap.add_argument("--long", action="store_true", help=f"add PyVRP at {LONG_BUDGET:g} s (long)")
     ap.add_argument("--quick", action="store_true", help="2 worlds, 64x64 only, PyVRP at 0.05 and 0.3 s (a check)")
+    ap.add_argument("--methods", default=None,
+                    help="comma-separated subset of methods (e.g. ising-fleet,ising-fleet@greedy,pyvrp@1s); "
+                         "its section is headed with --label")
+    ap.add_argument("--label", default=None, help="suffix of the RESULTS.md section heading (with --methods)")
     ap.add_argument("--figure-dir", default="docs", help="where fleet_<map>_<side>.png go ('' for none)")
     ap.add_argument("--write-results", action="store_true", help="replace the section in benchmarks/RESULTS.md")
     args = ap.parse_args()
@@ -182,6 +188,11 @@ def main() -> None:
         points, budgets, n_worlds = POINTS[:1], BUDGETS[:2], min(args.worlds, 2)
     methods = PRESETS + tuple(method_name(b) for b in budgets)
     reference = method_name(max(b for b in budgets if b <= 1.0))  # PyVRP at 1 s (0.3 s with --quick)
+    section = SECTION
+    if args.methods:
+        methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+        section = f"{SECTION}, {args.label or 'selected methods'}"
+        args.figure_dir = ""
     layouts = args.layouts.split(",")
     rows = run(points, layouts, methods, n_worlds)
     summary = summarize(rows, methods, reference)
@@ -192,8 +203,9 @@ def main() -> None:
                 path = f"{args.figure_dir}/fleet_{layout}_{side}.png"
                 plot(summary, layout, side, path)
                 figures.append(f"`{path}`")
-    lines = [SECTION, "",
-             f"`python benchmarks/fleet.py{' --long' if args.long else ''}{' --quick' if args.quick else ''} "
+    lines = [section, "",
+             f"`python benchmarks/fleet.py{' --long' if args.long else ''}{' --quick' if args.quick else ''}"
+             f"{f' --methods {args.methods}' if args.methods else ''} "
              f"--worlds {n_worlds}` on {cpu_name()} (2 cores, shared; every method on every world in the same "
              f"run): {n_worlds} worlds per point (seeds 1000..), mean route cost and its mean ratio to "
              f"{reference} world by world, medians of host seconds, chip calls (physical + projected logical), "
@@ -212,7 +224,7 @@ def main() -> None:
     fails = [x for x in rows if not x["success"]]
     for x in fails[:10]:
         lines.append(f"\nFailed: {x['layout']} {x['side']} world {x['world']} {x['method']}: {x['failure']}")
-    finish(SECTION, lines, args.write_results)
+    finish(section, lines, args.write_results)
 
 
 if __name__ == "__main__":

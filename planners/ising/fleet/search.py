@@ -61,6 +61,9 @@ class FleetConfig(IsingConfig):
         fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the
             call; otherwise the routes found so far (SSA's, with the moves the chip made) are kept,
             flagged as a fallback.
+        selection: who picks the compatible set among the offered moves: ``"chip"`` (the method), or
+            ``"greedy"`` (the host, by gain, skipping clashes; no chip call), the ablation that
+            measures what the chip's decisions are worth (docs/design/ising_fleet.md).
     """
 
     neighbours: int = 10
@@ -74,6 +77,7 @@ class FleetConfig(IsingConfig):
     ruin: int | None = None
     slack: float = 0.005
     fallback: str = "unavailable"
+    selection: str = "chip"
 
     def __post_init__(self) -> None:
         rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
@@ -87,6 +91,7 @@ class FleetConfig(IsingConfig):
         check_int("ruin", self.ruin, 2, none=True)
         check_real("slack", self.slack, lo=0.0)
         check_choice("fallback", self.fallback, FALLBACK_MODES)
+        check_choice("selection", self.selection, ("chip", "greedy"))
 
 
 class _Search:
@@ -128,6 +133,12 @@ class _Search:
     def _chip_round(self, gains, clash):
         """The chip's selection among the offered moves: indices into them, or None."""
         cfg = self.cfg
+        if cfg.selection == "greedy":  # the ablation: the host decides (offered moves come by gain)
+            taken: list[int] = []
+            for i in range(len(gains)):
+                if not any(clash[i, j] for j in taken):
+                    taken.append(i)
+            return np.array(taken, dtype=np.int64)
         P = np.minimum(gains[:, None], gains[None, :]) + 1.0
         Q = np.triu(np.where(clash, P, 0.0), k=1)
         h, J = quantize_stack(ising_from_qubo(-gains, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)

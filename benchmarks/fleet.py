@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import resource
 
 import numpy as np
 
@@ -37,8 +38,9 @@ except ImportError:  # imported as benchmarks.fleet
     from benchmarks._common import cpu_name, finish
 
 SECTION = "## Fleet scale against PyVRP (issue 24)"
-#: (side, robots, targets) of the issue's two fleet points.
+#: (side, robots, targets) of the issue's two fleet points, and of its fleet-size check (``--huge``).
 POINTS = ((64, 10, 100), (128, 20, 300))
+HUGE = ((256, 100, 1000),)
 PRESETS = ("fast", "strong", "ising", "ising-paper", "ising-fleet@2x", "ising-fleet", "ising-fleet@15x")
 BUDGETS = (0.05, 0.3, 1.0)
 LONG_BUDGET = 10.0
@@ -88,7 +90,8 @@ def run(points, layouts, methods, n_worlds: int) -> list[dict]:
                                      stopped_by=solver.get("stopped_by"), iterations=solver.get("iterations"),
                                      rounds=fleet.get("rounds", 0), contested=fleet.get("contested_rounds", 0),
                                      offered=fleet.get("offered", 0),
-                                     failure=plan.failure))
+                                     failure=plan.failure,
+                                     peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
                     print(f"{layout:9s} {side}x{side} R={r} N={n} world {w} {name:12s} ok={plan.success} "
                           f"cost={plan.route_cost:6.0f} latency={rec['latency_s']:.3f} s calls={rows[-1]['calls']}",
                           flush=True)
@@ -170,9 +173,12 @@ def table(summary, reference: str) -> list[str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--worlds", type=int, default=5, help="worlds per point and map (default 5)")
+    ap.add_argument("--worlds", type=int, default=None, help="worlds per point and map (default 5; 1 with --huge)")
     ap.add_argument("--layouts", default="uniform,warehouse")
     ap.add_argument("--long", action="store_true", help=f"add PyVRP at {LONG_BUDGET:g} s (long)")
+    ap.add_argument("--huge", action="store_true",
+                    help="the issue's fleet-size check instead: 100 robots x 1,000 targets on a 256x256 warehouse "
+                         "(strong, ising, ising-fleet, pyvrp@1s; --worlds default 1; peak RSS reported)")
     ap.add_argument("--quick", action="store_true", help="2 worlds, 64x64 only, PyVRP at 0.05 and 0.3 s (a check)")
     ap.add_argument("--methods", default=None,
                     help="comma-separated subset of methods (e.g. ising-fleet,ising-fleet@greedy,pyvrp@1s); "
@@ -181,6 +187,8 @@ def main() -> None:
     ap.add_argument("--figure-dir", default="docs", help="where fleet_<map>_<side>.png go ('' for none)")
     ap.add_argument("--write-results", action="store_true", help="replace the section in benchmarks/RESULTS.md")
     args = ap.parse_args()
+    if args.worlds is None:
+        args.worlds = 1 if args.huge else 5
     if args.worlds < 1:
         ap.error(f"--worlds must be >= 1, got {args.worlds}")
     points, budgets, n_worlds = POINTS, BUDGETS + ((LONG_BUDGET,) if args.long else ()), args.worlds
@@ -194,6 +202,9 @@ def main() -> None:
         section = f"{SECTION}, {args.label or 'selected methods'}"
         args.figure_dir = ""
     layouts = args.layouts.split(",")
+    if args.huge:
+        points, layouts, methods = HUGE, ["warehouse"], ("strong", "ising", "ising-fleet", "pyvrp@1s")
+        section, reference, args.figure_dir = f"{SECTION}, 100 robots x 1,000 targets", "pyvrp@1s", ""
     rows = run(points, layouts, methods, n_worlds)
     summary = summarize(rows, methods, reference)
     figures = []
@@ -205,6 +216,7 @@ def main() -> None:
                 figures.append(f"`{path}`")
     lines = [section, "",
              f"`python benchmarks/fleet.py{' --long' if args.long else ''}{' --quick' if args.quick else ''}"
+             f"{' --huge' if args.huge else ''}"
              f"{f' --methods {args.methods}' if args.methods else ''} "
              f"--worlds {n_worlds}` on {cpu_name()} (2 cores, shared; every method on every world in the same "
              f"run): {n_worlds} worlds per point (seeds 1000..), mean route cost and its mean ratio to "
@@ -221,6 +233,10 @@ def main() -> None:
                          f"{sum(x['offered'] for x in rs) / rounds:.1f} moves offered per round, "
                          f"{100 * sum(x['contested'] for x in rs) / rounds:.0f} % of rounds with clashing moves "
                          "(the chip's choice is not simply all of them).")
+    if args.huge:
+        lines.append("\nSystem latency per plan (host + chip) and the process's peak RSS after each plan (the "
+                     "world's BFS fields, about 290 MiB, and the warm-up world's included): "
+                     + "; ".join(f"{x['method']} {x['latency_s']:.1f} s, {x['peak_mib']:.0f} MiB" for x in rows) + ".")
     fails = [x for x in rows if not x["success"]]
     for x in fails[:10]:
         lines.append(f"\nFailed: {x['layout']} {x['side']} world {x['world']} {x['method']}: {x['failure']}")

@@ -128,7 +128,7 @@ def main() -> None:
             "emulator's run time (reported apart, charged to the chip as 50 us / 0.45 uJ per call). "
             "`reused`: one pipeline object for all worlds (patch-program caches warm, as in `mrmt` and policies); "
             "`fresh`: a new pipeline per world (caches cold). Medians per plan. `ising` = this package's defaults "
-            "(boundary-refined sharing, chip tour, BFS-ranked paths), `ising-paper` = the paper's configuration.",
+            "(boundary-refined sharing, chip tour, legs as descents of the BFS fields: no chip path calls), `ising-paper` = the paper's configuration.",
             "",
             text,
             "",

@@ -1,9 +1,9 @@
 """Quickstart: one episode of the MRMT Gymnasium env driven by the Ising planner.
 
 The planner policy rebuilds the world from the observation, plans once with
-the paper's Ising pipeline (recursive Ising target sharing, clustered Ising
-tours, patch-sliding Ising paths on the emulated 45-spin chip), then emits one
-joint move per step.  The opt-in wrapper adds the episode's compute, latency
+the Ising pipeline (Ising target sharing and tours on the emulated 45-spin chip,
+legs along the BFS fields the host already holds; ``ising-paper`` adds the
+paper's patch-sliding chip paths), then emits one joint move per step.  The opt-in wrapper adds the episode's compute, latency
 and energy to ``info`` when the episode ends.
 
     python examples/quickstart.py [--seed 0] [--pipeline ising|strong|fast]

@@ -11,11 +11,15 @@ The paper's decomposition (section 2.3, evaluated end to end in 6.2):
    (start cell first).
 
 Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
-SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the three
-Ising methods with this package's defaults (boundary-refined sharing, the
-move-selection tour on the physical chip, BFS-ranked patch targets),
-``ising-paper`` = the three Ising methods exactly as the paper configures them
-(what ``mrmt reproduce`` runs), ``exact`` = exact min-sum sharing + Held-Karp
+SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the Ising
+sharing and tour with this package's defaults (boundary-refined sharing, the
+move-selection tour on the physical chip) and legs as descents of the host's BFS
+fields (path layer ``field``: no chip call for a path the host already holds),
+``ising-paper`` = the three Ising methods exactly as the paper configures them,
+chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
+classical peer; extra ``peers``), ``ising-fleet`` = SSA routes improved by chip-selected
+moves between robots in an iterated local search (:mod:`planners.ising.fleet`) + field legs,
+``exact`` = exact min-sum sharing + Held-Karp
 tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
 or from layer objects::
 
@@ -52,7 +56,8 @@ plan, its statistics and its failures are those of the per-leg calls
 (``Pipeline(..., batch_paths=False)`` makes every leg a ``find_path`` call).
 
 Shortcuts (so a layer is charged only for work it really does): with one
-robot the sharing layer is not called (every target goes to robot 0); a robot
+robot the sharing layer is not called (every target goes to robot 0) unless it orders the
+routes itself (``orders_routes``, :mod:`planners.joint_routing`); a robot
 with fewer than two targets does not call the tour layer.  So a world with one
 robot and one target exercises the path layer alone; one robot and N targets,
 tour and path.
@@ -103,9 +108,11 @@ __all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
 PRESETS: dict[str, tuple[str, str, str]] = {
     "fast": ("psa", "nn", "astar"),
     "strong": ("ssa", "3opt", "astar"),
-    "ising": ("ising", "ising", "ising"),
+    "ising": ("ising", "ising", "field"),
     "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
     "exact": ("exact", "brute", "bfs"),
+    "pyvrp": ("pyvrp", "keep", "astar"),
+    "ising-fleet": ("ising-fleet", "keep", "field"),
 }
 
 _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
@@ -300,7 +307,7 @@ class Pipeline:
 
             # ---- 1. target sharing
             assignment: tuple = (tuple(range(n)),)
-            if r > 1:
+            if r > 1 or getattr(self.sharing, "orders_routes", False):
                 t0 = _clock()
                 res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
                 acc["sharing"].add(res.compute, _clock() - t0)
@@ -409,7 +416,7 @@ def make_pipeline(
     """Build a :class:`Pipeline` from a preset and/or layer names or objects.
 
     Args:
-        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``
+        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``, ``"ising-fleet"``
             (:data:`PRESETS`) or None.
         sharing, tour, path: a registry name or a layer object; overrides the
             preset's layer.  Without a preset all three are required.

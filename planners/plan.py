@@ -100,6 +100,8 @@ class Plan:
         }
         if self.failure:
             d["failure"] = self.failure
+        if isinstance(self.stats.get("solver"), dict):  # a peer solver's stop criterion and effort
+            d["solver"] = dict(self.stats["solver"])
         return d
 
 

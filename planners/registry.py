@@ -3,9 +3,9 @@
 Three layers (paper section 2.3), each with its own namespace:
 
 =========== ==========================================================
-``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``
-``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``
-``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``
+``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``, ``pyvrp``, ``ising-fleet``
+``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``, ``keep``
+``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``, ``field``
 =========== ==========================================================
 
 A factory is any callable returning a layer object (a class, a function), or
@@ -52,6 +52,8 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "exact": "planners.sharing_classical:ExactSharing",
         "ising": "planners.ising.sharing:IsingSharing",
         "ising-paper": "planners.ising.sharing:PaperIsingSharing",
+        "pyvrp": "planners.peers.pyvrp_routing:PyVRPSharing",  # extra `peers`
+        "ising-fleet": "planners.ising.fleet:IsingFleetSharing",
     },
     "tour": {
         "nn": "planners.tours_classical:NearestNeighbourTour",
@@ -60,6 +62,7 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "brute": "planners.tours_classical:BruteTour",
         "ising": "planners.ising.tour:IsingTour",
         "ising-paper": "planners.ising.tour:PaperIsingTour",
+        "keep": "planners.joint_routing:KeepOrderTour",
     },
     "path": {
         "bfs": "planners.paths_classical:BFSPath",
@@ -67,6 +70,7 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "gbfs": "planners.paths_classical:GreedyBestFirstPath",
         "ising": "planners.ising.path:IsingPath",
         "ising-paper": "planners.ising.path:PaperIsingPath",
+        "field": "planners.paths_field:FieldPath",
     },
 }
 

@@ -19,8 +19,8 @@ def test_make_controller_builds_the_ising_layers_on_the_given_chip():
     spec = ChipSpec(n_spins=64, j_range=(-15, 15), cores_per_chip=4)
     policy = make_controller("ising", chip=spec)
     pipe = policy.pipeline
-    assert pipe.sharing.chip is pipe.tour.chip is pipe.path.chip  # one chip per pipeline
-    assert pipe.path.chip.spec == spec
+    assert pipe.sharing.chip is pipe.tour.chip  # one chip per pipeline (the legs come from the BFS field)
+    assert pipe.tour.chip.spec == spec and pipe.path.name == "field"
     classical = make_controller("strong", chip=spec)  # no chip to use: the plain preset
     assert classical.name == "strong"
 

@@ -434,8 +434,8 @@ def test_batched_legs_plan_as_the_per_leg_calls(spec):
     failures = 0
     for s in range(8):
         world = generate_world(s, n_robots=3, n_targets=10, placement="centre" if s % 2 else "uniform")
-        batched = make_pipeline("ising", chip=EmulatedChip(ChipSpec(**spec)))
-        base = make_pipeline("ising", chip=EmulatedChip(ChipSpec(**spec)))
+        batched = make_pipeline("ising", path="ising", chip=EmulatedChip(ChipSpec(**spec)))
+        base = make_pipeline("ising", path="ising", chip=EmulatedChip(ChipSpec(**spec)))
         per_leg = Pipeline(base.sharing, base.tour, base.path, batch_paths=False)
         a, b = batched.plan(world, seed=s), per_leg.plan(world, seed=s)
         assert (a.success, a.failure) == (b.success, b.failure)

@@ -54,15 +54,19 @@ def test_a_grid_larger_than_the_limit_is_refused_before_any_work():
         chip_grid(parse_axes([f"n_spins={many}", f"sweeps={many}"]))
 
 
+CHIP_PATHS = "ising+ising+ising"
+
+
 @pytest.fixture(scope="module")
 def small_sweep():
-    cfg = SweepConfig(axes=parse_axes(["n_spins=4,45,64"]), controllers=("ising", "strong"), n_worlds=3)
+    # the chip's path layer (the ising preset's legs come from the BFS fields and fit a 4-spin chip)
+    cfg = SweepConfig(axes=parse_axes(["n_spins=4,45,64"]), controllers=(CHIP_PATHS, "strong"), n_worlds=3)
     return run_sweep(cfg, INLINE)
 
 
 def test_rows_per_spec_world_controller_and_seed(small_sweep):
     rows = small_sweep.rows
-    ising = [r for r in rows if r["controller"] == "ising"]
+    ising = [r for r in rows if r["controller"] == CHIP_PATHS]
     strong = [r for r in rows if r["controller"] == "strong"]
     assert len(ising) == 3 * 3 and len(strong) == 3  # the chip-free controller runs once
     assert {r["spec_id"] for r in strong} == {-1} and "n_spins" not in strong[0]
@@ -80,7 +84,7 @@ def test_a_chip_too_small_for_the_planner_is_a_failed_row_with_the_reason(small_
 def test_sweep_rows_equal_the_evaluation_of_the_same_spec(small_sweep):
     from agents.evaluation import evaluate
 
-    ev = evaluate(["ising"], n_worlds=3, n_jobs=1, progress=False, chip=ChipSpec(n_spins=64))
+    ev = evaluate([CHIP_PATHS], n_worlds=3, n_jobs=1, progress=False, chip=ChipSpec(n_spins=64))
     mine = [r for r in small_sweep.rows if r.get("n_spins") == 64]
     keys = ("world_seed", "route_cost", "makespan", "chip_calls", "logical_calls", "accelerator_energy_j")
     assert [[r[k] for k in keys] for r in mine] == [[r[k] for k in keys] for r in ev.rows]

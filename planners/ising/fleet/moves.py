@@ -1,0 +1,269 @@
+"""Moves between and within robots' open routes, for chip move selection at fleet scale (compiled).
+
+The routes live as linked lists over the world's nodes (robots ``0..R-1`` then targets):
+``nxt[x]`` / ``prv[x]`` (-1 past the end; a robot has no predecessor), and :func:`walk` gives
+each node's robot (``owner``) and position (robot 0, its first target 1, ...).  Edge ``p`` of a
+route joins positions ``p`` and ``p + 1`` (the last edge, to the open end, costs 0).
+
+Candidate moves (granular: ``v`` among the ``k`` nearest nodes of target ``u``):
+
+===== ================ =============================================== =====================
+kind  move             what changes                                    edges touched (spans)
+===== ================ =============================================== =====================
+0     relocate u -> v  ``u`` leaves its place, goes right after ``v``  ``[pos u - 1, pos u]`` and ``[pos v]``
+1     swap u, v        ``u`` and ``v`` (other robots) trade places     ``[pos u - 1, pos u]``, ``[pos v - 1, pos v]``
+2     2-opt* a, b      tails after ``a`` and after ``b`` (other robots) swap   ``[pos a, end]``, ``[pos b, end]``
+3     2-opt a, b       the segment ``nxt a .. b`` of one route reversed ``[pos a, pos b]``
+===== ================ =============================================== =====================
+
+Two moves whose spans are disjoint in every route touch disjoint edges, so their gains add and
+applying them one after another by node (linked-list operations) gives the sum; two spans in the
+same route are merged into one (conservative).  Gains are exact for open routes.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["walk", "candidate_moves", "conflicts", "pick_candidates", "score_reads", "apply_move", "route_cost",
+           "MOVE_KINDS"]
+
+MOVE_KINDS = ("relocate", "swap", "2-opt*", "2-opt")
+_EPS = 1e-9
+
+
+@numba.njit(cache=True)
+def walk(nxt, r):
+    """``(owner, pos, length)``: each node's robot and position, and each route's target count."""
+    m = nxt.shape[0]
+    owner = np.full(m, -1, dtype=np.int64)
+    pos = np.zeros(m, dtype=np.int64)
+    length = np.zeros(r, dtype=np.int64)
+    for k in range(r):
+        x, p = k, 0
+        while x >= 0:
+            owner[x] = k
+            pos[x] = p
+            p += 1
+            x = nxt[x]
+        length[k] = p - 1
+    return owner, pos, length
+
+
+@numba.njit(cache=True, inline="always")
+def _e(d, a, b):
+    return 0.0 if b < 0 else d[a, b]
+
+
+@numba.njit(cache=True)
+def route_cost(d, nxt, r):
+    total = 0.0
+    for k in range(r):
+        x = k
+        while nxt[x] >= 0:
+            total += d[x, nxt[x]]
+            x = nxt[x]
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def _add(moves, spans, gains, m, kind, a, b, g, r1, lo1, hi1, r2, lo2, hi2):
+    moves[m, 0] = kind
+    moves[m, 1] = a
+    moves[m, 2] = b
+    if r1 == r2:  # one route: one merged span
+        lo1, hi1 = min(lo1, lo2), max(hi1, hi2)
+        r2 = -1
+    spans[m, 0] = r1
+    spans[m, 1] = lo1
+    spans[m, 2] = hi1
+    spans[m, 3] = r2
+    spans[m, 4] = lo2
+    spans[m, 5] = hi2
+    gains[m] = g
+
+
+@numba.njit(cache=True)
+def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
+    """Every improving granular move (module docstring).  Returns ``(moves (M, 3): kind, a, b;
+    spans (M, 6): route, lo, hi, route, lo, hi (second route -1 when one); gains (M,))``."""
+    m_nodes = nxt.shape[0]
+    k = neigh.shape[1]
+    cap = (m_nodes - r) * k * 5 + 1
+    moves = np.empty((cap, 3), dtype=np.int64)
+    spans = np.empty((cap, 6), dtype=np.int64)
+    gains = np.empty(cap)
+    m = 0
+    for u in range(r, m_nodes):
+        pu, nu, ou = prv[u], nxt[u], owner[u]
+        out_u = d[pu, u] + _e(d, u, nu) - _e(d, pu, nu)  # saved by taking u out
+        for t in range(k):
+            v = neigh[u, t]
+            if v < 0 or v == u:
+                continue
+            ov = owner[v]
+            for side in range(2):  # 0: relocate after v, 1: before v (after its predecessor)
+                w = v if side == 0 else (prv[v] if v >= r else -1)
+                if w < 0 or w == pu or w == u:
+                    continue
+                wn = nxt[w]
+                if wn == u:
+                    continue
+                g = out_u + _e(d, w, wn) - d[w, u] - _e(d, u, wn)
+                if g > _EPS and g < np.inf:
+                    _add(moves, spans, gains, m, 0, u, w, g, ou, pos[u] - 1, pos[u], owner[w], pos[w], pos[w])
+                    m += 1
+            if v < r:
+                continue
+            pv, nv = prv[v], nxt[v]
+            if ov != ou:
+                old = d[pu, u] + _e(d, u, nu) + d[pv, v] + _e(d, v, nv)
+                new = d[pu, v] + _e(d, v, nu) + d[pv, u] + _e(d, u, nv)
+                g = old - new
+                if g > _EPS and g < np.inf:
+                    _add(moves, spans, gains, m, 1, u, v, g, ou, pos[u] - 1, pos[u], ov, pos[v] - 1, pos[v])
+                    m += 1
+                # 2-opt*: u -> v, prv[v] -> nxt[u]
+                b = pv
+                g = _e(d, u, nu) + d[b, v] - d[u, v] - _e(d, b, nu)
+                if g > _EPS and g < np.inf:
+                    _add(moves, spans, gains, m, 2, u, b, g, ou, pos[u], length[ou], ov, pos[b], length[ov])
+                    m += 1
+            else:
+                a, b = (u, v) if pos[u] < pos[v] else (v, u)
+                if pos[b] > pos[a] + 1:  # 2-opt: a -> b, nxt[a] -> nxt[b]
+                    an, bn = nxt[a], nxt[b]
+                    g = d[a, an] + _e(d, b, bn) - d[a, b] - _e(d, an, bn)
+                    if g > _EPS and g < np.inf:
+                        _add(moves, spans, gains, m, 3, a, b, g, ou, pos[a], pos[b], -1, 0, 0)
+                        m += 1
+    return moves[:m].copy(), spans[:m].copy(), gains[:m].copy()
+
+
+@numba.njit(cache=True, inline="always")
+def _clash(spans, i, j):
+    for x in range(2):
+        ri = spans[i, 3 * x]
+        if ri < 0:
+            continue
+        for y in range(2):
+            if spans[j, 3 * y] == ri and spans[i, 3 * x + 1] <= spans[j, 3 * y + 2] \
+                    and spans[j, 3 * y + 1] <= spans[i, 3 * x + 2]:
+                return True
+    return False
+
+
+@numba.njit(cache=True)
+def conflicts(spans, idx):
+    """``(K, K)`` bool: which of the moves ``idx`` touch a common edge."""
+    n = idx.shape[0]
+    out = np.zeros((n, n), dtype=np.bool_)
+    for a in range(n):
+        for b in range(a):
+            if _clash(spans, idx[a], idx[b]):
+                out[a, b] = True
+                out[b, a] = True
+    return out
+
+
+@numba.njit(cache=True)
+def pick_candidates(spans, gains, k, max_overlap):
+    """At most ``k`` moves by gain (ties: index), each clashing with at most ``max_overlap``
+    moves picked before it."""
+    order = np.argsort(-gains, kind="mergesort")
+    picked = np.empty(min(k, order.shape[0]), dtype=np.int64)
+    n = 0
+    for m in order:
+        if n == picked.shape[0]:
+            break
+        hits = 0
+        for t in range(n):
+            if _clash(spans, m, picked[t]):
+                hits += 1
+                if hits > max_overlap:
+                    break
+        if hits <= max_overlap:
+            picked[n] = m
+            n += 1
+    return picked[:n].copy()
+
+
+@numba.njit(cache=True)
+def score_reads(spins, clash, gains):
+    """Reads ``(programs, reads, K)`` of one selection round: ``(valid reads, program, read, gain)``
+    of the first valid read of largest total gain (program -1: none selects a move)."""
+    p_n, reads, k = spins.shape
+    valid = 0
+    best_p, best_r, best = -1, -1, 0.0
+    for p in range(p_n):
+        for rd in range(reads):
+            total = 0.0
+            ok = True
+            for a in range(k):
+                if spins[p, rd, a] <= 0:
+                    continue
+                total += gains[a]
+                for b in range(a):
+                    if spins[p, rd, b] > 0 and clash[a, b]:
+                        ok = False
+                        break
+                if not ok:
+                    break
+            if not ok:
+                continue
+            valid += 1
+            if total > best + _EPS:
+                best_p, best_r, best = p, rd, total
+    return valid, best_p, best_r, best
+
+
+@numba.njit(cache=True)
+def apply_move(nxt, prv, kind, a, b):
+    """Apply one move by node (linked lists changed in place)."""
+    if kind == 0:  # relocate a after b
+        p, n = prv[a], nxt[a]
+        nxt[p] = n
+        if n >= 0:
+            prv[n] = p
+        w = nxt[b]
+        nxt[b] = a
+        prv[a] = b
+        nxt[a] = w
+        if w >= 0:
+            prv[w] = a
+    elif kind == 1:  # swap a, b (different routes)
+        pa, na, pb, nb = prv[a], nxt[a], prv[b], nxt[b]
+        nxt[pa] = b
+        prv[b] = pa
+        nxt[b] = na
+        if na >= 0:
+            prv[na] = b
+        nxt[pb] = a
+        prv[a] = pb
+        nxt[a] = nb
+        if nb >= 0:
+            prv[nb] = a
+    elif kind == 2:  # tails after a and after b swap
+        an, bn = nxt[a], nxt[b]
+        nxt[a] = bn
+        if bn >= 0:
+            prv[bn] = a
+        nxt[b] = an
+        if an >= 0:
+            prv[an] = b
+    else:  # reverse nxt[a] .. b
+        an, bn = nxt[a], nxt[b]
+        x = an
+        while True:
+            nx = nxt[x]
+            nxt[x] = prv[x]
+            prv[x] = nx
+            if x == b:
+                break
+            x = nx
+        nxt[a] = b
+        prv[b] = a
+        nxt[an] = bn
+        if bn >= 0:
+            prv[bn] = an

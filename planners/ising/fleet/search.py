@@ -1,0 +1,248 @@
+"""Fleet routing with chip-selected moves between robots: an iterated local search (issue 24, part 2).
+
+Classical logic orchestrates, the chip decides which moves are made:
+
+1. construction (host): the sequential single-item auction's insertion routes (SSA, the
+   ``strong`` pipeline's sharing), one open route per robot;
+2. local search: per round the host lists every improving granular move between and within
+   routes (:mod:`.moves`: relocate, swap, 2-opt*, 2-opt over the ``neighbours`` nearest nodes),
+   offers the chip up to ``max_moves`` of them (by gain, each clashing with at most
+   ``max_overlap`` better ones), and the chip selects a compatible set in one submission: the
+   selection QUBO ``-sum g_m x_m + sum (min(g_m, g_m') + 1) x_m x_m'`` over clashing pairs,
+   quantized by every rule of ``chip_rules``; the valid read of largest gain is applied, a read
+   selecting clashing moves is dropped, never repaired.  No improving move left: a local optimum;
+   ``max_retries`` rounds in a row without a valid read also end it;
+3. iterated local search (host): ``kicks`` times, ruin the ``ruin`` targets nearest to a random
+   target and re-insert them one by one at their cheapest place, then local search (2); the
+   result replaces the current routes when it is cheaper.
+
+The layer is a sharing layer that orders its groups (``orders_routes``: tour layer ``keep``);
+preset ``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).
+Every chip call is metered (:class:`ising_backend.MeteredSolver`) into the layer's report; the
+emulator's run time is ``emulation_s``.  Measured in docs/design/ising_fleet.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ising_backend import (ChipSpec, ChipUnavailableError, EmulatedChip, MeteredSolver, as_machine, ising_from_qubo,
+                           quantize_stack)
+from planners.base import SharingResult
+from planners.compute import ComputeReport
+from planners.ising.config import ConfigAttributes, IsingConfig, check_choice, check_int, check_real, resolve_config
+from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
+from planners.ising.fleet.moves import (apply_move, candidate_moves, conflicts, pick_candidates, route_cost,
+                                        score_reads, walk)
+from planners.ising.fleet.recreate import ruin_recreate
+from planners.sharing_classical import SSASharing
+
+__all__ = ["FleetConfig", "IsingFleetSharing"]
+
+
+@dataclass(frozen=True)
+class FleetConfig(IsingConfig):
+    """Options of :class:`IsingFleetSharing` (module docstring).
+
+    Attributes:
+        neighbours: nearest nodes per target whose moves are listed (granular neighbourhood).
+        max_moves: most candidate moves per selection program (capped by the chip's spins).
+        max_overlap: a candidate clashes with at most this many better-gain candidates of its program.
+        chip_rules: quantization rules, one selection program each per round.
+        num_reads: reads per program.
+        max_retries: rounds in a row without a valid read before a local search ends.
+        kicks: ruin-and-recreate steps of the iterated local search (0: local search only;
+            ``None``: ``kicks_per_target x N``, so the search grows with the fleet's work).
+        kicks_per_target: kicks per target when ``kicks`` is None.
+        ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(2, N // 10)``).
+        slack: a kicked solution replaces the current one when it costs at most the best one
+            times ``1 + slack`` (record-to-record travel; 0: equal or better).
+        fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the
+            call; otherwise the routes found so far (SSA's, with the moves the chip made) are kept,
+            flagged as a fallback.
+        selection: who picks the compatible set among the offered moves: ``"chip"`` (the method), or
+            ``"greedy"`` (the host, by gain, skipping clashes; no chip call), the ablation that
+            measures what the chip's decisions are worth (docs/design/ising_fleet.md).
+    """
+
+    neighbours: int = 10
+    max_moves: int = 16
+    max_overlap: int = 4
+    chip_rules: tuple = ("linear", "rank")
+    num_reads: int = 1
+    max_retries: int = 2
+    kicks: int | None = None
+    kicks_per_target: int = 5
+    ruin: int | None = None
+    slack: float = 0.005
+    fallback: str = "unavailable"
+    selection: str = "chip"
+
+    def __post_init__(self) -> None:
+        rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
+        if not rules:
+            raise ValueError("chip_rules must name at least one quantization rule")
+        object.__setattr__(self, "chip_rules", rules)
+        for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
+                         ("max_retries", 0), ("kicks_per_target", 0)):
+            check_int(name, getattr(self, name), lo)
+        check_int("kicks", self.kicks, 0, none=True)
+        check_int("ruin", self.ruin, 2, none=True)
+        check_real("slack", self.slack, lo=0.0)
+        check_choice("fallback", self.fallback, FALLBACK_MODES)
+        check_choice("selection", self.selection, ("chip", "greedy"))
+
+
+class _Search:
+    """One planning call: the routes as linked lists, the metered chip, the statistics."""
+
+    def __init__(self, d, r, neigh, config, chip, rng):
+        self.d, self.r, self.neigh, self.cfg, self.rng = d, r, neigh, config, rng
+        self.chip = chip
+        self.spec = chip.spec
+        self.capacity = min(int(getattr(chip, "usable_spins", self.spec.n_spins)), config.max_moves)
+        self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0,
+                      "reads": 0, "kicks_accepted": 0, "local_optima": 0, "chip_gave_up": 0}
+
+    def local_search(self, nxt, prv) -> None:
+        cfg, failures = self.cfg, 0
+        while True:
+            owner, pos, length = walk(nxt, self.r)
+            moves, spans, gains = candidate_moves(self.d, nxt, prv, owner, pos, length, self.neigh, self.r)
+            if len(gains) == 0:
+                self.stats["local_optima"] += 1
+                return
+            keep = pick_candidates(spans, gains, max(1, self.capacity >> failures), cfg.max_overlap)
+            clash = conflicts(spans, keep)
+            taken = self._chip_round(gains[keep], clash)
+            self.stats["rounds"] += 1
+            self.stats["offered"] += len(keep)
+            self.stats["contested_rounds"] += bool(clash.any())  # a real choice: not every move fits
+            if taken is None:
+                failures += 1
+                if failures > cfg.max_retries:
+                    self.stats["chip_gave_up"] += 1
+                    return
+                continue
+            failures = 0
+            for i in keep[taken]:
+                apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2])
+            self.stats["moves_applied"] += len(taken)
+
+    def _chip_round(self, gains, clash):
+        """The chip's selection among the offered moves: indices into them, or None."""
+        cfg = self.cfg
+        if cfg.selection == "greedy":  # the ablation: the host decides (offered moves come by gain)
+            taken: list[int] = []
+            for i in range(len(gains)):
+                if not any(clash[i, j] for j in taken):
+                    taken.append(i)
+            return np.array(taken, dtype=np.int64)
+        P = np.minimum(gains[:, None], gains[None, :]) + 1.0
+        Q = np.triu(np.where(clash, P, 0.0), k=1)
+        h, J = quantize_stack(ising_from_qubo(-gains, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)
+        seed = int(self.rng.integers(0, 2**63 - 1))
+        spins, _ = self.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
+        valid, p, rd, _gain = score_reads(spins, clash, gains)
+        self.stats["reads"] += spins.shape[0] * spins.shape[1]
+        self.stats["valid_reads"] += int(valid)
+        if p < 0:
+            return None
+        return np.flatnonzero(spins[p, rd] > 0)
+
+
+class IsingFleetSharing(ConfigAttributes):
+    """Sharing layer ``ising-fleet``: SSA routes improved by chip-selected moves between robots."""
+
+    name = "ising-fleet"
+    orders_routes = True
+    config_class = FleetConfig
+
+    def __init__(self, chip=None, config: FleetConfig | None = None, **options) -> None:
+        self.config = resolve_config(FleetConfig, config, options)
+        self.chip = as_machine(chip) if chip is not None else EmulatedChip(ChipSpec())
+
+    def assign(self, dist, n_robots: int, tour=None, rng=None) -> SharingResult:
+        rng = rng if rng is not None else np.random.default_rng()
+        base = SSASharing().assign(dist, n_robots)
+        d = np.ascontiguousarray(np.asarray(dist, dtype=np.float64))
+        r = int(n_robots)
+        m = d.shape[0]
+        n = m - r
+        if n <= 1 or base.failure:
+            return base
+        nxt = np.full(m, -1, dtype=np.int64)
+        prv = np.full(m, -1, dtype=np.int64)
+        for k, group in enumerate(base.assignment):
+            x = k
+            for t in group:
+                nxt[x], prv[r + t] = r + t, x
+                x = r + t
+        k = min(self.config.neighbours, m - 1)
+        order = np.argsort(d[r:], axis=1, kind="stable")  # nearest nodes of each target (itself first)
+        neigh = np.ascontiguousarray(order[:, 1:k + 1])
+        neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
+        metered = MeteredSolver(self.chip)
+        search = _Search(d, r, neigh, self.config, metered, rng)
+        best = {"nxt": nxt.copy(), "cost": route_cost(d, nxt, r)}  # the cheapest routes so far (always valid)
+        stats: dict = {}
+        failure = None
+        try:
+            self._improve(search, nxt, prv, order, best)
+        except ChipUnavailableError as exc:  # the routes so far stand: SSA's, with the moves the chip made
+            reason = unavailable_message(exc)
+            if self.config.fallback == "never":
+                failure = reason
+            else:
+                flag(stats, "sharing", reason + "; the routes found before are kept")
+        groups = []
+        for k_ in range(r):
+            g, x = [], best["nxt"][k_]
+            while x >= 0:
+                g.append(int(x) - r)
+                x = best["nxt"][x]
+            groups.append(tuple(g))
+        stats["fleet"] = {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)),
+                          "cost": float(best["cost"])}
+        compute = ComputeReport.from_ledger(metered.charged)
+        if "fallback" in stats:
+            compute = counted(compute)
+        if failure:
+            return SharingResult(assignment=tuple(() for _ in range(r)), compute=compute, stats=stats, failure=failure)
+        return SharingResult(assignment=tuple(groups), compute=compute, stats=stats)
+
+    def _improve(self, search: _Search, nxt, prv, order, best: dict) -> None:
+        """Local search, then the kicks (module docstring); ``best`` follows the cheapest routes."""
+        d, r, rng, cfg = search.d, search.r, search.rng, self.config
+        n = d.shape[0] - r
+        search.local_search(nxt, prv)
+        cost = route_cost(d, nxt, r)
+        if cost < best["cost"] - 1e-9:
+            best["nxt"], best["cost"] = nxt.copy(), cost
+        ruin = max(2, cfg.ruin or n // 10)
+        kicks = cfg.kicks_per_target * n if cfg.kicks is None else cfg.kicks
+        for _ in range(kicks):
+            cand_nxt, cand_prv = nxt.copy(), prv.copy()
+            seed_target = r + int(rng.integers(n))
+            q = min(int(rng.integers(2, ruin + 1)), n)
+            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
+            search.local_search(cand_nxt, cand_prv)
+            new = route_cost(d, cand_nxt, r)
+            if new <= best["cost"] * (1.0 + cfg.slack) + 1e-9:  # record-to-record travel around the best
+                nxt, prv, cost = cand_nxt, cand_prv, new
+                search.stats["kicks_accepted"] += 1
+                if new < best["cost"] - 1e-9:
+                    best["nxt"], best["cost"] = cand_nxt.copy(), new
+
+    def __repr__(self) -> str:
+        return f"IsingFleetSharing(config={self.config!r})"
+
+
+def route_cost_of(d, groups, r) -> float:
+    total = 0.0
+    for k, g in enumerate(groups):
+        nodes = [k] + [r + t for t in g]
+        total += sum(d[a, b] for a, b in zip(nodes[:-1], nodes[1:]))
+    return total

@@ -1,0 +1,120 @@
+"""Fleet routing with chip-selected moves between robots (planners/ising/fleet)."""
+
+import numpy as np
+import pytest
+
+from mrmt_env import generate_world
+from planners.ising.fleet import FleetConfig, IsingFleetSharing
+from planners.ising.fleet.moves import apply_move, candidate_moves, conflicts, route_cost, walk
+from planners.ising.fleet.recreate import ruin_recreate
+from planners.pipeline import make_pipeline
+from planners.plan import validate_plan
+
+
+def _lists(groups, r, m):
+    nxt, prv = np.full(m, -1, dtype=np.int64), np.full(m, -1, dtype=np.int64)
+    for k, g in enumerate(groups):
+        x = k
+        for t in g:
+            nxt[x], prv[r + t] = r + t, x
+            x = r + t
+    return nxt, prv
+
+
+def _routes(nxt, r):
+    out = []
+    for k in range(r):
+        g, x = [], nxt[k]
+        while x >= 0:
+            g.append(int(x))
+            x = nxt[x]
+        out.append(g)
+    return out
+
+
+def _cost_reference(d, routes, r):
+    """The oracle: open route costs summed in Python."""
+    return sum(sum(d[a, b] for a, b in zip([k] + g[:-1], g)) for k, g in enumerate(routes))
+
+
+def _state(seed, r=4, n=24):
+    world = generate_world(seed, height=14, width=14, n_robots=r, n_targets=n)
+    d = np.ascontiguousarray(world.distance_matrix)
+    rng = np.random.default_rng(seed)
+    groups = [list(g) for g in np.array_split(rng.permutation(n), r)]  # random routes: many moves
+    nxt, prv = _lists(groups, r, d.shape[0])
+    order = np.argsort(d[r:], axis=1, kind="stable")
+    neigh = np.vstack([np.full((r, 8), -1), order[:, 1:9]]).astype(np.int64)
+    return d, r, nxt, prv, neigh
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_every_gain_is_the_exact_cost_change_and_disjoint_moves_add(seed):
+    d, r, nxt, prv, neigh = _state(seed)
+    owner, pos, length = walk(nxt, r)
+    moves, spans, gains = candidate_moves(d, nxt, prv, owner, pos, length, neigh, r)
+    assert len(gains) > 20 and set(moves[:, 0].tolist()) == {0, 1, 2, 3}  # all four kinds occur
+    before = _cost_reference(d, _routes(nxt, r), r)
+    for i in range(len(gains)):
+        a, b = nxt.copy(), prv.copy()
+        apply_move(a, b, *moves[i])
+        routes = _routes(a, r)
+        assert sorted(sum(routes, [])) == list(range(r, d.shape[0]))  # still every target once
+        assert before - _cost_reference(d, routes, r) == pytest.approx(gains[i])
+        assert all(b[y] == x for x in range(d.shape[0]) for y in [a[x]] if y >= 0)  # links agree
+    clash = conflicts(spans, np.arange(len(gains)))
+    rng = np.random.default_rng(seed)
+    pairs = [(i, j) for i in range(len(gains)) for j in range(i) if not clash[i, j]]
+    for i, j in (pairs[k] for k in rng.choice(len(pairs), size=min(200, len(pairs)), replace=False)):
+        a, b = nxt.copy(), prv.copy()
+        apply_move(a, b, *moves[i])
+        apply_move(a, b, *moves[j])
+        assert before - route_cost(d, a, r) == pytest.approx(gains[i] + gains[j])
+
+
+def test_ruin_recreate_keeps_every_target_once():
+    d, r, nxt, prv, _ = _state(7)
+    order = np.argsort(d[r:], axis=1, kind="stable")
+    for seed_target in range(r, d.shape[0], 5):
+        a, b = nxt.copy(), prv.copy()
+        ruin_recreate(d, a, b, r, seed_target, order[seed_target - r, 1:], 6, np.arange(6)[::-1].copy())
+        routes = _routes(a, r)
+        assert sorted(sum(routes, [])) == list(range(r, d.shape[0]))
+        assert route_cost(d, a, r) == pytest.approx(_cost_reference(d, routes, r))
+
+
+def test_plans_are_valid_deterministic_and_decided_on_the_chip():
+    world = generate_world(3, height=24, width=24, n_robots=4, n_targets=40)
+    pipe = make_pipeline("ising-fleet", sharing_options={"kicks": 60})
+    a, b = pipe.plan(world, seed=5), make_pipeline("ising-fleet", sharing_options={"kicks": 60}).plan(world, seed=5)
+    validate_plan(world, a)
+    assert [r.targets for r in a.routes] == [r.targets for r in b.routes]
+    assert a.compute.replace(cpu_s=0.0) == b.compute.replace(cpu_s=0.0)
+    fleet = a.stats["fleet"]
+    assert a.compute.chip_calls == fleet["reads"] > 0 and a.compute.accelerator_energy_j > 0
+    assert fleet["moves_applied"] > 0 and fleet["contested_rounds"] > 0
+    assert a.route_cost == fleet["cost"] <= fleet["ssa_cost"]  # field legs: the plan costs what the search priced
+    assert a.stats["layers"]["path"].chip_calls == 0
+
+
+def test_one_robot_and_options():
+    world = generate_world(1, n_robots=1, n_targets=10)
+    plan = make_pipeline("ising-fleet").plan(world, seed=0)
+    assert plan.success and plan.route_cost == make_pipeline("exact").plan(world).route_cost
+    with pytest.raises(ValueError, match="kicks = -1"):
+        FleetConfig(kicks=-1)
+    with pytest.raises(ValueError, match="ruin = 1"):
+        IsingFleetSharing(ruin=1)
+
+
+def test_a_dead_chip_keeps_the_routes_found_so_far_flagged():
+    from ising_backend import ChipSpec, EmulatedChip
+
+    world = generate_world(3, height=24, width=24, n_robots=4, n_targets=40)
+    plan = make_pipeline("ising-fleet", chip=EmulatedChip(ChipSpec(dead_cores=8)), kicks=20).plan(world, seed=0)
+    assert plan.success and plan.stats["fallback"] == {"sharing": 1} and plan.compute.fallbacks == 1
+    assert "every core is quarantined" in plan.stats["fallback_reasons"][0]
+    assert plan.route_cost == plan.stats["fleet"]["ssa_cost"] and plan.stats["fleet"]["moves_applied"] == 0
+    never = make_pipeline("ising-fleet", chip=EmulatedChip(ChipSpec(dead_cores=8)), fallback="never", kicks=20)
+    failed = never.plan(world, seed=0)
+    assert not failed.success and "the chip could not answer" in failed.failure

@@ -27,8 +27,8 @@ from pathlib import Path
 
 __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
 
-#: Rough cold compile seconds of each part on a 2-core machine (benchmarks/RESULTS.md, cold start).
-PART_SECONDS = {"ising:sharing": 55, "ising:tour+path": 30, "ising-paper:sharing": 10,
+#: Rough cold compile seconds of each part, two parts at a time on a 2-core machine (docs/design/cold_start.md).
+PART_SECONDS = {"ising:sharing": 70, "ising:tour+path": 60, "ising-paper:sharing": 10,
                 "ising-paper:tour+path": 10, "strong": 8, "fast": 5, "exact": 5}
 
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.

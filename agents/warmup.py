@@ -8,7 +8,8 @@ sharing search (one compiled call), so a command that is about to pay it prints 
 sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
 processes with a progress bar, longest part first.  Each part is a pipeline warm-up
 (:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
-the cache.  A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
+the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` call :func:`warm`).
+A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
 first use, unannounced.  ``mrmt warmup`` compiles every preset.
 
 Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,

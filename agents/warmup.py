@@ -62,7 +62,8 @@ def parts_for(controllers) -> list[str]:
             new = [spec]
         elif spec.count("+") == 2:
             s, t, p = spec.split("+")
-            new = [f"{s}+nn+bfs" if s in _ISING else None, f"psa+{t}+{p}" if t in _ISING or p in _ISING else None]
+            tp = f"{t}:tour+path" if t == p and t in _ISING else f"psa+{t}+{p}"  # a preset's part when it is one
+            new = [f"{s}:sharing" if s in _ISING else None, tp if t in _ISING or p in _ISING else None]
             new = [x for x in new if x] or [spec]
         else:
             new = []

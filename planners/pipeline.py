@@ -76,9 +76,9 @@ planning.  So before its first plan a pipeline warms itself (:meth:`Pipeline.war
 it plans the same world with the same seed on a deep copy of its layers (their own chip,
 ledger and memos), so exactly the kernels the plan needs are compiled and nothing of the
 real layers -- ledger, health monitor, random state, caches -- is touched; the plan is the
-same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` (and
-``plan.stats["warmup_s"]``) of that first plan, never part of ``cpu_s``; later plans report
-0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
+same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` of that first plan
+(a timing, so not in ``plan.stats``, which compares equal across runs), never part of ``cpu_s``;
+later plans report 0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
 whatever compiling it triggers); layers that cannot be deep-copied are not warmed
 (``plan.stats["warmup_skipped"]`` says why).
 """
@@ -383,7 +383,6 @@ class Pipeline:
         stats["layers"] = reports
         stats["glue_cpu_s"] = glue
         stats["pipeline"] = self.name
-        stats["warmup_s"] = warmup_s
         if self._warm_state.startswith("skipped"):
             stats["warmup_skipped"] = self._warm_state
         compute = (reports["sharing"] + reports["tour"] + reports["path"]

@@ -255,14 +255,15 @@ class Pipeline:
 
     def warmup(self, world: World | None = None, seed=0) -> float:
         """Compile what planning ``world`` (default: a 10x10 world with 3 robots and 10 targets)
-        needs, by planning it on a deep copy of the layers; returns the wall seconds (0 when
-        already warm).  The real layers are not touched, so later plans are unchanged."""
+        needs, by planning it on a deep copy of the layers; returns the wall seconds, copy included
+        (0 when already warm).  The real layers are not touched, so later plans are unchanged."""
         if self._warm_state != "cold":
             return 0.0
         if world is None:
             from mrmt_env.generation import generate_world
 
             world = generate_world(seed=0)
+        t0 = _clock()
         try:
             memo = _shared_frozen_arrays((self, world))
             scratch, world = copy.deepcopy((self, world), memo)
@@ -272,7 +273,6 @@ class Pipeline:
         scratch.warmup_first = False
         if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
             seed = copy.deepcopy(seed)
-        t0 = _clock()
         scratch.plan(world, seed=seed)
         self.warmup_s = _clock() - t0
         self._warm_state = "warm"

@@ -8,7 +8,8 @@ sharing search (one compiled call), so a command that is about to pay it prints 
 sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
 processes with a progress bar, longest part first.  Each part is a pipeline warm-up
 (:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
-the cache.  A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
+the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` call :func:`warm`).
+A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
 first use, unannounced.  ``mrmt warmup`` compiles every preset.
 
 Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,
@@ -27,8 +28,8 @@ from pathlib import Path
 
 __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
 
-#: Rough cold compile seconds of each part on a 2-core machine (benchmarks/RESULTS.md, cold start).
-PART_SECONDS = {"ising:sharing": 55, "ising:tour+path": 30, "ising-paper:sharing": 10,
+#: Rough cold compile seconds of each part, two parts at a time on a 2-core machine (docs/design/cold_start.md).
+PART_SECONDS = {"ising:sharing": 70, "ising:tour+path": 60, "ising-paper:sharing": 10,
                 "ising-paper:tour+path": 10, "strong": 8, "fast": 5, "exact": 5}
 
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.
@@ -61,7 +62,8 @@ def parts_for(controllers) -> list[str]:
             new = [spec]
         elif spec.count("+") == 2:
             s, t, p = spec.split("+")
-            new = [f"{s}+nn+bfs" if s in _ISING else None, f"psa+{t}+{p}" if t in _ISING or p in _ISING else None]
+            tp = f"{t}:tour+path" if t == p and t in _ISING else f"psa+{t}+{p}"  # a preset's part when it is one
+            new = [f"{s}:sharing" if s in _ISING else None, tp if t in _ISING or p in _ISING else None]
             new = [x for x in new if x] or [spec]
         else:
             new = []

@@ -81,9 +81,9 @@ planning.  So before its first plan a pipeline warms itself (:meth:`Pipeline.war
 it plans the same world with the same seed on a deep copy of its layers (their own chip,
 ledger and memos), so exactly the kernels the plan needs are compiled and nothing of the
 real layers -- ledger, health monitor, random state, caches -- is touched; the plan is the
-same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` (and
-``plan.stats["warmup_s"]``) of that first plan, never part of ``cpu_s``; later plans report
-0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
+same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` of that first plan
+(a timing, so not in ``plan.stats``, which compares equal across runs), never part of ``cpu_s``;
+later plans report 0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
 whatever compiling it triggers); layers that cannot be deep-copied are not warmed
 (``plan.stats["warmup_skipped"]`` says why).
 """
@@ -262,14 +262,15 @@ class Pipeline:
 
     def warmup(self, world: World | None = None, seed=0) -> float:
         """Compile what planning ``world`` (default: a 10x10 world with 3 robots and 10 targets)
-        needs, by planning it on a deep copy of the layers; returns the wall seconds (0 when
-        already warm).  The real layers are not touched, so later plans are unchanged."""
+        needs, by planning it on a deep copy of the layers; returns the wall seconds, copy included
+        (0 when already warm).  The real layers are not touched, so later plans are unchanged."""
         if self._warm_state != "cold":
             return 0.0
         if world is None:
             from mrmt_env.generation import generate_world
 
             world = generate_world(seed=0)
+        t0 = _clock()
         try:
             memo = _shared_frozen_arrays((self, world))
             scratch, world = copy.deepcopy((self, world), memo)
@@ -279,7 +280,6 @@ class Pipeline:
         scratch.warmup_first = False
         if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
             seed = copy.deepcopy(seed)
-        t0 = _clock()
         scratch.plan(world, seed=seed)
         self.warmup_s = _clock() - t0
         self._warm_state = "warm"
@@ -390,7 +390,6 @@ class Pipeline:
         stats["layers"] = reports
         stats["glue_cpu_s"] = glue
         stats["pipeline"] = self.name
-        stats["warmup_s"] = warmup_s
         if self._warm_state.startswith("skipped"):
             stats["warmup_skipped"] = self._warm_state
         compute = (reports["sharing"] + reports["tour"] + reports["path"]

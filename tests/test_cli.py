@@ -25,3 +25,12 @@ def test_unknown_option_shows_the_subcommand_usage(command, args, bad, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"usage: mrmt {command} ")
     assert err.strip().splitlines()[-1] == f"mrmt {command}: error: unrecognized arguments: {bad} 2"
+
+
+def test_command_examples_write_to_relative_paths():
+    from pathlib import Path
+
+    import agents.commands
+
+    for path in Path(agents.commands.__file__).parent.glob("*.py"):
+        assert "--out /" not in path.read_text(), f"{path.name}: an example writes to an absolute path"

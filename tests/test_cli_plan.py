@@ -246,4 +246,5 @@ def test_first_plan_reports_the_warm_up_apart(tmp_path, worlds, capsys):
     computes = [json.loads(line)["compute"] for line in capsys.readouterr().out.splitlines()]
     assert computes[0]["warmup_s"] > 0 and all(c["warmup_s"] == 0 for c in computes[1:])
     for c in computes:  # the warm-up is in no time or energy figure of the plan
-        assert c["host_energy_j"] == pytest.approx(15 * c["host_cpu_s"]) and c["latency_s"] == pytest.approx(c["host_cpu_s"])
+        assert c["host_energy_j"] == pytest.approx(15 * c["host_cpu_s"])
+        assert c["latency_s"] == pytest.approx(c["host_cpu_s"])

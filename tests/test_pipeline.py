@@ -367,7 +367,7 @@ def test_first_plan_warms_up_on_a_scratch_copy_and_reports_it_apart():
     # the one-off cost was paid by the scratch copy, before the measured plan; the real layer only planned
     assert _OneOffPath.paid_by and _OneOffPath.paid_by[0] != id(path)
     assert path.calls == world.n_targets
-    assert first.compute.warmup_s > 0 and first.stats["warmup_s"] == first.compute.warmup_s
+    assert first.compute.warmup_s > 0 and "warmup_s" not in first.stats
     assert first.compute.warmup_s == pipeline.warmup_s
     # warm-up is in no layer and not in cpu_s
     layers = first.stats["layers"]
@@ -376,7 +376,7 @@ def test_first_plan_warms_up_on_a_scratch_copy_and_reports_it_apart():
     record = first.compute.to_record()
     assert record["warmup_s"] == first.compute.warmup_s and record["host_cpu_s"] == pytest.approx(first.compute.cpu_s)
     second = pipeline.plan(world, seed=1)
-    assert second.compute.warmup_s == 0 and second.stats["warmup_s"] == 0 and path.calls == 2 * world.n_targets
+    assert second.compute.warmup_s == 0 and path.calls == 2 * world.n_targets
     assert pipeline.warmup() == 0.0  # once per pipeline
 
 

@@ -170,7 +170,8 @@ def test_first_plan_of_a_policy_reports_the_warm_up_apart():
     cold.pipeline.warmup_first = False
     for seed in range(2):
         assert run_loop(env, warm, seed)[0] == run_loop(env, cold, seed)[0]  # same episodes
-        assert [r.targets for r in warm.episode_plans()[0].routes] == [r.targets for r in cold.episode_plans()[0].routes]
+        warm_plan, cold_plan = warm.episode_plans()[0], cold.episode_plans()[0]
+        assert [r.targets for r in warm_plan.routes] == [r.targets for r in cold_plan.routes]
         if seed == 0:
             assert warm.last_compute.warmup_s > 0 and warm.episode_compute().warmup_s == warm.last_compute.warmup_s
         else:

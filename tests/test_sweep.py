@@ -169,8 +169,8 @@ def test_pareto_tick_labels_do_not_overlap(spread):
     from agents.sweep_report import pareto_figure
 
     def spec(i, e):
-        return {"spec_id": i, "success_rate": 1.0, "n_spins": 32 + 13 * i, "mean_cost": 28.0 - i, "mean_gap_pct": 1.0 - i,
-                "controller": "ising",
+        return {"spec_id": i, "success_rate": 1.0, "n_spins": 32 + 13 * i, "mean_cost": 28.0 - i,
+                "mean_gap_pct": 1.0 - i, "controller": "ising",
                 "accelerator_energy_j": e, "chip_time_parallel_s": e * 30, "total_energy_j": e * 400,
                 "latency_parallel_s": e * 60, "h_range": 7, "j_range": 7, "n_cores": 8}
     stats = [spec(0, 5.25e-5), spec(1, 5.25e-5 * spread)]

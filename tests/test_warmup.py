@@ -14,8 +14,10 @@ def fresh_stamp(tmp_path, monkeypatch):
 
 
 def test_parts_split_the_ising_layers_and_put_the_longest_first():
-    parts = parts_for(["fast", "ising", "ssa+3opt+ising", "ppo:model.zip"])
-    assert parts[0] == "ising:sharing" and set(parts) == {"ising:sharing", "ising:tour+path", "fast", "psa+3opt+ising"}
+    parts = parts_for(["fast", "ising", "ssa+3opt+ising", "ising-paper+2opt+astar", "ppo:model.zip"])
+    assert parts[0] == "ising:sharing"
+    assert set(parts) == {"ising:sharing", "ising:tour+path", "fast", "psa+3opt+ising", "ising-paper:sharing"}
+    assert parts_for(["ssa+ising+ising"]) == ["ising:tour+path"]  # the preset's part: compiled once
     assert parts_for(["ppo:model.zip"]) == []
 
 
@@ -24,7 +26,8 @@ def test_warmup_says_once_what_it_compiles_then_is_warm(capsys):
     assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress"]) == 0
     out, err = capsys.readouterr()
     (line,) = err.strip().splitlines()  # one line: what, why, how long, that it is once per install
-    assert line.startswith("mrmt: compiling the numba kernels of fast") and "first run" in line and " s on 1 core" in line
+    assert line.startswith("mrmt: compiling the numba kernels of fast")
+    assert "first run" in line and " s on 1 core" in line
     assert "compiled 1 part(s)" in out
     assert "fast" in next(iter(json.loads(stamp_path().read_text()).values()))
     assert cold_parts(["fast"]) == []

@@ -75,6 +75,9 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"mrmt reproduce: error: {exc}", file=sys.stderr)
         return 2
+    from agents.warmup import warm
+
+    warm(("fast", "strong", "ising-paper"), jobs=args.jobs, progress=not args.no_progress)  # a cold install only
     out = reproduce(
         args.out, quick=args.quick, seed=args.seed, n_jobs=args.jobs, progress=not args.no_progress,
         sizes=sizes, experiments=names, chip=chip, run=runner,

@@ -11,6 +11,7 @@ goes.  Needs imageio (``pip install 'mrmt-ising[viz]'``).
 
 from __future__ import annotations
 
+import os
 import sys
 
 NAME = "watch"
@@ -64,6 +65,9 @@ def run(args) -> int:
 
     try:
         validate_controller_spec(args.controller)
+        from agents.warmup import warm
+
+        warm([args.controller], jobs=min(2, os.cpu_count() or 1), progress=False)  # a cold install only
         frames, info = episode_frames(args.controller, args.env_id, seed=args.seed, cell=args.cell)
         write_gif(frames, args.out, fps=args.fps)
     except (ControllerError, ValueError, OSError) as exc:

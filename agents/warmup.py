@@ -36,8 +36,9 @@ PART_SECONDS = {"ising:sharing": 70, "ising:tour+path": 60, "ising-paper:sharing
 LONG_S = 10
 
 _ISING = ("ising", "ising-paper")
-_PRESETS = {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"), "ising": ("ising",) * 3,
-            "ising-paper": ("ising-paper",) * 3, "exact": ("exact", "brute", "bfs")}
+_PRESETS = {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"), "ising": ("ising", "ising", "field"),
+            "ising-paper": ("ising-paper",) * 3, "exact": ("exact", "brute", "bfs"),
+            "ising-fleet": ("ising-fleet", "keep", "field")}
 
 
 def _layers(part: str) -> tuple[str, str, str]:
@@ -46,7 +47,7 @@ def _layers(part: str) -> tuple[str, str, str]:
     if side == "sharing":
         return name, "nn", "bfs"
     if side == "tour+path":
-        return "psa", name, name
+        return "psa", name, _PRESETS[name][2] if name in _PRESETS else name
     return _PRESETS[name] if name in _PRESETS else tuple(name.split("+"))
 
 

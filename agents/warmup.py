@@ -93,12 +93,17 @@ def stamp_path() -> Path:
     return Path(base) / "mrmt-ising" / "warm.json"
 
 
-def _read_stamp() -> set[str]:
+def _stamps() -> dict:
     try:
         data = json.loads(stamp_path().read_text())
-        return set(data.get(_fingerprint(), []))
-    except (OSError, ValueError, AttributeError):
-        return set()
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def _read_stamp() -> set[str]:
+    parts = _stamps().get(_fingerprint(), [])
+    return set(parts) if isinstance(parts, list) else set()
 
 
 def mark_warm(parts) -> None:
@@ -110,7 +115,12 @@ def _write_stamp(parts) -> None:
     try:
         path = stamp_path()
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({_fingerprint(): sorted(_read_stamp() | set(parts))}))
+        stamps = _stamps()  # other installs (venvs, clones) keep theirs; the newest 32 are kept
+        key = _fingerprint()
+        merged = sorted(_read_stamp() | set(parts))
+        stamps.pop(key, None)
+        stamps = dict(list(stamps.items())[-31:]) | {key: merged}
+        path.write_text(json.dumps(stamps))
     except OSError:  # a read-only home: the notice shows again next time, nothing else changes
         pass
 

@@ -60,3 +60,11 @@ def test_bad_input_is_one_line(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_other_installs_keep_their_stamps():
+    stamp_path().parent.mkdir(parents=True)
+    stamp_path().write_text(json.dumps({"another-install": ["ising:sharing"]}))
+    assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress"]) == 0
+    data = json.loads(stamp_path().read_text())
+    assert data["another-install"] == ["ising:sharing"] and ["fast"] in data.values()

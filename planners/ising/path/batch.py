@@ -89,7 +89,10 @@ def usable_legs(cells, grid):
 
 
 @numba.njit(cache=True)
-def run_legs(rng, pool, padded, fields, stops, frame, search, mapping_args, chip, free_cells, grid, cut):
+def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields, stops, size,
+             nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls, degree,
+             coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
+             flip_prob, free_cells, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each, until the first
     leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s ranking field
     (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
@@ -97,7 +100,7 @@ def run_legs(rng, pool, padded, fields, stops, frame, search, mapping_args, chip
     ``points[ends[j]:ends[j + 1]]``; counts, mapping, submissions and walk steps are those of the
     legs done."""
     L = stops.shape[0] - 1
-    k = mapping_args[3].shape[0]  # style_ids
+    k = style_ids.shape[0]
     cap = 64
     points = np.empty((cap, 2), dtype=np.int64)
     ends = np.zeros(L + 1, dtype=np.int64)
@@ -110,7 +113,10 @@ def run_legs(rng, pool, padded, fields, stops, frame, search, mapping_args, chip
     for j in range(L):
         sr, sc, gr, gc = stops[j, 0], stops[j, 1], stops[j + 1, 0], stops[j + 1, 1]
         status, _pr, _pc, walk, leg_counts, leg_map, sub_calls, sub_emu = run_query(
-            rng, pool, padded, fields[j], sr, sc, gr, gc, frame, search, mapping_args, chip, free_cells)
+            rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields[j], sr, sc, gr,
+            gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls,
+            degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold,
+            mismatch, flip_prob, free_cells)
         if status != REACHED:
             break
         ok, path = cut_walk(walk, grid, sr, sc, gr, gc, cut)
@@ -178,5 +184,5 @@ class BatchedLegs:
     def _run_legs(self, world, stops, rng):
         """:func:`run_legs` with this planner's pool and the query loop's arguments."""
         grid = world.grid
-        return run_legs(rng, self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
+        return run_legs(rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
                         stops, *self._loop_args(grid), grid, self.config.cut_loops)

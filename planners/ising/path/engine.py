@@ -129,23 +129,15 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
 
 
 @numba.njit(cache=True)
-def run_query(rng, pool, padded, field, sr, sc, gr, gc, frame, search, mapping_args, chip, free_cells):
-    """One query of Algorithm 1 (see the module docstring), from ``(sr, sc)`` to ``(gr, gc)``.
-
-    Records (tuples): ``pool`` = :meth:`ProgramPool.arrays`; ``frame`` = (size, nbr, ring, offsets,
-    adj4, diag) of the patch frame; ``search`` = (interior, merged, backtrack, num_reads,
-    max_attempts, max_calls); ``mapping_args`` = (degree, coef, scale, style_ids, Lh, Lj, n_spins);
-    ``chip`` = :attr:`ising_backend.MachineLink.kernel_args`.
+def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
+              num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps,
+              geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells):
+    """One query of Algorithm 1 (see the module docstring).
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu)``:
     counts = patch_solves, anneal_calls, segments, backtracks, direct_moves; mapping rows per
     style = programs, valid, wins, map_errors; per chip submission its calls and emulation seconds.
     """
-    keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx = pool
-    size, nbr, ring, offsets, adj4, diag = frame
-    interior, merged, backtrack, num_reads, max_attempts, max_calls = search
-    degree, coef, scale, style_ids, Lh, Lj, n_spins = mapping_args
-    handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
     rad = size // 2
     n = size * size
     centre = n // 2
@@ -297,23 +289,23 @@ class CompiledSearch:
         """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
         mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
         status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1], *self._loop_args(grid))
+            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
+            *self._loop_args(grid))
         return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
 
     def _loop_args(self, grid) -> tuple:
-        """:func:`run_query`'s records after the goal on ``grid``: ``(frame, search, mapping_args, chip,
-        free_cells)`` (memoised for the last grid)."""
+        """:func:`run_query`'s arguments after the goal: the patch frame, the search options, the
+        budgets on ``grid``, the mapping and chip arguments and the free-cell count (memoised for
+        the last grid)."""
         cached = self._loop_for
         if cached is not None and cached[0] is grid:
             return cached[1]
         cfg = self.config
         fr = self.frame
         max_attempts, _per_target, max_calls = self._budgets(grid)
-        frame = (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag)
-        search = (cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts,
-                  max_calls)
-        mapping_args, chip = self._engine_args
-        args = (frame, search, mapping_args, chip, self._free_cells(grid))
+        args = (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
+                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
+                *self._engine_args, self._free_cells(grid))
         self._loop_for = (grid, args)
         return args
 

@@ -100,9 +100,9 @@ class IsingPath(CompiledSearch, QueryEnds, BatchedLegs, ConfigAttributes):
             w = cfg.full_weights
             coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0) if cfg.form == "pair" else \
                 (0.0, w["B"], 0.0, w["A_end"], w["A"])
-            mapping_args = (cfg.form == "degree", np.array(coef, dtype=np.float64), float(cfg.chip_scale),
-                            self._style_ids, self._limits[0], self._limits[1], self._limits[2])
-            self._engine_args = (mapping_args, self._link.kernel_args)  # the compiled loop's records
+            self._engine_args = (cfg.form == "degree", np.array(coef, dtype=np.float64), float(cfg.chip_scale),
+                                 self._style_ids, self._limits[0], self._limits[1], self._limits[2],
+                                 *self._link.kernel_args)
             self._pool = ProgramPool(self.frame.n, len(cfg.styles), spec.n_spins)
 
     def __repr__(self) -> str:

@@ -114,13 +114,27 @@ def sharing(n: int, seed: int, placement: str) -> dict:
 
 
 E2E = ("exact", "ising", "ising-paper", "strong", "fast")
+#: the strongest classical peer, stopped by iterations (deterministic), when the `peers` extra is installed
+PYVRP = "pyvrp@1000it"
+
+
+def _e2e_pipelines() -> dict:
+    pipes = {name: (lambda name=name: make_pipeline(name)) for name in E2E}
+    try:
+        import pyvrp  # noqa: F401
+    except ImportError:
+        print(f"{PYVRP} left out: pip install 'mrmt-ising[peers]'")
+    else:
+        pipes[PYVRP] = lambda: make_pipeline("pyvrp", sharing_options={"seconds": None, "iterations": 1000})
+    return pipes
 
 
 def endtoend(n: int, seed: int, placement: str) -> dict:
     worlds = [generate_world(seed + i, n_robots=3, n_targets=10, placement=placement) for i in range(n)]
     out, cost = {}, {}
-    for name in E2E:
-        pipe = make_pipeline(name)
+    pipes = _e2e_pipelines()
+    for name, make in pipes.items():
+        pipe = make()
         pipe.plan(worlds[0], seed=0)  # warm (numba caches, lazy imports)
         cost[name], calls, energy, host = [], [], [], []
         for i, w in enumerate(worlds):
@@ -133,7 +147,7 @@ def endtoend(n: int, seed: int, placement: str) -> dict:
         out[name] = {"calls": float(np.median(calls)), "energy_uj": 1e6 * float(np.median(energy)),
                      "host_ms": 1e3 * float(np.median(host))}
     ex = np.array(cost["exact"], dtype=float)
-    for name in E2E:
+    for name in pipes:
         out[name].update(gap_stats(np.array(cost[name], dtype=float) / ex - 1))
     return out
 

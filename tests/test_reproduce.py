@@ -47,7 +47,9 @@ def test_every_promised_file(quick_run):
 
 def test_rows_cover_every_method_and_instance(quick_run):
     out, sizes = quick_run
-    methods = {"path": 4, "tour": 5, "sharing": 5, "endtoend": 3}
+    from agents.experiments.paper import endtoend_methods
+
+    methods = {"path": 4, "tour": 5, "sharing": 5, "endtoend": len(endtoend_methods())}  # + PyVRP when installed
     for name in EXPERIMENTS:
         with open(out / f"{name}.csv") as f:
             rows = list(csv.DictReader(f))
@@ -56,6 +58,12 @@ def test_rows_cover_every_method_and_instance(quick_run):
         assert len(json.loads((out / f"{name}.json").read_text())) == len(rows)
     mapping = json.loads((out / "mapping.json").read_text())
     assert {m["layer"] for m in mapping} == {"path", "sharing"}
+    if "pyvrp" in endtoend_methods():  # the classical peer: every plan valid, never above strong's route
+        rows = json.loads((out / "endtoend.json").read_text())
+        cost = {(r["instance"], r["method"]): r["cost"] for r in rows}
+        peer = [r for r in rows if r["method"] == "pyvrp"]
+        assert peer and all(r["success"] for r in peer)
+        assert all(cost[(r["instance"], "pyvrp")] <= cost[(r["instance"], "strong")] for r in peer)
 
 
 def test_summary_puts_measured_beside_paper(quick_run):

@@ -24,6 +24,7 @@ METHOD_LABELS = {
     "ssa": "SSA",
     "exact": "Exact",
     "ising": "Ising",
+    "pyvrp": "PyVRP",
     "fast": "Fast classical",
     "strong": "Strong classical",
 }
@@ -103,3 +104,16 @@ PATH_METHODS = ("bfs", "astar", "gbfs", "ising")
 TOUR_METHODS = ("nn", "2opt", "3opt", "brute", "ising")
 SHARING_METHODS = ("round_robin", "psa", "ssa", "exact", "ising")
 ENDTOEND_METHODS = ("fast", "strong", "ising")
+#: The strongest classical peer beside the paper's pipelines (when the ``peers`` extra is installed):
+#: PyVRP stopped after a fixed number of iterations, so its plans are deterministic.
+PEER_METHODS = ("pyvrp",)
+PYVRP_OPTIONS = {"seconds": None, "iterations": 1000}
+
+
+def endtoend_methods() -> tuple[str, ...]:
+    """The end-to-end experiment's methods: the paper's three, and PyVRP where it is installed."""
+    try:
+        import pyvrp  # noqa: F401
+    except ImportError:
+        return ENDTOEND_METHODS
+    return ENDTOEND_METHODS + PEER_METHODS

@@ -7,8 +7,8 @@ import time
 from pathlib import Path
 
 from agents.experiments.figures import plot_experiment
-from agents.experiments.paper import (ENDTOEND_METHODS, PAPER, PAPER_SIZES, PATH_METHODS, QUICK_SIZES,
-                                      SHARING_METHODS, TOUR_METHODS)
+from agents.experiments.paper import (PAPER, PAPER_SIZES, PATH_METHODS, QUICK_SIZES,
+                                      SHARING_METHODS, TOUR_METHODS, endtoend_methods)
 from agents.experiments.records import ExperimentResult, _clean, write_rows
 from agents.experiments.summary import mapping_table, summarize, write_summary
 from agents.experiments.tasks import _endtoend_instance, _path_instance, _sharing_instance, _tour_instance
@@ -77,12 +77,14 @@ def sharing_experiment(n: int = 100, seed: int = 0, methods=SHARING_METHODS, n_r
                             time.perf_counter() - t0)
 
 
-def endtoend_experiment(n: int = 100, seed: int = 0, methods=ENDTOEND_METHODS, n_robots: int = 3,
+def endtoend_experiment(n: int = 100, seed: int = 0, methods=None, n_robots: int = 3,
                         n_targets: int = 10, placement: str = "centre", n_jobs: int = 2,
                         progress: bool = True, chip=None,
                     run: RunConfig | None = None) -> ExperimentResult:
-    """Paper 6.2.4: the fast, strong and Ising pipelines on ``n`` worlds of ``n_robots`` x ``n_targets``."""
+    """Paper 6.2.4: the fast, strong and Ising pipelines on ``n`` worlds of ``n_robots`` x ``n_targets``
+    (``methods=None``: those and PyVRP where installed, :func:`~agents.experiments.paper.endtoend_methods`)."""
     n = _check_n("n", n)
+    methods = endtoend_methods() if methods is None else methods
     t0 = time.perf_counter()
     rows = _run_instances(_endtoend_instance, n, (seed, tuple(methods), n_robots, n_targets, placement, chip),
                           _runner(run, n_jobs, progress), "end-to-end")

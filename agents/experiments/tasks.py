@@ -116,8 +116,16 @@ def _endtoend_instance(i: int, seed: int, methods, n_robots: int, n_targets: int
     rows = []
     for m in methods:
         name = registry_name(m)
-        pipe = planner_pipeline(name, chip) if chip is not None else make_pipeline(name)
-        _warm(("pipeline", m), lambda: make_pipeline(name).plan(world, seed=0))
+        if name == "pyvrp":  # the classical peer, stopped by iterations (deterministic)
+            from agents.experiments.paper import PYVRP_OPTIONS
+
+            def build():
+                return make_pipeline("pyvrp", sharing_options=PYVRP_OPTIONS)
+        else:
+            def build():
+                return make_pipeline(name)
+        pipe = planner_pipeline(name, chip) if chip is not None and name != "pyvrp" else build()
+        _warm(("pipeline", m), lambda: build().plan(world, seed=0))
         plan = pipe.plan(world, seed=seed + i)
         ok = _plan_valid(world, plan)
         row = {"instance": i, "world_seed": seed + i, "method": m, "success": ok}

@@ -174,7 +174,7 @@ class LogicalIsingSolver(dimod.Sampler):
         max_tenure: cap of the default tenure (default 10).  One-hot
             permutation models (the tour layer) search better with a cap near
             10-12: a permutation move flips four spins, and a tenure of 20 on
-            36-45 spins blocks most of them (tour helper's measurement: optimum
+            36-45 spins blocks most of them (measured: optimum
             of random 6-target patch QUBOs found on 150/150 with cap 10 vs
             45/60 with 20).
         timeout_ms: ``"dwave-tabu"`` timeout per read.

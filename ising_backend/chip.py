@@ -366,20 +366,20 @@ class EmulatedChip(dimod.Sampler):
         """:meth:`anneal_batch` on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged
         the seconds since the last (the first from the call's start: the check and the driver's own
         bookkeeping are the machine's time too)."""
-        rounds: list[CallLedger] = []
+        total = CallLedger()  # the rounds added up in order, as they are charged
         mark = [t0]
 
         def charge(calls, seconds, retries, probe):
             now = time.perf_counter()
-            rounds.append(self.ledger.record_physical(calls, self.spec, now - mark[0],
-                                                      cores=len(self.health.healthy), retries=retries))
+            total._add_in_place(self.ledger.record_physical(calls, self.spec, now - mark[0],
+                                                            cores=len(self.health.healthy), retries=retries))
             mark[0] = now
 
         try:
             spins, energies = dispatch(self.health, hf, Jf, num_reads, seed, self._run_cores, charge)
         finally:
             charge(0, 0.0, 0, 0)  # the driver's seconds after the last round: no call, the machine's time
-            self.last_call = sum(rounds, CallLedger())
+            self.last_call = total
         if single:
             return spins[0], energies[0]
         return spins, energies

@@ -212,7 +212,7 @@ class LogicalIsingSolver(dimod.Sampler):
         self.ledger = CallLedger() if ledger is None else ledger
         self.last_call = CallLedger()
         self.health = health
-        self._rounds: list[CallLedger] = []
+        self._rounds = CallLedger()  # a faulty chip's dispatch rounds of the running call, added up in order
 
     # ----------------------------------------------------------------- dimod
     @property
@@ -277,19 +277,19 @@ class LogicalIsingSolver(dimod.Sampler):
         if self.health is None:
             yield
             return
-        self._rounds = []
+        self._rounds = CallLedger()
         self._mark = time.perf_counter() if t0 is None else t0
         try:
             yield
         finally:
             self._charge_round(0, 0.0, 0, 0)  # the seconds after the last round: no call, the solver's time
             self._mark = None
-            self.last_call = sum(self._rounds, CallLedger())
+            self.last_call = self._rounds
 
     def _charge_round(self, calls, seconds, retries, probe):
         now = time.perf_counter()
-        self._rounds.append(self.ledger.record_logical(calls, self.spec, now - self._mark,
-                                                       cores=len(self.health.healthy), retries=retries))
+        self._rounds._add_in_place(self.ledger.record_logical(calls, self.spec, now - self._mark,
+                                                              cores=len(self.health.healthy), retries=retries))
         self._mark = now
 
     def _run(self, h, J, num_reads, seed):

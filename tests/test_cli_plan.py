@@ -171,14 +171,14 @@ def test_console_script_subprocess(tmp_path, worlds):
 def test_a_failed_plan_is_written_and_exits_1(tmp_path, capsys):
     src = tmp_path / "w.json"
     write_world(generate_world(0, n_robots=3, n_targets=10), src)
-    # a 1-spin chip cannot take even the coarse root split (3 robots + one target cluster = 2 free spins):
+    # the Ising path layer with a budget of 4 chip calls per leg and no fallback gives up on long legs:
     # a failed plan (a result), not an input error
-    assert main(["plan", str(src), "--sharing", "ising", "--tour", "3opt", "--path", "astar", "--chip", "n_spins=1",
-                 "--no-progress"]) == 1
+    assert main(["plan", str(src), "--sharing", "ssa", "--tour", "3opt", "--path", "ising", "--option",
+                 "path.max_chip_calls=4", "--option", "path.fallback=never", "--no-progress"]) == 1
     captured = capsys.readouterr()
     (line,) = captured.out.splitlines()
     d = json.loads(line)
-    assert d["success"] is False and "need 2 free spins, the chip has 1" in d["failure"]
+    assert d["success"] is False and "budget spent" in d["failure"] and "max_chip_calls=4" in d["failure"]
     assert captured.err.strip().splitlines() == ['mrmt plan: 1 of 1 plans failed ("success": false; see their "failure")']
 
 

@@ -407,11 +407,28 @@ def test_a_group_larger_than_the_chip_is_split_on_clusters():
     assert runs[1].assignment == res.assignment  # deterministic under the seed
 
 
-def test_robots_beyond_the_chip_are_a_failure_naming_the_limit():
+def test_more_robots_than_the_chip_holds_are_clustered_and_split_on_the_chip():
+    """9 robots on a 6-spin chip: neighbouring robots are clustered for the coarse splits, every
+    target is assigned once, every robot keeps its own group, and the chip made the splits."""
     from ising_backend import ChipSpec, EmulatedChip
     from mrmt_env.generation import generate_world
 
     world = generate_world(2, height=12, width=12, n_robots=9, n_targets=20)
-    res = IsingSharing(chip=EmulatedChip(ChipSpec(n_spins=6)), fallback="never").assign(
-        world.distance_matrix, 9, ThreeOptTour(), np.random.default_rng(0))
-    assert res.failure is not None and "its robots and one cluster of targets need 8 free spins, the chip has 6" in res.failure
+    chip = EmulatedChip(ChipSpec(n_spins=6))
+    res = IsingSharing(chip=chip, fallback="never").assign(world.distance_matrix, 9, ThreeOptTour(),
+                                                           np.random.default_rng(0))
+    assert res.failure is None and len(res.assignment) == 9
+    assert sorted(t for group in res.assignment for t in group) == list(range(20))
+    assert res.stats["coarse_splits"] >= 1 and res.compute.chip_calls == chip.ledger.physical_calls > 0
+
+
+def test_a_fleet_beyond_the_chip_plans_end_to_end():
+    from mrmt_env.generation import generate_world
+    from planners.pipeline import make_pipeline
+    from planners.plan import validate_plan
+
+    world = generate_world(3, height=32, width=32, n_robots=50, n_targets=70, layout="warehouse")
+    plan = make_pipeline("ising").plan(world, seed=0)  # 50 robots: more than the 45-spin chip holds
+    assert plan.success, plan.failure
+    validate_plan(world, plan)
+    assert plan.stats["coarse_splits"] >= 1 and plan.compute.chip_calls > 0

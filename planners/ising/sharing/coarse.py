@@ -2,7 +2,8 @@
 
 A split of ``m`` nodes needs ``m - 2`` free spins.  When that exceeds what the chip holds even
 with spin-budget branching, the group's targets are first gathered into clusters (robots stay
-single nodes) and the split is solved on the clusters: the coarse weight of two clusters is
+single nodes, unless they alone would take more than half the chip: then neighbouring robots
+are clustered too) and the split is solved on the clusters: the coarse weight of two clusters is
 the sum of the fine weights between their members, so the coarse cut of a partition equals the
 fine cut of the partition that keeps every cluster whole.  The coarse problem goes through the
 same anchored QUBO, mapping portfolio and chip as any split; its candidates are expanded to
@@ -40,15 +41,23 @@ def farthest_point_clusters(w: np.ndarray, k: int) -> np.ndarray:
     return np.argmin(w[np.ix_(np.arange(n), centres)], axis=1).astype(np.int64)
 
 
-def coarsen(w: np.ndarray, group: np.ndarray, n_robots: int, n_clusters: int):
-    """``(members, wc)``: the coarse nodes of ``group`` (robots first, one each, then target
-    clusters; arrays of global node indices) and their summed weight matrix (zero diagonal)."""
+def _clusters(w: np.ndarray, nodes: np.ndarray, k: int) -> list[np.ndarray]:
+    labels = farthest_point_clusters(np.asarray(w, dtype=float)[np.ix_(nodes, nodes)], k)
+    return [np.sort(nodes[labels == c]) for c in range(int(labels.max()) + 1) if (labels == c).any()]
+
+
+def coarsen(w: np.ndarray, group: np.ndarray, n_robots: int, n_clusters: int, robot_clusters: int | None = None):
+    """``(members, wc)``: the coarse nodes of ``group`` (robots first -- one each, or
+    ``robot_clusters`` clusters of neighbouring robots --, then target clusters; arrays of global
+    node indices) and their summed weight matrix (zero diagonal)."""
     group = np.asarray(group, dtype=np.int64)
     robots = group[group < n_robots]
     targets = group[group >= n_robots]
-    labels = farthest_point_clusters(np.asarray(w, dtype=float)[np.ix_(targets, targets)], n_clusters)
-    members = [np.array([r], dtype=np.int64) for r in robots]
-    members += [np.sort(targets[labels == c]) for c in range(int(labels.max()) + 1) if (labels == c).any()]
+    if robot_clusters is None:
+        members = [np.array([r], dtype=np.int64) for r in robots]
+    else:
+        members = _clusters(w, robots, robot_clusters)
+    members += _clusters(w, targets, n_clusters)
     index = np.concatenate([np.full(len(m), i, dtype=np.int64) for i, m in enumerate(members)])
     order = np.concatenate(members)
     onehot = np.zeros((len(order), len(members)))
@@ -86,12 +95,20 @@ class CoarseSplits:
         g = np.asarray(g, dtype=np.int64)
         n_spins = int(self.chip.spec.n_spins)
         robots = int((g < R).sum())
-        n_clusters = n_spins + 2 - robots
-        if n_clusters < 1:  # robots + one target cluster, less the two anchors, must fit
-            raise SharingFailure(
-                f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the chip: "
-                f"its robots and one cluster of targets need {robots - 1} free spins, the chip has {n_spins}")
-        members, wc = coarsen(w, g, R, n_clusters)
+        robot_clusters = None
+        if n_spins + 2 - robots < max(1, n_spins // 2):
+            # more robots than leave half the chip to target clusters: neighbouring robots are
+            # clustered too (each side of the coarse split keeps whole robot clusters; the fine
+            # groups below split them on the chip as usual)
+            robot_clusters = max(2, (n_spins + 2) // 2)
+            if robots < 2 or n_spins + 2 - robot_clusters < 1:
+                raise SharingFailure(
+                    f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the "
+                    f"chip: its split needs at least {robot_clusters - 1} free spins, the chip has {n_spins}")
+        n_coarse_robots = robots if robot_clusters is None else min(robots, robot_clusters)
+        n_clusters = n_spins + 2 - n_coarse_robots
+        members, wc = coarsen(w, g, R, n_clusters, robot_clusters)
+        robots = sum(1 for m in members if m[0] < R)  # coarse robot nodes (robot clusters keep robots only)
         outer, self._memo = self._memo, {}  # coarse node indices must not meet the fine memo
         try:
             (problem,) = self._stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)

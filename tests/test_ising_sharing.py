@@ -432,3 +432,19 @@ def test_a_fleet_beyond_the_chip_plans_end_to_end():
     assert plan.success, plan.failure
     validate_plan(world, plan)
     assert plan.stats["coarse_splits"] >= 1 and plan.compute.chip_calls > 0
+
+
+def test_coarse_clusters_of_shifted_split_weights_are_not_degenerate():
+    """Split weights are shifted distances (negative for near pairs); the clusters of a coarse split
+    are those of the distances themselves, never one cluster swallowing the group."""
+    from planners.ising.sharing.coarse import _clusters
+
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(0, 50, size=(60, 2))
+    d = np.abs(pts[:, None, :] - pts[None, :, :]).sum(-1)
+    nodes = np.arange(60)
+    shifted = d - 1.0 * d[np.triu_indices(60, 1)].mean()
+    np.fill_diagonal(shifted, 0.0)
+    a, b = _clusters(d, nodes, 12), _clusters(shifted, nodes, 12)
+    assert len(a) == len(b) == 12
+    assert [x.tolist() for x in a] == [x.tolist() for x in b]  # the same clusters as on the distances

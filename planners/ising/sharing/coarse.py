@@ -42,7 +42,13 @@ def farthest_point_clusters(w: np.ndarray, k: int) -> np.ndarray:
 
 
 def _clusters(w: np.ndarray, nodes: np.ndarray, k: int) -> list[np.ndarray]:
-    labels = farthest_point_clusters(np.asarray(w, dtype=float)[np.ix_(nodes, nodes)], k)
+    sub = np.asarray(w, dtype=float)[np.ix_(nodes, nodes)]
+    if len(nodes) > 1:
+        low = sub[~np.eye(len(nodes), dtype=bool)].min()
+        if low < 0:  # shifted split weights: back to a distance-like matrix (same order), zero diagonal
+            sub = sub - low
+            np.fill_diagonal(sub, 0.0)
+    labels = farthest_point_clusters(sub, k)
     return [np.sort(nodes[labels == c]) for c in range(int(labels.max()) + 1) if (labels == c).any()]
 
 

@@ -244,7 +244,10 @@ class MachineSpec:
             raise ValueError(f"unknown sampler {self.sampler!r}; known: {', '.join(SAMPLERS)}")
         if self.options and self.sampler is None:
             raise ValueError("sampler options given without a sampler")
-        object.__setattr__(self, "options", tuple(sorted(dict(self.options).items())))
+        def frozen(v):  # list values (a JSON option such as beta_range=[0.1, 5]) kept hashable
+            return tuple(frozen(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+        object.__setattr__(self, "options", tuple(sorted((k, frozen(v)) for k, v in dict(self.options).items())))
 
     def build(self, seed: int | None = None):
         if self.sampler is None:

@@ -124,6 +124,12 @@ def test_broken_device_answers_are_refused():
         Broken().anneal_batch(np.zeros((1, 3)), np.zeros((1, 3, 3)))
 
 
+def test_machine_spec_with_a_list_option_stays_hashable():
+    m = MachineSpec(sampler="dwave-sa", options=(("beta_range", [0.1, 5.0]),))
+    assert hash(m) == hash(MachineSpec(sampler="dwave-sa", options=(("beta_range", (0.1, 5.0)),)))
+    assert m.build().params == {"beta_range": (0.1, 5.0)}
+
+
 def test_machine_spec_pickles_and_builds():
     m = MachineSpec(ChipSpec(n_spins=30), "dwave-sa", (("num_sweeps", 20),))
     back = pickle.loads(pickle.dumps(m))

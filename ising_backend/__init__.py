@@ -67,14 +67,14 @@ from .portfolio import (
 from .composite import COMPOSITE_RULES, QuantizeComposite
 from .link import MachineLink, anneal_submit, solve_submit
 from .machine import (SAMPLERS, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
-                      program_energies, sampler_names)
+                      sampler_names)
 
 __all__ = [
     # models, spec, ledger
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # Ising machines
     "IsingMachine", "MachineBase", "SamplerChip", "MachineSpec", "SAMPLERS", "as_machine", "build_machine",
-    "sampler_names", "program_energies", "MachineLink", "anneal_submit", "solve_submit",
+    "sampler_names", "MachineLink", "anneal_submit", "solve_submit",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit",
     # faults

@@ -64,8 +64,12 @@ def emulate(spec: ChipSpec, faults: FaultMap, cores: np.ndarray, seed: int, atte
 
 
 def program_energy(h: np.ndarray, J: np.ndarray, spins: np.ndarray) -> np.ndarray:
-    """``E_k = h_k . s_k + sum_{i != j} J_kij s_ki s_kj`` (diagonal ignored) of rows ``k``, without offset."""
+    """``E_k = h_k . s_k + sum_{i != j} J_kij s_ki s_kj`` (diagonal ignored) of rows ``k``, without offset;
+    ``spins`` ``(k, n)`` gives ``(k,)``, ``(k, reads, n)`` gives ``(k, reads)``."""
     s = spins.astype(np.float64)
+    if s.ndim == 3:
+        return (np.einsum("kri,ki->kr", s, h) + np.einsum("kri,kij,krj->kr", s, J, s)
+                - np.einsum("kii->k", J)[:, None])
     return (np.einsum("ki,ki->k", h, s) + np.einsum("ki,kij,kj->k", s, J, s)
             - np.einsum("kii->k", J))
 

@@ -27,12 +27,13 @@ import dimod
 import numpy as np
 
 from .chip import EmulatedChip, check_call_seed, check_num_reads, check_program, sample_bqm, seeded_rng, stack_programs
+from .health import program_energy
 from .ledger import CallLedger
 from .meter import SolverOutputError
 from .spec import ChipSpec
 
 __all__ = ["IsingMachine", "MachineBase", "SamplerChip", "MachineSpec", "SAMPLERS", "as_machine",
-           "build_machine", "sampler_names", "program_energies"]
+           "build_machine", "sampler_names"]
 
 
 @runtime_checkable
@@ -44,12 +45,6 @@ class IsingMachine(Protocol):
 
     def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         ...
-
-
-def program_energies(h: np.ndarray, J: np.ndarray, spins: np.ndarray) -> np.ndarray:
-    """``(B, reads)`` energies of ``spins (B, reads, n)`` on the programs ``h (B, n)``, ``J (B, n, n)``."""
-    s = spins.astype(np.float64)
-    return np.einsum("brn,bn->br", s, h) + np.einsum("brn,bnm,brm->br", s, J, s)
 
 
 class MachineBase(dimod.Sampler):
@@ -114,7 +109,7 @@ class MachineBase(dimod.Sampler):
             spins = spins.astype(np.int8, copy=False)
         else:
             spins = np.ones((B, num_reads, n), dtype=np.int8)
-        energies = program_energies(hf, Jf, spins)
+        energies = program_energy(hf, Jf, spins)
         self.last_call = self.ledger.record_physical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
@@ -210,9 +205,9 @@ class SamplerChip(MachineBase):
         seeds = np.random.default_rng(seed).integers(0, 2**31, size=B)  # neal and dwave-samplers take [0, 2**31)
         iu, ju = np.triu_indices(n, 1)
         for b in range(B):
-            mask = J[b, iu, ju] != 0
-            bqm = dimod.BinaryQuadraticModel.from_numpy_vectors(
-                h[b], (iu[mask], ju[mask], J[b, iu, ju][mask]), 0.0, dimod.SPIN)
+            upper = J[b, iu, ju]
+            mask = upper != 0
+            bqm = dimod.BinaryQuadraticModel.from_numpy_vectors(h[b], (iu[mask], ju[mask], upper[mask]), 0.0, dimod.SPIN)
             kw = dict(self.params, num_reads=num_reads)
             if self._seeded:
                 kw["seed"] = int(seeds[b])

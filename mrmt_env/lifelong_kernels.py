@@ -29,8 +29,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["COUNTERS", "lifelong_load", "lifelong_step", "resolve_block", "uniform01", "poisson_count",
-           "move_masks"]
+__all__ = ["COUNTERS", "lifelong_load", "lifelong_step", "resolve_block", "uniform01", "poisson_count"]
 
 COUNTERS = ("steps", "route_cost", "tasks_completed", "invalid_moves", "vertex_conflicts", "swap_conflicts",
             "blocked_moves", "service_sum", "tasks_arrived", "tasks_dropped", "open_tasks")
@@ -298,15 +297,3 @@ def lifelong_step(actions, live, succ, pos, at, task_t, free, free_idx, n_free, 
             _release(b, held[i], _HAS_ROBOT, free, free_idx, n_free)
         counters[b, _OPEN] = counters[b, _ARRIVED] - counters[b, _DONE]
         rewards[b] = n_served * task_reward - attempted
-
-
-@numba.njit(cache=True, nogil=True)
-def move_masks(succ, pos, out) -> None:
-    """``out (B, 5 * R)``: per robot, stay and every move not into an obstacle or off the grid."""
-    n_robots = pos.shape[1]
-    for b in range(pos.shape[0]):
-        for k in range(n_robots):
-            p = pos[b, k]
-            out[b, 5 * k] = True
-            for a in range(1, 5):
-                out[b, 5 * k + a] = succ[b, p, a] != p

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrmt_env.lifelong_kernels import COUNTERS, lifelong_load, lifelong_step, move_masks
+from mrmt_env.grid_kernels import grid_masks
+from mrmt_env.lifelong_kernels import COUNTERS, lifelong_load, lifelong_step
 from mrmt_env.maps import build_layout
 from mrmt_env.world import World
 
@@ -117,7 +118,7 @@ class LifelongBatch:
     def masks(self) -> np.ndarray:
         """``(B, 5 * R)`` bools: stay and the moves not into an obstacle or off the grid."""
         out = np.zeros((self.n_envs, 5 * self.n_robots), dtype=np.bool_)
-        move_masks(self.succ, self.pos, out)
+        grid_masks(self.succ, self.pos, out)  # the grid env's kernel: stay, and every unblocked move
         return out
 
     def info_arrays(self) -> dict:

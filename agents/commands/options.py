@@ -52,8 +52,8 @@ def add_chip_argument(parser, who: str = "the Ising planners", chip: bool = True
                         help="a parameter of the --sampler, e.g. num_sweeps=100 or timeout=2 (repeatable)")
 
 
-def _option_value(text: str):
-    """A ``--sampler-option`` value: JSON when it parses (numbers, true/false, null), else the string."""
+def option_value(text: str):
+    """A ``--option`` / ``--sampler-option`` value: JSON when it parses (numbers, true/false, null), else the string."""
     import json
 
     try:
@@ -81,7 +81,7 @@ def chip_from_args(args, key: str = "chip"):
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise ValueError(f"--sampler-option {item!r} must look like KEY=VALUE (e.g. num_sweeps=100)")
-        pairs.append((name.strip(), _option_value(value.strip())))
+        pairs.append((name.strip(), option_value(value.strip())))
     machine = MachineSpec(spec or ChipSpec(), sampler, tuple(pairs))
     machine.build()  # fail now, in one line: a missing package, an unknown parameter, a faulty spec
     return machine

@@ -45,7 +45,7 @@ import json
 import sys
 from pathlib import Path
 
-from agents.commands.options import add_chip_argument, chip_from_args
+from agents.commands.options import add_chip_argument, chip_from_args, option_value
 
 NAME = "plan"
 HELP = "plan worlds from a JSON / JSON Lines file; one plan (JSON) per world"
@@ -90,11 +90,7 @@ def _parse_options(items: list[str]) -> dict[str, dict]:
             raise ValueError(f"--option {item!r} must look like LAYER.KEY=VALUE (e.g. tour.moves=7)")
         if layer not in options:
             raise ValueError(f"--option {item!r}: layer {layer!r} is not one of sharing, tour, path")
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
-        options[layer][name] = value
+        options[layer][name] = option_value(raw)
     return options
 
 

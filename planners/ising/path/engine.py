@@ -22,8 +22,8 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import merge_styles_flat
-from ising_backend.link import anneal_submit
+from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, anneal_submit, merge_styles_flat
+from planners.ising.fallback import unavailable_message
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
@@ -312,11 +312,6 @@ class CompiledSearch:
     def _run_engine(self, grid, s, g, rng, field):
         """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
         submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
-        from ising_backend import CallLedger
-
-        from ising_backend import ChipUnavailableError, SolverOutputError
-        from planners.ising.fallback import unavailable_message
-
         cfg = self.config
         self._link.charged = CallLedger()
         try:

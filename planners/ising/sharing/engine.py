@@ -17,8 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import pack_layout, programs_fit
-from ising_backend.link import anneal_submit
+from ising_backend import anneal_submit, pack_layout, programs_fit
 from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
 
 __all__ = ["run_stage"]

@@ -17,8 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import quantize_rules
-from ising_backend.link import anneal_submit
+from ising_backend import anneal_submit, quantize_rules
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 

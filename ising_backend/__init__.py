@@ -47,7 +47,7 @@ from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
-from .blocks import pack_blocks, pack_layout, plan_packs, unpack_blocks
+from .blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
 from .portfolio import (
     BranchMapping,
     IdentityMapping,
@@ -89,7 +89,7 @@ __all__ = [
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
-    "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks",
+    "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks",
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",

@@ -369,16 +369,17 @@ def merge_styles(H, C, styles, Lh, Lj, tie, n_spins):
 
 
 @numba.njit(cache=True)
-def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx):
+def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx, status):
     """:func:`merge_styles` written into the caller's buffers in the chip's program layout (the
     same mappings, coefficient for coefficient), for a caller that keeps the programs.
 
-    Returns ``(ok, w)``: ``w`` is the widest mapping's physical spins; style ``s``'s fields are
-    ``h_out[s * w:(s + 1) * w]`` and its couplings ``J_out[s * w * w:(s + 1) * w * w]`` (``w x w``,
-    C order, upper triangular), zero-padded to ``w``; its copy layout is ``ptr[s, : n + 1]`` and
-    ``idx[s, :w]`` (zero beyond its spins).  ``ok`` is False, and nothing is written, when a style
-    does not fit (:func:`merge_styles` names the term).  Outputs of any integer or float dtype
-    (the coefficients are integers within the limits)."""
+    Returns ``w``, the widest mapped style's physical spins; ``status[s]`` is style ``s``'s merge
+    code (``MERGE_OK`` or why it does not fit: :func:`merge_styles` names the term).  Style
+    ``s``'s fields are ``h_out[s * w:(s + 1) * w]`` and its couplings ``J_out[s * w * w:(s + 1)
+    * w * w]`` (``w x w``, C order, upper triangular), zero-padded to ``w`` (all zero for a style
+    that does not fit); its copy layout is ``ptr[s, : n + 1]`` and ``idx[s, :w]`` (zero beyond its
+    spins; all zero for a style that does not fit).  Outputs of any integer or float dtype (the
+    coefficients are integers within the limits)."""
     n = H.shape[0]
     k = styles.shape[0]
     H1 = H.reshape(1, n)
@@ -395,19 +396,23 @@ def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx
     n_over = _over_pairs(C1, 0, n, Lj, over)
     w = 0
     for s in range(k):
-        if _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj, over,
-                        n_over, pex) != MERGE_OK:
-            return False, 0
-        w = max(w, a[s].sum())
+        status[s] = _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj,
+                                 over, n_over, pex)
+        if status[s] == MERGE_OK:
+            w = max(w, a[s].sum())
     h_out[: k * w] = 0
     J_out[: k * w * w] = 0
     start = exj  # free again: the first extra copy of each spin
     for s in range(k):
+        if status[s] != MERGE_OK:
+            ptr[s, : n + 1] = 0
+            idx[s, :w] = 0
+            continue
         _layout(a[s], n, start, ptr[s], idx[s])
         idx[s, a[s].sum(): w] = 0
         _fill(H1, C1, 0, n, a[s], _EVEN[styles[s]], Lh, Lj, tie, start, h_out[s * w:(s + 1) * w],
               J_out[s * w * w:(s + 1) * w * w].reshape((w, w)))
-    return True, w
+    return w
 
 
 @numba.njit(cache=True)

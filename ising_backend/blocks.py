@@ -20,7 +20,7 @@ import numpy as np
 
 from .models import IsingModel
 
-__all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "pack_layout"]
+__all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "pack_layout", "fill_packs"]
 
 
 def pack_blocks(models: Sequence[IsingModel], n_spins: int | None = None) -> tuple[IsingModel, list[slice]]:
@@ -109,3 +109,27 @@ def pack_layout(sizes, capacity):
                 total += sizes[j]
         width = max(width, total)
     return pack_of, within, n_packs, width
+
+
+@numba.njit(cache=True)
+def fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width):
+    """The chip programs of one submission: program ``j`` (``qh[j, :n]``, ``qJ[j, :n, :n]``, ``n =
+    prog_sizes[j]``) placed block-diagonally in pack ``pack_of[j]``, programs taken in ``order``
+    (each after those placed in its pack before it).  Returns ``(h (n_packs, width), J (n_packs,
+    width, width), where (programs, 2))`` (the inputs' dtypes) with ``where[j]`` = (pack, first spin)."""
+    h = np.zeros((n_packs, width), dtype=qh.dtype)
+    J = np.zeros((n_packs, width, width), dtype=qJ.dtype)
+    fill = np.zeros(n_packs, dtype=np.int64)
+    where = np.zeros((prog_sizes.shape[0], 2), dtype=np.int64)
+    for j in order:
+        b = pack_of[j]
+        s0 = fill[b]
+        n = prog_sizes[j]
+        for i in range(n):
+            h[b, s0 + i] = qh[j, i]
+            for t in range(n):
+                J[b, s0 + i, s0 + t] = qJ[j, i, t]
+        where[j, 0] = b
+        where[j, 1] = s0
+        fill[b] = s0 + n
+    return h, J, where

@@ -50,9 +50,9 @@ anything else keeps the last value (so Ising layers' ``"mapping"`` counts
 accumulate).  A ``"failure"`` entry is not merged; it fails the plan.
 
 Batched legs.  A path layer with ``find_paths(world, cells, rng)`` (the Ising path layer) plans
-a robot's legs in one call, with one compute report and one statistics dict for them; the legs
-it stops before (a failure, a query it cannot batch) go through ``find_path`` one by one, so the
-plan, its statistics and its failures are those of the per-leg calls
+a robot's legs in one call, with one compute report and one statistics dict for them; the leg it
+stops at comes back as its own result (``LegBatch.failed``) and any legs after it go through
+``find_path`` one by one, so the plan, its statistics and its failures are those of the per-leg calls
 (``Pipeline(..., batch_paths=False)`` makes every leg a ``find_path`` call).
 
 Shortcuts (so a layer is charged only for work it really does): with one
@@ -348,6 +348,7 @@ class Pipeline:
                 pieces = [start.reshape(1, 2)]
                 reached: list[int] = []
                 batched: list = []
+                batch = None
                 if self._batch_paths and ordered:  # the legs the layer plans in one call
                     t0 = _clock()
                     batch = self.path.find_paths(world, cells, rng)
@@ -361,7 +362,10 @@ class Pipeline:
                         path, failure = batched[j], None
                     else:
                         t0 = _clock()
-                        pres: PathResult = self.path.find_path(world, a, b, rng)
+                        if j == len(batched) and batch is not None and batch.failed is not None:
+                            pres: PathResult = batch.failed  # the leg the batch stopped at (timed with it)
+                        else:
+                            pres = self.path.find_path(world, a, b, rng)
                         acc["path"].add(pres.compute, _clock() - t0)
                         if pres.stats:
                             merge_stats(stats, pres.stats)

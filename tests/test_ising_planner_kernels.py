@@ -17,7 +17,8 @@ from ising_backend import QuboModel, branch
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
-from planners.ising.path.qubo import build_patch_qubo, build_patch_qubo_reference, component_of, patch_frame
+from path_reference import build_patch_qubo_reference
+from planners.ising.path.qubo import build_patch_qubo, component_of, patch_frame
 from planners.ising.sharing.kernels import score_split_reads, split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 from planners.ising.tour.kernels import (
@@ -322,19 +323,27 @@ def test_exact_route_cost_refuses_too_many_targets():
 
 
 # ----------------------------------------------------------------------------- compiled path loop
-@pytest.mark.parametrize("options", [{}, {"form": "degree"}, {"target_order": "merged", "num_reads": 2},
-                                     {"interior_targets": False, "backtrack": False}, {"max_attempts": 3},
-                                     {"target_key": "bfs"}, {"target_key": "bfs", "target_order": "merged"}])
-def test_compiled_path_loop_makes_the_reference_loops_decisions(options):
-    """The compiled search loop (planners.ising.path.engine) against the Python loop it mirrors:
-    the same paths, failures, statistics, chip charges and rng state on random worlds."""
-    from ising_backend import EmulatedChip
+@pytest.mark.parametrize("options, spec", [
+    ({}, {}), ({"form": "degree"}, {}), ({"target_order": "merged", "num_reads": 2}, {}),
+    ({"interior_targets": False, "backtrack": False}, {}), ({"max_attempts": 3}, {}),
+    ({"target_key": "bfs"}, {}), ({"target_key": "bfs", "target_order": "merged"}, {}),
+    ({"targets_per_call": 3}, {}), ({"targets_per_call": 2, "max_chip_calls": 40}, {}),
+    ({"pack": True, "styles": ("overload", "balanced", "max_coeff")}, {}),
+    ({"pack": True, "targets_per_call": 2}, {}),
+    # a chip just large enough for a 5x5 patch: some styles do not fit some programs
+    ({"patch_size": 5, "scale": 24.0}, {"n_spins": 25}),
+    ({"patch_size": 5, "scale": 24.0, "targets_per_call": 2, "pack": True}, {"n_spins": 28}),
+])
+def test_compiled_path_loop_makes_the_reference_loops_decisions(options, spec):
+    """The compiled search loop (planners.ising.path.engine) against the Python loop of
+    tests/path_reference.py: the same paths, failures, statistics, chip charges and rng state on
+    random worlds, for every option the loop takes (batched targets, packing, unmappable styles)."""
+    from ising_backend import ChipSpec, EmulatedChip
     from mrmt_env.generation import generate_world
+    from path_reference import reference_find_path
     from planners.ising.path import IsingPath
 
-    fast, ref = IsingPath(EmulatedChip(), **options), IsingPath(EmulatedChip(), **options)
-    assert fast._engine_args is not None
-    ref._engine_args = None  # force the reference loop
+    fast, ref = IsingPath(EmulatedChip(ChipSpec(**spec)), **options), IsingPath(EmulatedChip(ChipSpec(**spec)), **options)
     outcomes = set()
     for s in range(8):
         w = generate_world(s, height=8 + s % 5, width=9 + s % 4, n_robots=2, n_targets=3,
@@ -342,13 +351,37 @@ def test_compiled_path_loop_makes_the_reference_loops_decisions(options):
         for t in list(w.targets) + [w.robots[1]]:
             r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
             a = fast.find_path(w, w.robots[0], t, r1)
-            b = ref.find_path(w, w.robots[0], t, r2)
+            b = reference_find_path(ref, w, w.robots[0], t, r2)
             assert a.failure == b.failure
             assert (a.path is None and b.path is None) or np.array_equal(a.path, b.path)
             assert a.stats == b.stats and a.compute == b.compute
             assert r1.integers(1 << 62) == r2.integers(1 << 62)  # the same draws were made
             outcomes.add(a.failure is None)
     assert True in outcomes
+
+
+def test_unmappable_styles_are_counted_and_named():
+    """A style that cannot map a patch program is skipped and counted; when none maps, the query
+    fails naming the merge kernel's error (no other code path runs)."""
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.path import IsingPath
+
+    w = generate_world(3, obstacle_density=0.0)
+    some = IsingPath(EmulatedChip(ChipSpec(n_spins=25)), patch_size=5, scale=24.0)
+    errors = programs = 0
+    for s in range(6):
+        w = generate_world(s)
+        m = some.find_path(w, w.robots[0], w.targets[0], np.random.default_rng(0)).stats["mapping"]["path"]
+        errors += m["high_degree"]["map_errors"] - m["overload"]["map_errors"]  # styles fail on different programs
+        programs += m["overload"]["programs"]
+    assert errors > 0 and programs > 0
+    w = generate_world(3, obstacle_density=0.0)
+    none = IsingPath(EmulatedChip(ChipSpec(n_spins=23)), patch_size=5, scale=40.0, styles=("overload",),
+                     fallback="never")
+    res = none.find_path(w, w.robots[0], w.targets[0], np.random.default_rng(0))
+    assert res.path is None and res.compute.chip_calls == 0
+    assert "no patch program could be mapped onto the chip" in res.failure and "overload: " in res.failure
 
 
 def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_its_anneal_batch():
@@ -365,7 +398,7 @@ def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_i
 
     chip = Counting()
     planner = IsingPath(chip)
-    assert planner._engine_args is not None and not planner._link.direct
+    assert not planner._link.direct
     world = generate_world(2)
     a = planner.find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
     b = IsingPath(EmulatedChip()).find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
@@ -373,8 +406,6 @@ def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_i
     assert np.array_equal(a.path, b.path) and a.stats == b.stats
     assert a.compute.replace(emulation_s=0.0) == b.compute.replace(emulation_s=0.0)
     assert chip.submissions == a.stats["anneal_calls"] > 0 and chip.ledger.physical_calls == a.compute.chip_calls
-    assert IsingPath(EmulatedChip(), pack=True)._engine_args is None
-    assert IsingPath(EmulatedChip(), targets_per_call=2)._engine_args is None
 
 
 @SETTINGS
@@ -415,8 +446,7 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options):
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.integers(1, 12), min_size=1, max_size=12), st.integers(12, 45), st.integers(0, 2**31))
 def test_fill_packs_places_programs_as_the_python_loop(sizes, capacity, seed):
-    from ising_backend import plan_packs
-    from planners.ising.sharing.kernels import fill_packs
+    from ising_backend import fill_packs, plan_packs
 
     rng = np.random.default_rng(seed)
     sizes = np.array(sizes, dtype=np.int64)
@@ -568,3 +598,56 @@ def test_dist_flags_is_the_numpy_checks(n, seed, p_nan, p_neg, p_inf):
         assert code == 2 and (r, c) == tuple(np.argwhere(~np.isfinite(d))[0])
     else:
         assert (code, r, c) == (0, -1, -1)
+
+
+@pytest.mark.parametrize("options, spec", [
+    ({}, {}), ({"num_reads": 3, "max_retries": 0}, {}), ({"chip_rules": ("rank",), "max_moves": 6}, {}),
+    ({"max_segment": 2, "max_overlap": 0}, {"n_spins": 12}),
+    ({}, {"readout_flip_prob": 0.05, "stuck_spins": 2}),  # a faulty chip: the same loop through its anneal_batch
+])
+def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
+    """planners.ising.tour.move_engine.select_moves_loop (one start of the chip tour) against the
+    Python loop of tests/tour_reference.py: the same routes, failures, statistics, charges and rng
+    state from nearest-neighbour and random starts."""
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.tour import IsingTour, TourFailure
+    from planners.ising.tour.cluster import _Run
+    from tour_reference import nearest_neighbour_route, reference_select_moves
+
+    fast = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
+    ref = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
+    moved = 0
+    for s in range(10):
+        dist = generate_world(s, n_robots=1, n_targets=4 + 2 * s).distance_matrix
+        start = nearest_neighbour_route(dist) if s % 2 else np.concatenate(
+            [[0], 1 + np.random.default_rng(s).permutation(len(dist) - 1)]).astype(np.int64)
+        runs = [_Run(np.random.default_rng(s), t._empty_stats(), t) for t in (fast, ref)]
+        out = []
+        for tour, run, step in ((fast, runs[0], fast._select_moves), (ref, runs[1], None)):
+            try:
+                got = step(dist, start, run) if step else reference_select_moves(tour, dist, start, run)
+                out.append(got.tolist())
+            except TourFailure as exc:
+                out.append(str(exc))
+        assert out[0] == out[1]
+        a, b = runs
+        assert a.stats == b.stats
+        assert (a.charged.physical_calls, a.charged.batches) == (b.charged.physical_calls, b.charged.batches)
+        assert a.rng.integers(1 << 62) == b.rng.integers(1 << 62)
+        moved += a.stats["moves_applied"] * a.charged.physical_calls
+    assert moved > 0
+
+
+def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it():
+    """Distances so large that move gains overflow give a non-finite selection program: the chip
+    tour fails naming it, nothing annealed (no second code path runs)."""
+    from planners.ising.tour import IsingTour
+
+    pts = np.random.default_rng(0).random((8, 2))
+    dist = np.abs(pts[:, None] - pts[None]).sum(-1) * 1e308
+    assert np.isfinite(dist).all()
+    res = IsingTour(backend="chip", fallback="never").solve(dist, np.random.default_rng(0))
+    assert res.order is None or not len(res.order)
+    assert "refused a move-selection program: a coefficient is not finite" in res.failure
+    assert res.compute.chip_calls == 0

@@ -18,7 +18,8 @@ from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfi
 from planners.ising.sharing.boundary import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
 from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
-from planners.ising.tour.selection import double_bridge, nearest_neighbour_route
+from planners.ising.tour.selection import double_bridge
+from tour_reference import nearest_neighbour_route
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan
 from planners.tours_classical import BruteTour, exact_route_cost

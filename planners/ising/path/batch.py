@@ -4,12 +4,11 @@ Contract: ``IsingPath.find_paths(world, cells, rng) -> LegBatch`` plans the legs
 cells[j + 1]`` one after another exactly as ``find_path`` would (same compiled query loop, same
 random stream, same paths), but in one compiled call (:func:`run_legs`: every leg's query, its
 loops cut and its path checked) with one compute report and one statistics dict for all of
-them (equal to the merge of the per-leg ones) instead of a result per leg.  It stops before the
-first leg the compiled loop does not reach the goal of (a failure, a program it cannot map, an
-invalid cell): the rng is left as it was before that leg (the legs before it are replayed from
-the saved state, which gives the same draws) and ``LegBatch.paths`` holds the legs done, so the
-caller plans the rest with ``find_path``, which gives that leg its own result, failure and
-fallback.  Only chips the compiled loop may drive are batched (``paths`` empty otherwise).
+them (equal to the merge of the per-leg ones) instead of a result per leg.  It stops at the
+first leg the compiled loop does not reach the goal of: ``LegBatch.paths`` holds the legs done
+and ``LegBatch.failed`` that leg's own result (failure, statistics, charge and fallback, as
+``find_path`` gives it); the caller plans any legs after it with ``find_path``.  Legs into a cell
+off the grid or on an obstacle are not batched (``find_path`` names the cell).
 """
 
 from __future__ import annotations
@@ -21,6 +20,7 @@ import numpy as np
 
 from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
 from planners.compute import ComputeReport
+from planners.ising.fallback import path_fallback
 from planners.ising.path.engine import REACHED, run_query
 
 __all__ = ["LegBatch", "BatchedLegs", "run_legs", "cut_walk"]
@@ -35,6 +35,7 @@ class LegBatch:
     paths: list = field(default_factory=list)
     compute: object = None
     stats: dict = field(default_factory=dict)
+    failed: object = None  # the PathResult of leg len(paths) when the batch stopped at it
 
 
 @numba.njit(cache=True)
@@ -89,16 +90,17 @@ def usable_legs(cells, grid):
 
 
 @numba.njit(cache=True)
-def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields, stops, size,
-             nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls, degree,
-             coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
-             flip_prob, free_cells, grid, cut):
+def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
+             padded, fields, stops, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads,
+             per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps,
+             geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each, until the first
     leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s ranking field
     (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
-    counts (5,), mapping (k, 4), sub_calls, sub_emu, walked)``: leg ``j``'s path is
-    ``points[ends[j]:ends[j + 1]]``; counts, mapping, submissions and walk steps are those of the
-    legs done."""
+    counts (5,), mapping (k, 4), sub_calls, sub_emu, walked, last, n_sub)``: leg ``j``'s path is
+    ``points[ends[j]:ends[j + 1]]``; counts, mapping and walk steps are those of the legs done;
+    ``last`` is the :func:`run_query` output of the last leg run (the one not done when ``done <
+    L``); the first ``n_sub`` submissions are the legs done', the rest that leg's."""
     L = stops.shape[0] - 1
     k = style_ids.shape[0]
     cap = 64
@@ -110,16 +112,26 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     emu = np.empty(0)
     walked = 0
     done = 0
+    n_sub = 0
+    last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp,
+                     ptarget, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], size, nbr, ring,
+                     offsets, adj4, diag, interior, merged, backtrack, num_reads, per_call, pack, max_attempts,
+                     max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot,
+                     beta_cold, mismatch, flip_prob, free_cells)
     for j in range(L):
-        sr, sc, gr, gc = stops[j, 0], stops[j, 1], stops[j + 1, 0], stops[j + 1, 1]
-        status, _pr, _pc, walk, leg_counts, leg_map, sub_calls, sub_emu = run_query(
-            rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, fields[j], sr, sc, gr,
-            gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads, max_attempts, max_calls,
-            degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold,
-            mismatch, flip_prob, free_cells)
+        if j:
+            last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p,
+                             pcomp, ptarget, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
+                             stops[j + 1, 1], size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
+                             num_reads, per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh,
+                             Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                             free_cells)
+        status, walk, leg_counts, leg_map, sub_calls, sub_emu = last[0], last[3], last[4], last[5], last[6], last[7]
+        calls = np.concatenate((calls, sub_calls))
+        emu = np.concatenate((emu, sub_emu))
         if status != REACHED:
             break
-        ok, path = cut_walk(walk, grid, sr, sc, gr, gc, cut)
+        ok, path = cut_walk(walk, grid, stops[j, 0], stops[j, 1], stops[j + 1, 0], stops[j + 1, 1], cut)
         if not ok:
             break
         top = ends[j]
@@ -132,45 +144,49 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
         ends[j + 1] = top + path.shape[0]
         counts += leg_counts
         mapping += leg_map
-        calls = np.concatenate((calls, sub_calls))
-        emu = np.concatenate((emu, sub_emu))
+        n_sub = calls.shape[0]
         walked += walk.shape[0] - 1
         done += 1
-    return done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked
+    return done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked, last, n_sub
 
 
 class BatchedLegs:
-    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``chip``, ``_engine_args``,
-    ``_pool``, ``_goal_fields``, ``_padded`` and ``_loop_args``)."""
+    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``_link``, ``_pool``,
+    ``_goal_fields``, ``_padded``, ``_loop_args`` and ``_query_result``)."""
 
     def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
         """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
-        the compiled loop cannot finish (module docstring)."""
+        the compiled loop does not finish (module docstring)."""
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        if self._engine_args is None or len(cells) < 2:
+        if len(cells) < 2:
             return LegBatch(compute=ComputeReport())
         n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
         if n_legs == 0:
             return LegBatch(compute=ComputeReport())
         stops = cells[: n_legs + 1]
-        state = rng.bit_generator.state
+        grid = world.grid
         charged = self._link.charged = CallLedger()
         try:
-            done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops, rng)
+            done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
+                rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]), stops,
+                *self._loop_args(grid), grid, self.config.cut_loops)
         except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
             return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
-        if done < n_legs and self._link.direct:
-            # rewind to the start of the leg not done and replay the legs before it (nothing was charged yet);
-            # a machine behind the callback ran the leg not done and charged it: the search goes on from there
-            rng.bit_generator.state = state
-            if done:
-                done, points, ends, counts, mapping, calls, emu, walked = self._run_legs(world, stops[: done + 1], rng)
+        failed = None
+        if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
+            leg = CallLedger()
+            self._link.settle(calls[n_sub:], emu[n_sub:], leg)
+            a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
+            res = self._query_result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
+            failed = path_fallback(self.config.fallback, world, a, b, rng, res)
+        batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
         if not done:
-            return LegBatch(compute=ComputeReport.from_ledger(charged))
-        paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
-        self._link.settle(calls, emu, charged)
+            return batch
+        self._link.settle(calls[:n_sub], emu[:n_sub], charged)
         styles = self.config.styles
-        stats = {
+        batch.paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
+        batch.compute = ComputeReport.from_ledger(charged)
+        batch.stats = {
             "chip_calls": int(charged.physical_calls),
             "chip_batches": int(charged.batches),
             **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
@@ -179,10 +195,4 @@ class BatchedLegs:
                                  for st, r in zip(styles, mapping.tolist())}},
             "path_length": int(ends[done] - done),
         }
-        return LegBatch(paths=paths, compute=ComputeReport.from_ledger(charged), stats=stats)
-
-    def _run_legs(self, world, stops, rng):
-        """:func:`run_legs` with this planner's pool and the query loop's arguments."""
-        grid = world.grid
-        return run_legs(rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]),
-                        stops, *self._loop_args(grid), grid, self.config.cut_loops)
+        return batch

@@ -1,17 +1,17 @@
-"""Compiled search loop of Ising pathfinding (paper 5.1, Algorithm 1) on the emulated chip.
+"""Compiled search loop of Ising pathfinding (paper 5.1, Algorithm 1): the one implementation.
 
-Contract: :func:`run_query` makes, for one query, the decisions of the Python loop in
-:mod:`.search` (its reference; the tests compare both): the same ranking, patch programs,
-chip seeds (drawn from the query's ``numpy.random.Generator``), annealing kernel and padding
-(the chip's own :func:`~ising_backend.anneal.anneal_kernel` with
-:meth:`~ising_backend.EmulatedChip.kernel_args`), decoding, scoring, win draws and
-bookkeeping.  Each submission's calls and its measured emulation seconds (a monotonic clock
-around the kernel) are returned, so the caller charges the chip exactly as
-:meth:`~ising_backend.EmulatedChip.anneal_batch` would.
+Contract: :func:`run_query` runs one query: the ranking, patch programs, chip seeds (drawn
+from the query's ``numpy.random.Generator``), the submission (one per step: the programs of
+the ``targets_per_call`` best-ranked local targets x every merge style that fits, block-packed
+into shared chip programs with ``pack``), decoding, scoring, win draws and bookkeeping.  The
+chip is reached through :func:`ising_backend.anneal_submit` (any machine, see
+:class:`ising_backend.MachineLink`); each submission's calls and emulation seconds are
+returned, so the caller charges the machine exactly as ``anneal_batch`` would.
 
 Patch programs are memoised in a :class:`ProgramPool` (compiled arrays keyed by free-cell
-mask and local target).  A query whose program cannot be merged onto the chip returns
-:data:`NEEDS_REFERENCE` so the caller reruns it with the Python loop (which names the error).
+mask and local target).  A merge style that does not fit a program is skipped for it and
+counted (``map_errors``); the first such program is returned so the caller names the error.
+The Python loop in ``tests/path_reference.py`` is the oracle the tests hold it to.
 """
 
 from __future__ import annotations
@@ -22,17 +22,19 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, anneal_submit, merge_styles_flat
+from ising_backend import (
+    CallLedger, ChipUnavailableError, SolverOutputError, anneal_submit, fill_packs, merge_styles_flat, pack_layout,
+)
 from planners.ising.fallback import unavailable_message
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "CompiledSearch", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED",
-           "NEEDS_REFERENCE"]
+__all__ = ["ProgramPool", "CompiledSearch", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED"]
 
-REACHED, BUDGET_SPENT, EXHAUSTED, NEEDS_REFERENCE = 0, 1, 2, 3
+REACHED, BUDGET_SPENT, EXHAUSTED = 0, 1, 2
 _COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
+_EXACT_KEY_CELLS = 55  # patches up to 7x7: the key is the free-cell mask itself
 
 
 class ProgramPool:
@@ -57,9 +59,12 @@ class ProgramPool:
         self.pJ = np.zeros((cap, n_styles * N * N), dtype=np.int16)
         self.ptr = np.zeros((cap, n_styles, nv + 1), dtype=np.int64)
         self.idx = np.zeros((cap, n_styles, N), dtype=np.int64)
+        self.status = np.zeros((cap, n_styles), dtype=np.int64)  # merge code per style (0: fits)
+        self.comp = np.zeros((cap, n_cells), dtype=np.bool_)  # the slot's problem, checked on a hashed key
+        self.target = np.zeros(cap, dtype=np.int64)
 
         self._arrays = (self.keys, self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width,
-                        self.ph, self.pJ, self.ptr, self.idx)
+                        self.ph, self.pJ, self.ptr, self.idx, self.status, self.comp, self.target)
 
     def arrays(self) -> tuple:
         return self._arrays
@@ -88,16 +93,33 @@ def _ising_of_qubo(q, Q, offset):
 
 
 @numba.njit(cache=True)
-def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, comp, target, adj4, diag, degree,
-             coef, scale, style_ids, Lh, Lj, n_spins):
-    """Pool slot of the patch program (built and merged on a miss); -1 if a style cannot merge."""
+def _key(comp, target):
+    """The pool key of a problem: the free-cell mask and target themselves up to 7x7 patches, a
+    hash beyond (checked against the slot's problem)."""
     n = comp.shape[0]
-    key = np.int64(target)
+    if n <= _EXACT_KEY_CELLS:
+        key = np.int64(target)
+        for i in range(n):
+            if comp[i]:
+                key |= np.int64(1) << np.int64(i + 8)
+        return key
+    key = np.uint64(14695981039346656037) ^ np.uint64(target)
     for i in range(n):
-        if comp[i]:
-            key |= np.int64(1) << np.int64(i + 8)
+        key = (key ^ np.uint64(comp[i])) * np.uint64(1099511628211)
+    return np.int64(key >> np.uint64(1))
+
+
+@numba.njit(cache=True)
+def _program(pool, comp, target, adj4, diag, degree, coef, scale, style_ids, Lh, Lj, n_spins):
+    """Pool slot of the patch program (built and merged on a miss; a style that does not fit has a
+    non-zero ``status`` and no program)."""
+    keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, status, pcomp, ptarget = pool
+    n = comp.shape[0]
+    key = _key(comp, target)
     if key in keys:
-        return keys[key]
+        slot = keys[key]
+        if n <= _EXACT_KEY_CELLS or (ptarget[slot] == target and np.array_equal(pcomp[slot], comp)):
+            return slot
     var, qv, Qv, off = _patch_qubo_kernel(adj4, diag, comp, n // 2, target, degree, coef[0], coef[1], coef[2],
                                           coef[3], coef[4])
     m = var.shape[0]
@@ -107,18 +129,20 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
         count[0] = 0
     slot = count[0]
     w = 0
-    if m > 0:  # every style's mapping, straight into the slot (kept only if all fit)
+    status[slot, :] = 0
+    if m > 0:  # every style's mapping, straight into the slot
         H = np.empty(m, dtype=np.int64)
         C = np.empty((m, m), dtype=np.int64)
         for i in range(m):
             H[i] = np.int64(np.rint(h[i] * scale))
             for j in range(m):
                 C[i, j] = np.int64(np.rint(J[i, j] * scale))
-        ok, w = merge_styles_flat(H, C, style_ids, Lh, Lj, Lj, n_spins, ph[slot], pJ[slot], ptr[slot], idx[slot])
-        if not ok:
-            return -1
+        w = merge_styles_flat(H, C, style_ids, Lh, Lj, Lj, n_spins, ph[slot], pJ[slot], ptr[slot], idx[slot],
+                              status[slot])
     count[0] += 1
     keys[key] = slot
+    pcomp[slot] = comp
+    ptarget[slot] = target
     n_var[slot] = m
     cells[slot, :m] = var
     lh[slot, :m] = h
@@ -129,15 +153,62 @@ def _program(keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, c
 
 
 @numba.njit(cache=True)
-def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
-              num_reads, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps,
-              geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells):
-    """One query of Algorithm 1 (see the module docstring).
+def _submission(pool, slots, nb, k, pack, n_spins):
+    """The chip programs of one step: the fitting styles of the problems ``slots[:nb]`` (those with
+    variables), zero-padded to the widest (or block-packed into ``n_spins``-spin programs).
 
-    Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu)``:
-    counts = patch_solves, anneal_calls, segments, backtracks, direct_moves; mapping rows per
-    style = programs, valid, wins, map_errors; per chip submission its calls and emulation seconds.
+    Returns ``(h, J, rows (P, 2) = (slot, style), where (P, 2) = (program, first spin), sizes (P,))``."""
+    n_var, width, ph, pJ, ptr, status = pool[2], pool[7], pool[8], pool[9], pool[10], pool[12]
+    P = 0
+    W = 0
+    for b in range(nb):
+        sl = slots[b]
+        if n_var[sl] > 0:
+            for s in range(k):
+                P += status[sl, s] == 0
+            W = max(W, width[sl])
+    rows = np.empty((P, 2), dtype=np.int64)
+    sizes = np.empty(P, dtype=np.int64)
+    h = np.zeros((P, W), dtype=ph.dtype)
+    J = np.zeros((P, W, W), dtype=pJ.dtype)
+    p = 0
+    for b in range(nb):
+        sl = slots[b]
+        if n_var[sl] == 0:
+            continue
+        w = width[sl]
+        for s in range(k):
+            if status[sl, s] != 0:
+                continue
+            rows[p, 0], rows[p, 1] = sl, s
+            sizes[p] = ptr[sl, s, n_var[sl]]
+            h[p, :w] = ph[sl, s * w:(s + 1) * w]
+            J[p, :w, :w] = pJ[sl, s * w * w:(s + 1) * w * w].reshape((w, w))
+            p += 1
+    where = np.zeros((P, 2), dtype=np.int64)
+    for q in range(P):
+        where[q, 0] = q
+    if pack and P > 1:
+        pack_of, order, n_packs, width_p = pack_layout(sizes, n_spins)
+        h, J, where = fill_packs(h, J, sizes, order, pack_of, n_packs, width_p)
+    return h, J, rows, where, sizes
+
+
+@numba.njit(cache=True)
+def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
+              padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged,
+              backtrack, num_reads, per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj,
+              n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells):
+    """One query of Algorithm 1 (see the module docstring); ``keys .. ptarget`` are
+    :meth:`ProgramPool.arrays`, ``per_call`` the local targets per submission.
+
+    Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
+    err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
+    direct_moves; mapping rows per style = programs, valid, wins, map_errors; per chip submission
+    its calls and emulation seconds; ``err`` = (row, col, local target, style) of the first program
+    a style could not map (``-1`` if none) and ``err_comp`` its free-cell mask.
     """
+    pool = (keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget)
     rad = size // 2
     n = size * size
     centre = n // 2
@@ -148,16 +219,20 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     seg_cells = np.empty((cap, 2), dtype=np.int64)
     seg_start = np.empty(cap, dtype=np.int64)
     seg_len = np.empty(cap, dtype=np.int64)
-    f_pos = np.empty((max_attempts + free_cells + 8, 2), dtype=np.int64)
-    f_cell = np.empty((max_attempts + free_cells + 8, 2), dtype=np.int64)
+    nfail = max_attempts * per_call + free_cells + 8
+    f_pos = np.empty((nfail, 2), dtype=np.int64)
+    f_cell = np.empty((nfail, 2), dtype=np.int64)
     sub_calls = np.zeros(max_attempts + 1, dtype=np.int64)
     sub_emu = np.zeros(max_attempts + 1)
     counts = np.zeros(5, dtype=np.int64)
     mapping = np.zeros((k, 4), dtype=np.int64)
+    err = np.full(4, -1, dtype=np.int64)
+    err_comp = np.zeros(n, dtype=np.bool_)
     visited = np.zeros(padded.shape, dtype=np.bool_)
     excluded = np.zeros(padded.shape, dtype=np.bool_)
     winners = np.empty(k, dtype=np.int64)
-    scores = np.empty(k)
+    slots = np.empty(per_call, dtype=np.int64)
+    fits = np.empty(per_call, dtype=np.int64)
     pr, pc = sr, sc
     walk[0, 0], walk[0, 1] = sr, sc
     wl = 1
@@ -191,68 +266,101 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                 continue
             status = EXHAUSTED
             break
-        li = ranked[0]
-        tr = pr + offsets[li, 0]
-        tc = pc + offsets[li, 1]
-        slot = _program(keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, comp, li, adj4, diag, degree, coef, scale, style_ids, Lh, Lj,
-                        n_spins)
-        if slot < 0:
-            return NEEDS_REFERENCE, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]
-        m = n_var[slot]
-        cells = cells_p[slot, :m]
+        # calls left in the budget limit how many targets share this submission
+        room = min(max(1, (max_calls - used) // per_target), max_attempts - counts[0])
+        nb = min(per_call, room, ranked.shape[0])
+        if count[0] + nb > n_var.shape[0]:  # the step's programs must not evict each other
+            keys.clear()
+            count[0] = 0
+        on_chip = 0
+        for b in range(nb):
+            slots[b] = _program(pool, comp, ranked[b], adj4, diag, degree, coef, scale, style_ids, Lh, Lj, n_spins)
+            sl = slots[b]
+            fits[b] = 0
+            if n_var[sl] == 0:
+                continue
+            for s in range(k):
+                if status_p[sl, s] == 0:
+                    fits[b] += 1
+                else:
+                    mapping[s, 3] += 1
+                    if err[0] < 0:
+                        err[0], err[1], err[2], err[3] = pr, pc, ranked[b], s
+                        err_comp[:] = comp
+            on_chip += fits[b] > 0
+        spins = np.empty((0, num_reads, 0), dtype=np.int8)
+        rows = np.empty((0, 2), dtype=np.int64)
+        where = np.empty((0, 2), dtype=np.int64)
+        sizes = np.empty(0, dtype=np.int64)
+        if on_chip:
+            seed = rng.integers(0, 9223372036854775807)
+            h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
+            spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
+            energies = np.empty((h.shape[0], num_reads))
+            sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot,
+                                          beta_cold, mismatch, flip_prob, spins, energies)
+            sub_calls[nsub] = h.shape[0] * num_reads
+            used += h.shape[0] * num_reads
+            nsub += 1
+            counts[1] += 1
+            counts[0] += on_chip
+        chosen = -1
         direct = False
         path = np.zeros(0, dtype=np.int64)
-        if m == 0:
-            path = extract_path(np.zeros(0, dtype=np.bool_), cells, centre, li, nbr)
-            direct = path.shape[0] > 0
-            found = direct
-        else:
-            seed = rng.integers(0, 9223372036854775807)
-            w = width[slot]
-            spins = np.empty((k, num_reads, w), dtype=np.int8)
-            energies = np.empty((k, num_reads))
-            sub_emu[nsub] = anneal_submit(ph[slot, : k * w].reshape((k, w)),
-                                          pJ[slot, : k * w * w].reshape((k, w, w)), num_reads,
-                                          np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
-                                          flip_prob, spins, energies)
-            sub_calls[nsub] = k * num_reads
-            nsub += 1
-            used += k * num_reads
-            counts[1] += 1
-            counts[0] += 1
+        at = 0
+        for b in range(nb):
+            sl = slots[b]
+            m = n_var[sl]
+            cells = cells_p[sl, :m]
+            li = ranked[b]
+            if m == 0:
+                if chosen < 0:
+                    path = extract_path(np.zeros(0, dtype=np.bool_), cells, centre, li, nbr)
+                    if path.shape[0] > 0:
+                        chosen, direct = b, True
+                continue
+            P = fits[b]
+            if P == 0:
+                continue  # no style fits: counted above
+            w = 0
+            for q in range(P):
+                w = max(w, sizes[at + q])
+            sp = np.zeros((P, num_reads, w), dtype=np.int8)
+            for q in range(P):
+                f = where[at + q, 1]
+                sp[q, :, : sizes[at + q]] = spins[where[at + q, 0], :, f: f + sizes[at + q]]
             n_valid, best, energy, logical = score_patch_samples(
-                spins, ptr[slot], idx[slot], m, cells, centre, li, nbr, lh[slot, :m],
-                lJ[slot, :m, :m], loff[slot])
+                sp, ptr[sl][rows[at: at + P, 1]], idx[sl][rows[at: at + P, 1]], m, cells, centre, li, nbr,
+                lh[sl, :m], lJ[sl, :m, :m], loff[sl])
             best_score = np.inf
             brow = -1
-            for s in range(k):
+            for q in range(P):
+                s = rows[at + q, 1]
                 mapping[s, 0] += num_reads
-                mapping[s, 1] += n_valid[s]
-                scores[s] = energy[s]
-                if energy[s] < best_score:
-                    best_score = energy[s]
-                    brow = s
-            found = brow >= 0
-            if found:
+                mapping[s, 1] += n_valid[q]
+                if energy[q] < best_score:
+                    best_score = energy[q]
+                    brow = q
+            if brow >= 0 and chosen < 0:
+                chosen = b
                 tol = 1e-9 * max(1.0, abs(best_score))
                 nw = 0
-                for s in range(k):
-                    if scores[s] <= best_score + tol:
-                        winners[nw] = s
+                for q in range(P):
+                    if energy[q] <= best_score + tol:
+                        winners[nw] = rows[at + q, 1]
                         nw += 1
                 x = np.empty(m, dtype=np.bool_)
                 for i in range(m):
                     x[i] = logical[brow, best[brow], i] > 0
                 path = extract_path(x, cells, centre, li, nbr)
-                if nw > 1:
-                    win = winners[rng.integers(0, nw)]
-                else:
-                    win = winners[0]
+                win = winners[rng.integers(0, nw)] if nw > 1 else winners[0]
                 mapping[win, 2] += 1
-        if not found:
+            at += P
+        for b in range(nb if chosen < 0 else chosen):  # the targets ranked before the chosen one failed
             f_pos[nf, 0], f_pos[nf, 1] = pr, pc
-            f_cell[nf, 0], f_cell[nf, 1] = tr, tc
+            f_cell[nf, 0], f_cell[nf, 1] = pr + offsets[ranked[b], 0], pc + offsets[ranked[b], 1]
             nf += 1
+        if chosen < 0:
             continue
         if direct:
             counts[4] += 1
@@ -277,21 +385,13 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
         seg_top = s0 + L
         counts[2] += 1
         pr, pc = seg_cells[s0 + L - 1, 0], seg_cells[s0 + L - 1, 1]
-    return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub]
+    return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub], err, err_comp
 
 
 class CompiledSearch:
     """:class:`~planners.ising.path.IsingPath`'s side of the compiled loop: run a query with
     :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
     ``chip``, ``_pool``, ``_engine_args``, ``_nbr``, ``_padded`` and ``_finish``)."""
-
-    def _engine_query(self, grid, s, g, rng, field):
-        """One query on the compiled loop: ``(status, (row, col) where it stopped, walk (L, 2), counts (5,),
-        mapping (k, 4), sub_calls, sub_emu)`` (see :func:`run_query`); nothing charged yet."""
-        status, pr, pc, walk, counts, mp, sub_calls, sub_emu = run_query(
-            rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
-            *self._loop_args(grid))
-        return status, (int(pr), int(pc)), walk, counts, mp, sub_calls, sub_emu
 
     def _loop_args(self, grid) -> tuple:
         """:func:`run_query`'s arguments after the goal: the patch frame, the search options, the
@@ -304,18 +404,19 @@ class CompiledSearch:
         fr = self.frame
         max_attempts, _per_target, max_calls = self._budgets(grid)
         args = (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
-                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, max_attempts, max_calls,
-                *self._engine_args, self._free_cells(grid))
+                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, cfg.targets_per_call, cfg.pack,
+                max_attempts, max_calls, *self._engine_args, self._free_cells(grid))
         self._loop_for = (grid, args)
         return args
 
     def _run_engine(self, grid, s, g, rng, field):
         """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
-        submission as ``anneal_batch`` would; ``None`` if it needs the reference loop."""
+        submission as ``anneal_batch`` would."""
         cfg = self.config
-        self._link.charged = CallLedger()
+        charged = self._link.charged = CallLedger()
         try:
-            status, (pr, pc), walk, counts, mp, sub_calls, sub_emu = self._engine_query(grid, s, g, rng, field)
+            out = run_query(rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
+                            *self._loop_args(grid))
         except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
             unavailable = isinstance(exc, ChipUnavailableError)
             failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
@@ -323,12 +424,16 @@ class CompiledSearch:
             if unavailable:
                 counts["chip_unavailable"] = 1
             mapping = {st: dict.fromkeys(("programs", "valid", "wins", "map_errors"), 0) for st in cfg.styles}
-            return self._finish(grid, s, g, [s], counts, mapping, self._link.charged, failure, None)
-        if status == NEEDS_REFERENCE:
-            return None
+            return self._finish(grid, s, g, [s], counts, mapping, charged, failure, None)
+        self._link.settle(out[6], out[7], charged)
+        return self._query_result(grid, s, g, out, charged)
+
+    def _query_result(self, grid, s, g, out, charged, used=None):
+        """The :class:`PathResult` of one :func:`run_query` output, charged already to ``charged``
+        (``used``: the query's physical chip calls, if not all of ``charged``)."""
+        cfg = self.config
+        status, pr, pc, walk, counts, mp, _calls, _emu, err, err_comp = out
         max_attempts, _per_target, max_calls = self._budgets(grid)
-        charged = self._link.charged
-        self._link.settle(sub_calls, sub_emu, charged)
         counts = dict(zip(_COUNT_NAMES, (int(v) for v in counts)))
         mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}
                    for st, r in zip(cfg.styles, mp)}
@@ -336,13 +441,33 @@ class CompiledSearch:
         if status == BUDGET_SPENT:
             failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
                        f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
-                       f"{charged.physical_calls} chip calls of max_chip_calls={max_calls})")
+                       f"{charged.physical_calls if used is None else used} chip calls of "
+                       f"max_chip_calls={max_calls})")
         elif status == EXHAUSTED:
             failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
                        f"reachable from [{pr}, {pc}] was visited or failed"
                        + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
                        + " (the goal may be unreachable)")
-        return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure, None)
+        map_error = self._map_error(err, err_comp) if err[0] >= 0 else None
+        return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure,
+                            map_error)
+
+    def _map_error(self, err, comp) -> str:
+        """``"style: message"`` of the first program a merge style could not map (``err`` and
+        ``comp`` from :func:`run_query`), the merge kernel's own words."""
+        from ising_backend import ising_from_qubo, merge_error_message, merge_styles
+        from planners.ising.path.qubo import build_patch_qubo
+
+        cfg = self.config
+        fr = self.frame
+        style = int(err[3])
+        pr = build_patch_qubo(fr, np.asarray(comp, dtype=bool), fr.n // 2, int(err[2]), cfg.form, cfg.full_weights)
+        model = ising_from_qubo(pr.q, pr.Q, pr.offset)
+        H = np.rint(model.h * cfg.chip_scale).astype(np.int64)
+        C = np.rint(model.J * cfg.chip_scale).astype(np.int64)
+        Lh, Lj, n_spins = self._limits
+        st, e, a, *_ = merge_styles(H, C, self._style_ids[style: style + 1], Lh, Lj, Lj, n_spins)
+        return f"{cfg.styles[style]}: {merge_error_message(int(st[0]), e[0], H, C, a[0], Lh, Lj, n_spins, cfg.chip_scale)}"
 
     def _budgets(self, grid) -> tuple[int, int, int]:
         """``(max_attempts, chip calls per attempt, max_chip_calls)`` of a query on ``grid``."""

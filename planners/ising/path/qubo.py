@@ -15,7 +15,7 @@ import numpy as np
 
 from planners.ising.path.config import DEFAULT_WEIGHTS, FORMS
 
-__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo", "build_patch_qubo_reference"]
+__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo"]
 
 
 # --------------------------------------------------------------------------- geometry
@@ -107,16 +107,6 @@ class PatchQubo:
         return self.offset + x @ self.q + np.einsum("...i,ij,...j->...", x, self.Q, x)
 
 
-def _add_form(q: np.ndarray, W: np.ndarray, M: np.ndarray, scale: float) -> None:
-    """Add ``scale * x^T M x`` (``M`` symmetric) to (linear ``q``, symmetric pair matrix ``W``).
-
-    Pair convention: energy = ``q @ x + sum_{i<j} W[i, j] x_i x_j``.
-    """
-    q += scale * np.diag(M)
-    off = M - np.diag(np.diag(M))
-    W += 2.0 * scale * off
-
-
 def _resolve(form: str, weights: dict | None, allowed, start: int, goal: int) -> tuple[dict, np.ndarray]:
     if form not in FORMS:
         raise ValueError(f"form must be one of {FORMS}, got {form!r}")
@@ -149,7 +139,7 @@ def build_patch_qubo(
     built on the whole frame with the endpoints as ordinary 0/1 cells and then
     the endpoints are substituted with ``x = 1`` (their terms fold into the
     linear coefficients of their neighbours and into the offset).  Compiled
-    (:func:`_patch_qubo_kernel`); :func:`build_patch_qubo_reference` is the numpy original.
+    (:func:`_patch_qubo_kernel`); ``tests/path_reference.py`` holds the numpy original.
     """
     w, allowed = _resolve(form, weights, allowed, start, goal)
     if form == "pair":
@@ -165,7 +155,7 @@ def build_patch_qubo(
 
 @numba.njit(cache=True)
 def _patch_qubo_kernel(adj4, diag, allowed, start, goal, degree, C, B, Dg, A_end, A):
-    """The arithmetic of :func:`build_patch_qubo_reference`, term by term in the same order."""
+    """The arithmetic of the numpy original (``tests/path_reference.py``), term by term in the same order."""
     n = adj4.shape[0]
     A4 = np.zeros((n, n))
     for i in range(n):
@@ -239,55 +229,3 @@ def _patch_qubo_kernel(adj4, diag, allowed, start, goal, degree, C, B, Dg, A_end
             Qv[a, b] = W[i, var[b]]
     offset += (q[start] + q[goal]) + W[start, goal]
     return var, qv, Qv, offset
-
-
-def build_patch_qubo_reference(
-    frame: PatchFrame,
-    allowed: np.ndarray,
-    start: int,
-    goal: int,
-    form: str = "pair",
-    weights: dict | None = None,
-) -> PatchQubo:
-    """:func:`build_patch_qubo` in plain numpy (the reference the compiled builder is tested against)."""
-    w, allowed = _resolve(form, weights, allowed, start, goal)
-    n = frame.n
-    A4 = (frame.adj4 & allowed[:, None] & allowed[None, :]).astype(np.float64)
-    q = np.zeros(n)
-    W = np.zeros((n, n))
-    pinned = np.zeros(n, dtype=bool)
-    pinned[[start, goal]] = True
-    free_var = allowed & ~pinned
-    if form == "pair":
-        DG = (frame.diag & allowed[:, None] & allowed[None, :]).astype(np.float64)
-        W += -w["C"] * A4 + w["Dg"] * DG
-        q += w["B"] * free_var
-        # endpoint terms: A_end * (deg(e) - 1)^2 for each pinned endpoint e
-        for e in (start, goal):
-            a = A4[e]
-            _add_form(q, W, np.outer(a, a), w["A_end"])
-            q += -2.0 * w["A_end"] * a
-        offset = 2.0 * w["A_end"]
-    else:  # degree form: A_end*E_end + A*sum_i (d_i - 2 x_i)^2 + B*sum x
-        D = A4 * free_var[:, None]  # rows: free variable cells i, columns: their neighbours
-        _add_form(q, W, D.T @ D, w["A"])  # sum_i d_i^2
-        K = D  # -4 x_i d_i
-        W += -4.0 * w["A"] * (K + K.T)
-        q += 4.0 * w["A"] * free_var + w["B"] * free_var
-        for e in (start, goal):
-            a = A4[e]
-            _add_form(q, W, np.outer(a, a), w["A_end"])
-            q += -2.0 * w["A_end"] * a
-        offset = 2.0 * w["A_end"]
-    np.fill_diagonal(W, 0.0)
-    var = np.flatnonzero(free_var)
-    pins = np.array([start, goal])
-    # substitute x_pin = 1
-    qv = q[var] + W[np.ix_(var, pins)].sum(axis=1)
-    offset += q[pins].sum() + W[start, goal]
-    Qv = np.triu(W[np.ix_(var, var)], k=1)
-    for a in (var, qv, Qv):
-        a.setflags(write=False)
-    return PatchQubo(var, qv, Qv, float(offset), int(start), int(goal))
-
-

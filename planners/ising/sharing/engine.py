@@ -2,7 +2,7 @@
 
 Contract: :func:`run_stage` does what :meth:`~.submit.ChipSubmission._solve_packed` does with
 its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
-decreasing (:func:`ising_backend.pack_layout`), placed (:func:`.kernels.fill_packs`), annealed on the
+decreasing (:func:`ising_backend.pack_layout`), placed (:func:`ising_backend.fill_packs`), annealed on the
 chip through :func:`ising_backend.anneal_submit` (the emulator's kernel, or a callback into any
 machine's ``anneal_batch``; the seed ``anneal_batch`` would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
 and returns the same arrays, the calls and the measured emulation seconds for
@@ -17,8 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import anneal_submit, pack_layout, programs_fit
-from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
+from ising_backend import anneal_submit, fill_packs, pack_layout, programs_fit
+from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
 
 __all__ = ["run_stage"]
 

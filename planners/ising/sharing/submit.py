@@ -13,12 +13,12 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    BranchMapping, ChipProgramError, ModelError, QuantizeError, QuantizeMapping, SolverOutputError, ising_from_qubo,
-    plan_packs, quantize_stack, run_portfolio_batch,
+    BranchMapping, ChipProgramError, ModelError, QuantizeError, QuantizeMapping, SolverOutputError, fill_packs,
+    ising_from_qubo, plan_packs, quantize_stack, run_portfolio_batch,
 )
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.engine import run_stage
-from planners.ising.sharing.kernels import candidate_sides, fill_packs, map_stage, score_stage
+from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
 from planners.ising.sharing.qubo import cut_value, decode_split
 
 __all__ = ["ChipSubmission"]

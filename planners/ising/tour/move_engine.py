@@ -1,14 +1,14 @@
 """Compiled move-selection search of the chip tour: one start in one call.
 
-Contract: :func:`select_moves_loop` makes the decisions of ``MoveSelection._select_moves`` with
-its ``_chip_round`` for one start -- candidate moves and their pick, the selection QUBO, its
+Contract: :func:`select_moves_loop` runs one start of the chip tour's move selection (the one
+implementation; ``tests/tour_reference.py`` is its oracle) -- candidate moves and their pick, the selection QUBO, its
 Ising form (:func:`ising_backend.ising_from_qubo`'s arithmetic), quantization by every rule of
 the portfolio (:func:`ising_backend.quantize_rules`), a chip seed drawn from the construction's
 ``numpy.random.Generator``, the chip's own annealing kernel, scoring of the reads and the
 applied moves -- and returns the statistics and, per submission, the calls and measured
 emulation seconds (a monotonic clock around the kernel) for the caller to charge to the chip
-as ``anneal_batch`` would.  The Python path in :mod:`.selection` is its reference (the tests
-compare both).
+as ``anneal_batch`` would.  A program the quantizer cannot map (a non-finite coefficient: gains
+of distances too large to add) ends the start with :data:`REFUSED`, nothing annealed for it.
 """
 
 from __future__ import annotations
@@ -21,12 +21,13 @@ from ising_backend import anneal_submit, quantize_rules
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 
-__all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS", "NEEDS_REFERENCE"]
+__all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
+           "REFUSED"]
 
 LOCAL_OPTIMUM = 0  # no improving move left (or max_rounds reached)
 STALLED = 1  # the chip selected nothing valid max_retries + 1 times in a row, after some progress
 NO_PROGRESS = 2  # ... before any move was applied: the start fails
-NEEDS_REFERENCE = 3  # a program the quantizer could not map: the reference loop names it
+REFUSED = 3  # a program the quantizer could not map (a non-finite coefficient): the start fails
 
 
 @numba.njit(cache=True)
@@ -103,7 +104,9 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
         for r in range(k):
             if st[r] != 0:
-                return route, NEEDS_REFERENCE, stats, clean_all, wins, calls[:rounds], emu[:rounds]
+                stats[0] = rounds
+                stats[2] = applied
+                return route, REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
         seed = rng.integers(0, 9223372036854775807)
         M = gains.shape[0]
         spins = np.empty((k, num_reads, M), dtype=np.int8)
@@ -136,8 +139,8 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
 
 @numba.njit(cache=True)
 def nearest_neighbour_kernel(dist):
-    """:func:`.selection.nearest_neighbour_route` compiled: from node 0 always to the nearest
-    unvisited node (ties: the lowest index)."""
+    """The nearest-neighbour route: from node 0 always to the nearest unvisited node (ties: the
+    lowest index)."""
     n = dist.shape[0] - 1
     route = np.zeros(n + 1, dtype=np.int64)
     seen = np.zeros(n + 1, dtype=np.bool_)
@@ -160,7 +163,8 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
     then ``starts - 1`` random orders (``rng.permutation``), each improved by
     :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
     (starts,), stats (5,), clean (k,), wins (starts, k), calls, emulation_s)``, the statistics summed
-    over the starts; ``ok`` is False (nothing to keep) at a program the quantizer could not map."""
+    over the starts; ``ok`` is False (the search stops, what was annealed is returned to be charged) at
+    a program the quantizer could not map."""
     n = dist.shape[0] - 1
     k = rules.shape[0]
     best = np.zeros(0, dtype=np.int64)
@@ -183,14 +187,14 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
         route, st, sst, sclean, swins, scalls, semu = select_moves_loop(
             rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj, num_reads,
             handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)
-        if st == NEEDS_REFERENCE:
-            return False, best, costs, status, stats, clean, wins, calls, emu
+        calls = np.concatenate((calls, scalls))
+        emu = np.concatenate((emu, semu))
         status[s] = st
         stats += sst
         clean += sclean
         wins[s] = swins
-        calls = np.concatenate((calls, scalls))
-        emu = np.concatenate((emu, semu))
+        if st == REFUSED:
+            return False, best, costs, status, stats, clean, wins, calls, emu
         if st == NO_PROGRESS:  # this start gave up
             continue
         for i in range(n):

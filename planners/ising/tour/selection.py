@@ -28,25 +28,16 @@ from functools import cached_property
 
 import numpy as np
 
-from ising_backend import (
-    QUANTIZE_RULE_IDS, ChipProgramError, MachineLink, ising_from_qubo, quantize_stack,
-)
+from ising_backend import QUANTIZE_RULE_IDS, MachineLink
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.move_engine import NEEDS_REFERENCE, NO_PROGRESS, STALLED, move_starts_loop, select_moves_loop
-from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
+from planners.ising.tour.move_engine import (
+    NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
+)
 
-__all__ = ["MoveSelection", "nearest_neighbour_route", "double_bridge", "KICK_ABOVE"]
+__all__ = ["MoveSelection", "double_bridge", "KICK_ABOVE"]
 
-
-def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
-    """``[0, t_1, ..., t_n]``: from node 0 always to the nearest unvisited node (ties: lowest index)."""
-    n = dist.shape[0] - 1
-    route = [0]
-    left = list(range(1, n + 1))
-    while left:
-        row = dist[route[-1], left]
-        route.append(left.pop(int(np.argmin(row))))
-    return np.array(route, dtype=np.int64)
+_REFUSED = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
+            "to add)")
 
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
@@ -87,13 +78,11 @@ class MoveSelection:
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
         if not kicks:
-            out = self._move_starts_compiled(dist, run, starts)
-            if out is not None:
-                return out
+            return self._move_starts_compiled(dist, run, starts)
         best, best_cost, failure = None, math.inf, None
         for s in range(starts):
             if s == 0:
-                route = nearest_neighbour_route(dist)
+                route = nearest_neighbour_kernel(np.ascontiguousarray(dist, dtype=np.float64))
             elif best is not None and n >= 4 and (self.config.chip_restart == "kick" or (
                     self.config.chip_restart == "auto" and n > KICK_ABOVE)):
                 route = double_bridge(best, run.rng)
@@ -114,27 +103,20 @@ class MoveSelection:
         return [int(t) for t in best[1:]]
 
     def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-        """One start: the compiled loop (:mod:`.move_engine`); :meth:`_select_moves_reference` names a
-        program the quantizer refused."""
-        out = self._select_moves_compiled(dist, route, run)
-        if out is not None:
-            return out
-        return self._select_moves_reference(dist, route, run)
-
-    def _select_moves_compiled(self, dist, route, run):
-        """:meth:`_select_moves_reference` in one compiled call, charged to the chip per submission."""
+        """One start, ``route`` improved by chip-selected moves until no move improves it (or the chip
+        selects nothing valid ``max_retries + 1`` times in a row), in one compiled call
+        (:func:`.move_engine.select_moves_loop`), charged to the chip per submission.  A chip that
+        never selects a valid improving set for a route that has improving moves fails the start
+        (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
-        capacity = self._capacity
-        state = run.rng.bit_generator.state
         self._link.charged = run.charged
         new, status, st, clean, wins, calls, emu = select_moves_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, capacity,
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
-        if status == NEEDS_REFERENCE:  # the reference loop names the program the quantizer refused
-            run.rng.bit_generator.state = state
-            return None
         self._link.settle(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
+        if status == REFUSED:
+            raise TourFailure(_REFUSED)
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
         return new
@@ -176,20 +158,16 @@ class MoveSelection:
 
     def _move_starts_compiled(self, dist, run, starts: int):
         """:meth:`_move_starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
-        charged and counted as the per-start calls; ``None`` (the rng rewound) at a program the
-        quantizer refuses, which the per-start path names."""
+        charged and counted as the per-start calls."""
         cfg = self.config
-        capacity = self._capacity
-        state = run.rng.bit_generator.state
         self._link.charged = run.charged
         ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, capacity,
+            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
             cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
-        if not ok:
-            run.rng.bit_generator.state = state
-            return None
         self._link.settle(calls, emu, run.charged)
         self._count_starts(run, st, clean, wins, status.tolist())
+        if not ok:
+            raise TourFailure(_REFUSED)
         for s, code in enumerate(status.tolist()):
             if code == NO_PROGRESS:
                 run.stats["failed_starts"] += 1
@@ -198,68 +176,3 @@ class MoveSelection:
         if not len(best):
             raise TourFailure(self._no_progress)
         return [int(t) for t in best[1:]]
-
-    def _select_moves_reference(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-        """``route`` improved by chip-selected moves until no move improves it (or the chip
-        selects nothing valid ``max_retries + 1`` times in a row).  A chip that never selects a
-        valid improving set for a route that has improving moves fails the start
-        (:class:`TourFailure`): the route would be the host's, not the chip's."""
-        cfg = self.config
-        capacity = min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), cfg.max_moves)
-        failures = 0
-        rounds = 0
-        applied = 0
-        while rounds < cfg.max_rounds:
-            moves, gains = candidate_moves(dist, route, cfg.max_segment)
-            if len(gains) == 0:
-                break
-            # a round re-issued after reads that selected nothing valid offers fewer moves
-            keep = pick_candidates(moves, gains, max(1, capacity >> failures), cfg.max_overlap)
-            moves, gains = moves[keep], gains[keep]
-            taken = self._chip_round(moves, gains, run)
-            rounds += 1
-            if taken is None:
-                failures += 1
-                run.stats["retries"] += 1
-                if failures > cfg.max_retries:
-                    run.stats["unsolved"]["moves"] += 1
-                    if not applied:
-                        raise TourFailure(f"the chip selected no valid improving move set in {failures} "
-                                          f"submissions of {len(cfg.chip_rules)} programs")
-                    break
-                continue
-            failures = 0
-            applied += len(taken)
-            route = apply_moves(route, moves, taken)
-            run.stats["moves_applied"] += len(taken)
-        run.stats["move_rounds"] += rounds
-        return route
-
-    def _chip_round(self, moves: np.ndarray, gains: np.ndarray, run):
-        """One selection program per rule in one chip submission; the taken moves of the best read,
-        or ``None`` when no read selects an improving set."""
-        cfg = self.config
-        q, Q = selection_qubo(moves, gains)
-        h, J = quantize_stack(ising_from_qubo(q, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)
-        seed = int(run.rng.integers(0, 2**63 - 1))
-        try:
-            spins, _ = run.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
-        except ChipProgramError as exc:
-            raise TourFailure(f"the chip refused a move-selection program: {exc}") from exc
-        m = run.stats["mapping"]["tour"]
-        # overlapping moves make a read invalid: dropped, never repaired
-        clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
-        best = np.flatnonzero(spins[best_k, best_r] > 0) if best_k >= 0 else None
-        best_rule = cfg.chip_rules[best_k] if best_k >= 0 else None
-        m["reads"] += cfg.num_reads * len(cfg.chip_rules)
-        m["valid_reads"] += int(clean.sum())
-        m["valid"] += int((clean > 0).sum())
-        m["valid_physical"] += int((clean > 0).sum())
-        m["programs"] += len(cfg.chip_rules)
-        m["physical_programs"] += len(cfg.chip_rules)
-        m["subproblems"] += 1
-        m["valid_subproblems"] += best is not None
-        if best_rule is not None:
-            m.setdefault("wins", {})
-            m["wins"][best_rule] = m["wins"].get(best_rule, 0) + 1
-        return best

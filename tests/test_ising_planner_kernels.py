@@ -528,7 +528,9 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
     ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
     assert fast._kernel_args is not None
     fast._compiled = ref._compiled = None  # the Python search: stage by stage
-    ref._kernel_args = None  # force the reference submission
+    from sharing_reference import reference_solve_packed
+
+    ref._solve_packed = lambda *a: reference_solve_packed(ref, *a)  # the submission through anneal_batch
     for s in range(10):
         w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")
         r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
@@ -541,10 +543,10 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
 
 
 def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
-    """run_stage anneals nothing (``ok`` False, no calls) for a non-finite split model or programs the
-    chip's check refuses, so the caller takes the checked path that names the error."""
+    """run_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
+    programs the chip's check refuses; the sharing names the refusal."""
     from ising_backend import QUANTIZE_RULE_IDS, EmulatedChip
-    from planners.ising.sharing.engine import run_stage
+    from planners.ising.sharing.engine import STAGE_NONFINITE, STAGE_OK, STAGE_UNFIT, run_stage
 
     chip = EmulatedChip()
     rules = np.array([QUANTIZE_RULE_IDS["linear"]], dtype=np.int64)
@@ -560,12 +562,28 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
                          np.zeros(1, dtype=np.bool_))
 
     good = run(q)
-    assert good[0] and good[1] == 2 and good[3].sum() <= 2
+    assert good[0] == STAGE_OK and good[1] == 2 and good[3].sum() <= 2
     bad = q.copy()
     bad[0, 1] = np.nan
     out = run(bad)
-    assert not out[0] and out[1] == 0 and len(out[5]) == 0
-    assert not run(q, Lh=7.5)[0]  # a non-integer limit: the quantized fields are not the chip's integers
+    assert out[0] == STAGE_NONFINITE and out[1] == 0 and len(out[5]) == 0
+    assert run(q, Lh=7.5)[0] == STAGE_UNFIT  # a non-integer limit: the quantized fields are not the chip's integers
+
+
+def test_sharing_on_distances_too_large_to_add_fails_naming_the_refused_stage():
+    """Split weights that overflow give a non-finite stage program: the compiled sharing stops and the
+    sharing fails naming it (no second code path, no rng rewind)."""
+    from ising_backend import EmulatedChip
+    from planners.ising.sharing import IsingSharing
+    from planners.tours_classical import ThreeOptTour
+
+    pts = np.random.default_rng(1).random((9, 2))
+    dist = np.abs(pts[:, None] - pts[None]).sum(-1) * 1e308
+    sharing = IsingSharing(EmulatedChip(), fallback="never")
+    assert sharing._compiled is not None
+    res = sharing.assign(dist, 3, ThreeOptTour(), np.random.default_rng(0))
+    assert res.failure is not None and "could not be quantized" in res.failure
+    assert res.compute.chip_calls == 0
 
 
 # ----------------------------------------------------------------------------- tour solve helpers

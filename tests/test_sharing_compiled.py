@@ -2,9 +2,9 @@
 
 ``planners.ising.sharing.compiled_assign.assign_kernel`` must make every decision of
 ``IsingSharing``'s Python search (stages, memo, beam, bundle placement, state choice, boundary
-refinement): the same assignment, statistics, chip charges and rng state, for every option the
-compiled call takes; where the Python search takes another path (a group beyond the chip), the
-compiled call gives up, the rng is rewound and the Python search runs.
+refinement): the same assignment, statistics, chip charges, rng state and failures, for every
+option the compiled call takes; worlds with a group beyond the chip go to the Python search (its
+coarse splits and spin-budget branching) without entering the compiled call.
 """
 
 from __future__ import annotations
@@ -66,8 +66,8 @@ def test_compiled_sharing_makes_the_python_searchs_decisions(options):
         w = generate_world(s, n_robots=R, n_targets=N, placement="centre" if s % 2 else "uniform")
         handed.clear()
         res = _same(fast, ref, w.distance_matrix, R, s)
-        if res.failure is not None:  # a split with no valid candidate: the Python search names it
-            assert handed and "invalid after" in res.failure
+        if res.failure is not None:  # a split with no valid candidate, named as the Python search names it
+            assert not handed and "invalid after" in res.failure
             continue
         assert not handed, "the compiled sharing handed a world to the Python search"
         assert sorted(t for ts in res.assignment for t in ts) == list(range(N))
@@ -80,7 +80,7 @@ def test_compiled_sharing_makes_the_python_searchs_decisions(options):
 
 @pytest.mark.parametrize("spec, R, N", [(ChipSpec(n_spins=8), 2, 12),  # 12 free spins: spin-budget branching
                                         (ChipSpec(n_spins=6), 2, 13)])  # 13 free spins > 6 + max_frozen: coarse
-def test_a_group_beyond_the_chip_rewinds_to_the_python_search(spec, R, N):
+def test_a_group_beyond_the_chip_goes_to_the_python_search(spec, R, N):
     fast, ref = _pair(SharingConfig(), spec)
     calls = []
     python_search = fast._split_all
@@ -121,3 +121,16 @@ def test_pair_mean_is_numpys_mean_over_pairs(seed, n):
     w = np.random.default_rng(seed).normal(size=(n, n)) * 10.0 ** np.random.default_rng(seed).integers(-3, 4)
     want = float(w[np.triu_indices(n, 1)].mean()) if n > 1 else 0.0
     assert pair_mean(w) == want
+
+
+def test_a_split_without_a_valid_candidate_fails_as_the_python_search_fails():
+    """Noisy reads and no retries: splits end without a valid candidate; the compiled sharing stops
+    there and names the group as the Python search does (same statistics, charges and rng state)."""
+    config = SharingConfig(reads=1, retries=0, reject_empty_robot_side=True, fallback="never")
+    fast, ref = _pair(config, ChipSpec(readout_flip_prob=0.2))
+    failures = 0
+    for s in (2, 3, 7, 10):
+        R, N = 2 + s % 4, 4 + s % 10
+        res = _same(fast, ref, generate_world(s, n_robots=R, n_targets=N).distance_matrix, R, s)
+        failures += res.failure is not None and "was invalid after 1 submissions" in res.failure
+    assert failures >= 2

@@ -6,8 +6,8 @@ world of ``R >= 2`` robots and ``1 <= N <= 13`` targets (``R + N <= 62``) with e
 placement in every state (:func:`~.bundles.assign_bundles`, priced by the Held-Karp kernel with one
 memo per call as :class:`~.bundles.BundlePricer`), the choice of state and the boundary
 refinement (:meth:`~.boundary.BoundaryRefinement._refine_boundaries`), with the same rng draws.
-It returns ``ok = False`` where the reference takes another path (see :mod:`.compiled_stages`);
-the caller rewinds the rng and runs the reference.
+It returns ``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller
+names it.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from numba.typed import Dict
 from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
-    BUNDLES, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount, problems_of,
-    reserve, solve_problems, split_states,
+    BUNDLES, OUTSIDE, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount,
+    problems_of, reserve, solve_problems, split_states,
 )
 from planners.held_karp import _exact_route_cost
 
@@ -80,7 +80,7 @@ def _price(dist, k, mask, memo, counters):
 
 
 @numba.njit(cache=True)
-def _place_bundles(dist, R, groups, ng, order_id, memo, counters):
+def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure):
     """:func:`~.bundles.assign_bundles` on masks: ``(ok, sets (R,))``."""
     robots = (np.int64(1) << R) - 1
     sets = np.zeros(R, dtype=np.int64)
@@ -95,7 +95,8 @@ def _place_bundles(dist, R, groups, ng, order_id, memo, counters):
             if g:
                 bundles[nb] = g
                 nb += 1
-        else:  # cannot happen; the reference names it
+        else:  # cannot happen: a group of several robots after the splits
+            failure[0], failure[1] = OUTSIDE, 4
             return False, sets
     counters[BUNDLES] += nb
     if nb == 0:
@@ -174,7 +175,8 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         groups = np.empty(n_pairs, dtype=np.int64)
         for j in range(n_pairs):
             groups[j] = sets[pk[j]] | sets[pl[j]] | (np.int64(1) << pk[j]) | (np.int64(1) << pl[j])
-            if popcount(groups[j]) - 2 > limit:  # a coarse split: the reference's path
+            if popcount(groups[j]) - 2 > limit:  # a coarse split: outside the contract
+                book[4][0], book[4][1] = OUTSIDE, 3
                 return False, store, n_prob
         f = 0
         for j in range(n_pairs):
@@ -198,8 +200,11 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         store = reserve(store, n_prob + P)
         rows = n_prob + np.arange(P)
         n_prob += P
-        if not solve_problems(q, Q, free, sizes, anchors, np.zeros(P, dtype=np.bool_), rows, pair_w[0], R, rng,
-                              chip, retries, book, store):
+        masks = np.empty(P, dtype=np.int64)
+        for p in range(P):
+            masks[p] = groups[p // S]
+        if not solve_problems(q, Q, free, sizes, anchors, np.zeros(P, dtype=np.bool_), rows, masks, pair_w[0], R,
+                              rng, chip, retries, book, store):
             return False, store, n_prob
         c_cut, c_m0, c_m1, c_n = store
         counters[PAIR_RESPLITS] += n_pairs
@@ -282,7 +287,7 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
     S = groups.shape[0]
     best = np.inf
     for si in range(S):
-        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters)
+        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters, book[4])
         if not ok:
             return False, sets
         if S == 1:

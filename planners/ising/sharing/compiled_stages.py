@@ -4,14 +4,16 @@ Contract: :func:`split_states` makes the decisions of :meth:`~.search.IsingShari
 (its reference; the tests compare both) -- the same groups, memo, stage submissions
 (:func:`.engine.run_stage`), seeds and win draws from the caller's ``numpy.random.Generator``,
 retries, candidate order and beam -- with groups held as node bit masks (``R + N <= 62``).
-Whatever the reference would hand to another path -- a group beyond the chip (coarse split or
-spin-budget branching), a program the chip would refuse, a split with no valid candidate after
-the retries -- returns ``ok = False`` at once; the caller rewinds the rng and runs the reference,
-which takes that path or names the error.
+The caller hands it only worlds whose groups fit the chip (no coarse split, no spin-budget
+branching: ``R + N - 2 <= n_spins``).  A split with no valid candidate after the retries, a stage
+program the chip would refuse, or anything outside that contract returns ``ok = False`` at once
+with the reason in ``book[4]`` (:data:`FAILED_SPLIT`, :data:`REFUSED_STAGE`, :data:`OUTSIDE`),
+and the caller names it, as the Python search does.
 
 Bookkeeping is shared with :mod:`.compiled_assign` through ``book = (mapping (k, 3), counters,
-sub_calls, sub_emu)``: per rule candidates / valid / wins, the counters indexed below, and each
-chip submission's calls and emulation seconds (charged by the caller in order).
+sub_calls, sub_emu, failure (3,))``: per rule candidates / valid / wins, the counters indexed below,
+each chip submission's calls and emulation seconds (charged by the caller in order), and why the
+search stopped (code, group mask or stage status, submissions).
 """
 
 from __future__ import annotations
@@ -24,7 +26,13 @@ from numba.typed import Dict
 from planners.ising.sharing.engine import run_stage
 from planners.ising.sharing.kernels import split_model
 
-__all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "popcount", "mask_nodes", "mask_nodes_into"]
+__all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "popcount", "mask_nodes", "mask_nodes_into",
+           "FAILED_SPLIT", "REFUSED_STAGE", "OUTSIDE"]
+
+#: ``book[4][0]`` when a search stops: a split without a valid candidate after the retries (``book[4][1]``
+#: its group mask, ``[2]`` the submissions), a stage the chip would refuse (``[1]`` the
+#: :func:`.engine.run_stage` status), a group outside the compiled search's contract (``[1]`` which check).
+FAILED_SPLIT, REFUSED_STAGE, OUTSIDE = 1, 2, 3
 
 COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
             "pair_accepted", "submissions")
@@ -114,11 +122,12 @@ def reserve(store, n):
 
 
 @numba.njit(cache=True)
-def solve_problems(q, Q, free, sizes, anchors, reject, pids, score_w, R, rng, chip, retries, book, store):
-    """:meth:`~.submit.ChipSubmission._solve_all` with the packed submission: problem ``p``'s distinct
-    valid candidates (best cut on ``score_w`` first) go to store row ``pids[p]``.  Returns ``ok``."""
+def solve_problems(q, Q, free, sizes, anchors, reject, pids, masks, score_w, R, rng, chip, retries, book, store):
+    """:meth:`~.submit.ChipSubmission._solve_all` with the packed submission: problem ``p``'s (group
+    ``masks[p]``) distinct valid candidates (best cut on ``score_w`` first) go to store row
+    ``pids[p]``.  Returns ``ok`` (the reason in ``book[4]`` when not)."""
     rule_ids, Lh, Lj, n_spins, capacity, reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
-    mapping, counters, sub_calls, sub_emu = book
+    mapping, counters, sub_calls, sub_emu, failure = book
     c_cut, c_m0, c_m1, c_n = store
     nk = rule_ids.shape[0]
     pending = np.arange(sizes.shape[0])
@@ -127,17 +136,20 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, score_w, R, rng, ch
     attempts = 0
     while pending.shape[0] > 0:
         for p in pending:
-            if sizes[p] > n_spins:  # spin-budget branching: the reference's path
+            if sizes[p] > n_spins:  # spin-budget branching: outside the contract
+                failure[0], failure[1] = OUTSIDE, 1
                 return False
+        s = counters[SUBMISSIONS]
+        if s >= sub_calls.shape[0]:  # more submissions than the caller made room for
+            failure[0], failure[1] = OUTSIDE, 2
+            return False
         seed = rng.integers(0, _SEED_HIGH)
-        ok, calls, emu, n_valid, best, c_split, cut, s0, n0, s1, n1 = run_stage(
+        code, calls, emu, n_valid, best, c_split, cut, s0, n0, s1, n1 = run_stage(
             q[pending], Q[pending], sizes[pending], rule_ids, Lh, Lj, capacity, reads, np.uint64(seed), handle,
             sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob, free[pending], anchors[pending], score_w, R,
             reject[pending])
-        if not ok:
-            return False
-        s = counters[SUBMISSIONS]
-        if s >= sub_calls.shape[0]:  # more submissions than the caller made room for
+        if code != 0:
+            failure[0], failure[1] = REFUSED_STAGE, code
             return False
         sub_calls[s] = calls
         sub_emu[s] = emu
@@ -182,7 +194,8 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, score_w, R, rng, ch
                 c_m0[row, j] = _bits(s0[m], n0[m])
                 c_m1[row, j] = _bits(s1[m], n1[m])
             c_n[row] = cnt
-        if n_failed and attempts >= retries:  # the reference names the split that failed
+        if n_failed and attempts >= retries:  # the caller names the split that failed
+            failure[0], failure[1], failure[2] = FAILED_SPLIT, masks[failed[0]], attempts + 1
             return False
         attempts += 1
         pending = failed[:n_failed]
@@ -208,7 +221,8 @@ def _stage(w, R, todo, kind, reject_robots, memo, n_prob, rng, chip, retries, li
     counters[STAGES] += 1
     counters[SPLITS] += nf
     for i in range(nf):
-        if popcount(fresh[i]) - 2 > limit:  # a coarse split: the reference's path
+        if popcount(fresh[i]) - 2 > limit:  # a coarse split: outside the contract
+            book[4][0], book[4][1] = OUTSIDE, 3
             return False, rows, n_prob, store
     store = reserve(store, n_prob + nf)
     c_cut, c_m0, c_m1, c_n = store
@@ -229,8 +243,8 @@ def _stage(w, R, todo, kind, reject_robots, memo, n_prob, rng, chip, retries, li
     if n_keep:
         k = keep[:n_keep]
         reject = np.full(n_keep, reject_robots and kind == 0)
-        if not solve_problems(q[k], Q[k], free[k], sizes[k], anchors[k], reject, n_prob + k, w, R, rng, chip,
-                              retries, book, store):
+        if not solve_problems(q[k], Q[k], free[k], sizes[k], anchors[k], reject, n_prob + k, fresh[:nf][k], w, R,
+                              rng, chip, retries, book, store):
             return False, rows, n_prob, store
     return True, rows, n_prob + nf, store
 

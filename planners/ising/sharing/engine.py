@@ -7,9 +7,9 @@ chip through :func:`ising_backend.anneal_submit` (the emulator's kernel, or a ca
 machine's ``anneal_batch``; the seed ``anneal_batch`` would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
 and returns the same arrays, the calls and the measured emulation seconds for
 :meth:`~ising_backend.EmulatedChip.charge`.  A stage it cannot run as the chip would (a
-non-finite quantized coefficient, a program outside the chip's symmetric coefficient limits, which
-the chip's own check (:func:`ising_backend.programs_fit`) refuses) comes back with
-``ok=False`` and nothing annealed, so the caller takes the checked path, which names the error.
+non-finite quantized coefficient: :data:`STAGE_NONFINITE`; a program outside the chip's symmetric
+coefficient limits, which the chip's own check (:func:`ising_backend.programs_fit`) refuses:
+:data:`STAGE_UNFIT`) comes back with that status and nothing annealed; the caller names it.
 """
 
 from __future__ import annotations
@@ -20,13 +20,15 @@ import numpy as np
 from ising_backend import anneal_submit, fill_packs, pack_layout, programs_fit
 from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
 
-__all__ = ["run_stage"]
+__all__ = ["run_stage", "STAGE_OK", "STAGE_NONFINITE", "STAGE_UNFIT"]
+
+STAGE_OK, STAGE_NONFINITE, STAGE_UNFIT = 0, 1, 2
 
 
 @numba.njit(cache=True)
 def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold,
               mismatch, flip_prob, free, anchors, dist, n_robots, reject):
-    """One stage submission (module docstring).  Returns ``(ok, calls, emulation_s, n_valid, best,
+    """One stage submission (module docstring).  Returns ``(status, calls, emulation_s, n_valid, best,
     c_split, c_cut, side0, n0, side1, n1)`` (the last seven as :func:`.kernels.score_stage` and
     :func:`.kernels.candidate_sides`)."""
     P = sizes.shape[0]
@@ -41,10 +43,10 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, swe
         capacity = max(capacity, prog_sizes.max())
     pack_of, order, n_packs, width = pack_layout(prog_sizes, capacity)
     h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
-    ok = not status.any() and programs_fit(h, J, -Lh, Lh, -Lj, Lj)
-    if not ok:
+    code = STAGE_NONFINITE if status.any() else (STAGE_OK if programs_fit(h, J, -Lh, Lh, -Lj, Lj) else STAGE_UNFIT)
+    if code != STAGE_OK:
         e = np.zeros(0, dtype=np.int64)
-        return (False, 0, 0.0, np.zeros((P, k), dtype=np.int64), np.zeros((P, k)), e, np.zeros(0),
+        return (code, 0, 0.0, np.zeros((P, k), dtype=np.int64), np.zeros((P, k)), e, np.zeros(0),
                 np.zeros((0, f + 1), dtype=np.int64), e, np.zeros((0, f + 1), dtype=np.int64), e)
     spins = np.empty((n_packs, num_reads, width), dtype=np.int8)
     energies = np.empty((n_packs, num_reads))
@@ -53,4 +55,4 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, swe
     calls = n_packs * num_reads if width > 0 else 0
     n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject)
     s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
-    return True, calls, emu, n_valid, best, c_split, c_cut, s0, n0, s1, n1
+    return STAGE_OK, calls, emu, n_valid, best, c_split, c_cut, s0, n0, s1, n1

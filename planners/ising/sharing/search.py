@@ -28,12 +28,12 @@ from planners.ising.sharing.boundary import BoundaryRefinement
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
 from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel, pair_mean
-from planners.ising.sharing.compiled_stages import COUNTERS
+from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE
 from planners.ising.sharing.components import Components
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import split_model
 from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
-from planners.ising.sharing.submit import ChipSubmission
+from planners.ising.sharing.submit import ChipSubmission, stage_refusal
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
 
@@ -115,10 +115,9 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         pricer = None
         self._memo: dict = {}
         try:
-            if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62:
-                result = self._assign_compiled(dist, R, rng, stats)
-                if result is not None:
-                    return result
+            if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62 \
+                    and R + N - 2 <= self.chip.spec.n_spins:  # every group fits one program
+                return self._assign_compiled(dist, R, rng, stats)
             pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
             cost = pricer.cost
             states = self._split_all(self.split_weights(dist, R), R, rng, stats)
@@ -156,13 +155,15 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
 
     def _assign_compiled(self, dist, R, rng, stats) -> SharingResult | None:
         """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
-        counted as the reference would; ``None`` (the rng rewound) where the reference takes another path."""
+        counted as the Python search would; where it stops (a split without a valid candidate, a
+        refused stage) a :class:`SharingFailure` naming it, as the Python search raises."""
         cfg = self.config
         powered, mean = self._powered(dist)
-        subs = (R + cfg.refine_stages + cfg.pair_rounds + 1) * (cfg.retries + 1)  # room for every submission
+        # room for every submission: each stage (splits down to single robots, refinement, pair rounds)
+        # submits at most retries + 1 times
+        subs = (2 * R + cfg.refine_stages + cfg.pair_rounds * R + 2) * (cfg.retries + 1)
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
-                np.zeros(subs, dtype=np.int64), np.zeros(subs))
-        state = rng.bit_generator.state
+                np.zeros(subs, dtype=np.int64), np.zeros(subs), np.zeros(3, dtype=np.int64))
         compiled = self._compiled
         if not self._link.direct:  # programs packed clear of the stuck spins a faulty chip found
             chip = compiled[0]
@@ -174,10 +175,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        if not ok:
-            rng.bit_generator.state = state
-            return None
-        mapping, counters, calls, emu = book
+        mapping, counters, calls, emu, failure = book
         counts = dict(zip(COUNTERS, counters.tolist()))
         n = counts.pop("submissions")
         for key in ("pair_resplits", "pair_accepted"):  # present once the refinement made them
@@ -188,8 +186,21 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
         self._link.settle(calls[:n], emu[:n], self._meter.charged)
+        if not ok:
+            raise SharingFailure(self._stopped(R, *failure.tolist()))
         assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
         return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
+
+    @staticmethod
+    def _stopped(R: int, code: int, what: int, submissions: int) -> str:
+        """Why the compiled sharing stopped (``book[4]`` of :func:`.compiled_assign.assign_kernel`), in
+        the Python search's words."""
+        if code == FAILED_SPLIT:
+            nodes = [t for t in range(63) if what >> t & 1]
+            return f"every chip candidate for the split of group {nodes} was invalid after {submissions} submissions"
+        if code == REFUSED_STAGE:
+            return stage_refusal(what)
+        return f"internal error: the compiled sharing met a group outside its contract (check {what})"
 
     def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus

@@ -13,15 +13,20 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    BranchMapping, ChipProgramError, ModelError, QuantizeError, QuantizeMapping, SolverOutputError, fill_packs,
-    ising_from_qubo, plan_packs, quantize_stack, run_portfolio_batch,
+    BranchMapping, ChipProgramError, QuantizeMapping, SolverOutputError, ising_from_qubo, run_portfolio_batch,
 )
 from planners.ising.sharing.bundles import SharingFailure
-from planners.ising.sharing.engine import run_stage
-from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
+from planners.ising.sharing.engine import STAGE_NONFINITE, STAGE_OK, run_stage
 from planners.ising.sharing.qubo import cut_value, decode_split
 
 __all__ = ["ChipSubmission"]
+
+
+def stage_refusal(status: int) -> str:
+    """The failure of a stage :func:`.engine.run_stage` would not submit (its ``status``)."""
+    if status == STAGE_NONFINITE:
+        return "a split program could not be quantized: a coefficient is not finite (distances too large to add)"
+    return "the chip refused a mapped split program: a quantized coefficient is outside the chip's range"
 
 
 class ChipSubmission:
@@ -62,11 +67,9 @@ class ChipSubmission:
         """The submission of :meth:`_solve` for splits that fit the chip: every split x quantization
         rule mapped, block-packed first-fit decreasing into one submission, every read decoded,
         checked and scored on the unquantized cut -- in one compiled call
-        (:func:`.engine.run_stage`) on a chip whose kernel it may drive, else through
-        ``anneal_batch`` (:meth:`_submit_checked`); each distinct valid partition becomes a
+        (:func:`.engine.run_stage`, on any machine); each distinct valid partition becomes a
         candidate."""
         cfg = self.config
-        spec = self.chip.spec
         seed = int(rng.integers(2**63 - 1))
         rules = cfg.rules
         P = len(problems)
@@ -83,24 +86,18 @@ class ChipSubmission:
             free[k, :n] = p.free
         anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
         reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
-        out = None
-        if self._kernel_args is not None:  # the whole submission in one compiled call
-            self._link.charged = self._meter.charged
-            try:
-                out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, self._capacity(), cfg.reads,
-                                np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
-            except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
-                raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
-            except ChipProgramError as exc:
-                raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-            if out[0]:
-                self._link.settle([out[1]], [out[2]], self._meter.charged)
-                n_valid, best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
-            else:
-                out = None
-        if out is None:
-            n_valid, best, c_split, c_cut, s0, n0, s1, n1 = self._submit_checked(
-                w, R, problems, q, Q, free, sizes, anchors, reject, seed)
+        self._link.charged = self._meter.charged
+        try:
+            out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, self._capacity(), cfg.reads,
+                            np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
+        except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
+            raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
+        except ChipProgramError as exc:
+            raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
+        if out[0] != STAGE_OK:
+            raise SharingFailure(stage_refusal(out[0]))
+        self._link.settle([out[1]], [out[2]], self._meter.charged)
+        n_valid, best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]
         for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
@@ -122,41 +119,6 @@ class ChipSubmission:
             c = cands[k]
             order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
             p.cands = [c[i] for i in order]
-
-    def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, seed):
-        """:meth:`_solve_packed`'s submission through ``anneal_batch`` (any chip; the reference of
-        :func:`.engine.run_stage`): map, pack, anneal, score; errors become :class:`SharingFailure`."""
-        cfg = self.config
-        spec = self.chip.spec
-        rules = cfg.rules
-        nr = len(rules)
-        P = len(problems)
-        status, qh, qJ = map_stage(q, Q, sizes, self._rule_ids, *self._limits)
-        if status.any():  # a non-finite quantized coefficient: the checked path names it
-            for p in problems:
-                try:
-                    quantize_stack(ising_from_qubo(p.q, p.Q, p.offset), rules, spec.h_range, spec.j_range)
-                except (QuantizeError, ModelError) as exc:
-                    raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
-        prog_sizes = np.repeat(sizes, nr)
-        # a faulty chip's programs stay clear of the stuck spins its health probe found
-        capacity = max(int(getattr(self.chip, "usable_spins", spec.n_spins)), int(prog_sizes.max()))
-        packs = plan_packs(prog_sizes.tolist(), capacity)
-        width = max(int(prog_sizes[pk].sum()) for pk in packs)
-        pack_of = np.empty(P * nr, dtype=np.int64)
-        for b, pk in enumerate(packs):
-            pack_of[pk] = b
-        order = np.array([j for pk in packs for j in pk], dtype=np.int64)  # placement order within packs
-        h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, len(packs), width)
-        try:
-            spins, _ = self._meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
-        except SolverOutputError as exc:  # a broken chip: nothing to decode
-            raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
-        except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
-            raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject)
-        s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
-        return n_valid, best, c_split, c_cut, s0, n0, s1, n1
 
     def _solve(self, dist, R, problems, rng, stats) -> None:
         """One chip submission for every mapped program of ``problems``.

@@ -28,6 +28,7 @@ from .chip import kernel_capable
 from .ledger import CallLedger
 from .logical import LogicalIsingSolver, mix_seed, tabu_kernel
 from .meter import SolverOutputError
+from .models import IsingModel
 
 __all__ = ["MachineLink", "anneal_submit", "solve_submit"]
 
@@ -45,10 +46,11 @@ class MachineLink:
     handle, and each reaches its own machine once it sets ``charged``.
     """
 
-    def __init__(self, machine, handle: int | None = None):
+    def __init__(self, machine, handle: int | None = None, logical: bool | None = None):
         self.machine = machine
-        self.logical = isinstance(machine, LogicalIsingSolver)
-        if self.logical:  # the compiled tabu kernel, or the solver's solve_stack (another method, faults)
+        # a logical solver (solve_stack / solve_many, reached by solve_submit) or an annealer (anneal_batch)
+        self.logical = isinstance(machine, LogicalIsingSolver) if logical is None else bool(logical)
+        if self.logical:  # the compiled tabu kernel, or the solver's own call (another method, faults, any solver)
             self.direct = (type(machine) is LogicalIsingSolver and machine.method == "tabu"
                            and machine.health is None)
         else:
@@ -78,10 +80,10 @@ class MachineLink:
         return (-1, *self.machine.kernel_args(n)) if self.direct else (self.handle, 1, 1, 1)
 
     def __getstate__(self) -> dict:
-        return {"machine": self.machine, "handle": self.handle}
+        return {"machine": self.machine, "handle": self.handle, "logical": self.logical}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["machine"], None if state.get("handle", -1) < 0 else state["handle"])
+        self.__init__(state["machine"], None if state.get("handle", -1) < 0 else state["handle"], state.get("logical"))
 
     def settle(self, calls, seconds, charged: CallLedger) -> None:
         """Charge what a compiled call submitted: the emulator's kernel calls (``calls[i]`` calls,
@@ -102,7 +104,12 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     e = None
     try:
         if link.logical:  # energies are not used by the compiled loops of a logical solver
-            s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
+            if hasattr(machine, "solve_stack"):
+                s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
+            else:  # any solver with solve_many(models, num_reads, seed)
+                models = [IsingModel.trusted(h[b], J[b]) for b in range(h.shape[0])]
+                s = np.stack([np.asarray(r.spins).reshape(int(num_reads), -1)
+                              for r in machine.solve_many(models, num_reads=int(num_reads), seed=int(seed))])
         else:
             s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
     finally:  # a call that failed is charged what it spent

@@ -409,7 +409,7 @@ def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_i
 
 
 @SETTINGS
-@given(st.integers(0, 10**6), st.integers(1, 9), st.sampled_from(["min", "mean"]))
+@given(st.integers(0, 10**6), st.integers(1, 9), st.sampled_from(["min", "mean", "medoid"]))
 def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
     from planners.ising.tour import PaperIsingTour as IsingTour  # the logical construction
 
@@ -420,20 +420,28 @@ def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
     cut = np.sort(rng.choice(np.arange(1, n), size=K - 1, replace=False)) if K > 1 else np.array([], dtype=int)
     clusters = [list(map(int, c)) for c in np.split(rng.permutation(np.arange(1, n + 1)), cut)]
     tour = IsingTour(cluster_distance=mode)
-    assert np.array_equal(tour._cluster_dist(dist, clusters), tour._cluster_dist_reference(dist, clusters))
+    from tour_reference import cluster_dist_reference
+
+    assert np.array_equal(tour._cluster_dist(dist, clusters), cluster_dist_reference(dist, clusters, mode))
 
 
-@pytest.mark.parametrize("options", [{}, {"n_starts": 2, "num_reads": 2}, {"max_retries": 0, "patch_size": 4}])
-def test_compiled_tour_subproblems_make_the_reference_decisions(options):
-    """planners.ising.tour.engine.solve_order against the Python _solve_path/_sample it mirrors:
-    the same tours, statistics, logical charges and rng state."""
-    from ising_backend import EmulatedChip
+@pytest.mark.parametrize("options, spec", [
+    ({}, {}), ({"n_starts": 2, "num_reads": 2}, {}), ({"max_retries": 0, "patch_size": 4}, {}),
+    ({"local_limit": 7, "max_branch_bits": 6}, {}),  # 49-spin local TSPs: spin-budget branching
+    ({"backend": "chip-onehot", "local_limit": 4, "patch_size": 4, "max_clusters": 5}, {}),  # quantized, on the chip
+    ({}, {"readout_flip_prob": 0.05}),  # a faulty chip's logical solver: the callback
+])
+def test_compiled_tour_subproblems_make_the_reference_decisions(options, spec):
+    """planners.ising.tour.engine.solve_order against the Python calls of tests/tour_reference.py:
+    the same tours, statistics, charges and rng state (logical solver, branching, physical chip)."""
+    from ising_backend import ChipSpec, EmulatedChip
     from mrmt_env.generation import generate_world
     from planners.ising.tour import PaperIsingTour as IsingTour  # the logical construction
+    from tour_reference import reference_solve_path
 
-    fast, ref = IsingTour(EmulatedChip(), **options), IsingTour(EmulatedChip(), **options)
-    assert fast._engine
-    ref._engine = False
+    fast, ref = IsingTour(EmulatedChip(ChipSpec(**spec)), **options), IsingTour(EmulatedChip(ChipSpec(**spec)), **options)
+    ref._solve_path = lambda *a: reference_solve_path(ref, *a)
+    solved = 0
     for s in range(10):
         dist = generate_world(s, n_robots=1, n_targets=3 + s % 9).distance_matrix
         r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
@@ -441,6 +449,33 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options):
         assert a.order == b.order and a.cost == b.cost and a.failure == b.failure
         assert a.stats == b.stats and a.compute == b.compute
         assert r1.integers(1 << 62) == r2.integers(1 << 62)
+        solved += a.failure is None
+    assert solved > 0
+
+
+def test_a_user_solver_with_solve_many_runs_the_compiled_subproblem_solve():
+    """A logical solver that only offers ``solve_many`` (no kernel, no ``solve_stack``) is reached
+    through the machine link's callback: the same tours as the built-in solver it wraps."""
+    from ising_backend import LogicalIsingSolver
+    from mrmt_env.generation import generate_world
+    from planners.ising.tour import PaperIsingTour
+
+    class Wrapped:
+        def __init__(self):
+            self.inner = LogicalIsingSolver()
+            self.ledger = self.inner.ledger
+            self.calls = 0
+
+        def solve_many(self, models, num_reads=1, seed=None):
+            self.calls += 1
+            return self.inner.solve_many(models, num_reads=num_reads, seed=seed)
+
+    solver = Wrapped()
+    dist = generate_world(4, n_robots=1, n_targets=8).distance_matrix
+    a = PaperIsingTour(solver=solver).solve(dist, np.random.default_rng(0))
+    b = PaperIsingTour().solve(dist, np.random.default_rng(0))
+    assert solver.calls > 0 and a.order == b.order and a.stats == b.stats
+    assert a.compute.logical_calls == b.compute.logical_calls > 0
 
 
 @settings(max_examples=60, deadline=None)

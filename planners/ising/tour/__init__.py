@@ -2,7 +2,8 @@
 of paper section 5.2 (Algorithm 2).
 
 ``config`` (options), ``moves`` (2-opt / or-opt moves and the move-selection QUBO),
-``selection`` and ``move_engine`` (the chip backend's search, Python and compiled), ``qubo``
+``selection`` and ``move_engine`` (the chip backend's search, compiled), ``engine`` (the
+one-hot subproblem solve, compiled), ``qubo``
 (eq. 7 max-cut and one-hot open-path model builders, decoders, scorers), ``cluster``
 (clustering and cluster ordering), ``search`` (``IsingTour``: local TSPs, patch refinement,
 starts; dispatch to the chip backend).

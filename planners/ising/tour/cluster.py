@@ -96,7 +96,7 @@ class Clustering:
             raise ValueError("weight matrix has non-finite entries (targets in different components?)")
         h, J, off = maxcut_ising(w)
         for _attempt in range(self.config.max_retries + 1):
-            bits = self._sample(h, J, off, run, onehot=False)
+            bits = self._sample(h, J, off, run)
             sizes = bits.sum(axis=1)
             ok = (sizes > 0) & (sizes < len(drawn))
             if np.any(ok):
@@ -119,32 +119,17 @@ class Clustering:
 
     # ------------------------------------------------------------------ 2. cluster order
     def _cluster_dist(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
-        if self.config.cluster_distance in ("min", "mean"):
-            flat = np.array([t for c in clusters for t in c], dtype=np.int64)
-            ptr = np.cumsum([0] + [len(c) for c in clusters]).astype(np.int64)
-            return cluster_distances(np.ascontiguousarray(dist, dtype=np.float64), flat, ptr,
-                                     self.config.cluster_distance == "mean")
-        return self._cluster_dist_reference(dist, clusters)
-
-    def _cluster_dist_reference(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
-        """Cluster-to-cluster distances in numpy (the reference of :func:`.kernels.cluster_distances`)."""
-        K = len(clusters)
-        D = np.zeros((K, K))
+        """Cluster-to-cluster distances (``cluster_distance``): the closest or mean pair
+        (:func:`.kernels.cluster_distances`), or the distance between the clusters' medoids."""
         if self.config.cluster_distance == "medoid":
-            med = []
-            for c in clusters:
-                sub = dist[np.ix_(c, c)]
-                med.append(c[int(np.argmin(sub.sum(axis=1)))])
-        for a in range(K):
-            for b in range(K):
-                if a == b:
-                    continue
-                if self.config.cluster_distance == "medoid":
-                    D[a, b] = dist[med[a], med[b]]
-                else:
-                    block = dist[np.ix_(clusters[a], clusters[b])]
-                    D[a, b] = block.min() if self.config.cluster_distance == "min" else block.mean()
-        return D
+            med = [c[int(np.argmin(dist[np.ix_(c, c)].sum(axis=1)))] for c in clusters]
+            D = dist[np.ix_(med, med)].astype(np.float64)
+            np.fill_diagonal(D, 0.0)
+            return D
+        flat = np.array([t for c in clusters for t in c], dtype=np.int64)
+        ptr = np.cumsum([0] + [len(c) for c in clusters]).astype(np.int64)
+        return cluster_distances(np.ascontiguousarray(dist, dtype=np.float64), flat, ptr,
+                                 self.config.cluster_distance == "mean")
 
     def _order_clusters(self, dist: np.ndarray, clusters: list[list[int]], run: _Run) -> list[list[int]]:
         K = len(clusters)

@@ -1,14 +1,13 @@
-"""Compiled one-hot subproblem solve of the clustered Ising tour (paper 5.2) on the logical solver.
+"""Compiled one-hot subproblem solve of the clustered Ising tour (paper 5.2): the one implementation.
 
-Contract: :func:`solve_order` makes the decisions of ``IsingTour._solve_path`` followed by its
-``_sample`` for one open-path subproblem (cluster order, local TSP or refinement patch) whose
-one-hot model fits the spin budget: the penalty, the Ising model, per attempt a seed drawn
-from the construction's ``numpy.random.Generator`` and its solve-group sub-seed
-(:func:`ising_backend.logical.mix_seed`), the logical solver through
-:func:`ising_backend.solve_submit` (its own tabu kernel, or a callback into ``solve_stack``), decode, the cheapest valid order and
-the statistics.  Each attempt's calls and measured emulation seconds (a monotonic clock around
-the kernel) are returned so the caller charges the solver as ``solve_stack`` would.  The
-Python path in :mod:`.search` is its reference (the tests compare both).
+Contract: :func:`solve_order` solves one open-path subproblem (cluster order, local TSP or
+refinement patch): the penalty, the one-hot Ising model, spin-budget branching of a model above
+the budget (the strongest spins frozen, ``2^k`` programs, as :func:`ising_backend.branch`), per
+attempt a seed drawn from the construction's ``numpy.random.Generator``, the programs on the
+logical solver (:func:`ising_backend.solve_submit`) or, quantized by one rule, on the physical chip
+(:func:`ising_backend.anneal_submit`), decode, the cheapest valid order and the statistics.  Each
+attempt's calls and emulation seconds are returned so the caller charges the machine as its own
+call would.  ``tests/tour_reference.py`` holds the Python loop it is tested against.
 """
 
 from __future__ import annotations
@@ -16,18 +15,42 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import solve_submit
-from planners.ising.tour.kernels import best_onehot, onehot_ising
+from ising_backend import anneal_submit, quantize_rules, solve_submit
+from planners.ising.numeric import pairwise_sum
+from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 
-__all__ = ["solve_order"]
+__all__ = ["solve_order", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
+
+SOLVED, UNSOLVED, TOO_MANY_BITS, UNQUANTIZABLE = 0, 1, 2, 3
 
 
 @numba.njit(cache=True)
-def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, handle, restarts, iterations, tenure):
-    """Best valid order of one one-hot open-path subproblem, or an empty order after the retries.
+def _frozen(h, J, k):
+    """The ``k`` spins to freeze, sorted: by decreasing ``|h_i| + sum_j |J_ij + J_ji|`` (numpy's
+    summation), lowest index first on ties (:func:`ising_backend.branching.freeze_order`)."""
+    n = h.shape[0]
+    strength = np.empty(n)
+    row = np.empty(n)
+    for i in range(n):
+        for j in range(n):
+            row[j] = abs(J[i, j] + J[j, i])
+        strength[i] = abs(h[i]) + pairwise_sum(row, 0, n)
+    return np.sort(np.argsort(-strength, kind="mergesort")[:k])
 
-    Returns ``(order (s,) or (0,), stats (6,), calls (attempts,), emulation_s (attempts,))`` with
-    stats = programs, reads, valid_reads, valid programs, retries, unsolved (0/1).
+
+@numba.njit(cache=True)
+def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj,
+                logical_link, chip_link):
+    """Best valid order of one one-hot open-path subproblem (module docstring).
+
+    ``logical_link`` = ``(handle, restarts, iterations, tenure)`` of the logical solver's
+    :meth:`~ising_backend.MachineLink.logical_args`; ``chip_link`` = the chip's
+    :attr:`~ising_backend.MachineLink.kernel_args`, used when ``physical`` (programs quantized by
+    ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
+    (attempts,), emulation_s (attempts,))`` with stats = programs, reads, valid_reads, valid
+    programs, retries, unsolved (0/1), subproblems, valid subproblems; status :data:`SOLVED`,
+    :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats[0]`` holds the
+    bits needed) or :data:`UNQUANTIZABLE` (a non-finite coefficient).
     """
     s = d.shape[0]
     n = s * s
@@ -37,32 +60,56 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, handle
         for j in range(s):
             w_max = max(w_max, abs(d[i, j]))
     A = 1.0 * (margin_factor * w_max + 1.0)
-    h, J, _off = onehot_ising(d, entry, ex, A, 1.0)
-    hb = h.reshape(1, n)
-    Jb = J.reshape(1, n, n)
-    stats = np.zeros(6, dtype=np.int64)
+    h, J, off = onehot_ising(d, entry, ex, A, 1.0)
+    stats = np.zeros(8, dtype=np.int64)
     calls = np.zeros(max_retries + 1, dtype=np.int64)
     emu = np.zeros(max_retries + 1)
-    bits = np.empty((num_reads, n), dtype=np.uint8)
+    none = np.zeros(0, dtype=np.int64)
+    k = max(n - budget, 0)
+    if k > max_bits:
+        stats[0] = k
+        return TOO_MANY_BITS, none, stats, calls[:0], emu[:0]
+    frozen = _frozen(h, J, k) if k else np.zeros(0, dtype=np.int64)
+    free, hb, Jb, _offs = branch_stack(h, J, off, frozen)
+    B = hb.shape[0]
+    nf = free.shape[0]
+    Js = np.empty((B, nf, nf))
+    for b in range(B):
+        Js[b] = Jb
+    if physical:  # every branch program quantized by the rule, as the chip takes it
+        rules = np.full(1, rule, dtype=np.int64)
+        for b in range(B):
+            st, qh, qJ = quantize_rules(hb[b], Jb, rules, Lh, Lj, True, 95.0)
+            if st[0] != 0:
+                return UNQUANTIZABLE, none, stats, calls[:0], emu[:0]
+            hb[b] = qh[0]
+            Js[b] = qJ[0]
     for attempt in range(max_retries + 1):
         seed = rng.integers(0, 9223372036854775807)
-        spins = np.empty((1, num_reads, n), dtype=np.int8)
-        energies = np.zeros((1, num_reads))
-        emu[attempt] = solve_submit(hb, Jb, num_reads, seed, handle, restarts, iterations, tenure, spins, energies)
-        calls[attempt] = num_reads
-        for r in range(num_reads):
-            for v in range(n):
-                bits[r, v] = 1 if spins[0, r, v] > 0 else 0
+        spins = np.empty((B, num_reads, nf), dtype=np.int8)
+        energies = np.zeros((B, num_reads))
+        if physical:
+            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), *chip_link, spins, energies)
+        else:
+            emu[attempt] = solve_submit(hb, Js, num_reads, seed, *logical_link, spins, energies)
+        calls[attempt] = B * num_reads
+        bits = expand_branches(spins, free, frozen, n)
         valid, best, orders = best_onehot(bits, s, d, entry, ex)
         nv = 0
-        for r in range(num_reads):
+        for r in range(B * num_reads):
             nv += valid[r]
-        stats[0] += 1
-        stats[1] += num_reads
+        stats[0] += B
+        stats[1] += B * num_reads
         stats[2] += nv
-        stats[3] += nv > 0
+        for b in range(B):
+            any_b = 0
+            for r in range(num_reads):
+                any_b |= valid[b * num_reads + r]
+            stats[3] += any_b
+        stats[6] += 1
+        stats[7] += nv > 0
         if best >= 0:
-            return orders[best].copy(), stats, calls[: attempt + 1], emu[: attempt + 1]
+            return SOLVED, orders[best].copy(), stats, calls[: attempt + 1], emu[: attempt + 1]
         stats[4] += 1
     stats[5] = 1
-    return np.zeros(0, dtype=np.int64), stats, calls, emu
+    return UNSOLVED, none, stats, calls, emu

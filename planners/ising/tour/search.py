@@ -20,7 +20,8 @@ import math
 import numpy as np
 
 from ising_backend import (
-    ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError, freeze_order, quantize,
+    QUANTIZE_RULE_IDS, ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError,
+    freeze_order, quantize,
 )
 from planners.base import TourResult
 from planners.compute import ComputeReport
@@ -28,9 +29,8 @@ from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.tour.cluster import Clustering, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
-from planners.ising.tour.engine import solve_order
-from planners.ising.tour.kernels import best_onehot, branch_stack, dist_flags, expand_branches, onehot_ising, route_cost
-from planners.ising.tour.qubo import onehot_penalty
+from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
+from planners.ising.tour.kernels import branch_stack, dist_flags, expand_branches, route_cost
 from planners.ising.tour.selection import MoveSelection
 
 __all__ = ["IsingTour", "PaperIsingTour"]
@@ -65,9 +65,8 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         self.solver = solver if solver is not None else LogicalIsingSolver(
             spec=self.spec, ledger=self.chip.ledger, health=getattr(self.chip, "health", None),
             **cfg.solver_options)
-        # the compiled subproblem solve, on the logical solver through a link (its kernel or solve_stack)
-        self._engine = cfg.backend == "logical" and isinstance(self.solver, LogicalIsingSolver)
-        self._solver_link = MachineLink(self.solver) if self._engine else None
+        # the compiled subproblem solve reaches the logical solver through a link (its kernel, or a callback)
+        self._solver_link = MachineLink(self.solver, logical=True)
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
         if cfg.backend != "chip" and largest ** 2 > self._budget + cfg.max_branch_bits:  # one-hot models only
             raise ValueError(
@@ -78,9 +77,11 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
     def __repr__(self) -> str:
         return f"IsingTour({self.config!r})"
 
-    def _sample(self, h, J, off, run: _Run, onehot: bool) -> np.ndarray:
+    def _sample(self, h, J, off, run: _Run) -> np.ndarray:
         """Bits ``(m, n)`` uint8 of every read of every branch of one program issue (logical Ising
-        ``h``, ``J``, ``off``); models above the spin budget are branched (``2^k`` programs)."""
+        ``h``, ``J``, ``off``: the max-cut splits of the clustering) on the logical solver, or quantized
+        on the chip for ``backend="chip-onehot"``; models above the spin budget are branched (``2^k``
+        programs)."""
         cfg = self.config
         n = h.shape[0]
         if n > self._budget:
@@ -97,33 +98,14 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
             spins = run.solver.solve_stack(hb, Jb, num_reads=cfg.num_reads, seed=seed)
         else:
             programs = [IsingModel.trusted(hb[m], Jb.copy(), float(offs[m])) for m in range(len(hb))]
-            if physical:
+            if physical:  # quantized by chip_quantize, on the chip
                 hr, jr = self.spec.h_range, self.spec.j_range
                 progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
                 out = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
             else:
                 out = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
             spins = np.stack([np.asarray(sp).reshape(cfg.num_reads, -1) for sp in out])
-        bits = expand_branches(spins, free, frozen, n)
-        if onehot:
-            s = int(round(math.sqrt(n)))
-            z = self._zeros.get(s)
-            if z is None:
-                z = self._zeros[s] = np.zeros((s, s))
-            valid = best_onehot(bits, s, z, z[0], z[0])[0]
-            per_program = valid.reshape(len(hb), -1)
-            m = run.stats["mapping"]["tour"]
-            any_valid = bool(valid.any())
-            m["programs"] += len(hb)
-            m["reads"] += int(valid.size)
-            m["valid_reads"] += int(valid.sum())
-            m["valid"] += int(per_program.any(axis=1).sum())
-            if physical:
-                m["physical_programs"] += len(hb)
-                m["valid_physical"] += int(per_program.any(axis=1).sum())
-            m["subproblems"] += 1
-            m["valid_subproblems"] += int(any_valid)
-        return bits
+        return expand_branches(spins, free, frozen, n)
 
     # ------------------------------------------------------------------ public
     def solve(self, dist: np.ndarray, rng: np.random.Generator | None = None) -> TourResult:
@@ -267,42 +249,40 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
 
     # ------------------------------------------------------------------ one-hot programs
     def _solve_path(self, d, entry, ex, run: _Run, kind: str):
-        """Best valid order of an open-path one-hot QUBO, or ``None`` after retries."""
-        s = d.shape[0]
-        d = np.ascontiguousarray(d, dtype=np.float64)
-        entry = np.ascontiguousarray(entry, dtype=np.float64)
-        ex = np.ascontiguousarray(ex, dtype=np.float64)
-        if self._engine and s * s <= self._budget:
-            return self._solve_path_compiled(d, entry, ex, run, kind)
-        A = onehot_penalty(d, entry, ex, 1.0, self.config.penalty_factor)
-        h, J, off = onehot_ising(d, entry, ex, A, 1.0)
-        for _attempt in range(self.config.max_retries + 1):
-            bits = self._sample(h, J, off, run, onehot=True)
-            _valid, best, orders = best_onehot(bits, s, d, entry, ex)
-            if best >= 0:
-                return [int(i) for i in orders[best]]
-            run.stats["retries"] += 1
-        run.stats["unsolved"][kind] += 1
-        return None
-
-    def _solve_path_compiled(self, d, entry, ex, run: _Run, kind: str):
-        """:meth:`_solve_path` in one compiled call (:func:`.engine.solve_order`), charged to the
-        logical solver attempt by attempt as ``solve_stack`` charges."""
+        """Best valid order of an open-path one-hot QUBO, or ``None`` after retries, in one compiled
+        call (:func:`.engine.solve_order`: spin-budget branching, the logical solver or, for
+        ``backend="chip-onehot"``, the chip), charged to the machine attempt by attempt."""
         cfg = self.config
         s = d.shape[0]
-        charged = self._solver_link.charged = run.charged
-        order, st, calls, emu = solve_order(run.rng, d, entry, ex, cfg.penalty_factor, cfg.max_retries,
-                                            cfg.num_reads, *self._solver_link.logical_args(s * s))
-        self._solver_link.settle(calls, emu, charged)
+        physical = cfg.backend != "logical"
+        link = self._link if physical else self._solver_link
+        link.charged = run.charged
+        width = min(s * s, self._budget)
+        status, order, st, calls, emu = solve_order(
+            run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
+            np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
+            self._budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
+            *(float(v) for v in self.spec.coefficient_limits),
+            (-1, 1, 1, 1) if physical else self._solver_link.logical_args(width), self._link.kernel_args)
+        link.settle(calls, emu, run.charged)
+        if status == TOO_MANY_BITS:
+            raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "
+                              f"{cfg.max_branch_bits}")
+        if status == UNQUANTIZABLE:
+            raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
         m = run.stats["mapping"]["tour"]
-        m["programs"] += int(st[0])
-        m["reads"] += int(st[1])
-        m["valid_reads"] += int(st[2])
-        m["valid"] += int(st[3])
-        m["subproblems"] += int(st[0])
-        m["valid_subproblems"] += int(st[3])
-        run.stats["retries"] += int(st[4])
-        if st[5]:
+        programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
+        m["programs"] += programs
+        m["reads"] += reads
+        m["valid_reads"] += valid_reads
+        m["valid"] += valid
+        if physical:
+            m["physical_programs"] += programs
+            m["valid_physical"] += valid
+        m["subproblems"] += subproblems
+        m["valid_subproblems"] += valid_sub
+        run.stats["retries"] += retries
+        if unsolved:
             run.stats["unsolved"][kind] += 1
             return None
         return [int(i) for i in order]

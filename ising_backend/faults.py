@@ -43,8 +43,24 @@ def _splitmix(x: np.ndarray) -> np.ndarray:
         return z ^ (z >> np.uint64(31))
 
 
+_MASK = (1 << 64) - 1
+
+
+def _splitmix_int(x: int) -> int:
+    """:func:`_splitmix` of one Python integer (the same bits)."""
+    z = (x + 0x9E3779B97F4A7C15) & _MASK
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
+    return z ^ (z >> 31)
+
+
 def mix(*parts) -> np.ndarray:
     """A uint64 hash of integers / integer arrays (broadcast), one splitmix64 round per part."""
+    if all(isinstance(p, (int, np.integer)) for p in parts):  # scalars (every dispatch): plain integers
+        key = 0
+        for p in parts:
+            key = _splitmix_int(key ^ (int(p) & _MASK))
+        return np.uint64(key)
     key = np.zeros(np.broadcast(*[np.asarray(p) for p in parts]).shape, dtype=np.uint64)
     for p in parts:
         arr = np.asarray(p)

@@ -273,3 +273,13 @@ def test_logical_solver_shares_the_chip_health():
     dead = EmulatedChip(ChipSpec(dead_cores=8), seed=0)
     with pytest.raises(ChipUnavailableError):
         LogicalIsingSolver(spec=dead.spec, health=dead.health).solve_stack(h, J[0], num_reads=1, seed=0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-(2**63), 2**64 - 1), min_size=1, max_size=6))
+def test_mix_of_scalars_is_the_array_hash(parts):
+    """Scalar parts take a pure-integer path: the same bits as the numpy path of one-element arrays."""
+    from ising_backend.faults import mix
+
+    arrays = [np.array([p], dtype=np.uint64 if p >= 2**63 else np.int64) for p in parts]
+    assert int(mix(*parts)) == int(mix(*arrays)[0])

@@ -21,7 +21,7 @@ from planners.ising.path.decode import decode_paths
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import PatchFrame, PatchQubo, _resolve, build_patch_qubo
 
-__all__ = ["reference_find_path", "build_patch_qubo_reference"]
+__all__ = ["reference_find_path", "build_patch_qubo_reference", "cut_loops", "component_of"]
 
 
 def _program(planner, comp, target):
@@ -256,3 +256,41 @@ def build_patch_qubo_reference(
     for a in (var, qv, Qv):
         a.setflags(write=False)
     return PatchQubo(var, qv, Qv, float(offset), int(start), int(goal))
+
+
+def cut_loops(cells: list) -> list:
+    """Remove every closed loop from a walk (cells as ``(r, c)`` tuples): a simple path.
+
+    Walking the robot's own committed walk, a revisit of cell ``c`` drops the
+    cells between the two visits.  Every step of the result is a step of the
+    walk, so no new move is invented (bookkeeping, not repair).
+    """
+    out: list = []
+    where: dict = {}
+    for cell in cells:
+        if cell in where:
+            k = where[cell]
+            for dropped in out[k + 1:]:
+                del where[dropped]
+            del out[k + 1:]
+        else:
+            where[cell] = len(out)
+            out.append(cell)
+    return out
+
+
+def component_of(frame: PatchFrame, allowed: np.ndarray, start: int) -> np.ndarray:
+    """Cells of the patch 4-connected to ``start`` through ``allowed`` cells (a label, not a path)."""
+    reach = np.zeros(frame.n, dtype=bool)
+    if not allowed[start]:
+        return reach
+    reach[start] = True
+    stack = [start]
+    nb = frame.neighbours
+    while stack:
+        i = stack.pop()
+        for j in nb[i]:
+            if allowed[j] and not reach[j]:
+                reach[j] = True
+                stack.append(j)
+    return reach

@@ -7,11 +7,10 @@ import itertools
 import numpy as np
 import pytest
 
+from path_reference import component_of, cut_loops
 from planners.ising.path import (
     DEFAULT_WEIGHTS,
     build_patch_qubo,
-    component_of,
-    cut_loops,
     decode_paths,
     patch_frame,
 )

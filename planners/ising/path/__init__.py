@@ -5,11 +5,11 @@
 """
 
 from planners.ising.path.config import DEFAULT_SCALE, DEFAULT_WEIGHTS, FORMS, TARGET_ORDERS, PathConfig
-from planners.ising.path.decode import cut_loops, decode_paths
-from planners.ising.path.qubo import PatchFrame, PatchQubo, build_patch_qubo, component_of, patch_frame
+from planners.ising.path.decode import decode_paths
+from planners.ising.path.qubo import PatchFrame, PatchQubo, build_patch_qubo, patch_frame
 from planners.ising.path.search import IsingPath, PaperIsingPath
 
 __all__ = [
     "IsingPath", "PaperIsingPath", "PathConfig", "FORMS", "TARGET_ORDERS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS",
-    "PatchFrame", "PatchQubo", "patch_frame", "component_of", "build_patch_qubo", "decode_paths", "cut_loops",
+    "PatchFrame", "PatchQubo", "patch_frame", "build_patch_qubo", "decode_paths",
 ]

@@ -22,8 +22,9 @@ from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
 from planners.compute import ComputeReport
 from planners.ising.fallback import path_fallback
 from planners.ising.path.engine import REACHED, run_query
+from planners.ising.path.kernels import cut_walk
 
-__all__ = ["LegBatch", "BatchedLegs", "run_legs", "cut_walk"]
+__all__ = ["LegBatch", "BatchedLegs", "run_legs"]
 
 _COUNTS = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 
@@ -36,45 +37,6 @@ class LegBatch:
     compute: object = None
     stats: dict = field(default_factory=dict)
     failed: object = None  # the PathResult of leg len(paths) when the batch stopped at it
-
-
-@numba.njit(cache=True)
-def cut_walk(walk, grid, sr, sc, gr, gc, cut):
-    """:meth:`~.query.QueryEnds._checked_path` compiled: the walk ``(L, 2)`` with its loops cut
-    (:func:`~.decode.cut_loops`, when ``cut``) and ``ok`` -- whether it is a 4-neighbour path from
-    ``(sr, sc)`` to ``(gr, gc)`` over free cells.  Returns ``(ok, path (L', 2))``."""
-    H, W = grid.shape
-    n = walk.shape[0]
-    out = np.empty((n, 2), dtype=np.int64)
-    m = 0
-    if cut:
-        where = np.full(H * W, -1, dtype=np.int64)
-        for t in range(n):
-            r, c = walk[t, 0], walk[t, 1]
-            inside = 0 <= r < H and 0 <= c < W
-            k = where[r * W + c] if inside else -1
-            if k >= 0:  # a revisit: drop the loop since the first visit
-                for u in range(k + 1, m):
-                    where[out[u, 0] * W + out[u, 1]] = -1
-                m = k + 1
-            else:
-                if inside:
-                    where[r * W + c] = m
-                out[m, 0], out[m, 1] = r, c
-                m += 1
-    else:
-        out[:, :] = walk
-        m = n
-    if m == 0:
-        return False, out[:0]
-    ok = out[0, 0] == sr and out[0, 1] == sc and out[m - 1, 0] == gr and out[m - 1, 1] == gc
-    for t in range(m):
-        r, c = out[t, 0], out[t, 1]
-        if not (0 <= r < H and 0 <= c < W) or grid[r, c]:
-            ok = False
-        if t and abs(r - out[t - 1, 0]) + abs(c - out[t - 1, 1]) != 1:
-            ok = False
-    return ok, out[:m]
 
 
 @numba.njit(cache=True)

@@ -1,4 +1,4 @@
-"""Decoding of patch samples into local paths, and loop cutting of the committed walk (paper 5.1)."""
+"""Decoding of patch samples into local paths (paper 5.1): :func:`~.kernels.extract_path` per sample."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 from planners.ising.path.kernels import extract_path, neighbour_table
 from planners.ising.path.qubo import PatchFrame, PatchQubo
 
-__all__ = ["decode_paths", "cut_loops"]
+__all__ = ["decode_paths"]
 
 
 def decode_paths(frame: PatchFrame, problem: PatchQubo, x: np.ndarray) -> list:
@@ -28,25 +28,3 @@ def decode_paths(frame: PatchFrame, problem: PatchQubo, x: np.ndarray) -> list:
         path = extract_path(row, cells, int(problem.start), int(problem.goal), nbr)
         out.append([int(i) for i in path] if len(path) else None)
     return out
-
-
-def cut_loops(cells: list) -> list:
-    """Remove every closed loop from a walk (cells as ``(r, c)`` tuples): a simple path.
-
-    Walking the robot's own committed walk, a revisit of cell ``c`` drops the
-    cells between the two visits.  Every step of the result is a step of the
-    walk, so no new move is invented (bookkeeping, not repair).
-    """
-    out: list = []
-    where: dict = {}
-    for cell in cells:
-        if cell in where:
-            k = where[cell]
-            for dropped in out[k + 1:]:
-                del where[dropped]
-            del out[k + 1:]
-        else:
-            where[cell] = len(out)
-            out.append(cell)
-    return out
-

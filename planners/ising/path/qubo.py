@@ -15,7 +15,7 @@ import numpy as np
 
 from planners.ising.path.config import DEFAULT_WEIGHTS, FORMS
 
-__all__ = ["PatchFrame", "patch_frame", "component_of", "PatchQubo", "build_patch_qubo"]
+__all__ = ["PatchFrame", "patch_frame", "PatchQubo", "build_patch_qubo"]
 
 
 # --------------------------------------------------------------------------- geometry
@@ -62,23 +62,6 @@ def patch_frame(size: int) -> PatchFrame:
     for a in (adj4, diag, ring, offsets):
         a.setflags(write=False)
     return PatchFrame(size, adj4, diag, ring, offsets, neighbours)
-
-
-def component_of(frame: PatchFrame, allowed: np.ndarray, start: int) -> np.ndarray:
-    """Cells of the patch 4-connected to ``start`` through ``allowed`` cells (a label, not a path)."""
-    reach = np.zeros(frame.n, dtype=bool)
-    if not allowed[start]:
-        return reach
-    reach[start] = True
-    stack = [start]
-    nb = frame.neighbours
-    while stack:
-        i = stack.pop()
-        for j in nb[i]:
-            if allowed[j] and not reach[j]:
-                reach[j] = True
-                stack.append(j)
-    return reach
 
 
 # --------------------------------------------------------------------------- QUBO

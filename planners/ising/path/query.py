@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.path.decode import cut_loops
+from planners.ising.path.kernels import cut_walk
+
 
 __all__ = ["QueryEnds"]
 
@@ -91,14 +92,6 @@ class QueryEnds:
     def _checked_path(self, grid, s, g, walk):
         """The walk (``(r, c)`` tuples or an ``(L, 2)`` array) with its loops cut, as an ``(L', 2)``
         array, or ``None`` if it is not a 4-neighbour path from ``s`` to ``g`` over free cells."""
-        if isinstance(walk, np.ndarray):
-            walk = [(int(r), int(c)) for r, c in walk]
-        cells = cut_loops(walk) if self.config.cut_loops else walk
-        path = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        if not len(path):
-            return None
-        # final check (never hand out an invalid path)
-        steps = np.abs(np.diff(path, axis=0)).sum(axis=1)
-        if (steps != 1).any() or grid[path[:, 0], path[:, 1]].any() or tuple(path[0]) != s or tuple(path[-1]) != g:
-            return None
-        return path
+        walk = np.asarray(walk, dtype=np.int64).reshape(-1, 2)
+        ok, path = cut_walk(walk, np.asarray(grid, dtype=bool), s[0], s[1], g[0], g[1], self.config.cut_loops)
+        return path if ok else None  # never hand out an invalid path

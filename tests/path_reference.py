@@ -33,8 +33,8 @@ def _program(planner, comp, target):
     model = ising_from_qubo(pr.q, pr.Q, pr.offset)
     H = np.rint(model.h * cfg.chip_scale).astype(np.int64)
     C = np.rint(model.J * cfg.chip_scale).astype(np.int64)
-    Lh, Lj, n_spins = planner._limits
-    status, err, a, n_phys, h, J, _, ptr, idx = merge_styles(H, C, planner._style_ids, Lh, Lj, Lj, n_spins)
+    Lh, Lj, n_spins = planner.runner.limits
+    status, err, a, n_phys, h, J, _, ptr, idx = merge_styles(H, C, planner.runner.style_ids, Lh, Lj, Lj, n_spins)
     ok = [k for k in range(len(status)) if status[k] == 0]
     errors = {k: merge_error_message(int(status[k]), err[k], H, C, a[k], Lh, Lj, n_spins, cfg.chip_scale)
               for k in range(len(status)) if status[k] != 0}
@@ -47,7 +47,7 @@ def _anneal(planner, solver, programs, seed):
     cfg = planner.config
     sizes = [len(h) for h, *_ in programs]
     if cfg.pack and len(programs) > 1:
-        packs = plan_packs(sizes, planner._limits[2])
+        packs = plan_packs(sizes, planner.runner.limits[2])
     else:
         packs = [[j] for j in range(len(programs))]
     width = max(sum(sizes[j] for j in pk) for pk in packs) if cfg.pack and len(programs) > 1 else max(
@@ -80,7 +80,7 @@ def reference_find_path(planner, world, start, goal, rng):
             return PathResult(None, failure=f"{name} cell [{r}, {c}] is off the {h}x{w} grid")
         if grid[r, c]:
             return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
-    field = planner._goal_field(world, g)
+    field = planner.fields.goal(world, g)
     return path_fallback(planner.config.fallback, world, s, g, rng, _search(planner, grid, s, g, rng, field))
 
 
@@ -89,12 +89,12 @@ def _search(planner, grid, s, g, rng, field):
     cfg = planner.config
     rad = fr.radius
     offsets = fr.offsets
-    padded = planner._padded(grid)
+    padded = planner.runner.padded(grid)
     solver = MeteredSolver(planner.chip)
     styles = cfg.styles
     mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in styles}
     counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
-    max_attempts, per_target, max_calls = planner._budgets(grid)
+    max_attempts, per_target, max_calls = planner.runner.budgets(grid)
     pos, walk = s, [s]
     visited = np.zeros_like(padded)
     visited[s[0] + rad, s[1] + rad] = True
@@ -110,7 +110,7 @@ def _search(planner, grid, s, g, rng, field):
         excluded = visited.copy()
         for (r, c) in failed_at.get(pos, []):
             excluded[r + rad, c + rad] = True
-        comp, ranked = rank_local_targets(padded, pos[0], pos[1], g[0], g[1], fr.size, planner._nbr, fr.ring,
+        comp, ranked = rank_local_targets(padded, pos[0], pos[1], g[0], g[1], fr.size, planner.runner.nbr, fr.ring,
                                           excluded, cfg.interior_targets, cfg.target_order == "merged", field)
         if len(ranked) == 0:
             if cfg.backtrack and stack:
@@ -167,7 +167,7 @@ def _search(planner, grid, s, g, rng, field):
                 idx[q, : len(p[3])] = p[3]
             at += len(ok)
             n_valid, best, energy, logical = score_patch_samples(sp, ptr, idx, pr.n, pr.cells, pr.start, pr.goal,
-                                                                 planner._nbr, model.h, model.J, model.offset)
+                                                                 planner.runner.nbr, model.h, model.J, model.offset)
             for q, k in enumerate(ok):
                 mapping[styles[k]]["programs"] += cfg.num_reads
                 mapping[styles[k]]["valid"] += int(n_valid[q])
@@ -176,7 +176,7 @@ def _search(planner, grid, s, g, rng, field):
                 q = int(np.argmin(energy))
                 tol = 1e-9 * max(1.0, abs(top))
                 winners = [ok[v] for v in range(len(ok)) if energy[v] <= top + tol]
-                chosen = extract_path(logical[q, best[q]] > 0, pr.cells, pr.start, pr.goal, planner._nbr).tolist()
+                chosen = extract_path(logical[q, best[q]] > 0, pr.cells, pr.start, pr.goal, planner.runner.nbr).tolist()
                 chosen_b = b
                 win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
                 mapping[styles[win]]["wins"] += 1
@@ -195,7 +195,7 @@ def _search(planner, grid, s, g, rng, field):
         stack.append(seg)
         counts["segments"] += 1
         pos = seg[-1]
-    return planner._finish(grid, s, g, walk, counts, mapping, solver.charged, failure, first_map_error)
+    return planner.runner.finish(grid, s, g, walk, counts, mapping, solver.charged, failure, first_map_error)
 
 
 def _add_form(q: np.ndarray, W: np.ndarray, M: np.ndarray, scale: float) -> None:

@@ -398,7 +398,7 @@ def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_i
 
     chip = Counting()
     planner = IsingPath(chip)
-    assert not planner._link.direct
+    assert not planner.runner.link.direct
     world = generate_world(2)
     a = planner.find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
     b = IsingPath(EmulatedChip()).find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))

@@ -40,7 +40,7 @@ def test_defaults_unchanged():
               (28, 70, 30, [[8, 5, 4, 9, 1, 3, 0], [2, 6], [7]])]
     for seed, (cost, calls, logical, orders) in enumerate(before):
         pipe = make_pipeline("ising-paper")
-        assert pipe.path._link.direct and pipe.tour._solver_link.direct  # the emulator's kernels, in the loops
+        assert pipe.path.runner.link.direct and pipe.tour._solver_link.direct  # the emulator's kernels, in the loops
         plan = pipe.plan(_world(seed), seed=seed)
         assert (plan.route_cost, plan.compute.chip_calls, plan.compute.logical_calls, _orders(plan)) == \
             (cost, calls, logical, orders)
@@ -56,7 +56,7 @@ def test_target_faults_plan_validly_without_fallbacks(preset):
         pipe = make_pipeline(preset, chip=chip)
         # faults: the compiled loops, annealing through the chip's fault-tolerant anneal_batch
         assert not pipe.sharing._link.direct
-        assert preset == "ising" or not pipe.path._link.direct
+        assert preset == "ising" or not pipe.path.runner.link.direct
         world = _world(seed)
         plan = pipe.plan(world, seed=seed)
         assert plan.success, plan.failure

@@ -1,6 +1,6 @@
 """The legs of one robot's route in one call of the Ising path layer (paper 5.1, batched).
 
-Contract: ``IsingPath.find_paths(world, cells, rng) -> LegBatch`` plans the legs ``cells[j] ->
+Contract: ``plan_legs(runner, fields, world, cells, rng) -> LegBatch`` (``IsingPath.find_paths``) plans the legs ``cells[j] ->
 cells[j + 1]`` one after another exactly as ``find_path`` would (same compiled query loop, same
 random stream, same paths), but in one compiled call (:func:`run_legs`: every leg's query, its
 loops cut and its path checked) with one compute report and one statistics dict for all of
@@ -24,7 +24,7 @@ from planners.ising.fallback import path_fallback
 from planners.ising.path.engine import REACHED, run_query
 from planners.ising.path.kernels import cut_walk
 
-__all__ = ["LegBatch", "BatchedLegs", "run_legs"]
+__all__ = ["LegBatch", "plan_legs", "run_legs"]
 
 _COUNTS = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 
@@ -112,49 +112,47 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     return done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked, last, n_sub
 
 
-class BatchedLegs:
-    """:class:`~planners.ising.path.IsingPath`'s batch of legs (needs ``config``, ``_link``, ``_pool``,
-    ``_goal_fields``, ``_padded``, ``_loop_args`` and ``_query_result``)."""
-
-    def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
-        """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) until the first one
-        the compiled loop does not finish (module docstring)."""
-        cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-        if len(cells) < 2:
-            return LegBatch(compute=ComputeReport())
-        n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
-        if n_legs == 0:
-            return LegBatch(compute=ComputeReport())
-        stops = cells[: n_legs + 1]
-        grid = world.grid
-        charged = self._link.charged = CallLedger()
-        try:
-            done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
-                rng, *self._pool.arrays(), self._padded(grid), self._goal_fields(world, stops[1:]), stops,
-                *self._loop_args(grid), grid, self.config.cut_loops)
-        except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
-            return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
-        failed = None
-        if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
-            leg = CallLedger()
-            self._link.settle(calls[n_sub:], emu[n_sub:], leg)
-            a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
-            res = self._query_result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
-            failed = path_fallback(self.config.fallback, world, a, b, rng, res)
-        batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
-        if not done:
-            return batch
-        self._link.settle(calls[:n_sub], emu[:n_sub], charged)
-        styles = self.config.styles
-        batch.paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
-        batch.compute = ComputeReport.from_ledger(charged)
-        batch.stats = {
-            "chip_calls": int(charged.physical_calls),
-            "chip_batches": int(charged.batches),
-            **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
-            "walk_length": int(walked),
-            "mapping": {"path": {st: {"programs": r[0], "valid": r[1], "wins": r[2], "map_errors": r[3]}
-                                 for st, r in zip(styles, mapping.tolist())}},
-            "path_length": int(ends[done] - done),
-        }
+def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatch:
+    """Plan the legs of ``cells`` (``(L + 1, 2)``: a start, then the stops) with the query component
+    ``runner`` (:class:`~.runner.QueryRunner`) and ranking ``fields`` (:class:`~.query.GoalFields`)
+    until the first one the compiled loop does not finish (module docstring)."""
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    if len(cells) < 2:
+        return LegBatch(compute=ComputeReport())
+    n_legs = usable_legs(cells, world.grid)  # legs up to the first bad cell (find_path names it)
+    if n_legs == 0:
+        return LegBatch(compute=ComputeReport())
+    stops = cells[: n_legs + 1]
+    grid = world.grid
+    link = runner.link
+    cfg = runner.config
+    charged = link.charged = CallLedger()
+    try:
+        done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
+            rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
+            *runner.loop_args(grid), grid, cfg.cut_loops)
+    except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
+        return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
+    failed = None
+    if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
+        leg = CallLedger()
+        link.settle(calls[n_sub:], emu[n_sub:], leg)
+        a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
+        res = runner.result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
+        failed = path_fallback(cfg.fallback, world, a, b, rng, res)
+    batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
+    if not done:
         return batch
+    link.settle(calls[:n_sub], emu[:n_sub], charged)
+    batch.paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
+    batch.compute = ComputeReport.from_ledger(charged)
+    batch.stats = {
+        "chip_calls": int(charged.physical_calls),
+        "chip_batches": int(charged.batches),
+        **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
+        "walk_length": int(walked),
+        "mapping": {"path": {st: {"programs": r[0], "valid": r[1], "wins": r[2], "map_errors": r[3]}
+                             for st, r in zip(cfg.styles, mapping.tolist())}},
+        "path_length": int(ends[done] - done),
+    }
+    return batch

@@ -22,18 +22,15 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import (
-    CallLedger, ChipUnavailableError, SolverOutputError, anneal_submit, fill_packs, merge_styles_flat, pack_layout,
-)
-from planners.ising.fallback import unavailable_message
+from ising_backend import anneal_submit, fill_packs, merge_styles_flat, pack_layout
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "CompiledSearch", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED"]
+__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "COUNT_NAMES"]
 
 REACHED, BUDGET_SPENT, EXHAUSTED = 0, 1, 2
-_COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
+COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 _EXACT_KEY_CELLS = 55  # patches up to 7x7: the key is the free-cell mask itself
 
 
@@ -233,6 +230,10 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     winners = np.empty(k, dtype=np.int64)
     slots = np.empty(per_call, dtype=np.int64)
     fits = np.empty(per_call, dtype=np.int64)
+    spins = np.empty((0, num_reads, 0), dtype=np.int8)
+    rows = np.empty((0, 2), dtype=np.int64)
+    where = np.empty((0, 2), dtype=np.int64)
+    sizes = np.empty(0, dtype=np.int64)
     pr, pc = sr, sc
     walk[0, 0], walk[0, 1] = sr, sc
     wl = 1
@@ -288,19 +289,26 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                         err[0], err[1], err[2], err[3] = pr, pc, ranked[b], s
                         err_comp[:] = comp
             on_chip += fits[b] > 0
-        spins = np.empty((0, num_reads, 0), dtype=np.int8)
-        rows = np.empty((0, 2), dtype=np.int64)
-        where = np.empty((0, 2), dtype=np.int64)
-        sizes = np.empty(0, dtype=np.int64)
+        # one target whose every style fits, unpacked: the slot's programs as they are (no copies)
+        whole = nb == 1 and fits[0] == k and not pack
         if on_chip:
             seed = rng.integers(0, 9223372036854775807)
-            h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
-            spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
-            energies = np.empty((h.shape[0], num_reads))
-            sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot,
-                                          beta_cold, mismatch, flip_prob, spins, energies)
-            sub_calls[nsub] = h.shape[0] * num_reads
-            used += h.shape[0] * num_reads
+            if whole:
+                w = width[slots[0]]
+                spins = np.empty((k, num_reads, w), dtype=np.int8)
+                energies = np.empty((k, num_reads))
+                sub_emu[nsub] = anneal_submit(ph[slots[0], : k * w].reshape((k, w)),
+                                              pJ[slots[0], : k * w * w].reshape((k, w, w)), num_reads,
+                                              np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold,
+                                              mismatch, flip_prob, spins, energies)
+            else:
+                h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
+                spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
+                energies = np.empty((h.shape[0], num_reads))
+                sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot,
+                                              beta_cold, mismatch, flip_prob, spins, energies)
+            sub_calls[nsub] = spins.shape[0] * num_reads
+            used += spins.shape[0] * num_reads
             nsub += 1
             counts[1] += 1
             counts[0] += on_chip
@@ -322,20 +330,24 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
             P = fits[b]
             if P == 0:
                 continue  # no style fits: counted above
-            w = 0
-            for q in range(P):
-                w = max(w, sizes[at + q])
-            sp = np.zeros((P, num_reads, w), dtype=np.int8)
-            for q in range(P):
-                f = where[at + q, 1]
-                sp[q, :, : sizes[at + q]] = spins[where[at + q, 0], :, f: f + sizes[at + q]]
-            n_valid, best, energy, logical = score_patch_samples(
-                sp, ptr[sl][rows[at: at + P, 1]], idx[sl][rows[at: at + P, 1]], m, cells, centre, li, nbr,
-                lh[sl, :m], lJ[sl, :m, :m], loff[sl])
+            if whole:
+                n_valid, best, energy, logical = score_patch_samples(
+                    spins, ptr[sl], idx[sl], m, cells, centre, li, nbr, lh[sl, :m], lJ[sl, :m, :m], loff[sl])
+            else:
+                w = 0
+                for q in range(P):
+                    w = max(w, sizes[at + q])
+                sp = np.zeros((P, num_reads, w), dtype=np.int8)
+                for q in range(P):
+                    f = where[at + q, 1]
+                    sp[q, :, : sizes[at + q]] = spins[where[at + q, 0], :, f: f + sizes[at + q]]
+                n_valid, best, energy, logical = score_patch_samples(
+                    sp, ptr[sl][rows[at: at + P, 1]], idx[sl][rows[at: at + P, 1]], m, cells, centre, li, nbr,
+                    lh[sl, :m], lJ[sl, :m, :m], loff[sl])
             best_score = np.inf
             brow = -1
             for q in range(P):
-                s = rows[at + q, 1]
+                s = q if whole else rows[at + q, 1]
                 mapping[s, 0] += num_reads
                 mapping[s, 1] += n_valid[q]
                 if energy[q] < best_score:
@@ -347,7 +359,7 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                 nw = 0
                 for q in range(P):
                     if energy[q] <= best_score + tol:
-                        winners[nw] = rows[at + q, 1]
+                        winners[nw] = q if whole else rows[at + q, 1]
                         nw += 1
                 x = np.empty(m, dtype=np.bool_)
                 for i in range(m):
@@ -386,101 +398,3 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
         counts[2] += 1
         pr, pc = seg_cells[s0 + L - 1, 0], seg_cells[s0 + L - 1, 1]
     return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub], err, err_comp
-
-
-class CompiledSearch:
-    """:class:`~planners.ising.path.IsingPath`'s side of the compiled loop: run a query with
-    :func:`run_query` and turn its arrays into the planner's result (needs ``config``, ``frame``,
-    ``chip``, ``_pool``, ``_engine_args``, ``_nbr``, ``_padded`` and ``_finish``)."""
-
-    def _loop_args(self, grid) -> tuple:
-        """:func:`run_query`'s arguments after the goal: the patch frame, the search options, the
-        budgets on ``grid``, the mapping and chip arguments and the free-cell count (memoised for
-        the last grid)."""
-        cached = self._loop_for
-        if cached is not None and cached[0] is grid:
-            return cached[1]
-        cfg = self.config
-        fr = self.frame
-        max_attempts, _per_target, max_calls = self._budgets(grid)
-        args = (fr.size, self._nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
-                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, cfg.targets_per_call, cfg.pack,
-                max_attempts, max_calls, *self._engine_args, self._free_cells(grid))
-        self._loop_for = (grid, args)
-        return args
-
-    def _run_engine(self, grid, s, g, rng, field):
-        """The query on the compiled loop (:func:`.engine.run_query`), charged to the chip per
-        submission as ``anneal_batch`` would."""
-        cfg = self.config
-        charged = self._link.charged = CallLedger()
-        try:
-            out = run_query(rng, *self._pool.arrays(), self._padded(grid), field, s[0], s[1], g[0], g[1],
-                            *self._loop_args(grid))
-        except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
-            unavailable = isinstance(exc, ChipUnavailableError)
-            failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
-            counts = dict.fromkeys(_COUNT_NAMES, 0)
-            if unavailable:
-                counts["chip_unavailable"] = 1
-            mapping = {st: dict.fromkeys(("programs", "valid", "wins", "map_errors"), 0) for st in cfg.styles}
-            return self._finish(grid, s, g, [s], counts, mapping, charged, failure, None)
-        self._link.settle(out[6], out[7], charged)
-        return self._query_result(grid, s, g, out, charged)
-
-    def _query_result(self, grid, s, g, out, charged, used=None):
-        """The :class:`PathResult` of one :func:`run_query` output, charged already to ``charged``
-        (``used``: the query's physical chip calls, if not all of ``charged``)."""
-        cfg = self.config
-        status, pr, pc, walk, counts, mp, _calls, _emu, err, err_comp = out
-        max_attempts, _per_target, max_calls = self._budgets(grid)
-        counts = dict(zip(_COUNT_NAMES, (int(v) for v in counts)))
-        mapping = {st: {"programs": int(r[0]), "valid": int(r[1]), "wins": int(r[2]), "map_errors": int(r[3])}
-                   for st, r in zip(cfg.styles, mp)}
-        failure = None
-        if status == BUDGET_SPENT:
-            failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
-                       f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
-                       f"{charged.physical_calls if used is None else used} chip calls of "
-                       f"max_chip_calls={max_calls})")
-        elif status == EXHAUSTED:
-            failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
-                       f"reachable from [{pr}, {pc}] was visited or failed"
-                       + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
-                       + " (the goal may be unreachable)")
-        map_error = self._map_error(err, err_comp) if err[0] >= 0 else None
-        return self._finish(grid, s, g, [(int(r), int(c)) for r, c in walk], counts, mapping, charged, failure,
-                            map_error)
-
-    def _map_error(self, err, comp) -> str:
-        """``"style: message"`` of the first program a merge style could not map (``err`` and
-        ``comp`` from :func:`run_query`), the merge kernel's own words."""
-        from ising_backend import ising_from_qubo, merge_error_message, merge_styles
-        from planners.ising.path.qubo import build_patch_qubo
-
-        cfg = self.config
-        fr = self.frame
-        style = int(err[3])
-        pr = build_patch_qubo(fr, np.asarray(comp, dtype=bool), fr.n // 2, int(err[2]), cfg.form, cfg.full_weights)
-        model = ising_from_qubo(pr.q, pr.Q, pr.offset)
-        H = np.rint(model.h * cfg.chip_scale).astype(np.int64)
-        C = np.rint(model.J * cfg.chip_scale).astype(np.int64)
-        Lh, Lj, n_spins = self._limits
-        st, e, a, *_ = merge_styles(H, C, self._style_ids[style: style + 1], Lh, Lj, Lj, n_spins)
-        return f"{cfg.styles[style]}: {merge_error_message(int(st[0]), e[0], H, C, a[0], Lh, Lj, n_spins, cfg.chip_scale)}"
-
-    def _budgets(self, grid) -> tuple[int, int, int]:
-        """``(max_attempts, chip calls per attempt, max_chip_calls)`` of a query on ``grid``."""
-        cfg = self.config
-        per_target = len(cfg.styles) * cfg.num_reads
-        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, self._free_cells(grid))
-        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
-        return max_attempts, per_target, max_calls
-
-    def _free_cells(self, grid) -> int:
-        cached = self._free_for
-        if cached is not None and cached[0] is grid:
-            return cached[1]
-        free = int((~np.asarray(grid, dtype=bool)).sum())
-        self._free_for = (grid, free)
-        return free

@@ -40,12 +40,13 @@ def _frozen(h, J, k):
 
 @numba.njit(cache=True)
 def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj,
-                logical_link, chip_link):
+                l_handle, restarts, iterations, tenure, c_handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
+                flip_prob):
     """Best valid order of one one-hot open-path subproblem (module docstring).
 
-    ``logical_link`` = ``(handle, restarts, iterations, tenure)`` of the logical solver's
-    :meth:`~ising_backend.MachineLink.logical_args`; ``chip_link`` = the chip's
-    :attr:`~ising_backend.MachineLink.kernel_args`, used when ``physical`` (programs quantized by
+    ``l_handle .. tenure`` = the logical solver's :meth:`~ising_backend.MachineLink.logical_args`;
+    ``c_handle .. flip_prob`` = the chip's :attr:`~ising_backend.MachineLink.kernel_args`, used when
+    ``physical`` (flat, not tuples: numba types a tuple argument on every call) (programs quantized by
     ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
     (attempts,), emulation_s (attempts,))`` with stats = programs, reads, valid_reads, valid
     programs, retries, unsolved (0/1), subproblems, valid subproblems; status :data:`SOLVED`,
@@ -69,13 +70,21 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget
     if k > max_bits:
         stats[0] = k
         return TOO_MANY_BITS, none, stats, calls[:0], emu[:0]
-    frozen = _frozen(h, J, k) if k else np.zeros(0, dtype=np.int64)
-    free, hb, Jb, _offs = branch_stack(h, J, off, frozen)
-    B = hb.shape[0]
-    nf = free.shape[0]
-    Js = np.empty((B, nf, nf))
-    for b in range(B):
-        Js[b] = Jb
+    if k:
+        frozen = _frozen(h, J, k)
+        free, hb, Jb, _offs = branch_stack(h, J, off, frozen)
+        B = hb.shape[0]
+        nf = free.shape[0]
+        Js = np.empty((B, nf, nf))
+        for b in range(B):
+            Js[b] = Jb
+    else:  # the model as it is: one program
+        frozen = np.zeros(0, dtype=np.int64)
+        free = np.arange(n)
+        hb = h.reshape(1, n).copy()
+        Jb = J
+        Js = J.reshape(1, n, n).copy()
+        B, nf = 1, n
     if physical:  # every branch program quantized by the rule, as the chip takes it
         rules = np.full(1, rule, dtype=np.int64)
         for b in range(B):
@@ -89,11 +98,18 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget
         spins = np.empty((B, num_reads, nf), dtype=np.int8)
         energies = np.zeros((B, num_reads))
         if physical:
-            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), *chip_link, spins, energies)
+            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), c_handle, sweeps, geometric, beta_hot,
+                                          beta_cold, mismatch, flip_prob, spins, energies)
         else:
-            emu[attempt] = solve_submit(hb, Js, num_reads, seed, *logical_link, spins, energies)
+            emu[attempt] = solve_submit(hb, Js, num_reads, seed, l_handle, restarts, iterations, tenure, spins, energies)
         calls[attempt] = B * num_reads
-        bits = expand_branches(spins, free, frozen, n)
+        if k:
+            bits = expand_branches(spins, free, frozen, n)
+        else:
+            bits = np.empty((num_reads, n), dtype=np.uint8)
+            for r in range(num_reads):
+                for v in range(n):
+                    bits[r, v] = 1 if spins[0, r, v] > 0 else 0
         valid, best, orders = best_onehot(bits, s, d, entry, ex)
         nv = 0
         for r in range(B * num_reads):

@@ -263,7 +263,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
             np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
             self._budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
             *(float(v) for v in self.spec.coefficient_limits),
-            (-1, 1, 1, 1) if physical else self._solver_link.logical_args(width), self._link.kernel_args)
+            *((-1, 1, 1, 1) if physical else self._solver_link.logical_args(width)), *self._link.kernel_args)
         link.settle(calls, emu, run.charged)
         if status == TOO_MANY_BITS:
             raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "

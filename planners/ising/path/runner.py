@@ -1,0 +1,170 @@
+"""One Ising path query on the compiled loop (paper 5.1): the path planner's query component.
+
+Contract: ``QueryRunner(config, frame, chip)`` owns what the compiled loop
+(:func:`.engine.run_query`) needs -- the machine link, the program pool, the mapping limits and
+the per-grid arguments (padded grid, budgets, free cells) -- and turns one query's arrays into a
+:class:`~planners.base.PathResult`: charged to the machine per submission, the failure named
+(budget spent, exhausted, programs no merge style could map), the walk's loops cut and the path
+checked (never an invalid path handed out).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ising_backend import (
+    MERGE_STYLE_IDS, CallLedger, ChipUnavailableError, MachineLink, SolverOutputError, ising_from_qubo,
+    merge_error_message, merge_styles,
+)
+from planners.ising.fallback import unavailable_message
+from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, ProgramPool, run_query
+from planners.ising.path.kernels import cut_walk, neighbour_table
+from planners.ising.path.qubo import build_patch_qubo
+
+__all__ = ["QueryRunner"]
+
+_MAPPING = ("programs", "valid", "wins", "map_errors")
+
+
+class QueryRunner:
+    """The compiled query loop on one machine for one path configuration (module docstring)."""
+
+    def __init__(self, config, frame, chip):
+        self.config = config
+        self.frame = frame
+        self.link = MachineLink(chip)  # the compiled loop anneals on any machine through it
+        spec = chip.spec
+        lim = spec.coefficient_limits
+        self.limits = (lim[0], lim[1], int(spec.n_spins))
+        self.style_ids = np.array([MERGE_STYLE_IDS[st] for st in config.styles], dtype=np.int64)
+        self.nbr = neighbour_table(frame)
+        w = config.full_weights
+        coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0) if config.form == "pair" else \
+            (0.0, w["B"], 0.0, w["A_end"], w["A"])
+        self.mapping_args = (config.form == "degree", np.array(coef, dtype=np.float64), float(config.chip_scale),
+                             self.style_ids, *self.limits)
+        self.pool = ProgramPool(frame.n, len(config.styles), spec.n_spins)
+        self._grid_for = None  # (grid, padded grid, free cells, loop arguments) of the last grid
+
+    # ------------------------------------------------------------------ per grid
+    def _for_grid(self, grid) -> tuple:
+        cached = self._grid_for
+        if cached is not None and cached[0] is grid:
+            return cached
+        r = self.frame.radius
+        h, w = grid.shape
+        padded = np.ones((h + 2 * r, w + 2 * r), dtype=bool)
+        padded[r: r + h, r: r + w] = grid
+        free = int((~np.asarray(grid, dtype=bool)).sum())
+        cfg = self.config
+        fr = self.frame
+        max_attempts, _per_target, max_calls = self._budgets(free)
+        args = (fr.size, self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
+                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, cfg.targets_per_call, cfg.pack,
+                max_attempts, max_calls, *self.mapping_args, *self.link.kernel_args, free)
+        self._grid_for = (grid, padded, free, args)
+        return self._grid_for
+
+    def padded(self, grid) -> np.ndarray:
+        """The grid padded with obstacles by the patch radius (memoised for the last grid)."""
+        return self._for_grid(grid)[1]
+
+    def loop_args(self, grid) -> tuple:
+        """:func:`.engine.run_query`'s arguments after the goal on ``grid``."""
+        return self._for_grid(grid)[3]
+
+    def budgets(self, grid) -> tuple[int, int, int]:
+        """``(max_attempts, chip calls per attempt, max_chip_calls)`` of a query on ``grid``."""
+        return self._budgets(self._for_grid(grid)[2])
+
+    def _budgets(self, free: int) -> tuple[int, int, int]:
+        cfg = self.config
+        per_target = len(cfg.styles) * cfg.num_reads
+        max_attempts = cfg.max_attempts if cfg.max_attempts is not None else max(64, free)
+        max_calls = cfg.max_chip_calls if cfg.max_chip_calls is not None else max_attempts * per_target
+        return max_attempts, per_target, max_calls
+
+    # ------------------------------------------------------------------ one query
+    def run(self, grid, s, g, rng, field):
+        """The query ``s -> g`` on the compiled loop, charged to the machine per submission as its
+        ``anneal_batch`` would charge."""
+        charged = self.link.charged = CallLedger()
+        try:
+            out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
+                            *self.loop_args(grid))
+        except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
+            unavailable = isinstance(exc, ChipUnavailableError)
+            failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
+            counts = dict.fromkeys(COUNT_NAMES, 0)
+            if unavailable:
+                counts["chip_unavailable"] = 1
+            mapping = {st: dict.fromkeys(_MAPPING, 0) for st in self.config.styles}
+            return self.finish(grid, s, g, [s], counts, mapping, charged, failure, None)
+        self.link.settle(out[6], out[7], charged)
+        return self.result(grid, s, g, out, charged)
+
+    def result(self, grid, s, g, out, charged, used=None):
+        """The :class:`PathResult` of one :func:`.engine.run_query` output, charged already to
+        ``charged`` (``used``: the query's physical chip calls, if not all of ``charged``)."""
+        cfg = self.config
+        status, pr, pc, walk, counts, mp, _calls, _emu, err, err_comp = out
+        max_attempts, _per_target, max_calls = self.budgets(grid)
+        counts = dict(zip(COUNT_NAMES, (int(v) for v in counts)))
+        mapping = {st: dict(zip(_MAPPING, (int(v) for v in r))) for st, r in zip(cfg.styles, mp)}
+        failure = None
+        if status == BUDGET_SPENT:
+            failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
+                       f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
+                       f"{charged.physical_calls if used is None else used} chip calls of "
+                       f"max_chip_calls={max_calls})")
+        elif status == EXHAUSTED:
+            failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
+                       f"reachable from [{pr}, {pc}] was visited or failed"
+                       + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
+                       + " (the goal may be unreachable)")
+        map_error = self._map_error(err, err_comp) if err[0] >= 0 else None
+        return self.finish(grid, s, g, walk, counts, mapping, charged, failure, map_error)
+
+    def _map_error(self, err, comp) -> str:
+        """``"style: message"`` of the first program a merge style could not map (``err`` and
+        ``comp`` from :func:`.engine.run_query`), the merge kernel's own words."""
+        cfg = self.config
+        fr = self.frame
+        style = int(err[3])
+        pr = build_patch_qubo(fr, np.asarray(comp, dtype=bool), fr.n // 2, int(err[2]), cfg.form, cfg.full_weights)
+        model = ising_from_qubo(pr.q, pr.Q, pr.offset)
+        H = np.rint(model.h * cfg.chip_scale).astype(np.int64)
+        C = np.rint(model.J * cfg.chip_scale).astype(np.int64)
+        Lh, Lj, n_spins = self.limits
+        st, e, a, *_ = merge_styles(H, C, self.style_ids[style: style + 1], Lh, Lj, Lj, n_spins)
+        return f"{cfg.styles[style]}: {merge_error_message(int(st[0]), e[0], H, C, a[0], Lh, Lj, n_spins, cfg.chip_scale)}"
+
+    def finish(self, grid, s, g, walk, counts, mapping, delta, failure, first_map_error):
+        """The query's :class:`PathResult`: compute from the charge ``delta``, statistics, the
+        failure (naming mapping errors) or the loop-cut, checked path."""
+        from planners.base import PathResult
+        from planners.compute import ComputeReport
+
+        compute = ComputeReport.from_ledger(delta)
+        stats = {
+            "chip_calls": int(delta.physical_calls),
+            "chip_batches": int(delta.batches),
+            **counts,
+            "walk_length": len(walk) - 1,
+            "mapping": {"path": mapping},
+        }
+        if failure is not None:
+            n_err = sum(m["map_errors"] for m in mapping.values())
+            if n_err and not any(m["programs"] for m in mapping.values()):
+                failure = (f"no patch program could be mapped onto the chip ({n_err} mapping errors; "
+                           f"first: {first_map_error}); search state: {failure}")
+            elif n_err:
+                failure += f"; {n_err} patch program(s) could not be mapped onto the chip, first: {first_map_error}"
+            return PathResult(None, compute=compute, failure=failure, stats=stats)
+        walk = np.asarray(walk, dtype=np.int64).reshape(-1, 2)
+        ok, path = cut_walk(walk, np.asarray(grid, dtype=bool), s[0], s[1], g[0], g[1], self.config.cut_loops)
+        if not ok:  # never hand out an invalid path
+            return PathResult(None, compute=compute, stats=stats,
+                              failure="internal error: the stitched walk is not a valid 4-neighbour path")
+        stats["path_length"] = len(path) - 1
+        return PathResult(path, compute=compute, stats=stats)

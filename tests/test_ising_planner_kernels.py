@@ -422,7 +422,7 @@ def test_cluster_distances_match_the_numpy_reference(seed, K, mode):
     tour = IsingTour(cluster_distance=mode)
     from tour_reference import cluster_dist_reference
 
-    assert np.array_equal(tour._cluster_dist(dist, clusters), cluster_dist_reference(dist, clusters, mode))
+    assert np.array_equal(tour.clusters.cluster_dist(dist, clusters), cluster_dist_reference(dist, clusters, mode))
 
 
 @pytest.mark.parametrize("options, spec", [
@@ -440,7 +440,7 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options, spec):
     from tour_reference import reference_solve_path
 
     fast, ref = IsingTour(EmulatedChip(ChipSpec(**spec)), **options), IsingTour(EmulatedChip(ChipSpec(**spec)), **options)
-    ref._solve_path = lambda *a: reference_solve_path(ref, *a)
+    ref.onehot.solve_path = lambda *a: reference_solve_path(ref, *a)
     solved = 0
     for s in range(10):
         dist = generate_world(s, n_robots=1, n_targets=3 + s % 9).distance_matrix
@@ -677,7 +677,7 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
             [[0], 1 + np.random.default_rng(s).permutation(len(dist) - 1)]).astype(np.int64)
         runs = [_Run(np.random.default_rng(s), t._empty_stats(), t) for t in (fast, ref)]
         out = []
-        for tour, run, step in ((fast, runs[0], fast._select_moves), (ref, runs[1], None)):
+        for tour, run, step in ((fast, runs[0], fast.moves.select), (ref, runs[1], None)):
             try:
                 got = step(dist, start, run) if step else reference_select_moves(tour, dist, start, run)
                 out.append(got.tolist())

@@ -40,7 +40,7 @@ def test_defaults_unchanged():
               (28, 70, 30, [[8, 5, 4, 9, 1, 3, 0], [2, 6], [7]])]
     for seed, (cost, calls, logical, orders) in enumerate(before):
         pipe = make_pipeline("ising-paper")
-        assert pipe.path.runner.link.direct and pipe.tour._solver_link.direct  # the emulator's kernels, in the loops
+        assert pipe.path.runner.link.direct and pipe.tour.onehot.solver_link.direct  # the emulator's kernels, in the loops
         plan = pipe.plan(_world(seed), seed=seed)
         assert (plan.route_cost, plan.compute.chip_calls, plan.compute.logical_calls, _orders(plan)) == \
             (cost, calls, logical, orders)

@@ -30,7 +30,7 @@ def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
 
 
 def reference_select_moves(tour, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-    """``tour._select_moves(dist, route, run)`` through the Python loop."""
+    """``tour.moves.select(dist, route, run)`` through the Python loop."""
     cfg = tour.config
     capacity = min(int(getattr(tour.chip, "usable_spins", tour.spec.n_spins)), cfg.max_moves)
     failures = rounds = applied = 0
@@ -106,7 +106,7 @@ def cluster_dist_reference(dist: np.ndarray, clusters: list[list[int]], mode: st
 
 
 def reference_solve_path(tour, d, entry, ex, run, kind: str):
-    """``tour._solve_path(d, entry, ex, run, kind)`` (one-hot subproblem: penalty, Ising model,
+    """``tour.onehot.solve_path(d, entry, ex, run, kind)`` (one-hot subproblem: penalty, Ising model,
     spin-budget branching, logical solver or quantized chip programs, decode) through Python calls."""
     import math
 
@@ -119,7 +119,7 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
     A = onehot_penalty(d, entry, ex, 1.0, cfg.penalty_factor)
     h, J, off = onehot_ising(d, entry, ex, A, 1.0)
     n = h.shape[0]
-    k = max(n - tour._budget, 0)
+    k = max(n - tour.onehot.budget, 0)
     if k > cfg.max_branch_bits:
         raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
     frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k]) if k else np.zeros(0, dtype=np.int64)

@@ -1,6 +1,7 @@
 """Steps 1-2 of the clustered Ising tour (paper 5.2): distance-Ising clustering and cluster ordering.
 
-A mixin of :class:`~planners.ising.tour.IsingTour`: recursive max-cut splits (eq. 7) until
+A component of :class:`~planners.ising.tour.IsingTour` (``Clusters(config, onehot)``, on its
+:class:`~.onehot.OneHotSolver`): recursive max-cut splits (eq. 7) until
 clusters hold at most ``local_limit`` targets, refinement up to ``max_clusters``, then the
 nearest cluster first and a one-hot ordering model for the rest (hierarchical above the
 ordering limit).  Choices: docs/design/ising_tour.md.
@@ -15,7 +16,7 @@ from ising_backend import CallLedger, MeteredSolver
 from planners.ising.tour.kernels import cluster_distances, maxcut_ising
 from planners.ising.tour.qubo import cut_value
 
-__all__ = ["TourFailure", "Clustering"]
+__all__ = ["TourFailure", "Clusters"]
 
 
 class _Run:
@@ -50,11 +51,15 @@ class TourFailure(RuntimeError):
     """Raised internally when a construction subproblem never decodes valid."""
 
 
-class Clustering:
-    """Clustering and ordering steps; needs ``config``, ``_budget``, ``_sample`` and ``_solve_path``."""
+class Clusters:
+    """Clustering and ordering steps on the programs of ``onehot`` (module docstring)."""
+
+    def __init__(self, config, onehot):
+        self.config = config
+        self.onehot = onehot
 
     # ------------------------------------------------------------------ 1. clustering
-    def _cluster(self, dist: np.ndarray, run: _Run) -> list[list[int]]:
+    def cluster(self, dist: np.ndarray, run: _Run) -> list[list[int]]:
         n = dist.shape[0] - 1
         clusters: list[list[int]] = [list(range(1, n + 1))]
         # split every cluster above the local limit (largest first, ties by index)
@@ -63,7 +68,7 @@ class Clustering:
             if not big:
                 break
             k = max(big, key=lambda j: (len(clusters[j]), -j))
-            clusters[k:k + 1] = self._split(dist, clusters[k], run)
+            clusters[k:k + 1] = self.split(dist, clusters[k], run)
         # refinement up to the ordering limit
         while len(clusters) < self.config.max_clusters:
             sizes = np.array([len(c) for c in clusters])
@@ -76,27 +81,27 @@ class Clustering:
                 k = int(np.argmax(others)) if others.max() >= 2 else near
             else:
                 k = int(np.argmax(sizes))  # largest, ties by lowest index
-            clusters[k:k + 1] = self._split(dist, clusters[k], run)
+            clusters[k:k + 1] = self.split(dist, clusters[k], run)
             run.stats["refinement_splits"] += 1
         run.stats["clusters"] = [len(c) for c in clusters]
         return clusters
 
-    def _split(self, dist: np.ndarray, members: list[int], run: _Run) -> list[list[int]]:
+    def split(self, dist: np.ndarray, members: list[int], run: _Run) -> list[list[int]]:
         """Max-cut split (eq. 7) of ``members`` by the Ising solver."""
         run.stats["splits"] += 1
         s = len(members)
         if s == 2:  # the only non-degenerate cut: no decision to make
             return [[members[0]], [members[1]]]
-        limit = self._budget + self.config.max_branch_bits
+        limit = self.onehot.budget + self.config.max_branch_bits
         drawn = np.asarray(members)
         if s > limit:
-            drawn = np.sort(run.rng.choice(drawn, size=self._budget, replace=False))
+            drawn = np.sort(run.rng.choice(drawn, size=self.onehot.budget, replace=False))
         w = np.ascontiguousarray(dist[np.ix_(drawn, drawn)], dtype=np.float64)
         if not np.all(np.isfinite(w)):
             raise ValueError("weight matrix has non-finite entries (targets in different components?)")
         h, J, off = maxcut_ising(w)
         for _attempt in range(self.config.max_retries + 1):
-            bits = self._sample(h, J, off, run)
+            bits = self.onehot.sample(h, J, off, run)
             sizes = bits.sum(axis=1)
             ok = (sizes > 0) & (sizes < len(drawn))
             if np.any(ok):
@@ -118,7 +123,7 @@ class Clustering:
         return [a, b]
 
     # ------------------------------------------------------------------ 2. cluster order
-    def _cluster_dist(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
+    def cluster_dist(self, dist: np.ndarray, clusters: list[list[int]]) -> np.ndarray:
         """Cluster-to-cluster distances (``cluster_distance``): the closest or mean pair
         (:func:`.kernels.cluster_distances`), or the distance between the clusters' medoids."""
         if self.config.cluster_distance == "medoid":
@@ -131,18 +136,18 @@ class Clustering:
         return cluster_distances(np.ascontiguousarray(dist, dtype=np.float64), flat, ptr,
                                  self.config.cluster_distance == "mean")
 
-    def _order_clusters(self, dist: np.ndarray, clusters: list[list[int]], run: _Run) -> list[list[int]]:
+    def order(self, dist: np.ndarray, clusters: list[list[int]], run: _Run) -> list[list[int]]:
         K = len(clusters)
         to_robot = np.array([dist[0, c].min() for c in clusters])
         first = int(np.argmin(to_robot))  # ties by lowest index
         rest = [k for k in range(K) if k != first]
         if len(rest) <= 1:
             return [clusters[first]] + [clusters[k] for k in rest]
-        D = self._cluster_dist(dist, clusters)
-        order = self._order_items(D, rest, first, run)
+        D = self.cluster_dist(dist, clusters)
+        order = self.order_items(D, rest, first, run)
         return [clusters[first]] + [clusters[k] for k in order]
 
-    def _order_items(self, D: np.ndarray, items: list[int], prev: int, run: _Run) -> list[int]:
+    def order_items(self, D: np.ndarray, items: list[int], prev: int, run: _Run) -> list[int]:
         """Open path over cluster indices ``items`` entered from cluster ``prev``.
 
         Up to ``max_clusters - 1`` items: one one-hot ordering model.  More
@@ -156,14 +161,14 @@ class Clustering:
         if len(items) <= self.config.max_clusters - 1:
             d = D[np.ix_(items, items)]
             entry = D[prev, items]
-            order = self._solve_path(d, entry, np.zeros(len(items)), run, "ordering")
+            order = self.onehot.solve_path(d, entry, np.zeros(len(items)), run, "ordering")
             if order is None:
                 raise TourFailure(f"cluster ordering ({len(items)}^2 = {len(items) ** 2} variables) gave no valid "
                                   f"permutation after {self.config.max_retries + 1} attempts")
             return [items[i] for i in order]
         run.stats["ordering_splits"] += 1
-        a, b = self._split(D, list(items), run)
+        a, b = self.split(D, list(items), run)
         if D[prev, b].min() < D[prev, a].min():
             a, b = b, a
-        left = self._order_items(D, a, prev, run)
-        return left + self._order_items(D, b, left[-1], run)
+        left = self.order_items(D, a, prev, run)
+        return left + self.order_items(D, b, left[-1], run)

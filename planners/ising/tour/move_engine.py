@@ -159,7 +159,7 @@ def nearest_neighbour_kernel(dist):
 @numba.njit(cache=True)
 def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj,
                      num_reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
-    """``MoveSelection._move_starts`` with random restarts in one call: the nearest-neighbour route,
+    """``MoveSearch.starts`` with random restarts in one call: the nearest-neighbour route,
     then ``starts - 1`` random orders (``rng.permutation``), each improved by
     :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
     (starts,), stats (5,), clean (k,), wins (starts, k), calls, emulation_s)``, the statistics summed

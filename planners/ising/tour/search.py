@@ -19,25 +19,25 @@ import math
 
 import numpy as np
 
-from ising_backend import (
-    QUANTIZE_RULE_IDS, ChipUnavailableError, IsingModel, LogicalIsingSolver, MachineLink, SolverOutputError,
-    freeze_order, quantize,
-)
+from ising_backend import ChipUnavailableError, SolverOutputError
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
-from planners.ising.tour.cluster import Clustering, TourFailure, _Run
+from planners.ising.tour.cluster import Clusters, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
-from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
-from planners.ising.tour.kernels import branch_stack, dist_flags, expand_branches, route_cost
-from planners.ising.tour.selection import MoveSelection
+from planners.ising.tour.kernels import dist_flags, route_cost
+from planners.ising.tour.onehot import OneHotSolver
+from planners.ising.tour.selection import MoveSearch
 
 __all__ = ["IsingTour", "PaperIsingTour"]
 
 
-class IsingTour(Clustering, MoveSelection, ConfigAttributes):
-    """Clustered Ising tour construction (see the module docstring).
+class IsingTour(ConfigAttributes):
+    """Clustered Ising tour construction (see the module docstring), built from components:
+    ``moves`` (:class:`~.selection.MoveSearch`, the chip backend), ``onehot``
+    (:class:`~.onehot.OneHotSolver`, one-hot and max-cut programs) and ``clusters``
+    (:class:`~.cluster.Clusters`, clustering and cluster ordering on them).
 
     Args:
         chip: an :class:`ising_backend.EmulatedChip` (default: a fresh one); its
@@ -60,52 +60,20 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
         cfg = resolve_config(TourConfig, config, options, self.defaults)
         # sizes not given explicitly shrink to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.spec.n_spins, keep=set(options))
-        self._budget = int(self.spec.n_spins)
-        self._zeros: dict = {}  # s -> zero costs, for one-hot validity checks
-        self.solver = solver if solver is not None else LogicalIsingSolver(
-            spec=self.spec, ledger=self.chip.ledger, health=getattr(self.chip, "health", None),
-            **cfg.solver_options)
-        # the compiled subproblem solve reaches the logical solver through a link (its kernel, or a callback)
-        self._solver_link = MachineLink(self.solver, logical=True)
+        self.onehot = OneHotSolver(cfg, self.chip, solver)
+        self.solver = self.onehot.solver
+        self.clusters = Clusters(cfg, self.onehot)
+        self.moves = MoveSearch(cfg, self.chip)
+        budget = self.onehot.budget
         largest = max(cfg.local_limit, cfg.patch_size, cfg.max_clusters - 1)
-        if cfg.backend != "chip" and largest ** 2 > self._budget + cfg.max_branch_bits:  # one-hot models only
+        if cfg.backend != "chip" and largest ** 2 > budget + cfg.max_branch_bits:  # one-hot models only
             raise ValueError(
-                f"one-hot models of {largest}^2 = {largest ** 2} variables exceed the spin budget {self._budget} "
+                f"one-hot models of {largest}^2 = {largest ** 2} variables exceed the spin budget {budget} "
                 f"+ max_branch_bits {cfg.max_branch_bits} (local_limit={cfg.local_limit}, patch_size="
                 f"{cfg.patch_size}, max_clusters={cfg.max_clusters})")
 
     def __repr__(self) -> str:
         return f"IsingTour({self.config!r})"
-
-    def _sample(self, h, J, off, run: _Run) -> np.ndarray:
-        """Bits ``(m, n)`` uint8 of every read of every branch of one program issue (logical Ising
-        ``h``, ``J``, ``off``: the max-cut splits of the clustering) on the logical solver, or quantized
-        on the chip for ``backend="chip-onehot"``; models above the spin budget are branched (``2^k``
-        programs)."""
-        cfg = self.config
-        n = h.shape[0]
-        if n > self._budget:
-            k = n - self._budget
-            if k > cfg.max_branch_bits:
-                raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
-            frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k])
-        else:
-            frozen = np.zeros(0, dtype=np.int64)
-        free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)
-        seed = int(run.rng.integers(0, 2**63 - 1))
-        physical = cfg.backend != "logical"
-        if not physical and isinstance(run.solver.solver, LogicalIsingSolver):
-            spins = run.solver.solve_stack(hb, Jb, num_reads=cfg.num_reads, seed=seed)
-        else:
-            programs = [IsingModel.trusted(hb[m], Jb.copy(), float(offs[m])) for m in range(len(hb))]
-            if physical:  # quantized by chip_quantize, on the chip
-                hr, jr = self.spec.h_range, self.spec.j_range
-                progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
-                out = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
-            else:
-                out = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
-            spins = np.stack([np.asarray(sp).reshape(cfg.num_reads, -1) for sp in out])
-        return expand_branches(spins, free, frozen, n)
 
     # ------------------------------------------------------------------ public
     def solve(self, dist: np.ndarray, rng: np.random.Generator | None = None) -> TourResult:
@@ -126,7 +94,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
             return self._result(run, (), dist)
         if self.config.backend == "chip":
             try:
-                return self._result(run, self._move_starts(dist, run), dist)
+                return self._result(run, self.moves.starts(dist, run), dist)
             except SolverOutputError as exc:
                 return self._result(run, None, dist, f"the chip returned malformed samples: {exc}")
             except ChipUnavailableError as exc:
@@ -146,8 +114,8 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
                 break
             try:
                 if clusters is None or not self.config.share_clusters:
-                    clusters = self._cluster(dist, run)
-                ordered = self._order_clusters(dist, clusters, run)
+                    clusters = self.clusters.cluster(dist, run)
+                ordered = self.clusters.order(dist, clusters, run)
                 tour = self._local_tours(dist, ordered, run)
                 tour = self._refine(dist, tour, run)
             except SolverOutputError as exc:  # a broken solver: no start can succeed
@@ -201,7 +169,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
                     ex = self.config.exit_weight * ex
                 else:
                     ex = np.zeros(len(c))
-                order = self._solve_path(d, entry, ex, run, "local")
+                order = self.onehot.solve_path(d, entry, ex, run, "local")
                 if order is None:
                     raise TourFailure(f"local TSP of cluster {k} ({len(c)} targets) gave no valid permutation "
                                       f"after {self.config.max_retries + 1} attempts")
@@ -232,7 +200,7 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
             entry = dist[prev, patch]
             ex = dist[patch, tour[a + L]] if a + L < n else np.zeros(L)
             run.stats["patches"] += 1
-            order = self._solve_path(d, entry, ex, run, "patch")
+            order = self.onehot.solve_path(d, entry, ex, run, "patch")
             if order is not None:
                 new = tour[:a] + [int(patch[i]) for i in order] + tour[a + L:]
                 new_cost = _tour_cost(dist, new)
@@ -246,46 +214,6 @@ class IsingTour(Clustering, MoveSelection, ConfigAttributes):
                     run.stats["patches_sideways"] += 1
             fails += 1
         return tour
-
-    # ------------------------------------------------------------------ one-hot programs
-    def _solve_path(self, d, entry, ex, run: _Run, kind: str):
-        """Best valid order of an open-path one-hot QUBO, or ``None`` after retries, in one compiled
-        call (:func:`.engine.solve_order`: spin-budget branching, the logical solver or, for
-        ``backend="chip-onehot"``, the chip), charged to the machine attempt by attempt."""
-        cfg = self.config
-        s = d.shape[0]
-        physical = cfg.backend != "logical"
-        link = self._link if physical else self._solver_link
-        link.charged = run.charged
-        width = min(s * s, self._budget)
-        status, order, st, calls, emu = solve_order(
-            run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
-            np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
-            self._budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
-            *(float(v) for v in self.spec.coefficient_limits),
-            *((-1, 1, 1, 1) if physical else self._solver_link.logical_args(width)), *self._link.kernel_args)
-        link.settle(calls, emu, run.charged)
-        if status == TOO_MANY_BITS:
-            raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "
-                              f"{cfg.max_branch_bits}")
-        if status == UNQUANTIZABLE:
-            raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
-        m = run.stats["mapping"]["tour"]
-        programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
-        m["programs"] += programs
-        m["reads"] += reads
-        m["valid_reads"] += valid_reads
-        m["valid"] += valid
-        if physical:
-            m["physical_programs"] += programs
-            m["valid_physical"] += valid
-        m["subproblems"] += subproblems
-        m["valid_subproblems"] += valid_sub
-        run.stats["retries"] += retries
-        if unsolved:
-            run.stats["unsolved"][kind] += 1
-            return None
-        return [int(i) for i in order]
 
     # ------------------------------------------------------------------ result
     def _empty_stats(self) -> dict:

@@ -34,7 +34,7 @@ from planners.ising.tour.move_engine import (
     NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
 )
 
-__all__ = ["MoveSelection", "double_bridge", "KICK_ABOVE"]
+__all__ = ["MoveSearch", "double_bridge", "KICK_ABOVE"]
 
 _REFUSED = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
             "to add)")
@@ -52,8 +52,13 @@ def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.concatenate([route[:i], route[j:k], route[i:j], route[k:]]).astype(np.int64)
 
 
-class MoveSelection:
-    """:class:`~planners.ising.tour.IsingTour`'s chip backend (needs ``config``, ``chip``, ``spec``)."""
+class MoveSearch:
+    """:class:`~planners.ising.tour.IsingTour`'s chip backend, a component: ``MoveSearch(config, chip)``."""
+
+    def __init__(self, config, chip):
+        self.config = config
+        self.chip = chip
+        self.spec = chip.spec
 
     @cached_property
     def _move_args(self) -> tuple:
@@ -72,7 +77,7 @@ class MoveSelection:
         """Most moves per program: the spins a program may use (around stuck spins), at most ``max_moves``."""
         return min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), self.config.max_moves)
 
-    def _move_starts(self, dist: np.ndarray, run) -> list[int]:
+    def starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
@@ -89,7 +94,7 @@ class MoveSelection:
             else:
                 route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
             try:
-                route = self._select_moves(dist, route, run)
+                route = self.select(dist, route, run)
             except TourFailure as exc:  # this start gave up; other starts may still succeed
                 failure = exc
                 run.stats["failed_starts"] += 1
@@ -102,7 +107,7 @@ class MoveSelection:
             raise failure
         return [int(t) for t in best[1:]]
 
-    def _select_moves(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
+    def select(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """One start, ``route`` improved by chip-selected moves until no move improves it (or the chip
         selects nothing valid ``max_retries + 1`` times in a row), in one compiled call
         (:func:`.move_engine.select_moves_loop`), charged to the chip per submission.  A chip that
@@ -157,7 +162,7 @@ class MoveSelection:
                 run.stats["unsolved"]["moves"] += 1
 
     def _move_starts_compiled(self, dist, run, starts: int):
-        """:meth:`_move_starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
+        """:meth:`starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
         charged and counted as the per-start calls."""
         cfg = self.config
         self._link.charged = run.charged

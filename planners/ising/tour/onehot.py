@@ -1,0 +1,105 @@
+"""The one-hot and max-cut programs of the clustered Ising tour (paper 5.2): the tour's solver component.
+
+``OneHotSolver(config, chip, solver)``: :meth:`solve_path` solves one open-path subproblem
+(cluster order, local TSP, refinement patch) in one compiled call (:func:`.engine.solve_order`:
+spin-budget branching, the logical solver or, for ``backend="chip-onehot"``, quantized programs on
+the chip); :meth:`sample` draws the reads of one max-cut program (the clustering's splits).  Every
+call is charged to the solve's ledger.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ising_backend import (
+    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, MachineLink, freeze_order, quantize,
+)
+from planners.ising.tour.cluster import TourFailure, _Run
+from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
+from planners.ising.tour.kernels import branch_stack, expand_branches
+
+__all__ = ["OneHotSolver"]
+
+
+class OneHotSolver:
+    """The logical solver and the chip as the clustered tour uses them (module docstring)."""
+
+    def __init__(self, config, chip, solver=None):
+        self.config = config
+        self.spec = chip.spec
+        self.budget = int(self.spec.n_spins)
+        self.solver = solver if solver is not None else LogicalIsingSolver(
+            spec=self.spec, ledger=chip.ledger, health=getattr(chip, "health", None), **config.solver_options)
+        # the compiled subproblem solve reaches the logical solver and the chip through links (their
+        # kernels, or a callback)
+        self.solver_link = MachineLink(self.solver, logical=True)
+        self.chip_link = MachineLink(chip)
+
+    def sample(self, h, J, off, run: _Run) -> np.ndarray:
+        """Bits ``(m, n)`` uint8 of every read of every branch of one program issue (logical Ising
+        ``h``, ``J``, ``off``: the max-cut splits of the clustering) on the logical solver, or quantized
+        on the chip for ``backend="chip-onehot"``; models above the spin budget are branched (``2^k``
+        programs)."""
+        cfg = self.config
+        n = h.shape[0]
+        if n > self.budget:
+            k = n - self.budget
+            if k > cfg.max_branch_bits:
+                raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
+            frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k])
+        else:
+            frozen = np.zeros(0, dtype=np.int64)
+        free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)
+        seed = int(run.rng.integers(0, 2**63 - 1))
+        physical = cfg.backend != "logical"
+        if not physical and isinstance(run.solver.solver, LogicalIsingSolver):
+            spins = run.solver.solve_stack(hb, Jb, num_reads=cfg.num_reads, seed=seed)
+        else:
+            programs = [IsingModel.trusted(hb[m], Jb.copy(), float(offs[m])) for m in range(len(hb))]
+            if physical:  # quantized by chip_quantize, on the chip
+                hr, jr = self.spec.h_range, self.spec.j_range
+                progs = [quantize(m, cfg.chip_quantize, hr, jr) for m in programs]
+                out = [sp for sp, _e in run.chip.anneal_models(progs, num_reads=cfg.num_reads, seed=seed)]
+            else:
+                out = [r.spins for r in run.solver.solve_many(programs, num_reads=cfg.num_reads, seed=seed)]
+            spins = np.stack([np.asarray(sp).reshape(cfg.num_reads, -1) for sp in out])
+        return expand_branches(spins, free, frozen, n)
+
+    def solve_path(self, d, entry, ex, run: _Run, kind: str):
+        """Best valid order of an open-path one-hot QUBO, or ``None`` after retries, in one compiled
+        call (:func:`.engine.solve_order`: spin-budget branching, the logical solver or, for
+        ``backend="chip-onehot"``, the chip), charged to the machine attempt by attempt."""
+        cfg = self.config
+        s = d.shape[0]
+        physical = cfg.backend != "logical"
+        link = self.chip_link if physical else self.solver_link
+        link.charged = run.charged
+        width = min(s * s, self.budget)
+        status, order, st, calls, emu = solve_order(
+            run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
+            np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
+            self.budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
+            *(float(v) for v in self.spec.coefficient_limits),
+            *((-1, 1, 1, 1) if physical else self.solver_link.logical_args(width)), *self.chip_link.kernel_args)
+        link.settle(calls, emu, run.charged)
+        if status == TOO_MANY_BITS:
+            raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "
+                              f"{cfg.max_branch_bits}")
+        if status == UNQUANTIZABLE:
+            raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
+        m = run.stats["mapping"]["tour"]
+        programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
+        m["programs"] += programs
+        m["reads"] += reads
+        m["valid_reads"] += valid_reads
+        m["valid"] += valid
+        if physical:
+            m["physical_programs"] += programs
+            m["valid_physical"] += valid
+        m["subproblems"] += subproblems
+        m["valid_subproblems"] += valid_sub
+        run.stats["retries"] += retries
+        if unsolved:
+            run.stats["unsolved"][kind] += 1
+            return None
+        return [int(i) for i in order]

@@ -1,7 +1,7 @@
 """The stage submission of Ising target sharing through ``anneal_batch``: the oracle of ``run_stage``.
 
 ``reference_solve_packed(sharing, w, R, problems, rng, stats)`` does what
-``ChipSubmission._solve_packed`` does in one compiled call (``planners.ising.sharing.engine.run_stage``)
+``StageSolver.solve_packed`` does in one compiled call (``planners.ising.sharing.engine.run_stage``)
 with separate calls: map every split by every rule, pack first-fit decreasing, anneal through the
 metered chip, score, name refused programs.  Test code only: the package never imports it.
 """
@@ -21,7 +21,7 @@ __all__ = ["reference_solve_packed"]
 
 
 def reference_solve_packed(self, w, R, problems, rng, stats) -> None:
-    """``self._solve_packed(w, R, problems, rng, stats)`` (``self`` an ``IsingSharing``) through
+    """``self.solve_packed(w, R, problems, rng, stats)`` (``self`` a ``StageSolver``) through
     :func:`_submit_checked`."""
     cfg = self.config
     seed = int(rng.integers(2**63 - 1))
@@ -73,7 +73,7 @@ def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, se
     rules = cfg.rules
     nr = len(rules)
     P = len(problems)
-    status, qh, qJ = map_stage(q, Q, sizes, self._rule_ids, *self._limits)
+    status, qh, qJ = map_stage(q, Q, sizes, self.rule_ids, *self.limits)
     if status.any():  # a non-finite quantized coefficient: the checked path names it
         for p in problems:
             try:
@@ -91,7 +91,7 @@ def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, se
     order = np.array([j for pk in packs for j in pk], dtype=np.int64)  # placement order within packs
     h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, len(packs), width)
     try:
-        spins, _ = self._meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
+        spins, _ = self.meter.anneal_batch(h, J, num_reads=cfg.reads, seed=seed)
     except SolverOutputError as exc:  # a broken chip: nothing to decode
         raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
     except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure

@@ -561,11 +561,10 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
 
     fast = IsingSharing(EmulatedChip(ChipSpec(**spec)))
     ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
-    assert fast._kernel_args is not None
     fast._compiled = ref._compiled = None  # the Python search: stage by stage
     from sharing_reference import reference_solve_packed
 
-    ref._solve_packed = lambda *a: reference_solve_packed(ref, *a)  # the submission through anneal_batch
+    ref.stages.solve_packed = lambda *a: reference_solve_packed(ref.stages, *a)  # the submission through anneal_batch
     for s in range(10):
         w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")
         r1, r2 = np.random.default_rng(s), np.random.default_rng(s)

@@ -55,7 +55,7 @@ def test_target_faults_plan_validly_without_fallbacks(preset):
         assert len(chip.health.quarantined.nonzero()[0]) == 1 and chip.usable_spins == 43
         pipe = make_pipeline(preset, chip=chip)
         # faults: the compiled loops, annealing through the chip's fault-tolerant anneal_batch
-        assert not pipe.sharing._link.direct
+        assert not pipe.sharing.stages.link.direct
         assert preset == "ising" or not pipe.path.runner.link.direct
         world = _world(seed)
         plan = pipe.plan(world, seed=seed)

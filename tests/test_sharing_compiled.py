@@ -58,8 +58,8 @@ def test_compiled_sharing_makes_the_python_searchs_decisions(options):
     assert fast._compiled is not None
 
     handed = []
-    python_search = fast._split_all
-    fast._split_all = lambda *a: handed.append(1) or python_search(*a)
+    python_search = fast.splits.split_all
+    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
     resplits = accepted = 0
     for s in range(20, 32):
         R, N = 2 + s % 4, 4 + s % 10
@@ -83,8 +83,8 @@ def test_compiled_sharing_makes_the_python_searchs_decisions(options):
 def test_a_group_beyond_the_chip_goes_to_the_python_search(spec, R, N):
     fast, ref = _pair(SharingConfig(), spec)
     calls = []
-    python_search = fast._split_all
-    fast._split_all = lambda *a: calls.append(1) or python_search(*a)
+    python_search = fast.splits.split_all
+    fast.splits.split_all = lambda *a: calls.append(1) or python_search(*a)
     w = generate_world(3, n_robots=R, n_targets=N)
     res = _same(fast, ref, w.distance_matrix, R, 3)
     assert calls and res.failure is None

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.sharing.coarse import CoarseSplit
+from planners.ising.sharing.coarse import CoarseSplit, coarse_split
 
-__all__ = ["BoundaryRefinement", "neighbour_pairs"]
+__all__ = ["refine_boundaries", "neighbour_pairs"]
 
 
 def neighbour_pairs(dist: np.ndarray, sets, R: int, per_robot: int) -> list[tuple[int, int]]:
@@ -42,68 +42,65 @@ def neighbour_pairs(dist: np.ndarray, sets, R: int, per_robot: int) -> list[tupl
     return sorted(pairs)
 
 
-class BoundaryRefinement:
-    """:class:`~planners.ising.sharing.IsingSharing`'s pair re-splits (needs ``chip``,
-    ``split_weights``, ``_problem``, ``_coarse_split`` and ``_solve_all``)."""
-
-    def _refine_boundaries(self, dist, R, sets, cost, rng, stats) -> list[list[int]]:
-        """``sets`` (global target nodes per robot) after up to ``pair_rounds`` rounds of pair re-splits."""
-        cfg = self.config
-        sets = [sorted(s) for s in sets]
-        weights = [self.split_weights(dist, R, shift=s) for s in cfg.pair_shifts]
-        limit = int(self.chip.spec.n_spins) + cfg.max_frozen
-        tried: set = set()
-        for _ in range(cfg.pair_rounds):
-            pairs = []
-            for k, l in neighbour_pairs(dist, sets, R, cfg.pair_neighbours):
-                key = (k, l, tuple(sets[k]), tuple(sets[l]))
-                if (sets[k] or sets[l]) and key not in tried:  # a pair seen unchanged has nothing new
-                    tried.add(key)
-                    pairs.append((k, l))
-            if not pairs:
-                break
-            groups = [np.array(sorted([k, l] + sets[k] + sets[l]), dtype=np.int64) for k, l in pairs]
-            problems = []  # (pair index, problem)
-            for j, g in enumerate(groups):
-                for w in weights:
-                    if len(g) - 2 > limit:
-                        problems.append((j, self._coarse_split(w, R, g, "pair", rng, stats)))
-                    elif len(g) > 2:
-                        problems.append((j, self._problem(w, R, g, "pair")))
-            pending = [p for _, p in problems if not isinstance(p, CoarseSplit)]
-            if pending:  # one submission; candidates ordered by the first shift's cut (the route cost decides)
-                stats["splits"] += len(pending)
-                self._solve_all(weights[0], R, pending, rng, stats)
-            stats["pair_resplits"] = stats.get("pair_resplits", 0) + len(pairs)
-            gains = []
-            for j, (k, l) in enumerate(pairs):
-                old = cost(k, sets[k]) + cost(l, sets[l])
-                best = None
-                seen: set = set()
-                for i, p in problems:
-                    if i != j:
+def refine_boundaries(splits, weights_of, dist, R, sets, cost, rng, stats) -> list[list[int]]:
+    """``sets`` (global target nodes per robot) after up to ``pair_rounds`` rounds of pair re-splits,
+    solved by ``splits`` (a :class:`~.splits.SplitSearch`) on the split weights ``weights_of(shift)``."""
+    cfg = splits.config
+    sets = [sorted(s) for s in sets]
+    weights = [weights_of(s) for s in cfg.pair_shifts]
+    limit = int(splits.chip.spec.n_spins) + cfg.max_frozen
+    tried: set = set()
+    for _ in range(cfg.pair_rounds):
+        pairs = []
+        for k, l in neighbour_pairs(dist, sets, R, cfg.pair_neighbours):
+            key = (k, l, tuple(sets[k]), tuple(sets[l]))
+            if (sets[k] or sets[l]) and key not in tried:  # a pair seen unchanged has nothing new
+                tried.add(key)
+                pairs.append((k, l))
+        if not pairs:
+            break
+        groups = [np.array(sorted([k, l] + sets[k] + sets[l]), dtype=np.int64) for k, l in pairs]
+        problems = []  # (pair index, problem)
+        for j, g in enumerate(groups):
+            for w in weights:
+                if len(g) - 2 > limit:
+                    problems.append((j, coarse_split(splits, w, R, g, "pair", rng, stats)))
+                elif len(g) > 2:
+                    problems.append((j, splits.problem(w, R, g, "pair")))
+        pending = [p for _, p in problems if not isinstance(p, CoarseSplit)]
+        if pending:  # one submission; candidates ordered by the first shift's cut (the route cost decides)
+            stats["splits"] += len(pending)
+            splits.stages.solve_all(weights[0], R, pending, rng, stats)
+        stats["pair_resplits"] = stats.get("pair_resplits", 0) + len(pairs)
+        gains = []
+        for j, (k, l) in enumerate(pairs):
+            old = cost(k, sets[k]) + cost(l, sets[l])
+            best = None
+            seen: set = set()
+            for i, p in problems:
+                if i != j:
+                    continue
+                for _cut, side0, side1, _ in p.cands:
+                    key = side1.tobytes()
+                    if key in seen:  # several shifts often propose the same partition
                         continue
-                    for _cut, side0, side1, _ in p.cands:
-                        key = side1.tobytes()
-                        if key in seen:  # several shifts often propose the same partition
-                            continue
-                        seen.add(key)
-                        # each side holds one of the two robots, its smallest node (robots come first)
-                        mine, theirs = (side0, side1) if side0[0] == k else (side1, side0)
-                        tk = mine[1:].tolist()
-                        tl = theirs[1:].tolist()
-                        new = cost(k, tk) + cost(l, tl)
-                        if new < old - 1e-9 and (best is None or new < best[0] - 1e-9):
-                            best = (new, tk, tl)
-                if best is not None:
-                    gains.append((old - best[0], k, l, best[1], best[2]))
-            if not gains:
-                break
-            gains.sort(key=lambda g: (-g[0], g[1], g[2]))
-            moved: set[int] = set()
-            for _gain, k, l, tk, tl in gains:
-                if k not in moved and l not in moved:
-                    sets[k], sets[l] = sorted(tk), sorted(tl)
-                    moved.update((k, l))
-                    stats["pair_accepted"] = stats.get("pair_accepted", 0) + 1
-        return sets
+                    seen.add(key)
+                    # each side holds one of the two robots, its smallest node (robots come first)
+                    mine, theirs = (side0, side1) if side0[0] == k else (side1, side0)
+                    tk = mine[1:].tolist()
+                    tl = theirs[1:].tolist()
+                    new = cost(k, tk) + cost(l, tl)
+                    if new < old - 1e-9 and (best is None or new < best[0] - 1e-9):
+                        best = (new, tk, tl)
+            if best is not None:
+                gains.append((old - best[0], k, l, best[1], best[2]))
+        if not gains:
+            break
+        gains.sort(key=lambda g: (-g[0], g[1], g[2]))
+        moved: set[int] = set()
+        for _gain, k, l, tk, tl in gains:
+            if k not in moved and l not in moved:
+                sets[k], sets[l] = sorted(tk), sorted(tl)
+                moved.update((k, l))
+                stats["pair_accepted"] = stats.get("pair_accepted", 0) + 1
+    return sets

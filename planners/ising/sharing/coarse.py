@@ -24,7 +24,7 @@ import numpy as np
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.qubo import cut_value
 
-__all__ = ["farthest_point_clusters", "coarsen", "expand_sides", "CoarseSplit", "CoarseSplits"]
+__all__ = ["farthest_point_clusters", "coarsen", "expand_sides", "CoarseSplit", "coarse_split"]
 
 
 def farthest_point_clusters(w: np.ndarray, k: int) -> np.ndarray:
@@ -91,40 +91,36 @@ class CoarseSplit:
 
 
 
-class CoarseSplits:
-    """:class:`~planners.ising.sharing.IsingSharing`'s splits of groups too large for the chip
-    (needs its ``chip``, ``_stage`` and ``_memo``)."""
-
-    def _coarse_split(self, w, R, g, kind, rng, stats) -> "CoarseSplit":
-        """The split of a group too large for the chip, solved on target clusters
-        (:mod:`planners.ising.sharing.coarse`): as many clusters as fit the chip without branching."""
-        g = np.asarray(g, dtype=np.int64)
-        n_spins = int(self.chip.spec.n_spins)
-        robots = int((g < R).sum())
-        robot_clusters = None
-        if n_spins + 2 - robots < max(1, n_spins // 2):
-            # more robots than leave half the chip to target clusters: neighbouring robots are
-            # clustered too (each side of the coarse split keeps whole robot clusters; the fine
-            # groups below split them on the chip as usual)
-            robot_clusters = max(2, (n_spins + 2) // 2)
-            if robots < 2 or n_spins + 2 - robot_clusters < 1:
-                raise SharingFailure(
-                    f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the "
-                    f"chip: its split needs at least {robot_clusters - 1} free spins, the chip has {n_spins}")
-        n_coarse_robots = robots if robot_clusters is None else min(robots, robot_clusters)
-        n_clusters = n_spins + 2 - n_coarse_robots
-        members, wc = coarsen(w, g, R, n_clusters, robot_clusters)
-        robots = sum(1 for m in members if m[0] < R)  # coarse robot nodes (robot clusters keep robots only)
-        outer, self._memo = self._memo, {}  # coarse node indices must not meet the fine memo
-        try:
-            (problem,) = self._stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)
-        finally:
-            self._memo = outer
-        cands = []
-        for _cut, side0, side1, _ in problem.cands:
-            f0, f1 = expand_sides(members, side0, side1)
-            cands.append((cut_value(w, f0, f1), f0, f1, None))
-        cands.sort(key=lambda c: -c[0])
-        stats["coarse_splits"] = stats.get("coarse_splits", 0) + 1
-        return CoarseSplit(nodes=g, cands=cands)
+def coarse_split(splits, w, R, g, kind, rng, stats) -> CoarseSplit:
+    """The split of a group too large for the chip, solved on target clusters by ``splits`` (a
+    :class:`~.splits.SplitSearch`): as many clusters as fit the chip without branching."""
+    g = np.asarray(g, dtype=np.int64)
+    n_spins = int(splits.chip.spec.n_spins)
+    robots = int((g < R).sum())
+    robot_clusters = None
+    if n_spins + 2 - robots < max(1, n_spins // 2):
+        # more robots than leave half the chip to target clusters: neighbouring robots are
+        # clustered too (each side of the coarse split keeps whole robot clusters; the fine
+        # groups below split them on the chip as usual)
+        robot_clusters = max(2, (n_spins + 2) // 2)
+        if robots < 2 or n_spins + 2 - robot_clusters < 1:
+            raise SharingFailure(
+                f"a group of {robots} robots and {len(g) - robots} targets cannot be coarsened onto the "
+                f"chip: its split needs at least {robot_clusters - 1} free spins, the chip has {n_spins}")
+    n_coarse_robots = robots if robot_clusters is None else min(robots, robot_clusters)
+    n_clusters = n_spins + 2 - n_coarse_robots
+    members, wc = coarsen(w, g, R, n_clusters, robot_clusters)
+    robots = sum(1 for m in members if m[0] < R)  # coarse robot nodes (robot clusters keep robots only)
+    outer, splits.memo = splits.memo, {}  # coarse node indices must not meet the fine memo
+    try:
+        (problem,) = splits.stage(wc, robots, [np.arange(len(members), dtype=np.int64)], kind, rng, stats)
+    finally:
+        splits.memo = outer
+    cands = []
+    for _cut, side0, side1, _ in problem.cands:
+        f0, f1 = expand_sides(members, side0, side1)
+        cands.append((cut_value(w, f0, f1), f0, f1, None))
+    cands.sort(key=lambda c: -c[0])
+    stats["coarse_splits"] = stats.get("coarse_splits", 0) + 1
+    return CoarseSplit(nodes=g, cands=cands)
 

@@ -5,7 +5,7 @@ world of ``R >= 2`` robots and ``1 <= N <= 13`` targets (``R + N <= 62``) with e
 (``pricing_tour="auto"``) and no balance term: the split stages (:mod:`.compiled_stages`), bundle
 placement in every state (:func:`~.bundles.assign_bundles`, priced by the Held-Karp kernel with one
 memo per call as :class:`~.bundles.BundlePricer`), the choice of state and the boundary
-refinement (:meth:`~.boundary.BoundaryRefinement._refine_boundaries`), with the same rng draws.
+refinement (:func:`~.boundary.refine_boundaries`), with the same rng draws.
 It returns ``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller
 names it.
 """
@@ -150,7 +150,7 @@ def _neighbour_pairs(dist, sets, R, per_robot):
 
 @numba.njit(cache=True)
 def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book, store, n_prob):
-    """:meth:`~.boundary.BoundaryRefinement._refine_boundaries` on masks.  Returns ``(ok, store, n_prob)``;
+    """:func:`~.boundary.refine_boundaries` on masks.  Returns ``(ok, store, n_prob)``;
     ``sets`` is updated in place."""
     counters = book[1]
     robots = (np.int64(1) << R) - 1

@@ -1,6 +1,6 @@
 """The split stages of Ising target sharing (paper 5.3, Algorithm 3) in compiled code.
 
-Contract: :func:`split_states` makes the decisions of :meth:`~.search.IsingSharing._split_all`
+Contract: :func:`split_states` makes the decisions of :meth:`~.splits.SplitSearch.split_all`
 (its reference; the tests compare both) -- the same groups, memo, stage submissions
 (:func:`.engine.run_stage`), seeds and win draws from the caller's ``numpy.random.Generator``,
 retries, candidate order and beam -- with groups held as node bit masks (``R + N <= 62``).
@@ -123,7 +123,7 @@ def reserve(store, n):
 
 @numba.njit(cache=True)
 def solve_problems(q, Q, free, sizes, anchors, reject, pids, masks, score_w, R, rng, chip, retries, book, store):
-    """:meth:`~.submit.ChipSubmission._solve_all` with the packed submission: problem ``p``'s (group
+    """:meth:`~.submit.StageSolver.solve_all` with the packed submission: problem ``p``'s (group
     ``masks[p]``) distinct valid candidates (best cut on ``score_w`` first) go to store row
     ``pids[p]``.  Returns ``ok`` (the reason in ``book[4]`` when not)."""
     rule_ids, Lh, Lj, n_spins, capacity, reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
@@ -336,7 +336,7 @@ def _todo(groups, ng, R, kind, base_max, above):
 
 @numba.njit(cache=True)
 def split_states(w, R, rng, chip, retries, limit, opts, book, store):
-    """:meth:`~.search.IsingSharing._split_all`: ``(ok, groups (S, G), ng (S,), store, n_prob)`` -- the
+    """:meth:`~.splits.SplitSearch.split_all`: ``(ok, groups (S, G), ng (S,), store, n_prob)`` -- the
     candidate partial solutions, best summed cut first.  ``opts = (beam, refine_beam, max_states,
     refine_stages, base_max, refine_above, reject_robots)``."""
     beam, refine_beam, max_states, refine_stages, base_max, above, reject_robots = opts

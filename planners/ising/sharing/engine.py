@@ -1,6 +1,6 @@
 """A stage's chip submission of Ising target sharing (paper 5.3) in one compiled call.
 
-Contract: :func:`run_stage` does what :meth:`~.submit.ChipSubmission._solve_packed` does with
+Contract: :func:`run_stage` does what :meth:`~.submit.StageSolver.solve_packed` does with
 its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
 decreasing (:func:`ising_backend.pack_layout`), placed (:func:`ising_backend.fill_packs`), annealed on the
 chip through :func:`ising_backend.anneal_submit` (the emulator's kernel, or a callback into any

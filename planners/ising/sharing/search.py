@@ -3,11 +3,12 @@
 Contract: ``IsingSharing(chip, config).assign(dist, n_robots, tour, rng) -> SharingResult``;
 a split that never decodes valid, a group beyond the spin budget or a refused
 program is a failure result (``result.failure``), never an invented split.
-Stages split every group with several robots, then refine one-robot groups and
-bundles; each stage's splits x quantization rules are block-packed into one chip
-submission (:mod:`.submit`), decoded and scored on the unquantized cut; a beam of
-distinct candidates is carried to the complete assignments, which are compared by
-route cost.  Then, beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the
+Built from components: ``stages`` (:class:`~.submit.StageSolver`: a stage's splits x
+quantization rules block-packed into one chip submission, decoded and scored on the
+unquantized cut) and ``splits`` (:class:`~.splits.SplitSearch`: stages split every group with
+several robots, then refine one-robot groups and bundles, a beam of distinct candidates carried
+to the complete assignments, which are compared by route cost); worlds the compiled sharing
+takes run in one call (:mod:`.compiled_assign`).  Then, beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the
 boundaries between neighbouring robots are re-split on the chip (:mod:`.boundary`).
 Chip calls are metered
 (:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the call to
@@ -18,27 +19,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import ChipProgramError, ChipUnavailableError, MachineLink, MeteredSolver, SolverOutputError
+from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.tours_classical import MAX_BRUTE_TARGETS
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
-from planners.ising.sharing.boundary import BoundaryRefinement
+from planners.ising.sharing.boundary import refine_boundaries
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
-from planners.ising.sharing.coarse import CoarseSplit, CoarseSplits
 from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel, pair_mean
 from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE
-from planners.ising.sharing.components import Components
+from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.kernels import split_model
-from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
-from planners.ising.sharing.submit import ChipSubmission, stage_refusal
+from planners.ising.sharing.splits import SplitSearch
+from planners.ising.sharing.submit import StageSolver, stage_refusal
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
 
 
-class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, BoundaryRefinement):
+class IsingSharing(ConfigAttributes):
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:
@@ -56,21 +55,16 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
 
         self.config = resolve_config(SharingConfig, config, options, self.defaults)
         self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
-        from ising_backend import QUANTIZE_RULE_IDS
-
         spec = self.chip.spec
-        self._rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.rules], dtype=np.int64)
-        self._limits = tuple(float(v) for v in spec.coefficient_limits)
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
-        # how a stage's compiled call (.engine.run_stage) reaches the chip: any machine
-        self._link = MachineLink(self.chip)
-        self._kernel_args = self._link.kernel_args
+        self.stages = StageSolver(self.config, self.chip)
+        self.splits = SplitSearch(self.config, self.chip, self.stages)
         cfg = self.config
         # the arguments of the whole sharing in one compiled call (.compiled_assign), where it applies
         self._compiled = None
         if not cfg.balance and cfg.pricing_tour == "auto":
-            chip_args = (self._rule_ids, *self._limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
-                         *self._kernel_args)
+            chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
+                         *self.stages.kernel_args)
             opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
                     cfg.refine_above, int(cfg.reject_empty_robot_side))
             pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
@@ -104,23 +98,23 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         }
         empty = tuple(() for _ in range(R))
         if not np.all(np.isfinite(dist)):
-            return self._assign_components(dist, R, tour, rng, stats)
+            return assign_components(self.assign, dist, R, tour, rng, stats)
         if N == 0:
             return SharingResult(assignment=empty, compute=ComputeReport(), stats=stats)
         if R == 1:
             return SharingResult(assignment=(tuple(range(N)),), compute=ComputeReport(), stats=stats)
 
-        self._meter = MeteredSolver(self.chip)
+        meter = self.stages.meter = MeteredSolver(self.chip)
         self._powered_for = None  # a new call: the split weights' base is recomputed
         pricer = None
-        self._memo: dict = {}
+        self.splits.memo = {}
         try:
             if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62 \
                     and R + N - 2 <= self.chip.spec.n_spins:  # every group fits one program
                 return self._assign_compiled(dist, R, rng, stats)
             pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
             cost = pricer.cost
-            states = self._split_all(self.split_weights(dist, R), R, rng, stats)
+            states = self.splits.split_all(self.split_weights(dist, R), R, rng, stats)
             best = None
             for groups in states:
                 sets = assign_bundles(dist, R, groups, pricer, self.config.bundle_order, stats)
@@ -134,14 +128,15 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                     best = (total, sets)
             sets = best[1]
             if self.config.pair_rounds:
-                sets = self._refine_boundaries(dist, R, sets, cost, rng, stats)
+                sets = refine_boundaries(self.splits, lambda shift: self.split_weights(dist, R, shift=shift), dist, R,
+                                         sets, cost, rng, stats)
             assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in sets)
-            self._memo = {}
+            self.splits.memo = {}
         except (SharingFailure, ChipUnavailableError) as exc:
-            self._memo = {}
+            self.splits.memo = {}
             unavailable = isinstance(exc, ChipUnavailableError)
             reason = unavailable_message(exc) if unavailable else str(exc)
-            compute = ComputeReport.from_ledger(self._meter.charged)
+            compute = ComputeReport.from_ledger(meter.charged)
             if pricer is not None:
                 compute = compute + pricer.compute
             if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
@@ -151,7 +146,7 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
                 return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
                                      stats=flag(stats, "sharing", reason))
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
-        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged) + pricer.compute, stats=stats)
+        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(meter.charged) + pricer.compute, stats=stats)
 
     def _assign_compiled(self, dist, R, rng, stats) -> SharingResult | None:
         """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
@@ -165,10 +160,11 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
                 np.zeros(subs, dtype=np.int64), np.zeros(subs), np.zeros(3, dtype=np.int64))
         compiled = self._compiled
-        if not self._link.direct:  # programs packed clear of the stuck spins a faulty chip found
+        stages = self.stages
+        if not stages.link.direct:  # programs packed clear of the stuck spins a faulty chip found
             chip = compiled[0]
-            compiled = (chip[:4] + (self._capacity(),) + chip[5:], *compiled[1:])
-        self._link.charged = self._meter.charged
+            compiled = (chip[:4] + (stages.capacity(),) + chip[5:], *compiled[1:])
+        stages.link.charged = stages.meter.charged
         try:
             ok, sets = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
@@ -185,11 +181,12 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
             stats[key] = stats.get(key, 0) + value
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
-        self._link.settle(calls[:n], emu[:n], self._meter.charged)
+        stages.link.settle(calls[:n], emu[:n], stages.meter.charged)
         if not ok:
             raise SharingFailure(self._stopped(R, *failure.tolist()))
         assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
-        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(self._meter.charged), stats=stats)
+        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(stages.meter.charged),
+                             stats=stats)
 
     @staticmethod
     def _stopped(R: int, code: int, what: int, submissions: int) -> str:
@@ -232,116 +229,6 @@ class IsingSharing(ConfigAttributes, ChipSubmission, Components, CoarseSplits, B
         return w, mean
 
     # -------------------------------------------------------------- helpers
-
-    def _problem(self, dist, R, nodes, kind) -> SplitProblem:
-        nodes = np.asarray(nodes, dtype=np.int64)
-        balance = self.config.balance if kind == "robots" else 0.0
-        if len(nodes) < 2 or balance:
-            a, b = choose_anchors(dist, nodes, R)  # the reference (and its errors), and the balance term
-            free = np.array([n for n in nodes if n != a and n != b], dtype=np.int64)
-            q, Q, offset = None, None, None
-        else:
-            a, b, free, q, Q, offset = split_model(dist, nodes, R)
-            a, b = int(a), int(b)
-        limit = int(self.chip.spec.n_spins) + self.config.max_frozen
-        if len(free) > limit:
-            raise SharingFailure(
-                f"a group of {len(nodes)} nodes needs {len(free)} free spins after anchor substitution; "
-                f"the chip has {self.chip.spec.n_spins} spins and spin-budget branching freezes at most "
-                f"max_frozen = {self.config.max_frozen} (at most {limit + 2} robots + targets per group)"
-            )
-        if q is None:
-            q, Q, offset = build_split_qubo(dist, free, a, b, R, balance)
-        return SplitProblem(nodes=nodes, a=a, b=b, free=free, q=q, Q=Q, offset=float(offset), kind=kind)
-
-    def _split_all(self, w, R, rng, stats) -> list[list[np.ndarray]]:
-        """All candidate partial solutions (lists of groups) after the split stages.
-
-        Robot (refinement) stages keep up to ``beam`` (``refine_beam``)
-        distinct valid chip candidates per split (best unquantized cuts
-        first) and expand every state by them (at most ``max_states``
-        states, ranked by the sum of their chosen cuts).  Every stage is one
-        chip submission for the splits of all states.
-        """
-        states: list[tuple[float, list[np.ndarray]]] = [(0.0, [np.arange(w.shape[0])])]
-        while True:  # robot stages: split every group holding more than one robot
-            # groups are sorted node arrays: robots (nodes < R) come first
-            todo = [(si, gi) for si, (_, st) in enumerate(states) for gi, g in enumerate(st) if g.searchsorted(R) >= 2]
-            if not todo:
-                break
-            problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "robots", rng, stats)
-            states = self._expand(states, todo, problems, self.config.beam)
-        for _ in range(self.config.refine_stages):
-            base_max, above = self.config.resolved_base_max, self.config.refine_above
-            todo = []
-            for si, (_, st) in enumerate(states):
-                for gi, g in enumerate(st):
-                    nr = g.searchsorted(R)
-                    if len(g) - nr > (base_max if nr else above):
-                        todo.append((si, gi))
-            if not todo:
-                break
-            problems = self._stage(w, R, [states[si][1][gi] for si, gi in todo], "refine", rng, stats)
-            states = self._expand(states, todo, problems, self.config.refine_beam)
-        stats["states"] += len(states)
-        return [st for _, st in states]
-
-    def _expand(self, states, todo, problems, width: int):
-        """Replace the split groups of every state by up to ``width`` candidate splits each
-        (a beam over the state's splits, then over all states: at most ``max_states``)."""
-        expanded: list[tuple[float, list[np.ndarray]]] = []
-        for si, (score, st) in enumerate(states):
-            mine = {gi: p for (sj, gi), p in zip(todo, problems) if sj == si}
-            if not mine:
-                expanded.append((score, st))
-                continue
-            keys = sorted(mine)
-            combos: list[tuple[float, tuple]] = [(0.0, ())]
-            for gi in keys:
-                combos = [(sc + c[0], combo + (c,)) for sc, combo in combos for c in mine[gi].cands[:width]]
-                order = sorted(range(len(combos)), key=lambda i: (-combos[i][0], i))
-                combos = [combos[i] for i in order[: self.config.max_states]]
-            for sc, combo in combos:  # sc: the combo's cuts summed left to right
-                chosen = dict(zip(keys, combo))
-                groups: list[np.ndarray] = []
-                for gi, g in enumerate(st):
-                    if gi in chosen:
-                        groups.extend([chosen[gi][1], chosen[gi][2]])
-                    else:
-                        groups.append(g)
-                expanded.append((score + sc, groups))
-        order = sorted(range(len(expanded)), key=lambda i: (-expanded[i][0], i))
-        return [expanded[i] for i in order[: self.config.max_states]]
-
-    def _stage(self, w, R, groups, kind, rng, stats) -> list[SplitProblem]:
-        """Solve the splits of ``groups`` (one chip submission, plus retries); each problem's
-        ``cands`` lists its distinct valid candidates, best unquantized cut first.
-
-        The same group met again (in another partial solution, or an earlier
-        stage) reuses its solved split from ``self._memo`` instead of a new chip call.
-        """
-        memo = self._memo
-        keys = [(kind, tuple(int(v) for v in np.sort(g))) for g in groups]
-        fresh: dict = {}
-        for key, g in zip(keys, groups):
-            if key not in memo and key not in fresh:
-                too_big = len(g) - 2 > int(self.chip.spec.n_spins) + self.config.max_frozen
-                fresh[key] = self._coarse_split(w, R, g, kind, rng, stats) if too_big else self._problem(w, R, g, kind)
-        stats["stages"] += 1
-        stats["splits"] += len(fresh)
-        pending = []
-        for p in fresh.values():
-            if isinstance(p, CoarseSplit):  # solved on its clusters already
-                continue
-            if len(p.free) == 0:  # one partition only: nothing to solve
-                stats["trivial_splits"] += 1
-                side0, side1 = decode_split(p, np.zeros(0, dtype=np.int8))
-                p.cands = [(cut_value(w, side0, side1), side0, side1, None)]
-            else:
-                pending.append(p)
-        self._solve_all(w, R, pending, rng, stats)
-        memo.update(fresh)
-        return [memo[key] for key in keys]
 
 
 class PaperIsingSharing(IsingSharing):

@@ -13,13 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    BranchMapping, ChipProgramError, QuantizeMapping, SolverOutputError, ising_from_qubo, run_portfolio_batch,
+    QUANTIZE_RULE_IDS, BranchMapping, ChipProgramError, MachineLink, QuantizeMapping, SolverOutputError,
+    ising_from_qubo, run_portfolio_batch,
 )
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.engine import STAGE_NONFINITE, STAGE_OK, run_stage
 from planners.ising.sharing.qubo import cut_value, decode_split
 
-__all__ = ["ChipSubmission"]
+__all__ = ["StageSolver", "stage_refusal"]
 
 
 def stage_refusal(status: int) -> str:
@@ -29,23 +30,33 @@ def stage_refusal(status: int) -> str:
     return "the chip refused a mapped split program: a quantized coefficient is outside the chip's range"
 
 
-class ChipSubmission:
-    """:class:`~planners.ising.sharing.IsingSharing`'s chip side (needs ``config``, ``chip``, ``_meter``,
-    ``_rule_ids``, ``_limits``, ``_link`` and ``_kernel_args``)."""
+class StageSolver:
+    """:class:`~planners.ising.sharing.IsingSharing`'s chip side, a component: ``StageSolver(config,
+    chip)``; ``meter`` is the running sharing call's :class:`ising_backend.MeteredSolver`."""
 
-    def _capacity(self) -> int:
+    def __init__(self, config, chip):
+        self.config = config
+        self.chip = chip
+        self.rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in config.rules], dtype=np.int64)
+        self.limits = tuple(float(v) for v in chip.spec.coefficient_limits)
+        # how a stage's compiled call (.engine.run_stage) reaches the chip: any machine
+        self.link = MachineLink(chip)
+        self.kernel_args = self.link.kernel_args
+        self.meter = None
+
+    def capacity(self) -> int:
         """Spins per packed program: the chip's, or those clear of the stuck spins a faulty chip's
         health probe found (the emulator's kernel runs only on healthy chips)."""
-        if self._link.direct:
+        if self.link.direct:
             return int(self.chip.spec.n_spins)
         return int(getattr(self.chip, "usable_spins", self.chip.spec.n_spins))
 
-    def _solve_all(self, w, R, pending, rng, stats) -> None:
+    def solve_all(self, w, R, pending, rng, stats) -> None:
         """Solve ``pending`` split problems on the chip, re-submitting those without a valid
         candidate up to ``retries`` times; still none is a :class:`SharingFailure`."""
         attempts = 0
         while pending:
-            self._solve(w, R, pending, rng, stats)
+            self.solve(w, R, pending, rng, stats)
             failed = [p for p in pending if not p.cands]
             if failed and attempts >= self.config.retries:
                 p = failed[0]
@@ -56,15 +67,15 @@ class ChipSubmission:
             attempts += 1
             pending = failed
 
-    def _valid(self, R, side0, side1, kind) -> bool:
+    def valid(self, R, side0, side1, kind) -> bool:
         if self.config.reject_empty_robot_side and kind == "robots":
             for side in (side0, side1):
                 if (side < R).any() and not (side >= R).any():
                     return False
         return True
 
-    def _solve_packed(self, w, R, problems, rng, stats) -> None:
-        """The submission of :meth:`_solve` for splits that fit the chip: every split x quantization
+    def solve_packed(self, w, R, problems, rng, stats) -> None:
+        """The submission of :meth:`solve` for splits that fit the chip: every split x quantization
         rule mapped, block-packed first-fit decreasing into one submission, every read decoded,
         checked and scored on the unquantized cut -- in one compiled call
         (:func:`.engine.run_stage`, on any machine); each distinct valid partition becomes a
@@ -86,17 +97,17 @@ class ChipSubmission:
             free[k, :n] = p.free
         anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
         reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
-        self._link.charged = self._meter.charged
+        self.link.charged = self.meter.charged
         try:
-            out = run_stage(q, Q, sizes, self._rule_ids, *self._limits, self._capacity(), cfg.reads,
-                            np.uint64(seed), *self._kernel_args, free, anchors, w, R, reject)
+            out = run_stage(q, Q, sizes, self.rule_ids, *self.limits, self.capacity(), cfg.reads,
+                            np.uint64(seed), *self.kernel_args, free, anchors, w, R, reject)
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
         if out[0] != STAGE_OK:
             raise SharingFailure(stage_refusal(out[0]))
-        self._link.settle([out[1]], [out[2]], self._meter.charged)
+        self.link.settle([out[1]], [out[2]], self.meter.charged)
         n_valid, best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]
@@ -120,7 +131,7 @@ class ChipSubmission:
             order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
             p.cands = [c[i] for i in order]
 
-    def _solve(self, dist, R, problems, rng, stats) -> None:
+    def solve(self, dist, R, problems, rng, stats) -> None:
         """One chip submission for every mapped program of ``problems``.
 
         Each split's reduced QUBO is converted to Ising form and mapped by
@@ -131,7 +142,7 @@ class ChipSubmission:
         on the unquantized cut (objective ``-cut``: lower is better).
         """
         if max(len(p.free) for p in problems) <= self.chip.spec.n_spins:
-            return self._solve_packed(dist, R, problems, rng, stats)
+            return self.solve_packed(dist, R, problems, rng, stats)
         models = [ising_from_qubo(p.q, p.Q, p.offset) for p in problems]
         if max(len(p.free) for p in problems) > self.chip.spec.n_spins:
             # spin-budget branching: freeze the excess spins, 2^k reduced programs per rule
@@ -146,7 +157,7 @@ class ChipSubmission:
 
         def validator(k, p):
             def check(cand) -> bool:
-                ok = self._valid(R, cand[0], cand[1], p.kind)
+                ok = self.valid(R, cand[0], cand[1], p.kind)
                 if ok:
                     found[k].setdefault(cand[1].tobytes(), cand)
                 return ok
@@ -160,7 +171,7 @@ class ChipSubmission:
             results = run_portfolio_batch(
                 models,
                 mappings,
-                self._meter,
+                self.meter,
                 decode=[decoder(p) for p in problems],
                 is_valid=[validator(k, p) for k, p in enumerate(problems)],
                 objective=objective,

@@ -94,20 +94,29 @@ class HealthMonitor:
     @property
     def healthy(self) -> np.ndarray:
         """Indices of the cores work may go to."""
-        return np.flatnonzero(~self.quarantined)
+        return self._healthy
 
     @property
     def usable_spins(self) -> int:
         """Spins a program may use on every healthy core without touching a known stuck spin."""
-        h = self.healthy
-        if not len(h):
-            return self.spec.n_spins
-        return int(self.spec.n_spins - (self.known_stuck[h] != 0).sum(axis=1).max())
+        return self._usable
 
     def quarantine(self, core: int, reason: str) -> None:
         if not self.quarantined[core]:
+            self.quarantined.setflags(write=True)
             self.quarantined[core] = True
             self.reasons[int(core)] = reason
+            self._state()
+
+    def _state(self) -> None:
+        """The healthy cores and usable spins, recomputed where quarantine or known stuck spins change
+        (both arrays are read-only in between, so nothing else can change them)."""
+        self.quarantined.setflags(write=False)
+        self.known_stuck.setflags(write=False)
+        self._healthy = h = np.flatnonzero(~self.quarantined)
+        self._healthy.setflags(write=False)
+        self._usable = int(self.spec.n_spins) if not len(h) else \
+            int(self.spec.n_spins - (self.known_stuck[h] != 0).sum(axis=1).max())
 
     def placement(self, core: int) -> np.ndarray:
         """Physical spin of each logical spin on ``core``: good spins first, known stuck ones last."""
@@ -116,6 +125,7 @@ class HealthMonitor:
 
     def _arrays(self) -> None:
         """Per core, the stuck values and mismatch factors as the logical spins see them."""
+        self._state()
         C = self.spec.n_cores
         perms = [self.placement(c) for c in range(C)]
         self.clamp = np.ascontiguousarray(np.stack([self.faults.clamp[c, perms[c]] for c in range(C)]))
@@ -180,6 +190,7 @@ class HealthMonitor:
                 r = rows[rows // R == b]
                 if len(r):
                     stuck = wrong[r].mean(axis=0) > 0.5  # reads -p where the field forces p
+                    self.known_stuck.setflags(write=True)
                     self.known_stuck[c, stuck] = -p
         self._arrays()
 

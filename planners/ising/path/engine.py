@@ -368,6 +368,9 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                 win = winners[rng.integers(0, nw)] if nw > 1 else winners[0]
                 mapping[win, 2] += 1
             at += P
+        if nf + nb > f_pos.shape[0]:  # failures without a chip call (no style fits) are not budgeted
+            f_pos = np.concatenate((f_pos, np.empty_like(f_pos)))
+            f_cell = np.concatenate((f_cell, np.empty_like(f_cell)))
         for b in range(nb if chosen < 0 else chosen):  # the targets ranked before the chosen one failed
             f_pos[nf, 0], f_pos[nf, 1] = pr, pc
             f_cell[nf, 0], f_cell[nf, 1] = pr + offsets[ranked[b], 0], pc + offsets[ranked[b], 1]

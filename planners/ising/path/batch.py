@@ -53,12 +53,10 @@ def usable_legs(cells, grid):
 
 @numba.njit(cache=True)
 def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-             padded, fields, stops, size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack, num_reads,
-             per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps,
-             geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells, grid, cut):
-    """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each, until the first
-    leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s ranking field
-    (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
+             padded, fields, stops, nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options, grid, cut):
+    """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each (the same arguments),
+    until the first leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s
+    ranking field (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
     counts (5,), mapping (k, 4), sub_calls, sub_emu, walked, last, n_sub)``: leg ``j``'s path is
     ``points[ends[j]:ends[j + 1]]``; counts, mapping and walk steps are those of the legs done;
     ``last`` is the :func:`run_query` output of the last leg run (the one not done when ``done <
@@ -76,18 +74,13 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     done = 0
     n_sub = 0
     last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp,
-                     ptarget, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], size, nbr, ring,
-                     offsets, adj4, diag, interior, merged, backtrack, num_reads, per_call, pack, max_attempts,
-                     max_calls, degree, coef, scale, style_ids, Lh, Lj, n_spins, handle, sweeps, geometric, beta_hot,
-                     beta_cold, mismatch, flip_prob, free_cells)
+                     ptarget, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], nbr, ring,
+                     offsets, adj4, diag, coef, style_ids, mismatch, options)
     for j in range(L):
         if j:
             last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p,
                              pcomp, ptarget, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
-                             stops[j + 1, 1], size, nbr, ring, offsets, adj4, diag, interior, merged, backtrack,
-                             num_reads, per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh,
-                             Lj, n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                             free_cells)
+                             stops[j + 1, 1], nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options)
         status, walk, leg_counts, leg_map, sub_calls, sub_emu = last[0], last[3], last[4], last[5], last[6], last[7]
         calls = np.concatenate((calls, sub_calls))
         emu = np.concatenate((emu, sub_emu))

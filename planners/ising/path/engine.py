@@ -27,11 +27,23 @@ from planners.ising.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "COUNT_NAMES"]
+__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "COUNT_NAMES", "QUERY_OPTIONS"]
 
 REACHED, BUDGET_SPENT, EXHAUSTED = 0, 1, 2
 COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 _EXACT_KEY_CELLS = 55  # patches up to 7x7: the key is the free-cell mask itself
+
+#: The scalar arguments of :func:`run_query` as one record (a numpy structured array of one row:
+#: cheaper to hand to compiled code than the scalars one by one): the search options, the budgets,
+#: the mapping scale and limits, and the machine's scalar kernel arguments
+#: (:attr:`ising_backend.MachineLink.kernel_args` less the mismatch array).
+QUERY_OPTIONS = np.dtype([
+    ("size", np.int64), ("interior", np.bool_), ("merged", np.bool_), ("backtrack", np.bool_),
+    ("num_reads", np.int64), ("per_call", np.int64), ("pack", np.bool_), ("max_attempts", np.int64),
+    ("max_calls", np.int64), ("degree", np.bool_), ("scale", np.float64), ("Lh", np.int64), ("Lj", np.int64),
+    ("n_spins", np.int64), ("handle", np.int64), ("sweeps", np.int64), ("geometric", np.bool_),
+    ("beta_hot", np.float64), ("beta_cold", np.float64), ("flip_prob", np.float64), ("free_cells", np.int64),
+])
 
 
 class ProgramPool:
@@ -193,11 +205,11 @@ def _submission(pool, slots, nb, k, pack, n_spins):
 
 @numba.njit(cache=True)
 def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-              padded, field, sr, sc, gr, gc, size, nbr, ring, offsets, adj4, diag, interior, merged,
-              backtrack, num_reads, per_call, pack, max_attempts, max_calls, degree, coef, scale, style_ids, Lh, Lj,
-              n_spins, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob, free_cells):
+              padded, field, sr, sc, gr, gc, nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options):
     """One query of Algorithm 1 (see the module docstring); ``keys .. ptarget`` are
-    :meth:`ProgramPool.arrays`, ``per_call`` the local targets per submission.
+    :meth:`ProgramPool.arrays`, ``nbr .. diag`` the patch frame's tables, ``coef`` the QUBO weights,
+    ``style_ids`` the merge styles, ``mismatch`` the machine's coupling mismatch, ``options`` a
+    :data:`QUERY_OPTIONS` record (``per_call``: the local targets per submission).
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
     err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
@@ -205,6 +217,12 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     its calls and emulation seconds; ``err`` = (row, col, local target, style) of the first program
     a style could not map (``-1`` if none) and ``err_comp`` its free-cell mask.
     """
+    o = options[0]
+    size, interior, merged, backtrack = o.size, o.interior, o.merged, o.backtrack
+    num_reads, per_call, pack, max_attempts, max_calls = o.num_reads, o.per_call, o.pack, o.max_attempts, o.max_calls
+    degree, scale, Lh, Lj, n_spins, free_cells = o.degree, o.scale, o.Lh, o.Lj, o.n_spins, o.free_cells
+    handle, sweeps, geometric, beta_hot, beta_cold, flip_prob = (o.handle, o.sweeps, o.geometric, o.beta_hot,
+                                                                o.beta_cold, o.flip_prob)
     pool = (keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget)
     rad = size // 2
     n = size * size

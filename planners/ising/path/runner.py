@@ -17,7 +17,7 @@ from ising_backend import (
     merge_error_message, merge_styles,
 )
 from planners.ising.fallback import unavailable_message
-from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, ProgramPool, run_query
+from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, QUERY_OPTIONS, ProgramPool, run_query
 from planners.ising.path.kernels import cut_walk, neighbour_table
 from planners.ising.path.qubo import build_patch_qubo
 
@@ -41,8 +41,7 @@ class QueryRunner:
         w = config.full_weights
         coef = (w["C"], w["B"], w["Dg"], w["A_end"], 0.0) if config.form == "pair" else \
             (0.0, w["B"], 0.0, w["A_end"], w["A"])
-        self.mapping_args = (config.form == "degree", np.array(coef, dtype=np.float64), float(config.chip_scale),
-                             self.style_ids, *self.limits)
+        self.coef = np.array(coef, dtype=np.float64)
         self.pool = ProgramPool(frame.n, len(config.styles), spec.n_spins)
         self._grid_for = None  # (grid, padded grid, free cells, loop arguments) of the last grid
 
@@ -59,9 +58,12 @@ class QueryRunner:
         cfg = self.config
         fr = self.frame
         max_attempts, _per_target, max_calls = self._budgets(free)
-        args = (fr.size, self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, cfg.interior_targets,
-                cfg.target_order == "merged", cfg.backtrack, cfg.num_reads, cfg.targets_per_call, cfg.pack,
-                max_attempts, max_calls, *self.mapping_args, *self.link.kernel_args, free)
+        handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = self.link.kernel_args
+        options = np.array([(fr.size, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
+                             cfg.num_reads, cfg.targets_per_call, cfg.pack, max_attempts, max_calls,
+                             cfg.form == "degree", float(cfg.chip_scale), *self.limits, handle, sweeps, geometric,
+                             beta_hot, beta_cold, flip_prob, free)], dtype=QUERY_OPTIONS)
+        args = (self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, self.coef, self.style_ids, mismatch, options)
         self._grid_for = (grid, padded, free, args)
         return self._grid_for
 

@@ -703,3 +703,19 @@ def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it
     assert res.order is None or not len(res.order)
     assert "refused a move-selection program: a coefficient is not finite" in res.failure
     assert res.compute.chip_calls == 0
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(2, 30), st.integers(0, 8))
+def test_frozen_spins_is_freeze_order(seed, n, k):
+    """The tour's compiled freezing order (every spin-budget branching of the tour) against
+    ising_backend.freeze_order, ties included (integer coefficients)."""
+    from ising_backend import IsingModel, freeze_order
+    from planners.ising.tour.engine import frozen_spins
+
+    rng = np.random.default_rng(seed)
+    k = min(k, n)
+    h = rng.integers(-3, 4, n).astype(float)
+    J = np.triu(rng.integers(-3, 4, (n, n)), k=1).astype(float)
+    ref = np.sort(freeze_order(IsingModel.trusted(h, J, 0.0))[:k])
+    assert frozen_spins(h, J, k).tolist() == ref.tolist()

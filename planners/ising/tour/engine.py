@@ -19,13 +19,13 @@ from ising_backend import anneal_submit, quantize_rules, solve_submit
 from planners.ising.numeric import pairwise_sum
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 
-__all__ = ["solve_order", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
+__all__ = ["solve_order", "frozen_spins", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
 
 SOLVED, UNSOLVED, TOO_MANY_BITS, UNQUANTIZABLE = 0, 1, 2, 3
 
 
 @numba.njit(cache=True)
-def _frozen(h, J, k):
+def frozen_spins(h, J, k):
     """The ``k`` spins to freeze, sorted: by decreasing ``|h_i| + sum_j |J_ij + J_ji|`` (numpy's
     summation), lowest index first on ties (:func:`ising_backend.branching.freeze_order`)."""
     n = h.shape[0]
@@ -71,7 +71,7 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget
         stats[0] = k
         return TOO_MANY_BITS, none, stats, calls[:0], emu[:0]
     if k:
-        frozen = _frozen(h, J, k)
+        frozen = frozen_spins(h, J, k)
         free, hb, Jb, _offs = branch_stack(h, J, off, frozen)
         B = hb.shape[0]
         nf = free.shape[0]

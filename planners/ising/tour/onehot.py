@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, MachineLink, freeze_order, quantize,
+    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, MachineLink, quantize,
 )
 from planners.ising.tour.cluster import TourFailure, _Run
-from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
+from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, frozen_spins, solve_order
 from planners.ising.tour.kernels import branch_stack, expand_branches
 
 __all__ = ["OneHotSolver"]
@@ -46,7 +46,7 @@ class OneHotSolver:
             k = n - self.budget
             if k > cfg.max_branch_bits:
                 raise TourFailure(f"a {n}-spin program needs {k} frozen spins > max_branch_bits = {cfg.max_branch_bits}")
-            frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k])
+            frozen = frozen_spins(h, J, k)
         else:
             frozen = np.zeros(0, dtype=np.int64)
         free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["check_env_id", "is_assign_env"]
+__all__ = ["check_env_id", "is_assign_env", "is_lifelong_env"]
 
 
 def check_env_id(env_id: str):
@@ -21,3 +21,9 @@ def is_assign_env(env_id: str) -> bool:
     """True for a plan-level (Assign) env id: an idle robot picks its next target."""
     entry = check_env_id(env_id).entry_point
     return isinstance(entry, str) and entry.endswith(":MRMTAssignEnv")
+
+
+def is_lifelong_env(env_id: str) -> bool:
+    """True for a lifelong env id (a task stream; a learned controller chooses each idle robot's next task)."""
+    entry = check_env_id(env_id).entry_point
+    return isinstance(entry, str) and entry.endswith(":MRMTLifelongEnv")

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.env_ids import check_env_id as _spec
-from agents.env_ids import is_assign_env
+from agents.env_ids import is_assign_env, is_lifelong_env
 from agents.learned_policy import (ALGORITHMS, MAX_MODEL_BYTES, MAX_MODEL_UNPACKED, MAX_SIDECAR_BYTES, LearnedPolicy,
                                     load_policy, sidecar_path)
 
@@ -52,12 +52,17 @@ SMALL_ENV_ID = "mrmt_env/MRMT-5x5-v0"
 ASSIGN_ENV_ID = "mrmt_env/MRMT-Assign-v0"
 #: Default training budgets (env steps): the plan-level default finishes in
 #: <= 10 minutes on a 2-core machine (benchmarks/RESULTS.md).
-DEFAULT_TIMESTEPS = {"assign": 300_000, "grid": 100_000}
+DEFAULT_TIMESTEPS = {"assign": 300_000, "grid": 100_000, "lifelong": 100_000}
 
 #: MaskablePPO settings for the plan-level env (see the module docstring).
 ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=1.0,
                     gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 ASSIGN_N_ENVS = 16
+#: MaskablePPO settings for the lifelong task choice (agents.lifelong_learned): one step per decision,
+#: reward = tasks served until the next decision, discounted per decision.
+LIFELONG_HYPER = dict(n_steps=256, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=0.98,
+                      gae_lambda=0.95, ent_coef=0.01, clip_range=0.2, policy_kwargs=dict(net_arch=[64, 64]))
+LIFELONG_N_ENVS = 4
 
 
 def model_path(out) -> Path:
@@ -196,18 +201,20 @@ def train(
         the trained model.
     """
     assign = is_assign_env(env_id)
-    kind = "assign" if assign else "grid"
+    lifelong = is_lifelong_env(env_id)
+    kind = "assign" if assign else "lifelong" if lifelong else "grid"
     timesteps = DEFAULT_TIMESTEPS[kind] if timesteps is None else timesteps
     if isinstance(timesteps, bool) or int(timesteps) != timesteps or timesteps < 1:
         raise ValueError(f"timesteps must be an integer >= 1, got {timesteps!r}")
-    n_envs = (ASSIGN_N_ENVS if assign else 1) if n_envs is None else n_envs
+    n_envs = {"assign": ASSIGN_N_ENVS, "lifelong": LIFELONG_N_ENVS}.get(kind, 1) if n_envs is None else n_envs
     if isinstance(n_envs, bool) or int(n_envs) != n_envs or n_envs < 1:
         raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
-    algo = ("maskable_ppo" if assign else "ppo") if algo is None else algo
+    algo = ("maskable_ppo" if assign or lifelong else "ppo") if algo is None else algo
     if algo not in ALGORITHMS:
         raise ValueError(f"algo must be one of {ALGORITHMS}, got {algo!r}")
-    if assign and algo != "maskable_ppo":
-        raise ValueError(f"the plan-level env {env_id} needs action masks: algo must be 'maskable_ppo', got {algo!r}")
+    if (assign or lifelong) and algo != "maskable_ppo":
+        what = "plan-level" if assign else "lifelong"
+        raise ValueError(f"the {what} env {env_id} needs action masks: algo must be 'maskable_ppo', got {algo!r}")
     timesteps, n_envs = int(timesteps), int(n_envs)
     env_kwargs = dict(env_kwargs or {})
 
@@ -218,7 +225,12 @@ def train(
         torch.set_num_threads(int(torch_threads))
     probe = gym.make(env_id, **env_kwargs)  # validates the id and kwargs with a clear error
     probe.close()
-    venv = _vec_env(env_id, env_kwargs, n_envs, int(seed))
+    if lifelong:
+        from agents.lifelong_learned import decision_vec_env
+
+        venv = decision_vec_env(env_id, env_kwargs, n_envs, int(seed))
+    else:
+        venv = _vec_env(env_id, env_kwargs, n_envs, int(seed))
     world_h, world_w = probe.unwrapped.source.height, probe.unwrapped.source.width
     if reward_scale is None:
         reward_scale = 1.0 / (world_h + world_w) if assign else 1.0
@@ -236,6 +248,11 @@ def train(
         params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
         policy_obj = AssignPointerPolicy
         policy_name = "AssignPointerPolicy"
+    elif lifelong:
+        params = dict(LIFELONG_HYPER)
+        params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
+        params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
+        policy_obj = policy_name = "MlpPolicy"
     else:
         image = env_kwargs.get("observation") == "image"
         policy_name = policy or ("CnnPolicy" if image else "MlpPolicy")
@@ -278,6 +295,8 @@ def train(
             "train_wall_s": wall,
             "hyper": hyper,
         }
+        if lifelong:
+            meta["decision"] = "lifelong-task"
         sidecar_path(zpath).write_text(json.dumps(meta, indent=1))
         if curve_cb is not None:
             _write_curve(curve_cb.rows, zpath, f"{algo} {policy_name} on {env_id}, {timesteps} steps")

@@ -220,6 +220,17 @@ def _env_spaces(path: str, meta: dict, env_id, env_kwargs):
             for k, v in env_kwargs.items()):
         raise _refuse(path, f"{where}'s env_kwargs must map names to numbers or strings (no world), got "
                             f"{str(env_kwargs)[:120]}")
+    if meta.get("decision") == "lifelong-task":  # the task choice's spaces do not depend on the world
+        from agents.env_ids import is_lifelong_env
+        from agents.lifelong_learned import decision_spaces
+
+        try:
+            lifelong = is_lifelong_env(env_id)
+        except ValueError as exc:
+            raise _refuse(path, str(exc)) from None
+        if not lifelong:
+            raise _refuse(path, f"{where} names a lifelong task choice on {env_id!r}, which is not a lifelong id")
+        return decision_spaces()
     try:
         _spec(env_id)
         env = gym.make(env_id, **env_kwargs)

@@ -39,7 +39,7 @@ import numpy as np
 
 from planners.compute import ComputeReport
 
-__all__ = ["LifelongController", "GreedyAssigner", "PipelineAssigner", "make_lifelong_controller",
+__all__ = ["LifelongController", "Round", "GreedyAssigner", "PipelineAssigner", "make_lifelong_controller",
            "LIFELONG_CONTROLLERS", "PIPELINE_LAYERS"]
 
 #: Pipeline specs and the (sharing, tour) layers they run in the lifelong loop.
@@ -70,7 +70,7 @@ class GreedyAssigner:
     name = "greedy"
     accelerated = False
 
-    def assign(self, grid, fields, idle_cells, tasks, seed) -> tuple[list[list[int]], ComputeReport]:
+    def assign(self, grid, fields, idle_cells, tasks, seed, fleet=None) -> tuple[list[list[int]], ComputeReport]:
         queues: list[list[int]] = [[] for _ in idle_cells]
         if len(tasks) == 0:
             return queues, ComputeReport()
@@ -121,7 +121,7 @@ class PipelineAssigner:
         self.pipeline = make_pipeline(sharing=sharing, tour=tour, path="bfs", **shared)
         self.accelerated = bool(shared)
 
-    def assign(self, grid, fields, idle_cells, tasks, seed) -> tuple[list[list[int]], ComputeReport]:
+    def assign(self, grid, fields, idle_cells, tasks, seed, fleet=None) -> tuple[list[list[int]], ComputeReport]:
         from mrmt_env.world import World
 
         queues: list[list[int]] = [[] for _ in idle_cells]
@@ -175,6 +175,16 @@ class PipelineAssigner:
         return queues, compute
 
 
+class Round:
+    """One step's view of the fleet (flat cells): ``pos`` and ``goals`` (queue heads, own cell when
+    idle) per robot, the ``idle`` robots' indices and the ``unclaimed`` open tasks."""
+
+    __slots__ = ("grid", "pos", "goals", "idle", "unclaimed")
+
+    def __init__(self, grid, pos, goals, idle, unclaimed) -> None:
+        self.grid, self.pos, self.goals, self.idle, self.unclaimed = grid, pos, goals, idle, unclaimed
+
+
 class LifelongController:
     """Queues of tasks per robot, an assigner on events and a MAPF executor (see the module docstring).
 
@@ -205,7 +215,8 @@ class LifelongController:
         self.replans = 0
         self.steps = 0
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def observe(self, obs: np.ndarray) -> "Round":
+        """Read an observation: drop served tasks from the queues; the step's :class:`Round`."""
         obs = np.asarray(obs)
         n_robots = obs.shape[0] - 2
         grid = obs[0].astype(bool)
@@ -221,33 +232,57 @@ class LifelongController:
                 self.queues[k] = q = [c for c in q if is_open[c]]
             claimed[q] = True
         idle = np.array([k for k, q in enumerate(self.queues) if not q], dtype=np.int64)
-        unclaimed = open_cells[~claimed[open_cells]]
-        self.last_compute = ComputeReport()
-        if len(idle) and len(unclaimed):
-            queues, compute = self.assigner.assign(grid, self.fields, pos[idle], unclaimed,
-                                                   seed=self.seed * 1_000_003 + self.steps)
-            for i, k in enumerate(idle.tolist()):
-                self.queues[k] = [int(unclaimed[j]) for j in queues[i]]
-            self.last_compute = compute
-            self.replans += 1
+        goals = np.array([q[0] if q else p for q, p in zip(self.queues, pos.tolist())], dtype=np.int64)
+        return Round(grid, pos, goals, idle, open_cells[~claimed[open_cells]])
+
+    def apply(self, rnd: "Round", queues: list[list[int]]) -> None:
+        """Give idle robot ``rnd.idle[i]`` the tasks ``rnd.unclaimed[queues[i]]``."""
+        for i, k in enumerate(rnd.idle.tolist()):
+            self.queues[k] = [int(rnd.unclaimed[j]) for j in queues[i]]
+        self.replans += 1
+
+    def move(self, pos: np.ndarray) -> np.ndarray:
+        """The executor's conflict-free joint move towards each queue's head (its own cell when idle)."""
         goals = np.array([q[0] if q else p for q, p in zip(self.queues, pos.tolist())], dtype=np.int64)
         self.steps += 1
         return self.executor.actions(pos, goals)
 
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        rnd = self.observe(obs)
+        self.last_compute = ComputeReport()
+        if len(rnd.idle) and len(rnd.unclaimed):
+            queues, compute = self.assigner.assign(rnd.grid, self.fields, rnd.pos[rnd.idle], rnd.unclaimed,
+                                                   seed=self.seed * 1_000_003 + self.steps, fleet=rnd)
+            self.apply(rnd, queues)
+            self.last_compute = compute
+        return self.move(rnd.pos)
+
 
 def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str = "pibt",
                              **options) -> LifelongController:
-    """``greedy`` or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
+    """``greedy``, ``ppo:MODEL.zip`` (:mod:`agents.lifelong_learned`) or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
     (``pibt`` or ``windowed``); ``options`` go to :class:`PipelineAssigner` (``group_size``,
     ``candidates``, ``commit``, ``fill``); ``ValueError`` naming an unknown spec or option."""
     from planners.mapf import EXECUTORS
 
     if executor not in EXECUTORS:
         raise ValueError(f"unknown executor {executor!r}; known: {', '.join(EXECUTORS)}")
-    if spec == "greedy":
+    if spec == "greedy" or spec.startswith("ppo:"):
         if options:
-            raise ValueError(f"greedy takes no options, got {sorted(options)}")
-        assigner = GreedyAssigner()
+            raise ValueError(f"{spec} takes no options, got {sorted(options)}")
+        assigner = GreedyAssigner() if spec == "greedy" else _learned(spec)
     else:
         assigner = PipelineAssigner(spec, chip=chip, **options)
     return LifelongController(assigner, executor=executor, seed=seed)
+
+
+def _learned(spec: str):
+    """``ppo:PATH``: a model trained by ``mrmt train`` on a lifelong id, as a :class:`LearnedAssigner`."""
+    from agents.learned_policy import load_policy
+    from agents.lifelong_learned import LearnedAssigner
+
+    policy = load_policy(spec[len("ppo:"):])
+    if policy.meta.get("decision") != "lifelong-task":
+        raise ValueError(f"{spec}: the model was not trained on a lifelong id (its sidecar names env "
+                         f"{policy.meta.get('env_id')!r}); train one with mrmt train --env-id mrmt_env/MRMT-Lifelong-v0")
+    return LearnedAssigner(policy, name=spec)

@@ -170,12 +170,14 @@ def run_compare(args) -> int:
     ``--max-steps`` steps (default :data:`DEFAULT_LIFELONG_STEPS`); ``--out DIR`` writes
     ``lifelong.csv`` and ``lifelong.json`` (one row per episode)."""
     from agents.commands.options import check_positive, check_seed
+    from agents.errors import ControllerError
     from agents.lifelong import LIFELONG_CONTROLLERS
 
     specs = [s.strip() for s in str(args.controllers).split(",") if s.strip()]
-    bad = [s for s in specs if s not in LIFELONG_CONTROLLERS and not (s.count("+") == 1 and all(s.split("+")))]
-    problem = (f"unknown lifelong controller {bad[0]!r}; expected {', '.join(LIFELONG_CONTROLLERS)} or a "
-               "sharing+tour pair (e.g. ssa+3opt)") if bad else None
+    bad = [s for s in specs if s not in LIFELONG_CONTROLLERS and not (s.count("+") == 1 and all(s.split("+")))
+           and not (s.startswith("ppo:") and len(s) > 4)]
+    problem = (f"unknown lifelong controller {bad[0]!r}; expected {', '.join(LIFELONG_CONTROLLERS)}, a "
+               "sharing+tour pair (e.g. ssa+3opt) or ppo:MODEL.zip") if bad else None
     problem = problem or (None if specs else f"no controller named in {args.controllers!r}")
     problem = problem or check_positive(args, ("worlds", "robots", "targets", "height", "width", "max-steps"))
     problem = problem or check_seed("--seed", args.seed, args.worlds)
@@ -192,7 +194,7 @@ def run_compare(args) -> int:
         chip = chip_from_args(args)  # --chip spec fields and --sampler
         rows = evaluate_lifelong(specs, args.env_id, range(args.seed, args.seed + args.worlds), steps, env_kwargs,
                                  chip=chip, progress=not args.no_progress)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, ControllerError) as exc:
         print(f"mrmt compare: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     print(format_summary(summarize(rows)))

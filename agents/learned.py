@@ -59,9 +59,9 @@ ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4,
                     gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 ASSIGN_N_ENVS = 16
 #: MaskablePPO settings for the lifelong task choice (agents.lifelong_learned): one step per decision,
-#: reward = tasks served until the next decision, discounted per decision.
-LIFELONG_HYPER = dict(n_steps=256, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=0.98,
-                      gae_lambda=0.95, ent_coef=0.01, clip_range=0.2, policy_kwargs=dict(net_arch=[64, 64]))
+#: differential reward (tasks served minus the episode's rate times the steps; agents.lifelong_learned).
+LIFELONG_HYPER = dict(n_steps=256, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=0.99,
+                      gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 LIFELONG_N_ENVS = 4
 
 
@@ -252,7 +252,9 @@ def train(
         params = dict(LIFELONG_HYPER)
         params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
         params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
-        policy_obj = policy_name = "MlpPolicy"
+        from agents.lifelong_net import LifelongTaskPolicy
+
+        policy_obj, policy_name = LifelongTaskPolicy, "LifelongTaskPolicy"
     else:
         image = env_kwargs.get("observation") == "image"
         policy_name = policy or ("CnnPolicy" if image else "MlpPolicy")

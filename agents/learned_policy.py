@@ -166,7 +166,10 @@ def _policy_class(path: str, algo: str, meta: dict, data: dict):
 
         from agents.assign_net import AssignPointerPolicy
 
-        known = {**Algo.policy_aliases, "AssignPointerPolicy": AssignPointerPolicy}
+        from agents.lifelong_net import LifelongTaskPolicy
+
+        known = {**Algo.policy_aliases, "AssignPointerPolicy": AssignPointerPolicy,
+                 "LifelongTaskPolicy": LifelongTaskPolicy}
     else:
         from stable_baselines3 import PPO as Algo
 

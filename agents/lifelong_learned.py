@@ -26,8 +26,10 @@ Per candidate task ``t`` (row ``j``, nearest first):
 
 Distances are divided by ``H + W``.  :class:`LifelongDecisionEnv` is the
 training env (``mrmt train --env-id mrmt_env/MRMT-Lifelong-v0``): one step per
-decision, reward = tasks served in the env steps it advances before the next
-decision, so the return is the episode's throughput.  :class:`LearnedAssigner`
+decision; reward = tasks served in the env steps it advances before the next
+decision minus the episode's throughput so far times those steps (a
+differential, average-reward return: with tasks alone, a discount per
+decision would favour far tasks, which space decisions out).  :class:`LearnedAssigner`
 is the controller's assigner (``ppo:model.zip`` in ``mrmt compare``).
 """
 
@@ -177,7 +179,7 @@ class LifelongDecisionEnv(gym.Env):
     ``env_id`` / ``env_kwargs``: the lifelong env; ``max_episode_steps``: its steps per episode
     (default: the id's).  Each ``step(a)`` gives the deciding robot candidate ``a`` (an action the
     mask forbids raises ``ValueError``), then runs env steps (moves by ``executor``) until another
-    decision is due; reward = tasks served meanwhile.  Truncated when the lifelong episode is;
+    decision is due; reward: see the module docstring.  Truncated when the lifelong episode is;
     ``info`` is the lifelong env's (plus ``robot``: the robot deciding next)."""
 
     metadata = {"render_modes": []}
@@ -204,7 +206,7 @@ class LifelongDecisionEnv(gym.Env):
         obs, info = self.env.reset(seed=seed if seed is None else int(seed), options=options)
         self.ctrl.seed = 0 if seed is None else int(seed)
         self.ctrl.reset()
-        self._served0 = info["tasks_completed"]
+        self._served0, self._steps0 = info["tasks_completed"], info["steps"]
         x, _, _, info = self._advance(obs, info)
         return x, info
 
@@ -230,9 +232,16 @@ class LifelongDecisionEnv(gym.Env):
     def _end(self, info):
         self.chooser = None
         self._mask = np.zeros(N_CANDIDATES, dtype=bool)
-        reward = float(info["tasks_completed"] - self._served0)
-        self._served0 = info["tasks_completed"]
+        reward = self._reward(info)
         return np.zeros(self.observation_space.shape, np.float32), reward, False, True, dict(info, robot=-1)
+
+    def _reward(self, info) -> float:
+        """Tasks served since the last decision minus the episode's rate so far times the steps taken."""
+        done, steps = info["tasks_completed"], info["steps"]
+        rate = self._served0 / self._steps0 if self._steps0 else 0.0
+        reward = float(done - self._served0) - rate * (steps - self._steps0)
+        self._served0, self._steps0 = done, steps
+        return reward
 
     def _advance(self, obs, info):
         """Env steps until a decision is due; ``(observation, reward, truncated, info)``."""
@@ -243,8 +252,7 @@ class LifelongDecisionEnv(gym.Env):
                 if chooser.next_robot() is not None:
                     self.chooser, self._round, self._info = chooser, rnd, info
                     x, self._mask = chooser.observation()
-                    reward = float(info["tasks_completed"] - self._served0)
-                    self._served0 = info["tasks_completed"]
+                    reward = self._reward(info)
                     return x, reward, False, dict(info, robot=int(chooser.idle[chooser.cursor]))
             obs, _, term, trunc, info = self.env.step(self.ctrl.move(rnd.pos))
             if term or trunc:

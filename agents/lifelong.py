@@ -25,10 +25,10 @@ each group is one planning call.  Robots take the first ``commit`` tasks of thei
 (default 1; the rest stays unclaimed, so the next idle robot may take it).
 A robot the plan leaves without a task waits for the next event, or with
 ``fill=True`` takes the nearest task still unclaimed (greedy completion).
-Defaults (4 robots, 3 candidates: at most 12 tasks per call, which the
-compiled Ising sharing search takes whole) were chosen on the 100-robot
-warehouse for throughput and latency of both pipelines alike
-(docs/lifelong.md).  Every call's :class:`~planners.compute.ComputeReport`
+Defaults (4 robots, 1 candidate: at most 4 tasks per call; the plan decides
+which robot serves a task several robots have nearest) were chosen on the
+100-robot warehouse for the throughput of both pipelines alike (seeds 0-1,
+checked on seeds 10-13; docs/lifelong.md).  Every call's :class:`~planners.compute.ComputeReport`
 is summed into :attr:`LifelongController.last_compute`, so a decision's chip
 calls are charged to it.
 """
@@ -49,7 +49,7 @@ LIFELONG_CONTROLLERS = ("greedy",) + tuple(PIPELINE_LAYERS)
 #: Idle robots per planning call of a pipeline assigner.
 DEFAULT_GROUP_SIZE = 4
 #: Unclaimed tasks a pipeline assigner considers per idle robot (its nearest ones).
-DEFAULT_CANDIDATES = 3
+DEFAULT_CANDIDATES = 1
 
 
 def _spread(v: np.ndarray) -> np.ndarray:

@@ -100,3 +100,12 @@ def test_compare_names_a_model_that_is_not_a_lifelong_one(tmp_path, capsys):
                  "--worlds", "1", "--max-steps", "5", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("mrmt compare: error:") and "does not exist" in err and "\n" not in err
+
+
+def test_train_refuses_an_algorithm_without_masks_on_a_lifelong_id(tmp_path, capsys):
+    from agents.cli import main
+
+    assert main(["train", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--algo", "ppo", "--timesteps", "16",
+                 "--out", str(tmp_path / "x.zip"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "needs action masks: algo must be 'maskable_ppo', got 'ppo'" in err and "\n" not in err

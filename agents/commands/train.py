@@ -1,6 +1,7 @@
 """``mrmt train``: train a learned agent on an MRMT env and save it.
 
     mrmt train --env-id mrmt_env/MRMT-Assign-v0 --out model.zip          # MaskablePPO, pointer policy
+    mrmt train --env-id mrmt_env/MRMT-Lifelong-v0 --out ll.zip            # MaskablePPO: an idle robot's next task
     mrmt train --timesteps 100000 --out model.zip [--env-id mrmt_env/MRMT-5x5-v0] [--algo maskable_ppo]
 
 Writes the model ``.zip``, a ``.json`` sidecar (algorithm, policy, env id and
@@ -28,7 +29,7 @@ HELP = "train a learned agent (PPO / MaskablePPO) on an MRMT env and save it"
 def add_arguments(parser) -> None:
     parser.add_argument("--timesteps", type=int, default=None,
                         help="total env steps (default: 300000 on the plan-level env, about 6.5 min on 2 cores; "
-                             "100000 on a grid env)")
+                             "100000 decisions on a lifelong env; 100000 on a grid env)")
     parser.add_argument("--out", required=True, help="model path (.zip is appended unless it ends in .zip)")
     parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
     parser.add_argument("--algo", default=None, choices=("ppo", "maskable_ppo"),
@@ -41,7 +42,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--targets", type=int, default=None, help="override the env's target count")
     parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     parser.add_argument("--n-envs", type=int, default=None,
-                        help="envs stepped together in the native vector env (default 16 plan level, 1 grid)")
+                        help="envs stepped together (default 16 plan level, 4 lifelong, 1 grid)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)  # the default; kept for old scripts
 

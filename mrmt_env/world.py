@@ -16,7 +16,7 @@ from functools import cached_property
 
 import numpy as np
 
-from mrmt_env.distances import UNREACHABLE, bfs_distance_field, bfs_distance_fields
+from mrmt_env.distances import UNREACHABLE, bfs_distance_field, bfs_distance_fields, component_labels
 
 __all__ = ["World", "WorldError"]
 
@@ -116,9 +116,11 @@ class World:
         object.__setattr__(self, "grid", grid)
         object.__setattr__(self, "robots", robots)
         object.__setattr__(self, "targets", targets)
-        reach = (self.robot_fields >= 0).any(axis=0)
+        labels, _ = component_labels(grid)  # one linear pass (not a BFS per robot): reachable = same component
+        robot_parts = labels[robots[:, 0], robots[:, 1]]
+        reach = np.isin(labels[targets[:, 0], targets[:, 1]], robot_parts) if len(targets) else np.zeros(0, bool)
         for i, (r, c) in enumerate(targets):
-            if not reach[r, c]:
+            if not reach[i]:
                 raise WorldError(
                     f"target {i} cell [{r}, {c}] is unreachable from every robot (4-neighbour moves)"
                 )

@@ -14,8 +14,8 @@ Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
 SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the Ising
 sharing and tour with this package's defaults (boundary-refined sharing, the
 move-selection tour on the physical chip) and legs as descents of the host's BFS
-fields (path layer ``field``: no chip call for a path the host already holds),
-``ising-paper`` = the three Ising methods exactly as the paper configures them,
+fields (path layer ``field``: no chip call for a path the host already holds), and above
+:data:`FLEET_ABOVE` targets the ``ising-fleet`` pipeline (when built without layer options), ``ising-paper`` = the three Ising methods exactly as the paper configures them,
 chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
 classical peer; extra ``peers``), ``ising-fleet`` = SSA routes improved by chip-selected
 moves between robots in an iterated local search (:mod:`planners.ising.fleet`) + field legs,
@@ -114,6 +114,10 @@ PRESETS: dict[str, tuple[str, str, str]] = {
     "pyvrp": ("pyvrp", "keep", "astar"),
     "ising-fleet": ("ising-fleet", "keep", "field"),
 }
+
+#: Preset ``ising`` plans a world with more targets than this with preset ``ising-fleet`` (when built
+#: without layer options): measured crossover, docs/design/ising_fleet.md.
+FLEET_ABOVE = 20
 
 _METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
 
@@ -246,6 +250,8 @@ class Pipeline:
     #: wall seconds of the warm-up run, None before it (or when it was skipped)
     warmup_s: float | None = field(default=None, init=False, compare=False, repr=False)
     _warm_state: str = field(default="cold", init=False, compare=False, repr=False)
+    #: ``(n, pipeline)``: worlds with more than ``n`` targets are planned by ``pipeline`` (preset ``ising``)
+    at_scale: tuple | None = field(default=None, compare=False, repr=False)
 
     @property
     def _batch_paths(self) -> bool:
@@ -295,6 +301,10 @@ class Pipeline:
             raise ValueError(
                 f"seed = {seed!r} is not a numpy seed (None, an integer >= 0, a sequence of them, or a Generator): {exc}"
             ) from exc
+        if self.at_scale is not None and len(world.targets) > self.at_scale[0]:
+            plan = self.at_scale[1].plan(world, seed=seed)
+            plan.stats["planned_by"] = self.at_scale[1].name
+            return plan
         warmup_s = 0.0
         if self.warmup_first and self._warm_state == "cold":
             warmup_s = self.warmup(world, seed if seed is not None else 0)
@@ -482,4 +492,7 @@ def make_pipeline(
     name = preset if preset is not None and all(
         chosen[layer] == d for layer, d in zip(("sharing", "tour", "path"), PRESETS[preset])
     ) else None
-    return Pipeline(layers["sharing"], layers["tour"], layers["path"], name=name)
+    at_scale = None
+    if name == "ising" and not any(options.values()):  # the fleet search above FLEET_ABOVE targets, same chip
+        at_scale = (FLEET_ABOVE, make_pipeline("ising-fleet", **{k: v for k, v in shared.items() if k == "chip"}))
+    return Pipeline(layers["sharing"], layers["tour"], layers["path"], name=name, at_scale=at_scale)

@@ -118,3 +118,31 @@ def test_a_dead_chip_keeps_the_routes_found_so_far_flagged():
     never = make_pipeline("ising-fleet", chip=EmulatedChip(ChipSpec(dead_cores=8)), fallback="never", kicks=20)
     failed = never.plan(world, seed=0)
     assert not failed.success and "the chip could not answer" in failed.failure
+
+
+def test_preset_ising_hands_worlds_above_the_crossover_to_the_fleet_search_on_its_own_chip():
+    from ising_backend import ChipSpec, EmulatedChip
+    from planners.pipeline import FLEET_ABOVE
+
+    big = generate_world(4, height=24, width=24, n_robots=4, n_targets=FLEET_ABOVE + 1)
+    chip = EmulatedChip(ChipSpec())
+    plan = make_pipeline("ising", chip=chip).plan(big, seed=3)
+    fleet = make_pipeline("ising-fleet").plan(big, seed=3)
+    assert plan.stats["planned_by"] == "ising-fleet" and "fleet" in plan.stats
+    assert [r.targets for r in plan.routes] == [r.targets for r in fleet.routes]
+    assert plan.compute.chip_calls == chip.ledger.physical_calls > 0  # charged to the preset's chip
+    # at the crossover and below, and with layer options at any size: the paper-derived layers
+    small = generate_world(4, height=24, width=24, n_robots=4, n_targets=FLEET_ABOVE)
+    assert "planned_by" not in make_pipeline("ising").plan(small, seed=3).stats
+    optioned = make_pipeline("ising", tour_options={"num_reads": 1}).plan(big, seed=3)
+    assert "planned_by" not in optioned.stats and "fleet" not in optioned.stats
+
+
+def test_small_worlds_get_a_ruin_of_five_targets():
+    """Below 50 targets the ruin is drawn in 2..5: on 60 paper worlds the fleet search then finds
+    the exact optimum on 58 (with ruins of 2 targets, the old default there: 50)."""
+    worlds = [generate_world(2000 + s, n_robots=3, n_targets=10) for s in range(60)]
+    exact = [make_pipeline("exact").plan(w).route_cost for w in worlds]
+    pipe = make_pipeline("ising-fleet")
+    hits = sum(pipe.plan(w, seed=s).route_cost == e for s, (w, e) in enumerate(zip(worlds, exact)))
+    assert hits >= 56

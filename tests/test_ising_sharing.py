@@ -428,7 +428,8 @@ def test_a_fleet_beyond_the_chip_plans_end_to_end():
     from planners.plan import validate_plan
 
     world = generate_world(3, height=32, width=32, n_robots=50, n_targets=70, layout="warehouse")
-    plan = make_pipeline("ising").plan(world, seed=0)  # 50 robots: more than the 45-spin chip holds
+    # the preset's layers by name (preset ising hands worlds above FLEET_ABOVE targets to the fleet search)
+    plan = make_pipeline(sharing="ising", tour="ising", path="field").plan(world, seed=0)  # 50 robots > 45 spins
     assert plan.success, plan.failure
     validate_plan(world, plan)
     assert plan.stats["coarse_splits"] >= 1 and plan.compute.chip_calls > 0

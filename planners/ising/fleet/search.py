@@ -56,7 +56,9 @@ class FleetConfig(IsingConfig):
         kicks: ruin-and-recreate steps of the iterated local search (0: local search only;
             ``None``: ``kicks_per_target x N``, so the search grows with the fleet's work).
         kicks_per_target: kicks per target when ``kicks`` is None.
-        ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(2, N // 10)``).
+        ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: ``max(5, N // 10)``: below
+            50 targets a 2-target ruin left the search stuck, 0.87 % from the optimum on paper worlds
+            against 0.10 % with 5).
         slack: a kicked solution replaces the current one when it costs at most the best one
             times ``1 + slack`` (record-to-record travel; 0: equal or better).
         fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the
@@ -221,7 +223,7 @@ class IsingFleetSharing(ConfigAttributes):
         cost = route_cost(d, nxt, r)
         if cost < best["cost"] - 1e-9:
             best["nxt"], best["cost"] = nxt.copy(), cost
-        ruin = max(2, cfg.ruin or n // 10)
+        ruin = max(2, cfg.ruin or max(5, n // 10))
         kicks = cfg.kicks_per_target * n if cfg.kicks is None else cfg.kicks
         for _ in range(kicks):
             cand_nxt, cand_prv = nxt.copy(), prv.copy()

@@ -3,7 +3,8 @@
 Points (issue 24): 64x64 with 10 robots and 100 targets, 128x128 with 20 robots and 300 targets,
 each on ``uniform`` (20 % obstacles) and ``warehouse`` maps, ``--worlds`` worlds per point (world
 seeds ``1000 ..``, planning seed = world index).  Methods: ``fast``, ``strong``, ``ising`` (this
-package's defaults), ``ising-paper`` (the paper's configuration), ``ising-fleet`` (chip-selected
+package's defaults: the fleet search above 20 targets), ``ising-layers`` (the preset's chip sharing
+and tour at any size), ``ising-paper`` (the paper's configuration), ``ising-fleet`` (chip-selected
 moves between robots, :mod:`planners.ising.fleet`) with 2 N, 5 N (its default) and 15 N kicks, and
 ``pyvrp`` at time budgets of 0.05, 0.3 and 1 s (``--long`` adds 10 s).  Every method plans every
 world once, one after the other, so all see the same machine load; the world's distance fields
@@ -41,7 +42,7 @@ SECTION = "## Fleet scale against PyVRP (issue 24)"
 #: (side, robots, targets) of the issue's two fleet points, and of its fleet-size check (``--huge``).
 POINTS = ((64, 10, 100), (128, 20, 300))
 HUGE = ((256, 100, 1000),)
-PRESETS = ("fast", "strong", "ising", "ising-paper", "ising-fleet@2x", "ising-fleet", "ising-fleet@15x")
+PRESETS = ("fast", "strong", "ising", "ising-layers", "ising-paper", "ising-fleet@2x", "ising-fleet", "ising-fleet@15x")
 BUDGETS = (0.05, 0.3, 1.0)
 LONG_BUDGET = 10.0
 
@@ -52,9 +53,12 @@ def method_name(budget: float) -> str:
 
 def make_method(name: str):
     """The pipeline of a method name: a preset, ``pyvrp@<seconds>s`` or ``ising-fleet@<k>x``
-    (``k N`` kicks; the preset's default is 5 N)."""
+    (``k N`` kicks; the preset's default is 5 N), ``ising-fleet@greedy`` (host picks the moves) or
+    ``ising-layers`` (preset ``ising``'s chip sharing and tour at any size)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
+    if name == "ising-layers":  # preset ising's own layers at every size (the preset: fleet search above 20 targets)
+        return make_pipeline(sharing="ising", tour="ising", path="field")
     if name == "ising-fleet@greedy":  # the ablation: the host picks the moves, no chip call
         return make_pipeline("ising-fleet", sharing_options={"selection": "greedy"})
     if name.startswith("ising-fleet@"):
@@ -131,7 +135,8 @@ def plot(summary, layout: str, side: int, path) -> None:
     import matplotlib.pyplot as plt
 
     pts = [x for x in summary if (x["layout"], x["side"]) == (layout, side)]
-    colours = {"fast": "tab:orange", "strong": "tab:green", "ising": "tab:blue", "ising-paper": "tab:purple"}
+    colours = {"fast": "tab:orange", "strong": "tab:green", "ising": "tab:blue", "ising-layers": "tab:gray",
+               "ising-paper": "tab:purple"}
     colours.update({x["method"]: "tab:cyan" for x in pts if x["method"].startswith("ising-fleet")})
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "latency_s", "system latency per plan (s, host + chip)"),
@@ -203,7 +208,7 @@ def main() -> None:
         args.figure_dir = ""
     layouts = args.layouts.split(",")
     if args.huge:
-        points, layouts, methods = HUGE, ["warehouse"], ("strong", "ising", "ising-fleet", "pyvrp@1s")
+        points, layouts, methods = HUGE, ["warehouse"], ("strong", "ising", "ising-layers", "pyvrp@1s")
         section, reference, args.figure_dir = f"{SECTION}, 100 robots x 1,000 targets", "pyvrp@1s", ""
     rows = run(points, layouts, methods, n_worlds)
     summary = summarize(rows, methods, reference)

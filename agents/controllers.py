@@ -1,6 +1,6 @@
 """Controllers by spec string: pipeline presets, layer triples, saved learned models.
 
-``fast`` / ``strong`` / ``ising`` / ``ising-paper`` / ``exact`` / ``pyvrp`` / ``ising-fleet`` (:func:`planners.pipeline.make_pipeline` presets), a layer
+``fast`` / ``strong`` / ``ising`` / ``ising-paper`` / ``exact`` / ``pyvrp`` / ``ising-fleet`` / ``ortools`` (:func:`planners.pipeline.make_pipeline` presets), a layer
 triple ``sharing+tour+path`` (e.g. ``ssa+3opt+astar``), ``ppo:PATH`` (a model saved by
 ``mrmt train``, loaded without unpickling anything from the file) or ``ppo-ms:PATH`` (the same
 decoded from every legal first decision, plan-level env only).  :func:`make_controller` builds
@@ -32,7 +32,7 @@ DEFAULT_ENV_ID = "mrmt_env/MRMT-v0"
 LEARNED_PREFIXES = ("ppo:", "ppo-ms:")
 
 #: Pipeline presets of :func:`planners.pipeline.make_pipeline`.
-PIPELINE_PRESETS = ("fast", "strong", "ising", "ising-paper", "exact", "pyvrp", "ising-fleet")
+PIPELINE_PRESETS = ("fast", "strong", "ising", "ising-paper", "exact", "pyvrp", "ising-fleet", "ortools")
 
 
 def _layer_names() -> dict[str, tuple[str, ...]]:

@@ -53,12 +53,13 @@ def _layers(part: str) -> tuple[str, str, str]:
 
 def parts_for(controllers) -> list[str]:
     """The warm-up parts of controller specs (presets and layer triples; learned models have none),
-    longest first.  An Ising preset is two parts (its sharing layer, its tour and path layers)."""
+    longest first.  An Ising preset is two parts (its sharing layer, its tour and path layers);
+    ``ising`` also the fleet search it runs above 20 targets."""
     parts: list[str] = []
     for spec in controllers:
         spec = spec.strip()
         if spec in _ISING:
-            new = [f"{spec}:sharing", f"{spec}:tour+path"]
+            new = [f"{spec}:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" else [])
         elif spec in _PRESETS:
             new = [spec]
         elif spec.count("+") == 2:

@@ -52,11 +52,13 @@ def method_name(budget: float) -> str:
 
 
 def make_method(name: str):
-    """The pipeline of a method name: a preset, ``pyvrp@<seconds>s`` or ``ising-fleet@<k>x``
+    """The pipeline of a method name: a preset, ``pyvrp@<seconds>s``, ``ortools@<seconds>s``, ``ising-fleet@<k>x``
     (``k N`` kicks; the preset's default is 5 N), ``ising-fleet@greedy`` (host picks the moves) or
     ``ising-layers`` (preset ``ising``'s chip sharing and tour at any size)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
+    if name.startswith("ortools@"):  # the second classical peer (guided local search)
+        return make_pipeline("ortools", sharing_options={"seconds": float(name[8:-1])})
     if name == "ising-layers":  # preset ising's own layers at every size (the preset: fleet search above 20 targets)
         return make_pipeline(sharing="ising", tour="ising", path="field")
     if name == "ising-fleet@greedy":  # the ablation: the host picks the moves, no chip call
@@ -72,7 +74,8 @@ def run(points, layouts, methods, n_worlds: int) -> list[dict]:
             warm = generate_world(999, height=side, width=side, n_robots=r, n_targets=n, layout=layout)
             for name in methods:
                 (make_pipeline("pyvrp", sharing_options={"iterations": 50, "seconds": None})
-                 if name.startswith("pyvrp@") else make_method(name)).plan(warm, seed=0)
+                 if name.startswith("pyvrp@") else make_pipeline("ortools", sharing_options={"solutions": 5})
+                 if name.startswith("ortools@") else make_method(name)).plan(warm, seed=0)
     rows = []
     for side, r, n in points:
         for layout in layouts:
@@ -141,12 +144,12 @@ def plot(summary, layout: str, side: int, path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "latency_s", "system latency per plan (s, host + chip)"),
                            (axes[1], "system_j", "energy per plan (J)")):
-        for prefix, colour in (("pyvrp@", "tab:red"), ("ising-fleet", "tab:cyan")):
+        for prefix, colour in (("pyvrp@", "tab:red"), ("ortools@", "tab:brown"), ("ising-fleet", "tab:cyan")):
             curve = sorted((x[key], x["cost"]) for x in pts if x["method"].startswith(prefix))
             if curve:
                 ax.plot(*zip(*curve), "-", color=colour, alpha=0.6)
         for x in pts:
-            colour = colours.get(x["method"], "tab:red")
+            colour = colours.get(x["method"], "tab:brown" if x["method"].startswith("ortools@") else "tab:red")
             ax.plot(x[key], x["cost"], "o", color=colour)
             ax.annotate(x["method"], (x[key], x["cost"]), fontsize=7, xytext=(4, 3), textcoords="offset points")
             if key == "system_j" and x["accel_j"] > 0:  # the paper's convention: the accelerator alone
@@ -199,7 +202,7 @@ def main() -> None:
     points, budgets, n_worlds = POINTS, BUDGETS + ((LONG_BUDGET,) if args.long else ()), args.worlds
     if args.quick:
         points, budgets, n_worlds = POINTS[:1], BUDGETS[:2], min(args.worlds, 2)
-    methods = PRESETS + tuple(method_name(b) for b in budgets)
+    methods = PRESETS + tuple(method_name(b) for b in budgets) + ("ortools@1s",)
     reference = method_name(max(b for b in budgets if b <= 1.0))  # PyVRP at 1 s (0.3 s with --quick)
     section = SECTION
     if args.methods:

@@ -17,7 +17,7 @@ move-selection tour on the physical chip) and legs as descents of the host's BFS
 fields (path layer ``field``: no chip call for a path the host already holds), and above
 :data:`FLEET_ABOVE` targets the ``ising-fleet`` pipeline (when built without layer options), ``ising-paper`` = the three Ising methods exactly as the paper configures them,
 chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
-classical peer; extra ``peers``), ``ising-fleet`` = SSA routes improved by chip-selected
+classical peer; extra ``peers``; ``ortools`` likewise with OR-Tools), ``ising-fleet`` = SSA routes improved by chip-selected
 moves between robots in an iterated local search (:mod:`planners.ising.fleet`) + field legs,
 ``exact`` = exact min-sum sharing + Held-Karp
 tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
@@ -113,6 +113,7 @@ PRESETS: dict[str, tuple[str, str, str]] = {
     "exact": ("exact", "brute", "bfs"),
     "pyvrp": ("pyvrp", "keep", "astar"),
     "ising-fleet": ("ising-fleet", "keep", "field"),
+    "ortools": ("ortools", "keep", "astar"),
 }
 
 #: Preset ``ising`` plans a world with more targets than this with preset ``ising-fleet`` (when built
@@ -429,8 +430,8 @@ def make_pipeline(
     """Build a :class:`Pipeline` from a preset and/or layer names or objects.
 
     Args:
-        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``, ``"ising-fleet"``
-            (:data:`PRESETS`) or None.
+        preset: ``"fast"``, ``"strong"``, ``"ising"``, ``"ising-paper"``, ``"exact"``, ``"pyvrp"``, ``"ising-fleet"``,
+            ``"ortools"`` (:data:`PRESETS`) or None.
         sharing, tour, path: a registry name or a layer object; overrides the
             preset's layer.  Without a preset all three are required.
         sharing_options, tour_options, path_options: keyword options for that

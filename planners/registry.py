@@ -3,7 +3,7 @@
 Three layers (paper section 2.3), each with its own namespace:
 
 =========== ==========================================================
-``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``, ``pyvrp``, ``ising-fleet``
+``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``, ``pyvrp``, ``ortools``, ``ising-fleet``
 ``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``, ``keep``
 ``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``, ``field``
 =========== ==========================================================
@@ -53,6 +53,7 @@ _REGISTRY: dict[str, dict[str, Callable | str]] = {
         "ising": "planners.ising.sharing:IsingSharing",
         "ising-paper": "planners.ising.sharing:PaperIsingSharing",
         "pyvrp": "planners.peers.pyvrp_routing:PyVRPSharing",  # extra `peers`
+        "ortools": "planners.peers.ortools_routing:ORToolsSharing",  # extra `peers`
         "ising-fleet": "planners.ising.fleet:IsingFleetSharing",
     },
     "tour": {

@@ -265,7 +265,7 @@ def test_make_pipeline_presets_and_overrides():
                        "ising": ("ising", "ising", "field"),
                        "ising-paper": ("ising-paper", "ising-paper", "ising-paper"),
                        "exact": ("exact", "brute", "bfs"), "pyvrp": ("pyvrp", "keep", "astar"),
-                       "ising-fleet": ("ising-fleet", "keep", "field")}
+                       "ising-fleet": ("ising-fleet", "keep", "field"), "ortools": ("ortools", "keep", "astar")}
     p = make_pipeline("strong")
     assert isinstance(p.sharing, SSASharing) and isinstance(p.tour, ThreeOptTour) and isinstance(p.path, AStarPath)
     p = make_pipeline("strong", tour_options={"moves": "7"}, sharing_options={"bid": "tour"}, path="bfs")
@@ -294,7 +294,7 @@ def test_make_pipeline_errors():
 
 def test_registry_names_custom_and_shared_options():
     assert registry.sharing_names() == ("round_robin", "psa", "ssa", "exact", "ising", "ising-paper", "pyvrp",
-                                        "ising-fleet")
+                                        "ortools", "ising-fleet")
     assert registry.tour_names() == ("nn", "2opt", "3opt", "brute", "ising", "ising-paper", "keep")
     assert registry.path_names() == ("bfs", "astar", "gbfs", "ising", "ising-paper", "field")
     seen = {}

@@ -16,7 +16,8 @@ def fresh_stamp(tmp_path, monkeypatch):
 def test_parts_split_the_ising_layers_and_put_the_longest_first():
     parts = parts_for(["fast", "ising", "ssa+3opt+ising", "ising-paper+2opt+astar", "ppo:model.zip"])
     assert parts[0] == "ising:sharing"
-    assert set(parts) == {"ising:sharing", "ising:tour+path", "fast", "psa+3opt+ising", "ising-paper:sharing"}
+    assert set(parts) == {"ising:sharing", "ising:tour+path", "ising-fleet", "fast", "psa+3opt+ising",
+                          "ising-paper:sharing"}  # ising: the fleet search above 20 targets too
     assert parts_for(["ssa+ising+ising"]) == ["ising:tour+path"]  # the preset's part: compiled once
     assert parts_for(["ppo:model.zip"]) == []
 
@@ -46,7 +47,7 @@ def test_plan_prints_the_notice_only_when_cold(tmp_path, capsys):
     assert capsys.readouterr().err == ""  # a few seconds of compiling: not announced
     assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
     err = capsys.readouterr().err
-    assert err.startswith("mrmt: compiling the numba kernels of ising:sharing, ising:tour+path (first run")
+    assert err.startswith("mrmt: compiling the numba kernels of ising:sharing, ising:tour+path, ising-fleet (first run")
     assert len(err.strip().splitlines()) == 1
     assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
     assert capsys.readouterr().err == ""

@@ -37,7 +37,7 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--controllers",
         default="fast,strong,ising",
-        help="comma-separated: fast, strong, ising, ising-paper, exact, pyvrp, sharing+tour+path (e.g. ssa+brute+astar), ppo:MODEL.zip",
+        help="comma-separated: fast, strong, ising, ising-paper, exact, pyvrp, ortools, ising-fleet, sharing+tour+path (e.g. ssa+brute+astar), ppo:MODEL.zip",
     )
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
     parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")

@@ -56,7 +56,7 @@ PROGRESS_MIN_WORLDS = 20
 
 def add_arguments(parser) -> None:
     parser.add_argument("worlds", metavar="WORLDS", help="world JSON file or JSON Lines file of worlds")
-    parser.add_argument("--pipeline", default=None, help="preset: fast, strong (default), ising, ising-paper, exact or pyvrp (extra peers)")
+    parser.add_argument("--pipeline", default=None, help="preset: fast, strong (default), ising, ising-paper, ising-fleet, exact, pyvrp or ortools (extra peers)")
     parser.add_argument("--sharing", default=None, help="sharing layer: round_robin, psa, ssa, exact, ising")
     parser.add_argument("--tour", default=None, help="tour layer: nn, 2opt, 3opt, brute, ising")
     parser.add_argument("--path", default=None, help="path layer: bfs, astar, gbfs, ising")

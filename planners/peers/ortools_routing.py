@@ -1,0 +1,130 @@
+"""Sharing and tours solved jointly by OR-Tools' vehicle routing solver, the second classical peer.
+
+The model is PyVRP's (:mod:`planners.peers.pyvrp_routing`, docs/design/pyvrp.md): one vehicle per
+robot starting at the robot's cell, one shared dummy end node reached at cost 0 (open routes),
+every target a node that must be visited, arc costs the world's BFS distances as integers
+(registered as one transit matrix, not a Python callback).  Arcs between cells of different
+connected components cost :data:`FORBIDDEN`; a target no robot reaches is a failure before any
+search, a best solution that still uses a forbidden arc is a failure.
+
+Search: first solution by ``PATH_CHEAPEST_ARC``, then guided local search (OR-Tools' recommended
+metaheuristic for routing).  Budget: ``seconds`` (default 1 s) and/or ``solutions`` (OR-Tools'
+``solution_limit``: solutions found, first included); whichever comes first stops it.  Stopped
+by solutions, the plan is the same on any machine; stopped by the clock it depends on the
+machine's speed.  OR-Tools' search is deterministic and takes no seed.  ``stats["solver"]`` says
+which budget stopped it (the clock, when the solve ran for the whole time budget).  Accounting: a classical layer (CPU x 15 W), one thread.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+try:
+    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+except ImportError as exc:  # pragma: no cover - exercised in a subprocess without ortools
+    raise ImportError("OR-Tools is not installed: pip install 'mrmt-ising[peers]'") from exc
+
+from planners.base import SharingResult, TourSolver
+from planners.compute import ComputeReport
+
+__all__ = ["ORToolsSharing", "DEFAULT_SECONDS", "FORBIDDEN"]
+
+#: Default time budget of one solve (seconds).
+DEFAULT_SECONDS = 1.0
+#: Largest time budget accepted (one hour), so a typo is not a hung run.
+MAX_SECONDS = 3600.0
+#: Cost of an arc between cells of different components (above any route of a reachable plan).
+FORBIDDEN = 1 << 40
+
+
+def _check_budget(seconds, solutions):
+    if seconds is not None:
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (
+                math.isfinite(seconds) and 0 < seconds <= MAX_SECONDS):
+            raise ValueError(f"ortools seconds must be a number in (0, {MAX_SECONDS:g}] or None, got {seconds!r}")
+        seconds = float(seconds)
+    if solutions is not None:
+        if isinstance(solutions, bool) or not isinstance(solutions, (int, np.integer)) or solutions < 1:
+            raise ValueError(f"ortools solutions must be an integer >= 1 or None, got {solutions!r}")
+        solutions = int(solutions)
+    if seconds is None and solutions is None:
+        raise ValueError("ortools needs a budget: seconds, solutions or both (got neither)")
+    return seconds, solutions
+
+
+class ORToolsSharing:
+    """Sharing layer ``ortools``: OR-Tools routing (guided local search) on the whole problem.
+
+    Args:
+        seconds: time budget (``> 0``, at most one hour), or None for none.
+        solutions: solution budget (``>= 1``: the first solution and the improvements after it),
+            or None for none.  At least one is required.
+    """
+
+    name = "ortools"
+    #: groups come in visiting order (:mod:`planners.joint_routing`; use tour layer ``keep``)
+    orders_routes = True
+
+    def __init__(self, seconds: float | None = DEFAULT_SECONDS, solutions: int | None = None) -> None:
+        self.seconds, self.solutions = _check_budget(seconds, solutions)
+
+    def _parameters(self):
+        params = pywrapcp.DefaultRoutingSearchParameters()
+        params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
+        params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+        if self.seconds is not None:
+            params.time_limit.FromMicroseconds(int(round(self.seconds * 1e6)))
+        if self.solutions is not None:
+            params.solution_limit = self.solutions
+        return params
+
+    def assign(self, dist: np.ndarray, n_robots: int, tour: TourSolver | None = None,
+               rng: np.random.Generator | None = None) -> SharingResult:
+        d = np.asarray(dist, dtype=np.float64)
+        if d.ndim != 2 or d.shape[0] != d.shape[1]:
+            raise ValueError(f"sharing dist must be a square (R+N, R+N) matrix, got shape {d.shape}")
+        r = int(n_robots)
+        if r != n_robots or not 1 <= r <= d.shape[0]:
+            raise ValueError(f"n_robots must be an integer in 1..{d.shape[0]} (matrix size), got {n_robots!r}")
+        n = d.shape[0] - r
+        empty = tuple(() for _ in range(r))
+        if n == 0:
+            return SharingResult(assignment=empty)
+        lost = np.flatnonzero(~np.isfinite(d[:r, r:]).any(axis=0))
+        if len(lost):
+            return SharingResult(assignment=empty, failure=f"targets {lost.tolist()} are reachable from no robot")
+        size = d.shape[0] + 1  # nodes: robots 0..R-1, targets R..R+N-1, the dummy end R+N
+        m = np.zeros((size, size), dtype=np.int64)
+        m[:-1, :-1] = np.where(np.isfinite(d), d, FORBIDDEN).astype(np.int64)
+        m[:, -1] = 0
+        manager = pywrapcp.RoutingIndexManager(size, r, list(range(r)), [size - 1] * r)
+        routing = pywrapcp.RoutingModel(manager)
+        routing.SetArcCostEvaluatorOfAllVehicles(routing.RegisterTransitMatrix(m.tolist()))
+        t0 = time.perf_counter()
+        solution = routing.SolveWithParameters(self._parameters())
+        ran_out = self.seconds is not None and time.perf_counter() - t0 >= 0.99 * self.seconds
+        stats = {"solver": {"name": "ortools", "stopped_by": "time" if ran_out or self.solutions is None
+                            else "solutions", "cost": None}}
+        if solution is None:
+            return SharingResult(assignment=empty, stats=stats, failure=f"OR-Tools found no solution "
+                                                                        f"(status {routing.status()})")
+        groups = []
+        for k in range(r):
+            idx, group = routing.NextVar(routing.Start(k)), []
+            idx = solution.Value(idx)
+            while not routing.IsEnd(idx):
+                group.append(manager.IndexToNode(idx) - r)
+                idx = solution.Value(routing.NextVar(idx))
+            groups.append(tuple(group))
+        cost = int(solution.ObjectiveValue())
+        stats["solver"]["cost"] = cost
+        if cost >= FORBIDDEN:
+            return SharingResult(assignment=empty, stats=stats,
+                                 failure=f"OR-Tools found no solution without a forbidden arc (cost {cost})")
+        return SharingResult(assignment=tuple(groups), compute=ComputeReport(), stats=stats)
+
+    def __repr__(self) -> str:
+        return f"ORToolsSharing(seconds={self.seconds!r}, solutions={self.solutions!r})"

@@ -1,17 +1,11 @@
 """The ``ortools`` pipeline: OR-Tools routing solving sharing and tours jointly (real solves, small worlds)."""
 
-import subprocess
-import sys
-
-import numpy as np
 import pytest
 
 pytest.importorskip("ortools")
 
 from agents.controllers import uses_chip, validate_controller_spec  # noqa: E402
 from mrmt_env import generate_world  # noqa: E402
-from mrmt_env.io import write_worlds  # noqa: E402
-from mrmt_env.world import World  # noqa: E402
 from planners.joint_routing import KeepOrderTour  # noqa: E402
 from planners.peers.ortools_routing import ORToolsSharing  # noqa: E402
 from planners.pipeline import make_pipeline  # noqa: E402
@@ -57,40 +51,3 @@ def test_time_budget_is_reported_as_the_stop():
     world = generate_world(0, n_robots=2, n_targets=5)
     plan = make_pipeline("ortools", sharing_options={"seconds": 0.05}).plan(world, seed=0)
     assert plan.success and plan.stats["solver"]["stopped_by"] == "time"
-
-
-def test_separated_components_keep_each_robot_on_its_side():
-    grid = np.zeros((5, 9), dtype=bool)
-    grid[:, 4] = True  # a wall: two components
-    world = World(grid, robots=[[0, 0], [0, 8]], targets=[[4, 0], [2, 2], [4, 8], [1, 6], [3, 3]])
-    plan = _pipe().plan(world, seed=0)
-    validate_plan(world, plan)
-    assert sorted(plan.routes[0].targets) == [0, 1, 4] and sorted(plan.routes[1].targets) == [2, 3]
-
-
-def test_a_target_no_robot_reaches_is_a_failure_not_an_exception():
-    dist = np.array([[0, np.inf, 3], [np.inf, 0, np.inf], [3, np.inf, 0]], dtype=float)
-    res = ORToolsSharing(**SOLUTIONS).assign(dist, 1, KeepOrderTour(), np.random.default_rng(0))
-    assert not res.success and "targets [0]" in res.failure
-
-
-@pytest.mark.parametrize("opts, message", [
-    ({"seconds": 0}, "seconds must be a number in (0, 3600]"),
-    ({"seconds": float("inf")}, "got inf"),
-    ({"solutions": 0}, "solutions must be an integer >= 1"),
-    ({"seconds": None}, "needs a budget"),
-])
-def test_bad_budgets_name_the_value(opts, message):
-    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace("]", r"\]")):
-        ORToolsSharing(**opts)
-
-
-def test_without_ortools_the_error_names_the_extra(tmp_path):
-    src = tmp_path / "w.json"
-    write_worlds([generate_world(0)], src)
-    code = ("import sys; sys.modules['ortools'] = None; from agents.cli import main; "
-            f"sys.exit(main(['plan', {str(src)!r}, '--pipeline', 'ortools']))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2
-    (line,) = out.stderr.strip().splitlines()
-    assert "pip install 'mrmt-ising[peers]'" in line

@@ -17,7 +17,6 @@ which budget stopped it (the clock, when the solve ran for the whole time budget
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -29,30 +28,14 @@ except ImportError as exc:  # pragma: no cover - exercised in a subprocess witho
 
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
+from planners.peers.common import check_budget, routing_input
 
 __all__ = ["ORToolsSharing", "DEFAULT_SECONDS", "FORBIDDEN"]
 
 #: Default time budget of one solve (seconds).
 DEFAULT_SECONDS = 1.0
-#: Largest time budget accepted (one hour), so a typo is not a hung run.
-MAX_SECONDS = 3600.0
 #: Cost of an arc between cells of different components (above any route of a reachable plan).
 FORBIDDEN = 1 << 40
-
-
-def _check_budget(seconds, solutions):
-    if seconds is not None:
-        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (
-                math.isfinite(seconds) and 0 < seconds <= MAX_SECONDS):
-            raise ValueError(f"ortools seconds must be a number in (0, {MAX_SECONDS:g}] or None, got {seconds!r}")
-        seconds = float(seconds)
-    if solutions is not None:
-        if isinstance(solutions, bool) or not isinstance(solutions, (int, np.integer)) or solutions < 1:
-            raise ValueError(f"ortools solutions must be an integer >= 1 or None, got {solutions!r}")
-        solutions = int(solutions)
-    if seconds is None and solutions is None:
-        raise ValueError("ortools needs a budget: seconds, solutions or both (got neither)")
-    return seconds, solutions
 
 
 class ORToolsSharing:
@@ -69,7 +52,7 @@ class ORToolsSharing:
     orders_routes = True
 
     def __init__(self, seconds: float | None = DEFAULT_SECONDS, solutions: int | None = None) -> None:
-        self.seconds, self.solutions = _check_budget(seconds, solutions)
+        self.seconds, self.solutions = check_budget("ortools", seconds, "solutions", solutions)
 
     def _parameters(self):
         params = pywrapcp.DefaultRoutingSearchParameters()
@@ -83,19 +66,10 @@ class ORToolsSharing:
 
     def assign(self, dist: np.ndarray, n_robots: int, tour: TourSolver | None = None,
                rng: np.random.Generator | None = None) -> SharingResult:
-        d = np.asarray(dist, dtype=np.float64)
-        if d.ndim != 2 or d.shape[0] != d.shape[1]:
-            raise ValueError(f"sharing dist must be a square (R+N, R+N) matrix, got shape {d.shape}")
-        r = int(n_robots)
-        if r != n_robots or not 1 <= r <= d.shape[0]:
-            raise ValueError(f"n_robots must be an integer in 1..{d.shape[0]} (matrix size), got {n_robots!r}")
-        n = d.shape[0] - r
+        d, r, done = routing_input(dist, n_robots)
+        if done is not None:
+            return done
         empty = tuple(() for _ in range(r))
-        if n == 0:
-            return SharingResult(assignment=empty)
-        lost = np.flatnonzero(~np.isfinite(d[:r, r:]).any(axis=0))
-        if len(lost):
-            return SharingResult(assignment=empty, failure=f"targets {lost.tolist()} are reachable from no robot")
         size = d.shape[0] + 1  # nodes: robots 0..R-1, targets R..R+N-1, the dummy end R+N
         m = np.zeros((size, size), dtype=np.int64)
         m[:-1, :-1] = np.where(np.isfinite(d), d, FORBIDDEN).astype(np.int64)

@@ -21,8 +21,6 @@ seconds as CPU x 15 W.  PyVRP's search runs on one thread.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 try:
@@ -34,14 +32,12 @@ except ImportError as exc:  # pragma: no cover - exercised in a subprocess witho
 
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
+from planners.peers.common import check_budget, routing_input
 
 __all__ = ["PyVRPSharing", "routing_data", "DEFAULT_SECONDS"]
 
 #: Default time budget of one solve (seconds).
 DEFAULT_SECONDS = 1.0
-
-#: Largest time budget accepted (one hour), so a typo is not a hung run.
-MAX_SECONDS = 3600.0
 
 
 def routing_data(dist: np.ndarray, n_robots: int) -> "pyvrp.ProblemData":
@@ -83,19 +79,7 @@ class PyVRPSharing:
     orders_routes = True
 
     def __init__(self, seconds: float | None = DEFAULT_SECONDS, iterations: int | None = None) -> None:
-        if seconds is not None:
-            if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (
-                    math.isfinite(seconds) and 0 < seconds <= MAX_SECONDS):
-                raise ValueError(f"pyvrp seconds must be a number in (0, {MAX_SECONDS:g}] or None, got {seconds!r}")
-            seconds = float(seconds)
-        if iterations is not None:
-            if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
-                raise ValueError(f"pyvrp iterations must be an integer >= 1 or None, got {iterations!r}")
-            iterations = int(iterations)
-        if seconds is None and iterations is None:
-            raise ValueError("pyvrp needs a budget: seconds, iterations or both (got neither)")
-        self.seconds = seconds
-        self.iterations = iterations
+        self.seconds, self.iterations = check_budget("pyvrp", seconds, "iterations", iterations)
 
     def _stop(self):
         criteria = []
@@ -107,19 +91,11 @@ class PyVRPSharing:
 
     def assign(self, dist: np.ndarray, n_robots: int, tour: TourSolver | None = None,
                rng: np.random.Generator | None = None) -> SharingResult:
-        d = np.asarray(dist, dtype=np.float64)
-        if d.ndim != 2 or d.shape[0] != d.shape[1]:
-            raise ValueError(f"sharing dist must be a square (R+N, R+N) matrix, got shape {d.shape}")
-        r = int(n_robots)
-        if r != n_robots or not 1 <= r <= d.shape[0]:
-            raise ValueError(f"n_robots must be an integer in 1..{d.shape[0]} (matrix size), got {n_robots!r}")
+        d, r, done = routing_input(dist, n_robots)
+        if done is not None:
+            return done
         n = d.shape[0] - r
         empty = tuple(() for _ in range(r))
-        if n == 0:
-            return SharingResult(assignment=empty)
-        lost = np.flatnonzero(~np.isfinite(d[:r, r:]).any(axis=0))
-        if len(lost):
-            return SharingResult(assignment=empty, failure=f"targets {lost.tolist()} are reachable from no robot")
         rng = rng if rng is not None else np.random.default_rng()
         seed = int(rng.integers(0, 2**31 - 1))
         result = pyvrp.solve(routing_data(d, r), stop=self._stop(), seed=seed, collect_stats=False, display=False)

@@ -29,7 +29,6 @@ Loading and the policy object live in :mod:`agents.learned_policy` (re-exported 
 from __future__ import annotations
 
 import json
-import re
 import time
 from pathlib import Path
 

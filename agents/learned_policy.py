@@ -225,7 +225,7 @@ def _env_spaces(path: str, meta: dict, env_id, env_kwargs):
                             f"{str(env_kwargs)[:120]}")
     if meta.get("decision") == "lifelong-task":  # the task choice's spaces do not depend on the world
         from agents.env_ids import is_lifelong_env
-        from agents.lifelong_learned import decision_spaces
+        from agents.lifelong_choice import decision_spaces
 
         try:
             lifelong = is_lifelong_env(env_id)

@@ -99,7 +99,7 @@ def main(argv=None) -> int:
              f"{args.warehouse_episodes} --warehouse-steps {args.warehouse_steps} --warehouse-timesteps "
              f"{args.warehouse_timesteps}` on {cpu_name()} (shared machine, "
              f"2 cores, one process). `ppo`: MaskablePPO (`LifelongTaskPolicy`: one shared MLP scores each candidate) choosing each idle robot's next task "
-             f"among its 8 nearest unclaimed ones (`agents/lifelong_learned.py`), model {how}; the first model on "
+             f"among its 8 nearest unclaimed ones (`agents/lifelong_choice.py`), model {how}; the first model on "
              f"both ids. Every controller moves through PIBT; seeds {FIRST_SEED}.. (not seen in training), the "
              "same worlds and task streams for every controller. `vs greedy`: mean of the per-episode throughput "
              "ratios; better / worse: episodes above / below greedy's throughput. Latency: host (+ chip) time "

@@ -10,7 +10,8 @@ import pytest
 
 import mrmt_env  # noqa: F401  (registers the ids)
 from agents.lifelong import LifelongController, make_lifelong_controller
-from agents.lifelong_learned import N_CANDIDATES, N_FEATURES, LearnedAssigner, LifelongDecisionEnv
+from agents.lifelong_choice import N_CANDIDATES, N_FEATURES, LearnedAssigner
+from agents.lifelong_learned import LifelongDecisionEnv
 
 pytest.importorskip("sb3_contrib")
 

@@ -40,10 +40,6 @@ def choose_anchors(dist: np.ndarray, nodes, n_robots: int) -> tuple[int, int]:
     return int(pool_a[iu[0][k]]), int(pool_b[iu[1][k]])
 
 
-def _robot_target_weights(nodes: np.ndarray, n_robots: int) -> np.ndarray:
-    return nodes < n_robots
-
-
 def build_split_qubo(
     dist: np.ndarray,
     free,

@@ -5,7 +5,8 @@ each on ``uniform`` (20 % obstacles) and ``warehouse`` maps, ``--worlds`` worlds
 seeds ``1000 ..``, planning seed = world index).  Methods: ``fast``, ``strong``, ``ising`` (this
 package's defaults: the fleet search above 20 targets), ``ising-layers`` (the preset's chip sharing
 and tour at any size), ``ising-paper`` (the paper's configuration), ``ising-fleet`` (chip-selected
-moves between robots, :mod:`planners.ising.fleet`) with 2 N, 5 N (its default) and 15 N kicks, and
+moves between robots, :mod:`planners.ising.fleet`) with its default kicks (5 N, at least 1,500, at most 15 N) and with
+exactly 2 N, 5 N and 15 N kicks (``ising-fleet@<k>x``), and
 ``pyvrp`` at time budgets of 0.05, 0.3 and 1 s (``--long`` adds 10 s).  Every method plans every
 world once, one after the other, so all see the same machine load; the world's distance fields
 are computed before any plans (both kinds of planner read them).  Per method and point: success,
@@ -42,7 +43,8 @@ SECTION = "## Fleet scale against PyVRP (issue 24)"
 #: (side, robots, targets) of the issue's two fleet points, and of its fleet-size check (``--huge``).
 POINTS = ((64, 10, 100), (128, 20, 300))
 HUGE = ((256, 100, 1000),)
-PRESETS = ("fast", "strong", "ising", "ising-layers", "ising-paper", "ising-fleet@2x", "ising-fleet", "ising-fleet@15x")
+PRESETS = ("fast", "strong", "ising", "ising-layers", "ising-paper", "ising-fleet@2x", "ising-fleet@5x", "ising-fleet",
+           "ising-fleet@15x")
 BUDGETS = (0.05, 0.3, 1.0)
 LONG_BUDGET = 10.0
 
@@ -53,7 +55,7 @@ def method_name(budget: float) -> str:
 
 def make_method(name: str):
     """The pipeline of a method name: a preset, ``pyvrp@<seconds>s``, ``ortools@<seconds>s``, ``ising-fleet@<k>x``
-    (``k N`` kicks; the preset's default is 5 N), ``ising-fleet@greedy`` (host picks the moves) or
+    (exactly ``k N`` kicks; the preset's default is 5 N, at least 1,500, at most 15 N), ``ising-fleet@greedy`` (host picks the moves) or
     ``ising-layers`` (preset ``ising``'s chip sharing and tour at any size)."""
     if name.startswith("pyvrp@"):
         return make_pipeline("pyvrp", sharing_options={"seconds": float(name[6:-1])})
@@ -64,7 +66,8 @@ def make_method(name: str):
     if name == "ising-fleet@greedy":  # the ablation: the host picks the moves, no chip call
         return make_pipeline("ising-fleet", sharing_options={"selection": "greedy"})
     if name.startswith("ising-fleet@"):
-        return make_pipeline("ising-fleet", sharing_options={"kicks": None, "kicks_per_target": int(name[12:-1])})
+        return make_pipeline("ising-fleet", sharing_options={"kicks": None, "kicks_per_target": int(name[12:-1]),
+                                                             "min_kicks": 0})
     return make_pipeline(name)
 
 

@@ -58,8 +58,8 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=500, help="steps per small-id episode (default 500)")
     p.add_argument("--warehouse-episodes", type=int, default=2, help="episodes on the warehouse id (default 2)")
     p.add_argument("--warehouse-steps", type=int, default=200, help="steps per warehouse episode (default 200)")
-    p.add_argument("--warehouse-timesteps", type=int, default=150_000,
-                   help="also train a model on the warehouse id for this many decisions (0: do not; default 150000)")
+    p.add_argument("--warehouse-timesteps", type=int, default=1_500_000,
+                   help="also train a model on the warehouse id for this many decisions (0: do not; default 1500000)")
     p.add_argument("--no-write", action="store_true", help="do not write RESULTS.md")
     args = p.parse_args(argv)
     t_start = time.perf_counter()

@@ -286,6 +286,14 @@ def _three_opt_open(d, full):
     return out, passes
 
 
+@numba.njit(cache=True, nogil=True)
+def three_opt_cost(d):
+    """Cost of :class:`ThreeOptTour`'s open route (``moves="4"``) over a finite ``d`` of 3 or more
+    nodes: the compiled sharing prices bundles of more than 13 targets with it."""
+    route, _ = _three_opt_open(d, False)
+    return _route_cost(d, route)
+
+
 # --------------------------------------------------------------------- helpers
 def _check_dist(dist) -> np.ndarray:
     d = np.asarray(dist, dtype=np.float64)

@@ -91,10 +91,26 @@ def test_a_group_beyond_the_chip_goes_to_the_python_search(spec, R, N):
     assert (res.stats.get("coarse_splits", 0) > 0) == (spec.n_spins == 6)
 
 
+@pytest.mark.parametrize("options", [{}, {"bundle_order": "far_first", "pair_neighbours": 1}, "paper"])
+def test_more_targets_than_held_karp_takes_are_priced_by_the_3opt_kernel_in_the_compiled_call(options):
+    """14-30 targets: bundles above 13 targets are priced by the host 3-opt tour in both searches."""
+    paper = options == "paper"
+    fast, ref = _pair(SharingConfig.paper() if paper else SharingConfig(**options), paper=paper)
+    handed = []
+    python_search = fast.splits.split_all
+    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
+    big_sets = 0
+    for s in range(40, 46):
+        R, N = 2 + s % 3, 14 + 3 * (s % 6)
+        w = generate_world(s, height=16, width=16, n_robots=R, n_targets=N)
+        res = _same(fast, ref, w.distance_matrix, R, s)
+        assert not handed, "the compiled sharing handed a world to the Python search"
+        big_sets += res.failure is None and max(len(ts) for ts in res.assignment) > 13
+    assert big_sets > 0
+
+
 def test_worlds_outside_the_compiled_call_take_the_python_search():
-    """More targets than the exact pricing tour takes, a balance term, a pricing tour by name."""
-    w = generate_world(5, n_robots=3, n_targets=15)
-    _same(*_pair(SharingConfig()), w.distance_matrix, 3, 5)
+    """A balance term, a pricing tour by name."""
     for config in (SharingConfig(balance=0.5), SharingConfig(pricing_tour="3opt")):
         fast, ref = _pair(config)
         assert fast._compiled is None

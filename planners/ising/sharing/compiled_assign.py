@@ -1,10 +1,10 @@
 """Ising target sharing (paper 5.3) from split stages to the final sets in one compiled call.
 
 Contract: :func:`assign_kernel` does what :meth:`~.search.IsingSharing.assign` does for a finite
-world of ``R >= 2`` robots and ``1 <= N <= 13`` targets (``R + N <= 62``) with exact pricing
-(``pricing_tour="auto"``) and no balance term: the split stages (:mod:`.compiled_stages`), bundle
-placement in every state (:func:`~.bundles.assign_bundles`, priced by the Held-Karp kernel with one
-memo per call as :class:`~.bundles.BundlePricer`), the choice of state and the boundary
+world of ``R >= 2`` robots and ``N >= 1`` targets (``R + N <= 62``) with the pricing tour
+``"auto"`` and no balance term: the split stages (:mod:`.compiled_stages`), bundle placement in
+every state (:func:`~.bundles.assign_bundles`, priced by the Held-Karp kernel up to 13 targets and
+the host 3-opt tour's kernel beyond, one memo per call as :class:`~.bundles.BundlePricer`), the choice of state and the boundary
 refinement (:func:`~.boundary.refine_boundaries`), with the same rng draws.
 It returns ``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller
 names it.
@@ -23,7 +23,8 @@ from planners.ising.sharing.compiled_stages import (
     BUNDLES, OUTSIDE, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount,
     problems_of, reserve, solve_problems, split_states,
 )
-from planners.held_karp import _exact_route_cost
+from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
+from planners.tours_classical import three_opt_cost
 
 __all__ = ["assign_kernel", "split_weights_kernel", "pair_mean", "ORDER_IDS"]
 
@@ -64,16 +65,25 @@ def split_weights_kernel(powered, mean, shift, R, robot_weight):
 
 @numba.njit(cache=True, inline="always")
 def _price(dist, k, mask, memo, counters):
-    """:meth:`~.bundles.BundlePricer.cost_mask` with the exact pricing tour (sets of at most 13 targets)."""
+    """:meth:`~.bundles.BundlePricer.cost_mask` with the pricing tour ``"auto"``: Held-Karp up to 13
+    targets, the host 3-opt tour beyond."""
     if mask == 0:
         return 0.0
     key = mask | k  # target bits start at R > k
     if key in memo:
         return memo[key]
-    nodes = np.empty(popcount(mask) + 1, dtype=np.int64)  # k, then the targets ascending
+    n = popcount(mask)
+    nodes = np.empty(n + 1, dtype=np.int64)  # k, then the targets ascending
     nodes[0] = k
     mask_nodes_into(mask, nodes, 1)
-    c = _exact_route_cost(dist, nodes)
+    if n <= MAX_BRUTE_TARGETS:
+        c = _exact_route_cost(dist, nodes)
+    else:
+        sub = np.empty((n + 1, n + 1))
+        for i in range(n + 1):
+            for j in range(n + 1):
+                sub[i, j] = dist[nodes[i], nodes[j]]
+        c = three_opt_cost(sub)
     counters[TOUR_SOLVES] += 1
     memo[key] = c
     return c

@@ -22,7 +22,6 @@ import numpy as np
 from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
-from planners.tours_classical import MAX_BRUTE_TARGETS
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.boundary import refine_boundaries
@@ -109,7 +108,7 @@ class IsingSharing(ConfigAttributes):
         pricer = None
         self.splits.memo = {}
         try:
-            if self._compiled is not None and N <= MAX_BRUTE_TARGETS and R + N <= 62 \
+            if self._compiled is not None and R + N <= 62 \
                     and R + N - 2 <= self.chip.spec.n_spins:  # every group fits one program
                 return self._assign_compiled(dist, R, rng, stats)
             pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)

@@ -129,7 +129,17 @@ class PointerHead(nn.Module):
         return self.forward_actor(features), self.forward_critic(features)
 
 
-class AssignPointerPolicy(MaskableActorCriticPolicy):
+class LogitsPolicy(MaskableActorCriticPolicy):
+    """A masked actor-critic whose extractor's policy latent *is* the action logits (pointer style):
+    the action net is the identity."""
+
+    def _build(self, lr_schedule) -> None:
+        super()._build(lr_schedule)
+        self.action_net = nn.Identity()
+        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+
+
+class AssignPointerPolicy(LogitsPolicy):
     """sb3-contrib maskable actor-critic with :class:`AssignEncoder` and :class:`PointerHead`.
 
     The actor latent already is the logits, so the action net is the identity.
@@ -146,11 +156,6 @@ class AssignPointerPolicy(MaskableActorCriticPolicy):
     def _build_mlp_extractor(self) -> None:
         t, f = self.observation_space.shape
         self.mlp_extractor = PointerHead(t, f - N_BASE_FEATURES, self.d_model)
-
-    def _build(self, lr_schedule) -> None:
-        super()._build(lr_schedule)
-        self.action_net = nn.Identity()
-        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
 
     def _get_constructor_parameters(self) -> dict:
         data = super()._get_constructor_parameters()

@@ -10,9 +10,9 @@ torch and sb3-contrib are needed (the ``rl`` extra).
 
 from __future__ import annotations
 
-from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from torch import nn
 
+from agents.assign_net import LogitsPolicy
 from agents.lifelong_choice import N_CANDIDATES, N_FEATURES
 
 __all__ = ["CandidateScorer", "LifelongTaskPolicy"]
@@ -40,7 +40,7 @@ class CandidateScorer(nn.Module):
         return self.forward_actor(features), self.forward_critic(features)
 
 
-class LifelongTaskPolicy(MaskableActorCriticPolicy):
+class LifelongTaskPolicy(LogitsPolicy):
     """sb3-contrib maskable actor-critic with :class:`CandidateScorer` (the actor latent is the logits)."""
 
     def __init__(self, observation_space, action_space, lr_schedule, hidden: int = 32, **kwargs) -> None:
@@ -50,11 +50,6 @@ class LifelongTaskPolicy(MaskableActorCriticPolicy):
 
     def _build_mlp_extractor(self) -> None:
         self.mlp_extractor = CandidateScorer(self.hidden)
-
-    def _build(self, lr_schedule) -> None:
-        super()._build(lr_schedule)
-        self.action_net = nn.Identity()
-        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
 
     def _get_constructor_parameters(self) -> dict:
         data = super()._get_constructor_parameters()

@@ -241,11 +241,15 @@ class LifelongController:
             self.queues[k] = [int(rnd.unclaimed[j]) for j in queues[i]]
         self.replans += 1
 
-    def move(self, pos: np.ndarray) -> np.ndarray:
-        """The executor's conflict-free joint move towards each queue's head (its own cell when idle)."""
-        goals = np.array([q[0] if q else p for q, p in zip(self.queues, pos.tolist())], dtype=np.int64)
+    def move(self, rnd: "Round") -> np.ndarray:
+        """The executor's conflict-free joint move towards each queue's head (its own cell when idle):
+        the round's goals, with the tasks the idle robots were given since."""
+        goals = rnd.goals.copy()
+        for k in rnd.idle.tolist():
+            if self.queues[k]:
+                goals[k] = self.queues[k][0]
         self.steps += 1
-        return self.executor.actions(pos, goals)
+        return self.executor.actions(rnd.pos, goals)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         rnd = self.observe(obs)
@@ -255,7 +259,7 @@ class LifelongController:
                                                    seed=self.seed * 1_000_003 + self.steps, fleet=rnd)
             self.apply(rnd, queues)
             self.last_compute = compute
-        return self.move(rnd.pos)
+        return self.move(rnd)
 
 
 def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str = "pibt",

@@ -65,7 +65,7 @@ class LifelongDecisionEnv(gym.Env):
             x, self._mask = self.chooser.observation()
             return x, 0.0, False, False, dict(self._info, robot=int(self.chooser.idle[self.chooser.cursor]))
         self.ctrl.apply(self._round, self.chooser.queues)
-        obs, _, term, trunc, info = self.env.step(self.ctrl.move(self._round.pos))
+        obs, _, term, trunc, info = self.env.step(self.ctrl.move(self._round))
         if term or trunc:
             return self._end(info)
         x, reward, ended, info = self._advance(obs, info)
@@ -96,7 +96,7 @@ class LifelongDecisionEnv(gym.Env):
                     x, self._mask = chooser.observation()
                     reward = self._reward(info)
                     return x, reward, False, dict(info, robot=int(chooser.idle[chooser.cursor]))
-            obs, _, term, trunc, info = self.env.step(self.ctrl.move(rnd.pos))
+            obs, _, term, trunc, info = self.env.step(self.ctrl.move(rnd))
             if term or trunc:
                 x, reward, _, _, info = self._end(info)
                 return x, reward, True, info

@@ -495,5 +495,5 @@ def make_pipeline(
     ) else None
     at_scale = None
     if name == "ising" and not any(options.values()):  # the fleet search above FLEET_ABOVE targets, same chip
-        at_scale = (FLEET_ABOVE, make_pipeline("ising-fleet", **{k: v for k, v in shared.items() if k == "chip"}))
+        at_scale = (FLEET_ABOVE, make_pipeline("ising-fleet", chip=shared["chip"]))
     return Pipeline(layers["sharing"], layers["tour"], layers["path"], name=name, at_scale=at_scale)

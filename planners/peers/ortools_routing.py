@@ -87,8 +87,7 @@ class ORToolsSharing:
                                                                         f"(status {routing.status()})")
         groups = []
         for k in range(r):
-            idx, group = routing.NextVar(routing.Start(k)), []
-            idx = solution.Value(idx)
+            idx, group = solution.Value(routing.NextVar(routing.Start(k))), []
             while not routing.IsEnd(idx):
                 group.append(manager.IndexToNode(idx) - r)
                 idx = solution.Value(routing.NextVar(idx))

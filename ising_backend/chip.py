@@ -89,7 +89,7 @@ programs_fit = _all_fit
 def _native(h: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """C-contiguous int64 arrays for integer (or bool) input, float64 otherwise (no copy when already so)."""
     def fits_int64(dt):  # uint64 could wrap
-        return dt == np.bool_ or (np.issubdtype(dt, np.integer) and not (dt.kind == "u" and dt.itemsize >= 8))
+        return dt.kind in "bi" or (dt.kind == "u" and dt.itemsize < 8)
 
     if fits_int64(h.dtype) and fits_int64(J.dtype):
         return np.ascontiguousarray(h, dtype=np.int64), np.ascontiguousarray(J, dtype=np.int64)
@@ -128,7 +128,7 @@ def check_program(h, J, spec: ChipSpec = ChipSpec(), native: bool = False) -> tu
     if J.shape != (B, n, n):
         raise ChipProgramError(f"J must have shape {(B, n, n) if batched else (n, n)} to match h, got {J.shape if batched else J.shape[1:]}")
     for arr, name in ((h, "h"), (J, "J")):
-        if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == np.bool_) or np.iscomplexobj(arr):
+        if arr.dtype.kind not in "biuf":  # real numbers or booleans (not complex, not objects)
             raise ChipProgramError(f"{name} has dtype {arr.dtype}; the chip takes real integer coefficients")
     if n > spec.n_spins:
         raise ChipProgramError(

@@ -219,13 +219,13 @@ def dispatch(monitor: HealthMonitor, h: np.ndarray, J: np.ndarray, num_reads: in
     todo = np.arange(B * R)
     monitor.last_cores = where = cores.reshape(B, R).copy()
     for attempt in range(1, spec.max_retries + 2):
+        bad = failed | timed_out
+        if not bad.any():
+            return spins, energies
         monitor.counts["write_errors"] += int(failed.sum())
         monitor.counts["timeouts"] += int(timed_out.sum())
         for c in np.unique(cores[timed_out]):
             monitor.quarantine(int(c), "timed out")
-        bad = failed | timed_out
-        if not bad.any():
-            return spins, energies
         todo = todo[bad]
         healthy = monitor.healthy
         if attempt > spec.max_retries or not len(healthy):

@@ -17,7 +17,8 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.compiled_assign import pair_mean, split_weights_kernel
+from planners.ising.sharing.compiled_assign import split_weights_kernel
+from planners.ising.sharing.kernels import pair_mean
 from planners.tours_classical import ThreeOptTour
 
 CONFIGS = [
@@ -109,11 +110,37 @@ def test_more_targets_than_held_karp_takes_are_priced_by_the_3opt_kernel_in_the_
     assert big_sets > 0
 
 
-def test_worlds_outside_the_compiled_call_take_the_python_search():
-    """A balance term, a pricing tour by name."""
-    for config in (SharingConfig(balance=0.5), SharingConfig(pricing_tour="3opt")):
-        fast, ref = _pair(config)
-        assert fast._compiled is None
+@pytest.mark.parametrize("options", [{"balance": 0.5}, {"balance": 2.0, "beam": 1}, {"pricing_tour": "3opt"},
+                                     {"pricing_tour": "downstream"}, {"pricing_tour": "ising", "balance": 1.0}])
+def test_balance_and_pricing_tours_run_in_the_compiled_call_with_the_python_searchs_decisions(options):
+    """The balance term in the compiled split models; bundles priced by a pricing tour other than
+    "auto" through the callback into the call's pricer (the Ising tour's chip calls and rng draws
+    interleaved with the sharing's own, as in the Python search)."""
+    fast, ref = _pair(SharingConfig(**options))
+    handed = []
+    python_search = fast.splits.split_all
+    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
+    solves = 0
+    for s in range(40, 46):
+        R, N = 2 + s % 3, 6 + s % 7
+        w = generate_world(s, n_robots=R, n_targets=N, placement="uniform")
+        res = _same(fast, ref, w.distance_matrix, R, s)
+        assert not handed
+        solves += res.stats["tour_solves"]
+    assert solves > 0
+
+
+def test_a_failing_pricing_tour_fails_the_sharing_with_the_chip_calls_charged():
+    class Broken(ThreeOptTour):
+        def solve(self, dist, rng=None):
+            res = super().solve(dist, rng)
+            return type(res)(order=res.order, cost=res.cost, compute=res.compute, failure="no tour today")
+
+    w = generate_world(3, n_robots=3, n_targets=9, placement="uniform")
+    for sharing in _pair(SharingConfig(pricing_tour=Broken())):
+        res = sharing.assign(w.distance_matrix, 3, ThreeOptTour(), np.random.default_rng(3))
+        assert res.failure == "tour solver failed while pricing a bundle: no tour today"
+        assert res.compute.chip_calls == sharing.chip.ledger.physical_calls > 0
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])

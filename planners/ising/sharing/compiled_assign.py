@@ -1,23 +1,26 @@
 """Ising target sharing (paper 5.3) from split stages to the final sets in one compiled call.
 
 Contract: :func:`assign_kernel` does what :meth:`~.search.IsingSharing.assign` does for a finite
-world of ``R >= 2`` robots and ``N >= 1`` targets (``R + N <= 62``) with the pricing tour
-``"auto"`` and no balance term: the split stages (:mod:`.compiled_stages`), bundle placement in
-every state (:func:`~.bundles.assign_bundles`, priced by the Held-Karp kernel up to 13 targets and
-the host 3-opt tour's kernel beyond, one memo per call as :class:`~.bundles.BundlePricer`), the choice of state and the boundary
-refinement (:func:`~.boundary.refine_boundaries`), with the same rng draws.
+world of ``R >= 2`` robots and ``N >= 1`` targets (``R + N <= 62``): the split stages, with the
+balance term when set (:mod:`.compiled_stages`), bundle placement in every state
+(:func:`~.bundles.assign_bundles`), the choice of state and the boundary refinement
+(:func:`~.boundary.refine_boundaries`), with the same rng draws.  Bundles are priced as
+:class:`~.bundles.BundlePricer` prices them, one memo per call: with the pricing tour ``"auto"``
+by the Held-Karp kernel up to 13 targets and the host 3-opt tour's kernel beyond, with any other
+by a callback into the call's pricer (:func:`_price_callback`).
 It returns ``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller
 names it.
 """
 
 from __future__ import annotations
 
+import weakref
+
 import numba
 import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from planners.ising.numeric import pairwise_sum
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
     BUNDLES, OUTSIDE, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount,
@@ -26,26 +29,12 @@ from planners.ising.sharing.compiled_stages import (
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 from planners.tours_classical import three_opt_cost
 
-__all__ = ["assign_kernel", "split_weights_kernel", "pair_mean", "ORDER_IDS"]
+__all__ = ["assign_kernel", "split_weights_kernel", "ORDER_IDS", "PRICERS"]
 
+#: the bundle pricers of running sharing calls with a pricing tour other than ``"auto"``, by handle
+PRICERS: "weakref.WeakValueDictionary[int, object]" = weakref.WeakValueDictionary()
 _PAIR_KEY = types.UniTuple(types.int64, 4)  # (k, l, targets of k, targets of l)
 ORDER_IDS = {name: i for i, name in enumerate(BUNDLE_ORDERS)}  # creation, far_first, near_first, largest_first
-
-
-@numba.njit(cache=True)
-def pair_mean(w):
-    """``w[np.triu_indices(n, 1)].mean()`` (numpy's summation order), 0.0 for ``n < 2``."""
-    n = w.shape[0]
-    m = n * (n - 1) // 2
-    if m == 0:
-        return 0.0
-    flat = np.empty(m)
-    t = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            flat[t] = w[i, j]
-            t += 1
-    return pairwise_sum(flat, 0, m) / m
 
 
 @numba.njit(cache=True)
@@ -63,10 +52,24 @@ def split_weights_kernel(powered, mean, shift, R, robot_weight):
     return w
 
 
+def _price_callback(handle: int, nodes: np.ndarray) -> float:
+    """A bundle price by the sharing call's :class:`~.bundles.BundlePricer` (object mode): robot
+    ``nodes[0]`` over targets ``nodes[1:]``; it counts its tour solves and sums their compute."""
+    return PRICERS[handle].cost(int(nodes[0]), nodes[1:].tolist())
+
+
+@numba.njit(cache=True)
+def _priced_by(pricing, nodes):
+    with numba.objmode(c="float64"):
+        c = _price_callback(pricing, nodes)
+    return c
+
+
 @numba.njit(cache=True, inline="always")
-def _price(dist, k, mask, memo, counters):
-    """:meth:`~.bundles.BundlePricer.cost_mask` with the pricing tour ``"auto"``: Held-Karp up to 13
-    targets, the host 3-opt tour beyond."""
+def _price(dist, k, mask, memo, counters, pricing):
+    """:meth:`~.bundles.BundlePricer.cost_mask`: with the pricing tour ``"auto"`` (``pricing < 0``)
+    Held-Karp up to 13 targets, the host 3-opt tour beyond; else the pricer registered as
+    ``PRICERS[pricing]`` (a callback)."""
     if mask == 0:
         return 0.0
     key = mask | k  # target bits start at R > k
@@ -76,6 +79,10 @@ def _price(dist, k, mask, memo, counters):
     nodes = np.empty(n + 1, dtype=np.int64)  # k, then the targets ascending
     nodes[0] = k
     mask_nodes_into(mask, nodes, 1)
+    if pricing >= 0:
+        c = _priced_by(pricing, nodes)
+        memo[key] = c
+        return c
     if n <= MAX_BRUTE_TARGETS:
         c = _exact_route_cost(dist, nodes)
     else:
@@ -90,7 +97,7 @@ def _price(dist, k, mask, memo, counters):
 
 
 @numba.njit(cache=True)
-def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure):
+def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure, pricing):
     """:func:`~.bundles.assign_bundles` on masks: ``(ok, sets (R,))``."""
     robots = (np.int64(1) << R) - 1
     sets = np.zeros(R, dtype=np.int64)
@@ -127,7 +134,8 @@ def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure):
     for i in np.argsort(key, kind="mergesort"):
         b = bundles[i]
         for k in range(R):
-            inc[k] = _price(dist, k, sets[k] | b, memo, counters) - _price(dist, k, sets[k], memo, counters)
+            inc[k] = (_price(dist, k, sets[k] | b, memo, counters, pricing)
+                      - _price(dist, k, sets[k], memo, counters, pricing))
         sets[np.argmin(inc)] |= b  # the first robot of least increase
     return True, sets
 
@@ -159,7 +167,7 @@ def _neighbour_pairs(dist, sets, R, per_robot):
 
 
 @numba.njit(cache=True)
-def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book, store, n_prob):
+def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book, store, n_prob, pricing):
     """:func:`~.boundary.refine_boundaries` on masks.  Returns ``(ok, store, n_prob)``;
     ``sets`` is updated in place."""
     counters = book[1]
@@ -197,7 +205,7 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         sizes = np.empty(P, dtype=np.int64)
         anchors = np.empty((P, 2), dtype=np.int64)
         for s in range(S):  # problem j * S + s: pair j, shift s
-            qs, Qs, fs, zs, As = problems_of(pair_w[s], groups, R)
+            qs, Qs, fs, zs, As = problems_of(pair_w[s], groups, R, 0.0)
             for j in range(n_pairs):
                 p = j * S + s
                 n = zs[j]
@@ -225,7 +233,7 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         seen = np.empty(P * c_cut.shape[1], dtype=np.int64)
         for j in range(n_pairs):
             k, l = pk[j], pl[j]
-            old = _price(dist, k, sets[k], memo, counters) + _price(dist, l, sets[l], memo, counters)
+            old = _price(dist, k, sets[k], memo, counters, pricing) + _price(dist, l, sets[l], memo, counters, pricing)
             best = np.inf
             found = False
             n_seen = 0
@@ -243,7 +251,8 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
                     m0 = c_m0[row, c]
                     mine, theirs = (m0, m1) if (m0 >> k) & 1 else (m1, m0)
                     tk, tl = mine & ~robots, theirs & ~robots
-                    new = _price(dist, k, tk, memo, counters) + _price(dist, l, tl, memo, counters)
+                    new = (_price(dist, k, tk, memo, counters, pricing)
+                           + _price(dist, l, tl, memo, counters, pricing))
                     if new < old - 1e-9 and (not found or new < best - 1e-9):
                         best = new
                         found = True
@@ -279,17 +288,17 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
 def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weights, pair_shifts, pair_opts, book):
     """The sharing of one world (module docstring): ``(ok, sets (R,) target masks)``.
 
-    ``weights = (weight_shift, robot_weight)``, ``opts`` as :func:`.compiled_stages.split_states`,
-    ``pair_opts = (bundle order id, pair_rounds, pair_neighbours)``."""
-    shift, robot_weight = weights
-    order_id, rounds, per_robot = pair_opts
+    ``weights = (weight_shift, robot_weight, balance)``, ``opts`` as :func:`.compiled_stages.split_states`,
+    ``pair_opts = (bundle order id, pair_rounds, pair_neighbours, pricing handle or -1)``."""
+    shift, robot_weight, balance = weights
+    order_id, rounds, per_robot, pricing = pair_opts
     counters = book[1]
     # C-contiguous like _refine's pair weights, so the stage kernels compile for one layout only
     w = np.ascontiguousarray(split_weights_kernel(powered, mean, shift, R, robot_weight))
     C = chip[0].shape[0] * chip[4]  # distinct candidates per split: rules x reads
     store = (np.zeros((16, C)), np.zeros((16, C), dtype=np.int64), np.zeros((16, C), dtype=np.int64),
              np.zeros(16, dtype=np.int64))
-    ok, groups, ng, store, n_prob = split_states(w, R, rng, chip, retries, limit, opts, book, store)
+    ok, groups, ng, store, n_prob = split_states(w, R, rng, chip, retries, limit, opts, balance, book, store)
     sets = np.zeros(R, dtype=np.int64)
     if not ok:
         return False, sets
@@ -297,7 +306,7 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
     S = groups.shape[0]
     best = np.inf
     for si in range(S):
-        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters, book[4])
+        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters, book[4], pricing)
         if not ok:
             return False, sets
         if S == 1:
@@ -305,7 +314,7 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
             break
         total = 0.0
         for k in range(R):
-            total += _price(dist, k, placed[k], memo, counters)
+            total += _price(dist, k, placed[k], memo, counters, pricing)
         if si == 0 or total < best - 1e-9:  # ties: the state with the larger cuts
             best = total
             sets = placed
@@ -314,7 +323,7 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
         for s in range(pair_shifts.shape[0]):
             pair_w[s] = split_weights_kernel(powered, mean, pair_shifts[s], R, robot_weight)
         ok, store, n_prob = _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book,
-                                    store, n_prob)
+                                    store, n_prob, pricing)
         if not ok:
             return False, sets
     return True, sets

@@ -24,7 +24,7 @@ from numba import types
 from numba.typed import Dict
 
 from planners.ising.sharing.engine import run_stage
-from planners.ising.sharing.kernels import split_model
+from planners.ising.sharing.kernels import add_balance, split_model
 
 __all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "popcount", "mask_nodes", "mask_nodes_into",
            "FAILED_SPLIT", "REFUSED_STAGE", "OUTSIDE"]
@@ -78,9 +78,10 @@ def _bits(nodes, n):
 
 
 @numba.njit(cache=True)
-def problems_of(w, groups, R):
-    """:func:`.kernels.split_model` of every group mask: ``(q (P, f), Q (P, f, f), free (P, f), sizes,
-    anchors (P, 2))``, zero-padded to the largest split."""
+def problems_of(w, groups, R, balance):
+    """:func:`.kernels.split_model` of every group mask, with the balance term (:func:`.kernels.add_balance`)
+    when ``balance``: ``(q (P, f), Q (P, f, f), free (P, f), sizes, anchors (P, 2))``, zero-padded to the
+    largest split."""
     P = groups.shape[0]
     sizes = np.empty(P, dtype=np.int64)
     f = 0
@@ -93,6 +94,8 @@ def problems_of(w, groups, R):
     anchors = np.empty((P, 2), dtype=np.int64)
     for p in range(P):
         a, b, fr, qq, QQ, _off = split_model(w, mask_nodes(groups[p]), R)
+        if balance:
+            add_balance(w, fr, a, b, R, qq, QQ, balance)
         n = sizes[p]
         anchors[p, 0] = a
         anchors[p, 1] = b
@@ -203,7 +206,7 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, masks, score_w, R, 
 
 
 @numba.njit(cache=True)
-def _stage(w, R, todo, kind, reject_robots, memo, n_prob, rng, chip, retries, limit, book, store):
+def _stage(w, R, todo, kind, reject_robots, memo, n_prob, rng, chip, retries, limit, balance, book, store):
     """:meth:`~.search.IsingSharing._stage`: store rows of the groups ``todo`` (masks), solving the
     groups not in ``memo``.  Returns ``(ok, rows, n_prob, store)``."""
     counters = book[1]
@@ -226,7 +229,7 @@ def _stage(w, R, todo, kind, reject_robots, memo, n_prob, rng, chip, retries, li
             return False, rows, n_prob, store
     store = reserve(store, n_prob + nf)
     c_cut, c_m0, c_m1, c_n = store
-    q, Q, free, sizes, anchors = problems_of(w, fresh[:nf], R)
+    q, Q, free, sizes, anchors = problems_of(w, fresh[:nf], R, balance if kind == 0 else 0.0)
     keep = np.empty(nf, dtype=np.int64)
     n_keep = 0
     for i in range(nf):
@@ -335,7 +338,7 @@ def _todo(groups, ng, R, kind, base_max, above):
 
 
 @numba.njit(cache=True)
-def split_states(w, R, rng, chip, retries, limit, opts, book, store):
+def split_states(w, R, rng, chip, retries, limit, opts, balance, book, store):
     """:meth:`~.splits.SplitSearch.split_all`: ``(ok, groups (S, G), ng (S,), store, n_prob)`` -- the
     candidate partial solutions, best summed cut first.  ``opts = (beam, refine_beam, max_states,
     refine_stages, base_max, refine_above, reject_robots)``."""
@@ -362,7 +365,7 @@ def split_states(w, R, rng, chip, retries, limit, opts, book, store):
         for t in range(ts.shape[0]):
             todo[t] = groups[ts[t], tg[t]]
         ok, rows, n_prob, store = _stage(w, R, todo, kind, reject_robots != 0, memo, n_prob, rng, chip, retries,
-                                         limit, book, store)
+                                         limit, balance, book, store)
         if not ok:
             return False, groups, ng, store, n_prob
         score, groups, ng = _expand(score, groups, ng, ts, tg, rows, beam if kind == 0 else refine_beam, max_states,

@@ -19,7 +19,7 @@ import numpy as np
 from ising_backend import quantize_rules
 from planners.ising.numeric import pairwise_sum
 
-__all__ = ["split_model", "score_split_reads", "map_stage", "score_stage"]
+__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "map_stage", "score_stage"]
 
 
 @numba.njit(cache=True)
@@ -88,6 +88,53 @@ def split_model(dist, nodes, n_robots):
         q[i] = (-pairwise_sum(row, 0, f) - dist[free[i], a]) + wb[i]
     offset = -dist[a, b] - pairwise_sum(wb, 0, f)
     return a, b, free, q, Q, offset
+
+
+@numba.njit(cache=True)
+def pair_mean(w):
+    """``w[np.triu_indices(n, 1)].mean()`` (numpy's summation order), 0.0 for ``n < 2``."""
+    n = w.shape[0]
+    m = n * (n - 1) // 2
+    if m == 0:
+        return 0.0
+    flat = np.empty(m)
+    t = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            flat[t] = w[i, j]
+            t += 1
+    return pairwise_sum(flat, 0, m) / m
+
+
+
+@numba.njit(cache=True)
+def add_balance(dist, free, a, b, n_robots, q, Q, balance):
+    """Add the balance term of :func:`~planners.ising.sharing.qubo.build_split_qubo` to the split's
+    ``q`` and ``Q`` in place (a group of two robots or more; numpy's bits)."""
+    f = free.shape[0]
+    nodes = np.empty(f + 2, dtype=np.int64)
+    nodes[:f] = free
+    nodes[f] = a
+    nodes[f + 1] = b
+    R = 0
+    for v in nodes:
+        R += v < n_robots
+    if R < 2:
+        return
+    N = nodes.shape[0] - R
+    sub = np.empty((f + 2, f + 2))
+    for i in range(f + 2):
+        for j in range(f + 2):
+            sub[i, j] = dist[nodes[i], nodes[j]]
+    lam = balance * pair_mean(sub) / R ** 2
+    c = np.empty(f)
+    for i in range(f):
+        c[i] = -float(N) if free[i] < n_robots else float(R)
+    c0 = -float(N) if b < n_robots else float(R)
+    for i in range(f):
+        q[i] = q[i] + lam * (c[i] ** 2 + 2.0 * c0 * c[i])
+        for j in range(i + 1, f):
+            Q[i, j] = Q[i, j] + lam * (2.0 * (c[i] * c[j]))
 
 
 @numba.njit(cache=True, inline="always")

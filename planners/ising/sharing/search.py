@@ -17,6 +17,8 @@ SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/d
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
@@ -26,7 +28,8 @@ from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.boundary import refine_boundaries
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
-from planners.ising.sharing.compiled_assign import ORDER_IDS, assign_kernel, pair_mean
+from planners.ising.sharing.compiled_assign import ORDER_IDS, PRICERS, assign_kernel
+from planners.ising.sharing.kernels import pair_mean
 from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
@@ -34,6 +37,8 @@ from planners.ising.sharing.splits import SplitSearch
 from planners.ising.sharing.submit import StageSolver, stage_refusal
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
+
+_PRICING_HANDLES = itertools.count()
 
 
 class IsingSharing(ConfigAttributes):
@@ -59,16 +64,15 @@ class IsingSharing(ConfigAttributes):
         self.stages = StageSolver(self.config, self.chip)
         self.splits = SplitSearch(self.config, self.chip, self.stages)
         cfg = self.config
-        # the arguments of the whole sharing in one compiled call (.compiled_assign), where it applies
-        self._compiled = None
-        if not cfg.balance and cfg.pricing_tour == "auto":
-            chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
-                         *self.stages.kernel_args)
-            opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
-                    cfg.refine_above, int(cfg.reject_empty_robot_side))
-            pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
-            self._compiled = (chip_args, cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
-                              (cfg.weight_shift, cfg.robot_weight), np.array(cfg.pair_shifts), pair_opts)
+        # the arguments of the whole sharing in one compiled call (.compiled_assign), for worlds it takes
+        chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
+                     *self.stages.kernel_args)
+        opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
+                cfg.refine_above, int(cfg.reject_empty_robot_side))
+        pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
+        self._compiled = (chip_args, cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
+                          (cfg.weight_shift, cfg.robot_weight, float(cfg.balance)), np.array(cfg.pair_shifts),
+                          pair_opts)
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"
@@ -108,10 +112,13 @@ class IsingSharing(ConfigAttributes):
         pricer = None
         self.splits.memo = {}
         try:
+            if self.config.pricing_tour != "auto":  # priced by the pricing tour (a callback of the compiled call)
+                pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
             if self._compiled is not None and R + N <= 62 \
                     and R + N - 2 <= self.chip.spec.n_spins:  # every group fits one program
-                return self._assign_compiled(dist, R, rng, stats)
-            pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
+                return self._assign_compiled(dist, R, rng, stats, pricer)
+            if pricer is None:
+                pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
             cost = pricer.cost
             states = self.splits.split_all(self.split_weights(dist, R), R, rng, stats)
             best = None
@@ -145,9 +152,10 @@ class IsingSharing(ConfigAttributes):
                 return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
                                      stats=flag(stats, "sharing", reason))
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
-        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(meter.charged) + pricer.compute, stats=stats)
+        compute = ComputeReport.from_ledger(meter.charged) + pricer.compute
+        return SharingResult(assignment=assignment, compute=compute, stats=stats)
 
-    def _assign_compiled(self, dist, R, rng, stats) -> SharingResult | None:
+    def _assign_compiled(self, dist, R, rng, stats, pricer) -> SharingResult | None:
         """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
         counted as the Python search would; where it stops (a split without a valid candidate, a
         refused stage) a :class:`SharingFailure` naming it, as the Python search raises."""
@@ -163,6 +171,12 @@ class IsingSharing(ConfigAttributes):
         if not stages.link.direct:  # programs packed clear of the stuck spins a faulty chip found
             chip = compiled[0]
             compiled = (chip[:4] + (stages.capacity(),) + chip[5:], *compiled[1:])
+        handle = -1
+        if pricer is not None:  # its handle, found by the price callback while this call runs
+            handle = next(_PRICING_HANDLES)
+            PRICERS[handle] = pricer
+        compiled = (*compiled[:-1], (*compiled[-1], handle))
+        mapping, counters, calls, emu, failure = book
         stages.link.charged = stages.meter.charged
         try:
             ok, sets = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
@@ -170,7 +184,11 @@ class IsingSharing(ConfigAttributes):
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        mapping, counters, calls, emu, failure = book
+        except SharingFailure:  # a pricing tour that failed: what the chip ran so far is charged
+            stages.link.settle(calls[:counters[-1]], emu[:counters[-1]], stages.meter.charged)
+            raise
+        finally:
+            PRICERS.pop(handle, None)
         counts = dict(zip(COUNTERS, counters.tolist()))
         n = counts.pop("submissions")
         for key in ("pair_resplits", "pair_accepted"):  # present once the refinement made them
@@ -184,7 +202,8 @@ class IsingSharing(ConfigAttributes):
         if not ok:
             raise SharingFailure(self._stopped(R, *failure.tolist()))
         assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
-        return SharingResult(assignment=assignment, compute=ComputeReport.from_ledger(stages.meter.charged),
+        compute = ComputeReport.from_ledger(stages.meter.charged)
+        return SharingResult(assignment=assignment, compute=compute if pricer is None else compute + pricer.compute,
                              stats=stats)
 
     @staticmethod

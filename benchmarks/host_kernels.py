@@ -6,7 +6,7 @@ Inputs (realistic, seed 0):
   form, random obstacles and endpoints), as Ising models, merged at scale 16
   (the pathfinding default) with each merge style; decode = 10 reads of one
   merged program, majority;
-* **cut n**: anchored split QUBOs of the sharing layer (``build_split_qubo`` on the
+* **cut n**: anchored split QUBOs of the sharing layer (``split_model`` on the
   BFS distances of a generated 10x10 world) with ``n`` free spins, as Ising
   models, quantized with each rule.
 
@@ -48,7 +48,7 @@ from mapping_reference import decode_ref, merge_spins_ref, quantize_ref  # noqa:
 from ising_backend.quantize import quantize_stack  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.ising.path.qubo import build_patch_qubo, patch_frame  # noqa: E402
-from planners.ising.sharing.qubo import build_split_qubo, choose_anchors  # noqa: E402
+from planners.ising.sharing.kernels import split_model  # noqa: E402
 
 SECTION = "## Issue 9: compiled mapping kernels"
 SCALE = 16.0
@@ -87,9 +87,7 @@ def cut_models(n_free: int, count: int, seed: int = 0) -> list:
         if not np.all(np.isfinite(dist)):
             continue
         nodes = np.arange(dist.shape[0])
-        a, b = choose_anchors(dist, nodes, 3)
-        free = np.array([v for v in nodes if v not in (a, b)])
-        q, Q, off = build_split_qubo(dist, free, a, b, 3)
+        _a, _b, _free, q, Q, off = split_model(dist, nodes, 3)
         out.append(QuboModel(q, Q, off).to_ising())
     return out
 

@@ -96,6 +96,8 @@ def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, se
         raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
     except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
         raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject)
+    nfix, fixed = np.zeros(P, dtype=np.int64), np.zeros(free.shape, dtype=np.int8)  # splits that fit: no branch
+    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject, nfix,
+                                                        fixed)
     s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
     return n_valid, best, c_split, c_cut, s0, n0, s1, n1

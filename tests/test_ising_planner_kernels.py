@@ -20,7 +20,7 @@ from planners.ising.path.kernels import extract_path, neighbour_table, rank_loca
 from path_reference import build_patch_qubo_reference, component_of, cut_loops
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
 from planners.ising.sharing.kernels import score_split_reads, split_model
-from planners.ising.sharing.qubo import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
+from sharing_search_reference import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 from planners.ising.tour.kernels import (
     best_onehot, branch_stack, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,
 )
@@ -552,24 +552,25 @@ def test_cut_walk_is_the_checked_path(seed, steps, cut, corrupt):
 
 @pytest.mark.parametrize("spec", [{}, {"n_spins": 16}, {"n_spins": 24, "h_range": (-3, 3), "j_range": (-3, 3)}])
 def test_compiled_stage_submission_makes_the_reference_decisions(spec):
-    """planners.ising.sharing.engine.run_stage (one compiled call per stage) against the submission
-    through anneal_batch it mirrors: the same assignments, statistics, chip charges and rng state."""
+    """The compiled sharing (each stage one compiled call, planners.ising.sharing.engine.run_stage)
+    against the Python search with every stage submitted through anneal_batch: the same assignments,
+    statistics, chip charges and rng state."""
     from ising_backend import ChipSpec, EmulatedChip
     from mrmt_env.generation import generate_world
     from planners.ising.sharing import IsingSharing
     from planners.tours_classical import ThreeOptTour
 
+    from sharing_reference import reference_solve_packed
+    from sharing_search_reference import reference_assign
+
     fast = IsingSharing(EmulatedChip(ChipSpec(**spec)))
     ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
-    fast._compiled = ref._compiled = None  # the Python search: stage by stage
-    from sharing_reference import reference_solve_packed
-
-    ref.stages.solve_packed = lambda *a: reference_solve_packed(ref.stages, *a)  # the submission through anneal_batch
     for s in range(10):
         w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")
         r1, r2 = np.random.default_rng(s), np.random.default_rng(s)
         a = fast.assign(w.distance_matrix, w.n_robots, ThreeOptTour(), r1)
-        b = ref.assign(w.distance_matrix, w.n_robots, ThreeOptTour(), r2)
+        # the Python search with each stage submitted through anneal_batch
+        b = reference_assign(ref, w.distance_matrix, w.n_robots, ThreeOptTour(), r2, solve_packed=reference_solve_packed)
         assert a.assignment == b.assignment and a.failure == b.failure and a.stats == b.stats
         assert (a.compute.chip_calls, a.compute.chip_batches) == (b.compute.chip_calls, b.compute.chip_batches)
         assert a.compute.accelerator_energy_j == pytest.approx(b.compute.accelerator_energy_j)
@@ -593,7 +594,7 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
 
     def run(q, Lh=7.0, Lj=7.0):
         return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), -1, *chip.kernel_args(), free, anchors, dist, 2,
-                         np.zeros(1, dtype=np.bool_))
+                         np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros((1, 4), dtype=np.int8))
 
     good = run(q)
     assert good[0] == STAGE_OK and good[1] == 2 and good[3].sum() <= 2

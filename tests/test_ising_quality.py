@@ -15,7 +15,7 @@ from mrmt_env.generation import generate_world
 from planners import registry
 from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.boundary import neighbour_pairs
+from sharing_search_reference import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
 from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
 from planners.ising.tour.selection import double_bridge

@@ -11,16 +11,10 @@ from hypothesis import strategies as st
 
 from mrmt_env.generation import generate_world
 from planners.base import SharingResult
-from planners.ising.sharing import (
-    IsingSharing,
-    SplitProblem,
-    build_split_qubo,
-    choose_anchors,
-    cut_value,
-    decode_split,
-)
+from planners.ising.sharing import IsingSharing
 from planners.sharing_classical import ExactSharing
 from planners.tours_classical import BruteTour, ThreeOptTour
+from sharing_search_reference import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 
 
 def _random_dist(n, seed):
@@ -371,8 +365,7 @@ def test_worlds_of_several_components_are_shared_per_component():
 
 # ---------------------------------------------------------------- groups larger than the chip
 def test_coarse_cut_equals_the_fine_cut_of_cluster_respecting_partitions():
-    from planners.ising.sharing.coarse import coarsen, expand_sides
-    from planners.ising.sharing.qubo import cut_value
+    from sharing_search_reference import coarsen, expand_sides
 
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -438,7 +431,7 @@ def test_a_fleet_beyond_the_chip_plans_end_to_end():
 def test_coarse_clusters_of_shifted_split_weights_are_not_degenerate():
     """Split weights are shifted distances (negative for near pairs); the clusters of a coarse split
     are those of the distances themselves, never one cluster swallowing the group."""
-    from planners.ising.sharing.coarse import _clusters
+    from sharing_search_reference import _clusters
 
     rng = np.random.default_rng(0)
     pts = rng.uniform(0, 50, size=(60, 2))

@@ -1,10 +1,9 @@
-"""The whole Ising target sharing in one compiled call against the Python search it mirrors.
+"""The whole Ising target sharing in one compiled call against the Python search, its oracle.
 
-``planners.ising.sharing.compiled_assign.assign_kernel`` must make every decision of
-``IsingSharing``'s Python search (stages, memo, beam, bundle placement, state choice, boundary
-refinement): the same assignment, statistics, chip charges, rng state and failures, for every
-option the compiled call takes; worlds with a group beyond the chip go to the Python search (its
-coarse splits and spin-budget branching) without entering the compiled call.
+``planners.ising.sharing.compiled_assign.assign_kernel`` must make every decision of the Python
+search in ``tests/sharing_search_reference.py`` (stages, memo, beam, coarse splits of groups
+beyond the chip, spin-budget branches, bundle placement, state choice, boundary refinement): the
+same assignment, statistics, chip charges, rng state and failures, for every option.
 """
 
 from __future__ import annotations
@@ -20,6 +19,7 @@ from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfi
 from planners.ising.sharing.compiled_assign import split_weights_kernel
 from planners.ising.sharing.kernels import pair_mean
 from planners.tours_classical import ThreeOptTour
+from sharing_search_reference import reference_assign
 
 CONFIGS = [
     {},
@@ -35,7 +35,7 @@ CONFIGS = [
 def _pair(config: SharingConfig, spec: ChipSpec = ChipSpec(), paper: bool = False):
     cls = PaperIsingSharing if paper else IsingSharing
     fast, ref = cls(EmulatedChip(spec), config), cls(EmulatedChip(spec), config)
-    ref._compiled = None  # the Python search
+    ref.assign = lambda dist, R, tour, rng: reference_assign(ref, dist, R, tour, rng)  # the Python search
     return fast, ref
 
 
@@ -56,21 +56,15 @@ def _same(fast, ref, dist, R, seed):
 def test_compiled_sharing_makes_the_python_searchs_decisions(options):
     paper = options == "paper"
     fast, ref = _pair(SharingConfig.paper() if paper else SharingConfig(**options), paper=paper)
-    assert fast._compiled is not None
 
-    handed = []
-    python_search = fast.splits.split_all
-    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
     resplits = accepted = 0
     for s in range(20, 32):
         R, N = 2 + s % 4, 4 + s % 10
         w = generate_world(s, n_robots=R, n_targets=N, placement="centre" if s % 2 else "uniform")
-        handed.clear()
         res = _same(fast, ref, w.distance_matrix, R, s)
         if res.failure is not None:  # a split with no valid candidate, named as the Python search names it
-            assert not handed and "invalid after" in res.failure
+            assert "invalid after" in res.failure
             continue
-        assert not handed, "the compiled sharing handed a world to the Python search"
         assert sorted(t for ts in res.assignment for t in ts) == list(range(N))
         resplits += res.stats.get("pair_resplits", 0)
         accepted += res.stats.get("pair_accepted", 0)
@@ -80,16 +74,30 @@ def test_compiled_sharing_makes_the_python_searchs_decisions(options):
 
 
 @pytest.mark.parametrize("spec, R, N", [(ChipSpec(n_spins=8), 2, 12),  # 12 free spins: spin-budget branching
-                                        (ChipSpec(n_spins=6), 2, 13)])  # 13 free spins > 6 + max_frozen: coarse
-def test_a_group_beyond_the_chip_goes_to_the_python_search(spec, R, N):
-    fast, ref = _pair(SharingConfig(), spec)
-    calls = []
-    python_search = fast.splits.split_all
-    fast.splits.split_all = lambda *a: calls.append(1) or python_search(*a)
-    w = generate_world(3, n_robots=R, n_targets=N)
-    res = _same(fast, ref, w.distance_matrix, R, 3)
-    assert calls and res.failure is None
-    assert (res.stats.get("coarse_splits", 0) > 0) == (spec.n_spins == 6)
+                                        (ChipSpec(n_spins=6), 2, 13),  # 13 free spins > 6 + max_frozen: coarse
+                                        (ChipSpec(n_spins=6), 9, 20)])  # robots beyond half the chip: clustered
+def test_groups_beyond_the_chip_split_on_branches_and_clusters_as_the_python_search_splits_them(spec, R, N):
+    for options in ({}, {"pair_rounds": 0, "beam": 1}, {"max_frozen": 0}):
+        fast, ref = _pair(SharingConfig(**options), spec)
+        w = generate_world(3 + N, n_robots=R, n_targets=N)
+        res = _same(fast, ref, w.distance_matrix, R, 3)
+        assert res.failure is None
+        assert (res.stats.get("coarse_splits", 0) > 0) == (spec.n_spins == 6 or not options.get("max_frozen", 4))
+
+
+@pytest.mark.parametrize("paper", [False, True])
+def test_big_worlds_take_coarse_splits_and_branches_as_the_python_search_takes_them(paper):
+    """The 45-spin chip: 50-51 nodes branch, 70-160 nodes split on clusters (robots clustered when
+    they alone fill half the chip)."""
+    fast, ref = _pair(SharingConfig.paper() if paper else SharingConfig(), paper=paper)
+    coarse = 0
+    for H, R, N in [(32, 4, 46), (32, 3, 48), (40, 6, 90), (48, 30, 40), (64, 10, 150)]:
+        w = generate_world(7 + N, height=H, width=H, n_robots=R, n_targets=N)
+        res = _same(fast, ref, w.distance_matrix, R, N)
+        assert res.failure is None
+        assert sorted(t for ts in res.assignment for t in ts) == list(range(N))
+        coarse += res.stats.get("coarse_splits", 0)
+    assert coarse > 0
 
 
 @pytest.mark.parametrize("options", [{}, {"bundle_order": "far_first", "pair_neighbours": 1}, "paper"])
@@ -97,15 +105,11 @@ def test_more_targets_than_held_karp_takes_are_priced_by_the_3opt_kernel_in_the_
     """14-30 targets: bundles above 13 targets are priced by the host 3-opt tour in both searches."""
     paper = options == "paper"
     fast, ref = _pair(SharingConfig.paper() if paper else SharingConfig(**options), paper=paper)
-    handed = []
-    python_search = fast.splits.split_all
-    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
     big_sets = 0
     for s in range(40, 46):
         R, N = 2 + s % 3, 14 + 3 * (s % 6)
         w = generate_world(s, height=16, width=16, n_robots=R, n_targets=N)
         res = _same(fast, ref, w.distance_matrix, R, s)
-        assert not handed, "the compiled sharing handed a world to the Python search"
         big_sets += res.failure is None and max(len(ts) for ts in res.assignment) > 13
     assert big_sets > 0
 
@@ -117,15 +121,11 @@ def test_balance_and_pricing_tours_run_in_the_compiled_call_with_the_python_sear
     "auto" through the callback into the call's pricer (the Ising tour's chip calls and rng draws
     interleaved with the sharing's own, as in the Python search)."""
     fast, ref = _pair(SharingConfig(**options))
-    handed = []
-    python_search = fast.splits.split_all
-    fast.splits.split_all = lambda *a: handed.append(1) or python_search(*a)
     solves = 0
     for s in range(40, 46):
         R, N = 2 + s % 3, 6 + s % 7
         w = generate_world(s, n_robots=R, n_targets=N, placement="uniform")
         res = _same(fast, ref, w.distance_matrix, R, s)
-        assert not handed
         solves += res.stats["tour_solves"]
     assert solves > 0
 
@@ -177,3 +177,37 @@ def test_a_split_without_a_valid_candidate_fails_as_the_python_search_fails():
         res = _same(fast, ref, generate_world(s, n_robots=R, n_targets=N).distance_matrix, R, s)
         failures += res.failure is not None and "was invalid after 1 submissions" in res.failure
     assert failures >= 2
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 2**31), st.integers(1, 9), st.integers(0, 3))
+def test_spin_budget_branches_keep_the_split_energy_up_to_a_constant_per_branch(seed, n, k):
+    """Each branch of :func:`branch_problems` is the split QUBO with its frozen nodes fixed: over the
+    branch's free nodes its energy differs from the whole split's by one constant, the frozen nodes
+    are the strongest, and the branches enumerate every sign pattern of them."""
+    from planners.ising.sharing.kernels import branch_problems
+
+    rng = np.random.default_rng(seed)
+    k = min(k, n)
+    q = rng.normal(size=(1, n))
+    Q = np.triu(rng.normal(size=(1, n, n)), 1)
+    free = (100 + np.arange(n))[None]
+    bq, bQ, bfree, bsizes, nfix, fixed, parent = branch_problems(q, Q, free, np.array([n]), n - k)
+    assert len(parent) == 2 ** k and (parent == 0).all() and (bsizes == n - k).all() and (nfix == k).all()
+    assert len({tuple(row[:k]) for row in fixed.tolist()}) == 2 ** k
+    J = Q[0] + Q[0].T
+    strength = np.abs(q[0] / 2 + J.sum(axis=1) / 4) + np.abs(J).sum(axis=1) / 4
+    frozen = bfree[0, n - k:n] - 100
+    assert sorted(frozen.tolist()) == sorted(np.argsort(-strength, kind="stable")[:k].tolist())
+    for e in range(len(parent)):
+        order = bfree[e, :n] - 100
+        gaps = set()
+        for _ in range(4):
+            y = rng.integers(0, 2, size=n - k).astype(float)
+            x = np.empty(n)
+            x[order[:n - k]] = y
+            x[order[n - k:]] = (fixed[e, :k] > 0)
+            whole = q[0] @ x + x @ Q[0] @ x
+            branch = bq[e, :n - k] @ y + y @ bQ[e, :n - k, :n - k] @ y
+            gaps.add(round(whole - branch, 9))
+        assert len(gaps) == 1

@@ -1,11 +1,12 @@
-"""Bundle placement and pricing of Ising target sharing (paper 5.3, last step) -- host side.
+"""Bundle pricing of Ising target sharing (paper 5.3, last step) -- host side.
 
-After the chip splits, each robot keeps its base set and every robotless bundle goes,
-one after another, to the robot whose route cost grows least (classically, as in the
-paper).  :class:`BundlePricer` prices a robot's set with the pricing tour (``"auto"``:
-exact Held-Karp up to 13 targets, a host 3-opt tour beyond -- big worlds price thousands of
-sets, and the downstream Ising tour made that 25 s per 64x64 plan), memoised per (robot,
-set); its compute reports are summed so nothing is hidden.
+After the chip splits, each robot keeps its base set and every robotless bundle goes, one after
+another, to the robot whose route cost grows least (classically, as in the paper).  The
+compiled search prices sets with the pricing tour ``"auto"`` itself (exact Held-Karp up to 13
+targets, a host 3-opt tour beyond -- big worlds price thousands of sets, and the downstream
+Ising tour made that 25 s per 64x64 plan); :class:`BundlePricer` prices them with any other
+pricing tour (a callback of the compiled search), memoised per (robot, set), its compute reports
+summed so nothing is hidden.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 from planners.compute import ComputeReport
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 
-__all__ = ["SharingFailure", "BundlePricer", "assign_bundles"]
+__all__ = ["SharingFailure", "BundlePricer"]
 
 
 class SharingFailure(RuntimeError):
@@ -73,56 +74,3 @@ class BundlePricer:
                 hit = float(res.cost)
             self._cache[key] = hit
         return hit
-
-
-def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -> list[list[int]]:
-    """Robot base sets plus every bundle placed on the robot whose route cost
-    (``cost(k, targets)``, the downstream tour) grows least.  Global node indices.
-
-    ``cost`` is a :class:`BundlePricer` (its cache keyed by bit masks kept here as sets grow) or
-    any callable ``cost(k, targets)``."""
-    base: list[list[int]] = [[] for _ in range(R)]
-    bundles: list[list[int]] = []
-    for g in groups:
-        nodes = g.tolist()
-        robots = [v for v in nodes if v < R]
-        targets = [v for v in nodes if v >= R]
-        if len(robots) == 1:
-            base[robots[0]].extend(targets)
-        elif len(robots) == 0:
-            if targets:
-                bundles.append(targets)
-        else:  # cannot happen: robot stages run until <= 1 robot per group
-            raise SharingFailure(f"group {nodes} still holds {len(robots)} robots")
-    stats["bundles"] += len(bundles)
-    if not bundles:
-        return base
-    if bundle_order in ("far_first", "near_first"):
-        robots = np.arange(R)
-        near = [float(dist[np.ix_(robots, b)].min()) for b in bundles]
-    if bundle_order == "far_first":
-        order = sorted(range(len(bundles)), key=lambda i: (-near[i], i))
-    elif bundle_order == "near_first":
-        order = sorted(range(len(bundles)), key=lambda i: (near[i], i))
-    elif bundle_order == "largest_first":
-        order = sorted(range(len(bundles)), key=lambda i: (-len(bundles[i]), i))
-    else:
-        order = list(range(len(bundles)))
-    current = [list(b) for b in base]
-    if isinstance(cost, BundlePricer):
-        price = cost.cost_mask
-        masks = [sum(1 << t for t in c) for c in current]
-        for i in order:
-            b = bundles[i]
-            bm = sum(1 << t for t in b)
-            inc = [price(k, masks[k] | bm, current[k] + b) - price(k, masks[k], current[k]) for k in range(R)]
-            k = inc.index(min(inc))  # the first robot of least increase (np.argmin's tie rule)
-            current[k].extend(b)
-            masks[k] |= bm
-        return current
-    for i in order:
-        b = bundles[i]
-        inc = [cost(k, current[k] + b) - cost(k, current[k]) for k in range(R)]
-        k = inc.index(min(inc))
-        current[k].extend(b)
-    return current

@@ -1,10 +1,10 @@
 """Ising target sharing (paper 5.3) from split stages to the final sets in one compiled call.
 
 Contract: :func:`assign_kernel` does what :meth:`~.search.IsingSharing.assign` does for a finite
-world of ``R >= 2`` robots and ``N >= 1`` targets (``R + N <= 62``): the split stages, with the
+world of ``R >= 2`` robots and ``N >= 1`` targets: the split stages, with the
 balance term when set (:mod:`.compiled_stages`), bundle placement in every state
-(:func:`~.bundles.assign_bundles`), the choice of state and the boundary refinement
-(:func:`~.boundary.refine_boundaries`), with the same rng draws.  Bundles are priced as
+(``assign_bundles``), the choice of state and the boundary refinement (``refine_boundaries``),
+with the same rng draws as the Python search in ``tests/sharing_search_reference.py``, its oracle.  Bundles are priced as
 :class:`~.bundles.BundlePricer` prices them, one memo per call: with the pricing tour ``"auto"``
 by the Held-Karp kernel up to 13 targets and the host 3-opt tour's kernel beyond, with any other
 by a callback into the call's pricer (:func:`_price_callback`).
@@ -23,8 +23,11 @@ from numba.typed import Dict
 
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.compiled_stages import (
-    BUNDLES, OUTSIDE, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, mask_nodes, mask_nodes_into, popcount,
-    problems_of, reserve, solve_problems, split_states,
+    BUNDLES, FAILED_SPLIT, OUTSIDE, PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, TOUR_SOLVES, coarse_split, problems_of,
+    reserve, solve_problems, split_states,
+)
+from planners.ising.sharing.node_sets import (
+    EMPTY, contains, intern, new_pool, nodes_of, robots_in, size, targets_of, union,
 )
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 from planners.tours_classical import three_opt_cost
@@ -66,19 +69,20 @@ def _priced_by(pricing, nodes):
 
 
 @numba.njit(cache=True, inline="always")
-def _price(dist, k, mask, memo, counters, pricing):
+def _price(dist, k, s, memo, counters, pricing, pool, R):
     """:meth:`~.bundles.BundlePricer.cost_mask`: with the pricing tour ``"auto"`` (``pricing < 0``)
     Held-Karp up to 13 targets, the host 3-opt tour beyond; else the pricer registered as
     ``PRICERS[pricing]`` (a callback)."""
-    if mask == 0:
+    if s == EMPTY:
         return 0.0
-    key = mask | k  # target bits start at R > k
+    key = s * R + k
     if key in memo:
         return memo[key]
-    n = popcount(mask)
+    t = nodes_of(pool, s)
+    n = t.shape[0]
     nodes = np.empty(n + 1, dtype=np.int64)  # k, then the targets ascending
     nodes[0] = k
-    mask_nodes_into(mask, nodes, 1)
+    nodes[1:] = t
     if pricing >= 0:
         c = _priced_by(pricing, nodes)
         memo[key] = c
@@ -97,19 +101,19 @@ def _price(dist, k, mask, memo, counters, pricing):
 
 
 @numba.njit(cache=True)
-def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure, pricing):
-    """:func:`~.bundles.assign_bundles` on masks: ``(ok, sets (R,))``."""
-    robots = (np.int64(1) << R) - 1
-    sets = np.zeros(R, dtype=np.int64)
+def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure, pricing, pool):
+    """``assign_bundles`` (the oracle) on set ids: ``(ok, sets (R,))``."""
+    sets = np.full(R, EMPTY, dtype=np.int64)
     bundles = np.empty(ng, dtype=np.int64)
     nb = 0
     for gi in range(ng):
         g = groups[gi]
-        nr = popcount(g & robots)
+        nr = robots_in(pool, g, R)
         if nr == 1:
-            sets[mask_nodes(g & robots)[0]] |= g & ~robots
+            r = nodes_of(pool, g)[0]
+            sets[r] = union(pool, sets[r], targets_of(pool, g, R))
         elif nr == 0:
-            if g:
+            if g != EMPTY:
                 bundles[nb] = g
                 nb += 1
         else:  # cannot happen: a group of several robots after the splits
@@ -121,10 +125,10 @@ def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure, prici
     key = np.empty(nb)
     for i in range(nb):
         if order_id == 3:
-            key[i] = -popcount(bundles[i])
+            key[i] = -size(pool, bundles[i])
         elif order_id != 0:
             near = np.inf
-            for t in mask_nodes(bundles[i]):
+            for t in nodes_of(pool, bundles[i]):
                 for k in range(R):
                     near = min(near, dist[k, t])
             key[i] = -near if order_id == 1 else near
@@ -134,28 +138,37 @@ def _place_bundles(dist, R, groups, ng, order_id, memo, counters, failure, prici
     for i in np.argsort(key, kind="mergesort"):
         b = bundles[i]
         for k in range(R):
-            inc[k] = (_price(dist, k, sets[k] | b, memo, counters, pricing)
-                      - _price(dist, k, sets[k], memo, counters, pricing))
-        sets[np.argmin(inc)] |= b  # the first robot of least increase
+            inc[k] = (_price(dist, k, union(pool, sets[k], b), memo, counters, pricing, pool, R)
+                      - _price(dist, k, sets[k], memo, counters, pricing, pool, R))
+        k = np.argmin(inc)  # the first robot of least increase
+        sets[k] = union(pool, sets[k], b)
     return True, sets
 
 
 @numba.njit(cache=True)
-def _neighbour_pairs(dist, sets, R, per_robot):
-    """:func:`~.boundary.neighbour_pairs` on masks: ``near (R, R)`` bool, pair ``(k, l)`` for ``k < l``."""
+def _gap(dist, k, tk, l, tl):
+    """The least distance between robot ``k`` with its targets ``tk`` and robot ``l`` with ``tl``."""
+    v = dist[k, l]
+    for j in tl:
+        v = min(v, dist[k, j])
+    for i in tk:
+        v = min(v, dist[i, l])
+        for j in tl:
+            v = min(v, dist[i, j])
+    return v
+
+
+@numba.njit(cache=True)
+def _neighbour_pairs(dist, sets, R, per_robot, pool):
+    """``neighbour_pairs`` (the oracle) on set ids: ``near (R, R)`` bool, pair ``(k, l)`` for ``k < l``."""
     near = np.zeros((R, R), dtype=np.bool_)
     if per_robot >= R - 1:
         near[:, :] = True
         return near
     gap = np.full((R, R), np.inf)
     for k in range(R):
-        nk = mask_nodes(sets[k] | (np.int64(1) << k))
         for l in range(k + 1, R):
-            nl = mask_nodes(sets[l] | (np.int64(1) << l))
-            v = np.inf
-            for i in nk:
-                for j in nl:
-                    v = min(v, dist[i, j])
+            v = _gap(dist, k, nodes_of(pool, sets[k]), l, nodes_of(pool, sets[l]))
             gap[k, l] = v
             gap[l, k] = v
     for k in range(R):
@@ -167,22 +180,22 @@ def _neighbour_pairs(dist, sets, R, per_robot):
 
 
 @numba.njit(cache=True)
-def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book, store, n_prob, pricing):
-    """:func:`~.boundary.refine_boundaries` on masks.  Returns ``(ok, store, n_prob)``;
+def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book, store, n_prob, pricing,
+            pool):
+    """``refine_boundaries`` (the oracle) on set ids.  Returns ``(ok, store, n_prob)``;
     ``sets`` is updated in place."""
     counters = book[1]
-    robots = (np.int64(1) << R) - 1
     S = pair_w.shape[0]
     tried = Dict.empty(key_type=_PAIR_KEY, value_type=types.boolean)
     pk = np.empty(R * R, dtype=np.int64)
     pl = np.empty(R * R, dtype=np.int64)
     for _ in range(rounds):
-        near = _neighbour_pairs(dist, sets, R, per_robot)
+        near = _neighbour_pairs(dist, sets, R, per_robot, pool)
         n_pairs = 0
         for k in range(R):
             for l in range(k + 1, R):
                 key = (k, l, sets[k], sets[l])
-                if near[k, l] and (sets[k] | sets[l]) and key not in tried:
+                if near[k, l] and (sets[k] != EMPTY or sets[l] != EMPTY) and key not in tried:
                     tried[key] = True
                     pk[n_pairs] = k
                     pl[n_pairs] = l
@@ -192,38 +205,63 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         P = n_pairs * S
         groups = np.empty(n_pairs, dtype=np.int64)
         for j in range(n_pairs):
-            groups[j] = sets[pk[j]] | sets[pl[j]] | (np.int64(1) << pk[j]) | (np.int64(1) << pl[j])
-            if popcount(groups[j]) - 2 > limit:  # a coarse split: outside the contract
-                book[4][0], book[4][1] = OUTSIDE, 3
-                return False, store, n_prob
-        f = 0
-        for j in range(n_pairs):
-            f = max(f, popcount(groups[j]) - 2)
-        q = np.zeros((P, f))
-        Q = np.zeros((P, f, f))
-        free = np.zeros((P, f), dtype=np.int64)
-        sizes = np.empty(P, dtype=np.int64)
-        anchors = np.empty((P, 2), dtype=np.int64)
-        for s in range(S):  # problem j * S + s: pair j, shift s
-            qs, Qs, fs, zs, As = problems_of(pair_w[s], groups, R, 0.0)
-            for j in range(n_pairs):
-                p = j * S + s
-                n = zs[j]
-                sizes[p] = n
-                anchors[p] = As[j]
-                free[p, :n] = fs[j, :n]
-                q[p, :n] = qs[j, :n]
-                Q[p, :n, :n] = Qs[j, :n, :n]
-        counters[SPLITS] += P
-        store = reserve(store, n_prob + P)
+            two = intern(pool, np.array([pk[j], pl[j]], dtype=np.int64))
+            groups[j] = union(pool, union(pool, sets[pk[j]], sets[pl[j]]), two)
+        store = reserve(store, n_prob + P + 1)
         rows = n_prob + np.arange(P)
         n_prob += P
-        masks = np.empty(P, dtype=np.int64)
-        for p in range(P):
-            masks[p] = groups[p // S]
-        if not solve_problems(q, Q, free, sizes, anchors, np.zeros(P, dtype=np.bool_), rows, masks, pair_w[0], R,
-                              rng, chip, retries, book, store):
-            return False, store, n_prob
+        # problem j * S + s: pair j, shift s; groups beyond the chip split on clusters first, in that order
+        coarse = np.zeros(n_pairs, dtype=np.bool_)
+        n_normal = 0
+        for j in range(n_pairs):
+            coarse[j] = size(pool, groups[j]) - 2 > limit
+            if not coarse[j]:
+                n_normal += 1
+                continue
+            for s in range(S):
+                ok, store = coarse_split(pair_w[s], R, groups[j], False, 0.0, rows[j * S + s], n_prob, rng, chip,
+                                         retries, book, store, pool)
+                if not ok:
+                    return False, store, n_prob
+        if n_normal:
+            normal = np.empty(n_normal, dtype=np.int64)
+            t = 0
+            for j in range(n_pairs):
+                if not coarse[j]:
+                    normal[t] = groups[j]
+                    t += 1
+            f = 0
+            for j in range(n_normal):
+                f = max(f, size(pool, normal[j]) - 2)
+            Pn = n_normal * S
+            q = np.zeros((Pn, f))
+            Q = np.zeros((Pn, f, f))
+            free = np.zeros((Pn, f), dtype=np.int64)
+            sizes = np.empty(Pn, dtype=np.int64)
+            anchors = np.empty((Pn, 2), dtype=np.int64)
+            for s in range(S):  # problem i * S + s: the i-th pair that fits, shift s
+                qs, Qs, fs, zs, As = problems_of(pair_w[s], normal, R, 0.0, pool)
+                for i in range(n_normal):
+                    p = i * S + s
+                    n = zs[i]
+                    sizes[p] = n
+                    anchors[p] = As[i]
+                    free[p, :n] = fs[i, :n]
+                    q[p, :n] = qs[i, :n]
+                    Q[p, :n, :n] = Qs[i, :n, :n]
+            counters[SPLITS] += Pn
+            prow = np.empty(Pn, dtype=np.int64)
+            gids = np.empty(Pn, dtype=np.int64)
+            i = 0
+            for j in range(n_pairs):
+                if not coarse[j]:
+                    for s in range(S):
+                        prow[i * S + s] = rows[j * S + s]
+                        gids[i * S + s] = groups[j]
+                    i += 1
+            if not solve_problems(q, Q, free, sizes, anchors, np.zeros(Pn, dtype=np.bool_), prow, gids, pair_w[0], R,
+                                  rng, chip, retries, book, store, pool):
+                return False, store, n_prob
         c_cut, c_m0, c_m1, c_n = store
         counters[PAIR_RESPLITS] += n_pairs
         gain = np.empty(n_pairs)
@@ -233,7 +271,8 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
         seen = np.empty(P * c_cut.shape[1], dtype=np.int64)
         for j in range(n_pairs):
             k, l = pk[j], pl[j]
-            old = _price(dist, k, sets[k], memo, counters, pricing) + _price(dist, l, sets[l], memo, counters, pricing)
+            old = (_price(dist, k, sets[k], memo, counters, pricing, pool, R)
+                   + _price(dist, l, sets[l], memo, counters, pricing, pool, R))
             best = np.inf
             found = False
             n_seen = 0
@@ -249,10 +288,10 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
                     seen[n_seen] = m1
                     n_seen += 1
                     m0 = c_m0[row, c]
-                    mine, theirs = (m0, m1) if (m0 >> k) & 1 else (m1, m0)
-                    tk, tl = mine & ~robots, theirs & ~robots
-                    new = (_price(dist, k, tk, memo, counters, pricing)
-                           + _price(dist, l, tl, memo, counters, pricing))
+                    mine, theirs = (m0, m1) if contains(pool, m0, k) else (m1, m0)
+                    tk, tl = targets_of(pool, mine, R), targets_of(pool, theirs, R)
+                    new = (_price(dist, k, tk, memo, counters, pricing, pool, R)
+                           + _price(dist, l, tl, memo, counters, pricing, pool, R))
                     if new < old - 1e-9 and (not found or new < best - 1e-9):
                         best = new
                         found = True
@@ -285,36 +324,54 @@ def _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot,
 
 
 @numba.njit(cache=True)
+def _result(ok, sets, book, pool):
+    """``(ok, targets (sum,), counts (R,), failed group (nodes))``: the robots' target sets back to back,
+    and the nodes of the group whose split failed (empty unless one did)."""
+    counts = np.empty(sets.shape[0], dtype=np.int64)
+    for k in range(sets.shape[0]):
+        counts[k] = size(pool, sets[k])
+    flat = np.empty(counts.sum(), dtype=np.int64)
+    i = 0
+    for k in range(sets.shape[0]):
+        flat[i:i + counts[k]] = nodes_of(pool, sets[k])
+        i += counts[k]
+    failed = nodes_of(pool, book[4][1] if book[4][0] == FAILED_SPLIT else EMPTY)
+    return ok, flat, counts, failed.copy()
+
+
+@numba.njit(cache=True)
 def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weights, pair_shifts, pair_opts, book):
-    """The sharing of one world (module docstring): ``(ok, sets (R,) target masks)``.
+    """The sharing of one world (module docstring), as :func:`_result`.
 
     ``weights = (weight_shift, robot_weight, balance)``, ``opts`` as :func:`.compiled_stages.split_states`,
     ``pair_opts = (bundle order id, pair_rounds, pair_neighbours, pricing handle or -1)``."""
     shift, robot_weight, balance = weights
     order_id, rounds, per_robot, pricing = pair_opts
     counters = book[1]
+    pool = new_pool(R)
     # C-contiguous like _refine's pair weights, so the stage kernels compile for one layout only
     w = np.ascontiguousarray(split_weights_kernel(powered, mean, shift, R, robot_weight))
-    C = chip[0].shape[0] * chip[4]  # distinct candidates per split: rules x reads
+    # distinct candidates per split: rules x reads x the spin-budget branches of a split beyond the chip
+    C = chip[0].shape[0] * chip[5] * (1 << max(0, min(limit - chip[3], dist.shape[0] - 2 - chip[3])))
     store = (np.zeros((16, C)), np.zeros((16, C), dtype=np.int64), np.zeros((16, C), dtype=np.int64),
              np.zeros(16, dtype=np.int64))
-    ok, groups, ng, store, n_prob = split_states(w, R, rng, chip, retries, limit, opts, balance, book, store)
-    sets = np.zeros(R, dtype=np.int64)
+    ok, groups, ng, store, n_prob = split_states(w, R, rng, chip, retries, limit, opts, balance, book, store, pool)
+    sets = np.full(R, EMPTY, dtype=np.int64)
     if not ok:
-        return False, sets
+        return _result(False, sets, book, pool)
     memo = Dict.empty(key_type=types.int64, value_type=types.float64)
     S = groups.shape[0]
     best = np.inf
     for si in range(S):
-        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters, book[4], pricing)
+        ok, placed = _place_bundles(dist, R, groups[si], ng[si], order_id, memo, counters, book[4], pricing, pool)
         if not ok:
-            return False, sets
+            return _result(False, sets, book, pool)
         if S == 1:
             sets = placed
             break
         total = 0.0
         for k in range(R):
-            total += _price(dist, k, placed[k], memo, counters, pricing)
+            total += _price(dist, k, placed[k], memo, counters, pricing, pool, R)
         if si == 0 or total < best - 1e-9:  # ties: the state with the larger cuts
             best = total
             sets = placed
@@ -323,7 +380,7 @@ def assign_kernel(dist, powered, mean, R, rng, chip, retries, limit, opts, weigh
         for s in range(pair_shifts.shape[0]):
             pair_w[s] = split_weights_kernel(powered, mean, pair_shifts[s], R, robot_weight)
         ok, store, n_prob = _refine(dist, pair_w, R, sets, rng, chip, retries, limit, rounds, per_robot, memo, book,
-                                    store, n_prob, pricing)
+                                    store, n_prob, pricing, pool)
         if not ok:
-            return False, sets
-    return True, sets
+            return _result(False, sets, book, pool)
+    return _result(True, sets, book, pool)

@@ -36,7 +36,7 @@ class SharingConfig(IsingConfig):
         retries: re-submissions of splits whose candidates were all invalid.
         max_frozen: spins a too-large split may freeze (spin-budget branching, 2^k programs).
         pair_rounds: rounds of boundary refinement (pooled re-splits of neighbouring robots'
-            targets, priced exactly; :mod:`planners.ising.sharing.boundary`); 0 = none (the paper).
+            targets, priced exactly); 0 = none (the paper).
         pair_neighbours: each robot's nearest robots whose boundaries are refined.
         pair_shifts: weight shifts of the re-split programs (one program per shift and rule).
         fallback: when sharing falls back to SSA (:data:`~planners.ising.fallback.FALLBACK_MODES`).

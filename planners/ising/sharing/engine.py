@@ -1,7 +1,7 @@
 """A stage's chip submission of Ising target sharing (paper 5.3) in one compiled call.
 
-Contract: :func:`run_stage` does what :meth:`~.submit.StageSolver.solve_packed` does with
-its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
+Contract: :func:`run_stage` does what ``reference_solve_packed`` (``tests/sharing_reference.py``)
+does with its separate calls -- every split x rule mapped (:func:`.kernels.map_stage`), packed first-fit
 decreasing (:func:`ising_backend.pack_layout`), placed (:func:`ising_backend.fill_packs`), annealed on the
 chip through :func:`ising_backend.anneal_submit` (the emulator's kernel, or a callback into any
 machine's ``anneal_batch``; the seed ``anneal_batch`` would get), decoded and scored (:func:`.kernels.score_stage`, :func:`.kernels.candidate_sides`) --
@@ -27,7 +27,7 @@ STAGE_OK, STAGE_NONFINITE, STAGE_UNFIT = 0, 1, 2
 
 @numba.njit(cache=True)
 def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold,
-              mismatch, flip_prob, free, anchors, dist, n_robots, reject):
+              mismatch, flip_prob, free, anchors, dist, n_robots, reject, nfix, fixed):
     """One stage submission (module docstring).  Returns ``(status, calls, emulation_s, n_valid, best,
     c_split, c_cut, side0, n0, side1, n1)`` (the last seven as :func:`.kernels.score_stage` and
     :func:`.kernels.candidate_sides`)."""
@@ -53,6 +53,7 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, swe
     emu = anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
                         spins, energies)
     calls = n_packs * num_reads if width > 0 else 0
-    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject)
-    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
+    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject,
+                                                        nfix, fixed)
+    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes + nfix, anchors)
     return STAGE_OK, calls, emu, n_valid, best, c_split, c_cut, s0, n0, s1, n1

@@ -1,11 +1,11 @@
 """Compiled host kernels of Ising target sharing (paper 5.3): split models and candidate scoring.
 
-* :func:`split_model` -- the anchors (:func:`~planners.ising.sharing.qubo.choose_anchors`)
-  and the reduced ``-cut`` QUBO (:func:`~planners.ising.sharing.qubo.build_split_qubo`,
+* :func:`split_model` -- the anchors (``choose_anchors`` of ``tests/sharing_search_reference.py``)
+  and the reduced ``-cut`` QUBO (``build_split_qubo`` there,
   without the balance term) of one group, in one call.
 * :func:`score_split_reads` -- every read of one split's programs: the partition it
   encodes, the validity rule, the unquantized cut
-  (:func:`~planners.ising.sharing.qubo.cut_value`) and the first read with the same spins.
+  (``cut_value`` there) and the first read with the same spins.
 
 Sums follow numpy's order (:func:`planners.ising.numeric.pairwise_sum`), so the results are
 the bits of the numpy functions, which the tests compare against.
@@ -19,7 +19,7 @@ import numpy as np
 from ising_backend import quantize_rules
 from planners.ising.numeric import pairwise_sum
 
-__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "map_stage", "score_stage"]
+__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "map_stage", "branch_problems", "score_stage"]
 
 
 @numba.njit(cache=True)
@@ -109,7 +109,7 @@ def pair_mean(w):
 
 @numba.njit(cache=True)
 def add_balance(dist, free, a, b, n_robots, q, Q, balance):
-    """Add the balance term of :func:`~planners.ising.sharing.qubo.build_split_qubo` to the split's
+    """Add the balance term of ``build_split_qubo`` (the oracle) to the split's
     ``q`` and ``Q`` in place (a group of two robots or more; numpy's bits)."""
     f = free.shape[0]
     nodes = np.empty(f + 2, dtype=np.int64)
@@ -248,11 +248,76 @@ def map_stage(q, Q, sizes, rules, Lh, Lj):
 
 
 @numba.njit(cache=True)
-def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject):
+def branch_problems(q, Q, free, sizes, budget):
+    """Spin-budget branching of split QUBOs (paper 4.2, as :func:`ising_backend.branch`): every split
+    with ``k = sizes[p] - budget > 0`` free nodes too many becomes ``2^k`` splits of ``budget`` nodes,
+    the ``k`` nodes of strongest Ising interaction (``|h_i| + sum_j |J_ij|``, lowest index first on
+    ties) frozen, branch ``m`` putting frozen node ``t`` on side 1 when bit ``t`` of ``m`` is set.
+    Returns ``(q, Q, free, sizes, nfix, fixed, parent)`` of the branches, in split order then branch
+    order, the frozen nodes after each branch's free nodes in ``free`` and their spins in ``fixed``."""
+    P, f = q.shape
+    E = 0
+    for p in range(P):
+        E += 1 << max(0, sizes[p] - budget)
+    q2 = np.zeros((E, f))
+    Q2 = np.zeros((E, f, f))
+    free2 = np.zeros((E, f), dtype=np.int64)
+    sizes2 = np.empty(E, dtype=np.int64)
+    nfix = np.zeros(E, dtype=np.int64)
+    fixed = np.zeros((E, f), dtype=np.int8)
+    parent = np.empty(E, dtype=np.int64)
+    e = 0
+    for p in range(P):
+        n = sizes[p]
+        k = max(0, n - budget)
+        strength = np.empty(n)
+        for i in range(n):
+            s = 0.0
+            for j in range(n):
+                s += abs(Q[p, i, j] + Q[p, j, i]) / 4.0
+            h = q[p, i] / 2.0
+            for j in range(n):
+                h += (Q[p, i, j] + Q[p, j, i]) / 4.0
+            strength[i] = abs(h) + s
+        frozen = np.sort(np.argsort(-strength, kind="mergesort")[:k])
+        is_frozen = np.zeros(n, dtype=np.bool_)
+        for u in range(k):
+            is_frozen[frozen[u]] = True
+        rest = np.empty(n - k, dtype=np.int64)
+        t = 0
+        for i in range(n):
+            if not is_frozen[i]:
+                rest[t] = i
+                t += 1
+        for m in range(1 << k):
+            for a in range(n - k):
+                i = rest[a]
+                v = q[p, i]
+                for u in range(k):
+                    if (m >> u) & 1:
+                        v += Q[p, i, frozen[u]] + Q[p, frozen[u], i]
+                q2[e, a] = v
+                for b in range(n - k):
+                    Q2[e, a, b] = Q[p, i, rest[b]]
+                free2[e, a] = free[p, i]
+            for u in range(k):
+                free2[e, n - k + u] = free[p, frozen[u]]
+                fixed[e, u] = 1 if (m >> u) & 1 else -1
+            sizes2[e] = n - k
+            nfix[e] = k
+            parent[e] = p
+            e += 1
+    return q2, Q2, free2, sizes2, nfix, fixed, parent
+
+
+@numba.njit(cache=True)
+def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject, nfix, fixed):
     """Decode, check and score every read of every split of one stage submission.
 
     ``where (P * k, 2)``: the pack and first spin of program ``p * k + r`` in ``spins (packs, R, W)``;
-    ``free (P, f)`` / ``anchors (P, 2)`` / ``reject (P,)`` per split (see :func:`score_split_reads`).
+    ``free (P, f)`` / ``anchors (P, 2)`` / ``reject (P,)`` per split (see :func:`score_split_reads`);
+    split ``p``'s program holds its first ``sizes[p]`` free nodes, and the ``nfix[p]`` nodes after
+    them are frozen at spins ``fixed[p]`` (a spin-budget branch, :func:`branch_problems`).
     Returns ``(n_valid (P, k), best (P, k)`` -- the rule's best ``-cut``, ``inf`` if none --
     ``, cand (M, 2)`` -- split and cut rank key of each distinct valid partition, first occurrence
     order -- ``, cut (M,), side1 (M, f) bool)``.
@@ -267,14 +332,16 @@ def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject):
     cand_cut = np.empty(P * k * R)
     cand_side = np.zeros((P * k * R, f), dtype=np.bool_)
     for p in range(P):
-        n = sizes[p]
+        n = sizes[p] + nfix[p]
         blocks = np.empty((k * R, n), dtype=np.int8)
         for r in range(k):
             b = where[p * k + r, 0]
             s0 = where[p * k + r, 1]
             for t in range(R):
-                for i in range(n):
+                for i in range(sizes[p]):
                     blocks[r * R + t, i] = spins[b, t, s0 + i]
+                for i in range(nfix[p]):
+                    blocks[r * R + t, sizes[p] + i] = fixed[p, i]
         valid, cut, first = score_split_reads(blocks, free[p, :n], anchors[p, 0], anchors[p, 1], dist, n_robots,
                                               reject[p])
         for r in range(k):

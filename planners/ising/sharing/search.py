@@ -1,18 +1,18 @@
 """Recursive Ising target sharing: the search of paper 5.3 (Algorithm 3).
 
 Contract: ``IsingSharing(chip, config).assign(dist, n_robots, tour, rng) -> SharingResult``;
-a split that never decodes valid, a group beyond the spin budget or a refused
-program is a failure result (``result.failure``), never an invented split.
-Built from components: ``stages`` (:class:`~.submit.StageSolver`: a stage's splits x
-quantization rules block-packed into one chip submission, decoded and scored on the
-unquantized cut) and ``splits`` (:class:`~.splits.SplitSearch`: stages split every group with
-several robots, then refine one-robot groups and bundles, a beam of distinct candidates carried
-to the complete assignments, which are compared by route cost); worlds the compiled sharing
-takes run in one call (:mod:`.compiled_assign`).  Then, beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the
-boundaries between neighbouring robots are re-split on the chip (:mod:`.boundary`).
-Chip calls are metered
-(:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the call to
-SSA (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_sharing.md.
+a split that never decodes valid, a group the chip cannot take or a refused program is a
+failure result (``result.failure``), never an invented split.  The search runs in one compiled
+call (:mod:`.compiled_assign`): stages split every group with several robots, then refine
+one-robot groups and bundles, a beam of distinct candidates carried to the complete
+assignments, which are compared by route cost; each stage's splits x quantization rules go
+block-packed into one chip submission (:class:`~.submit.StageSolver` holds the chip side);
+groups beyond the chip split on clusters or spin-budget branches.  Then, beyond the paper
+(``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between neighbouring robots are
+re-split on the chip.  Chip calls are metered (:class:`ising_backend.MeteredSolver`); a chip
+that cannot answer hands the call to SSA (flagged; :mod:`planners.ising.fallback`).  The Python
+search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
+docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations
@@ -26,14 +26,12 @@ from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
-from planners.ising.sharing.boundary import refine_boundaries
-from planners.ising.sharing.bundles import BundlePricer, SharingFailure, assign_bundles
+from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.compiled_assign import ORDER_IDS, PRICERS, assign_kernel
 from planners.ising.sharing.kernels import pair_mean
-from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE
+from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE, UNCOARSENED
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.splits import SplitSearch
 from planners.ising.sharing.submit import StageSolver, stage_refusal
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
@@ -62,7 +60,6 @@ class IsingSharing(ConfigAttributes):
         spec = self.chip.spec
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         self.stages = StageSolver(self.config, self.chip)
-        self.splits = SplitSearch(self.config, self.chip, self.stages)
         cfg = self.config
         # the arguments of the whole sharing in one compiled call (.compiled_assign), for worlds it takes
         chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
@@ -110,36 +107,11 @@ class IsingSharing(ConfigAttributes):
         meter = self.stages.meter = MeteredSolver(self.chip)
         self._powered_for = None  # a new call: the split weights' base is recomputed
         pricer = None
-        self.splits.memo = {}
         try:
             if self.config.pricing_tour != "auto":  # priced by the pricing tour (a callback of the compiled call)
                 pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
-            if self._compiled is not None and R + N <= 62 \
-                    and R + N - 2 <= self.chip.spec.n_spins:  # every group fits one program
-                return self._assign_compiled(dist, R, rng, stats, pricer)
-            if pricer is None:
-                pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
-            cost = pricer.cost
-            states = self.splits.split_all(self.split_weights(dist, R), R, rng, stats)
-            best = None
-            for groups in states:
-                sets = assign_bundles(dist, R, groups, pricer, self.config.bundle_order, stats)
-                if len(states) == 1:
-                    best = (0.0, sets)
-                    break
-                total = 0.0
-                for k in range(R):  # left to right, as the compiled search sums
-                    total += cost(k, sets[k])
-                if best is None or total < best[0] - 1e-9:  # ties: the state with the larger cuts
-                    best = (total, sets)
-            sets = best[1]
-            if self.config.pair_rounds:
-                sets = refine_boundaries(self.splits, lambda shift: self.split_weights(dist, R, shift=shift), dist, R,
-                                         sets, cost, rng, stats)
-            assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in sets)
-            self.splits.memo = {}
+            return self._assign_compiled(dist, R, rng, stats, pricer)
         except (SharingFailure, ChipUnavailableError) as exc:
-            self.splits.memo = {}
             unavailable = isinstance(exc, ChipUnavailableError)
             reason = unavailable_message(exc) if unavailable else str(exc)
             compute = ComputeReport.from_ledger(meter.charged)
@@ -152,18 +124,22 @@ class IsingSharing(ConfigAttributes):
                 return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
                                      stats=flag(stats, "sharing", reason))
             return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
-        compute = ComputeReport.from_ledger(meter.charged) + pricer.compute
-        return SharingResult(assignment=assignment, compute=compute, stats=stats)
 
     def _assign_compiled(self, dist, R, rng, stats, pricer) -> SharingResult | None:
         """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
-        counted as the Python search would; where it stops (a split without a valid candidate, a
-        refused stage) a :class:`SharingFailure` naming it, as the Python search raises."""
+        counted; where it stops (a split without a valid candidate, a refused stage, robots that
+        cannot be coarsened onto the chip) a :class:`SharingFailure` naming it."""
         cfg = self.config
         powered, mean = self._powered(dist)
-        # room for every submission: each stage (splits down to single robots, refinement, pair rounds)
+        # room for every submission: each stage (splits down to single robots, refinement, pair rounds) and
+        # each coarse split (at most one per group beyond the chip in a state's stage, per pair and shift)
         # submits at most retries + 1 times
-        subs = (2 * R + cfg.refine_stages + cfg.pair_rounds * R + 2) * (cfg.retries + 1)
+        n = dist.shape[0]
+        stages = 2 * R + cfg.refine_stages + cfg.pair_rounds * R + 2
+        if n - 2 > int(self.chip.spec.n_spins) + cfg.max_frozen:
+            stages += cfg.max_states * stages * (n // (int(self.chip.spec.n_spins) + cfg.max_frozen + 3) + 1)
+            stages += cfg.pair_rounds * R * max(1, cfg.pair_neighbours) * len(cfg.pair_shifts)
+        subs = stages * (cfg.retries + 1)
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
                 np.zeros(subs, dtype=np.int64), np.zeros(subs), np.zeros(3, dtype=np.int64))
         compiled = self._compiled
@@ -179,7 +155,7 @@ class IsingSharing(ConfigAttributes):
         mapping, counters, calls, emu, failure = book
         stages.link.charged = stages.meter.charged
         try:
-            ok, sets = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
+            ok, flat, sizes, failed = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
@@ -191,7 +167,7 @@ class IsingSharing(ConfigAttributes):
             PRICERS.pop(handle, None)
         counts = dict(zip(COUNTERS, counters.tolist()))
         n = counts.pop("submissions")
-        for key in ("pair_resplits", "pair_accepted"):  # present once the refinement made them
+        for key in ("pair_resplits", "pair_accepted", "coarse_splits"):  # present once made
             if not counts[key]:
                 del counts[key]
         for key, value in counts.items():
@@ -200,21 +176,25 @@ class IsingSharing(ConfigAttributes):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
         stages.link.settle(calls[:n], emu[:n], stages.meter.charged)
         if not ok:
-            raise SharingFailure(self._stopped(R, *failure.tolist()))
-        assignment = tuple(tuple(t - R for t in range(len(dist)) if m >> t & 1) for m in sets.tolist())
+            raise SharingFailure(self._stopped(failed.tolist(), *failure.tolist()))
+        ends = np.cumsum(sizes).tolist()
+        flat = (flat - R).tolist()
+        assignment = tuple(tuple(flat[e - c:e]) for e, c in zip(ends, sizes.tolist()))
         compute = ComputeReport.from_ledger(stages.meter.charged)
         return SharingResult(assignment=assignment, compute=compute if pricer is None else compute + pricer.compute,
                              stats=stats)
 
-    @staticmethod
-    def _stopped(R: int, code: int, what: int, submissions: int) -> str:
-        """Why the compiled sharing stopped (``book[4]`` of :func:`.compiled_assign.assign_kernel`), in
-        the Python search's words."""
+    def _stopped(self, nodes: list, code: int, what: int, submissions: int) -> str:
+        """Why the compiled sharing stopped (``book[4]`` of :func:`.compiled_assign.assign_kernel`; ``nodes``:
+        the group of a failed split)."""
         if code == FAILED_SPLIT:
-            nodes = [t for t in range(63) if what >> t & 1]
             return f"every chip candidate for the split of group {nodes} was invalid after {submissions} submissions"
         if code == REFUSED_STAGE:
             return stage_refusal(what)
+        if code == UNCOARSENED:
+            n_spins = int(self.chip.spec.n_spins)
+            return (f"a group of {what} robots and {submissions} targets cannot be coarsened onto the chip: its split "
+                    f"needs at least {max(2, (n_spins + 2) // 2) - 1} free spins, the chip has {n_spins}")
         return f"internal error: the compiled sharing met a group outside its contract (check {what})"
 
     def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:

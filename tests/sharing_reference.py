@@ -16,6 +16,7 @@ from ising_backend import (
 )
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
+from sharing_search_reference import keep_candidates, problem_arrays
 
 __all__ = ["reference_solve_packed"]
 
@@ -27,19 +28,7 @@ def reference_solve_packed(self, w, R, problems, rng, stats) -> None:
     seed = int(rng.integers(2**63 - 1))
     rules = cfg.rules
     P = len(problems)
-    f = max(len(p.free) for p in problems)
-    q = np.zeros((P, f))
-    Q = np.zeros((P, f, f))
-    free = np.zeros((P, f), dtype=np.int64)
-    sizes = np.empty(P, dtype=np.int64)
-    for k, p in enumerate(problems):
-        n = len(p.free)
-        sizes[k] = n
-        q[k, :n] = p.q
-        Q[k, :n, :n] = p.Q
-        free[k, :n] = p.free
-    anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
-    reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
+    q, Q, free, sizes, anchors, reject = problem_arrays(cfg, problems)
     n_valid, best, c_split, c_cut, s0, n0, s1, n1 = _submit_checked(
         self, w, R, problems, q, Q, free, sizes, anchors, reject, seed)
     mapping = stats["mapping"]["sharing"]
@@ -50,19 +39,7 @@ def reference_solve_packed(self, w, R, problems, rng, stats) -> None:
         mapping[rule]["candidates"] += cfg.reads * P
         mapping[rule]["valid"] += v
     best = best.tolist()
-    for k, p in enumerate(problems):
-        if not cands[k]:
-            continue
-        top = min(best[k])
-        tol = 1e-9 * max(1.0, abs(top))
-        winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
-        # ties between rules (common: several rules find the same split) are
-        # broken at random so integer win counts stay unbiased
-        win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
-        mapping[win]["wins"] += 1
-        c = cands[k]
-        order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
-        p.cands = [c[i] for i in order]
+    keep_candidates(problems, rules, best, cands, rng, mapping)
 
 
 def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, seed):

@@ -18,7 +18,6 @@ import numpy as np
 from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
 from planners.base import SharingResult
 from planners.compute import ComputeReport
-from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.engine import STAGE_OK, run_stage
 from planners.ising.sharing.kernels import branch_problems, split_model
@@ -488,6 +487,45 @@ def assign_bundles(dist, R: int, groups, cost, bundle_order: str, stats: dict) -
     return current
 
 
+def problem_arrays(config, problems) -> tuple:
+    """``(q (P, f), Q (P, f, f), free (P, f), sizes, anchors (P, 2), reject (P,))`` of split problems,
+    zero-padded to the largest: a stage submission's input."""
+    P = len(problems)
+    f = max(len(p.free) for p in problems)
+    q = np.zeros((P, f))
+    Q = np.zeros((P, f, f))
+    free = np.zeros((P, f), dtype=np.int64)
+    sizes = np.empty(P, dtype=np.int64)
+    for k, p in enumerate(problems):
+        n = len(p.free)
+        sizes[k] = n
+        q[k, :n] = p.q
+        Q[k, :n, :n] = p.Q
+        free[k, :n] = p.free
+    anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
+    reject = np.array([config.reject_empty_robot_side and p.kind == "robots" for p in problems])
+    return q, Q, free, sizes, anchors, reject
+
+
+def keep_candidates(problems, rules, best, cands, rng, mapping) -> None:
+    """Each split's candidates (``cands[k]``: ``(cut, side0, side1, _)`` in first-read order), best cut
+    first, into ``problems[k].cands``; the winning rule (``best[k]``: each rule's best ``-cut``) counted,
+    ties between rules broken at random so integer win counts stay unbiased."""
+    for k, p in enumerate(problems):
+        if not cands[k]:
+            continue
+        top = min(best[k])
+        tol = 1e-9 * max(1.0, abs(top))
+        winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
+        # ties between rules (common: several rules find the same split) are
+        # broken at random so integer win counts stay unbiased
+        win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
+        mapping[win]["wins"] += 1
+        c = cands[k]
+        order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
+        p.cands = [c[i] for i in order]
+
+
 class ReferenceStages(StageSolver):
     """The stage submissions of the Python search: :class:`StageSolver` with its re-submissions and
     the decoding of one compiled stage call into candidates."""
@@ -518,19 +556,7 @@ class ReferenceStages(StageSolver):
         seed = int(rng.integers(2**63 - 1))
         rules = cfg.rules
         P = len(problems)
-        f = max(len(p.free) for p in problems)
-        q = np.zeros((P, f))
-        Q = np.zeros((P, f, f))
-        free = np.zeros((P, f), dtype=np.int64)
-        sizes = np.empty(P, dtype=np.int64)
-        for k, p in enumerate(problems):
-            n = len(p.free)
-            sizes[k] = n
-            q[k, :n] = p.q
-            Q[k, :n, :n] = p.Q
-            free[k, :n] = p.free
-        anchors = np.array([(p.a, p.b) for p in problems], dtype=np.int64)
-        reject = np.array([cfg.reject_empty_robot_side and p.kind == "robots" for p in problems])
+        q, Q, free, sizes, anchors, reject = problem_arrays(cfg, problems)
         # splits beyond the chip as their spin-budget branches, merged back below
         q, Q, free, sizes, nfix, fixed, parent = branch_problems(q, Q, free, sizes, int(self.chip.spec.n_spins))
         self.link.charged = self.meter.charged
@@ -556,19 +582,7 @@ class ReferenceStages(StageSolver):
         best = np.full((P, len(rules)), np.inf)
         np.minimum.at(best, parent, b_best)
         best = best.tolist()
-        for k, p in enumerate(problems):
-            if not cands[k]:
-                continue
-            top = min(best[k])
-            tol = 1e-9 * max(1.0, abs(top))
-            winners = [rule for rule, rb in zip(rules, best[k]) if rb <= top + tol]
-            # ties between rules (common: several rules find the same split) are
-            # broken at random so integer win counts stay unbiased
-            win = winners[int(rng.integers(len(winners)))] if len(winners) > 1 else winners[0]
-            mapping[win]["wins"] += 1
-            c = cands[k]
-            order = sorted(range(len(c)), key=lambda i: (-c[i][0], i))
-            p.cands = [c[i] for i in order]
+        keep_candidates(problems, rules, best, cands, rng, mapping)
 
 
 def reference_assign(sharing, dist, R: int, tour, rng, solve_packed=None) -> SharingResult:
@@ -580,7 +594,6 @@ def reference_assign(sharing, dist, R: int, tour, rng, solve_packed=None) -> Sha
     mapping = {r: {"candidates": 0, "valid": 0, "wins": 0} for r in self.config.rules}
     stats: dict = {"mapping": {"sharing": mapping}, "stages": 0, "splits": 0, "trivial_splits": 0, "bundles": 0,
                    "tour_solves": 0, "states": 0}
-    empty = tuple(() for _ in range(R))
     stages = ReferenceStages(self.config, self.chip)
     if solve_packed is not None:
         stages.solve_packed = lambda *a: solve_packed(stages, *a)
@@ -610,18 +623,7 @@ def reference_assign(sharing, dist, R: int, tour, rng, solve_packed=None) -> Sha
         assignment = tuple(tuple(sorted(t - R for t in ts)) for ts in sets)
         splits.memo = {}
     except (SharingFailure, ChipUnavailableError) as exc:
-        splits.memo = {}
-        unavailable = isinstance(exc, ChipUnavailableError)
-        reason = unavailable_message(exc) if unavailable else str(exc)
         compute = ComputeReport.from_ledger(meter.charged)
-        if pricer is not None:
-            compute = compute + pricer.compute
-        if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
-            from planners.sharing_classical import SSASharing
-
-            res = SSASharing().assign(dist, R, tour, rng)
-            return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
-                                 stats=flag(stats, "sharing", reason))
-        return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
+        return self.failed(exc, compute if pricer is None else compute + pricer.compute, dist, R, tour, rng, stats)
     compute = ComputeReport.from_ledger(meter.charged) + pricer.compute
     return SharingResult(assignment=assignment, compute=compute, stats=stats)

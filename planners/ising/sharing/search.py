@@ -112,18 +112,22 @@ class IsingSharing(ConfigAttributes):
                 pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
             return self._assign_compiled(dist, R, rng, stats, pricer)
         except (SharingFailure, ChipUnavailableError) as exc:
-            unavailable = isinstance(exc, ChipUnavailableError)
-            reason = unavailable_message(exc) if unavailable else str(exc)
             compute = ComputeReport.from_ledger(meter.charged)
-            if pricer is not None:
-                compute = compute + pricer.compute
-            if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
-                from planners.sharing_classical import SSASharing
+            return self.failed(exc, compute if pricer is None else compute + pricer.compute, dist, R, tour, rng, stats)
 
-                res = SSASharing().assign(dist, R, tour, rng)
-                return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
-                                     stats=flag(stats, "sharing", reason))
-            return SharingResult(assignment=empty, compute=compute, stats=stats, failure=reason)
+    def failed(self, exc, compute, dist, R, tour, rng, stats) -> SharingResult:
+        """The result of a sharing call that stopped with ``exc`` (a :class:`SharingFailure` or
+        :class:`ising_backend.ChipUnavailableError`) after spending ``compute``: SSA's sharing
+        (flagged) where ``fallback`` asks for it, else a failure result naming why."""
+        unavailable = isinstance(exc, ChipUnavailableError)
+        reason = unavailable_message(exc) if unavailable else str(exc)
+        if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
+            from planners.sharing_classical import SSASharing
+
+            res = SSASharing().assign(dist, R, tour, rng)
+            return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
+                                 stats=flag(stats, "sharing", reason))
+        return SharingResult(assignment=tuple(() for _ in range(R)), compute=compute, stats=stats, failure=reason)
 
     def _assign_compiled(self, dist, R, rng, stats, pricer) -> SharingResult | None:
         """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and

@@ -26,7 +26,7 @@ from numba.typed import Dict
 from planners.ising.sharing.engine import run_stage
 from planners.ising.sharing.compiled_coarse import coarsen, expand, fine_cut
 from planners.ising.sharing.kernels import add_balance, branch_problems, split_model
-from planners.ising.sharing.node_sets import intern, nodes_of, size, sizes_of
+from planners.ising.sharing.node_sets import ROBOTS, SIZE, intern, nodes_of, size, sizes_of
 
 __all__ = ["COUNTERS", "split_states", "solve_problems", "problems_of", "coarse_split", "FAILED_SPLIT", "REFUSED_STAGE",
            "OUTSIDE", "UNCOARSENED"]
@@ -368,11 +368,11 @@ def _todo(groups, ng, R, kind, base_max, above, pool):
     for si in range(S):
         for gi in range(ng[si]):
             g = groups[si, gi]
-            nr = meta[g, 1]
+            nr = meta[g, ROBOTS]
             if kind == 0:
                 take = nr >= 2
             else:
-                take = meta[g, 0] - nr > (base_max if nr else above)
+                take = meta[g, SIZE] - nr > (base_max if nr else above)
             if take:
                 ts[n] = si
                 tg[n] = gi

@@ -1,12 +1,12 @@
 """Node sets of the compiled Ising target sharing: sorted node arrays interned in a pool.
 
-A set is an ``int64`` id into a pool ``(sets, index, chain, targets, unions)``: the sorted node
-arrays, a dict from a set's hash (XOR of a splitmix64 of each node) to the first id with that
-hash, for each id the next one with the same hash (-1: none) and the id of its targets (-1: not
-yet known; one pool serves one world, so one robot count), and the unions made so far.  Equal sets get the same id, so ids compare,
-key memos and fill tables as the sets would, in worlds of any size.  Id :data:`EMPTY` is the
-empty set.  The pool keeps its own copy of an interned array; callers never write to the arrays
-it hands out.
+A set is an ``int64`` id into a pool of one world (``R`` robots): its sorted nodes are stored
+back to back in one arena, and a table holds per id the start in the arena, the size, the robot
+count (nodes ``< R``), the next id with the same hash (-1: none) and the id of its targets (-1:
+not yet known); a dict maps a set's hash (XOR of a splitmix64 of each node) to the first id with
+that hash, another the unions made so far.  Equal sets get the same id, so ids compare, key memos
+and fill tables as the sets would, in worlds of any size.  Id :data:`EMPTY` is the empty set.
+Arrays handed out are views of the arena: callers never write to them.
 """
 
 from __future__ import annotations
@@ -16,10 +16,12 @@ import numpy as np
 from numba import types
 from numba.typed import Dict, List
 
-__all__ = ["EMPTY", "new_pool", "intern", "nodes_of", "size", "union", "robots_in", "targets_of", "contains"]
+__all__ = ["EMPTY", "new_pool", "intern", "nodes_of", "size", "sizes_of", "union", "robots_in", "targets_of",
+           "contains"]
 
 EMPTY = 0
 _PAIR = types.UniTuple(types.int64, 2)
+START, SIZE, ROBOTS, CHAIN, TARGETS = range(5)  # columns of the table
 
 
 @numba.njit(cache=True, inline="always")
@@ -32,64 +34,84 @@ def _mix(x):
 
 @numba.njit(cache=True)
 def intern(pool, nodes):
-    """The id of the sorted, distinct ``nodes`` (a new id, and a copy kept, when first met)."""
-    sets, index, chain, targets, _unions, meta, R = pool
+    """The id of the sorted, distinct ``nodes`` (a new id, the nodes copied in, when first met)."""
+    arena_of, index, table_of, _unions, R, count = pool
+    n = nodes.shape[0]
     h = np.uint64(0)
     for v in nodes:
         h ^= _mix(np.uint64(v))
-    new = len(sets)
+    new = count[0]
+    table = table_of[0]
+    arena = arena_of[0]
     if h in index:
         i = index[h]
         while True:
-            s = sets[i]
-            if s.shape[0] == nodes.shape[0] and (s == nodes).all():
-                return i
-            if chain[i] < 0:
+            if table[i, SIZE] == n:
+                start = table[i, START]
+                same = True
+                for k in range(n):
+                    if arena[start + k] != nodes[k]:
+                        same = False
+                        break
+                if same:
+                    return i
+            if table[i, CHAIN] < 0:
                 break
-            i = chain[i]
-        chain[i] = new
+            i = table[i, CHAIN]
+        table[i, CHAIN] = new
     else:
         index[h] = new
-    sets.append(nodes.copy())
-    chain.append(-1)
-    targets.append(-1)
-    m = meta[0]
-    if new >= m.shape[0]:
-        grown = np.zeros((2 * m.shape[0], 2), dtype=np.int64)
-        grown[: m.shape[0]] = m
-        meta[0] = grown
-        m = grown
-    m[new, 0] = nodes.shape[0]
-    m[new, 1] = np.searchsorted(nodes, R)
+    if new >= table.shape[0]:
+        grown = np.empty((2 * table.shape[0], 5), dtype=np.int64)
+        grown[:new] = table[:new]
+        table_of[0] = grown
+        table = grown
+    used = count[1]
+    if used + n > arena.shape[0]:
+        more = np.empty(max(2 * arena.shape[0], used + n), dtype=np.int64)
+        more[:used] = arena[:used]
+        arena_of[0] = more
+        arena = more
+    arena[used:used + n] = nodes
+    table[new, START] = used
+    table[new, SIZE] = n
+    table[new, ROBOTS] = np.searchsorted(nodes, R)
+    table[new, CHAIN] = -1
+    table[new, TARGETS] = -1
+    count[0] += 1
+    count[1] += n
     return new
 
 
 @numba.njit(cache=True)
 def new_pool(R):
     """An empty pool holding :data:`EMPTY`, for a world of ``R`` robots."""
-    meta = List.empty_list(types.int64[:, ::1])
-    meta.append(np.zeros((64, 2), dtype=np.int64))
-    pool = (List.empty_list(types.int64[::1]), Dict.empty(key_type=types.uint64, value_type=types.int64),
-            List.empty_list(types.int64), List.empty_list(types.int64),
-            Dict.empty(key_type=_PAIR, value_type=types.int64), meta, np.int64(R))
+    arena = List.empty_list(types.int64[::1])
+    arena.append(np.empty(1024, dtype=np.int64))
+    table = List.empty_list(types.int64[:, ::1])
+    table.append(np.empty((128, 5), dtype=np.int64))
+    pool = (arena, Dict.empty(key_type=types.uint64, value_type=types.int64), table,
+            Dict.empty(key_type=_PAIR, value_type=types.int64), np.int64(R), np.zeros(2, dtype=np.int64))
     intern(pool, np.zeros(0, dtype=np.int64))
     return pool
 
 
 @numba.njit(cache=True, inline="always")
 def nodes_of(pool, s):
-    return pool[0][s]
+    row = pool[2][0][s]
+    return pool[0][0][row[START]:row[START] + row[SIZE]]
 
 
 @numba.njit(cache=True, inline="always")
 def size(pool, s):
-    return pool[5][0][s, 0]
+    return pool[2][0][s, SIZE]
 
 
 @numba.njit(cache=True, inline="always")
 def sizes_of(pool):
-    """``(n, 2)``: every set's size and robot count so far (read before the next :func:`intern`)."""
-    return pool[5][0]
+    """The table (columns :data:`SIZE`, :data:`ROBOTS`, ...) of every set so far; read it before the
+    next :func:`intern`, which may grow it."""
+    return pool[2][0]
 
 
 @numba.njit(cache=True)
@@ -100,10 +122,10 @@ def union(pool, a, b):
     if a == EMPTY:
         return b
     key = (min(a, b), max(a, b))
-    unions = pool[4]
+    unions = pool[3]
     if key in unions:
         return unions[key]
-    x, y = pool[0][a], pool[0][b]
+    x, y = nodes_of(pool, a), nodes_of(pool, b)
     out = np.empty(x.shape[0] + y.shape[0], dtype=np.int64)
     i = j = n = 0
     while i < x.shape[0] or j < y.shape[0]:
@@ -126,23 +148,22 @@ def union(pool, a, b):
 @numba.njit(cache=True, inline="always")
 def robots_in(pool, s, R):
     """How many of set ``s``'s nodes are robots (nodes ``< R``, the pool's robot count)."""
-    return pool[5][0][s, 1]
+    return pool[2][0][s, ROBOTS]
 
 
 @numba.njit(cache=True)
 def targets_of(pool, s, R):
     """The id of set ``s`` without its robots."""
-    t = pool[3][s]
+    t = pool[2][0][s, TARGETS]
     if t < 0:
-        x = pool[0][s]
-        r = np.searchsorted(x, R)
-        t = s if r == 0 else intern(pool, x[r:])
-        pool[3][s] = t
+        r = pool[2][0][s, ROBOTS]
+        t = s if r == 0 else intern(pool, nodes_of(pool, s)[r:])
+        pool[2][0][s, TARGETS] = t
     return t
 
 
 @numba.njit(cache=True)
 def contains(pool, s, v):
-    x = pool[0][s]
+    x = nodes_of(pool, s)
     i = np.searchsorted(x, v)
     return i < x.shape[0] and x[i] == v

@@ -1,15 +1,14 @@
 """Ising target sharing (paper 5.3) from split stages to the final sets in one compiled call.
 
 Contract: :func:`assign_kernel` does what :meth:`~.search.IsingSharing.assign` does for a finite
-world of ``R >= 2`` robots and ``N >= 1`` targets: the split stages, with the
-balance term when set (:mod:`.compiled_stages`), bundle placement in every state
-(``assign_bundles``), the choice of state and the boundary refinement (``refine_boundaries``),
-with the same rng draws as the Python search in ``tests/sharing_search_reference.py``, its oracle.  Bundles are priced as
-:class:`~.bundles.BundlePricer` prices them, one memo per call: with the pricing tour ``"auto"``
-by the Held-Karp kernel up to 13 targets and the host 3-opt tour's kernel beyond, with any other
-by a callback into the call's pricer (:func:`_price_callback`).
-It returns ``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller
-names it.
+world of ``R >= 2`` robots and ``N >= 1`` targets: the split stages, with the balance term when
+set, coarse splits and spin-budget branches for groups beyond the chip (:mod:`.compiled_stages`),
+bundle placement in every state, the choice of state and the boundary refinement -- the decisions
+and rng draws of the Python search in ``tests/sharing_search_reference.py``, its oracle.  Bundles
+are priced as :class:`~.bundles.BundlePricer` prices them, one memo per call: with the pricing
+tour ``"auto"`` by the Held-Karp kernel up to 13 targets and the host 3-opt tour's kernel beyond,
+with any other by a callback into the call's pricer (:func:`_price_callback`).  It returns
+``ok = False`` with the reason in ``book[4]`` (see :mod:`.compiled_stages`); the caller names it.
 """
 
 from __future__ import annotations

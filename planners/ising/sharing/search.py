@@ -61,7 +61,7 @@ class IsingSharing(ConfigAttributes):
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         self.stages = StageSolver(self.config, self.chip)
         cfg = self.config
-        # the arguments of the whole sharing in one compiled call (.compiled_assign), for worlds it takes
+        # the arguments of the whole sharing in one compiled call (.compiled_assign)
         chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
                      *self.stages.kernel_args)
         opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,

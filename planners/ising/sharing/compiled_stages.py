@@ -1,14 +1,16 @@
 """The split stages of Ising target sharing (paper 5.3, Algorithm 3) in compiled code.
 
 Contract: :func:`split_states` makes the decisions of ``SplitSearch.split_all`` in
-``tests/sharing_search_reference.py`` (its oracle; the tests compare both) -- the same groups, memo, stage submissions
-(:func:`.engine.run_stage`), seeds and win draws from the caller's ``numpy.random.Generator``,
-retries, candidate order and beam -- with groups held as ids of a node-set pool (:mod:`.node_sets`).
-The caller hands it only worlds whose groups fit the chip (no coarse split, no spin-budget
-branching: ``R + N - 2 <= n_spins``).  A split with no valid candidate after the retries, a stage
-program the chip would refuse, or anything outside that contract returns ``ok = False`` at once
-with the reason in ``book[4]`` (:data:`FAILED_SPLIT`, :data:`REFUSED_STAGE`, :data:`OUTSIDE`),
-and the caller names it.
+``tests/sharing_search_reference.py`` (its oracle; the tests compare both) -- the same groups,
+memo, stage submissions (:func:`.engine.run_stage`), seeds and win draws from the caller's
+``numpy.random.Generator``, retries, candidate order and beam -- with groups held as ids of a
+node-set pool (:mod:`.node_sets`).  A split a few spins beyond the chip goes into its stage's
+submission as its spin-budget branches (:func:`.kernels.branch_problems`); a group beyond that
+is split on target clusters first (:func:`coarse_split`).  A split with no valid candidate after
+the retries, a stage program the chip would refuse, robots that cannot be coarsened onto the
+chip, or more submissions or candidates than the caller made room for returns ``ok = False`` at
+once with the reason in ``book[4]`` (:data:`FAILED_SPLIT`, :data:`REFUSED_STAGE`,
+:data:`UNCOARSENED`, :data:`OUTSIDE`), and the caller names it.
 
 Bookkeeping is shared with :mod:`.compiled_assign` through ``book = (mapping (k, 3), counters,
 sub_calls, sub_emu, failure (3,))``: per rule candidates / valid / wins, the counters indexed below,

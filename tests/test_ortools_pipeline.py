@@ -4,10 +4,7 @@ import pytest
 
 pytest.importorskip("ortools")
 
-from agents.controllers import uses_chip, validate_controller_spec  # noqa: E402
 from mrmt_env import generate_world  # noqa: E402
-from planners.joint_routing import KeepOrderTour  # noqa: E402
-from planners.peers.ortools_routing import ORToolsSharing  # noqa: E402
 from planners.pipeline import make_pipeline  # noqa: E402
 from planners.plan import validate_plan  # noqa: E402
 
@@ -16,13 +13,6 @@ SOLUTIONS = {"solutions": 200, "seconds": None}
 
 def _pipe(**opts):
     return make_pipeline("ortools", sharing_options={**SOLUTIONS, **opts})
-
-
-def test_preset_layers():
-    p = make_pipeline("ortools")
-    assert isinstance(p.sharing, ORToolsSharing) and isinstance(p.tour, KeepOrderTour)
-    assert p.sharing.seconds == 1.0 and p.sharing.solutions is None and p.name == "ortools"
-    assert not uses_chip("ortools") and validate_controller_spec("ortools") == "ortools"
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

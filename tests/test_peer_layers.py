@@ -30,6 +30,17 @@ def _layer(preset):
 
 
 @pytest.mark.parametrize("preset", PEERS)
+def test_preset_layers(preset):
+    from agents.controllers import uses_chip, validate_controller_spec
+
+    layer, _budget, count = _layer(preset)
+    p = make_pipeline(preset)
+    assert isinstance(p.sharing, layer) and isinstance(p.tour, KeepOrderTour)
+    assert p.sharing.seconds == 1.0 and getattr(p.sharing, count) is None and p.name == preset
+    assert not uses_chip(preset) and validate_controller_spec(preset) == preset
+
+
+@pytest.mark.parametrize("preset", PEERS)
 def test_separated_components_keep_each_robot_on_its_side(preset):
     _, budget, _ = _layer(preset)
     grid = np.zeros((5, 9), dtype=bool)

@@ -8,11 +8,11 @@ import pytest
 pytest.importorskip("pyvrp")
 
 from agents.cli import main  # noqa: E402
-from agents.controllers import make_controller, uses_chip, validate_controller_spec  # noqa: E402
+from agents.controllers import make_controller  # noqa: E402
 from mrmt_env import generate_world  # noqa: E402
 from mrmt_env.io import write_worlds  # noqa: E402
 from planners.joint_routing import KeepOrderTour  # noqa: E402
-from planners.peers.pyvrp_routing import PyVRPSharing, routing_data  # noqa: E402
+from planners.peers.pyvrp_routing import routing_data  # noqa: E402
 from planners.pipeline import make_pipeline  # noqa: E402
 from planners.plan import validate_plan  # noqa: E402
 
@@ -21,13 +21,6 @@ ITERS = {"iterations": 300, "seconds": None}
 
 def _pipe(**opts):
     return make_pipeline("pyvrp", sharing_options={**ITERS, **opts})
-
-
-def test_preset_layers():
-    p = make_pipeline("pyvrp")
-    assert isinstance(p.sharing, PyVRPSharing) and isinstance(p.tour, KeepOrderTour)
-    assert p.sharing.seconds == 1.0 and p.sharing.iterations is None and p.name == "pyvrp"
-    assert not uses_chip("pyvrp") and validate_controller_spec("pyvrp") == "pyvrp"
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -1,0 +1,1 @@
+"""The League of Robot Runners: instances, the MAPF_T rules, the simulator and its envs."""

@@ -1,0 +1,90 @@
+"""The LoRR simulator: one instance's robots, tasks and record, stepped as the start kit steps it.
+
+Contract: ``LoRRSimulator(instance)``; :meth:`LoRRSimulator.step` ``(actions, proposal=None) -> tasks
+finished``.  Per step (start kit ``BaseSystem::simulate``): the joint action is checked
+(:mod:`mrmt_env.lorr.rules`); an invalid one is replaced by every robot waiting and counted in
+:attr:`errors`; robots move; then the task rules (:mod:`mrmt_env.lorr.tasks`) take the proposed
+schedule (2024), mark errands reached and reveal tasks.  The record (proposed and executed actions,
+events, schedules) is what :mod:`agents.lorr.output` writes; ``makespan`` is, as in the start
+kit, the most steps any robot spent holding a task.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrmt_env.lorr.instance import LoRRInstance
+from mrmt_env.lorr.rules import N_ACTIONS, WAIT, first_error, next_states
+from mrmt_env.lorr.tasks import make_tasks
+
+__all__ = ["LoRRSimulator"]
+
+
+class LoRRSimulator:
+    """One run of ``instance`` (see the module docstring).  State: :attr:`pos`, :attr:`orient`
+    (``(R,)`` int64), :attr:`t`, :attr:`tasks` (the task rules, with ``goal``, ``assigned``,
+    ``finished``, ``events``)."""
+
+    def __init__(self, instance: LoRRInstance, record: bool = True) -> None:
+        self.inst = instance
+        self.width = instance.width
+        self.blocked = np.ascontiguousarray(instance.grid.reshape(-1))
+        self.pos = instance.starts.copy()
+        self.orient = np.zeros(instance.team_size, dtype=np.int64)
+        self.start_pos = self.pos.copy()
+        self.start_orient = self.orient.copy()
+        self.t = 0
+        self.tasks = make_tasks(instance)
+        self.errors: list[tuple[str, int, int, int]] = []
+        self.record = bool(record)
+        self.planned: list[np.ndarray] = []
+        self.actual: list[np.ndarray] = []
+        self.busy = np.zeros(instance.team_size, dtype=np.int64)
+
+    @property
+    def n_robots(self) -> int:
+        return len(self.pos)
+
+    @property
+    def finished(self) -> int:
+        return self.tasks.finished
+
+    @property
+    def makespan(self) -> int:
+        return int(self.busy.max()) if len(self.busy) else 0
+
+    def check_actions(self, actions) -> np.ndarray:
+        """``actions`` as ``(R,)`` int64 codes; ``ValueError`` naming a wrong length or code."""
+        a = np.asarray(actions)
+        if a.shape != (self.n_robots,):
+            raise ValueError(f"a joint action holds one action per robot: expected shape ({self.n_robots},), "
+                             f"got {a.shape}")
+        if a.dtype.kind not in "iu":
+            if a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.round(a)):
+                a = a.astype(np.int64)
+            else:
+                raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1}, got dtype {a.dtype}")
+        bad = np.flatnonzero((a < 0) | (a >= N_ACTIONS))
+        if len(bad):
+            k = int(bad[0])
+            raise ValueError(f"robot {k}: action {a[k]} is not one of 0..{N_ACTIONS - 1} (F, R, C, W)")
+        return a.astype(np.int64)
+
+    def step(self, actions, proposal=None) -> int:
+        """Move the robots (all wait on an invalid joint action), then update tasks with ``proposal``
+        (``(R,)`` task ids or -1; ``None`` keeps the schedule).  Returns the tasks finished."""
+        a = self.check_actions(actions)
+        self.busy += self.tasks.goal >= 0
+        nxt, nori = next_states(self.pos, self.orient, a, self.width)
+        error = first_error(self.pos, nxt, self.blocked)
+        if self.record:
+            self.planned.append(a.astype(np.int8))
+        if error is not None:
+            self.errors.append((error[0], error[1], error[2], self.t + 1))
+            a = np.full(self.n_robots, WAIT, dtype=np.int64)
+        else:
+            self.pos, self.orient = nxt, nori
+        if self.record:
+            self.actual.append(a.astype(np.int8))
+        self.t += 1
+        return self.tasks.update(self.pos, proposal, self.t)

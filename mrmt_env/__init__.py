@@ -49,6 +49,9 @@ __all__ = [
     "MRMTLifelongEnv",
     "lifelong_parallel_env",
     "lifelong_env",
+    "LORR_IDS",
+    "LoRREnv",
+    "lorr_parallel_env",
 ]
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
@@ -101,8 +104,18 @@ LIFELONG_IDS = {
 }
 
 
+#: The League of Robot Runners id (:mod:`mrmt_env.lorr`): ``gymnasium.make("mrmt_env/LoRR-v0",
+#: instance=PATH)`` runs a LoRR instance file under the start kit's rules (default: a small shipped one).
+LORR_IDS = {"mrmt_env/LoRR-v0": "mrmt_env.lorr.env:LoRREnv"}
+
+
 def _register() -> None:
     import gymnasium
+
+    for env_id, entry in LORR_IDS.items():
+        if env_id not in gymnasium.registry:
+            # the env truncates itself after the instance's simulation time
+            gymnasium.register(id=env_id, entry_point=entry)
 
     for ids, entry, vector in (
         (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", "mrmt_env.grid_vector:MRMTVectorEnv"),
@@ -128,6 +141,8 @@ def _register() -> None:
         register("aec", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_env")
     if "mrmt_env/mrmt_lifelong_v0" not in parallel_registry:
         register("parallel", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_parallel_env")
+    if "mrmt_env/lorr_v0" not in parallel_registry:
+        register("parallel", "mrmt_env/lorr_v0", entry_point="mrmt_env.lorr.pz:lorr_parallel_env")
 
 
 _register()
@@ -149,6 +164,8 @@ _LAZY = {
     "MRMTLifelongEnv": "mrmt_env.lifelong_env",
     "lifelong_parallel_env": "mrmt_env.lifelong_pz",
     "lifelong_env": "mrmt_env.lifelong_pz",
+    "LoRREnv": "mrmt_env.lorr.env",
+    "lorr_parallel_env": "mrmt_env.lorr.pz",
 }
 
 

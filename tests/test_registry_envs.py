@@ -13,7 +13,14 @@ from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import mrmt_env  # noqa: F401  (registers the ids)
 
-IDS = sorted(i for i in gym.registry if i.startswith("mrmt_env/"))
+# the MRMT families share world, info and observation conventions; mrmt_env/LoRR-v0 (an instance
+# file, dict observations) runs the same gymnasium checks in test_lorr_env.py
+IDS = sorted(i for i in gym.registry if i.startswith("mrmt_env/MRMT-"))
+
+
+def test_every_id_is_checked():
+    lorr = {i for i in gym.registry if i.startswith("mrmt_env/") and i not in IDS}
+    assert lorr == set(mrmt_env.LORR_IDS)
 
 
 def test_ids_registered():

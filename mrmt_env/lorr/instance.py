@@ -142,6 +142,8 @@ def read_lorr_map(path) -> np.ndarray:
     if height * width > MAX_GRID_CELLS:
         raise LoRRFormatError(f"{path}: {height}x{width} = {height * width} cells; at most {MAX_GRID_CELLS} "
                               "(MAX_GRID_CELLS)")
+    while len(lines) > i and not lines[-1].strip():
+        lines.pop()
     rows = lines[i:i + height]
     if len(rows) < height:
         raise LoRRFormatError(f"{path}: the header says height {height} but the map has {len(rows)} rows")

@@ -1,0 +1,184 @@
+"""``mrmt_env/LoRR-v0``: a League of Robot Runners instance as a Gymnasium env.
+
+Contract: ``gym.make("mrmt_env/LoRR-v0", instance=PATH)`` (default: the small instance shipped
+with the package).  One step = one LoRR timestep: the action is the joint MAPF_T move
+(``MultiDiscrete([4] * R)``: 0 forward, 1 turn clockwise, 2 turn counter-clockwise, 3 wait),
+the schedule of the step is the scheduler's proposal (``scheduler="greedy"``, the start kit's
+default; ``None``: only what :meth:`LoRREnv.propose` is given; or any object with
+``schedule(sim) -> (R,) task ids``), made *before* the move so the observation's goals are the
+ones the move should serve, applied after it as the start kit applies it.  2023 instances assign
+tasks by their rule.  Reward: tasks finished in the step.  Never terminates; truncates after
+``steps`` (the instance's simulation time, else 1000).  The map is static:
+``env.unwrapped.instance.grid``; the full state is ``env.unwrapped.sim``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from mrmt_env.lorr.greedy import GreedyScheduler
+from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
+from mrmt_env.lorr.rules import N_ACTIONS, ORIENT_LETTERS
+from mrmt_env.lorr.sim import LoRRSimulator
+
+__all__ = ["LoRREnv", "LoRRSetup", "DEFAULT_STEPS"]
+
+DEFAULT_STEPS = 1000
+_ARROWS = ">v<^"
+
+
+class LoRRSetup:
+    """What every form of the LoRR env is built from: the instance, the steps and the scheduler."""
+
+    def __init__(self, instance=None, steps=None, scheduler="greedy") -> None:
+        if instance is None:
+            instance = example_instance_path()
+        self.instance = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
+        limit = steps if steps is not None else (self.instance.steps or DEFAULT_STEPS)
+        if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+            raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
+        self.steps = int(limit)
+        if scheduler == "greedy":
+            scheduler = GreedyScheduler()
+        elif scheduler is not None and not callable(getattr(scheduler, "schedule", None)):
+            raise ValueError(f"scheduler must be 'greedy', None or an object with schedule(sim), got {scheduler!r}")
+        self.scheduler = scheduler
+        self.sim: LoRRSimulator | None = None
+        self.pending: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self.sim = LoRRSimulator(self.instance)
+        if self.scheduler is not None and hasattr(self.scheduler, "reset"):
+            self.scheduler.reset(self.sim)
+        self.pending = None
+        self.plan()
+
+    def plan(self) -> None:
+        """The scheduler's proposal for the coming step (2024 instances)."""
+        sim = self.sim
+        if self.scheduler is not None and sim.inst.strategy is None:
+            self.pending = np.asarray(self.scheduler.schedule(sim), dtype=np.int64)
+        else:
+            self.pending = None
+
+    def propose(self, schedule) -> None:
+        sim = self.sim
+        if sim.inst.strategy is not None:
+            raise ValueError(f"{sim.inst.name} assigns tasks by its {sim.inst.strategy!r} rule; it takes no schedule")
+        s = np.asarray(schedule)
+        if s.shape != (sim.n_robots,) or s.dtype.kind not in "iu":
+            raise ValueError(f"a schedule is one task id (or -1) per robot: expected ({sim.n_robots},) integers, "
+                             f"got shape {s.shape} dtype {s.dtype}")
+        self.pending = s.astype(np.int64)
+
+    def goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(task, goal)`` per robot under the pending schedule: the task it is to serve and that
+        task's next errand (-1 without one)."""
+        sim = self.sim
+        tasks = sim.tasks
+        if self.pending is None:
+            return tasks.assigned.copy(), tasks.goal.copy()
+        task = self.pending.copy()
+        goal = tasks.goal.copy()
+        for a in np.flatnonzero(task != tasks.assigned).tolist():
+            k = int(task[a])
+            ok = k in tasks.open
+            goal[a] = int(tasks.remaining(k)[0]) if ok else -1
+        return task, goal
+
+    def step(self, actions) -> int:
+        done = self.sim.step(actions, self.pending)
+        self.plan()
+        return done
+
+    def info(self) -> dict:
+        sim = self.sim
+        return {"step": sim.t, "tasks_finished": sim.finished, "errands_reached": sim.tasks.errands_done,
+                "errors": len(sim.errors), "schedule_errors": len(sim.tasks.schedule_errors)}
+
+
+class LoRREnv(gym.Env):
+    """A LoRR instance, one timestep per step (see the module docstring).
+
+    Observation (``Dict``): ``position`` (flat cells ``row * W + col``), ``orientation`` (0 east,
+    1 south, 2 west, 3 north), ``task`` (the task each robot is to serve, -1 none) and ``goal``
+    (that task's next errand, -1 none), each ``(R,)`` int64.  ``info``: ``step``,
+    ``tasks_finished``, ``errands_reached``, ``errors`` (invalid joint actions, each made a wait),
+    ``schedule_errors`` (rejected schedules).
+    """
+
+    metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
+
+    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.setup = LoRRSetup(instance, steps, scheduler)
+        inst = self.setup.instance
+        self.instance = inst
+        r, cells = inst.team_size, inst.grid.size
+        self.n_robots = r
+        self.action_space = spaces.MultiDiscrete([N_ACTIONS] * r)
+        big = np.iinfo(np.int64).max
+        self.observation_space = spaces.Dict({
+            "position": spaces.Box(0, cells - 1, (r,), np.int64),
+            "orientation": spaces.Box(0, 3, (r,), np.int64),
+            "task": spaces.Box(-1, big, (r,), np.int64),
+            "goal": spaces.Box(-1, cells - 1, (r,), np.int64),
+        })
+
+    @property
+    def sim(self) -> LoRRSimulator:
+        return self.setup.sim
+
+    def propose(self, schedule) -> None:
+        """Replace the coming step's schedule (one task id or -1 per robot); it is checked, as the
+        start kit checks it, when the step applies it."""
+        self.setup.propose(schedule)
+
+    def _obs(self) -> dict:
+        task, goal = self.setup.goals()
+        return {"position": self.sim.pos.copy(), "orientation": self.sim.orient.copy(), "task": task, "goal": goal}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self.setup.reset()
+        return self._obs(), self.setup.info()
+
+    def step(self, action):
+        if self.sim is None:
+            raise RuntimeError("call reset() before step()")
+        done = self.setup.step(action)
+        truncated = self.sim.t >= self.setup.steps
+        return self._obs(), float(done), False, truncated, self.setup.info()
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; give render_mode='ansi' or 'rgb_array'")
+            return None
+        return render_lorr(self.setup, self.render_mode)
+
+
+def render_lorr(setup: LoRRSetup, mode: str):
+    """``ansi``: the map with robots as arrows (``>v<^``), goals ``*``; ``rgb_array``: the same as
+    an ``(H, W, 3)`` uint8 image (obstacles dark, goals yellow, robots blue)."""
+    inst, sim = setup.instance, setup.sim
+    h, w = inst.grid.shape
+    _, goal = setup.goals()
+    if mode == "rgb_array":
+        img = np.full((h * w, 3), 255, dtype=np.uint8)
+        img[inst.grid.reshape(-1)] = (40, 40, 40)
+        img[goal[goal >= 0]] = (230, 190, 30)
+        img[sim.pos] = (40, 90, 220)
+        return img.reshape(h, w, 3)
+    rows = [["@" if b else "." for b in row] for row in inst.grid.tolist()]
+    for g in goal[goal >= 0].tolist():
+        rows[g // w][g % w] = "*"
+    for p, o in zip(sim.pos.tolist(), sim.orient.tolist()):
+        rows[p // w][p % w] = _ARROWS[o]
+    head = f"t={sim.t} tasks finished={sim.finished} errors={len(sim.errors)} (robots {''.join(ORIENT_LETTERS)} = >v<^)"
+    return head + "\n" + "\n".join("".join(r) for r in rows) + "\n"

@@ -132,3 +132,23 @@ def test_parallel_and_gym_forms_run_the_same_episode():
         assert r1 == r2["robot_0"]
     state = par.state()
     assert np.array_equal(state[:, 0], env.sim.pos) and np.array_equal(state[:, 1], env.sim.orient)
+
+
+def test_four_direction_model_moves_without_turning():
+    env = gym.make("mrmt_env/LoRR-v0", action_model="MAPF").unwrapped
+    assert env.action_space.nvec.tolist() == [5] * env.n_robots
+    obs, _ = env.reset(seed=0)
+    w = env.instance.width
+    grid = env.instance.grid.reshape(-1)
+    # robot 0 steps to a free neighbour, everyone else stays
+    p = int(obs["position"][0])
+    for action, delta in ((1, -w), (2, w), (3, -1), (4, 1)):
+        q = p + delta
+        if 0 <= q < grid.size and not grid[q] and q not in obs["position"] and abs(q % w - p % w) <= 1:
+            a = np.zeros(env.n_robots, dtype=np.int64)
+            a[0] = action
+            obs, *_, info = env.step(a)
+            assert obs["position"][0] == q and (obs["orientation"] == 0).all() and info["errors"] == 0
+            break
+    with pytest.raises(ValueError, match="action_model must be one of MAPF_T, MAPF, got 'hex'"):
+        gym.make("mrmt_env/LoRR-v0", action_model="hex")

@@ -7,7 +7,8 @@ the schedule of the step is the scheduler's proposal (``scheduler="greedy"``, th
 default; ``None``: only what :meth:`LoRREnv.propose` is given; or any object with
 ``schedule(sim) -> (R,) task ids``), made *before* the move so the observation's goals are the
 ones the move should serve, applied after it as the start kit applies it.  2023 instances assign
-tasks by their rule.  Reward: tasks finished in the step.  Never terminates; truncates after
+tasks by their rule.  ``action_model="MAPF"``: the package's four-direction moves instead
+(``MultiDiscrete([5] * R)``: stay, up, down, left, right; orientation stays east).  Reward: tasks finished in the step.  Never terminates; truncates after
 ``steps`` (the instance's simulation time, else 1000).  The map is static:
 ``env.unwrapped.instance.grid``; the full state is ``env.unwrapped.sim``.
 """
@@ -22,7 +23,7 @@ from gymnasium import spaces
 
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
-from mrmt_env.lorr.rules import N_ACTIONS, ORIENT_LETTERS
+from mrmt_env.lorr.rules import ORIENT_LETTERS, n_actions
 from mrmt_env.lorr.sim import LoRRSimulator
 
 __all__ = ["LoRREnv", "LoRRSetup", "DEFAULT_STEPS"]
@@ -34,7 +35,9 @@ _ARROWS = ">v<^"
 class LoRRSetup:
     """What every form of the LoRR env is built from: the instance, the steps and the scheduler."""
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy") -> None:
+    def __init__(self, instance=None, steps=None, scheduler="greedy", action_model: str = "MAPF_T") -> None:
+        self.n_actions = n_actions(action_model)
+        self.action_model = action_model
         if instance is None:
             instance = example_instance_path()
         self.instance = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
@@ -51,7 +54,7 @@ class LoRRSetup:
         self.pending: np.ndarray | None = None
 
     def reset(self) -> None:
-        self.sim = LoRRSimulator(self.instance)
+        self.sim = LoRRSimulator(self.instance, action_model=self.action_model)
         if self.scheduler is not None and hasattr(self.scheduler, "reset"):
             self.scheduler.reset(self.sim)
         self.pending = None
@@ -113,16 +116,17 @@ class LoRREnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None) -> None:
+    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
+                 action_model: str = "MAPF_T") -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.setup = LoRRSetup(instance, steps, scheduler)
+        self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance
         self.instance = inst
         r, cells = inst.team_size, inst.grid.size
         self.n_robots = r
-        self.action_space = spaces.MultiDiscrete([N_ACTIONS] * r)
+        self.action_space = spaces.MultiDiscrete([self.setup.n_actions] * r)
         big = np.iinfo(np.int64).max
         self.observation_space = spaces.Dict({
             "position": spaces.Box(0, cells - 1, (r,), np.int64),

@@ -14,7 +14,6 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from mrmt_env.lorr.env import LoRRSetup, render_lorr
-from mrmt_env.lorr.rules import N_ACTIONS
 
 __all__ = ["LoRRParallelEnv", "lorr_parallel_env"]
 
@@ -25,11 +24,12 @@ class LoRRParallelEnv(ParallelEnv):
     metadata = {"render_modes": ["ansi", "rgb_array"], "name": "lorr_v0", "is_parallelizable": True,
                 "render_fps": 8}
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None) -> None:
+    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
+                 action_model: str = "MAPF_T") -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
-        self.setup = LoRRSetup(instance, steps, scheduler)
+        self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance
         cells = inst.grid.size
         self.possible_agents = [f"robot_{k}" for k in range(inst.team_size)]
@@ -42,7 +42,7 @@ class LoRRParallelEnv(ParallelEnv):
             "goal": spaces.Box(-1, cells - 1, (), np.int64),
         })
         self._obs_space = obs
-        self._act_space = spaces.Discrete(N_ACTIONS)
+        self._act_space = spaces.Discrete(self.setup.n_actions)
         self.state_space = spaces.Box(-1, big, (inst.team_size, 4), np.int64)
 
     def observation_space(self, agent):
@@ -82,6 +82,7 @@ class LoRRParallelEnv(ParallelEnv):
         if unknown:
             raise ValueError(f"unknown agent {unknown[0]!r}; agents are robot_0 .. robot_{len(self.possible_agents) - 1}")
         joint = np.array([int(actions[a]) for a in self.possible_agents], dtype=np.int64)
+
         done = self.setup.step(joint)
         trunc = self.setup.sim.t >= self.setup.steps
         obs = self._observe()

@@ -13,10 +13,13 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "ACTION_LETTERS", "ORIENT_LETTERS", "N_ACTIONS",
-           "next_states", "first_error", "parse_actions"]
+           "ACTION_MODELS", "n_actions", "next_states", "next_cells_four", "first_error", "parse_actions"]
 
 FORWARD, CLOCKWISE, COUNTER, WAIT = 0, 1, 2, 3
 N_ACTIONS = 4
+#: ``MAPF_T`` (the rules) or ``MAPF`` (the package's four-direction model: 0 stay, 1 up, 2 down,
+#: 3 left, 4 right, orientation unused; the same conflicts).
+ACTION_MODELS = ("MAPF_T", "MAPF")
 #: Output letters of the actions (start kit ``actualPaths``); ``T`` (timeout) reads as a wait.
 ACTION_LETTERS = "FRCW"
 #: Orientation letters of the output's ``start`` (0 east, 1 south, 2 west, 3 north).
@@ -34,6 +37,21 @@ def next_states(pos: np.ndarray, orient: np.ndarray, actions: np.ndarray, width:
     nxt = np.where(off, -1, nxt)
     turn = np.where(actions == CLOCKWISE, 1, np.where(actions == COUNTER, 3, 0))
     return nxt, (orient + turn) % 4
+
+
+def n_actions(model: str) -> int:
+    """Actions per robot of an action model."""
+    if model not in ACTION_MODELS:
+        raise ValueError(f"action_model must be one of {', '.join(ACTION_MODELS)}, got {model!r}")
+    return N_ACTIONS if model == "MAPF_T" else 5
+
+
+def next_cells_four(pos: np.ndarray, actions: np.ndarray, width: int) -> np.ndarray:
+    """The four-direction model's next cells (``-1`` for a move off a row end or the top)."""
+    step = np.array([0, -width, width, -1, 1], dtype=np.int64)[actions]
+    col = pos % width
+    off = ((actions == 3) & (col == 0)) | ((actions == 4) & (col == width - 1))
+    return np.where(off, -1, pos + step)
 
 
 def first_error(pos: np.ndarray, nxt: np.ndarray, blocked: np.ndarray):

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from mrmt_env.lorr.instance import LoRRInstance
-from mrmt_env.lorr.rules import N_ACTIONS, WAIT, first_error, next_states
+from mrmt_env.lorr.rules import WAIT, first_error, n_actions, next_cells_four, next_states
 from mrmt_env.lorr.tasks import make_tasks
 
 __all__ = ["LoRRSimulator"]
@@ -25,7 +25,9 @@ class LoRRSimulator:
     (``(R,)`` int64), :attr:`t`, :attr:`tasks` (the task rules, with ``goal``, ``assigned``,
     ``finished``, ``events``)."""
 
-    def __init__(self, instance: LoRRInstance, record: bool = True) -> None:
+    def __init__(self, instance: LoRRInstance, record: bool = True, action_model: str = "MAPF_T") -> None:
+        self.n_actions = n_actions(action_model)
+        self.action_model = action_model
         self.inst = instance
         self.width = instance.width
         self.blocked = np.ascontiguousarray(instance.grid.reshape(-1))
@@ -63,11 +65,13 @@ class LoRRSimulator:
             if a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.round(a)):
                 a = a.astype(np.int64)
             else:
-                raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1}, got dtype {a.dtype}")
-        bad = np.flatnonzero((a < 0) | (a >= N_ACTIONS))
+                raise ValueError(f"actions must be integers 0..{self.n_actions - 1}, got dtype {a.dtype}")
+        n = self.n_actions
+        bad = np.flatnonzero((a < 0) | (a >= n))
         if len(bad):
             k = int(bad[0])
-            raise ValueError(f"robot {k}: action {a[k]} is not one of 0..{N_ACTIONS - 1} (F, R, C, W)")
+            names = "F, R, C, W" if self.action_model == "MAPF_T" else "stay, up, down, left, right"
+            raise ValueError(f"robot {k}: action {a[k]} is not one of 0..{n - 1} ({names})")
         return a.astype(np.int64)
 
     def step(self, actions, proposal=None) -> int:
@@ -75,13 +79,16 @@ class LoRRSimulator:
         (``(R,)`` task ids or -1; ``None`` keeps the schedule).  Returns the tasks finished."""
         a = self.check_actions(actions)
         self.busy += self.tasks.goal >= 0
-        nxt, nori = next_states(self.pos, self.orient, a, self.width)
+        if self.action_model == "MAPF_T":
+            nxt, nori = next_states(self.pos, self.orient, a, self.width)
+        else:
+            nxt, nori = next_cells_four(self.pos, a, self.width), self.orient
         error = first_error(self.pos, nxt, self.blocked)
         if self.record:
             self.planned.append(a.astype(np.int8))
         if error is not None:
             self.errors.append((error[0], error[1], error[2], self.t + 1))
-            a = np.full(self.n_robots, WAIT, dtype=np.int64)
+            a = np.full(self.n_robots, WAIT if self.action_model == "MAPF_T" else 0, dtype=np.int64)
         else:
             self.pos, self.orient = nxt, nori
         if self.record:

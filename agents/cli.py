@@ -23,6 +23,7 @@ SUBCOMMANDS = {
     "watch": "agents.commands.watch",
     "sweep": "agents.commands.sweep",
     "warmup": "agents.commands.warmup",
+    "lorr": "agents.commands.lorr",
 }
 
 

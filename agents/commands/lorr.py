@@ -1,0 +1,170 @@
+"""``mrmt lorr``: League of Robot Runners instances -- run a scheduler and an executor, or check a file.
+
+    mrmt lorr run RANDOM-01.json --scheduler ising --executor pibt [--steps N] --out DIR
+    mrmt lorr run A.json B.json --scheduler lorr-greedy,strong --seeds 2 --backend ray --out DIR
+    mrmt lorr check RANDOM-01.json OUTPUT.json [--json]
+
+``run`` prints, per instance x scheduler x seed, the tasks finished, the best-known and the
+share, step-time p50/p99 (scheduler + executor, host + chip) and errors; with ``--out`` it
+writes ``DIR/output.json`` (one run; ``DIR/<instance>-<scheduler>-<seed>.json`` for several) in
+the start kit's output format and ``DIR/runs.json``.  Several runs go through the task runner
+(``--backend inline|process|ray``, results identical to inline).  ``check`` re-simulates an
+output file as the start kit's evaluation does.  Bad input: one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+NAME = "lorr"
+HELP = "League of Robot Runners instances: run a scheduler + executor, or check an output file"
+
+
+def add_arguments(parser) -> None:
+    from agents.commands.options import add_chip_argument, add_runner_arguments
+
+    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,check}")
+    run = sub.add_parser("run", help="run instances with a scheduler and an executor")
+    run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
+    run.add_argument("--scheduler", default="lorr-greedy",
+                     help="comma-separated: lorr-greedy (the start kit's default), strong, ising, fast, "
+                          "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
+    run.add_argument("--executor", default="pibt", help="the one-step planner: pibt (PIBT with turning; default)")
+    run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
+    run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
+    run.add_argument("--replan", action="store_true",
+                     help="pipeline schedulers re-plan robots whose task is not opened yet when a task finishes")
+    run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
+    run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
+    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_runner_arguments(run)
+    add_chip_argument(run, who="the ising scheduler")
+    check = sub.add_parser("check", help="re-simulate an output file on its instance")
+    check.add_argument("instance", metavar="INSTANCE.json")
+    check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
+    check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
+
+
+def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, chip, options: dict, out: str | None,
+              out_name: str | None) -> dict:
+    """One run (module level, for the task runner); writes its output file when ``out`` is given."""
+    from agents.lorr.output import write_output
+    from agents.lorr.run import run_lorr
+
+    record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options)
+    if out:
+        write_output(sim, Path(out) / out_name, planner_times=step_s)
+        record["output"] = str(Path(out) / out_name)
+    return record
+
+
+def _fmt(x, spec: str) -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def _table(rows: list[dict]) -> str:
+    head = (f"{'instance':<12} {'scheduler':<12} {'seed':>4} {'robots':>6} {'steps':>5} {'tasks':>6} {'best':>6} "
+            f"{'share':>6} {'p50 s':>8} {'p99 s':>8} {'errors':>6} {'sched.err':>9}")
+    lines = [head]
+    for r in rows:
+        lines.append(f"{r['instance']:<12} {r['scheduler']:<12} {r['seed']:>4} {r['robots']:>6} {r['steps']:>5} "
+                     f"{r['tasks_finished']:>6} {_fmt(r['best_known'], '>6')} {_fmt(r['share_of_best'], '>6.1%')} "
+                     f"{r['step_p50_s']:>8.4f} {r['step_p99_s']:>8.4f} {r['errors']:>6} {r['schedule_errors']:>9}")
+    return "\n".join(lines)
+
+
+def _run(args) -> int:
+    from agents.commands.options import chip_from_args, runner_from_args
+    from agents.lorr.schedulers import make_scheduler
+    from agents.runner import run_tasks
+    from mrmt_env.lorr.instance import LoRRFormatError, read_instance
+    from planners.mapf import TURNING_EXECUTORS
+
+    schedulers = [s.strip() for s in args.scheduler.split(",") if s.strip()]
+    if not schedulers:
+        return _fail("--scheduler names no scheduler")
+    if args.executor not in TURNING_EXECUTORS:
+        return _fail(f"unknown executor {args.executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
+    for name, value in (("--steps", args.steps), ("--seeds", args.seeds)):
+        if value is not None and value < 1:
+            return _fail(f"{name} must be >= 1, got {value}")
+    if args.seed < 0:
+        return _fail(f"--seed must be >= 0, got {args.seed}")
+    try:
+        for path in args.instances:
+            read_instance(path)
+        chip = chip_from_args(args)
+        options = {"replan": True} if args.replan else {}
+        for s in schedulers:  # names and model files checked before anything starts
+            make_scheduler(s, chip=chip, **options)
+        run = runner_from_args(args)
+    except (LoRRFormatError, ValueError, OSError) as exc:
+        return _fail(str(exc))
+    jobs = [(inst, s, seed) for inst in args.instances for s in schedulers
+            for seed in range(args.seed, args.seed + args.seeds)]
+    single = len(jobs) == 1
+    tasks = [(inst, s, args.executor, args.steps, seed, chip, options, args.out,
+              "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json")
+             for inst, s, seed in jobs]
+    progress = not args.no_progress
+    if single and run.backend != "ray":
+        rows = [_single(tasks[0], progress)]
+    else:
+        rows = run_tasks(lorr_task, tasks, run)
+    if args.json:
+        for r in rows:
+            print(json.dumps(r))
+    else:
+        print(_table(rows))
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "runs.json").write_text(json.dumps(rows, indent=1))
+        print(f"wrote {out / 'runs.json'} and {len(rows)} output file(s) in {out}", file=sys.stderr)
+    return 0
+
+
+def _single(task: tuple, progress: bool) -> dict:
+    """One run in this process, with a progress bar over its steps."""
+    from agents.lorr.output import write_output
+    from agents.lorr.run import run_lorr
+
+    inst, s, executor, steps, seed, chip, options, out, name = task
+    record, sim, step_s = run_lorr(inst, s, executor, steps=steps, seed=seed, chip=chip, options=options,
+                                   progress=progress)
+    if out:
+        write_output(sim, Path(out) / name, planner_times=step_s)
+        record["output"] = str(Path(out) / name)
+    return record
+
+
+def _check(args) -> int:
+    from agents.lorr.output import OutputError, check_output, read_output
+    from mrmt_env.lorr.instance import LoRRFormatError, read_instance
+
+    try:
+        inst = read_instance(args.instance)
+        result = check_output(inst, read_output(args.output), path=args.output)
+    except (LoRRFormatError, OutputError) as exc:
+        return _fail(str(exc))
+    if args.json:
+        print(json.dumps(result.to_json()))
+        return 0
+    tasks = "unknown (the file holds no schedule)" if result.numTaskFinished is None else result.numTaskFinished
+    print(f"{inst.name}: {result.steps} steps, tasks finished {tasks}, errors {result.errors}, "
+          f"schedule errors {result.scheduleErrors}")
+    if result.claimed is not None and result.numTaskFinished is not None and result.claimed != result.numTaskFinished:
+        print(f"the file claims {result.claimed} tasks finished; re-simulated: {result.numTaskFinished}")
+    return 0
+
+
+def _fail(message: str) -> int:
+    print(f"mrmt lorr: error: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args) -> int:
+    return _run(args) if args.lorr_command == "run" else _check(args)

@@ -1,0 +1,1 @@
+"""League of Robot Runners runs: schedulers, the run loop, the start kit output file."""

@@ -1,0 +1,107 @@
+"""LoRR schedulers: which robot takes which task, proposed once per step.
+
+* ``lorr-greedy``: the start kit's default (:class:`mrmt_env.lorr.greedy.GreedyScheduler`).
+* a pipeline spec (``strong``, ``ising``, ``fast``, ``ising-paper`` or ``sharing+tour``): the
+  package's sharing and tour layers decide, through the lifelong assigner
+  (:class:`agents.lifelong.PipelineAssigner`: idle robots in Z-order groups, each call a
+  sub-world of the group's robots and their nearest free tasks, every robot taking the first
+  task of its route).
+* ``ppo:MODEL.zip``: a model trained with ``mrmt train`` on a lifelong id
+  (:class:`agents.lifelong_choice.LearnedAssigner`).
+
+A task enters those decisions as the cell of its next errand (where a robot must go to open it);
+tasks sharing that cell wait for the next step.  Free robots are the robots without a task; with
+``replan=True`` robots whose task is not opened yet are free again (their tasks back in the
+pool) whenever a task finishes, so the decision may re-plan them, as the rules allow.  Every
+scheduler leaves its step's :class:`~planners.compute.ComputeReport` in ``last_compute``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrmt_env.lorr.greedy import GreedyScheduler
+from planners.compute import ComputeReport
+
+__all__ = ["AssignerScheduler", "make_scheduler", "SCHEDULERS"]
+
+#: Scheduler names besides pipeline specs and ``ppo:PATH``.
+SCHEDULERS = ("lorr-greedy", "strong", "ising", "fast", "ising-paper")
+
+
+class AssignerScheduler:
+    """A lifelong assigner (``assign(grid, fields, idle_cells, task_cells, seed, fleet)``) as a LoRR
+    scheduler (see the module docstring)."""
+
+    def __init__(self, assigner, seed: int = 0, replan: bool = False) -> None:
+        self.assigner = assigner
+        self.name = assigner.name
+        self.accelerated = bool(assigner.accelerated)
+        self.seed = int(seed)
+        self.replan = bool(replan)
+        self.last_compute = ComputeReport()
+
+    def reset(self, sim) -> None:
+        from planners.mapf.common import GoalFields
+
+        self.grid = sim.inst.grid
+        self.fields = GoalFields(self.grid, capacity=max(1024, 2 * sim.inst.open_target()))
+        self.last_compute = ComputeReport()
+
+    def schedule(self, sim) -> np.ndarray:
+        from agents.lifelong import Round
+
+        tasks = sim.tasks
+        self.last_compute = ComputeReport()
+        proposal = tasks.assigned.copy()
+        held = proposal >= 0
+        if self.replan and len(tasks.new_free):
+            unopened = np.array([k >= 0 and not tasks.is_opened(int(k)) for k in proposal.tolist()])
+            proposal[unopened] = -1
+            held = proposal >= 0
+        free_robots = np.flatnonzero(~held)
+        taken = set(proposal[held].tolist())
+        ids = [k for k in tasks.open if k not in taken]
+        if len(free_robots) == 0 or not ids:
+            return proposal
+        cells = np.array([tasks.remaining(k)[0] for k in ids], dtype=np.int64)
+        cells, first = np.unique(cells, return_index=True)   # one task per cell, the lowest id
+        ids = np.asarray(ids, dtype=np.int64)[first]
+        pos = sim.pos
+        goals = np.where(tasks.goal >= 0, tasks.goal, pos)
+        goals[free_robots] = pos[free_robots]
+        rnd = Round(self.grid, pos, goals, free_robots, cells)
+        queues, compute = self.assigner.assign(self.grid, self.fields, pos[free_robots], cells,
+                                               seed=self.seed * 1_000_003 + sim.t, fleet=rnd)
+        self.last_compute = compute
+        for i, q in enumerate(queues):
+            if q:
+                proposal[free_robots[i]] = ids[q[0]]
+        return proposal
+
+
+class _Greedy(GreedyScheduler):
+    """The start kit's default scheduler with an empty compute report per step."""
+
+    last_compute = ComputeReport()
+
+
+def make_scheduler(name: str, seed: int = 0, chip=None, **options):
+    """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one."""
+    if name == "lorr-greedy":
+        if options:
+            raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")
+        return _Greedy()
+    from agents.lifelong import PipelineAssigner, _learned
+
+    replan = bool(options.pop("replan", False))
+    if name.startswith("ppo:"):
+        if options:
+            raise ValueError(f"{name} takes no options besides replan, got {sorted(options)}")
+        return AssignerScheduler(_learned(name), seed=seed, replan=replan)
+    try:
+        assigner = PipelineAssigner(name, chip=chip, **options)
+    except ValueError as exc:
+        raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}, a sharing+tour pair "
+                         f"or ppo:MODEL.zip ({exc})") from None
+    return AssignerScheduler(assigner, seed=seed, replan=replan)

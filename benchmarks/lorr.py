@@ -1,0 +1,119 @@
+"""The League of Robot Runners 2024 main round: tasks finished against the best-known, step time, energy.
+
+Every RANDOM instance in full (100-800 robots on random-32-32-20, 600-2,000 steps), each
+scheduler x executor (``--schedulers``, default the start kit's greedy, ``strong`` and ``ising``,
+PIBT with turning); the large instances (CITY 1,500 / 3,000 robots, GAME 6,500, WAREHOUSE and
+SORTATION 10,000) with ``lorr-greedy`` + PIBT for ``--scale-steps`` steps (default 500) with
+tasks per step and peak memory (``ru_maxrss`` of the run's own process).  Step time = the
+decision's host seconds (scheduler + executor, chip emulation excluded) + the chip's parallel
+time, p50 / p99 over steps, one core.  The best-known is the archive's record over the full
+simulation time.  Writes the RESULTS.md section (``--write``).
+
+    flock /tmp/mrmt-bench.lock python benchmarks/lorr.py --write
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _common import cpu_name, finish  # noqa: E402
+
+SECTION = "## League of Robot Runners 2024 (issue 32)"
+ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
+RANDOM = [f"RANDOM-0{i}" for i in range(1, 6)]
+SCALE = ["CITY-01", "CITY-02", "GAME", "WAREHOUSE", "SORTATION"]
+
+
+def _path(name: str) -> Path:
+    return next(ROOT.glob(f"*/{name}.json"))
+
+
+def _one(name: str, scheduler: str, executor: str, steps: int | None, options: dict) -> dict:
+    """One run in a fresh process (peak memory is the run's own)."""
+    code = ("import json, resource, sys; from agents.lorr.run import run_lorr; "
+            f"r, sim, s = run_lorr({str(_path(name))!r}, {scheduler!r}, {executor!r}, steps={steps!r}, "
+            f"options={options!r}); r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; "
+            "print(json.dumps(r))")
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=Path(__file__).resolve().parents[1])
+    if proc.returncode != 0:
+        raise RuntimeError(f"{name} {scheduler}: {proc.stderr.strip().splitlines()[-1:]}")
+    row = json.loads(proc.stdout.strip().splitlines()[-1])
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def _fmt_row(r: dict) -> str:
+    share = "-" if r["share_of_best"] is None else f"{100 * r['share_of_best']:.1f} %"
+    return (f"| {r['instance']} | {r['robots']} | {r['scheduler']} | {r['executor']} | {r['steps']} | "
+            f"{r['tasks_finished']} | {r['best_known']} | {share} | {1e3 * r['step_p50_s']:.1f} | "
+            f"{1e3 * r['step_p99_s']:.1f} | {r['errors']} | {r['paper_energy_per_task_j']:.4f} | "
+            f"{r['total_energy_per_task_j']:.4f} | {r['peak_rss_mb']:.0f} |")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
+    parser.add_argument("--executor", default="pibt")
+    parser.add_argument("--instances", default=",".join(RANDOM))
+    parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")
+    parser.add_argument("--scale-steps", type=int, default=500)
+    parser.add_argument("--steps", type=int, default=None, help="steps of the RANDOM runs (default: in full)")
+    parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
+    parser.add_argument("--write", action="store_true")
+    args = parser.parse_args(argv)
+    schedulers = [s for s in args.schedulers.split(",") if s]
+    rows = []
+    head = ("| instance | robots | scheduler | executor | steps | tasks | best-known | share | step p50 ms | "
+            "step p99 ms | errors | paper J/task | total J/task | peak MB |")
+    sep = "|" + "---|" * 14
+    for name in [n for n in args.instances.split(",") if n]:
+        for s in schedulers:
+            variants = [{}] + ([{"replan": True}] if args.replan and s != "lorr-greedy" else [])
+            for options in variants:
+                r = _one(name, s, args.executor, args.steps, options)
+                if options:
+                    r["scheduler"] += "+replan"
+                rows.append(r)
+                print(_fmt_row(r), flush=True)
+    scale_rows = []
+    for name in [n for n in args.scale.split(",") if n]:
+        r = _one(name, "lorr-greedy", args.executor, args.scale_steps, {})
+        r["tasks_per_step"] = r["tasks_finished"] / r["steps"]
+        scale_rows.append(r)
+        print(_fmt_row(r), f"tasks/step {r['tasks_per_step']:.2f}", flush=True)
+    lines = [SECTION, "", f"`python benchmarks/lorr.py --write` on {cpu_name()} (one core per run, runs in turn). "
+             "Step = scheduler + executor host seconds (chip emulation excluded) + chip parallel seconds; "
+             "best-known: the archive's record over the instance's full simulation time.", "", head, sep]
+    lines += [_fmt_row(r) for r in rows]
+    by = {}
+    for r in rows:
+        by.setdefault(r["scheduler"], []).append(r)
+    lines += ["", "| scheduler | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy |", "|---|---|---|---|"]
+    base = {r["instance"]: r["tasks_finished"] for r in by.get("lorr-greedy", [])}
+    for s, rs in by.items():
+        shares = [r["share_of_best"] for r in rs if r["share_of_best"] is not None]
+        gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
+        lines.append(f"| {s} | {100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} % | "
+                     f"{100 * sum(gain) / len(gain):+.1f} % |" if shares and gain else f"| {s} | - | - | - |")
+    if scale_rows:
+        lines += ["", f"Large instances, lorr-greedy + {args.executor}, first {args.scale_steps} steps:", "",
+                  "| instance | robots | tasks | tasks / step | step p50 ms | step p99 ms | step max ms | errors | "
+                  "peak MB |", "|---|---|---|---|---|---|---|---|---|"]
+        for r in scale_rows:
+            lines.append(f"| {r['instance']} | {r['robots']} | {r['tasks_finished']} | {r['tasks_per_step']:.2f} | "
+                         f"{1e3 * r['step_p50_s']:.1f} | {1e3 * r['step_p99_s']:.1f} | {1e3 * r['step_max_s']:.1f} | "
+                         f"{r['errors']} | {r['peak_rss_mb']:.0f} |")
+    finish(SECTION, lines, args.write)
+
+
+if __name__ == "__main__":
+    main()

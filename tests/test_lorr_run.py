@@ -1,0 +1,129 @@
+"""LoRR runs: schedulers x the turning executor, the output file, ``mrmt lorr run`` / ``check``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.lorr.output import check_output, output_dict, read_output
+from agents.lorr.run import RUN_KEYS, run_lorr
+from mrmt_env.lorr.instance import example_instance_path, read_instance
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "lorr"
+needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="the LoRR instances (shared/lorr) are not beside the checkout")
+EXAMPLE = example_instance_path()
+
+
+def _mrmt(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "agents.cli", *args], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("scheduler", ["lorr-greedy", "strong"])
+def test_a_run_finishes_tasks_without_errors_and_its_file_rechecks_to_its_count(scheduler):
+    record, sim, step_s = run_lorr(EXAMPLE, scheduler, "pibt", steps=120, seed=0)
+    assert set(RUN_KEYS) <= set(record)
+    assert record["errors"] == 0 and record["schedule_errors"] == 0
+    assert record["tasks_finished"] == sim.finished > 5
+    assert len(step_s) == 120 and (step_s > 0).all()
+    data = json.loads(json.dumps(output_dict(sim, step_s)))
+    result = check_output(read_instance(EXAMPLE), data)
+    assert result.numTaskFinished == record["tasks_finished"] == data["numTaskFinished"]
+    assert result.errors == 0 and result.steps == 120
+    # events: one per errand reached, independently counted from the tasks' errand lists
+    per_task = {}
+    for t, a, task, done in data["events"]:
+        per_task[task] = done
+    finished = sum(1 for task, done in per_task.items() if done == len(data["tasks"][task][2]) // 2)
+    assert finished == record["tasks_finished"] and len(data["events"]) == record["errands"]
+
+
+def test_runs_are_deterministic_for_a_seed():
+    a, sim_a, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=80, seed=3)
+    b, sim_b, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=80, seed=3)
+    assert a["tasks_finished"] == b["tasks_finished"]
+    assert [x.tolist() for x in sim_a.actual] == [x.tolist() for x in sim_b.actual]
+
+
+def test_check_counts_a_tampered_file_not_its_claim():
+    _, sim, step_s = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=0)
+    data = output_dict(sim, step_s)
+    claimed = data["numTaskFinished"]
+    data["numTaskFinished"] = claimed + 100
+    paths = [p.split(",") for p in data["plannerPaths"]]
+    # robot 0 never moves: its errands are not reached, and whoever needed its cell may collide
+    paths[0] = ["W"] * len(paths[0])
+    data["plannerPaths"] = [",".join(p) for p in paths]
+    result = check_output(read_instance(EXAMPLE), data)
+    assert result.claimed == claimed + 100 and result.numTaskFinished != claimed + 100
+
+
+@needs_shared
+def test_check_command_on_the_2023_record(tmp_path):
+    proc = _mrmt("lorr", "check", str(SHARED / "2023-main/random.domain/MR23-I-04.json"),
+                 str(SHARED / "2023-main/best_solutions/MR23-I-04.json.zip"), "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout) == {"numTaskFinished": 1741, "errors": 0, "steps": 500, "errands": 1741,
+                                       "scheduleErrors": 0, "claimedTaskFinished": 1741}
+
+
+def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--scheduler", "lorr-greedy", "--steps", "50", "--out", str(tmp_path),
+                 "--no-progress", "--json")
+    assert proc.returncode == 0, proc.stderr
+    row = json.loads(proc.stdout.splitlines()[0])
+    out = tmp_path / "output.json"
+    data = read_output(out)
+    assert data["numTaskFinished"] == row["tasks_finished"] and len(data["plannerTimes"]) == 50
+    assert set(data["start"][0][2]) <= set("ESWN") and data["actionModel"] == "MAPF_T"
+    check = _mrmt("lorr", "check", str(EXAMPLE), str(out), "--json")
+    assert check.returncode == 0, check.stderr
+    assert json.loads(check.stdout)["numTaskFinished"] == row["tasks_finished"]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["run", "no/such.json"], "no/such.json: no such instance file"),
+    (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'"),
+    (["run", str(EXAMPLE), "--executor", "teleport"], "unknown executor 'teleport'"),
+    (["run", str(EXAMPLE), "--steps", "0"], "--steps must be >= 1, got 0"),
+    (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
+    (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, needle):
+    proc = _mrmt("lorr", *args, "--json") if args[0] == "check" else _mrmt("lorr", *args, "--no-progress")
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc.stderr
+
+
+def test_inline_and_process_backends_give_the_same_runs(tmp_path):
+    base = ["lorr", "run", str(EXAMPLE), "--scheduler", "lorr-greedy,fast", "--steps", "40", "--seeds", "2",
+            "--no-progress", "--json"]
+    inline = _mrmt(*base, "--backend", "inline")
+    pool = _mrmt(*base, "--backend", "process", "--jobs", "2")
+    assert inline.returncode == 0 and pool.returncode == 0, inline.stderr + pool.stderr
+    keys = ("instance", "scheduler", "seed", "tasks_finished", "errands", "errors")
+    rows = [[{k: json.loads(x)[k] for k in keys} for x in p.stdout.splitlines()] for p in (inline, pool)]
+    assert rows[0] == rows[1] and len(rows[0]) == 4
+
+
+def test_ray_backend_gives_the_inline_runs():
+    pytest.importorskip("ray")
+    base = ["lorr", "run", str(EXAMPLE), "--scheduler", "lorr-greedy", "--steps", "30", "--seeds", "2",
+            "--no-progress", "--json"]
+    inline = _mrmt(*base, "--backend", "inline")
+    ray = _mrmt(*base, "--backend", "ray", "--jobs", "2")
+    assert inline.returncode == 0 and ray.returncode == 0, inline.stderr + ray.stderr
+    keys = ("seed", "tasks_finished", "errands", "errors")
+    rows = [[{k: json.loads(x)[k] for k in keys} for x in p.stdout.splitlines()] for p in (inline, ray)]
+    assert rows[0] == rows[1]
+
+
+def test_ising_scheduler_charges_the_chip_per_step():
+    record, sim, _ = run_lorr(EXAMPLE, "ising", "pibt", steps=40, seed=0)
+    assert record["errors"] == 0 and record["chip_calls"] > 0 and record["chip_s"] > 0
+    assert record["paper_energy_per_task_j"] <= record["total_energy_per_task_j"]

@@ -4,16 +4,23 @@
 :class:`WindowedPlanner` (prioritized space-time A* over a short window,
 compiled); both take flat robot cells and goal cells and return next cells or
 env actions.  :func:`make_executor` builds one by name (:data:`EXECUTORS`).
+:class:`TurningPIBT` is PIBT for the League of Robot Runners' action model with
+turning (flat cells and orientations -> actions F, R, C, W);
+:func:`make_turning_executor` builds one by name (:data:`TURNING_EXECUTORS`).
 """
 
 from __future__ import annotations
 
 from planners.mapf.pibt import PIBT
+from planners.mapf.turning import TurningPIBT
 from planners.mapf.windowed import WindowedPlanner
 
-__all__ = ["PIBT", "WindowedPlanner", "EXECUTORS", "make_executor"]
+__all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "EXECUTORS", "make_executor", "TURNING_EXECUTORS",
+           "make_turning_executor"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
+#: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
+TURNING_EXECUTORS = {"pibt": TurningPIBT}
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):
@@ -22,4 +29,13 @@ def make_executor(name: str, grid, seed: int = 0, **options):
         cls = EXECUTORS[name]
     except KeyError:
         raise ValueError(f"unknown executor {name!r}; known: {', '.join(EXECUTORS)}") from None
+    return cls(grid, seed=seed, **options)
+
+
+def make_turning_executor(name: str, grid, seed: int = 0, **options):
+    """The turning executor ``name`` (``pibt``) on ``grid``; ``ValueError`` naming the known ones."""
+    try:
+        cls = TURNING_EXECUTORS[name]
+    except KeyError:
+        raise ValueError(f"unknown turning executor {name!r}; known: {', '.join(TURNING_EXECUTORS)}") from None
     return cls(grid, seed=seed, **options)

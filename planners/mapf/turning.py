@@ -1,0 +1,433 @@
+"""PIBT for the League of Robot Runners' action model with turning (MAPF_T), compiled.
+
+A robot is a flat cell ``row * W + col`` and an orientation (0 east, 1 south,
+2 west, 3 north); actions are 0 F (one cell ahead), 1 R (turn clockwise),
+2 C (turn counter-clockwise), 3 W (wait).  One call of
+:meth:`TurningPIBT.actions` returns one joint action, valid by construction:
+
+1. PIBT (as :class:`~planners.mapf.pibt.PIBT`: priority = steps since the robot
+   last stood on its goal + a seeded tie-breaker, except that a step ending in a
+   dead end -- a cell with one free neighbour -- off the goal counts 1 +
+   :data:`DEAD_END_BONUS`, as in the start kit) picks each robot's next cell.
+   Candidates sort by BFS distance to the goal, then by the turns needed to
+   face the cell (0 ahead or staying, 1 to a side, 2 behind), then by
+   ``mix(seed, step, robot, cell)``.
+2. A robot whose next cell is ahead moves F; one whose next cell is to a side
+   or behind turns towards it (R / C; behind turns R) and stays this step.
+3. Vacate check: a forward move is kept only if the cell ahead is empty now
+   or its robot keeps a forward move itself (chains are followed to their end;
+   a closed rotation of three or more robots moves); otherwise the robot waits,
+   and so does everything queued behind it.
+
+Goal fields (:class:`TurnFields`): uint16 over the free cells only, in a cache
+bounded in bytes (least recently used fields recomputed on demand), at most a
+budget of BFS work per call (a goal still without a field goes by Manhattan
+distance).  Design and measurements: ``docs/design/lifelong_turning.md``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.mapf.common import mix
+
+__all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "compact_grid",
+           "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
+           "DEAD_END_BONUS"]
+
+FORWARD, CLOCKWISE, COUNTER, WAIT = 0, 1, 2, 3
+#: Default memory bound of the goal-field cache (the fields of the goals asked for in one call are always kept).
+DEFAULT_FIELD_BYTES = 1 << 30
+#: Default BFS work of one call, in cells: new goal fields per call = this // free cells.
+DEFAULT_BFS_BUDGET = 1 << 24
+#: Extra priority per step spent in a dead end off the goal (the start kit's value; without it a robot
+#: leaving a dead end and a higher-priority robot entering it block each other for good).
+DEAD_END_BONUS = 10
+_DR = (0, 1, 0, -1)  # east, south, west, north
+_DC = (1, 0, -1, 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _neighbours(flat_grid, width, cid, nbr):
+    h = flat_grid.shape[0] // width
+    for p in range(flat_grid.shape[0]):
+        i = cid[p]
+        if i < 0:
+            continue
+        r, c = p // width, p % width
+        for d in range(4):
+            nr, nc = r + _DR[d], c + _DC[d]
+            nbr[i, d] = -1
+            if 0 <= nr < h and 0 <= nc < width:
+                q = nr * width + nc
+                if not flat_grid[q]:
+                    nbr[i, d] = cid[q]
+
+
+def compact_grid(grid: np.ndarray):
+    """``(cid, cell_of, nbr)``: compact index of each flat cell (-1 blocked), the flat cell of each
+    compact index, and ``nbr[i, d]`` the compact neighbour of ``i`` in direction ``d`` (0 east,
+    1 south, 2 west, 3 north; -1 off the map or blocked -- a row end does not wrap)."""
+    flat = np.ascontiguousarray(grid, dtype=np.bool_).reshape(-1)
+    cell_of = np.flatnonzero(~flat).astype(np.int64)
+    cid = np.full(flat.size, -1, dtype=np.int64)
+    cid[cell_of] = np.arange(len(cell_of))
+    nbr = np.empty((len(cell_of), 4), dtype=np.int32)
+    _neighbours(flat, int(np.asarray(grid).shape[1]), cid, nbr)
+    return cid, cell_of, nbr
+
+
+@numba.njit(cache=True, nogil=True)
+def _bfs_rows(nbr, goals, rows, fields, far):
+    """``fields[rows[i]]`` = moves to compact cell ``goals[i]`` (``far``, the dtype's maximum, where unreachable)."""
+    n = nbr.shape[0]
+    queue = np.empty(n, dtype=np.int32)
+    for i in range(goals.shape[0]):
+        f = fields[rows[i]]
+        f[:] = far
+        f[goals[i]] = 0
+        queue[0] = goals[i]
+        head, tail = 0, 1
+        while head < tail:
+            p = queue[head]
+            head += 1
+            nd = f[p] + 1
+            for d in range(4):
+                q = nbr[p, d]
+                if q >= 0 and f[q] == far:
+                    f[q] = nd
+                    queue[tail] = q
+                    tail += 1
+
+
+class TurnFields:
+    """BFS distance fields to goal cells over the free cells only, uint16 (uint32 when a map has
+    65,535 free cells or more; the dtype's maximum = unreachable), in a cache bounded by
+    ``max_bytes``: when full, the fields least recently asked for make room and are recomputed on
+    demand (the goals of one call always fit: the cache grows past the bound for them).  One call
+    computes at most ``bfs_budget // free cells`` new fields (at least one), for the goals of the
+    highest-priority robots first; the others get row -1 (the kernel then uses Manhattan distance)."""
+
+    def __init__(self, nbr: np.ndarray, max_bytes: int = DEFAULT_FIELD_BYTES,
+                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+        self.nbr = nbr
+        n = nbr.shape[0]
+        self.dtype = np.dtype(np.uint16 if n < 65535 else np.uint32)
+        self.far = int(np.iinfo(self.dtype).max)
+        self.capacity = max(min(int(max_bytes) // (max(n, 1) * self.dtype.itemsize), n), 1)
+        self.per_call = max(int(bfs_budget) // max(n, 1), 1)
+        self.fields = np.empty((0, n), dtype=self.dtype)
+        self.row_of = np.full(n, -1, dtype=np.int64)  # compact goal -> row
+        self.goal_of = np.empty(0, dtype=np.int64)  # row -> compact goal
+        self.stamp = np.empty(0, dtype=np.int64)  # row -> last call that asked for it
+        self.used = 0
+        self.calls = 0
+        self.computed = 0  # fields computed so far (recomputations included)
+
+    def _grow(self, rows: int) -> None:
+        # the first allocation reserves the whole bound (pages are only committed as rows are written);
+        # past the bound (one call's goals do not fit) it grows by a quarter, never past one row per cell
+        size = max(rows, min(max(self.capacity, self.fields.shape[0] * 5 // 4), self.nbr.shape[0]))
+        fields = np.empty((size, self.fields.shape[1]), dtype=self.dtype)
+        fields[:self.used] = self.fields[:self.used]
+        self.fields = fields
+        self.goal_of = np.concatenate([self.goal_of[:self.used], np.full(size - self.used, -1, np.int64)])
+        self.stamp = np.concatenate([self.stamp[:self.used], np.full(size - self.used, -1, np.int64)])
+
+    def rows(self, goals: np.ndarray, order: np.ndarray) -> np.ndarray:
+        """Row of :attr:`fields` of each compact goal cell (-1: not computed yet, over the budget);
+        ``order`` = the robots by decreasing priority."""
+        self.calls += 1
+        rows = self.row_of[goals]
+        self.stamp[rows[rows >= 0]] = self.calls
+        if (rows >= 0).all():
+            return rows
+        wanted = goals[order]
+        wanted = wanted[self.row_of[wanted] < 0]
+        uniq, first = np.unique(wanted, return_index=True)
+        miss = uniq[np.argsort(first, kind="stable")][:self.per_call]
+        fresh = min(len(miss), max(self.capacity - self.used, 0))
+        evict = len(miss) - fresh
+        victims = np.empty(0, dtype=np.int64)
+        if evict:
+            old = np.flatnonzero(self.stamp[:self.used] < self.calls)
+            victims = old[np.argsort(self.stamp[old], kind="stable")[:evict]]
+            self.row_of[self.goal_of[victims]] = -1
+            fresh += evict - len(victims)  # not enough to evict: grow past the bound
+        if self.used + fresh > self.fields.shape[0]:
+            self._grow(self.used + fresh)
+        new = np.concatenate([victims, np.arange(self.used, self.used + fresh, dtype=np.int64)])
+        self.used += fresh
+        self.goal_of[new] = miss
+        self.stamp[new] = self.calls
+        self.row_of[miss] = new
+        _bfs_rows(self.nbr, miss, new, self.fields, self.dtype.type(self.far))
+        self.computed += len(miss)
+        return self.row_of[goals]
+
+
+@numba.njit(cache=True, nogil=True)
+def _distance(fields, row, goal, v, cell_of, width) -> int:
+    """Moves from compact ``v`` to compact ``goal``: its field, or Manhattan distance without one."""
+    if row >= 0:
+        return fields[row, v]
+    a, b = cell_of[v], cell_of[goal]
+    return abs(a // width - b // width) + abs(a % width - b % width)
+
+
+@numba.njit(cache=True, nogil=True)
+def _candidates(nbr, cell_of, width, p, o, fields, row, goal, seed, t, a, out, keys, turns, ties) -> int:
+    """Robot ``a``'s cells from compact ``p`` facing ``o`` (itself first, then the free neighbours),
+    sorted by (distance to goal, turns to face the cell, ``mix(seed, t, a, flat cell)``)."""
+    out[0], turns[0] = p, 0
+    keys[0] = _distance(fields, row, goal, p, cell_of, width)
+    ties[0] = mix(seed, t, a, cell_of[p])
+    n = 1
+    for d in range(4):
+        v = nbr[p, d]
+        if v < 0:
+            continue
+        out[n] = v
+        keys[n] = _distance(fields, row, goal, v, cell_of, width)
+        turns[n] = 0 if d == o else (2 if d == (o + 2) % 4 else 1)
+        ties[n] = mix(seed, t, a, cell_of[v])
+        n += 1
+    for i in range(1, n):  # insertion sort
+        j = i
+        while j > 0 and (keys[j - 1] > keys[j] or (keys[j - 1] == keys[j] and (
+                turns[j - 1] > turns[j] or (turns[j - 1] == turns[j] and ties[j - 1] > ties[j])))):
+            keys[j - 1], keys[j] = keys[j], keys[j - 1]
+            turns[j - 1], turns[j] = turns[j], turns[j - 1]
+            ties[j - 1], ties[j] = ties[j], ties[j - 1]
+            out[j - 1], out[j] = out[j], out[j - 1]
+            j -= 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next):
+    """PIBT over compact cells on an explicit stack (the recursion of the oracle in the tests)."""
+    r = pos.shape[0]
+    st_a = np.empty(r, dtype=np.int64)
+    st_b = np.empty(r, dtype=np.int64)
+    st_i = np.empty(r, dtype=np.int64)
+    st_n = np.empty(r, dtype=np.int64)
+    cand = np.empty((r, 5), dtype=np.int64)
+    keys = np.empty(5, dtype=np.int64)
+    turns = np.empty(5, dtype=np.int64)
+    ties = np.empty(5, dtype=np.uint64)
+    for idx in range(r):
+        a0 = order[idx]
+        if nxt[a0] != -1:
+            continue
+        st_a[0], st_b[0], st_i[0] = a0, -1, 0
+        st_n[0] = _candidates(nbr, cell_of, width, pos[a0], orient[a0], fields, rows[a0], goals[a0], seed, t,
+                              a0, cand[0], keys, turns, ties)
+        top = 1
+        returned = False
+        result = False
+        while top > 0:
+            f = top - 1
+            a, b = st_a[f], st_b[f]
+            if returned and result:  # the pushed robot moved away: a keeps its cell
+                top -= 1
+                continue
+            returned = False
+            pushed = False
+            done = False
+            while st_i[f] < st_n[f]:
+                v = cand[f, st_i[f]]
+                st_i[f] += 1
+                if occ_next[v] != -1 or (b != -1 and v == pos[b]):
+                    continue
+                occ_next[v] = a
+                nxt[a] = v
+                c = occ_now[v]
+                if c != -1 and nxt[c] == -1:
+                    st_a[top], st_b[top], st_i[top] = c, a, 0
+                    st_n[top] = _candidates(nbr, cell_of, width, pos[c], orient[c], fields, rows[c], goals[c],
+                                            seed, t, c, cand[top], keys, turns, ties)
+                    top += 1
+                    pushed = True
+                else:
+                    done = True
+                break
+            if pushed:
+                continue
+            if not done:  # nowhere to go: stay (taking the cell back from the robot that pushed)
+                occ_next[pos[a]] = a
+                nxt[a] = pos[a]
+            top -= 1
+            returned = True
+            result = done
+
+
+@numba.njit(cache=True, nogil=True)
+def turning_kernel(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, act, occ_now,
+                   occ_next):
+    """One joint action: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action (compact cells;
+    ``rows[k]`` the row of ``fields`` to ``goals[k]``, -1 for Manhattan distance; ``occ_now`` /
+    ``occ_next`` scratch over compact cells, all -1 on entry and on return)."""
+    r = pos.shape[0]
+    for k in range(r):
+        occ_now[pos[k]] = k
+        nxt[k] = -1
+    _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next)
+    for k in range(r):
+        p, v, o = pos[k], nxt[k], orient[k]
+        act[k] = WAIT
+        if v == p or occ_next[v] != k:  # staying (the second test never holds: one owner per cell)
+            continue
+        for d in range(4):
+            if nbr[p, d] == v:
+                act[k] = FORWARD if d == o else (COUNTER if d == (o + 3) % 4 else CLOCKWISE)
+    # vacate check: F stays F only if the cell ahead is empty now or its robot keeps F
+    state = np.zeros(r, dtype=np.int8)  # 0 open, 1 on the chain being followed, 2 moves, 3 waits
+    chain = np.empty(r, dtype=np.int64)
+    for k in range(r):
+        if act[k] != FORWARD or state[k] != 0:
+            continue
+        top = 0
+        cur = k
+        while True:
+            state[cur] = 1
+            chain[top] = cur
+            top += 1
+            j = occ_now[nxt[cur]]
+            if j == -1:
+                ok = True
+                break
+            if act[j] != FORWARD or state[j] == 3 or nxt[j] == pos[cur]:  # stays, or a swap (never from PIBT)
+                ok = False
+                break
+            if state[j] != 0:  # moves, or closes a rotation (three or more robots)
+                ok = True
+                break
+            cur = j
+        for i in range(top):
+            state[chain[i]] = 2 if ok else 3
+            if not ok:
+                act[chain[i]] = WAIT
+    for k in range(r):
+        occ_now[pos[k]] = -1
+        occ_next[nxt[k]] = -1
+
+
+def _int_array(name: str, values) -> np.ndarray:
+    a = np.asarray(values)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be a 1-d array of ints, got shape {a.shape}")
+    if a.dtype.kind not in "iu":
+        if a.size and not (a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.round(a))):
+            raise ValueError(f"{name} must hold integers, got dtype {a.dtype}")
+        a = a.astype(np.int64)
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+class TurningPIBT:
+    """PIBT with turning on one grid (see the module docstring).
+
+    Args:
+        grid: ``(H, W)`` bool obstacles.
+        seed: tie-breaks (robot priorities and equal cells).
+        guidance: a traffic-flow penalty in the candidate order; not implemented (``True`` raises
+            ``ValueError``): the simple forms tried finished no measurably more errands
+            (``docs/design/lifelong_turning.md``).
+        field_bytes: memory bound of the goal-field cache (:class:`TurnFields`).
+        bfs_budget: BFS work per call in cells (new goal fields per call = this // free cells; a robot
+            whose goal has no field yet goes by Manhattan distance meanwhile).
+    """
+
+    name = "pibt"
+
+    def __init__(self, grid: np.ndarray, seed: int = 0, guidance: bool = False, *,
+                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+        if guidance:
+            raise ValueError(f"guidance={guidance!r} is not implemented (no measured gain); use guidance=False")
+        self.grid = np.asarray(grid, dtype=bool)
+        if self.grid.ndim != 2:
+            raise ValueError(f"grid must be 2-d (H, W), got shape {self.grid.shape}")
+        self.width = int(self.grid.shape[1])
+        self.guidance = False
+        self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
+        self.fields = TurnFields(self.nbr, field_bytes, bfs_budget)
+        self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
+        self.seed = int(seed) & ((1 << 63) - 1)
+        self.t = 0
+        self.elapsed = np.zeros(0, dtype=np.int64)
+        self.tie = np.zeros(0)
+        self.targets = np.zeros(0, dtype=np.int64)  # the last call's PIBT cells (flat)
+        n = len(self.cell_of)
+        self._occ_now = np.full(n, -1, dtype=np.int64)
+        self._occ_next = np.full(n, -1, dtype=np.int64)
+
+    def _ensure(self, n_robots: int) -> None:
+        if len(self.elapsed) != n_robots:
+            self.elapsed = np.zeros(n_robots, dtype=np.int64)
+            self.tie = np.random.default_rng(self.seed).random(n_robots)
+            self.t = 0
+
+    def order(self, n_robots: int) -> np.ndarray:
+        """The ``n_robots`` robots by decreasing priority (``elapsed + tie``; ``elapsed`` counts steps
+        since the goal, 1 + :data:`DEAD_END_BONUS` for a step ending in a dead end)."""
+        self._ensure(n_robots)
+        return np.lexsort((-self.tie, -self.elapsed)).astype(np.int64)
+
+    def _check(self, pos, orient, goals):
+        pos, orient, goals = _int_array("pos", pos), _int_array("orient", orient), _int_array("goals", goals)
+        if not (len(pos) == len(orient) == len(goals)):
+            raise ValueError(f"pos, orient and goals need one entry per robot, got lengths "
+                             f"{len(pos)}, {len(orient)}, {len(goals)}")
+        n = self.grid.size
+        for name, cells in (("pos", pos), ("goals", goals)):
+            bad = np.flatnonzero((cells < 0) | (cells >= n))
+            if len(bad):
+                k = int(bad[0])
+                raise ValueError(f"{name}[{k}] = {cells[k]} is off the map (flat cells 0..{n - 1})")
+            bad = np.flatnonzero(self.cid[cells] < 0)
+            if len(bad):
+                k = int(bad[0])
+                r, c = divmod(int(cells[k]), self.width)
+                raise ValueError(f"{name}[{k}] = {cells[k]} (row {r}, col {c}) is a blocked cell")
+        bad = np.flatnonzero((orient < 0) | (orient > 3))
+        if len(bad):
+            k = int(bad[0])
+            raise ValueError(f"orient[{k}] = {orient[k]} is not an orientation 0..3 (east, south, west, north)")
+        if len(pos) > 1:
+            s = np.sort(pos)
+            dup = np.flatnonzero(s[1:] == s[:-1])
+            if len(dup):
+                cell = int(s[dup[0]])
+                who = np.flatnonzero(pos == cell)[:2].tolist()
+                raise ValueError(f"robots {who[0]} and {who[1]} share cell {cell}")
+        return pos, orient, goals
+
+    def actions(self, pos, orient, goals) -> np.ndarray:
+        """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W) of robots at flat cells ``pos`` facing ``orient``
+        heading to flat ``goals`` (a robot without a task takes its own cell); always a valid joint
+        action.  Advances the priorities, assuming the actions are executed."""
+        pos, orient, goals = self._check(pos, orient, goals)
+        r = len(pos)
+        order = self.order(r)
+        pc = self.cid[pos]
+        gc = self.cid[goals]
+        rows = self.fields.rows(gc, order)
+        nxt = np.empty(r, dtype=np.int64)
+        act = np.empty(r, dtype=np.int64)
+        turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, self.fields.fields, rows, order, self.seed,
+                       self.t, nxt, act, self._occ_now, self._occ_next)
+        self.targets = self.cell_of[nxt]
+        moved = np.where(act == FORWARD, nxt, pc)
+        extra = DEAD_END_BONUS * self.dead_end[moved]
+        self.elapsed = np.where(moved == gc, 0, self.elapsed + 1 + extra)
+        self.t += 1
+        return act
+
+    def step(self, pos, orient, goals):
+        """:meth:`actions` applied: ``(next pos, next orient)``."""
+        pos, orient = _int_array("pos", pos), _int_array("orient", orient)
+        act = self.actions(pos, orient, goals)
+        nxt = np.where(act == FORWARD, self.targets, pos)
+        turn = np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))
+        return nxt, (orient + turn) % 4

@@ -1,0 +1,282 @@
+"""PIBT with turning (LoRR's MAPF_T actions): a recursive Python oracle, an independent validity check."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planners.mapf import TURNING_EXECUTORS, TurningPIBT, make_turning_executor
+from planners.mapf.common import mix
+
+F, R, C, W = 0, 1, 2, 3
+DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)  # east, south, west, north
+FAR = 1 << 40
+
+
+# ---------------------------------------------------------------- independent rules of the action model
+
+def apply(grid, pos, orient, act):
+    """Next (pos, orient) and the first rule broken (None if the joint action is valid)."""
+    h, w = grid.shape
+    nxt, nor = [], []
+    for p, o, a in zip(pos.tolist(), orient.tolist(), act.tolist()):
+        if a not in (F, R, C, W):
+            return None, None, f"action {a}"
+        r, c = divmod(p, w)
+        if a == F:
+            r, c = r + DR[o], c + DC[o]
+            if not (0 <= r < h and 0 <= c < w):
+                return None, None, f"off the map from {p} facing {o}"
+            if grid[r, c]:
+                return None, None, f"into obstacle {(r, c)}"
+        nxt.append(r * w + c)
+        nor.append((o + (a == R) - (a == C)) % 4)
+    if len(set(nxt)) != len(nxt):
+        return None, None, "vertex conflict"
+    moves = {(p, q) for p, q in zip(pos.tolist(), nxt) if p != q}
+    if any((q, p) in moves for p, q in moves):
+        return None, None, "swap"
+    return np.array(nxt, dtype=np.int64), np.array(nor, dtype=np.int64), None
+
+
+# ---------------------------------------------------------------- the oracle: recursive PIBT + vacate check
+
+def bfs(grid, goal):
+    h, w = grid.shape
+    dist = {goal: 0}
+    queue = deque([goal])
+    while queue:
+        p = queue.popleft()
+        r, c = divmod(p, w)
+        for d in range(4):
+            nr, nc = r + DR[d], c + DC[d]
+            if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] and nr * w + nc not in dist:
+                dist[nr * w + nc] = dist[p] + 1
+                queue.append(nr * w + nc)
+    return dist
+
+
+class Oracle:
+    """PIBT with turning as the module docstring states it, written recursively (a step ending in a
+    dead end off the goal adds 1 + 10 to the priority)."""
+
+    def __init__(self, grid, seed, n):
+        self.grid, self.seed, self.t = grid, seed, 0
+        self.elapsed = [0] * n
+        self.tie = np.random.default_rng(seed).random(n).tolist()
+
+    def neighbours(self, p):
+        h, w = self.grid.shape
+        r, c = divmod(p, w)
+        for d in range(4):
+            nr, nc = r + DR[d], c + DC[d]
+            if 0 <= nr < h and 0 <= nc < w and not self.grid[nr, nc]:
+                yield d, nr * w + nc
+
+    def actions(self, pos, orient, goals):
+        pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
+        n = len(pos)
+        dist = {g: bfs(self.grid, g) for g in set(goals)}
+        order = sorted(range(n), key=lambda k: (-self.elapsed[k], -self.tie[k]))
+        occ_now = {p: k for k, p in enumerate(pos)}
+        occ_next, nxt = {}, [None] * n
+
+        def cands(a):
+            o, f = orient[a], dist[goals[a]]
+            cells = [(pos[a], 0)] + [(v, 0 if d == o else 2 if d == (o + 2) % 4 else 1)
+                                     for d, v in self.neighbours(pos[a])]
+            return [v for v, turns in sorted(cells, key=lambda x: (
+                f.get(x[0], FAR), x[1], int(mix(self.seed, self.t, a, x[0]))))]
+
+        def pibt(a, b):
+            for v in cands(a):
+                if v in occ_next or (b is not None and v == pos[b]):
+                    continue
+                occ_next[v], nxt[a] = a, v
+                c = occ_now.get(v)
+                if c is not None and nxt[c] is None and not pibt(c, a):
+                    continue
+                return True
+            occ_next[pos[a]], nxt[a] = a, pos[a]
+            return False
+
+        for a in order:
+            if nxt[a] is None:
+                pibt(a, None)
+        act = []
+        for k in range(n):
+            d = next((d for d, v in self.neighbours(pos[k]) if v == nxt[k]), None)
+            o = orient[k]
+            act.append(W if d is None else F if d == o else C if d == (o + 3) % 4 else R)
+        verdict, visiting = {}, set()
+
+        def moves(k):  # F kept iff the cell ahead is empty now or its robot's F is kept (rotations move)
+            if k in verdict:
+                return verdict[k]
+            if k in visiting:
+                return True
+            visiting.add(k)
+            j = occ_now.get(nxt[k])
+            verdict[k] = j is None or (act[j] == F and moves(j))
+            return verdict[k]
+
+        for k in range(n):
+            if act[k] == F and not moves(k):
+                act[k] = W
+        moved = [nxt[k] if act[k] == F else pos[k] for k in range(n)]
+        dead_end = [len(list(self.neighbours(moved[k]))) == 1 for k in range(n)]
+        self.elapsed = [0 if moved[k] == goals[k] else self.elapsed[k] + 1 + 10 * dead_end[k] for k in range(n)]
+        self.t += 1
+        return act, nxt
+
+
+# ---------------------------------------------------------------- instances
+
+def random_instance(rng, h, w, density, fill):
+    grid = rng.random((h, w)) < density
+    grid[0, 0] = False
+    free = np.flatnonzero(~grid.reshape(-1))
+    n = max(1, min(len(free), int(round(fill * len(free)))))
+    pos = rng.choice(free, size=n, replace=False).astype(np.int64)
+    orient = rng.integers(0, 4, size=n).astype(np.int64)
+    goals = rng.choice(free, size=n).astype(np.int64)
+    goals = np.where(rng.random(n) < 0.2, pos, goals)  # some robots have no task
+    return grid, free, pos, orient, goals
+
+
+def retarget(rng, free, pos, goals):
+    done = pos == goals
+    return np.where(done & (rng.random(len(pos)) < 0.8), rng.choice(free, size=len(pos)), goals)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10**6), h=st.integers(3, 8), w=st.integers(3, 8),
+       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill):
+    rng = np.random.default_rng(seed)
+    grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
+    ex = TurningPIBT(grid, seed=seed)
+    oracle = Oracle(grid, ex.seed, len(pos))
+    for _ in range(12):
+        expect, targets = oracle.actions(pos, orient, goals)
+        act = ex.actions(pos, orient, goals)
+        assert act.tolist() == expect
+        assert ex.targets.tolist() == targets
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None, err
+        goals = retarget(rng, free, pos, goals)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dense_crowds_only_get_valid_joint_actions(seed):
+    rng = np.random.default_rng(100 + seed)
+    h, w = int(rng.integers(10, 21)), int(rng.integers(10, 21))
+    grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.04 * seed, 0.6)
+    budget = {"bfs_budget": 1} if seed % 2 else {}  # odd seeds: one new goal field per call, Manhattan meanwhile
+    ex = make_turning_executor("pibt", grid, seed=seed, **budget)
+    reached = moved = 0
+    for step in range(150):
+        act = ex.actions(pos, orient, goals)
+        pos2, orient, err = apply(grid, pos, orient, act)
+        assert err is None, f"step {step}: {err}"
+        moved += int((pos2 != pos).sum())
+        pos = pos2
+        reached += int((pos == goals).sum())
+        goals = retarget(rng, free, pos, goals)
+    assert moved > 0 and reached > 0
+
+
+def test_rotation_moves_and_a_robot_behind_a_turn_waits():
+    ex = TurningPIBT(np.zeros((2, 2), dtype=bool))  # 0 1 / 2 3: a clockwise rotation, everyone facing along it
+    act = ex.actions(np.array([0, 1, 3, 2]), np.array([0, 1, 2, 3]), np.array([1, 3, 2, 0]))
+    assert act.tolist() == [F, F, F, F]
+    ex = TurningPIBT(np.zeros((2, 3), dtype=bool))  # A at 0 facing east wants 1; B at 1 facing north turns east
+    act = ex.actions(np.array([0, 1]), np.array([0, 3]), np.array([1, 2]))
+    assert act.tolist() == [W, R]
+
+
+def test_a_robot_leaving_a_dead_end_overtakes_one_waiting_to_enter():
+    grid = np.array([[1, 1, 0, 1, 1], [0, 0, 0, 0, 0]], dtype=bool)  # cell 2 is a dead end above cell 7
+    pos, orient, goals = np.array([2, 7]), np.array([1, 3]), np.array([9, 2])  # X out to 9, Y into 2
+    ex = TurningPIBT(grid, seed=0)
+    ex.order(2)
+    ex.elapsed[:] = [0, 50]  # Y first: it cannot push X out (X's only way out is Y's cell)
+    for _ in range(20):
+        pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
+        assert err is None
+    assert pos.tolist() == [9, 2]
+
+
+@pytest.mark.parametrize("bfs_budget", [1 << 24, 1])
+def test_robots_reach_their_goals_on_an_open_map(bfs_budget):
+    rng = np.random.default_rng(3)
+    grid = np.zeros((8, 8), dtype=bool)
+    grid[3, 2:6] = True
+    free = np.flatnonzero(~grid.reshape(-1))
+    cells = rng.choice(free, size=24, replace=False).astype(np.int64)
+    pos, goals = cells[:12], cells[12:]
+    orient = rng.integers(0, 4, size=12)
+    ex = TurningPIBT(grid, seed=5, bfs_budget=bfs_budget)
+    for _ in range(120):
+        pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
+        assert err is None
+        if np.array_equal(pos, goals):
+            break
+    assert np.array_equal(pos, goals)
+    assert ex.fields.computed == 12 and (ex.fields.per_call == 1) == (bfs_budget == 1)
+
+
+def test_same_seed_same_actions_and_a_small_field_cache_changes_nothing():
+    rng = np.random.default_rng(7)
+    grid, free, pos0, orient0, goals0 = random_instance(rng, 12, 14, 0.2, 0.4)
+    runs = []
+    for field_bytes in (1 << 30, 1 << 30, 1):  # the last keeps about one field: recomputed on demand
+        ex = TurningPIBT(grid, seed=11, field_bytes=field_bytes)
+        r = np.random.default_rng(1)
+        pos, orient, goals, seq = pos0, orient0, goals0, []
+        for _ in range(40):
+            act = ex.actions(pos, orient, goals)
+            seq.append(act.tolist())
+            pos, orient, _ = apply(grid, pos, orient, act)
+            goals = retarget(r, free, pos, goals)
+        runs.append(seq)
+    assert runs[0] == runs[1] == runs[2]
+    assert ex.fields.computed > len(np.unique(goals0))  # fields were evicted and recomputed
+
+
+def test_maps_of_65535_free_cells_or_more_use_uint32_fields():
+    grid = np.zeros((256, 256), dtype=bool)
+    pos, orient, goals = np.array([0, 300, 65535]), np.array([0, 1, 2]), np.array([5, 300 + 256 * 4, 65535 - 3])
+    ex = TurningPIBT(grid)
+    assert ex.fields.dtype == np.uint32
+    for _ in range(12):
+        pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
+        assert err is None
+    assert pos.tolist() == goals.tolist()
+
+
+def test_bad_input_names_the_value():
+    grid = np.zeros((3, 4), dtype=bool)
+    grid[1, 1] = True  # cell 5
+    ex = TurningPIBT(grid)
+    ok = dict(pos=np.array([0, 2]), orient=np.array([0, 1]), goals=np.array([3, 11]))
+    cases = [
+        (dict(pos=np.array([0])), r"one entry per robot, got lengths 1, 2, 2"),
+        (dict(orient=np.array([0, 4])), r"orient\[1\] = 4 is not an orientation 0..3"),
+        (dict(orient=np.array([-1, 0])), r"orient\[0\] = -1"),
+        (dict(pos=np.array([0, 5])), r"pos\[1\] = 5 \(row 1, col 1\) is a blocked cell"),
+        (dict(goals=np.array([5, 1])), r"goals\[0\] = 5 \(row 1, col 1\) is a blocked cell"),
+        (dict(pos=np.array([0, 12])), r"pos\[1\] = 12 is off the map \(flat cells 0..11\)"),
+        (dict(pos=np.array([2, 2])), r"robots 0 and 1 share cell 2"),
+        (dict(pos=np.array([0.5, 2.0])), r"pos must hold integers, got dtype float64"),
+    ]
+    for change, message in cases:
+        with pytest.raises(ValueError, match=message):
+            ex.actions(**{**ok, **change})
+    with pytest.raises(ValueError, match="unknown turning executor 'cbs'; known: pibt"):
+        make_turning_executor("cbs", grid)
+    assert TURNING_EXECUTORS["pibt"] is TurningPIBT and ex.name == "pibt"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["check_env_id", "is_assign_env", "is_lifelong_env"]
+__all__ = ["check_env_id", "check_worlds", "is_assign_env", "is_lifelong_env"]
 
 
 def check_env_id(env_id: str):
@@ -27,3 +27,23 @@ def is_lifelong_env(env_id: str) -> bool:
     """True for a lifelong env id (a task stream; a learned controller chooses each idle robot's next task)."""
     entry = check_env_id(env_id).entry_point
     return isinstance(entry, str) and entry.endswith(":MRMTLifelongEnv")
+
+
+def check_worlds(env_id: str, env_kwargs: dict, seeds) -> None:
+    """Build ``env_id`` with ``env_kwargs`` and reset it on every world seed of a run, so a world
+    the env cannot hold (too many robots for the grid, a map too small for its layout) is a
+    one-line ``ValueError`` before any progress bar or worker pool starts, not in the middle."""
+    import gymnasium as gym
+
+    check_env_id(env_id)
+    try:
+        env = gym.make(env_id, **env_kwargs)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(" ".join(str(exc).split())) from None
+    try:
+        for seed in seeds:
+            env.reset(seed=int(seed))
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"world seed {seed}: {' '.join(str(exc).split())}") from None
+    finally:
+        env.close()

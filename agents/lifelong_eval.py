@@ -116,12 +116,14 @@ def evaluate_lifelong(specs, env_id: str, seeds, steps: int, env_kwargs: dict | 
         from tqdm import tqdm
 
         bar = tqdm(total=len(jobs), desc="lifelong episodes", file=sys.stderr)
-    for spec, seed in jobs:
-        rows.append(run_lifelong_episode(env_id, spec, seed, steps, env_kwargs, chip, executor, options))
+    try:
+        for spec, seed in jobs:
+            rows.append(run_lifelong_episode(env_id, spec, seed, steps, env_kwargs, chip, executor, options))
+            if bar is not None:
+                bar.update(1)
+    finally:  # closed before an error is printed, not redrawn after it
         if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
+            bar.close()
     return rows
 
 
@@ -190,8 +192,14 @@ def run_compare(args) -> int:
     steps = args.max_steps or DEFAULT_LIFELONG_STEPS
     try:
         from agents.commands.options import chip_from_args
+        from agents.env_ids import check_worlds
+        from agents.lifelong import make_lifelong_controller
 
         chip = chip_from_args(args)  # --chip spec fields and --sampler
+        # before the progress bar: a world the env cannot hold, a model file or a layer name that cannot be used
+        check_worlds(args.env_id, env_kwargs, range(args.seed, args.seed + args.worlds))
+        for spec in specs:
+            make_lifelong_controller(spec, seed=args.seed, chip=chip)
         rows = evaluate_lifelong(specs, args.env_id, range(args.seed, args.seed + args.worlds), steps, env_kwargs,
                                  chip=chip, progress=not args.no_progress)
     except (ValueError, TypeError, ControllerError) as exc:

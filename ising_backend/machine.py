@@ -30,10 +30,11 @@ from .chip import EmulatedChip, check_call_seed, check_num_reads, check_program,
 from .health import program_energy
 from .ledger import CallLedger
 from .meter import SolverOutputError
+from .sampler_options import RESERVED, check_value, parameter_types, parse_value
 from .spec import ChipSpec
 
 __all__ = ["IsingMachine", "MachineBase", "SamplerChip", "MachineSpec", "SAMPLERS", "as_machine",
-           "build_machine", "sampler_names"]
+           "build_machine", "parse_sampler_options", "sampler_names"]
 
 
 @runtime_checkable
@@ -155,13 +156,23 @@ def _load_sampler(name: str) -> dimod.Sampler:
     return getattr(mod, cls)()
 
 
-def _sampler_parameters(sampler) -> set:
-    """``sampler.parameters`` and the named keywords of its ``sample`` (OpenJij lists only some)."""
-    import inspect
-
-    named = {p.name for p in inspect.signature(sampler.sample).parameters.values()
-             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)} - {"self", "bqm"}
-    return set(sampler.parameters) | named
+def parse_sampler_options(name: str, items) -> tuple[tuple[str, Any], ...]:
+    """``(key, text)`` pairs (command-line ``KEY=VALUE`` s) for the sampler ``name`` as typed
+    ``(key, value)`` pairs, each text read by its parameter's type
+    (:mod:`ising_backend.sampler_options`); ``ValueError`` in one line naming an unknown or
+    reserved key (with the sampler's known parameters) or a value of the wrong type."""
+    sampler = _load_sampler(name)
+    types = parameter_types(sampler)
+    settable = sorted(set(types) - set(RESERVED))
+    out = []
+    for key, text in items:
+        if key in RESERVED:
+            raise ValueError(f"{key}={text!r}: {key!r} is set per call by the planner, not fixed")
+        if key not in types:
+            raise ValueError(f"{key}={text!r}: {key!r} is not one of the parameters of {name} "
+                             f"({type(sampler).__name__}): {', '.join(settable) or '(none)'}")
+        out.append((key, parse_value(types[key], key, text)))
+    return tuple(out)
 
 
 class SamplerChip(MachineBase):
@@ -173,21 +184,29 @@ class SamplerChip(MachineBase):
     randomness decides and plans are not reproducible).  The spec decides what fits (programs
     outside it are refused exactly as by :class:`EmulatedChip`) and what each call costs; the
     sampler's wall time is recorded as ``emulation_s``.  ``params`` are checked against
-    ``sampler.parameters`` and the keywords of ``sampler.sample``.  The emulator's knobs (``sweeps``, ``schedule``, noise) do not apply.
+    ``sampler.parameters`` and the keywords of ``sampler.sample``, their values against the types of those
+    keywords (:mod:`ising_backend.sampler_options`).  The emulator's knobs (``sweeps``, ``schedule``,
+    noise) do not apply.
     """
 
     def __init__(self, sampler: dimod.Sampler, spec: ChipSpec | None = None, seed: int | None = None, **params):
         if not isinstance(sampler, dimod.Sampler):
             raise TypeError(f"sampler = {sampler!r} is not a dimod.Sampler")
         super().__init__(spec, seed)
-        known = _sampler_parameters(sampler)
-        for key in ("num_reads", "seed"):
+        types = parameter_types(sampler)
+        known = set(types)
+        for key in RESERVED:
             if key in params:
                 raise ValueError(f"sampler parameter {key!r} is set per call by the planner, not fixed")
         unknown = sorted(set(params) - known)
         if unknown:
             raise ValueError(f"sampler parameter {unknown[0]!r} is not one of {type(sampler).__name__}'s: "
-                             f"{', '.join(sorted(known)) or '(none)'}")
+                             f"{', '.join(sorted(known - set(RESERVED))) or '(none)'}")
+        for key, value in params.items():
+            try:
+                check_value(types[key], key, value)
+            except ValueError as exc:
+                raise ValueError(f"sampler parameter {exc}") from None
         self.sampler = sampler
         self.params = dict(params)
         self._seeded = "seed" in known
@@ -195,6 +214,17 @@ class SamplerChip(MachineBase):
     @property
     def parameters(self) -> dict:
         return {"num_reads": [], "seed": []}
+
+    def probe(self) -> None:
+        """One 1-spin program through the sampler with ``params``, uncharged, so values the sampler
+        refuses (``num_sweeps=-1``, a 3-element ``beta_range``) fail now, in one ``ValueError``
+        naming them, rather than at the first plan."""
+        try:
+            self._sample(np.zeros((1, 1), dtype=np.int64), np.zeros((1, 1, 1), dtype=np.int64), 1, 0)
+        except Exception as exc:  # whatever the package raises, reported in one line
+            given = ", ".join(f"{k}={v!r}" for k, v in self.params.items()) or "its defaults"
+            raise ValueError(f"{type(self.sampler).__name__} refuses {given}: {type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())}") from None
 
     def __repr__(self) -> str:
         return f"SamplerChip({type(self.sampler).__name__}, n_spins={self.spec.n_spins})"
@@ -239,6 +269,9 @@ class MachineSpec:
             raise ValueError(f"unknown sampler {self.sampler!r}; known: {', '.join(SAMPLERS)}")
         if self.options and self.sampler is None:
             raise ValueError("sampler options given without a sampler")
+        for key in RESERVED:
+            if key in dict(self.options):
+                raise ValueError(f"sampler parameter {key!r} is set per call by the planner, not fixed")
         def frozen(v):  # list values (a JSON option such as beta_range=[0.1, 5]) kept hashable
             return tuple(frozen(x) for x in v) if isinstance(v, (list, tuple)) else v
 

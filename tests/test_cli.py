@@ -34,3 +34,18 @@ def test_command_examples_write_to_relative_paths():
 
     for path in Path(agents.commands.__file__).parent.glob("*.py"):
         assert "--out /" not in path.read_text(), f"{path.name}: an example writes to an absolute path"
+
+
+@pytest.mark.parametrize("controllers", ["greedy", "fast", "ppo:/no/such.zip"])
+def test_compare_names_an_unknown_env_id_before_the_controllers(controllers, capsys):
+    assert main(["compare", "--env-id", "mrmt_env/NoSuch-v0", "--controllers", controllers, "--worlds", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mrmt compare: error: unknown env id 'mrmt_env/NoSuch-v0'; registered: ")
+    assert "mrmt_env/MRMT-v0" in err[0] and "mrmt_env/MRMT-Lifelong-v0" in err[0]
+
+
+def test_compare_refuses_a_world_the_env_cannot_hold_before_any_bar_or_pool(capsys):
+    assert main(["compare", "--controllers", "fast", "--robots", "500", "--worlds", "2", "--jobs", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("mrmt compare: error: 500 robots + 10 targets need 510 distinct free cells, but a 10x10 grid "
+                   "with 20 obstacles has only 80\n")  # no progress bar drawn first, no traceback

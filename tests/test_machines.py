@@ -210,3 +210,58 @@ def test_cli_plan_with_a_sampler(tmp_path, capsys):
         assert main(["plan", str(worlds), "--pipeline", "ising", *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and msg in err[0]
+
+
+def test_sampler_parameter_types_come_from_the_sampler():
+    import dwave.samplers
+
+    from ising_backend.sampler_options import describe, parameter_types, parse_value
+
+    types = parameter_types(dwave.samplers.SimulatedAnnealingSampler())
+    assert describe(types["num_sweeps"]) == "an integer" and describe(types["randomize_order"]) == "true or false"
+    assert describe(types["beta_schedule_type"]) == "one of 'linear', 'geometric', 'custom'"
+    assert parse_value(types["num_sweeps"], "num_sweeps", "100") == 100
+    assert parse_value(types["beta_range"], "beta_range", "[0.1, 5]") == [0.1, 5]
+    assert parse_value(types["beta_range"], "beta_range", "0.1,5") == (0.1, 5)  # a Python literal
+    assert parse_value(types["beta_schedule_type"], "beta_schedule_type", "linear") == "linear"
+    assert parse_value(types["randomize_order"], "randomize_order", "true") is True
+    for name, text, expected in (("num_sweeps", "abc", "an integer"), ("num_sweeps", "1.5", "an integer"),
+                                 ("randomize_order", "yes", "true or false"),
+                                 ("beta_schedule_type", "5", "one of 'linear'")):
+        with pytest.raises(ValueError, match=f"^{name}='{text}': expected {expected}"):
+            parse_value(types[name], name, text)
+    with pytest.raises(ValueError, match="sampler parameter num_sweeps='abc': expected an integer"):
+        SamplerChip(dwave.samplers.SimulatedAnnealingSampler(), num_sweeps="abc")  # held to the types in Python too
+    with pytest.raises(ValueError, match="'seed' is set per call"):
+        MachineSpec(sampler="dwave-sa", options=(("seed", 3),))  # was a TypeError from build()
+
+
+@pytest.mark.parametrize("command", [["plan", str(ROOT / "mrmt_env" / "data" / "example_worlds.jsonl"),
+                                      "--pipeline", "ising"],
+                                     ["compare", "--controllers", "ising", "--worlds", "1", "--jobs", "1"],
+                                     ["compare", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--controllers", "ising",
+                                      "--worlds", "1"],
+                                     ["sweep", "--chip", "n_spins=32,45", "--controllers", "ising", "--worlds", "1",
+                                      "--out", "never-written"],
+                                     ["reproduce", "--quick", "--out", "never-written"]])
+def test_sampler_option_values_are_read_by_their_type(command, capsys, tmp_path, monkeypatch):
+    from agents.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    cases = ((["num_sweeps=abc"], "--sampler-option num_sweeps='abc': expected an integer"),
+             (["num_sweeps=10", "beta_range=x"], "--sampler-option beta_range='x': expected a list of numbers"),
+             (["randomize_order=yes"], "--sampler-option randomize_order='yes': expected true or false"),
+             (["nope=1"], "'nope' is not one of the parameters of dwave-sa (SimulatedAnnealingSampler): "
+                          "beta_range, beta_schedule,"),
+             (["seed=3"], "--sampler-option seed='3': 'seed' is set per call by the planner"),
+             (["num_sweeps=1", "num_sweeps=2"], "--sampler-option num_sweeps given twice"),
+             (["num_sweeps=-1"], "--sampler dwave-sa: SimulatedAnnealingSampler refuses num_sweeps=-1: ValueError"))
+    for options, msg in cases:
+        argv = [*command, "--sampler", "dwave-sa"]
+        for option in options:
+            argv += ["--sampler-option", option]
+        assert main([*argv, "--no-progress"]) == 2, options
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"mrmt {command[0]}: error: --sampler") and msg in err[0], \
+            (options, err)
+    assert not (tmp_path / "never-written").exists()

@@ -51,8 +51,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from agents.env_ids import check_env_id, check_worlds
     from agents.lifelong_eval import is_lifelong_id, run_compare
 
+    try:  # the env id first: the controllers it takes depend on it
+        check_env_id(args.env_id)
+    except ValueError as exc:
+        print(f"mrmt compare: error: {exc}", file=sys.stderr)
+        return 2
     if is_lifelong_id(args.env_id):  # tasks keep arriving: greedy / pipelines through PIBT (agents.lifelong)
         return run_compare(args)
     from agents.evaluation import ControllerError, evaluate, parse_controllers
@@ -68,14 +74,6 @@ def run(args) -> int:
     if problem:
         print(f"mrmt compare: error: {problem}", file=sys.stderr)
         return 2
-    import gymnasium as gym
-
-    import mrmt_env  # noqa: F401  (registers the ids)
-
-    if args.env_id not in gym.registry:
-        known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
-        print(f"mrmt compare: error: unknown env id {args.env_id!r}; registered: {known}", file=sys.stderr)
-        return 2
     given = {
         "n_robots": args.robots,
         "n_targets": args.targets,
@@ -89,6 +87,7 @@ def run(args) -> int:
     try:
         run = runner_from_args(args)
         chip = chip_from_args(args)
+        check_worlds(args.env_id, env_kwargs, range(args.seed, args.seed + args.worlds))  # before any pool or bar
         if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
             from agents.warmup import warm
 

@@ -53,7 +53,8 @@ def add_chip_argument(parser, who: str = "the Ising planners", chip: bool = True
 
 
 def option_value(text: str):
-    """A ``--option`` / ``--sampler-option`` value: JSON when it parses (numbers, true/false, null), else the string."""
+    """A ``--option`` value: JSON when it parses (numbers, true/false, null), else the string
+    (``--sampler-option`` values are read by their parameter's type: ``chip_from_args``)."""
     import json
 
     try:
@@ -67,6 +68,7 @@ def chip_from_args(args, key: str = "chip"):
     (the emulator) or a :class:`~ising_backend.MachineSpec` (``--sampler``); a bad field, an
     unknown sampler or option, or a missing package raises ``ValueError`` in one line."""
     from ising_backend import ChipSpec, MachineSpec
+    from ising_backend.machine import parse_sampler_options
 
     items = getattr(args, key, None) or []
     spec = ChipSpec.from_options(items) if items else None
@@ -76,14 +78,25 @@ def chip_from_args(args, key: str = "chip"):
         if options:
             raise ValueError("--sampler-option given without --sampler")
         return spec
-    pairs = []
+    texts = []
     for item in options:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise ValueError(f"--sampler-option {item!r} must look like KEY=VALUE (e.g. num_sweeps=100)")
-        pairs.append((name.strip(), option_value(value.strip())))
-    machine = MachineSpec(spec or ChipSpec(), sampler, tuple(pairs))
-    machine.build()  # fail now, in one line: a missing package, an unknown parameter, a faulty spec
+        if name.strip() in dict(texts):
+            raise ValueError(f"--sampler-option {name.strip()} given twice ({dict(texts)[name.strip()]!r} and "
+                             f"{value.strip()!r}); give it once")
+        texts.append((name.strip(), value.strip()))
+    MachineSpec(spec or ChipSpec(), sampler).build()  # an unknown sampler, a missing package, a faulty spec
+    try:  # each value read by its parameter's type (ising_backend.sampler_options)
+        pairs = parse_sampler_options(sampler, texts)
+    except ValueError as exc:
+        raise ValueError(f"--sampler-option {exc}") from None
+    machine = MachineSpec(spec or ChipSpec(), sampler, pairs)
+    try:  # values of the right type the sampler still refuses fail now, not at the first plan
+        machine.build().probe()
+    except ValueError as exc:
+        raise ValueError(f"--sampler {sampler}: {exc}") from None
     return machine
 
 

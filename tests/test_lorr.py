@@ -279,3 +279,35 @@ def test_unsupported_assignment_strategy_is_named(tmp_path):
     path.write_text(path.read_text().replace('"version"', '"taskAssignmentStrategy": "greedy", "version"'))
     with pytest.raises(LoRRFormatError, match="'greedy' is not supported; supported: roundrobin"):
         read_instance(path)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_greedy_kernel_is_the_sequential_greedy_on_random_grids(seed):
+    from mrmt_env.lorr.greedy import greedy_kernel
+
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(3, 12)), int(rng.integers(3, 12))
+    grid = rng.random((h, w)) < 0.25
+    free_cells = np.flatnonzero(~grid.reshape(-1))
+    if len(free_cells) < 2:
+        return
+    robots = rng.choice(free_cells, size=int(rng.integers(1, len(free_cells))), replace=False).astype(np.int64)
+    n_tasks = int(rng.integers(1, 2 * len(free_cells)))
+    first = rng.choice(free_cells, size=n_tasks).astype(np.int64)        # tasks may share a cell
+    length = rng.integers(0, 12, n_tasks).astype(np.int64)
+    ids = rng.permutation(n_tasks).astype(np.int64) * 3
+    order = np.argsort(first, kind="stable").astype(np.int64)
+    cell_start = np.zeros(grid.size + 1, dtype=np.int64)
+    np.cumsum(np.bincount(first, minlength=grid.size), out=cell_start[1:])
+    free = np.ones(n_tasks, dtype=bool)
+    out = np.empty(len(robots), dtype=np.int64)
+    assert greedy_kernel(grid.reshape(-1), w, robots, cell_start, order, length, ids, free, int(length.min()),
+                         1 << 40, out) == len(robots)
+    left = set(range(n_tasks))
+    for i, r in enumerate(robots.tolist()):
+        d = _bfs(grid, r)
+        cands = [(d[first[k]] + length[k], ids[k], k) for k in left if d[first[k]] >= 0]
+        want = min(cands)[2] if cands else -1
+        assert out[i] == want
+        left.discard(want)

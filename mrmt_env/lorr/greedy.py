@@ -2,10 +2,13 @@
 
 Each free robot (ascending index; the start kit walks a hash set) takes the free task of least
 makespan -- the shortest way to its first errand, then through every errand in order (BFS, no
-turning) -- ties to the lowest task id; a robot with no free task left waits for the next step.
+turning) -- ties to the lowest task id; a robot with no free task left waits for the next step.  Like the
+start kit, which stops assigning when its time is up, a step's search work is bounded
+(:data:`DEFAULT_WORK_BUDGET` cells, deterministic); robots beyond it wait for the next step.
 Free robots and free tasks are remembered across steps as the start kit does.  Distances: one
-BFS per free robot (its cell to every cell, in chunks so memory stays bounded) and each task's
-errand-to-errand length once per task line (compiled early-exit BFS).
+compiled BFS per free robot that stops once no unseen task can beat the best found (so a near
+task costs a small search), and each task's errand-to-errand length once per task line
+(compiled early-exit BFS).
 """
 
 from __future__ import annotations
@@ -13,22 +16,25 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mrmt_env.distances import bfs_flat
-
-__all__ = ["GreedyScheduler", "pair_distances", "distance_rows", "FAR"]
+__all__ = ["GreedyScheduler", "pair_distances", "greedy_kernel", "FAR"]
 
 #: Cost of an unreachable errand (larger than any path).
 FAR = np.int64(1 << 40)
-_CHUNK = 128
+#: Cells a step's searches may visit (half for task lengths, half for robots; about 0.25 s here):
+#: a deterministic stand-in for the start kit's time limit, which stops assigning when time is up.
+#: Only fleets of thousands on large maps reach it (then the rest is assigned in the next steps).
+DEFAULT_WORK_BUDGET = 1 << 24
 
 
 @numba.njit(cache=True, nogil=True)
-def pair_distances(flat_grid, width, a, b, out) -> None:
-    """``out[k]`` = BFS moves from ``a[k]`` to ``b[k]`` (flat cells), -1 if unreachable."""
+def pair_distances(flat_grid, width, a, b, out) -> int:
+    """``out[k]`` = BFS moves from ``a[k]`` to ``b[k]`` (flat cells), -1 if unreachable; returns the
+    cells visited (the work done)."""
     n = flat_grid.shape[0]
     h = n // width
     dist = np.full(n, -1, dtype=np.int64)
     queue = np.empty(n, dtype=np.int64)
+    work = 0
     for k in range(a.shape[0]):
         s, g = a[k], b[k]
         out[k] = -1
@@ -55,28 +61,73 @@ def pair_distances(flat_grid, width, a, b, out) -> None:
                         if q == g:
                             found = dist[q]
         out[k] = found
+        work += tail
         for i in range(tail):
             dist[queue[i]] = -1
+    return work
 
 
 @numba.njit(cache=True, nogil=True)
-def _rows(flat_grid, width, sources, out) -> None:
-    queue = np.empty(flat_grid.shape[0], dtype=np.int64)
-    for k in range(sources.shape[0]):
-        f = out[k]
-        f[:] = -1
-        f[sources[k]] = 0
-        queue[0] = sources[k]
-        bfs_flat(flat_grid, width, f, queue, 1)
-
-
-def distance_rows(flat_grid: np.ndarray, width: int, sources: np.ndarray) -> np.ndarray:
-    """``(K, H*W)`` int32 BFS distances from each flat source cell (-1 unreachable)."""
-    sources = np.ascontiguousarray(sources, dtype=np.int64)
-    out = np.empty((len(sources), flat_grid.shape[0]), dtype=np.int32)
-    if len(sources):
-        _rows(flat_grid, width, sources, out)
-    return out
+def greedy_kernel(flat_grid, width, robots, cell_start, cell_tasks, length, task_id, free, min_len, budget,
+                  out) -> int:
+    """The greedy choice of every robot in ``robots`` (flat cells, in order): ``out[i]`` = the index
+    of the free task of least ``BFS(robot, first errand) + length``, ties to the lowest ``task_id``
+    (-1 if none is reachable); the task is then taken (``free[k] = False``).  Tasks sit at cells
+    through ``cell_tasks[cell_start[c]:cell_start[c + 1]]``.  Each robot's BFS stops once its depth
+    plus ``min_len`` exceeds the best cost found, so near tasks cost a small search.  Robots are
+    taken in order until ``budget`` cells were visited (at least one); returns how many were."""
+    n = flat_grid.shape[0]
+    h = n // width
+    dist = np.full(n, -1, dtype=np.int64)
+    queue = np.empty(n, dtype=np.int64)
+    left = 0
+    for k in range(free.shape[0]):
+        if free[k]:
+            left += 1
+    work = 0
+    for i in range(robots.shape[0]):
+        out[i] = -1
+        if i > 0 and work >= budget:
+            return i
+        if left == 0:
+            continue
+        s = robots[i]
+        dist[s] = 0
+        queue[0] = s
+        head, tail = 0, 1
+        best = np.int64(-1)
+        best_cost = np.int64(1) << 62
+        while head < tail:
+            p = queue[head]
+            head += 1
+            d = dist[p]
+            if d + min_len > best_cost:
+                break
+            for j in range(cell_start[p], cell_start[p + 1]):
+                k = cell_tasks[j]
+                if free[k]:
+                    c = d + length[k]
+                    if c < best_cost or (c == best_cost and task_id[k] < task_id[best]):
+                        best_cost = c
+                        best = k
+            r, cc = p // width, p % width
+            for m in range(4):
+                nr = r + (-1, 1, 0, 0)[m]
+                nc = cc + (0, 0, -1, 1)[m]
+                if 0 <= nr < h and 0 <= nc < width:
+                    q = nr * width + nc
+                    if not flat_grid[q] and dist[q] < 0:
+                        dist[q] = d + 1
+                        queue[tail] = q
+                        tail += 1
+        work += tail
+        for j in range(tail):
+            dist[queue[j]] = -1
+        if best >= 0:
+            out[i] = best
+            free[best] = False
+            left -= 1
+    return robots.shape[0]
 
 
 class GreedyScheduler:
@@ -85,7 +136,10 @@ class GreedyScheduler:
     name = "lorr-greedy"
     accelerated = False
 
-    def __init__(self) -> None:
+    def __init__(self, work_budget: int = DEFAULT_WORK_BUDGET) -> None:
+        if isinstance(work_budget, bool) or not isinstance(work_budget, int) or work_budget < 1:
+            raise ValueError(f"work_budget must be an integer >= 1 (cells visited per step), got {work_budget!r}")
+        self.work_budget = work_budget
         self._sim = None
 
     def reset(self, sim) -> None:
@@ -96,14 +150,18 @@ class GreedyScheduler:
         self._seen_t = -1
         self.flat = np.ascontiguousarray(sim.inst.grid.reshape(-1))
 
-    def task_length(self, tasks, ids: np.ndarray) -> np.ndarray:
-        """Errand-to-errand length of each task (cached per file line); FAR if an errand is cut off."""
+    def task_length(self, tasks, ids: np.ndarray, budget: int) -> np.ndarray:
+        """Errand-to-errand length of each task (cached per file line; FAR if an errand is cut off;
+        -1 while not computed: lines are measured in id order until ``budget`` cells were visited)."""
         inst = tasks.inst
         lines = [tasks.line[int(k)] for k in ids.tolist()]
-        missing = sorted({ln for ln in lines if ln not in self._length})
-        if missing:
+        missing = [ln for ln in dict.fromkeys(lines) if ln not in self._length]
+        work = 0
+        for lo in range(0, len(missing), 64):
+            if work >= budget:
+                break
             a, b, owner = [], [], []
-            for ln in missing:
+            for ln in missing[lo:lo + 64]:
                 e = inst.task_errands(ln)
                 a.extend(e[:-1].tolist())
                 b.extend(e[1:].tolist())
@@ -111,10 +169,11 @@ class GreedyScheduler:
                 self._length[ln] = 0
             if a:
                 d = np.empty(len(a), dtype=np.int64)
-                pair_distances(self.flat, inst.width, np.array(a, dtype=np.int64), np.array(b, dtype=np.int64), d)
+                work += pair_distances(self.flat, inst.width, np.array(a, dtype=np.int64),
+                                       np.array(b, dtype=np.int64), d)
                 for ln, v in zip(owner, d.tolist()):
                     self._length[ln] = int(FAR) if v < 0 or self._length[ln] >= FAR else self._length[ln] + v
-        return np.array([self._length[ln] for ln in lines], dtype=np.int64)
+        return np.array([self._length.get(ln, -1) for ln in lines], dtype=np.int64)
 
     def schedule(self, sim) -> np.ndarray:
         if self._sim is not sim:
@@ -132,21 +191,20 @@ class GreedyScheduler:
             return proposal
         ids = np.array(sorted(self.free_tasks), dtype=np.int64)
         first = np.array([tasks.remaining(int(k))[0] for k in ids.tolist()], dtype=np.int64)
-        length = self.task_length(tasks, ids)
-        free = np.ones(len(ids), dtype=bool)
-        width = sim.width
-        for lo in range(0, len(robots), _CHUNK):
-            if not free.any():
-                break
-            chunk = robots[lo:lo + _CHUNK]
-            rows = distance_rows(self.flat, width, sim.pos[chunk])[:, first].astype(np.int64)
-            cost = np.where(rows < 0, FAR, rows + length)
-            for i, a in enumerate(chunk):
-                if not free.any():
-                    break
-                j = int(np.argmin(np.where(free, cost[i], FAR * 4)))
+        length = self.task_length(tasks, ids, self.work_budget // 2)
+        ok = (length >= 0) & (length < FAR)
+        order = np.argsort(first, kind="stable")
+        counts = np.bincount(first, minlength=self.flat.size)
+        cell_start = np.zeros(self.flat.size + 1, dtype=np.int64)
+        np.cumsum(counts, out=cell_start[1:])
+        free = ok.copy()
+        min_len = int(length[ok].min()) if ok.any() else 0
+        out = np.empty(len(robots), dtype=np.int64)
+        done = greedy_kernel(self.flat, sim.width, sim.pos[robots], cell_start, order.astype(np.int64), length, ids,
+                             free, min_len, self.work_budget // 2, out)
+        for a, j in zip(robots[:done], out[:done].tolist()):
+            if j >= 0:
                 proposal[a] = ids[j]
-                free[j] = False
                 self.free_agents.discard(a)
                 self.free_tasks.discard(int(ids[j]))
         return proposal

@@ -14,6 +14,10 @@ def check_env_id(env_id: str):
     if env_id not in gym.registry:
         known = ", ".join(sorted(k for k in gym.registry if k.startswith("mrmt_env/")))
         raise ValueError(f"unknown env id {env_id!r}; registered: {known}")
+    if env_id in mrmt_env.LORR_IDS:
+        raise ValueError(f"{env_id} runs League of Robot Runners instances: use mrmt lorr run INSTANCE.json")
+    if not env_id.startswith("mrmt_env/"):
+        raise ValueError(f"{env_id!r} is not an mrmt_env/ id; this command runs the package's envs")
     return gym.spec(env_id)
 
 

@@ -49,3 +49,19 @@ def test_compare_refuses_a_world_the_env_cannot_hold_before_any_bar_or_pool(caps
     err = capsys.readouterr().err
     assert err == ("mrmt compare: error: 500 robots + 10 targets need 510 distinct free cells, but a 10x10 grid "
                    "with 20 obstacles has only 80\n")  # no progress bar drawn first, no traceback
+
+
+@pytest.mark.parametrize("env_id, needle", [
+    ("mrmt_env/LoRR-v0", "use mrmt lorr run INSTANCE.json"),
+    ("CartPole-v1", "'CartPole-v1' is not an mrmt_env/ id"),
+])
+def test_compare_refuses_ids_it_does_not_run(env_id, needle):
+    from agents.cli import main
+
+    import io
+    import contextlib
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(["compare", "--env-id", env_id, "--controllers", "fast", "--worlds", "1", "--no-progress"])
+    assert code == 2 and needle in err.getvalue() and len(err.getvalue().strip().splitlines()) == 1

@@ -92,6 +92,12 @@ def test_tiny_training_run_gives_a_model_that_compare_evaluates(tmp_path, capsys
     assert main(["compare", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--controllers", f"greedy,ppo:{model}",
                  "--worlds", "1", "--max-steps", "30", "--no-progress"]) == 0
     assert f"ppo:{model}" in capsys.readouterr().out
+    # and as a League of Robot Runners scheduler (each free robot's next task), through PIBT with turning
+    from agents.lorr.run import run_lorr
+    from mrmt_env.lorr.instance import example_instance_path
+
+    record, sim, _ = run_lorr(example_instance_path(), f"ppo:{model}", "pibt", steps=60)
+    assert record["errors"] == 0 and record["schedule_errors"] == 0 and record["tasks_finished"] == sim.finished > 0
 
 
 def test_compare_names_a_model_that_is_not_a_lifelong_one(tmp_path, capsys):

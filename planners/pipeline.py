@@ -83,7 +83,7 @@ ledger and memos), so exactly the kernels the plan needs are compiled and nothin
 real layers -- ledger, health monitor, random state, caches -- is touched; the plan is the
 same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` of that first plan
 (a timing, so not in ``plan.stats``, which compares equal across runs), never part of ``cpu_s``;
-later plans report 0.  ``Pipeline(..., warmup=False)`` turns this off (then a first plan's ``cpu_s`` includes
+later plans report 0.  ``Pipeline(..., warmup_first=False)`` turns this off (then a first plan's ``cpu_s`` includes
 whatever compiling it triggers); layers that cannot be deep-copied are not warmed
 (``plan.stats["warmup_skipped"]`` says why).
 """

@@ -3,7 +3,11 @@
 ``reference_solve_packed(sharing, w, R, problems, rng, stats)`` does what
 ``StageSolver.solve_packed`` does in one compiled call (``planners.ising.sharing.engine.run_stage``)
 with separate calls: map every split by every rule, pack first-fit decreasing, anneal through the
-metered chip, score, name refused programs.  Test code only: the package never imports it.
+metered chip, score, name refused programs.  The mapping (``ising_backend``'s public
+``ising_from_qubo`` and ``quantize_stack``, one split at a time), the decoding, the validity rule and
+the scoring of the reads are written here, independently of the compiled
+``planners.ising.sharing.kernels`` (``map_stage``, ``score_stage``, ``candidate_sides``).  Test code
+only: the package never imports it.
 """
 
 from __future__ import annotations
@@ -15,8 +19,7 @@ from ising_backend import (
     quantize_stack,
 )
 from planners.ising.sharing.bundles import SharingFailure
-from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
-from sharing_search_reference import keep_candidates, problem_arrays
+from sharing_search_reference import cut_value, decode_split, keep_candidates
 
 __all__ = ["reference_solve_packed"]
 
@@ -28,41 +31,56 @@ def reference_solve_packed(self, w, R, problems, rng, stats) -> None:
     seed = int(rng.integers(2**63 - 1))
     rules = cfg.rules
     P = len(problems)
-    q, Q, free, sizes, anchors, reject = problem_arrays(cfg, problems)
-    n_valid, best, c_split, c_cut, s0, n0, s1, n1 = _submit_checked(
-        self, w, R, problems, q, Q, free, sizes, anchors, reject, seed)
+    n_valid, best, cands = _submit_checked(self, w, R, problems, seed)
     mapping = stats["mapping"]["sharing"]
-    cands: list = [[] for _ in problems]
-    for m, (k, cut, a, b) in enumerate(zip(c_split.tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
-        cands[k].append((cut, s0[m, :a], s1[m, :b], None))
     for rule, v in zip(rules, n_valid.sum(axis=0).tolist()):
         mapping[rule]["candidates"] += cfg.reads * P
         mapping[rule]["valid"] += v
-    best = best.tolist()
-    keep_candidates(problems, rules, best, cands, rng, mapping)
+    keep_candidates(problems, rules, best.tolist(), cands, rng, mapping)
 
 
-def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, seed):
-    """The submission through ``anneal_batch``: map, pack, anneal, score; errors become
-    :class:`SharingFailure`."""
+def _map_programs(self, problems) -> list:
+    """Every split's program under every rule (row ``p * rules + r``): its QUBO in Ising form, quantized
+    into the chip's ranges; a split that cannot be quantized is a :class:`SharingFailure`."""
+    spec = self.chip.spec
+    programs = []
+    for p in problems:
+        try:
+            h, J = quantize_stack(ising_from_qubo(p.q, p.Q, p.offset), self.config.rules, spec.h_range, spec.j_range)
+        except (QuantizeError, ModelError) as exc:
+            raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
+        programs.extend(zip(h, J))
+    return programs
+
+
+def _valid(side0, side1, R: int, reject_empty_robot_side: bool) -> bool:
+    """The validity rule: with ``reject_empty_robot_side`` no side may hold robots but no target."""
+    if not reject_empty_robot_side:
+        return True
+    return not any(len(side) and all(v < R for v in side) for side in (side0, side1))
+
+
+def _submit_checked(self, w, R, problems, seed):
+    """The submission through ``anneal_batch``: map, pack, anneal, then score every read.  Returns
+    ``(n_valid (P, rules), best (P, rules): the best -cut of each rule's valid reads (inf: none), cands)``,
+    ``cands[p]`` the split's distinct valid partitions ``(cut, side0, side1, None)`` in first-read order
+    (rule by rule, read by read).  Errors become :class:`SharingFailure`."""
     cfg = self.config
     spec = self.chip.spec
     rules = cfg.rules
     nr = len(rules)
     P = len(problems)
-    status, qh, qJ = map_stage(q, Q, sizes, self.rule_ids, *self.limits)
-    if status.any():  # a non-finite quantized coefficient: the checked path names it
-        for p in problems:
-            try:
-                quantize_stack(ising_from_qubo(p.q, p.Q, p.offset), rules, spec.h_range, spec.j_range)
-            except (QuantizeError, ModelError) as exc:
-                raise SharingFailure(f"a split program could not be quantized: {exc}") from exc
-    prog_sizes = np.repeat(sizes, nr)
+    programs = _map_programs(self, problems)
+    prog_sizes = np.array([len(h) for h, _ in programs], dtype=np.int64)
+    f = int(prog_sizes.max())
+    qh, qJ = np.zeros((len(programs), f)), np.zeros((len(programs), f, f))
+    for j, (h, J) in enumerate(programs):
+        qh[j, :len(h)], qJ[j, :len(h), :len(h)] = h, J
     # a faulty chip's programs stay clear of the stuck spins its health probe found
-    capacity = max(int(getattr(self.chip, "usable_spins", spec.n_spins)), int(prog_sizes.max()))
+    capacity = max(int(getattr(self.chip, "usable_spins", spec.n_spins)), f)
     packs = plan_packs(prog_sizes.tolist(), capacity)
     width = max(int(prog_sizes[pk].sum()) for pk in packs)
-    pack_of = np.empty(P * nr, dtype=np.int64)
+    pack_of = np.empty(len(programs), dtype=np.int64)
     for b, pk in enumerate(packs):
         pack_of[pk] = b
     order = np.array([j for pk in packs for j in pk], dtype=np.int64)  # placement order within packs
@@ -73,8 +91,24 @@ def _submit_checked(self, w, R, problems, q, Q, free, sizes, anchors, reject, se
         raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
     except ChipProgramError as exc:  # a mapped program the chip cannot take: a clear failure
         raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-    nfix, fixed = np.zeros(P, dtype=np.int64), np.zeros(free.shape, dtype=np.int8)  # splits that fit: no branch
-    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, nr, free, anchors, w, R, reject, nfix,
-                                                        fixed)
-    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes, anchors)
-    return n_valid, best, c_split, c_cut, s0, n0, s1, n1
+    n_valid = np.zeros((P, nr), dtype=np.int64)
+    best = np.full((P, nr), np.inf)
+    cands: list = [[] for _ in problems]
+    for k, p in enumerate(problems):
+        n = len(p.free)
+        reject = cfg.reject_empty_robot_side and p.kind == "robots"
+        seen = set()
+        for r in range(nr):
+            pack, first = where[k * nr + r]
+            for t in range(cfg.reads):
+                block = spins[pack, t, first:first + n]
+                side0, side1 = decode_split(p, block)
+                if not _valid(side0, side1, R, reject):
+                    continue
+                cut = cut_value(w, side0, side1)
+                n_valid[k, r] += 1
+                best[k, r] = min(best[k, r], -cut)
+                if block.tobytes() not in seen:  # a partition already read is one candidate
+                    seen.add(block.tobytes())
+                    cands[k].append((cut, side0, side1, None))
+    return n_valid, best, cands

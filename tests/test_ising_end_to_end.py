@@ -46,12 +46,13 @@ def test_ising_presets_plan_valid_routes_on_every_map_family(preset, chip):
     n = 2 if chip == "dwave-sa" else 3
     for layout in FAMILIES:
         for k, world in enumerate(_worlds(layout, n)):
-            before = machine.ledger.physical_calls
+            before, before_logical = machine.ledger.physical_calls, machine.ledger.logical_calls
             plan = pipe.plan(world, seed=k)
             assert plan.success, (layout, k, plan.failure)
             validate_plan(world, plan)  # raises on any invalid route
             c = plan.compute
             assert c.chip_calls == machine.ledger.physical_calls - before > 0  # the chip decided something
+            assert c.logical_calls == machine.ledger.logical_calls - before_logical  # ising-paper's tour
             assert c.fallbacks == 0 and "fallback" not in plan.stats
             spec = machine.spec
             assert c.accelerator_energy_j == pytest.approx((c.chip_calls + c.logical_calls) * spec.energy_per_call_j)

@@ -550,8 +550,11 @@ def test_cut_walk_is_the_checked_path(seed, steps, cut, corrupt):
         assert path.tolist() == [list(rc) for rc in cells]
 
 
-@pytest.mark.parametrize("spec", [{}, {"n_spins": 16}, {"n_spins": 24, "h_range": (-3, 3), "j_range": (-3, 3)}])
-def test_compiled_stage_submission_makes_the_reference_decisions(spec):
+@pytest.mark.parametrize("spec, options", [
+    ({}, {}), ({"n_spins": 16}, {}), ({"n_spins": 24, "h_range": (-3, 3), "j_range": (-3, 3)}, {}),
+    ({}, {"reject_empty_robot_side": True}),  # the validity rule's other branch
+])
+def test_compiled_stage_submission_makes_the_reference_decisions(spec, options):
     """The compiled sharing (each stage one compiled call, planners.ising.sharing.engine.run_stage)
     against the Python search with every stage submitted through anneal_batch: the same assignments,
     statistics, chip charges and rng state."""
@@ -563,8 +566,8 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec):
     from sharing_reference import reference_solve_packed
     from sharing_search_reference import reference_assign
 
-    fast = IsingSharing(EmulatedChip(ChipSpec(**spec)))
-    ref = IsingSharing(EmulatedChip(ChipSpec(**spec)))
+    fast = IsingSharing(EmulatedChip(ChipSpec(**spec)), **options)
+    ref = IsingSharing(EmulatedChip(ChipSpec(**spec)), **options)
     for s in range(10):
         w = generate_world(s, n_robots=2 + s % 3, n_targets=6 + s, placement="centre" if s % 2 else "uniform")
         r1, r2 = np.random.default_rng(s), np.random.default_rng(s)

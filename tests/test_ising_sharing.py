@@ -112,12 +112,16 @@ def _check_partition(assignment, R, N):
 @pytest.mark.parametrize("seed", range(6))
 def test_valid_assignment_on_random_worlds(seed, placement):
     world = generate_world(seed, n_robots=3, n_targets=10, placement=placement)
-    res = IsingSharing().assign(world.distance_matrix, world.n_robots, TOUR, np.random.default_rng(seed))
+    sharing = IsingSharing()
+    res = sharing.assign(world.distance_matrix, world.n_robots, TOUR, np.random.default_rng(seed))
     assert isinstance(res, SharingResult)
     assert "failure" not in res.stats
     _check_partition(res.assignment, 3, 10)
     c = res.compute
     assert c.chip_calls >= 1 and c.chip_batches >= 1
+    ledger = sharing.chip.ledger  # charged exactly what the chip recorded
+    assert (c.chip_calls, c.chip_batches, c.logical_calls) == (ledger.physical_calls, ledger.batches,
+                                                              ledger.logical_calls)
     assert c.accelerator_energy_j == pytest.approx(c.chip_calls * 0.45e-6)
     assert c.chip_time_s == pytest.approx(c.chip_calls * 50e-6)
     m = res.stats["mapping"]["sharing"]
@@ -246,7 +250,7 @@ def test_group_over_the_spin_limit_is_split_on_clusters_not_refused():
     res = IsingSharing(chip=chip, max_frozen=2).assign(world.distance_matrix, 3, TOUR, np.random.default_rng(0))
     assert res.failure is None and res.stats["coarse_splits"] >= 1
     assert sorted(t for g in res.assignment for t in g) == list(range(10))
-    assert res.compute.chip_calls > 0
+    assert res.compute.chip_calls == chip.ledger.physical_calls > 0  # every call charged, exactly
 
 
 @pytest.mark.parametrize(
@@ -282,6 +286,9 @@ def test_in_a_pipeline_plans_are_valid_and_mapping_counts_merge():
     assert plan.success
     validate_plan(world, plan)
     assert plan.stats["layers"]["sharing"].chip_calls >= 1
+    ledger = pipe.sharing.chip.ledger  # the sharing layer is the only chip user: its calls, exactly
+    assert plan.compute.chip_calls == plan.stats["layers"]["sharing"].chip_calls == ledger.physical_calls
+    assert plan.compute.logical_calls == ledger.logical_calls == 0
     assert set(plan.stats["mapping"]["sharing"]) == {"linear", "clip95", "rank", "sqrt"}
     again = make_pipeline(sharing="ising", tour="brute", path="astar").plan(world, seed=3)
     assert [r.targets for r in again.routes] == [r.targets for r in plan.routes]
@@ -391,12 +398,12 @@ def test_a_group_larger_than_the_chip_is_split_on_clusters():
     world = generate_world(5, height=16, width=16, n_robots=3, n_targets=40)
     chip_spec = ChipSpec(n_spins=16)
     tour = ThreeOptTour()
-    runs = [IsingSharing(chip=EmulatedChip(chip_spec)).assign(world.distance_matrix, 3, tour,
-                                                                np.random.default_rng(1)) for _ in range(2)]
+    chips = [EmulatedChip(chip_spec) for _ in range(2)]
+    runs = [IsingSharing(chip=chip).assign(world.distance_matrix, 3, tour, np.random.default_rng(1)) for chip in chips]
     res = runs[0]
     assert res.failure is None
     assert sorted(t for group in res.assignment for t in group) == list(range(40))
-    assert res.stats["coarse_splits"] >= 1 and res.compute.chip_calls > 0
+    assert res.stats["coarse_splits"] >= 1 and res.compute.chip_calls == chips[0].ledger.physical_calls > 0
     assert runs[1].assignment == res.assignment  # deterministic under the seed
 
 
@@ -422,10 +429,14 @@ def test_a_fleet_beyond_the_chip_plans_end_to_end():
 
     world = generate_world(3, height=32, width=32, n_robots=50, n_targets=70, layout="warehouse")
     # the preset's layers by name (preset ising hands worlds above FLEET_ABOVE targets to the fleet search)
-    plan = make_pipeline(sharing="ising", tour="ising", path="field").plan(world, seed=0)  # 50 robots > 45 spins
+    pipe = make_pipeline(sharing="ising", tour="ising", path="field")
+    plan = pipe.plan(world, seed=0)  # 50 robots > 45 spins
     assert plan.success, plan.failure
     validate_plan(world, plan)
     assert plan.stats["coarse_splits"] >= 1 and plan.compute.chip_calls > 0
+    ledger = pipe.sharing.chip.ledger  # one chip for the layers: the plan charges exactly its ledger
+    assert pipe.tour.chip is pipe.sharing.chip
+    assert (plan.compute.chip_calls, plan.compute.logical_calls) == (ledger.physical_calls, ledger.logical_calls)
 
 
 def test_coarse_clusters_of_shifted_split_weights_are_not_degenerate():

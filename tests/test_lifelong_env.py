@@ -254,3 +254,61 @@ def test_pettingzoo_registry_makes_both_forms():
     obs, _ = par.reset(seed=0)
     aec.reset(seed=0)
     assert set(obs) == {"robot_0", "robot_1"} and aec.agent_selection == "robot_0"
+
+
+@pytest.mark.parametrize("tasks", ["refill", "poisson"])
+def test_two_robots_stepping_onto_one_task_serve_it_once(tasks):
+    """collisions="allow": two robots step onto the one open task in the same step; it is one task served."""
+    env = _env([[0, 0], [0, 2]], [[0, 1]], collisions="allow", tasks=tasks,
+               task_rate=None if tasks == "refill" else 0.01)
+    obs, reward, _, _, info = env.step(np.array([4, 3]))  # both onto (0, 1)
+    assert env.positions().tolist() == [[0, 1], [0, 1]] and info["vertex_conflicts"] == 1
+    assert info["tasks_completed"] == 1 and info["targets_visited"] == 1
+    assert info["service_time_mean"] == 1.0 and info["throughput"] == 1.0
+    assert reward == env.setup.task_reward - 2  # one task's reward, two attempted moves
+    assert info["open_tasks"] == info["tasks_arrived"] - 1 == int(obs[1].sum())
+    assert obs[1][0, 1] == 0
+    if tasks == "refill":  # one task served: one new task, not on the served cell, not under a robot
+        assert info["tasks_arrived"] == 2 and info["open_tasks"] == 1
+
+
+@pytest.mark.parametrize("kw", [dict(collisions="allow"), dict(collisions="allow", tasks="poisson", task_rate=0.7),
+                                dict(collisions="block")])
+def test_lifelong_counters_equal_an_independent_count(kw):
+    """Every counter recounted from the observations step by step: a task is served when a robot
+    stands on its cell after the step (once, however many robots do), new tasks appear off the robots
+    and off the cells just served, refill replaces each served task (unless dropped), service time is
+    counted from the step a task appeared in the observation.  Crowded: six robots on nine cells."""
+    env = MRMTLifelongEnv(world=World(np.zeros((3, 3), dtype=bool), [[0, 0], [0, 2], [2, 0], [2, 2], [1, 0], [1, 2]],
+                                      [[1, 1], [0, 1]]), **kw)
+    obs, info = env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    arrived_at = {tuple(c): 0 for c in np.argwhere(obs[1])}
+    completed = service = shared = 0
+    arrivals = len(arrived_at)
+    for step in range(1, 301):
+        actions = rng.integers(0, 5, size=6)
+        before = set(arrived_at)
+        dropped = info["tasks_dropped"]
+        obs, reward, _, _, info = env.step(actions)
+        robots = [tuple(np.argwhere(obs[2 + k])[0]) for k in range(6)]
+        assert robots == [tuple(p) for p in env.positions().tolist()]
+        served = before & set(robots)
+        shared += sum(robots.count(c) > 1 for c in served)
+        after = {tuple(c) for c in np.argwhere(obs[1])}
+        new = after - before
+        assert before - served <= after and not after & served  # open tasks stay; served ones go
+        assert not new & set(robots)  # no task arrives under a robot
+        if kw.get("tasks", "refill") == "refill":
+            assert len(new) + info["tasks_dropped"] - dropped == len(served)
+        completed += len(served)
+        service += sum(step - arrived_at.pop(c) for c in served)
+        arrived_at.update({c: step for c in new})
+        arrivals += len(new)
+        assert info["tasks_completed"] == info["targets_visited"] == completed
+        assert info["open_tasks"] == len(after) and info["tasks_arrived"] == info["n_targets"] == arrivals
+        assert info["service_time_mean"] == pytest.approx(service / completed if completed else 0.0)
+        assert reward == len(served) * env.setup.task_reward - int(np.count_nonzero(actions))
+    assert completed > 20
+    if kw["collisions"] == "allow":
+        assert shared > 0, shared  # the case at stake happened: two robots on one served task

@@ -10,7 +10,6 @@ from hypothesis import strategies as st
 from mrmt_env import generate_world
 from mrmt_env.distances import bfs_distance_field
 from planners.mapf import PIBT, WindowedPlanner, make_executor
-from planners.mapf.common import successor_table
 
 MASK = (1 << 64) - 1
 
@@ -29,9 +28,40 @@ def _mix(seed, a, b, c) -> int:
     return z
 
 
+def successors(grid):
+    """Per flat cell ``r * W + c``: the cell itself, then up, down, left, right (a move into an obstacle or
+    off the grid stays)."""
+    h, w = grid.shape
+    out = []
+    for p in range(h * w):
+        r, c = divmod(p, w)
+        row = [p]
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            rr, cc = r + dr, c + dc
+            row.append(rr * w + cc if 0 <= rr < h and 0 <= cc < w and not grid[rr, cc] else p)
+        out.append(row)
+    return out
+
+
+class OraclePriorities:
+    """PIBT's priorities as documented (planners/mapf/pibt.py), kept here: robot ``k``'s priority is the
+    steps since it last stood on its goal (``elapsed``, 0 at the start and on the goal) plus a tie-breaker
+    drawn once from ``np.random.default_rng(seed)`` in [0, 1); robots plan in decreasing priority."""
+
+    def __init__(self, seed, n_robots):
+        self.elapsed = [0] * n_robots
+        self.tie = np.random.default_rng(seed).random(n_robots).tolist()
+
+    def order(self):
+        return sorted(range(len(self.tie)), key=lambda k: -(self.elapsed[k] + self.tie[k]))
+
+    def advance(self, nxt, goals):
+        self.elapsed = [0 if v == g else e + 1 for v, g, e in zip(nxt, goals, self.elapsed)]
+
+
 def pibt_oracle(grid, pos, goals, order, seed, t):
     """PIBT as published (recursive funcPIBT), same candidate order as the kernel."""
-    succ = successor_table(grid).tolist()
+    succ = successors(grid)
     fields = {g: bfs_distance_field(grid, divmod(g, grid.shape[1])).reshape(-1).tolist() for g in set(goals)}
     occ_now = {p: k for k, p in enumerate(pos)}
     occ_next: dict[int, int] = {}
@@ -74,7 +104,7 @@ def _instance(seed, n_robots, h=8, w=9, density=0.15):
 def _conflict_free(pos, nxt, succ):
     assert len(set(nxt.tolist())) == len(nxt)  # no vertex conflict
     for k in range(len(pos)):
-        assert nxt[k] in succ[pos[k]].tolist()  # stay or a legal move
+        assert nxt[k] in succ[pos[k]]  # stay or a legal move
         for j in range(len(pos)):
             assert not (j != k and nxt[k] == pos[j] and nxt[j] == pos[k] and nxt[k] != pos[k])  # no swap
 
@@ -84,12 +114,13 @@ def _conflict_free(pos, nxt, succ):
 def test_pibt_kernel_equals_recursive_oracle(seed, n_robots):
     grid, pos, goals = _instance(seed, n_robots)
     planner = PIBT(grid, seed=seed)
+    priorities = OraclePriorities(seed, n_robots)  # the oracle's own: nothing read from the planner
     for step in range(6):
-        order = planner.order(n_robots).tolist()
-        expect = pibt_oracle(grid, pos.tolist(), goals.tolist(), order, planner.seed, planner.t)
+        expect = pibt_oracle(grid, pos.tolist(), goals.tolist(), priorities.order(), seed, step)
+        priorities.advance(expect, goals.tolist())
         nxt = planner.step(pos, goals)
         assert nxt.tolist() == expect
-        _conflict_free(pos, nxt, planner.succ)
+        _conflict_free(pos, nxt, successors(grid))
         pos = nxt
 
 
@@ -98,9 +129,10 @@ def test_pibt_kernel_equals_recursive_oracle(seed, n_robots):
 def test_windowed_moves_are_conflict_free(seed, n_robots, window):
     grid, pos, goals = _instance(seed, n_robots)
     planner = WindowedPlanner(grid, seed=seed, window=window)
+    succ = successors(grid)
     for _ in range(6):
         nxt = planner.step(pos, goals)
-        _conflict_free(pos, nxt, planner.succ)
+        _conflict_free(pos, nxt, succ)
         pos = nxt
 
 

@@ -3,8 +3,10 @@
 ``reference_select_moves(tour, dist, route, run)`` makes the decisions the package's compiled
 ``planners.ising.tour.move_engine.select_moves_loop`` must make: list and pick the candidate
 moves, build the selection QUBO and its Ising form, quantize it by every rule, one
-``anneal_batch`` per round, score the reads, apply the best valid read.  Test code only: the
-package never imports it.
+``anneal_batch`` per round, score the reads, apply the best valid read.  The candidate moves, their
+gains, the scoring of the reads and the moves themselves are computed here, independently of
+``planners.ising.tour.moves`` (gains as route cost before minus after: exact, and so the kernel's
+bits, on the integer BFS distances the tests use).  Test code only: the package never imports it.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import numpy as np
 
 from ising_backend import ising_from_qubo, quantize_stack
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, score_reads, selection_qubo
+from planners.ising.tour.moves import pick_candidates, selection_qubo
 
 __all__ = ["nearest_neighbour_route", "reference_select_moves", "cluster_dist_reference"]
 
@@ -27,6 +29,85 @@ def nearest_neighbour_route(dist: np.ndarray) -> np.ndarray:
         row = dist[route[-1], left]
         route.append(left.pop(int(np.argmin(row))))
     return np.array(route, dtype=np.int64)
+
+
+def _open_cost(dist, route) -> float:
+    """An open route's cost: its legs summed from the first node on (no return)."""
+    return sum(float(dist[a, b]) for a, b in zip(route[:-1], route[1:]))
+
+
+def _moved(route, move) -> list:
+    """``route`` (positions 0..n, node 0 the robot) with one move row ``(kind, p, q, c, lo, hi)`` applied:
+    kind 0 reverses positions ``p+1..q`` (2-opt); kind 1 / 2 takes the segment at positions ``p..q``
+    out and puts it, as it was / reversed, right after the node at position ``c`` (or-opt)."""
+    kind, p, q, c = (int(v) for v in move[:4])
+    r = [int(x) for x in route]
+    if kind == 0:
+        return r[:p + 1] + r[p + 1:q + 1][::-1] + r[q + 1:]
+    seg = r[p:q + 1] if kind == 1 else r[p:q + 1][::-1]
+    rest = r[:p] + r[q + 1:]
+    at = rest.index(r[c]) + 1
+    return rest[:at] + seg + rest[at:]
+
+
+def candidate_moves(dist, route, max_segment):
+    """Every improving 2-opt and or-opt move of ``route``, as rows ``(kind, p, q, c, lo, hi)`` (``lo..hi``:
+    the edges the move rewrites) with their gains, in the kernel's listing order: 2-opt ``(i, j)`` for
+    ``i < j - 1``; then or-opt segments ``a..b`` of 1..``max_segment`` targets, forward then reversed
+    (a single target only forward), to after every position ``c`` outside ``a-1..b``."""
+    n = len(route) - 1
+    before = _open_cost(dist, route)
+    rows, gains = [], []
+
+    def offer(row):
+        gain = before - _open_cost(dist, _moved(route, row))
+        if gain > 1e-9:
+            rows.append(row)
+            gains.append(gain)
+
+    for i in range(n - 1):
+        for j in range(i + 2, n + 1):
+            offer((0, i, j, -1, i, j))
+    for a in range(1, n + 1):
+        for b in range(a, min(n, a + max_segment - 1) + 1):
+            for kind in ((1, 2) if b > a else (1,)):
+                for c in range(n + 1):
+                    if a - 1 <= c <= b:
+                        continue
+                    offer((kind, a, b, c, c, b) if c < a else (kind, a, b, c, a - 1, c))
+    return np.array(rows, dtype=np.int64).reshape(-1, 6), np.array(gains, dtype=np.float64)
+
+
+def _overlap(m, o) -> bool:
+    """Two moves rewrite a common edge (their spans ``lo..hi`` meet)."""
+    return m[4] <= o[5] and o[4] <= m[5]
+
+
+def score_reads(spins, moves, gains):
+    """``(clean (k,), rule, read, gain)``: per program (one per rule) the valid reads selecting a move (a
+    read selecting two overlapping moves is invalid), and the first read of largest total gain above 0
+    (``rule = -1``: none)."""
+    k, reads, _ = spins.shape
+    clean = np.zeros(k, dtype=np.int64)
+    best_k, best_r, best = -1, -1, 0.0
+    for a in range(k):
+        for r in range(reads):
+            chosen = [int(m) for m in np.flatnonzero(spins[a, r] > 0)]
+            if any(_overlap(moves[m], moves[o]) for i, m in enumerate(chosen) for o in chosen[:i]):
+                continue
+            clean[a] += bool(chosen)
+            total = sum(float(gains[m]) for m in chosen)
+            if total > best + 1e-9:
+                best_k, best_r, best = a, r, total
+    return clean, best_k, best_r, best
+
+
+def apply_moves(route, moves, taken) -> np.ndarray:
+    """``route`` with the (pairwise non-overlapping) moves ``taken`` applied one after another."""
+    r = list(route)
+    for m in taken:
+        r = _moved(r, moves[m])
+    return np.array(r, dtype=np.int64)
 
 
 def reference_select_moves(tour, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:

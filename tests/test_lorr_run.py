@@ -127,3 +127,48 @@ def test_ising_scheduler_charges_the_chip_per_step():
     record, sim, _ = run_lorr(EXAMPLE, "ising", "pibt", steps=40, seed=0)
     assert record["errors"] == 0 and record["chip_calls"] > 0 and record["chip_s"] > 0
     assert record["paper_energy_per_task_j"] <= record["total_energy_per_task_j"]
+
+
+def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
+    from collections import deque
+
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.sim import LoRRSimulator
+
+    inst = read_instance(EXAMPLE)
+    sim = LoRRSimulator(inst)
+    sched = make_scheduler("strong", shortlist=2)
+    sched.reset(sim)
+    grid = inst.grid
+    w = inst.width
+
+    def bfs(src):
+        d = np.full(grid.size, -1)
+        d[src] = 0
+        q = deque([src])
+        while q:
+            p = q.popleft()
+            r, c = divmod(p, w)
+            for nr, nc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
+                if 0 <= nr < grid.shape[0] and 0 <= nc < w and not grid[nr, nc] and d[nr * w + nc] < 0:
+                    d[nr * w + nc] = d[p] + 1
+                    q.append(nr * w + nc)
+        return d
+
+    ids = np.array(sorted(sim.tasks.open), dtype=np.int64)
+    cells = np.array([sim.tasks.errands_of(int(k))[0] for k in ids])
+    keep, _ = sched._shortlist(sim.tasks, ids, cells, sim.pos)
+    length = [sum(bfs(int(a))[int(b)] for a, b in zip(e[:-1], e[1:])) for e in (sim.tasks.errands_of(int(k)) for k in ids)]
+    want = set()
+    for p in sim.pos.tolist():
+        d = bfs(p)
+        cost = [(d[c] + length[j], j) for j, c in enumerate(cells.tolist())]
+        costs = sorted(c for c, _ in cost)
+        cut = costs[1]
+        # any two of least makespan (ties at the cut may go either way)
+        chosen = {j for c, j in cost if c < cut}
+        assert chosen <= set(keep.tolist())
+        want |= {j for c, j in cost if c <= cut}
+    assert set(keep.tolist()) <= want
+    with pytest.raises(ValueError, match="shortlist must be an integer >= 1 or None"):
+        make_scheduler("strong", shortlist=0)

@@ -9,8 +9,13 @@
 * ``ppo:MODEL.zip``: a model trained with ``mrmt train`` on a lifelong id
   (:class:`agents.lifelong_choice.LearnedAssigner`).
 
-A task enters those decisions as the cell of its next errand (where a robot must go to open it);
-tasks sharing that cell wait for the next step.  Free robots are the robots without a task; with
+A task enters those decisions as the cell of its next errand (where a robot must go to open it).
+Before a decision each free robot shortlists its ``shortlist`` free tasks of least makespan (the
+way to the first errand, then through every errand: the start kit's measure), and only the
+shortlisted tasks enter the decision, one per cell (the shortest there; the others wait); robots the
+decision leaves without a task take the nearest shortlisted one still free (``fill``).  Both
+defaults (6, on) were chosen on RANDOM-01..05, seeds 0-2, for ising and strong alike (shortlists of
+1, 3, 6 tried; docs/lorr.md).  Free robots are the robots without a task; with
 ``replan=True`` robots whose task is not opened yet are free again (their tasks back in the
 pool) whenever a task finishes, so the decision may re-plan them, as the rules allow.  Every
 scheduler leaves its step's :class:`~planners.compute.ComputeReport` in ``last_compute``.
@@ -20,11 +25,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrmt_env.lorr.greedy import GreedyScheduler
+from mrmt_env.lorr.greedy import FAR, GreedyScheduler
 from planners.compute import ComputeReport
 
 __all__ = ["AssignerScheduler", "make_scheduler", "SCHEDULERS"]
 
+#: Free tasks each free robot shortlists for a pipeline or learned decision (least makespan first).
+DEFAULT_SHORTLIST = 6
 #: Scheduler names besides pipeline specs and ``ppo:PATH``.
 SCHEDULERS = ("lorr-greedy", "strong", "ising", "fast", "ising-paper")
 
@@ -33,7 +40,10 @@ class AssignerScheduler:
     """A lifelong assigner (``assign(grid, fields, idle_cells, task_cells, seed, fleet)``) as a LoRR
     scheduler (see the module docstring)."""
 
-    def __init__(self, assigner, seed: int = 0, replan: bool = False) -> None:
+    def __init__(self, assigner, seed: int = 0, replan: bool = False, shortlist: int | None = DEFAULT_SHORTLIST) -> None:
+        if shortlist is not None and (isinstance(shortlist, bool) or not isinstance(shortlist, int) or shortlist < 1):
+            raise ValueError(f"shortlist must be an integer >= 1 or None (every free task), got {shortlist!r}")
+        self.shortlist = shortlist
         self.assigner = assigner
         self.name = assigner.name
         self.accelerated = bool(assigner.accelerated)
@@ -46,6 +56,8 @@ class AssignerScheduler:
 
         self.grid = sim.inst.grid
         self.fields = GoalFields(self.grid, capacity=max(1024, 2 * sim.inst.open_target()))
+        self.lengths = GreedyScheduler(work_budget=1 << 62)
+        self.lengths.reset(sim)
         self.last_compute = ComputeReport()
 
     def schedule(self, sim) -> np.ndarray:
@@ -65,9 +77,16 @@ class AssignerScheduler:
         if len(free_robots) == 0 or not ids:
             return proposal
         cells = np.array([tasks.remaining(k)[0] for k in ids], dtype=np.int64)
-        cells, first = np.unique(cells, return_index=True)   # one task per cell, the lowest id
-        ids = np.asarray(ids, dtype=np.int64)[first]
+        ids = np.asarray(ids, dtype=np.int64)
         pos = sim.pos
+        rank = ids
+        if self.shortlist is not None and len(ids) > self.shortlist:
+            keep, length = self._shortlist(tasks, ids, cells, pos[free_robots])
+            ids, cells, rank = ids[keep], cells[keep], length[keep]
+        # one task per cell: the shortest there (then the lowest id)
+        order = np.lexsort((ids, rank, cells))
+        cells, first = np.unique(cells[order], return_index=True)
+        ids = ids[order][first]
         goals = np.where(tasks.goal >= 0, tasks.goal, pos)
         goals[free_robots] = pos[free_robots]
         rnd = Round(self.grid, pos, goals, free_robots, cells)
@@ -78,6 +97,16 @@ class AssignerScheduler:
             if q:
                 proposal[free_robots[i]] = ids[q[0]]
         return proposal
+
+    def _shortlist(self, tasks, ids: np.ndarray, cells: np.ndarray, robot_cells: np.ndarray):
+        """Indices of the tasks among some free robot's ``shortlist`` least-makespan tasks, and every
+        task's errand-to-errand length."""
+        length = self.lengths.task_length(tasks, ids, 1 << 62)
+        d = self.fields.fields[self.fields.rows(cells)][:, robot_cells].astype(np.int64)
+        cost = np.where((d < 0) | (length[:, None] >= FAR), FAR, d + length[:, None])
+        k = self.shortlist
+        near = np.argpartition(cost, k - 1, axis=0)[:k]
+        return np.unique(near), length
 
 
 class _Greedy(GreedyScheduler):
@@ -95,13 +124,15 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     from agents.lifelong import PipelineAssigner, _learned
 
     replan = bool(options.pop("replan", False))
+    shortlist = options.pop("shortlist", DEFAULT_SHORTLIST)
     if name.startswith("ppo:"):
         if options:
-            raise ValueError(f"{name} takes no options besides replan, got {sorted(options)}")
-        return AssignerScheduler(_learned(name), seed=seed, replan=replan)
+            raise ValueError(f"{name} takes no options besides replan and shortlist, got {sorted(options)}")
+        return AssignerScheduler(_learned(name), seed=seed, replan=replan, shortlist=shortlist)
+    options.setdefault("fill", True)
     try:
         assigner = PipelineAssigner(name, chip=chip, **options)
     except ValueError as exc:
         raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}, a sharing+tour pair "
                          f"or ppo:MODEL.zip ({exc})") from None
-    return AssignerScheduler(assigner, seed=seed, replan=replan)
+    return AssignerScheduler(assigner, seed=seed, replan=replan, shortlist=shortlist)

@@ -204,6 +204,7 @@ def test_cli_plan_with_a_sampler(tmp_path, capsys):
 
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert rows and all(r["success"] and r["compute"]["chip_calls"] > 0 for r in rows)
+    capsys.readouterr()  # the first run's compile notice, if this process had not compiled yet
     for argv, msg in ((["--sampler", "bogus"], "unknown sampler 'bogus'"),
                       (["--sampler", "dwave-sa", "--sampler-option", "nope=1"], "'nope' is not one of"),
                       (["--sampler-option", "num_sweeps=1"], "without --sampler")):

@@ -62,7 +62,8 @@ def _fmt_row(r: dict) -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
-    parser.add_argument("--executor", default="pibt")
+    parser.add_argument("--executors", default="pibt,windowed",
+                        help="the first runs every scheduler; the others run the first scheduler only")
     parser.add_argument("--instances", default=",".join(RANDOM))
     parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")
     parser.add_argument("--scale-steps", type=int, default=500)
@@ -75,18 +76,20 @@ def main(argv=None) -> None:
     head = ("| instance | robots | scheduler | executor | steps | tasks | best-known | share | step p50 ms | "
             "step p99 ms | errors | paper J/task | total J/task | peak MB |")
     sep = "|" + "---|" * 14
+    executors = [e for e in args.executors.split(",") if e]
     for name in [n for n in args.instances.split(",") if n]:
-        for s in schedulers:
-            variants = [{}] + ([{"replan": True}] if args.replan and s != "lorr-greedy" else [])
-            for options in variants:
-                r = _one(name, s, args.executor, args.steps, options)
-                if options:
-                    r["scheduler"] += "+replan"
-                rows.append(r)
-                print(_fmt_row(r), flush=True)
+        for ex in executors:
+            for s in schedulers if ex == executors[0] else schedulers[:1]:
+                variants = [{}] + ([{"replan": True}] if args.replan and s != "lorr-greedy" else [])
+                for options in variants:
+                    r = _one(name, s, ex, args.steps, options)
+                    if options:
+                        r["scheduler"] += "+replan"
+                    rows.append(r)
+                    print(_fmt_row(r), flush=True)
     scale_rows = []
     for name in [n for n in args.scale.split(",") if n]:
-        r = _one(name, "lorr-greedy", args.executor, args.scale_steps, {})
+        r = _one(name, "lorr-greedy", executors[0], args.scale_steps, {})
         r["tasks_per_step"] = r["tasks_finished"] / r["steps"]
         scale_rows.append(r)
         print(_fmt_row(r), f"tasks/step {r['tasks_per_step']:.2f}", flush=True)
@@ -96,16 +99,17 @@ def main(argv=None) -> None:
     lines += [_fmt_row(r) for r in rows]
     by = {}
     for r in rows:
-        by.setdefault(r["scheduler"], []).append(r)
-    lines += ["", "| scheduler | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy |", "|---|---|---|---|"]
-    base = {r["instance"]: r["tasks_finished"] for r in by.get("lorr-greedy", [])}
-    for s, rs in by.items():
+        by.setdefault((r["scheduler"], r["executor"]), []).append(r)
+    lines += ["", "| scheduler | executor | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy + "
+              f"{executors[0] if executors else ''} |", "|---|---|---|---|---|"]
+    base = {r["instance"]: r["tasks_finished"] for r in by.get(("lorr-greedy", executors[0] if executors else ""), [])}
+    for (s, ex), rs in by.items():
         shares = [r["share_of_best"] for r in rs if r["share_of_best"] is not None]
         gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
-        lines.append(f"| {s} | {100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} % | "
-                     f"{100 * sum(gain) / len(gain):+.1f} % |" if shares and gain else f"| {s} | - | - | - |")
+        lines.append(f"| {s} | {ex} | {100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} % | "
+                     f"{100 * sum(gain) / len(gain):+.1f} % |" if shares and gain else f"| {s} | {ex} | - | - | - |")
     if scale_rows:
-        lines += ["", f"Large instances, lorr-greedy + {args.executor}, first {args.scale_steps} steps:", "",
+        lines += ["", f"Large instances, lorr-greedy + {executors[0]}, first {args.scale_steps} steps:", "",
                   "| instance | robots | tasks | tasks / step | step p50 ms | step p99 ms | step max ms | errors | "
                   "peak MB |", "|---|---|---|---|---|---|---|---|---|"]
         for r in scale_rows:

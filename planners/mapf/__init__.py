@@ -6,7 +6,9 @@ compiled); both take flat robot cells and goal cells and return next cells or
 env actions.  :func:`make_executor` builds one by name (:data:`EXECUTORS`).
 :class:`TurningPIBT` is PIBT for the League of Robot Runners' action model with
 turning (flat cells and orientations -> actions F, R, C, W);
-:func:`make_turning_executor` builds one by name (:data:`TURNING_EXECUTORS`).
+:class:`WindowedTurningPlanner` is windowed prioritized space-time A* over (cell,
+orientation, time) for the same rules; :func:`make_turning_executor` builds either by name
+(:data:`TURNING_EXECUTORS`).
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ from __future__ import annotations
 from planners.mapf.pibt import PIBT
 from planners.mapf.turning import TurningPIBT
 from planners.mapf.windowed import WindowedPlanner
+from planners.mapf.windowed_turning import WindowedTurningPlanner
 
-__all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "EXECUTORS", "make_executor", "TURNING_EXECUTORS",
-           "make_turning_executor"]
+__all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
+           "TURNING_EXECUTORS", "make_turning_executor"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
-TURNING_EXECUTORS = {"pibt": TurningPIBT}
+TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner}
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):
@@ -33,7 +36,7 @@ def make_executor(name: str, grid, seed: int = 0, **options):
 
 
 def make_turning_executor(name: str, grid, seed: int = 0, **options):
-    """The turning executor ``name`` (``pibt``) on ``grid``; ``ValueError`` naming the known ones."""
+    """The turning executor ``name`` (``pibt`` or ``windowed``) on ``grid``; ``ValueError`` naming the known ones."""
     try:
         cls = TURNING_EXECUTORS[name]
     except KeyError:

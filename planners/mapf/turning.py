@@ -107,17 +107,22 @@ class TurnFields:
     ``max_bytes``: when full, the fields least recently asked for make room and are recomputed on
     demand (the goals of one call always fit: the cache grows past the bound for them).  One call
     computes at most ``bfs_budget // free cells`` new fields (at least one), for the goals of the
-    highest-priority robots first; the others get row -1 (the kernel then uses Manhattan distance)."""
+    highest-priority robots first; the others get row -1 (the kernel then uses Manhattan distance).
+    A subclass may keep :attr:`per_cell` entries per free cell (it then overrides :meth:`_fill`)."""
+
+    #: Entries of a field per free cell (a distance is below the field's length: uint16 while it is < 65,535).
+    per_cell = 1
 
     def __init__(self, nbr: np.ndarray, max_bytes: int = DEFAULT_FIELD_BYTES,
                  bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         self.nbr = nbr
         n = nbr.shape[0]
-        self.dtype = np.dtype(np.uint16 if n < 65535 else np.uint32)
+        size = n * self.per_cell
+        self.dtype = np.dtype(np.uint16 if size < 65535 else np.uint32)
         self.far = int(np.iinfo(self.dtype).max)
-        self.capacity = max(min(int(max_bytes) // (max(n, 1) * self.dtype.itemsize), n), 1)
-        self.per_call = max(int(bfs_budget) // max(n, 1), 1)
-        self.fields = np.empty((0, n), dtype=self.dtype)
+        self.capacity = max(min(int(max_bytes) // (max(size, 1) * self.dtype.itemsize), n), 1)
+        self.per_call = max(int(bfs_budget) // max(size, 1), 1)
+        self.fields = np.empty((0, size), dtype=self.dtype)
         self.row_of = np.full(n, -1, dtype=np.int64)  # compact goal -> row
         self.goal_of = np.empty(0, dtype=np.int64)  # row -> compact goal
         self.stamp = np.empty(0, dtype=np.int64)  # row -> last call that asked for it
@@ -162,9 +167,13 @@ class TurnFields:
         self.goal_of[new] = miss
         self.stamp[new] = self.calls
         self.row_of[miss] = new
-        _bfs_rows(self.nbr, miss, new, self.fields, self.dtype.type(self.far))
+        self._fill(miss, new)
         self.computed += len(miss)
         return self.row_of[goals]
+
+    def _fill(self, goals: np.ndarray, rows: np.ndarray) -> None:
+        """Compute the fields of compact ``goals`` into ``rows``."""
+        _bfs_rows(self.nbr, goals, rows, self.fields, self.dtype.type(self.far))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -1,0 +1,353 @@
+"""Windowed prioritized planning with turning (LoRR MAPF_T): space-time A* over (cell, orientation, time), compiled.
+
+Each call: :class:`~planners.mapf.turning.TurningPIBT` is rolled out ``window``
+steps from the current state (goals fixed): a conflict-free joint plan, every
+robot's fallback.  Then robots in TurningPIBT's priority order re-plan their
+window with A* over (cell, orientation, time) and F / R / C / W, against every
+other robot's current plan (vertex and swap reservations), keeping a plan that
+costs no more (a step costs 1 except on the goal; beyond the window the cost to
+go is the distance in the (cell, orientation) graph, :class:`OrientFields`).
+A search out of budget keeps the robot's plan, and standing still off the goal
+replaces no plan (it would freeze a jam that PIBT's turns resolve).  The joint
+plan stays conflict-free throughout, so its first step is a valid joint action;
+a final repair pass (``repairs``, never used so far) would make any rule-breaking
+F wait.  Only the first step runs; every call re-plans.
+Design and measurements: ``docs/design/lifelong_windowed_turning.md``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
+                                   FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
+from planners.mapf.windowed import _pop, _push
+
+__all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
+           "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS"]
+
+DEFAULT_WINDOW = 8
+MAX_WINDOW = 64
+#: A* expansions per robot and pass; a search out of budget keeps the robot's plan.
+DEFAULT_EXPANSIONS = 512
+#: Calls without a change of cell after which a robot keeps its PIBT plan.
+DEFAULT_PATIENCE = 8
+_UNREACHABLE = 1 << 24
+#: A* key = cost * _TURNS + turns on the way (fewest turns among equal costs).
+_TURNS = 256
+
+
+@numba.njit(cache=True, nogil=True)
+def _orient_bfs_rows(nbr, goals, rows, fields, far):
+    """``fields[rows[i], v * 4 + o]`` = actions from compact ``v`` facing ``o`` to ``goals[i]`` (any
+    orientation), by BFS backwards: (v, o) is reached by F from the cell behind, by R from (v, o - 1),
+    by C from (v, o + 1)."""
+    n = nbr.shape[0]
+    queue = np.empty(4 * n, dtype=np.int32)
+    for i in range(goals.shape[0]):
+        f = fields[rows[i]]
+        f[:] = far
+        tail = 0
+        for o in range(4):
+            f[goals[i] * 4 + o] = 0
+            queue[tail] = goals[i] * 4 + o
+            tail += 1
+        head = 0
+        while head < tail:
+            s = queue[head]
+            head += 1
+            v, o = s >> 2, s & 3
+            nd = f[s] + 1
+            u = nbr[v, (o + 2) & 3]
+            for q in (u * 4 + o if u >= 0 else -1, v * 4 + ((o + 3) & 3), v * 4 + ((o + 1) & 3)):
+                if q >= 0 and f[q] == far:
+                    f[q] = nd
+                    queue[tail] = q
+                    tail += 1
+
+
+class OrientFields(TurnFields):
+    """:class:`~planners.mapf.turning.TurnFields` over (free cell, orientation): ``fields[row, v * 4 + o]``
+    = fewest actions from compact ``v`` facing ``o`` to the goal, facing any way (same cache bound,
+    BFS budget in states)."""
+
+    per_cell = 4
+
+    def _fill(self, goals: np.ndarray, rows: np.ndarray) -> None:
+        _orient_bfs_rows(self.nbr, goals, rows, self.fields, self.dtype.type(self.far))
+
+
+@numba.njit(cache=True, nogil=True)
+def _h(fields, row, far, v, o, goal, cell_of, width):
+    """Cost to go from compact ``v`` facing ``o``: its field, Manhattan distance without one."""
+    if row >= 0:
+        d = fields[row, v * 4 + o]
+        return _UNREACHABLE if d == far else np.int64(d)
+    a, b = cell_of[v], cell_of[goal]
+    return abs(a // width - b // width) + abs(a % width - b % width)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cost(paths, k, w, goal, fields, row, far, cell_of, width):
+    """Robot ``k``'s plan cost: steps not spent on the goal + the cost to go from its last state."""
+    c = 0
+    for t in range(w):
+        if not (paths[k, t] >> 2 == goal and paths[k, t + 1] >> 2 == goal):
+            c += 1
+    last = paths[k, w]
+    return c + _h(fields, row, far, last >> 2, last & 3, goal, cell_of, width)
+
+
+@numba.njit(cache=True, nogil=True)
+def plan_cost(paths, goals, fields, rows, far, cell_of, width) -> int:
+    """Sum over robots of the plan cost (steps off the goal + cost to go from the last state)."""
+    w = paths.shape[1] - 1
+    total = 0
+    for k in range(paths.shape[0]):
+        total += _cost(paths, k, w, goals[k], fields, rows[k], far, cell_of, width)
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _reserve(occ, paths, k, n, w, who):
+    for t in range(w + 1):
+        occ[t * n + (paths[k, t] >> 2)] = who
+
+
+@numba.njit(cache=True, nogil=True)
+def windowed_turning_kernel(nbr, cell_of, width, goals, fields, rows, far, order, window, expansions, keep, paths,
+                            occ, seen, parent, heap, stamp):
+    """Re-plan every robot's window in ``order`` against all the others' plans (compact cells):
+    ``paths[k, t]`` = robot ``k``'s ``v * 4 + o`` at step ``t``, a conflict-free joint plan on entry and
+    on return; a robot with ``keep[k]`` keeps its plan, another takes the plan A* finds within
+    ``expansions`` when it costs no more (and does not stand still off the goal where the old plan
+    moved).  ``occ ((W+1)*n)`` -1 on entry and return; ``seen`` / ``parent`` A* scratch over
+    ``(W+1)*4n`` states, ``stamp`` their last stamp.  Returns ``(stamp, plans improved, searches out
+    of budget)``."""
+    n = nbr.shape[0]
+    ns = 4 * n
+    w = window
+    r = paths.shape[0]
+    for k in range(r):
+        _reserve(occ, paths, k, n, w, k)
+    improved = failed = 0
+    for idx in range(r):
+        k = order[idx]
+        goal, row = goals[k], rows[k]
+        bound = _cost(paths, k, w, goal, fields, row, far, cell_of, width)
+        if bound == 0 or keep[k]:
+            continue
+        _reserve(occ, paths, k, n, w, -1)
+        stamp += 1
+        s0 = paths[k, 0]
+        size = _push(heap, 0, _h(fields, row, far, s0 >> 2, s0 & 3, goal, cell_of, width) * _TURNS, 0, s0, -1)
+        best = -1
+        popped = 0
+        while size > 0 and popped < expansions:
+            f, g, s, p, size = _pop(heap, size)
+            if seen[s] == stamp:
+                continue
+            seen[s] = stamp
+            parent[s] = p
+            popped += 1
+            t = s // ns
+            if t == w:
+                best = s
+                break
+            v, o = (s % ns) >> 2, s & 3
+            for a in range(4):
+                v2, o2 = v, o
+                if a == FORWARD:
+                    v2 = nbr[v, o]
+                    if v2 < 0:
+                        continue
+                elif a == CLOCKWISE:
+                    o2 = (o + 1) & 3
+                elif a == COUNTER:
+                    o2 = (o + 3) & 3
+                s2 = ((t + 1) * n + v2) * 4 + o2
+                if seen[s2] == stamp or occ[(t + 1) * n + v2] != -1:
+                    continue
+                if v2 != v:
+                    j = occ[(t + 1) * n + v]  # the robot coming into my cell ...
+                    if j != -1 and occ[t * n + v2] == j:  # ... from the cell I go to: a swap
+                        continue
+                g2 = g + (0 if v == goal and v2 == goal else 1)
+                f2 = g2 + _h(fields, row, far, v2, o2, goal, cell_of, width)
+                if f2 <= bound:  # key: cost, then turns (no turn where a wait does as well)
+                    turns = f % _TURNS + (1 if a == CLOCKWISE or a == COUNTER else 0)
+                    size = _push(heap, size, f2 * _TURNS + min(turns, _TURNS - 1), g2, s2, s)
+        if best == -1:
+            failed += 1
+        elif best % ns != paths[k, 0] or paths[k, 0] >> 2 == goal or paths[k, w] == paths[k, 0]:
+            s = best  # (standing still off the goal replaces no plan: it would freeze a jam for good)
+            while s != -1:
+                paths[k, s // ns] = s % ns
+                s = parent[s]
+            if _cost(paths, k, w, goal, fields, row, far, cell_of, width) < bound:
+                improved += 1
+        _reserve(occ, paths, k, n, w, k)
+    for k in range(r):
+        _reserve(occ, paths, k, n, w, -1)
+    return stamp, improved, failed
+
+
+@numba.njit(cache=True, nogil=True)
+def repair_kernel(nbr, pos, orient, act, order, nxt, owner, occ_now) -> int:
+    """Make every F that breaks a rule wait, until none does: a cell ahead off the map or blocked, a
+    cell another robot stays in or a higher-priority F takes, a swap.  ``nxt[k]`` = robot ``k``'s next
+    compact cell on return; ``owner`` / ``occ_now`` scratch over cells, -1 on entry and on return.
+    Returns the F actions turned into waits."""
+    r = pos.shape[0]
+    for k in range(r):
+        occ_now[pos[k]] = k
+    changed = 0
+    again = True
+    while again:
+        again = False
+        for k in range(r):
+            nxt[k] = pos[k]
+            if act[k] == FORWARD:
+                nxt[k] = nbr[pos[k], orient[k]]
+                if nxt[k] < 0:
+                    act[k] = WAIT
+                    nxt[k] = pos[k]
+                    changed += 1
+        for k in range(r):
+            if act[k] != FORWARD:
+                owner[pos[k]] = k
+        for idx in range(r):
+            k = order[idx]
+            if act[k] != FORWARD:
+                continue
+            j = occ_now[nxt[k]]
+            if owner[nxt[k]] != -1 or (j != -1 and act[j] == FORWARD and nxt[j] == pos[k]):
+                act[k] = WAIT
+                changed += 1
+                again = True
+            else:
+                owner[nxt[k]] = k
+        for k in range(r):
+            owner[nxt[k]] = -1
+            owner[pos[k]] = -1
+    for k in range(r):
+        occ_now[pos[k]] = -1
+        if act[k] != FORWARD:
+            nxt[k] = pos[k]
+    return changed
+
+
+class WindowedTurningPlanner(TurningPIBT):
+    """Windowed prioritized planning with turning on one grid (see the module docstring); shares
+    :class:`~planners.mapf.turning.TurningPIBT`'s input checks, priorities and :meth:`step`.
+
+    Args:
+        grid: ``(H, W)`` bool obstacles.
+        seed: priority tie-breaks (of the PIBT rollout too).
+        window: planning horizon in steps (2..64, default 8; with 1, A* undoes the turns by which PIBT
+            makes way, whose use comes a step later: robots facing each other wait for good).
+        expansions: A* expansions per robot and pass (>= 1; a search out of budget keeps the plan).
+        passes: re-planning passes over all robots per call (0: the plan is TurningPIBT's rollout, so
+            with one rollout the actions are TurningPIBT's).
+        patience: a robot that has not changed cell for more than ``patience`` calls keeps its PIBT plan
+            (A* would hold it still in a jam that PIBT's turning resolves).
+        rollouts: PIBT rollouts per call, the first with the planner's own tie-breaks, the others with
+            tie-breaks drawn from ``(seed, step, k)``; the cheapest (sum of plan costs) is re-planned.
+        field_bytes, bfs_budget: bound and BFS work per call of each field cache (BFS distance for the
+            rollout, (cell, orientation) distance for A*), as :class:`~planners.mapf.turning.TurnFields`.
+    """
+
+    name = "windowed"
+
+    def __init__(self, grid: np.ndarray, seed: int = 0, window: int = DEFAULT_WINDOW, *,
+                 expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = 1,
+                 patience: int = DEFAULT_PATIENCE, field_bytes: int = DEFAULT_FIELD_BYTES,
+                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+        for name, value, low, top in (("window", window, 2, MAX_WINDOW), ("expansions", expansions, 1, None),
+                                      ("passes", passes, 0, None), ("rollouts", rollouts, 1, None),
+                                      ("patience", patience, 0, None)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
+                    top is not None and value > top):
+                raise ValueError(f"{name} must be an integer in {low}..{top or 'any'}, got {value!r}")
+        super().__init__(grid, seed=seed, field_bytes=field_bytes, bfs_budget=bfs_budget)
+        self.window, self.expansions, self.passes = int(window), int(expansions), int(passes)
+        self.rollouts, self.patience = int(rollouts), int(patience)
+        self.ofields = OrientFields(self.nbr, field_bytes, bfs_budget)
+        n = len(self.cell_of)
+        states = (self.window + 1) * 4 * n
+        self._occ = np.full((self.window + 1) * n, -1, dtype=np.int64)
+        self._seen = np.zeros(states, dtype=np.int64)
+        self._parent = np.zeros(states, dtype=np.int64)
+        self._heap = tuple(np.empty(4 * self.expansions + 1, dtype=np.int64) for _ in range(4))
+        self._stamp = 0
+        self.still, self._prev = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        self.paths = np.zeros((0, self.window + 1), dtype=np.int64)
+        #: per call: plans A* improved, searches out of budget (all passes); F the repair pass made wait
+        self.improved = self.failed = self.repairs = 0
+
+    def _rollout(self, pc, orient, gc, order, k: int = 0) -> np.ndarray:
+        """TurningPIBT's next ``window`` joint actions from here (goals fixed, priorities advanced on a
+        copy) as ``(R, window + 1)`` compact ``v * 4 + o``: a conflict-free joint plan.  Rollout ``k > 0``
+        draws its tie-breaks (of cells and of priorities) from ``(seed, step, k)``."""
+        r = len(pc)
+        rows = self.fields.rows(gc, order)
+        seed, tie = self.seed, self.tie
+        if k:
+            rng = np.random.default_rng((self.seed, self.t, k))
+            seed, tie = int(rng.integers(1 << 62)), rng.random(r)
+            order = np.lexsort((-tie, -self.elapsed)).astype(np.int64)
+        paths = np.empty((r, self.window + 1), dtype=np.int64)
+        pos, ori, elapsed = pc.copy(), orient.copy(), self.elapsed.copy()
+        nxt, act = np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64)
+        paths[:, 0] = pos * 4 + ori
+        for i in range(self.window):
+            turning_kernel(self.nbr, self.cell_of, self.width, pos, ori, gc, self.fields.fields, rows, order,
+                           seed, self.t + i, nxt, act, self._occ_now, self._occ_next)
+            pos = np.where(act == FORWARD, nxt, pos)
+            ori = (ori + np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))) % 4
+            elapsed = np.where(pos == gc, 0, elapsed + 1 + DEAD_END_BONUS * self.dead_end[pos])
+            order = np.lexsort((-tie, -elapsed)).astype(np.int64)
+            paths[:, i + 1] = pos * 4 + ori
+        return paths
+
+    def actions(self, pos, orient, goals) -> np.ndarray:
+        """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W), always a valid joint action; :attr:`paths` holds
+        the planned windows as ``(R, window + 1)`` ``flat cell * 4 + orientation``.  Advances the
+        priorities, assuming the actions are executed."""
+        pos, orient, goals = self._check(pos, orient, goals)
+        r = len(pos)
+        order = self.order(r)
+        pc, gc = self.cid[pos], self.cid[goals]
+        paths = self._rollout(pc, orient, gc, order)
+        rows = self.ofields.rows(gc, order)
+        far = self.ofields.dtype.type(self.ofields.far)
+        if self.rollouts > 1:
+            best = plan_cost(paths, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
+            for k in range(1, self.rollouts):
+                other = self._rollout(pc, orient, gc, order, k)
+                cost = plan_cost(other, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
+                if cost < best:
+                    paths, best = other, cost
+        self.improved = self.failed = 0
+        if len(self.still) != r:
+            self.still, self._prev = np.zeros(r, dtype=np.int64), pos
+        self.still = np.where(pos == self._prev, self.still + 1, 0)  # calls since the robot changed cell
+        self._prev = pos
+        keep = self.still > self.patience
+        for _ in range(self.passes):
+            self._stamp, improved, failed = windowed_turning_kernel(
+                self.nbr, self.cell_of, self.width, gc, self.ofields.fields, rows, far, order, self.window,
+                self.expansions, keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
+            self.improved += improved
+            self.failed += failed
+        p0, p1 = paths[:, 0], paths[:, 1]
+        turn = np.where((p1 & 3) == ((p0 + 1) & 3), CLOCKWISE, np.where((p1 & 3) == ((p0 + 3) & 3), COUNTER, WAIT))
+        act = np.where((p1 >> 2) != (p0 >> 2), FORWARD, turn).astype(np.int64)
+        nxt = np.empty(r, dtype=np.int64)
+        self.repairs = repair_kernel(self.nbr, pc, orient, act, order, nxt, self._occ_now, self._occ_next)
+        self.paths = self.cell_of[paths >> 2] * 4 + (paths & 3)
+        self.targets = self.cell_of[nxt]
+        self.elapsed = np.where(nxt == gc, 0, self.elapsed + 1 + DEAD_END_BONUS * self.dead_end[nxt])
+        self.t += 1
+        return act

@@ -55,31 +55,32 @@ def _fmt_row(r: dict) -> str:
     share = "-" if r["share_of_best"] is None else f"{100 * r['share_of_best']:.1f} %"
     return (f"| {r['instance']} | {r['robots']} | {r['scheduler']} | {r['executor']} | {r['steps']} | "
             f"{r['tasks_finished']} | {r['best_known']} | {share} | {1e3 * r['step_p50_s']:.1f} | "
-            f"{1e3 * r['step_p99_s']:.1f} | {r['errors']} | {r['paper_energy_per_task_j']:.4f} | "
-            f"{r['total_energy_per_task_j']:.4f} | {r['peak_rss_mb']:.0f} |")
+            f"{1e3 * r['step_p99_s']:.1f} | {r['errors']} | {1e3 * r['paper_energy_per_task_j']:.3g} | "
+            f"{1e3 * r['total_energy_per_task_j']:.3g} | {r['peak_rss_mb']:.0f} |")
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
     parser.add_argument("--executors", default="pibt,windowed",
-                        help="the first runs every scheduler; the others run the first scheduler only")
+                        help="each runs every scheduler; the first also runs the large instances")
     parser.add_argument("--instances", default=",".join(RANDOM))
     parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")
     parser.add_argument("--scale-steps", type=int, default=500)
     parser.add_argument("--steps", type=int, default=None, help="steps of the RANDOM runs (default: in full)")
     parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
     parser.add_argument("--write", action="store_true")
+    parser.add_argument("--json", default=None, help="also write every run's record to this JSON file")
     args = parser.parse_args(argv)
     schedulers = [s for s in args.schedulers.split(",") if s]
     rows = []
     head = ("| instance | robots | scheduler | executor | steps | tasks | best-known | share | step p50 ms | "
-            "step p99 ms | errors | paper J/task | total J/task | peak MB |")
+            "step p99 ms | errors | paper mJ/task | total mJ/task | peak MB |")
     sep = "|" + "---|" * 14
     executors = [e for e in args.executors.split(",") if e]
     for name in [n for n in args.instances.split(",") if n]:
         for ex in executors:
-            for s in schedulers if ex == executors[0] else schedulers[:1]:
+            for s in schedulers:
                 variants = [{}] + ([{"replan": True}] if args.replan and s != "lorr-greedy" else [])
                 for options in variants:
                     r = _one(name, s, ex, args.steps, options)
@@ -116,6 +117,8 @@ def main(argv=None) -> None:
             lines.append(f"| {r['instance']} | {r['robots']} | {r['tasks_finished']} | {r['tasks_per_step']:.2f} | "
                          f"{1e3 * r['step_p50_s']:.1f} | {1e3 * r['step_p99_s']:.1f} | {1e3 * r['step_max_s']:.1f} | "
                          f"{r['errors']} | {r['peak_rss_mb']:.0f} |")
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows + scale_rows, indent=1))
     finish(SECTION, lines, args.write)
 
 

@@ -25,7 +25,7 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested():
     tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
-              "map_families.py", "socket_chip.py", "lifelong_warehouse.py"}
+              "map_families.py", "socket_chip.py", "lifelong_warehouse.py", "lorr_instance.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -93,3 +93,13 @@ def test_watch_episode_writes_nothing_into_the_working_tree_by_default():
 def test_lifelong_warehouse():
     out = run_example("lifelong_warehouse.py", "--robots", "6", "--steps", "20", "--size", "16")
     assert out.count("conflicts 0, blocked 0") == 3 and " ising: " in out
+
+
+def test_lorr_instance(tmp_path):
+    import json
+
+    out = run_example("lorr_instance.py", "--steps", "80", "--out", str(tmp_path / "output.json"))
+    assert "EXAMPLE-01:" in out and "0 invalid joint actions" in out
+    finished = int(out.split("EXAMPLE-01: ")[1].split(" tasks")[0])
+    data = json.loads((tmp_path / "output.json").read_text())
+    assert data["numTaskFinished"] == finished > 0 and len(data["actualPaths"][0].split(",")) == 80

@@ -30,7 +30,8 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 
 #: Rough cold compile seconds of each part, two parts at a time on a 2-core machine (docs/design/cold_start.md).
 PART_SECONDS = {"ising:sharing": 70, "ising:tour+path": 60, "ising-paper:sharing": 10,
-                "ising-paper:tour+path": 10, "strong": 8, "fast": 5, "exact": 5}
+                "ising-paper:tour+path": 10, "strong": 8, "fast": 5, "exact": 5,
+                "lorr:pibt": 6, "lorr:windowed": 9}
 
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.
 LONG_S = 10
@@ -61,6 +62,8 @@ def parts_for(controllers) -> list[str]:
         if spec in _ISING:
             new = [f"{spec}:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" else [])
         elif spec in _PRESETS:
+            new = [spec]
+        elif spec.startswith("lorr:"):  # a LoRR executor with the start kit's scheduler (mrmt lorr run)
             new = [spec]
         elif spec.count("+") == 2:
             s, t, p = spec.split("+")
@@ -133,6 +136,12 @@ def cold_parts(controllers) -> list[str]:
 
 
 def _warm_part(part: str, world_kwargs: dict) -> str:
+    if part.startswith("lorr:"):
+        from agents.lorr.run import run_lorr
+        from mrmt_env.lorr.instance import example_instance_path
+
+        run_lorr(example_instance_path(), "lorr-greedy", part[len("lorr:"):], steps=3)
+        return part
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
 

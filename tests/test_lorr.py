@@ -5,13 +5,13 @@ from __future__ import annotations
 import json
 import shutil
 import zipfile
-from collections import deque
 from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from lorr_reference import bfs as _bfs
 
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRFormatError, example_instance_path, read_instance
@@ -207,21 +207,6 @@ def test_counters_match_an_independent_count_of_events():
 
 
 # ---------------------------------------------------------------- the start kit's default scheduler
-def _bfs(grid, src):
-    h, w = grid.shape
-    d = np.full(grid.size, -1)
-    d[src] = 0
-    q = deque([src])
-    while q:
-        p = q.popleft()
-        r, c = divmod(p, w)
-        for nr, nc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-            if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc] and d[nr * w + nc] < 0:
-                d[nr * w + nc] = d[p] + 1
-                q.append(nr * w + nc)
-    return d
-
-
 def test_greedy_scheduler_takes_the_least_makespan_task_in_robot_order():
     sim = _free_sim()
     grid = sim.inst.grid

@@ -130,7 +130,7 @@ def test_ising_scheduler_charges_the_chip_per_step():
 
 
 def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
-    from collections import deque
+    from lorr_reference import bfs as grid_bfs
 
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.sim import LoRRSimulator
@@ -140,20 +140,9 @@ def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
     sched = make_scheduler("strong", shortlist=2)
     sched.reset(sim)
     grid = inst.grid
-    w = inst.width
 
     def bfs(src):
-        d = np.full(grid.size, -1)
-        d[src] = 0
-        q = deque([src])
-        while q:
-            p = q.popleft()
-            r, c = divmod(p, w)
-            for nr, nc in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1)):
-                if 0 <= nr < grid.shape[0] and 0 <= nc < w and not grid[nr, nc] and d[nr * w + nc] < 0:
-                    d[nr * w + nc] = d[p] + 1
-                    q.append(nr * w + nc)
-        return d
+        return grid_bfs(grid, src)
 
     ids = np.array(sorted(sim.tasks.open), dtype=np.int64)
     cells = np.array([sim.tasks.errands_of(int(k))[0] for k in ids])

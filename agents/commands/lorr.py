@@ -110,6 +110,13 @@ def _run(args) -> int:
               "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json")
              for inst, s, seed in jobs]
     progress = not args.no_progress
+    if not args.address:  # one notice and a parallel compile on a new install (agents/warmup.py)
+        import os
+
+        from agents.warmup import warm
+
+        pipelines = [s for s in schedulers if s != "lorr-greedy" and not s.startswith("ppo:")]
+        warm([f"lorr:{args.executor}", *pipelines], jobs=min(2, os.cpu_count() or 1), progress=progress)
     if single and run.backend != "ray":
         rows = [_single(tasks[0], progress)]
     else:

@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from mrmt_env.core import check_render_mode
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
 from mrmt_env.lorr.rules import ORIENT_LETTERS, n_actions
@@ -118,8 +119,7 @@ class LoRREnv(gym.Env):
 
     def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
                  action_model: str = "MAPF_T") -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance

@@ -13,6 +13,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from mrmt_env.core import check_render_mode
 from mrmt_env.lorr.env import LoRRSetup, render_lorr
 
 __all__ = ["LoRRParallelEnv", "lorr_parallel_env"]
@@ -26,8 +27,7 @@ class LoRRParallelEnv(ParallelEnv):
 
     def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
                  action_model: str = "MAPF_T") -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance

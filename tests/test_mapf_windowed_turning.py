@@ -98,7 +98,8 @@ def test_dense_crowds_only_get_valid_joint_actions_and_conflict_free_plans(seed)
     rng = np.random.default_rng(200 + seed)
     grid, free, pos, orient, goals = crowd(rng, int(rng.integers(8, 17)), int(rng.integers(8, 17)),
                                            0.1 + 0.03 * seed, 0.5 + 0.05 * seed)
-    options = [{}, {"window": 2}, {"window": 3, "passes": 2}, {"expansions": 3, "rollouts": 3}, {"bfs_budget": 1},
+    options = [{}, {"window": 2}, {"window": 3, "passes": 2}, {"expansions": 3, "rollouts": 3},
+               {"bfs_budget": 1, "work": 40},
                {"window": 12, "patience": 0}][seed]
     ex = make_turning_executor("windowed", grid, seed=seed, **options)
     moved = reached = 0
@@ -118,10 +119,10 @@ def test_dense_crowds_only_get_valid_joint_actions_and_conflict_free_plans(seed)
     assert moved > 0 and reached > 0
 
 
-def test_no_pass_is_turning_pibt_and_a_pass_never_makes_a_plan_worse():
+def test_one_rollout_and_no_pass_is_turning_pibt_and_a_pass_never_makes_a_plan_worse():
     rng = np.random.default_rng(5)
     grid, free, pos, orient, goals = crowd(rng, 12, 12, 0.15, 0.5)
-    pibt, zero = TurningPIBT(grid, seed=3), WindowedTurningPlanner(grid, seed=3, passes=0)
+    pibt, zero = TurningPIBT(grid, seed=3), WindowedTurningPlanner(grid, seed=3, passes=0, rollouts=1)
     p, o, g = pos, orient, goals
     for _ in range(30):
         act = zero.actions(p, o, g)
@@ -161,6 +162,12 @@ def test_a_robot_that_stays_put_longer_than_its_patience_keeps_the_pibt_plan():
         assert err is None
         goals = retarget(rng, free, pos, goals)
     assert kept > 0
+
+
+def test_big_fleets_get_fewer_rollouts_then_a_shorter_window():
+    ex = WindowedTurningPlanner(np.zeros((4, 4), dtype=bool), window=16, rollouts=8, work=1 << 17)
+    assert ex.effort(800) == (16, 8) and ex.effort(2000) == (16, 4) and ex.effort(10_000) == (13, 1)
+    assert ex.effort(100_000) == (2, 1)
 
 
 def test_orientation_fields_equal_a_forward_search():
@@ -246,7 +253,8 @@ def test_bad_input_names_the_value():
                             ({"passes": -1}, r"passes must be an integer in 0..any, got -1"),
                             ({"passes": True}, r"passes must be an integer in 0..any, got True"),
                             ({"rollouts": 0}, r"rollouts must be an integer in 1..any, got 0"),
-                            ({"patience": -2}, r"patience must be an integer in 0..any, got -2")]:
+                            ({"patience": -2}, r"patience must be an integer in 0..any, got -2"),
+                            ({"work": 0}, r"work must be an integer in 1..any, got 0")]:
         with pytest.raises(ValueError, match=message):
             WindowedTurningPlanner(grid, **option)
     with pytest.raises(ValueError, match="unknown turning executor 'cbs'; known: pibt, windowed"):

@@ -1,18 +1,14 @@
 """Windowed prioritized planning with turning (LoRR MAPF_T): space-time A* over (cell, orientation, time), compiled.
 
-Each call: :class:`~planners.mapf.turning.TurningPIBT` is rolled out ``window``
-steps from the current state (goals fixed): a conflict-free joint plan, every
-robot's fallback.  Then robots in TurningPIBT's priority order re-plan their
-window with A* over (cell, orientation, time) and F / R / C / W, against every
-other robot's current plan (vertex and swap reservations), keeping a plan that
-costs no more (a step costs 1 except on the goal; beyond the window the cost to
-go is the distance in the (cell, orientation) graph, :class:`OrientFields`).
-A search out of budget keeps the robot's plan, and standing still off the goal
-replaces no plan (it would freeze a jam that PIBT's turns resolve).  The joint
-plan stays conflict-free throughout, so its first step is a valid joint action;
-a final repair pass (``repairs``, never used so far) would make any rule-breaking
-F wait.  Only the first step runs; every call re-plans.
-Design and measurements: ``docs/design/lifelong_windowed_turning.md``.
+Each call rolls :class:`~planners.mapf.turning.TurningPIBT` out ``window`` steps
+(several times, with different tie-breaks; the cheapest joint plan is kept): a
+conflict-free plan, every robot's fallback.  Robots in TurningPIBT's priority
+order then re-plan their window with A* over F / R / C / W against every other
+robot's current plan (vertex and swap reservations), taking a plan that costs
+no more (steps off the goal + the (cell, orientation) distance left,
+:class:`OrientFields`).  The joint plan stays conflict-free, so its first step
+is a valid joint action; every call re-plans.  Jam guards, measurements:
+``docs/design/lifelong_windowed_turning.md``.
 """
 
 from __future__ import annotations
@@ -25,14 +21,19 @@ from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_B
 from planners.mapf.windowed import _pop, _push
 
 __all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
-           "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS"]
+           "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
+           "DEFAULT_WORK"]
 
-DEFAULT_WINDOW = 8
+DEFAULT_WINDOW = 16
 MAX_WINDOW = 64
 #: A* expansions per robot and pass; a search out of budget keeps the robot's plan.
 DEFAULT_EXPANSIONS = 512
 #: Calls without a change of cell after which a robot keeps its PIBT plan.
 DEFAULT_PATIENCE = 8
+#: PIBT rollouts per call (the cheapest is re-planned).
+DEFAULT_ROLLOUTS = 8
+#: Robot-steps of PIBT rollout per call: fewer rollouts, then a shorter window, for big fleets.
+DEFAULT_WORK = 1 << 17
 _UNREACHABLE = 1 << 24
 #: A* key = cost * _TURNS + turns on the way (fewest turns among equal costs).
 _TURNS = 256
@@ -245,15 +246,18 @@ class WindowedTurningPlanner(TurningPIBT):
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: priority tie-breaks (of the PIBT rollout too).
-        window: planning horizon in steps (2..64, default 8; with 1, A* undoes the turns by which PIBT
+        window: planning horizon in steps (2..64, default 16; with 1, A* undoes the turns by which PIBT
             makes way, whose use comes a step later: robots facing each other wait for good).
         expansions: A* expansions per robot and pass (>= 1; a search out of budget keeps the plan).
-        passes: re-planning passes over all robots per call (0: the plan is TurningPIBT's rollout, so
-            with one rollout the actions are TurningPIBT's).
+        passes: re-planning passes over all robots per call (0: no A*, the cheapest rollout runs; with
+            ``rollouts=1`` too the actions are TurningPIBT's).
         patience: a robot that has not changed cell for more than ``patience`` calls keeps its PIBT plan
             (A* would hold it still in a jam that PIBT's turning resolves).
-        rollouts: PIBT rollouts per call, the first with the planner's own tie-breaks, the others with
-            tie-breaks drawn from ``(seed, step, k)``; the cheapest (sum of plan costs) is re-planned.
+        rollouts: PIBT rollouts per call (default 8), the first with the planner's own tie-breaks, the
+            others with tie-breaks drawn from ``(seed, step, k)``; the cheapest (sum of plan costs) is
+            re-planned.
+        work: robot-steps of rollout per call (default 2**17): with more robots, fewer rollouts
+            (at least 1), then a shorter window (at least 2) -- :meth:`effort`.
         field_bytes, bfs_budget: bound and BFS work per call of each field cache (BFS distance for the
             rollout, (cell, orientation) distance for A*), as :class:`~planners.mapf.turning.TurnFields`.
     """
@@ -261,18 +265,18 @@ class WindowedTurningPlanner(TurningPIBT):
     name = "windowed"
 
     def __init__(self, grid: np.ndarray, seed: int = 0, window: int = DEFAULT_WINDOW, *,
-                 expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = 1,
-                 patience: int = DEFAULT_PATIENCE, field_bytes: int = DEFAULT_FIELD_BYTES,
+                 expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = DEFAULT_ROLLOUTS,
+                 patience: int = DEFAULT_PATIENCE, work: int = DEFAULT_WORK, field_bytes: int = DEFAULT_FIELD_BYTES,
                  bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         for name, value, low, top in (("window", window, 2, MAX_WINDOW), ("expansions", expansions, 1, None),
                                       ("passes", passes, 0, None), ("rollouts", rollouts, 1, None),
-                                      ("patience", patience, 0, None)):
+                                      ("patience", patience, 0, None), ("work", work, 1, None)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
                     top is not None and value > top):
                 raise ValueError(f"{name} must be an integer in {low}..{top or 'any'}, got {value!r}")
         super().__init__(grid, seed=seed, field_bytes=field_bytes, bfs_budget=bfs_budget)
         self.window, self.expansions, self.passes = int(window), int(expansions), int(passes)
-        self.rollouts, self.patience = int(rollouts), int(patience)
+        self.rollouts, self.patience, self.work = int(rollouts), int(patience), int(work)
         self.ofields = OrientFields(self.nbr, field_bytes, bfs_budget)
         n = len(self.cell_of)
         states = (self.window + 1) * 4 * n
@@ -286,7 +290,12 @@ class WindowedTurningPlanner(TurningPIBT):
         #: per call: plans A* improved, searches out of budget (all passes); F the repair pass made wait
         self.improved = self.failed = self.repairs = 0
 
-    def _rollout(self, pc, orient, gc, order, k: int = 0) -> np.ndarray:
+    def effort(self, n_robots: int) -> tuple[int, int]:
+        """``(window, rollouts)`` of a call with ``n_robots`` robots under :attr:`work`."""
+        window = min(self.window, max(self.work // max(n_robots, 1), 2))
+        return window, min(self.rollouts, max(self.work // (max(n_robots, 1) * window), 1))
+
+    def _rollout(self, pc, orient, gc, order, window, k: int = 0) -> np.ndarray:
         """TurningPIBT's next ``window`` joint actions from here (goals fixed, priorities advanced on a
         copy) as ``(R, window + 1)`` compact ``v * 4 + o``: a conflict-free joint plan.  Rollout ``k > 0``
         draws its tie-breaks (of cells and of priorities) from ``(seed, step, k)``."""
@@ -297,11 +306,11 @@ class WindowedTurningPlanner(TurningPIBT):
             rng = np.random.default_rng((self.seed, self.t, k))
             seed, tie = int(rng.integers(1 << 62)), rng.random(r)
             order = np.lexsort((-tie, -self.elapsed)).astype(np.int64)
-        paths = np.empty((r, self.window + 1), dtype=np.int64)
+        paths = np.empty((r, window + 1), dtype=np.int64)
         pos, ori, elapsed = pc.copy(), orient.copy(), self.elapsed.copy()
         nxt, act = np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64)
         paths[:, 0] = pos * 4 + ori
-        for i in range(self.window):
+        for i in range(window):
             turning_kernel(self.nbr, self.cell_of, self.width, pos, ori, gc, self.fields.fields, rows, order,
                            seed, self.t + i, nxt, act, self._occ_now, self._occ_next)
             pos = np.where(act == FORWARD, nxt, pos)
@@ -313,19 +322,20 @@ class WindowedTurningPlanner(TurningPIBT):
 
     def actions(self, pos, orient, goals) -> np.ndarray:
         """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W), always a valid joint action; :attr:`paths` holds
-        the planned windows as ``(R, window + 1)`` ``flat cell * 4 + orientation``.  Advances the
-        priorities, assuming the actions are executed."""
+        the planned windows as ``(R, w + 1)`` ``flat cell * 4 + orientation`` (``w`` from :meth:`effort`).
+        Advances the priorities, assuming the actions are executed."""
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
         order = self.order(r)
         pc, gc = self.cid[pos], self.cid[goals]
-        paths = self._rollout(pc, orient, gc, order)
+        window, rollouts = self.effort(r)
+        paths = self._rollout(pc, orient, gc, order, window)
         rows = self.ofields.rows(gc, order)
         far = self.ofields.dtype.type(self.ofields.far)
-        if self.rollouts > 1:
+        if rollouts > 1:
             best = plan_cost(paths, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
-            for k in range(1, self.rollouts):
-                other = self._rollout(pc, orient, gc, order, k)
+            for k in range(1, rollouts):
+                other = self._rollout(pc, orient, gc, order, window, k)
                 cost = plan_cost(other, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
                 if cost < best:
                     paths, best = other, cost
@@ -337,8 +347,8 @@ class WindowedTurningPlanner(TurningPIBT):
         keep = self.still > self.patience
         for _ in range(self.passes):
             self._stamp, improved, failed = windowed_turning_kernel(
-                self.nbr, self.cell_of, self.width, gc, self.ofields.fields, rows, far, order, self.window,
-                self.expansions, keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
+                self.nbr, self.cell_of, self.width, gc, self.ofields.fields, rows, far, order, window, self.expansions,
+                keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
             self.improved += improved
             self.failed += failed
         p0, p1 = paths[:, 0], paths[:, 1]

@@ -13,17 +13,19 @@ orientation, time) for the same rules; :func:`make_turning_executor` builds eith
 
 from __future__ import annotations
 
+from planners.mapf.joint_executor import JointMovesPIBT
 from planners.mapf.pibt import PIBT
 from planners.mapf.turning import TurningPIBT
 from planners.mapf.windowed import WindowedPlanner
 from planners.mapf.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "make_turning_executor"]
+           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
-TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner}
+TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner,
+                     "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):

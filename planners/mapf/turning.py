@@ -426,12 +426,17 @@ class TurningPIBT:
         act = np.empty(r, dtype=np.int64)
         turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, self.fields.fields, rows, order, self.seed,
                        self.t, nxt, act, self._occ_now, self._occ_next)
+        self._refine(pc, orient, gc, rows, order, nxt, act)
         self.targets = self.cell_of[nxt]
         moved = np.where(act == FORWARD, nxt, pc)
         extra = DEAD_END_BONUS * self.dead_end[moved]
         self.elapsed = np.where(moved == gc, 0, self.elapsed + 1 + extra)
         self.t += 1
         return act
+
+    def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
+        """Hook for subclasses: may change the claims ``nxt`` (compact cells; kept distinct and swap-free)
+        and their actions ``act`` in place before they are applied (here: nothing)."""
 
     def step(self, pos, orient, goals):
         """:meth:`actions` applied: ``(next pos, next orient)``."""

@@ -1,0 +1,165 @@
+"""Joint next moves on the Ising chip vs PIBT's priority order (issue 33, item 3), measured.
+
+``decisions``: groups sampled from LoRR runs driven by the host rule (start kit greedy scheduler,
+TurningPIBT), each solved three ways under one objective (planners/mapf/joint_moves.py): the host
+rule's answer, the chip's (best decoded read, repaired), the exact optimum (branch and bound).
+``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds.
+
+    flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/joint_moves.py decisions --steps 200
+    flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/joint_moves.py e2e --steps 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path("/work/shared/lorr/2024-main/random.domain")
+
+
+def sample_decisions(path, steps, seed=0, per_instance=400, **options):
+    """Groups of the host rule's own run: ``(problems, host rule seconds per step, group seconds per step,
+    groups per step)``; ``per_instance`` problems drawn uniformly (seeded) from all steps."""
+    from agents.lorr.run import proposal_goals
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.instance import read_instance
+    from mrmt_env.lorr.sim import LoRRSimulator
+    from planners.mapf.joint_executor import JointMovesPIBT
+    from planners.mapf.turning import TurningPIBT
+
+    inst = read_instance(path)
+    sim = LoRRSimulator(inst, record=False)
+    sched = make_scheduler("lorr-greedy", seed=seed)
+    sched.reset(sim)
+    ex = JointMovesPIBT(inst.grid, seed=seed, accept="host", **options)
+    ref = TurningPIBT(inst.grid, seed=seed)  # the host rule alone, timed on the same states
+    ex.sample = []
+    host_s, group_s, groups = [], [], []
+    for _ in range(steps):
+        prop = sched.schedule(sim)
+        goals = proposal_goals(sim, prop)
+        t0 = time.perf_counter()
+        a_ref = ref.actions(sim.pos, sim.orient, goals)
+        t1 = time.perf_counter()
+        n0 = len(ex.sample)
+        act = ex.actions(sim.pos, sim.orient, goals)
+        t2 = time.perf_counter()
+        assert np.array_equal(act, a_ref)
+        host_s.append(t1 - t0)
+        group_s.append(max((t2 - t1) - (t1 - t0), 0.0))
+        groups.append(len(ex.sample) - n0)
+        sim.step(act, prop)
+    rng = np.random.default_rng(seed)
+    pick = np.sort(rng.choice(len(ex.sample), min(per_instance, len(ex.sample)), replace=False))
+    return [ex.sample[i] for i in pick], np.array(host_s), np.array(group_s), np.array(groups), sim.finished
+
+
+def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=0):
+    """Per problem: ``(host, chip, exact, not_one_hot, conflict, host seconds of build + decode)``."""
+    from planners.mapf.joint_moves import (build_qubo, decode_reads, group_spread, objective, qubo_to_ising,
+                                           solve_exact)
+
+    out = []
+    for c0 in range(0, len(problems), chunk):
+        batch = problems[c0:c0 + chunk]
+        n = max(int(p[1][-1]) for p in batch)
+        H = np.zeros((len(batch), n), dtype=np.int64)
+        J = np.zeros((len(batch), n, n), dtype=np.int64)
+        q = np.empty((n, n), dtype=np.int64)
+        build = []
+        for g, (pos, ostart, ocell, ocost, host) in enumerate(batch):
+            t0 = time.perf_counter()
+            size = len(pos)
+            mem = np.arange(size)
+            pen = 1 + group_spread(0, size, ostart, ocost) if penalty is None else penalty
+            k = build_qubo(pos, mem, 0, size, ostart, ocell, ocost, pen, pen, q)
+            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+            build.append(time.perf_counter() - t0)
+        spins, _ = machine.anneal_batch(H, J, num_reads=num_reads, seed=seed + c0)
+        for g, (pos, ostart, ocell, ocost, host) in enumerate(batch):
+            size = len(pos)
+            mem = np.arange(size)
+            choice = np.empty(size, dtype=np.int64)
+            stats = np.zeros(2, dtype=np.int64)
+            t0 = time.perf_counter()
+            e_chip = decode_reads(pos, mem, 0, size, ostart, ocell, ocost, host, spins[g], choice, stats)
+            t1 = time.perf_counter()
+            e_host = objective(mem, 0, size, ostart, ocost, host)
+            e_opt = solve_exact(pos, mem, 0, size, ostart, ocell, ocost, choice)
+            out.append((e_host, e_chip, e_opt, stats[0], stats[1], build[g] + t1 - t0))
+    return np.array(out, dtype=float)
+
+
+def summary(res):
+    h, c, e = res[:, 0], res[:, 1], res[:, 2]
+    den = np.maximum(np.abs(e), 1)
+    return {"decisions": len(res), "chip_better": float((c < h).mean()), "chip_worse": float((c > h).mean()),
+            "host_suboptimal": float((e < h).mean()), "chip_optimal": float((c == e).mean()),
+            "gap_host": float(((h - e) / den).mean()), "gap_chip": float(((c - e) / den).mean()),
+            "gap_host_sum": float((h - e).sum() / np.abs(e).sum()), "gap_chip_sum": float((c - e).sum() / np.abs(e).sum())}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("mode", choices=["decisions", "e2e"])
+    ap.add_argument("--instances", default="1,2,3,4,5")
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--per-instance", type=int, default=400)
+    ap.add_argument("--reads", type=int, default=8)
+    ap.add_argument("--penalty", type=int, default=None)
+    ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--max-robots", type=int, default=11)
+    ap.add_argument("--accept", default="better")
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    from ising_backend import EmulatedChip
+
+    names = [f"RANDOM-0{i}" for i in args.instances.split(",")]
+    rows = []
+    if args.mode == "decisions":
+        allres = []
+        for name in names:
+            probs, host_s, group_s, groups, _ = sample_decisions(ROOT / f"{name}.json", args.steps,
+                                                                 per_instance=args.per_instance, levels=args.levels,
+                                                                 max_robots=args.max_robots)
+            res = solve_problems(probs, EmulatedChip(seed=0), num_reads=args.reads, penalty=args.penalty)
+            allres.append(res)
+            per = max(groups.sum(), 1)
+            row = {"instance": name, **summary(res), "groups_per_step": float(groups.mean()),
+                   "host_rule_ms_per_step": 1e3 * host_s.mean(), "host_rule_ms_per_decision": 1e3 * host_s.sum() / per,
+                   "chip_host_ms_per_decision": 1e3 * (group_s.sum() / per + res[:, 5].mean()),
+                   "not_one_hot_reads": float(res[:, 3].sum() / (len(res) * args.reads)),
+                   "conflict_repaired_reads": float(res[:, 4].sum() / (len(res) * args.reads))}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+        print(json.dumps({"instance": "all", **summary(np.concatenate(allres))}), flush=True)
+    else:
+        from agents.lorr.run import run_lorr
+        from planners.mapf import TURNING_EXECUTORS
+        from planners.mapf.joint_executor import JointMovesPIBT
+
+        class Variant(JointMovesPIBT):
+            def __init__(self, grid, seed=0):
+                super().__init__(grid, seed=seed, levels=args.levels, penalty=args.penalty, num_reads=args.reads,
+                                 max_robots=args.max_robots, accept=args.accept)
+
+        TURNING_EXECUTORS["pibt-ising-bench"] = Variant
+        for name in names:
+            for seed in range(args.seeds):
+                for ex in ("pibt", "pibt-ising-bench"):
+                    rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", ex, steps=args.steps, seed=seed)
+                    row = {k: rec[k] for k in ("instance", "executor", "seed", "tasks_finished", "errors",
+                                               "step_p50_s", "step_p99_s")}
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,178 @@
+"""TurningPIBT whose congested groups re-choose their next cells on an Ising machine (``pibt-ising``).
+
+:class:`JointMovesPIBT` runs the host rule (:class:`~planners.mapf.turning.TurningPIBT`), then the
+decision class ``joint-moves`` of :mod:`planners.mapf.joint_moves`: every group of the step is one
+program of one ``machine.anneal_batch`` (any :class:`ising_backend.IsingMachine`; programs padded
+with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
+answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
+rule's (the host scores both; the default), ``"chip"`` always the chip's, ``"host"`` always the host
+rule's (the chip still runs: for audits on the host rule's own trajectory).
+
+Charges: :attr:`ledger` (this executor's calls) and :attr:`last_compute`, a
+:class:`~planners.compute.ComputeReport` of the latest step (chip calls, chip time with parallel
+dispatch, accelerator energy, emulation seconds).  With ``audit=True`` every decision appends a
+record to :attr:`audit` (robots, spins, host / chip / exact objective, reads repaired, host seconds).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from planners.mapf.common import mix
+from planners.mapf.joint_moves import (MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
+                                       objective, qubo_to_ising, robot_options, select_groups, solve_exact)
+from planners.mapf.turning import TurningPIBT
+
+__all__ = ["JointMovesPIBT", "ACCEPT"]
+
+ACCEPT = ("better", "chip", "host")
+
+
+def _int_in(name, value, lo, hi):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise ValueError(f"{name} = {value!r} must be an integer in [{lo}, {hi}]")
+    return int(value)
+
+
+class JointMovesPIBT(TurningPIBT):
+    """PIBT with turning plus the chip's joint next moves for congested groups (module docstring).
+
+    Args:
+        grid, seed: as :class:`TurningPIBT` (``field_bytes``, ``bfs_budget`` pass through).
+        machine: any Ising machine (``anneal_batch``, ``spec``, ``usable_spins``); default
+            ``ising_backend.EmulatedChip(seed=seed)``.
+        max_robots: robots per group (1..45).
+        max_spins: options per group (default and upper limit: the machine's usable spins).
+        levels: priority weight tiers inside a group (1 = every robot weighs 1; 1..7).
+        penalty: one-hot and conflict penalty of the QUBO; ``None`` = 1 + the group's largest
+            spread of one robot's option costs (the smallest value that keeps every single-robot
+            deviation from paying off).
+        num_reads: reads per group program (1..64).
+        accept: ``"better"``, ``"chip"`` or ``"host"`` (module docstring).
+        audit: record every decision with its exact optimum (slow: for benchmarks and tests).
+    """
+
+    name = "pibt-ising"
+
+    def __init__(self, grid, seed: int = 0, machine=None, *, max_robots: int = 11, max_spins: int | None = None,
+                 levels: int = 3, penalty: int | None = None, num_reads: int = 8, accept: str = "better",
+                 audit: bool = False, **options) -> None:
+        super().__init__(grid, seed=seed, **options)
+        if machine is None:
+            from ising_backend import EmulatedChip
+
+            machine = EmulatedChip(seed=self.seed)
+        if not callable(getattr(machine, "anneal_batch", None)):
+            raise ValueError(f"machine = {machine!r} has no anneal_batch(h, J, num_reads, seed)")
+        self.machine = machine
+        usable = int(getattr(machine, "usable_spins", machine.spec.n_spins))
+        self.max_robots = _int_in("max_robots", max_robots, 1, 45)
+        self.max_spins = usable if max_spins is None else _int_in("max_spins", max_spins, MAX_OPTIONS, usable)
+        self.levels = _int_in("levels", levels, 1, 7)
+        self.penalty = None if penalty is None else _int_in("penalty", penalty, 1, 1 << 20)
+        self.num_reads = _int_in("num_reads", num_reads, 1, 64)
+        if accept not in ACCEPT:
+            raise ValueError(f"accept = {accept!r} must be one of {', '.join(ACCEPT)}")
+        self.accept = accept
+        self.audit = [] if audit else None
+        from ising_backend import CallLedger
+        from planners.compute import ComputeReport
+
+        self._report = ComputeReport
+        self.ledger = CallLedger()
+        self.last_compute = ComputeReport()
+        self.decisions = 0
+        self.changed = 0  # groups whose chip answer was applied and differs from the host rule's
+        self.repaired = np.zeros(2, dtype=np.int64)  # reads not one-hot, reads with a conflict repaired
+        self.host_s = 0.0  # host seconds of the decision class (group building, mapping, decode; no emulation)
+        self._claim = np.full(len(self.cell_of), -1, dtype=np.int64)
+        #: a list to collect every group as ``(pos, ostart, ocell, ocost, host)`` instead of deciding (benchmarks)
+        self.sample = None
+
+    def groups(self, pc, orient, gc, rows, order, nxt, act):
+        """This step's groups: ``(ng, gstart, members, ostart, ocell, ocost, host)`` (kernels of
+        :mod:`planners.mapf.joint_moves`; compact cells)."""
+        r = len(pc)
+        cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
+        cost = np.empty((r, MAX_OPTIONS), dtype=np.int64)
+        robot_options(self.nbr, self.cell_of, self.width, self.fields.fields, rows, gc, pc, orient, cand, cost)
+        gid = np.empty(r, dtype=np.int64)
+        members = np.empty(r, dtype=np.int64)
+        gstart = np.empty(r + 1, dtype=np.int64)
+        ng = select_groups(self.nbr, pc, nxt, act, cand, cost, order, self.max_robots, self.max_spins,
+                           self._occ_now, gid, members, gstart)
+        rank = np.empty(r, dtype=np.int64)
+        rank[order] = np.arange(r)
+        m = gstart[ng]
+        ostart = np.zeros(m + 1, dtype=np.int64)
+        ocell = np.empty(m * MAX_OPTIONS, dtype=np.int64)
+        ocost = np.empty(m * MAX_OPTIONS, dtype=np.int64)
+        host = np.empty(m, dtype=np.int64)
+        if ng:
+            group_options(pc, nxt, cand, cost, rank, gid, members, gstart, ng, self.levels, self._claim,
+                          self._occ_now, ostart, ocell, ocost, host)
+        return ng, gstart, members, ostart, ocell, ocost, host
+
+    def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
+        t0 = time.perf_counter()
+        self.last_compute = self._report()
+        ng, gstart, members, ostart, ocell, ocost, host = self.groups(pc, orient, gc, rows, order, nxt, act)
+        if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
+            for g in range(ng):
+                a, b = gstart[g], gstart[g + 1]
+                self.sample.append((pc[members[a:b]].copy(), ostart[a:b + 1] - ostart[a],
+                                    ocell[ostart[a]:ostart[b]].copy(), ocost[ostart[a]:ostart[b]].copy(),
+                                    host[a:b].copy()))
+            return
+        if ng == 0:
+            self.host_s += time.perf_counter() - t0
+            return
+        sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
+        n = int(sizes.max())
+        q = np.empty((n, n), dtype=np.int64)
+        H = np.zeros((ng, n), dtype=np.int64)
+        J = np.zeros((ng, n, n), dtype=np.int64)
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            pen = 1 + group_spread(a, b, ostart, ocost) if self.penalty is None else self.penalty
+            k = build_qubo(pc, members, a, b, ostart, ocell, ocost, pen, pen, q)
+            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+        seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
+        t1 = time.perf_counter()
+        spins, _ = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
+        t2 = time.perf_counter()
+        call = self.machine.last_call
+        self.ledger = self.ledger + call
+        stats = np.zeros(2, dtype=np.int64)
+        choice = np.empty(self.max_robots, dtype=np.int64)
+        hostc = np.empty(self.max_robots, dtype=np.int64)
+        exact = np.empty(self.max_robots, dtype=np.int64)
+        audit_s = 0.0
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            before = stats.copy()
+            e_chip = decode_reads(pc, members, a, b, ostart, ocell, ocost, host, spins[g], choice, stats)
+            hostc[:b - a] = host[a:b]
+            e_host = objective(members, a, b, ostart, ocost, hostc)
+            use = self.accept == "chip" or (self.accept == "better" and e_chip < e_host)
+            if use and (choice[:b - a] != host[a:b]).any():
+                self.changed += 1
+                nxt[members[a:b]] = ocell[ostart[a:b] + choice[:b - a]]
+            if self.audit is not None:
+                ta = time.perf_counter()
+                e_opt = solve_exact(pc, members, a, b, ostart, ocell, ocost, exact)
+                self.audit.append({"t": self.t, "robots": int(b - a), "spins": int(sizes[g]), "host": int(e_host),
+                                   "chip": int(e_chip), "exact": int(e_opt),
+                                   "not_one_hot": int(stats[0] - before[0]), "conflict": int(stats[1] - before[1])})
+                audit_s += time.perf_counter() - ta
+        self.decisions += ng
+        self.repaired += stats
+        claims_to_actions(self.nbr, pc, orient, nxt, act, self._occ_now)
+        t3 = time.perf_counter() - audit_s
+        emul = float(call.emulation_s)
+        self.host_s += (t3 - t0) - emul
+        self.last_compute = replace(self._report.from_ledger(call), cpu_s=t3 - t0)
+        self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups

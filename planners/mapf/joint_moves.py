@@ -1,0 +1,411 @@
+"""Joint next moves of congested robot groups as an Ising-chip decision (issue 33, item 3).
+
+The decision class ``joint-moves``: after :class:`~planners.mapf.turning.TurningPIBT` has picked
+every robot's next cell (its *claim*), groups of up to ``max_robots`` robots in congested regions
+re-choose their claims jointly; everyone else keeps the host rule's claim.  Actions come from the
+claims as in TurningPIBT (ahead -> F, side / behind -> turn, own cell -> W, then the vacate check),
+so the joint action is valid whatever the group decides, as long as claims stay distinct and
+swap-free -- both pairwise conditions.
+
+**Group.** Seeds are robots whose host claim is not their own best cell or whose forward claim the
+vacate check cancels, taken by decreasing priority; a group grows breadth-first over robots within
+two free steps (robots further apart share no candidate cell) while it has at most ``max_robots``
+robots and at most ``max_spins`` candidate options.  Robots within two steps of a group are frozen
+(fixed at their claims) for later groups, so groups of one step are independent and go to the chip
+in one ``anneal_batch``.
+
+**Objective** (minimised; the host rule's answer is scored with it too).  Robot ``i`` claiming cell
+``v`` costs ``w_i * (2 * (d(v) - d(p_i)) + turns(o_i -> v))`` (0 for its own cell): ``d`` the BFS
+distance to its goal, turns 0 ahead, 1 to a side, 2 behind -- PIBT's own candidate order (distance,
+then turns) as a number.  ``w_i`` are priority tiers inside the group: ``levels`` .. 1 from the
+highest-priority third down (``levels=1``: every robot weighs 1).  Without weights a pure sum lets
+two robots meeting head-on both wait for ever; the tiers keep PIBT's push of the lower-priority one.
+
+**QUBO** (one binary per robot and allowed cell): the costs, a one-hot penalty ``A (sum_v x_iv - 1)^2``
+and a penalty ``P`` per pair of options claiming one cell or swapping.  Options taken by a frozen
+robot (its claim, or a swap with it) are left out, so the host rule's answer is always feasible.
+Mapping rule: QUBO -> Ising, multiplied by 4 (all integers), scaled so the largest ``|h|`` or ``|J|``
+is 7 and rounded half away from zero.  Decode: a robot without exactly one option set, then any robot
+in a claim or swap conflict (repeated until none is left), takes the host rule's claim (``repaired``
+counts reads that needed it); the read of least objective wins (ties: the first).
+The executor that uses these kernels: :mod:`planners.mapf.joint_executor`.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance
+
+__all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo", "qubo_to_ising",
+           "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS"]
+
+MAX_OPTIONS = 5  # own cell + four neighbours
+_BIG = 1 << 40
+
+
+@numba.njit(cache=True, nogil=True)
+def robot_options(nbr, cell_of, width, fields, rows, goals, pos, orient, cand, cost):
+    """``cand[k, m]`` robot ``k``'s candidate compact cells (own cell first, then free neighbours east,
+    south, west, north; -1 pads), ``cost[k, m]`` its unweighted cost ``2 (d(v) - d(p)) + turns``."""
+    for k in range(pos.shape[0]):
+        p, o = pos[k], orient[k]
+        dp = _distance(fields, rows[k], goals[k], p, cell_of, width)
+        cand[k, 0], cost[k, 0] = p, 0
+        m = 1
+        for d in range(4):
+            v = nbr[p, d]
+            if v < 0:
+                continue
+            turns = 0 if d == o else (2 if d == (o + 2) % 4 else 1)
+            cand[k, m] = v
+            cost[k, m] = 2 * (_distance(fields, rows[k], goals[k], v, cell_of, width) - dp) + turns
+            m += 1
+        for j in range(m, MAX_OPTIONS):
+            cand[k, j], cost[k, j] = -1, _BIG
+
+
+@numba.njit(cache=True, nogil=True)
+def select_groups(nbr, pos, nxt, act, cand, cost, order, max_robots, max_spins, occ, gid, members, gstart):
+    """Groups of this step (module docstring): ``members[gstart[g]:gstart[g + 1]]`` robots of group ``g``
+    (BFS order from its seed), ``gid[k]`` robot ``k``'s group or -1; returns the number of groups.
+    ``occ`` is compact-cell scratch, all -1 on entry and on return."""
+    r = pos.shape[0]
+    for k in range(r):
+        occ[pos[k]] = k
+        gid[k] = -1
+    state = np.zeros(r, dtype=np.int8)  # 0 open, 1 grouped, 2 frozen
+    ring = np.empty(20, dtype=np.int64)
+    ng, m = 0, 0
+    gstart[0] = 0
+    for idx in range(r):
+        s = order[idx]
+        if state[s] != 0:
+            continue
+        host = 0
+        best = cost[s, 0]
+        for j in range(MAX_OPTIONS):
+            if cand[s, j] == nxt[s]:
+                host = cost[s, j]
+            best = min(best, cost[s, j])
+        ahead_cut = nxt[s] != pos[s] and act[s] == WAIT
+        if host <= best and not ahead_cut:
+            continue
+        tail = m
+        members[tail] = s
+        tail += 1
+        state[s] = 1
+        spins = 0
+        for j in range(MAX_OPTIONS):
+            spins += cand[s, j] >= 0
+        head = m
+        while head < tail and tail - m < max_robots:
+            a = members[head]
+            head += 1
+            nr = _ring(nbr, pos[a], ring)
+            for q in range(nr):
+                j = occ[ring[q]]
+                if j < 0 or state[j] != 0 or tail - m >= max_robots:
+                    continue
+                nj = 0
+                for t in range(MAX_OPTIONS):
+                    nj += cand[j, t] >= 0
+                if spins + nj > max_spins:
+                    continue
+                members[tail] = j
+                tail += 1
+                state[j] = 1
+                spins += nj
+        for t in range(m, tail):
+            gid[members[t]] = ng
+            nr = _ring(nbr, pos[members[t]], ring)
+            for q in range(nr):
+                j = occ[ring[q]]
+                if j >= 0 and state[j] == 0:
+                    state[j] = 2
+        m = tail
+        ng += 1
+        gstart[ng] = m
+    for k in range(r):
+        occ[pos[k]] = -1
+    return ng
+
+
+@numba.njit(cache=True, nogil=True)
+def _ring(nbr, p, ring) -> int:
+    """Cells within two free steps of ``p`` (nearest first, repeats allowed, ``p`` left out)."""
+    n = 0
+    for d in range(4):
+        v = nbr[p, d]
+        if v >= 0:
+            ring[n] = v
+            n += 1
+    for i in range(n):
+        v = ring[i]
+        for d in range(4):
+            u = nbr[v, d]
+            if u >= 0 and u != p:
+                ring[n] = u
+                n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def group_options(pos, nxt, cand, cost, rank, gid, members, gstart, ng, levels, claim, occ,
+                  ostart, ocell, ocost, host):
+    """Allowed options of every group member (module docstring): member ``t``'s options are
+    ``ocell[ostart[t]:ostart[t + 1]]`` with weighted costs ``ocost``; ``host[t]`` the index of its host
+    claim among them.  ``claim`` / ``occ`` compact-cell scratch, -1 on entry and on return."""
+    r = pos.shape[0]
+    for k in range(r):
+        claim[nxt[k]] = k
+        occ[pos[k]] = k
+    n = 0
+    ostart[0] = 0
+    for g in range(ng):
+        a, b = gstart[g], gstart[g + 1]
+        size = b - a
+        for t in range(a, b):
+            k = members[t]
+            higher = 0  # members of higher priority: the weight tier
+            for u in range(a, b):
+                higher += rank[members[u]] < rank[k]
+            w = levels - (levels * higher) // size
+            host[t] = -1
+            for j in range(MAX_OPTIONS):
+                v = cand[k, j]
+                if v < 0:
+                    continue
+                c = claim[v]
+                if c >= 0 and gid[c] != g:
+                    continue  # a frozen robot's claim
+                o = occ[v]
+                if o >= 0 and gid[o] != g and nxt[o] == pos[k]:
+                    continue  # a swap with a frozen robot
+                if v == nxt[k]:
+                    host[t] = n - ostart[t]
+                ocell[n] = v
+                ocost[n] = w * cost[k, j]
+                n += 1
+            ostart[t + 1] = n
+    for k in range(r):
+        claim[nxt[k]] = -1
+        occ[pos[k]] = -1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def group_spread(a, b, ostart, ocost) -> int:
+    """Largest spread (max - min) of one member's option costs in the group ``a:b``."""
+    top = 0
+    for t in range(a, b):
+        lo, hi = ocost[ostart[t]], ocost[ostart[t]]
+        for x in range(ostart[t], ostart[t + 1]):
+            lo, hi = min(lo, ocost[x]), max(hi, ocost[x])
+        top = max(top, hi - lo)
+    return top
+
+
+@numba.njit(cache=True, nogil=True)
+def _conflict(v, pi, u, pj) -> bool:
+    """Claims ``v`` (robot at ``pi``) and ``u`` (robot at ``pj``) of two robots cannot stand together."""
+    return v == u or (v == pj and u == pi)
+
+
+@numba.njit(cache=True, nogil=True)
+def build_qubo(pos, members, a, b, ostart, ocell, ocost, one_hot, pair, q):
+    """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
+    returned); its energy plus ``one_hot * (b - a)`` is the objective on every feasible one-hot
+    assignment."""
+    base = ostart[a]
+    n = ostart[b] - base
+    q[:n, :n] = 0
+    for t in range(a, b):
+        for x in range(ostart[t], ostart[t + 1]):
+            i = x - base
+            q[i, i] = ocost[x] - one_hot
+            for y in range(x + 1, ostart[t + 1]):
+                q[i, y - base] += 2 * one_hot
+            for t2 in range(t + 1, b):
+                for y in range(ostart[t2], ostart[t2 + 1]):
+                    if _conflict(ocell[x], pos[members[t]], ocell[y], pos[members[t2]]):
+                        q[i, y - base] += pair
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def qubo_to_ising(q, n, h, J):
+    """The mapping rule: Ising of ``q[:n, :n]`` times 4 (integers), scaled so max ``|h|, |J|`` = 7, rounded
+    half away from zero into ``h[:n]``, ``J[:n, :n]`` (rest zero); returns the scale."""
+    h4 = np.zeros(n, dtype=np.int64)
+    top = 1
+    for i in range(n):
+        h4[i] += 2 * q[i, i]
+        for j in range(i + 1, n):
+            h4[i] += q[i, j]
+            h4[j] += q[i, j]
+            top = max(top, abs(q[i, j]))
+    for i in range(n):
+        top = max(top, abs(h4[i]))
+    s = 7.0 / top
+    h[:] = 0
+    J[:, :] = 0
+    for i in range(n):
+        h[i] = np.sign(h4[i]) * np.floor(abs(h4[i]) * s + 0.5)
+        for j in range(i + 1, n):
+            J[i, j] = np.sign(q[i, j]) * np.floor(abs(q[i, j]) * s + 0.5)
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
+def objective(members, a, b, ostart, ocost, choice) -> int:
+    """Objective of the group's choice (``choice[t - a]`` option index of member ``t``)."""
+    e = 0
+    for t in range(a, b):
+        e += ocost[ostart[t] + choice[t - a]]
+    return e
+
+
+@numba.njit(cache=True, nogil=True)
+def solve_exact(pos, members, a, b, ostart, ocell, ocost, choice) -> int:
+    """Exact optimum of the group by depth-first branch and bound (options cheapest first, bound =
+    cost so far + each remaining member's cheapest option); ``choice`` gets it, the value is returned."""
+    size = b - a
+    lo = np.zeros(size + 1, dtype=np.int64)
+    for t in range(b - 1, a - 1, -1):
+        c = _BIG
+        for x in range(ostart[t], ostart[t + 1]):
+            c = min(c, ocost[x])
+        lo[t - a] = lo[t - a + 1] + c
+    order = np.empty(ostart[b] - ostart[a], dtype=np.int64)  # per member, option indices cheapest first
+    for t in range(a, b):
+        s0, s1 = ostart[t], ostart[t + 1]
+        for x in range(s0, s1):
+            order[x - ostart[a]] = x - s0
+        for i in range(s0 + 1, s1):
+            j = i
+            while j > s0 and ocost[s0 + order[j - 1 - ostart[a]]] > ocost[s0 + order[j - ostart[a]]]:
+                order[j - 1 - ostart[a]], order[j - ostart[a]] = order[j - ostart[a]], order[j - 1 - ostart[a]]
+                j -= 1
+    cur = np.zeros(size, dtype=np.int64)  # position in the member's order
+    pick = np.zeros(size, dtype=np.int64)
+    best = _BIG
+    part = np.zeros(size + 1, dtype=np.int64)
+    d = 0
+    cur[0] = -1
+    while d >= 0:
+        t = a + d
+        cur[d] += 1
+        if cur[d] >= ostart[t + 1] - ostart[t]:
+            d -= 1
+            continue
+        x = ostart[t] + order[ostart[t] - ostart[a] + cur[d]]
+        val = part[d] + ocost[x]
+        if val + lo[d + 1] >= best:
+            continue
+        ok = True
+        for e in range(d):
+            y = ostart[a + e] + pick[e]
+            if _conflict(ocell[x], pos[members[t]], ocell[y], pos[members[a + e]]):
+                ok = False
+                break
+        if not ok:
+            continue
+        pick[d] = x - ostart[t]
+        part[d + 1] = val
+        if d + 1 == size:
+            best = val
+            choice[:size] = pick
+        else:
+            d += 1
+            cur[d] = -1
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_reads(pos, members, a, b, ostart, ocell, ocost, host, spins, choice, stats) -> int:
+    """Best read of the group after repair (module docstring) into ``choice``; returns its objective.
+    ``stats[0]`` += reads not one-hot, ``stats[1]`` += reads with a conflict repaired."""
+    size = b - a
+    base = ostart[a]
+    cur = np.empty(size, dtype=np.int64)
+    best = _BIG
+    for rd in range(spins.shape[0]):
+        broken = False
+        for t in range(a, b):
+            set_ = -1
+            cnt = 0
+            for x in range(ostart[t], ostart[t + 1]):
+                if spins[rd, x - base] > 0:
+                    cnt += 1
+                    set_ = x - ostart[t]
+            if cnt != 1:
+                broken = True
+                set_ = host[t]
+            cur[t - a] = set_
+        fixed = False
+        changed = True
+        while changed:
+            changed = False
+            for i in range(size):
+                for j in range(i + 1, size):
+                    x = ostart[a + i] + cur[i]
+                    y = ostart[a + j] + cur[j]
+                    if _conflict(ocell[x], pos[members[a + i]], ocell[y], pos[members[a + j]]):
+                        if cur[i] != host[a + i]:
+                            cur[i] = host[a + i]
+                            changed = True
+                        if cur[j] != host[a + j]:
+                            cur[j] = host[a + j]
+                            changed = True
+                        fixed = True
+        stats[0] += broken
+        stats[1] += fixed
+        e = objective(members, a, b, ostart, ocost, cur)
+        if e < best:
+            best = e
+            choice[:size] = cur
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def claims_to_actions(nbr, pos, orient, nxt, act, occ_now):
+    """Actions of distinct, swap-free claims ``nxt`` (TurningPIBT's rule: ahead F, side C / R, behind R,
+    own cell W; then the vacate check).  ``occ_now`` compact-cell scratch, -1 on entry and return."""
+    r = pos.shape[0]
+    for k in range(r):
+        occ_now[pos[k]] = k
+        p, v, o = pos[k], nxt[k], orient[k]
+        act[k] = WAIT
+        for d in range(4):
+            if v != p and nbr[p, d] == v:
+                act[k] = FORWARD if d == o else (COUNTER if d == (o + 3) % 4 else CLOCKWISE)
+    state = np.zeros(r, dtype=np.int8)
+    chain = np.empty(r, dtype=np.int64)
+    for k in range(r):
+        if act[k] != FORWARD or state[k] != 0:
+            continue
+        top = 0
+        cur = k
+        while True:
+            state[cur] = 1
+            chain[top] = cur
+            top += 1
+            j = occ_now[nxt[cur]]
+            if j == -1:
+                ok = True
+                break
+            if act[j] != FORWARD or state[j] == 3 or nxt[j] == pos[cur]:
+                ok = False
+                break
+            if state[j] != 0:
+                ok = True
+                break
+            cur = j
+        for i in range(top):
+            state[chain[i]] = 2 if ok else 3
+            if not ok:
+                act[chain[i]] = WAIT
+    for k in range(r):
+        occ_now[pos[k]] = -1

@@ -1,0 +1,171 @@
+"""Joint next moves as a chip decision: QUBO = objective, exact = brute force, decoded answers valid, determinism."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from planners.mapf import TURNING_EXECUTORS, make_turning_executor
+from planners.mapf.joint_executor import JointMovesPIBT
+from planners.mapf.joint_moves import build_qubo, decode_reads, objective, qubo_to_ising, solve_exact
+
+F, R, C, W = 0, 1, 2, 3
+DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)
+
+
+def crowd(seed, size=10, fill=0.6, obstacles=0.15):
+    rng = np.random.default_rng(seed)
+    grid = rng.random((size, size)) < obstacles
+    free = np.flatnonzero(~grid.reshape(-1))
+    n = int(fill * len(free))
+    pos = rng.choice(free, n, replace=False)
+    return grid, pos, rng.integers(0, 4, n), rng.choice(free, n)
+
+
+def check_valid(grid, pos, orient, act):
+    """Independent rules: the next state, or an AssertionError naming the broken rule."""
+    h, w = grid.shape
+    nxt, nor = [], []
+    for p, o, a in zip(pos.tolist(), orient.tolist(), act.tolist()):
+        r, c = divmod(p, w)
+        if a == F:
+            r, c = r + DR[o], c + DC[o]
+            assert 0 <= r < h and 0 <= c < w and not grid[r, c], "forward off the map or into an obstacle"
+        nxt.append(r * w + c)
+        nor.append((o + (a == R) - (a == C)) % 4)
+    assert len(set(nxt)) == len(nxt), "vertex conflict"
+    moves = {(p, q) for p, q in zip(pos.tolist(), nxt) if p != q}
+    assert not any((q, p) in moves for p, q in moves), "swap"
+    return np.array(nxt), np.array(nor)
+
+
+def sampled_groups(seeds=range(4), steps=6, **options):
+    """Groups posed on crowded random maps (the host rule's trajectory)."""
+    out = []
+    for s in seeds:
+        grid, pos, orient, goals = crowd(s)
+        ex = JointMovesPIBT(grid, seed=s, accept="host", **options)
+        ex.sample = []
+        for _ in range(steps):
+            act = ex.actions(pos, orient, goals)
+            pos, orient = check_valid(grid, pos, orient, act)
+        out += ex.sample
+    return out
+
+
+def brute(pos, ostart, ocell, ocost):
+    """Every feasible joint choice and its objective (claims distinct, no swap)."""
+    size = len(pos)
+    ranges = [range(ostart[t + 1] - ostart[t]) for t in range(size)]
+    for choice in itertools.product(*ranges):
+        cells = [ocell[ostart[t] + choice[t]] for t in range(size)]
+        if len(set(cells)) < size:
+            continue
+        if any(cells[i] == pos[j] and cells[j] == pos[i] for i in range(size) for j in range(i + 1, size)):
+            continue
+        yield choice, sum(ocost[ostart[t] + choice[t]] for t in range(size))
+
+
+def test_qubo_energy_equals_objective_and_exact_equals_brute_force():
+    groups = [g for g in sampled_groups(max_robots=5) if np.prod(np.diff(g[1])) <= 4000]
+    assert len(groups) >= 20
+    for pos, ostart, ocell, ocost, host in groups:
+        size = len(pos)
+        mem = np.arange(size)
+        n = int(ostart[-1])
+        q = np.empty((n, n), dtype=np.int64)
+        pen = 9
+        build_qubo(pos, mem, 0, size, ostart, ocell, ocost, pen, pen, q)
+        best = None
+        for choice, value in brute(pos, ostart, ocell, ocost):
+            x = np.zeros(n, dtype=np.int64)
+            x[ostart[:-1] + np.array(choice)] = 1
+            assert x @ np.triu(q) @ x + pen * size == value  # q is upper triangular with the diagonal
+            assert objective(mem, 0, size, ostart, ocost, np.array(choice)) == value
+            best = value if best is None else min(best, value)
+        got = np.empty(size, dtype=np.int64)
+        assert solve_exact(pos, mem, 0, size, ostart, ocell, ocost, got) == best
+        assert objective(mem, 0, size, ostart, ocost, got) == best
+        assert objective(mem, 0, size, ostart, ocost, host) >= best  # the host rule's answer is feasible
+
+
+def test_mapping_fits_the_chip_and_keeps_signs():
+    for pos, ostart, ocell, ocost, host in sampled_groups(seeds=range(2)):
+        size, n = len(pos), int(ostart[-1])
+        q = np.empty((n, n), dtype=np.int64)
+        build_qubo(pos, np.arange(size), 0, size, ostart, ocell, ocost, 7, 7, q)
+        h, J = np.empty(n, dtype=np.int64), np.empty((n, n), dtype=np.int64)
+        qubo_to_ising(q, n, h, J)
+        assert np.abs(h).max() <= 7 and np.abs(J).max() <= 7 and n <= 45
+        assert (np.sign(J[np.triu_indices(n, 1)]) >= 0).all()
+
+
+def test_decode_always_gives_feasible_choices_even_from_random_spins():
+    rng = np.random.default_rng(0)
+    for pos, ostart, ocell, ocost, host in sampled_groups(seeds=range(2)):
+        size, n = len(pos), int(ostart[-1])
+        spins = rng.choice(np.array([-1, 1], dtype=np.int8), (16, n))
+        choice = np.empty(size, dtype=np.int64)
+        stats = np.zeros(2, dtype=np.int64)
+        e = decode_reads(pos, np.arange(size), 0, size, ostart, ocell, ocost, host, spins, choice, stats)
+        feasible = dict(brute(pos, ostart, ocell, ocost)) if np.prod(np.diff(ostart)) <= 4000 else None
+        cells = ocell[ostart[:-1] + choice]
+        assert len(set(cells.tolist())) == size
+        assert e <= objective(np.arange(size), 0, size, ostart, ocost, host)
+        if feasible is not None:
+            assert feasible[tuple(choice.tolist())] == e
+
+
+class RandomMachine:
+    """Any sampler in the chip's place: random spins (checks the decode and repair, not the anneal)."""
+
+    def __init__(self):
+        from ising_backend import ChipSpec, CallLedger
+
+        self.spec, self.ledger, self.last_call, self.usable_spins = ChipSpec(), CallLedger(), CallLedger(), 45
+        self.rng = np.random.default_rng(1)
+
+    def anneal_batch(self, h, J, num_reads=1, seed=None):
+        assert h.shape[1] <= 45 and np.abs(h).max() <= 7 and np.abs(J).max() <= 7
+        s = self.rng.choice(np.array([-1, 1], dtype=np.int8), (h.shape[0], num_reads, h.shape[1]))
+        return s, np.zeros(s.shape[:2])
+
+
+@pytest.mark.parametrize("machine", ["chip", "random"])
+def test_executor_joint_actions_always_valid(machine):
+    for s in range(3):
+        grid, pos, orient, goals = crowd(10 + s, fill=0.7)
+        m = RandomMachine() if machine == "random" else None
+        ex = JointMovesPIBT(grid, seed=s, machine=m, accept="chip")
+        for _ in range(25):
+            act = ex.actions(pos, orient, goals)
+            pos, orient = check_valid(grid, pos, orient, act)
+        assert ex.decisions > 0
+
+
+def test_deterministic_and_charged():
+    runs = []
+    for _ in range(2):
+        grid, pos, orient, goals = crowd(3, fill=0.7)
+        ex = make_turning_executor("pibt-ising", grid, seed=5)
+        acts = []
+        for _ in range(15):
+            act = ex.actions(pos, orient, goals)
+            acts.append(act)
+            pos, orient = check_valid(grid, pos, orient, act)
+        runs.append(np.array(acts))
+        assert ex.ledger.physical_calls == ex.machine.ledger.physical_calls > 0
+        assert ex.last_compute.chip_calls in (0, ex.machine.last_call.physical_calls)
+    assert np.array_equal(runs[0], runs[1])
+    assert TURNING_EXECUTORS["pibt-ising"] is JointMovesPIBT
+
+
+@pytest.mark.parametrize("kw, word", [({"max_robots": 0}, "max_robots"), ({"levels": 9}, "levels"),
+                                      ({"num_reads": 0}, "num_reads"), ({"accept": "maybe"}, "accept"),
+                                      ({"max_spins": 46}, "max_spins"), ({"penalty": 0}, "penalty"),
+                                      ({"machine": object()}, "anneal_batch")])
+def test_bad_options_named(kw, word):
+    with pytest.raises(ValueError, match=word):
+        JointMovesPIBT(np.zeros((4, 4), dtype=bool), **kw)

@@ -1,123 +1,114 @@
-"""How the planners' compiled search loops reach an Ising machine.
+"""How the planners' compiled search loops reach an Ising machine: one session per compiled call.
 
-A compiled loop anneals through :func:`anneal_submit` with the arguments of a
-:class:`MachineLink` (``link.kernel_args``, spliced where the emulator's kernel arguments
-go). For the healthy emulator (:func:`~ising_backend.chip.kernel_capable`) that is the
-emulator's own kernel, called in the loop, and the caller charges the returned calls and
-seconds afterwards with :meth:`MachineLink.settle` (bit for bit what ``anneal_batch`` would
-charge). For any other :class:`~ising_backend.machine.IsingMachine` (a faulty emulator, a
-dimod sampler, a device driver) the loop calls back into ``machine.anneal_batch`` (numba's
-object mode, a few microseconds per submission), which refuses, anneals, times and charges
-as it always does; each call's charge is also added to the ledger the caller set in
-:attr:`MachineLink.charged`. So every machine runs the same compiled search: only the anneal
-step differs. A machine's exception (``ChipUnavailableError``, ``ChipProgramError``)
-propagates out of the compiled loop unchanged.
+``with machine.session(ledger) as link:`` opens a :class:`MachineSession`; compiled code takes
+``link.args`` (one opaque record: planners never look inside it) and anneals through
+:func:`anneal_submit` (an annealer) or :func:`solve_submit` (a logical solver, with
+``link.args_for(n)``).  For the healthy emulator and the logical solver's tabu method the record
+runs the machine's own kernel in the loop and the caller charges what it returned with
+:meth:`MachineSession.settle` (bit for bit what ``anneal_batch`` would charge).  For any other
+machine (a faulty emulator, a dimod sampler, a device driver) the loop calls back into
+``machine.anneal_batch`` / ``solve_stack`` (numba's object mode, a few microseconds per
+submission), which refuses, anneals, times and charges as it always does, and the session adds
+each call's charge to its ledger as it runs; ``settle`` then charges nothing.  Every machine runs
+the same compiled search: only the anneal step differs.  A machine's exception
+(``ChipUnavailableError``, ``ChipProgramError``) propagates out of the compiled loop unchanged.
 """
 
 from __future__ import annotations
 
 import itertools
-import weakref
 
 import numba
 import numpy as np
 
 from ._clock import clock_ns
 from .anneal import anneal_kernel_timed
-from .chip import kernel_capable
 from .ledger import CallLedger
-from .logical import LogicalIsingSolver, mix_seed, tabu_kernel
+from .logical import mix_seed, tabu_kernel
 from .meter import SolverOutputError
-from .models import IsingModel
 
-__all__ = ["MachineLink", "anneal_submit", "solve_submit"]
+__all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback", "ANNEAL_IDLE", "SOLVE_IDLE"]
 
-_LINKS: "weakref.WeakValueDictionary[int, MachineLink]" = weakref.WeakValueDictionary()
+_SESSIONS: dict[int, "MachineSession"] = {}
 _IDS = itertools.count()
 _NO_MISMATCH = np.zeros((0, 0, 0))
+#: A record for the anneal argument of a compiled call that does not anneal (its other machine decides).
+ANNEAL_IDLE = (-1, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
+#: A record for the logical-solver argument of a compiled call that does not use one.
+SOLVE_IDLE = (-1, 1, 1, 1)
 
 
-class MachineLink:
-    """One machine as seen by compiled loops (module docstring).
+class MachineSession:
+    """One compiled call's way to one machine (module docstring); made by ``machine.session(ledger)``.
 
-    A callback machine is found by its ``handle`` (baked into the kernel arguments planners keep);
-    setting :attr:`charged` before a compiled call makes this link the one its handle reaches.
-    Copies of a link (a pipeline deep-copied for its warm-up, or unpickled in a worker) keep the
-    handle, and each reaches its own machine once it sets ``charged``.
+    ``kernel``: the machine's kernel arguments after the seed when the loop may run its kernel
+    itself (``machine.kernel_args()``; for a logical solver a function of the program size), or
+    ``None`` for a machine reached by the callback.  ``ledger`` is charged what ran.
     """
 
-    def __init__(self, machine, handle: int | None = None, logical: bool | None = None):
+    __slots__ = ("machine", "ledger", "logical", "direct", "handle", "_kernel", "args")
+
+    def __init__(self, machine, ledger: CallLedger, kernel=None, logical: bool = False):
+        if not isinstance(ledger, CallLedger):
+            raise TypeError(f"ledger = {ledger!r} must be an ising_backend.CallLedger")
         self.machine = machine
-        # a logical solver (solve_stack / solve_many, reached by solve_submit) or an annealer (anneal_batch)
-        self.logical = isinstance(machine, LogicalIsingSolver) if logical is None else bool(logical)
-        if self.logical:  # the compiled tabu kernel, or the solver's own call (another method, faults, any solver)
-            self.direct = (type(machine) is LogicalIsingSolver and machine.method == "tabu"
-                           and machine.health is None)
-        else:
-            self.direct = kernel_capable(machine)
-        self.handle = -1 if self.direct else (next(_IDS) if handle is None else int(handle))
+        self.ledger = ledger
+        self.logical = bool(logical)
+        self.direct = kernel is not None
+        self.handle = -1 if self.direct else next(_IDS)
+        self._kernel = kernel
         if self.logical:
-            self.kernel_args = None
+            self.args = None
         elif self.direct:
-            self.kernel_args = (-1, *self.machine.kernel_args())
+            self.args = (-1, *kernel)
         else:
-            self.kernel_args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
-        self.charged = None
+            self.args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
 
-    @property
-    def charged(self) -> CallLedger | None:
-        """The ledger the running compiled call charges (a callback machine charges it per submission)."""
-        return self._charged
+    def args_for(self, n: int) -> tuple:
+        """A logical solver's record for programs of ``n`` spins (:func:`solve_submit`)."""
+        if not self.logical:
+            raise TypeError("args_for(n) is a logical solver's record; an annealer's is .args")
+        return (-1, *self._kernel(n)) if self.direct else (self.handle, 1, 1, 1)
 
-    @charged.setter
-    def charged(self, ledger: CallLedger | None) -> None:
-        self._charged = ledger
+    def __enter__(self) -> "MachineSession":
         if not self.direct:
-            _LINKS[self.handle] = self
+            _SESSIONS[self.handle] = self
+        return self
 
-    def logical_args(self, n: int) -> tuple:
-        """:func:`solve_submit`'s arguments after the seed for programs of ``n`` spins on a logical solver."""
-        return (-1, *self.machine.kernel_args(n)) if self.direct else (self.handle, 1, 1, 1)
+    def __exit__(self, *exc) -> None:
+        _SESSIONS.pop(self.handle, None)
 
-    def __getstate__(self) -> dict:
-        return {"machine": self.machine, "handle": self.handle, "logical": self.logical}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__(state["machine"], None if state.get("handle", -1) < 0 else state["handle"], state.get("logical"))
-
-    def settle(self, calls, seconds, charged: CallLedger) -> None:
-        """Charge what a compiled call submitted: the emulator's kernel calls (``calls[i]`` calls,
-        ``seconds[i]`` emulation seconds each) to the chip and ``charged``; nothing for a callback
-        machine (each of its calls charged itself, and ``charged``, as it ran)."""
+    def settle(self, calls, seconds, into: CallLedger | None = None) -> None:
+        """Charge what the compiled call submitted through the machine's kernel (``calls[i]`` calls,
+        ``seconds[i]`` emulation seconds each, in order) to the machine and to ``into`` (default the
+        session's ledger); nothing for a callback machine (each call charged itself as it ran)."""
         if self.direct:
-            self.machine.charge_into(calls, seconds, charged)
+            self.machine.charge_into(calls, seconds, self.ledger if into is None else into)
+
+
+@numba.njit(cache=True)
+def via_callback(machine) -> bool:
+    """Whether an anneal record reaches its machine by the callback (its checks and packing rule are
+    the machine's own) rather than the emulator's kernel."""
+    return machine[0] >= 0
 
 
 def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     """One submission of a compiled loop on the linked machine (object mode): the answer copied into
-    ``spins`` / ``energies``, the call's charge added to ``link.charged`` (also when it fails).
+    ``spins`` / ``energies``, the call's charge added to the session's ledger (also when it fails).
     int8 spins are checked for +-1 in compiled code after the copy (:func:`_all_spins`)."""
-    link = _LINKS[handle]
+    link = _SESSIONS[handle]
     machine = link.machine
-    has_last = hasattr(machine, "last_call")  # else the charge is read off the ledger, as MeteredSolver does
-    before = machine.last_call if has_last else machine.ledger.snapshot()
+    before = machine.last_call
     e = None
     try:
         if link.logical:  # energies are not used by the compiled loops of a logical solver
-            if hasattr(machine, "solve_stack"):
-                s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
-            else:  # any solver with solve_many(models, num_reads, seed)
-                models = [IsingModel.trusted(h[b], J[b]) for b in range(h.shape[0])]
-                s = np.stack([np.asarray(r.spins).reshape(int(num_reads), -1)
-                              for r in machine.solve_many(models, num_reads=int(num_reads), seed=int(seed))])
+            s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
         else:
             s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
     finally:  # a call that failed is charged what it spent
-        if link.charged is not None:
-            if not has_last:
-                link.charged._add_in_place(machine.ledger.since(before))
-            elif machine.last_call is not before:
-                link.charged._add_in_place(machine.last_call)
+        if machine.last_call is not before:
+            link.ledger._add_in_place(machine.last_call)
     s = np.asarray(s)
     if s.shape != spins.shape or (s.dtype != np.int8 and not ((s == 1) | (s == -1)).all()):
         raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
@@ -137,11 +128,11 @@ def _all_spins(spins) -> bool:
 
 
 @numba.njit(cache=True)
-def anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                  spins, energies):
-    """Anneal ``h (B, n)``, ``J (B, n, n)`` into ``spins`` / ``energies`` on the linked machine
-    (``handle, sweeps, ... flip_prob`` = :attr:`MachineLink.kernel_args`); returns the emulation
-    seconds to charge (the emulator's kernel), 0 for a machine that charged itself."""
+def anneal_submit(h, J, num_reads, seed, machine, spins, energies):
+    """Anneal ``h (B, n)``, ``J (B, n, n)`` into ``spins`` / ``energies`` on the session's machine
+    (``machine`` = :attr:`MachineSession.args`); returns the emulation seconds to charge (the
+    emulator's kernel), 0 for a machine that charged itself."""
+    handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = machine
     if handle < 0:
         return anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch,
                                    flip_prob, spins, energies)
@@ -153,10 +144,11 @@ def anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, be
 
 
 @numba.njit(cache=True)
-def solve_submit(h, J, num_reads, seed, handle, restarts, iterations, tenure, spins, energies):
-    """A logical solver's ``solve_stack`` of ``h (B, n)``, ``J (B, n, n)`` into ``spins`` (``handle, restarts,
-    iterations, tenure`` = :meth:`MachineLink.logical_args`): its tabu kernel in the loop, or the callback;
-    returns the emulation seconds to charge (0 for a solver that charged itself)."""
+def solve_submit(h, J, num_reads, seed, solver, spins, energies):
+    """A logical solver's ``solve_stack`` of ``h (B, n)``, ``J (B, n, n)`` into ``spins`` (``solver`` =
+    :meth:`MachineSession.args_for`): its tabu kernel in the loop, or the callback; returns the
+    emulation seconds to charge (0 for a solver that charged itself)."""
+    handle, restarts, iterations, tenure = solver
     if handle < 0:
         t0 = clock_ns()
         tabu_kernel(h, J, num_reads, mix_seed(seed, h.shape[1]), restarts, iterations, tenure, spins, energies)

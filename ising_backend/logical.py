@@ -53,7 +53,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 from ._rng import xorshift_star as _next
-from .chip import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
+from .programs import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
 from .health import dispatch, program_energy
 from .ledger import CallLedger
 from .models import IsingModel
@@ -386,6 +386,26 @@ class LogicalIsingSolver(dimod.Sampler):
                                "use solve_stack")
         iters = self.iterations if self.iterations is not None else 50 * n
         return int(self.restarts), int(iters), int(self._tenure(n))
+
+    @property
+    def usable_spins(self) -> int:
+        """Spins a program may use: the spin budget (the healthy spins of a faulty chip's cores, if fewer)."""
+        return self.budget if self.health is None else min(self.budget, self.health.usable_spins)
+
+    def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
+        """Models in one batch as an annealer answers: ``[(spins (reads, n_b), energies + offset)]``."""
+        h, J = stack_programs(models)
+        spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
+
+    def session(self, ledger: CallLedger):
+        """A logical :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run the
+        tabu kernel themselves (method ``"tabu"``, no fault model, this very class), else call back
+        into :meth:`solve_stack`."""
+        from .link import MachineSession
+
+        direct = type(self) is LogicalIsingSolver and self.method == "tabu" and self.health is None
+        return MachineSession(self, ledger, self.kernel_args if direct else None, logical=True)
 
     def charge(self, calls, seconds) -> list:
         """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` logical calls and

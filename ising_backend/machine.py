@@ -1,132 +1,36 @@
-"""Any Ising machine behind the planners: the interface, a base class for drivers, dimod adapters.
+"""Any Ising machine behind the planners: dimod adapters, driver adapters, recipes.
 
-Contract (docs/ising_machines.md): an Ising machine has a :class:`~ising_backend.spec.ChipSpec`
-(``spec``: spins, h/J ranges, cores, time and energy per call), a
-:class:`~ising_backend.ledger.CallLedger` (``ledger``) with the charge of its latest call in
-``last_call``, and one submission primitive, ``anneal_batch(h (B, n), J (B, n, n), num_reads,
-seed) -> (spins int8 (B, reads, n), energies (B, reads))``, that refuses programs that do not
-fit the spec (never clips), anneals, times and charges ``B * num_reads`` physical calls.
-:class:`~ising_backend.chip.EmulatedChip` (healthy or faulty) and every class here satisfy it.
-
-:class:`MachineBase` does everything but the anneal: a driver implements ``_sample``.
+The interface is :class:`~ising_backend.base.IsingMachine` (re-exported here with
+:class:`~ising_backend.base.MachineBase`, the base of every machine, the emulator included).
 :class:`SamplerChip` wraps any ``dimod.Sampler`` (dwave-samplers, neal, OpenJij, a QPU
 sampler) as such a machine; :func:`as_machine` turns a bare sampler into one with the paper's
-spec, so ``make_pipeline("ising", chip=neal.SimulatedAnnealingSampler())`` works.
+spec, so ``make_pipeline("ising", chip=neal.SimulatedAnnealingSampler())`` works; an object with
+only ``spec``, ``ledger`` and ``anneal_batch`` (a minimal driver) goes behind a :class:`DriverMachine`.
 :class:`MachineSpec` is a picklable recipe (spec + sampler name) for worker processes.
 """
 
 from __future__ import annotations
 
-import time
 import warnings
 from dataclasses import dataclass, field
 from importlib import import_module
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import dimod
 import numpy as np
 
-from .chip import EmulatedChip, check_call_seed, check_num_reads, check_program, sample_bqm, seeded_rng, stack_programs
-from .health import program_energy
+from .base import IsingMachine, MachineBase
+from .chip import EmulatedChip
 from .ledger import CallLedger
+from .link import MachineSession
+from .logical import LogicalIsingSolver
+from .models import IsingModel
 from .meter import SolverOutputError
 from .sampler_options import RESERVED, check_value, parameter_types, parse_value
 from .spec import ChipSpec
 
-__all__ = ["IsingMachine", "MachineBase", "SamplerChip", "MachineSpec", "SAMPLERS", "as_machine",
+__all__ = ["IsingMachine", "MachineBase", "SamplerChip", "DriverMachine", "LogicalDriver", "as_logical_solver", "MachineSpec", "SAMPLERS", "as_machine",
            "build_machine", "parse_sampler_options", "sampler_names"]
-
-
-@runtime_checkable
-class IsingMachine(Protocol):
-    """What a planner needs of an Ising machine (module docstring)."""
-
-    spec: ChipSpec
-    ledger: CallLedger
-
-    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        ...
-
-
-class MachineBase(dimod.Sampler):
-    """An Ising machine from one method: subclasses implement :meth:`_sample`.
-
-    The base checks each stack against ``spec`` (a :class:`ChipProgramError` naming the
-    coefficient and the limit; nothing is clipped), draws a seed when the caller gives none,
-    checks the device's answer (:class:`SolverOutputError`), computes energies on the
-    programmed coefficients and charges ``B * num_reads`` physical calls by the spec, the
-    wall time of check and anneal as ``emulation_s`` (the device's time on the host's clock).
-    It is a ``dimod.Sampler`` too (``sample``, ``sample_ising``, ``sample_qubo``).
-    """
-
-    health = None  # no fault-tolerant dispatch: a device reports its own failures by raising
-
-    def __init__(self, spec: ChipSpec | None = None, seed: int | None = None):
-        self.spec = ChipSpec() if spec is None else spec
-        if not isinstance(self.spec, ChipSpec):
-            raise TypeError(f"spec = {self.spec!r} must be an ising_backend.ChipSpec")
-        if self.spec.faulty:
-            raise ValueError("the fault model (dead_cores, stuck_spins, program_error_prob) is emulated by "
-                             "EmulatedChip only; a device reports its own failures")
-        self.ledger = CallLedger()
-        self.last_call = CallLedger()
-        self._rng = seeded_rng(seed, type(self).__name__)
-
-    def _sample(self, h: np.ndarray, J: np.ndarray, num_reads: int, seed: int) -> np.ndarray:
-        """Anneal a checked stack (``h (B, n)``, ``J (B, n, n)`` upper triangular, integers in range,
-        ``n >= 1``) and return spins ``(B, num_reads, n)`` of +-1."""
-        raise NotImplementedError
-
-    @property
-    def usable_spins(self) -> int:
-        return self.spec.n_spins
-
-    @property
-    def parameters(self) -> dict:
-        return {"num_reads": [], "seed": []}
-
-    @property
-    def properties(self) -> dict:
-        return {"h_range": list(self.spec.h_range), "j_range": list(self.spec.j_range),
-                "num_spins": self.spec.n_spins, "num_cores": self.spec.n_cores,
-                "solve_time_s": self.spec.solve_time_s, "energy_per_call_j": self.spec.energy_per_call_j}
-
-    def check_program(self, h, J) -> tuple[np.ndarray, np.ndarray]:
-        return check_program(h, J, self.spec)
-
-    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Anneal a stack of programs (same contract and shapes as :meth:`EmulatedChip.anneal_batch`)."""
-        single = np.ndim(h) == 1
-        num_reads = check_num_reads(num_reads)
-        t0 = time.perf_counter()
-        hf, Jf = check_program(h, J, self.spec)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
-        B, n = hf.shape
-        if B and n:
-            spins = np.asarray(self._sample(hf, Jf, num_reads, seed))
-            if spins.shape != (B, num_reads, n) or not ((spins == 1) | (spins == -1)).all():
-                raise SolverOutputError(f"{type(self).__name__}._sample returned shape {spins.shape}; expected "
-                                        f"{(B, num_reads, n)} spins in {{-1, +1}}")
-            spins = spins.astype(np.int8, copy=False)
-        else:
-            spins = np.ones((B, num_reads, n), dtype=np.int8)
-        energies = program_energy(hf, Jf, spins)
-        self.last_call = self.ledger.record_physical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
-        if single:
-            return spins[0], energies[0]
-        return spins, energies
-
-    def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
-        """Chip-legal :class:`IsingModel` s in one batch: ``[(spins (reads, n_b), energies + offset)]``."""
-        h, J = stack_programs(models)
-        spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
-        return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
-
-    def sample(self, bqm: dimod.BinaryQuadraticModel, num_reads: int = 1, seed: int | None = None,
-               **kwargs) -> dimod.SampleSet:
-        """Sample a BQM that fits the spec (exact conversion to SPIN; nothing is clipped)."""
-        self.remove_unknown_kwargs(**kwargs)
-        return sample_bqm(self, bqm, num_reads, seed, spec=self.spec.to_dict())
 
 
 #: ``--sampler`` names: (module, class, extra that installs it)
@@ -302,14 +206,88 @@ def build_machine(chip) -> IsingMachine:
     raise TypeError(f"chip = {chip!r} must be a ChipSpec or a MachineSpec")
 
 
-def as_machine(chip) -> IsingMachine:
-    """``chip`` itself when it is an Ising machine; a bare ``dimod.Sampler`` behind a
-    :class:`SamplerChip` of the paper's spec; anything else is refused naming what is missing."""
+class DriverMachine(MachineBase):
+    """A minimal driver (``spec``, ``ledger``, ``anneal_batch``) as a full machine: every call is the
+    driver's own (its checks, its seeds, its charges to its own ``ledger``, which this shares);
+    ``last_call`` is the driver's when it keeps one, else what its ledger gained."""
+
+    def __init__(self, driver):
+        self.driver = driver
+        self.spec = driver.spec
+        self.ledger = driver.ledger
+        self.last_call = CallLedger()
+
+    def __repr__(self) -> str:
+        return f"DriverMachine({self.driver!r})"
+
+    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None):
+        before = self.ledger.snapshot()
+        own = getattr(self.driver, "last_call", None)
+        try:
+            return self.driver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
+        finally:  # a call that failed is charged what it spent
+            last = getattr(self.driver, "last_call", None)
+            self.last_call = last if last is not None and last is not own else self.ledger.since(before)
+
+
+class LogicalDriver:
+    """A minimal logical solver (``solve_many(models, num_reads, seed)`` and ``ledger``) as the package
+    uses one: ``solve_stack``, ``last_call`` (the solver's when it keeps one, else what its ledger
+    gained) and a callback :meth:`session`; every call is the solver's own."""
+
+    health = None
+
+    def __init__(self, solver):
+        self.solver = solver
+        self.ledger = solver.ledger
+        self.spec = getattr(solver, "spec", None) or ChipSpec()
+        self.budget = int(getattr(solver, "budget", None) or self.spec.n_spins)
+        self.last_call = CallLedger()
+
+    def __repr__(self) -> str:
+        return f"LogicalDriver({self.solver!r})"
+
+    def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
+        before = self.ledger.snapshot()
+        own = getattr(self.solver, "last_call", None)
+        try:
+            return self.solver.solve_many(models, num_reads=num_reads, seed=seed)
+        finally:
+            last = getattr(self.solver, "last_call", None)
+            self.last_call = last if last is not None and last is not own else self.ledger.since(before)
+
+    def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None) -> np.ndarray:
+        models = [IsingModel.trusted(h[b], J[b]) for b in range(np.shape(h)[0])]
+        return np.stack([np.asarray(r.spins).reshape(int(num_reads), -1)
+                         for r in self.solve_many(models, num_reads=num_reads, seed=seed)])
+
+    def session(self, ledger: CallLedger) -> MachineSession:
+        return MachineSession(self, ledger, None, logical=True)
+
+
+def as_logical_solver(solver):
+    """``solver`` itself when it is a :class:`~ising_backend.logical.LogicalIsingSolver`, else behind a
+    :class:`LogicalDriver` (it needs ``solve_many`` and ``ledger``; anything else is refused)."""
+    if isinstance(solver, LogicalIsingSolver):
+        return solver
+    missing = [a for a in ("solve_many", "ledger") if not hasattr(solver, a)]
+    if missing:
+        raise TypeError(f"solver = {solver!r} is not a logical Ising solver (missing {', '.join(missing)})")
+    return LogicalDriver(solver)
+
+
+def as_machine(chip=None) -> IsingMachine:
+    """``chip`` itself when it is an Ising machine; the paper's emulated chip for ``None``; a bare
+    ``dimod.Sampler`` behind a :class:`SamplerChip` of the paper's spec; a minimal driver behind a
+    :class:`DriverMachine`; anything else is refused naming what is missing."""
+    if chip is None:
+        return EmulatedChip(ChipSpec())
     if isinstance(chip, IsingMachine):
         return chip
     if isinstance(chip, dimod.Sampler):
         return SamplerChip(chip)
     missing = [a for a in ("spec", "ledger", "anneal_batch") if not hasattr(chip, a)]
+    if not missing:
+        return DriverMachine(chip)
     raise TypeError(f"chip = {chip!r} is not an Ising machine (missing {', '.join(missing)}; see "
                     "ising_backend.IsingMachine) nor a dimod.Sampler")
-

@@ -40,6 +40,11 @@ class MeteredSolver:
         self.budget = getattr(solver, "budget", None if self.spec is None else self.spec.n_spins)
         self.charged = CallLedger() if charged is None else charged
 
+    @property
+    def usable_spins(self) -> int:
+        """The wrapped machine's usable spins (around the stuck spins a faulty chip's probe found)."""
+        return int(self.solver.usable_spins)
+
     def _charge(self, before) -> None:
         last = getattr(self.solver, "last_call", None)
         # the call's own charge adds up exactly; a difference of running float totals would not

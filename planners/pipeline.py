@@ -462,17 +462,18 @@ def make_pipeline(
         for layer, spec in chosen.items()
     ):
         # one chip, and so one ledger, for every layer that uses one
-        from ising_backend import ChipSpec, EmulatedChip
+        from ising_backend import as_machine
 
-        shared = {**shared, "chip": EmulatedChip(ChipSpec())}
+        shared = {**shared, "chip": as_machine()}
     else:
-        import dimod
-
         from ising_backend import IsingMachine, as_machine
 
         chip = shared.get("chip")
-        if isinstance(chip, dimod.Sampler) and not isinstance(chip, IsingMachine):
-            shared = {**shared, "chip": as_machine(chip)}  # a bare dimod sampler: wrapped once, one ledger
+        if chip is not None and not isinstance(chip, IsingMachine):
+            try:  # a bare sampler or minimal driver: wrapped once, so one ledger
+                shared = {**shared, "chip": as_machine(chip)}
+            except TypeError:  # not a machine at all: the layers' option checks name it
+                pass
     used: set[str] = set()
     layers = {}
     for layer, spec in chosen.items():

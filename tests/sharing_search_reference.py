@@ -559,18 +559,18 @@ class ReferenceStages(StageSolver):
         q, Q, free, sizes, anchors, reject = problem_arrays(cfg, problems)
         # splits beyond the chip as their spin-budget branches, merged back below
         q, Q, free, sizes, nfix, fixed, parent = branch_problems(q, Q, free, sizes, int(self.chip.spec.n_spins))
-        self.link.charged = self.meter.charged
         try:
-            out = run_stage(q, Q, sizes, self.rule_ids, *self.limits, self.capacity(), cfg.reads,
-                            np.uint64(seed), *self.kernel_args, free, anchors[parent], w, R, reject[parent], nfix,
-                            fixed)
+            with self.chip.session(self.meter.charged) as link:
+                out = run_stage(q, Q, sizes, self.rule_ids, *self.limits, self.capacity(), cfg.reads,
+                                np.uint64(seed), link.args, free, anchors[parent], w, R, reject[parent], nfix, fixed)
+                if out[0] == STAGE_OK:
+                    link.settle([out[1]], [out[2]])
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
         if out[0] != STAGE_OK:
             raise SharingFailure(stage_refusal(out[0]))
-        self.link.settle([out[1]], [out[2]], self.meter.charged)
         b_valid, b_best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ising_backend import QuboModel, branch
+from ising_backend import CallLedger, QuboModel, branch
 from planners.ising.numeric import pairwise_sum
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
@@ -398,7 +398,7 @@ def test_chip_subclass_that_overrides_annealing_runs_the_compiled_loop_through_i
 
     chip = Counting()
     planner = IsingPath(chip)
-    assert not planner.runner.link.direct
+    assert not planner.chip.session(CallLedger()).direct
     world = generate_world(2)
     a = planner.find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
     b = IsingPath(EmulatedChip()).find_path(world, world.robots[0], world.targets[0], np.random.default_rng(0))
@@ -596,7 +596,7 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     Q = np.triu(np.ones((1, 4, 4)), k=1)
 
     def run(q, Lh=7.0, Lj=7.0):
-        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), -1, *chip.kernel_args(), free, anchors, dist, 2,
+        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), (-1, *chip.kernel_args()), free, anchors, dist, 2,
                          np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros((1, 4), dtype=np.int8))
 
     good = run(q)

@@ -33,6 +33,13 @@ def _orders(plan):
     return [list(r.targets) for r in plan.routes]
 
 
+def _direct(machine) -> bool:
+    """Whether compiled loops run ``machine``'s own kernel (not the callback)."""
+    from ising_backend import CallLedger
+
+    return machine.session(CallLedger()).direct
+
+
 def test_defaults_unchanged():
     """Route costs, target orders and calls of the fault-free paper pipeline as before the fault model."""
     before = [(32, 76, 12, [[6, 0, 5], [9, 4, 2], [1, 7, 3, 8]]), (29, 68, 10, [[9, 1, 5, 0], [8], [4, 3, 2, 6, 7]]),
@@ -40,7 +47,7 @@ def test_defaults_unchanged():
               (28, 70, 30, [[8, 5, 4, 9, 1, 3, 0], [2, 6], [7]])]
     for seed, (cost, calls, logical, orders) in enumerate(before):
         pipe = make_pipeline("ising-paper")
-        assert pipe.path.runner.link.direct and pipe.tour.onehot.solver_link.direct  # the emulator's kernels, in the loops
+        assert _direct(pipe.path.chip) and _direct(pipe.tour.onehot.solver)  # the emulator's kernels, in the loops
         plan = pipe.plan(_world(seed), seed=seed)
         assert (plan.route_cost, plan.compute.chip_calls, plan.compute.logical_calls, _orders(plan)) == \
             (cost, calls, logical, orders)
@@ -55,8 +62,8 @@ def test_target_faults_plan_validly_without_fallbacks(preset):
         assert len(chip.health.quarantined.nonzero()[0]) == 1 and chip.usable_spins == 43
         pipe = make_pipeline(preset, chip=chip)
         # faults: the compiled loops, annealing through the chip's fault-tolerant anneal_batch
-        assert not pipe.sharing.stages.link.direct
-        assert preset == "ising" or not pipe.path.runner.link.direct
+        assert not _direct(pipe.sharing.chip)
+        assert preset == "ising" or not _direct(pipe.path.chip)
         world = _world(seed)
         plan = pipe.plan(world, seed=seed)
         assert plan.success, plan.failure

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import (ChipSpec, ChipUnavailableError, EmulatedChip, MeteredSolver, as_machine, ising_from_qubo,
+from ising_backend import (ChipUnavailableError, MeteredSolver, as_machine, ising_from_qubo,
                            quantize_stack)
 from planners.base import SharingResult
 from planners.compute import ComputeReport
@@ -107,7 +107,7 @@ class _Search:
         self.d, self.r, self.neigh, self.cfg, self.rng = d, r, neigh, config, rng
         self.chip = chip
         self.spec = chip.spec
-        self.capacity = min(int(getattr(chip, "usable_spins", self.spec.n_spins)), config.max_moves)
+        self.capacity = min(int(chip.usable_spins), config.max_moves)
         self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0,
                       "reads": 0, "kicks_accepted": 0, "local_optima": 0, "chip_gave_up": 0}
 
@@ -167,7 +167,7 @@ class IsingFleetSharing(ConfigAttributes):
 
     def __init__(self, chip=None, config: FleetConfig | None = None, **options) -> None:
         self.config = resolve_config(FleetConfig, config, options)
-        self.chip = as_machine(chip) if chip is not None else EmulatedChip(ChipSpec())
+        self.chip = as_machine(chip)  # the paper's emulated chip for None
 
     def assign(self, dist, n_robots: int, tour=None, rng=None) -> SharingResult:
         rng = rng if rng is not None else np.random.default_rng()

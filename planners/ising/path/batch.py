@@ -53,7 +53,7 @@ def usable_legs(cells, grid):
 
 @numba.njit(cache=True)
 def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-             padded, fields, stops, nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options, grid, cut):
+             padded, fields, stops, nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each (the same arguments),
     until the first leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s
     ranking field (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
@@ -75,12 +75,12 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     n_sub = 0
     last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp,
                      ptarget, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], nbr, ring,
-                     offsets, adj4, diag, coef, style_ids, mismatch, options)
+                     offsets, adj4, diag, coef, style_ids, options, machine)
     for j in range(L):
         if j:
             last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p,
                              pcomp, ptarget, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
-                             stops[j + 1, 1], nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options)
+                             stops[j + 1, 1], nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine)
         status, walk, leg_counts, leg_map, sub_calls, sub_emu = last[0], last[3], last[4], last[5], last[6], last[7]
         calls = np.concatenate((calls, sub_calls))
         emu = np.concatenate((emu, sub_emu))
@@ -117,26 +117,26 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
         return LegBatch(compute=ComputeReport())
     stops = cells[: n_legs + 1]
     grid = world.grid
-    link = runner.link
     cfg = runner.config
-    charged = link.charged = CallLedger()
+    charged = CallLedger()
     try:
-        done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
-            rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
-            *runner.loop_args(grid), grid, cfg.cut_loops)
+        with runner.chip.session(charged) as link:
+            done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
+                rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
+                *runner.loop_args(grid), link.args, grid, cfg.cut_loops)
     except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
         return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
     failed = None
     if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
         leg = CallLedger()
-        link.settle(calls[n_sub:], emu[n_sub:], leg)
+        link.settle(calls[n_sub:], emu[n_sub:], into=leg)
         a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
         res = runner.result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
         failed = path_fallback(cfg.fallback, world, a, b, rng, res)
     batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
     if not done:
         return batch
-    link.settle(calls[:n_sub], emu[:n_sub], charged)
+    link.settle(calls[:n_sub], emu[:n_sub])
     batch.paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
     batch.compute = ComputeReport.from_ledger(charged)
     batch.stats = {

@@ -5,7 +5,7 @@ from the query's ``numpy.random.Generator``), the submission (one per step: the 
 the ``targets_per_call`` best-ranked local targets x every merge style that fits, block-packed
 into shared chip programs with ``pack``), decoding, scoring, win draws and bookkeeping.  The
 chip is reached through :func:`ising_backend.anneal_submit` (any machine, see
-:class:`ising_backend.MachineLink`); each submission's calls and emulation seconds are
+:class:`ising_backend.MachineSession`); each submission's calls and emulation seconds are
 returned, so the caller charges the machine exactly as ``anneal_batch`` would.
 
 Patch programs are memoised in a :class:`ProgramPool` (compiled arrays keyed by free-cell
@@ -35,14 +35,12 @@ _EXACT_KEY_CELLS = 55  # patches up to 7x7: the key is the free-cell mask itself
 
 #: The scalar arguments of :func:`run_query` as one record (a numpy structured array of one row:
 #: cheaper to hand to compiled code than the scalars one by one): the search options, the budgets,
-#: the mapping scale and limits, and the machine's scalar kernel arguments
-#: (:attr:`ising_backend.MachineLink.kernel_args` less the mismatch array).
+#: the mapping scale and limits.
 QUERY_OPTIONS = np.dtype([
     ("size", np.int64), ("interior", np.bool_), ("merged", np.bool_), ("backtrack", np.bool_),
     ("num_reads", np.int64), ("per_call", np.int64), ("pack", np.bool_), ("max_attempts", np.int64),
     ("max_calls", np.int64), ("degree", np.bool_), ("scale", np.float64), ("Lh", np.int64), ("Lj", np.int64),
-    ("n_spins", np.int64), ("handle", np.int64), ("sweeps", np.int64), ("geometric", np.bool_),
-    ("beta_hot", np.float64), ("beta_cold", np.float64), ("flip_prob", np.float64), ("free_cells", np.int64),
+    ("n_spins", np.int64), ("free_cells", np.int64),
 ])
 
 
@@ -205,11 +203,11 @@ def _submission(pool, slots, nb, k, pack, n_spins):
 
 @numba.njit(cache=True)
 def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-              padded, field, sr, sc, gr, gc, nbr, ring, offsets, adj4, diag, coef, style_ids, mismatch, options):
+              padded, field, sr, sc, gr, gc, nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine):
     """One query of Algorithm 1 (see the module docstring); ``keys .. ptarget`` are
     :meth:`ProgramPool.arrays`, ``nbr .. diag`` the patch frame's tables, ``coef`` the QUBO weights,
-    ``style_ids`` the merge styles, ``mismatch`` the machine's coupling mismatch, ``options`` a
-    :data:`QUERY_OPTIONS` record (``per_call``: the local targets per submission).
+    ``style_ids`` the merge styles, ``options`` a :data:`QUERY_OPTIONS` record (``per_call``: the local
+    targets per submission), ``machine`` the session's record (:attr:`ising_backend.MachineSession.args`).
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
     err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
@@ -221,8 +219,6 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     size, interior, merged, backtrack = o.size, o.interior, o.merged, o.backtrack
     num_reads, per_call, pack, max_attempts, max_calls = o.num_reads, o.per_call, o.pack, o.max_attempts, o.max_calls
     degree, scale, Lh, Lj, n_spins, free_cells = o.degree, o.scale, o.Lh, o.Lj, o.n_spins, o.free_cells
-    handle, sweeps, geometric, beta_hot, beta_cold, flip_prob = (o.handle, o.sweeps, o.geometric, o.beta_hot,
-                                                                o.beta_cold, o.flip_prob)
     pool = (keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget)
     rad = size // 2
     n = size * size
@@ -317,14 +313,12 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                 energies = np.empty((k, num_reads))
                 sub_emu[nsub] = anneal_submit(ph[slots[0], : k * w].reshape((k, w)),
                                               pJ[slots[0], : k * w * w].reshape((k, w, w)), num_reads,
-                                              np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold,
-                                              mismatch, flip_prob, spins, energies)
+                                              np.uint64(seed), machine, spins, energies)
             else:
                 h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
                 spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
                 energies = np.empty((h.shape[0], num_reads))
-                sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot,
-                                              beta_cold, mismatch, flip_prob, spins, energies)
+                sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), machine, spins, energies)
             sub_calls[nsub] = spins.shape[0] * num_reads
             used += spins.shape[0] * num_reads
             nsub += 1

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    MERGE_STYLE_IDS, CallLedger, ChipUnavailableError, MachineLink, SolverOutputError, ising_from_qubo,
+    MERGE_STYLE_IDS, CallLedger, ChipUnavailableError, SolverOutputError, ising_from_qubo,
     merge_error_message, merge_styles,
 )
 from planners.ising.fallback import unavailable_message
@@ -32,7 +32,7 @@ class QueryRunner:
     def __init__(self, config, frame, chip):
         self.config = config
         self.frame = frame
-        self.link = MachineLink(chip)  # the compiled loop anneals on any machine through it
+        self.chip = chip  # the compiled loop anneals on it through a session per query
         spec = chip.spec
         lim = spec.coefficient_limits
         self.limits = (lim[0], lim[1], int(spec.n_spins))
@@ -58,12 +58,10 @@ class QueryRunner:
         cfg = self.config
         fr = self.frame
         max_attempts, _per_target, max_calls = self._budgets(free)
-        handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = self.link.kernel_args
         options = np.array([(fr.size, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
                              cfg.num_reads, cfg.targets_per_call, cfg.pack, max_attempts, max_calls,
-                             cfg.form == "degree", float(cfg.chip_scale), *self.limits, handle, sweeps, geometric,
-                             beta_hot, beta_cold, flip_prob, free)], dtype=QUERY_OPTIONS)
-        args = (self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, self.coef, self.style_ids, mismatch, options)
+                             cfg.form == "degree", float(cfg.chip_scale), *self.limits, free)], dtype=QUERY_OPTIONS)
+        args = (self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, self.coef, self.style_ids, options)
         self._grid_for = (grid, padded, free, args)
         return self._grid_for
 
@@ -72,7 +70,7 @@ class QueryRunner:
         return self._for_grid(grid)[1]
 
     def loop_args(self, grid) -> tuple:
-        """:func:`.engine.run_query`'s arguments after the goal on ``grid``."""
+        """:func:`.engine.run_query`'s arguments after the goal on ``grid``, but the machine's."""
         return self._for_grid(grid)[3]
 
     def budgets(self, grid) -> tuple[int, int, int]:
@@ -90,10 +88,12 @@ class QueryRunner:
     def run(self, grid, s, g, rng, field):
         """The query ``s -> g`` on the compiled loop, charged to the machine per submission as its
         ``anneal_batch`` would charge."""
-        charged = self.link.charged = CallLedger()
+        charged = CallLedger()
         try:
-            out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
-                            *self.loop_args(grid))
+            with self.chip.session(charged) as link:
+                out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
+                                *self.loop_args(grid), link.args)
+                link.settle(out[6], out[7])
         except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
             unavailable = isinstance(exc, ChipUnavailableError)
             failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
@@ -102,7 +102,6 @@ class QueryRunner:
                 counts["chip_unavailable"] = 1
             mapping = {st: dict.fromkeys(_MAPPING, 0) for st in self.config.styles}
             return self.finish(grid, s, g, [s], counts, mapping, charged, failure, None)
-        self.link.settle(out[6], out[7], charged)
         return self.result(grid, s, g, out, charged)
 
     def result(self, grid, s, g, out, charged, used=None):

@@ -43,9 +43,9 @@ class IsingPath(ConfigAttributes):
     defaults: PathConfig | None = None  # None: PathConfig()
 
     def __init__(self, chip=None, config: PathConfig | None = None, **options):
-        from ising_backend import ChipSpec, EmulatedChip, as_machine
+        from ising_backend import as_machine
 
-        self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
+        self.chip = as_machine(chip)  # the paper's emulated chip for None
         cfg = resolve_config(PathConfig, config, options, self.defaults)
         # a patch not given explicitly shrinks to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.chip.spec.n_spins, keep=set(options))

@@ -98,7 +98,7 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, gids, score_w, R, r
     """``ReferenceStages.solve_all`` (the oracle) with the packed submission: problem ``p``'s (group
     ``gids[p]``) distinct valid candidates (best cut on ``score_w`` first) go to store row
     ``pids[p]``.  Returns ``ok`` (the reason in ``book[4]`` when not)."""
-    rule_ids, Lh, Lj, n_spins, capacity, reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = chip
+    rule_ids, Lh, Lj, n_spins, capacity, reads, machine = chip
     mapping, counters, sub_calls, sub_emu, failure = book
     c_cut, c_m0, c_m1, c_n = store
     nk = rule_ids.shape[0]
@@ -121,9 +121,8 @@ def solve_problems(q, Q, free, sizes, anchors, reject, pids, gids, score_w, R, r
             nfix = np.zeros(pending.shape[0], dtype=np.int64)
             fixed = np.zeros((pending.shape[0], 0), dtype=np.int8)
         code, calls, emu, b_valid, b_best, c_split, cut, s0, n0, s1, n1 = run_stage(
-            bq, bQ, bsizes, rule_ids, Lh, Lj, capacity, reads, np.uint64(seed), handle, sweeps, geometric, beta_hot,
-            beta_cold, mismatch, flip_prob, bfree, anchors[pending][parent], score_w, R, reject[pending][parent], nfix,
-            fixed)
+            bq, bQ, bsizes, rule_ids, Lh, Lj, capacity, reads, np.uint64(seed), machine, bfree, anchors[pending][parent],
+            score_w, R, reject[pending][parent], nfix, fixed)
         if code != 0:
             failure[0], failure[1] = REFUSED_STAGE, code
             return False

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import anneal_submit, fill_packs, pack_layout, programs_fit
+from ising_backend import anneal_submit, fill_packs, pack_layout, programs_fit, via_callback
 from planners.ising.sharing.kernels import candidate_sides, map_stage, score_stage
 
 __all__ = ["run_stage", "STAGE_OK", "STAGE_NONFINITE", "STAGE_UNFIT"]
@@ -26,8 +26,8 @@ STAGE_OK, STAGE_NONFINITE, STAGE_UNFIT = 0, 1, 2
 
 
 @numba.njit(cache=True)
-def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold,
-              mismatch, flip_prob, free, anchors, dist, n_robots, reject, nfix, fixed):
+def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, machine, free, anchors, dist, n_robots, reject,
+              nfix, fixed):
     """One stage submission (module docstring).  Returns ``(status, calls, emulation_s, n_valid, best,
     c_split, c_cut, side0, n0, side1, n1)`` (the last seven as :func:`.kernels.score_stage` and
     :func:`.kernels.candidate_sides`)."""
@@ -39,7 +39,7 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, swe
     for p in range(P):
         for r in range(k):
             prog_sizes[p * k + r] = sizes[p]
-    if handle >= 0:  # a machine behind the callback: packs up to its usable spins, as the checked path
+    if via_callback(machine):  # a machine behind the callback: packs up to its usable spins, as the checked path
         capacity = max(capacity, prog_sizes.max())
     pack_of, order, n_packs, width = pack_layout(prog_sizes, capacity)
     h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
@@ -50,8 +50,7 @@ def run_stage(q, Q, sizes, rules, Lh, Lj, capacity, num_reads, seed, handle, swe
                 np.zeros((0, f + 1), dtype=np.int64), e, np.zeros((0, f + 1), dtype=np.int64), e)
     spins = np.empty((n_packs, num_reads, width), dtype=np.int8)
     energies = np.empty((n_packs, num_reads))
-    emu = anneal_submit(h, J, num_reads, seed, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                        spins, energies)
+    emu = anneal_submit(h, J, num_reads, seed, machine, spins, energies)
     calls = n_packs * num_reads if width > 0 else 0
     n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject,
                                                         nfix, fixed)

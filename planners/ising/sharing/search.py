@@ -53,21 +53,19 @@ class IsingSharing(ConfigAttributes):
     defaults: SharingConfig | None = None  # None: SharingConfig()
 
     def __init__(self, chip=None, config: SharingConfig | None = None, **options) -> None:
-        from ising_backend import ChipSpec, EmulatedChip, as_machine
+        from ising_backend import as_machine
 
         self.config = resolve_config(SharingConfig, config, options, self.defaults)
-        self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
+        self.chip = as_machine(chip)  # the paper's emulated chip for None
         spec = self.chip.spec
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         self.stages = StageSolver(self.config, self.chip)
         cfg = self.config
-        # the arguments of the whole sharing in one compiled call (.compiled_assign)
-        chip_args = (self.stages.rule_ids, *self.stages.limits, int(spec.n_spins), int(spec.n_spins), cfg.reads,
-                     *self.stages.kernel_args)
+        # the arguments of the whole sharing in one compiled call (.compiled_assign), after the stage record
         opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
                 cfg.refine_above, int(cfg.reject_empty_robot_side))
         pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
-        self._compiled = (chip_args, cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
+        self._compiled = (cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
                           (cfg.weight_shift, cfg.robot_weight, float(cfg.balance)), np.array(cfg.pair_shifts),
                           pair_opts)
 
@@ -146,31 +144,30 @@ class IsingSharing(ConfigAttributes):
         subs = stages * (cfg.retries + 1)
         book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
                 np.zeros(subs, dtype=np.int64), np.zeros(subs), np.zeros(3, dtype=np.int64))
-        compiled = self._compiled
         stages = self.stages
-        if not stages.link.direct:  # programs packed clear of the stuck spins a faulty chip found
-            chip = compiled[0]
-            compiled = (chip[:4] + (stages.capacity(),) + chip[5:], *compiled[1:])
         handle = -1
         if pricer is not None:  # its handle, found by the price callback while this call runs
             handle = next(_PRICING_HANDLES)
             PRICERS[handle] = pricer
-        compiled = (*compiled[:-1], (*compiled[-1], handle))
+        compiled = (*self._compiled[:-1], (*self._compiled[-1], handle))
         mapping, counters, calls, emu, failure = book
-        stages.link.charged = stages.meter.charged
         try:
-            ok, flat, sizes, failed = assign_kernel(dist, powered, mean, R, rng, *compiled, book)
+            with self.chip.session(stages.meter.charged) as link:
+                try:
+                    ok, flat, sizes, failed = assign_kernel(dist, powered, mean, R, rng, stages.args(link.args),
+                                                            *compiled, book)
+                except SharingFailure:  # a pricing tour that failed: what the chip ran so far is charged
+                    link.settle(calls[:counters[-1]], emu[:counters[-1]])
+                    raise
+                link.settle(calls[:counters[-1]], emu[:counters[-1]])
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        except SharingFailure:  # a pricing tour that failed: what the chip ran so far is charged
-            stages.link.settle(calls[:counters[-1]], emu[:counters[-1]], stages.meter.charged)
-            raise
         finally:
             PRICERS.pop(handle, None)
         counts = dict(zip(COUNTERS, counters.tolist()))
-        n = counts.pop("submissions")
+        counts.pop("submissions")
         for key in ("pair_resplits", "pair_accepted", "coarse_splits"):  # present once made
             if not counts[key]:
                 del counts[key]
@@ -178,7 +175,6 @@ class IsingSharing(ConfigAttributes):
             stats[key] = stats.get(key, 0) + value
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
-        stages.link.settle(calls[:n], emu[:n], stages.meter.charged)
         if not ok:
             raise SharingFailure(self._stopped(failed.tolist(), *failure.tolist()))
         ends = np.cumsum(sizes).tolist()

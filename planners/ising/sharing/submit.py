@@ -4,15 +4,15 @@ Every split of a stage x every quantization rule of the portfolio goes into one 
 (:func:`.engine.run_stage`): mapped at once, block-packed first-fit decreasing into shared chip
 programs, every read decoded, checked and scored on the unquantized cut; splits beyond the chip
 go in as their spin-budget branches (:func:`.kernels.branch_problems`).  :class:`StageSolver`
-holds the portfolio's rule ids, the chip's coefficient limits, the link to the machine
-(:class:`ising_backend.MachineLink`) and the running call's meter.
+holds the portfolio's rule ids, the chip's coefficient limits, the machine and the running call's
+meter (whose ledger the call's session charges).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULE_IDS, MachineLink
+from ising_backend import QUANTIZE_RULE_IDS
 from planners.ising.sharing.engine import STAGE_NONFINITE
 
 __all__ = ["StageSolver", "stage_refusal"]
@@ -34,14 +34,15 @@ class StageSolver:
         self.chip = chip
         self.rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in config.rules], dtype=np.int64)
         self.limits = tuple(float(v) for v in chip.spec.coefficient_limits)
-        # how a stage's compiled call (.engine.run_stage) reaches the chip: any machine
-        self.link = MachineLink(chip)
-        self.kernel_args = self.link.kernel_args
         self.meter = None
 
     def capacity(self) -> int:
         """Spins per packed program: the chip's, or those clear of the stuck spins a faulty chip's
-        health probe found (the emulator's kernel runs only on healthy chips)."""
-        if self.link.direct:
-            return int(self.chip.spec.n_spins)
-        return int(getattr(self.chip, "usable_spins", self.chip.spec.n_spins))
+        health probe found."""
+        return int(self.chip.usable_spins)
+
+    def args(self, machine) -> tuple:
+        """The stage record of the compiled sharing (:func:`.compiled_stages.solve_problems`): rule ids,
+        coefficient limits, spins, packing capacity, reads and the session's ``machine`` record."""
+        return (self.rule_ids, *self.limits, int(self.chip.spec.n_spins), self.capacity(), self.config.reads,
+                machine)

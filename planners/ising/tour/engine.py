@@ -40,14 +40,12 @@ def frozen_spins(h, J, k):
 
 @numba.njit(cache=True)
 def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj,
-                l_handle, restarts, iterations, tenure, c_handle, sweeps, geometric, beta_hot, beta_cold, mismatch,
-                flip_prob):
+                solver, machine):
     """Best valid order of one one-hot open-path subproblem (module docstring).
 
-    ``l_handle .. tenure`` = the logical solver's :meth:`~ising_backend.MachineLink.logical_args`;
-    ``c_handle .. flip_prob`` = the chip's :attr:`~ising_backend.MachineLink.kernel_args`, used when
-    ``physical`` (flat, not tuples: numba types a tuple argument on every call) (programs quantized by
-    ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
+    ``solver`` = the logical solver's session record (:meth:`~ising_backend.MachineSession.args_for`),
+    ``machine`` = the chip's (:attr:`~ising_backend.MachineSession.args`), used when ``physical``
+    (programs quantized by ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
     (attempts,), emulation_s (attempts,))`` with stats = programs, reads, valid_reads, valid
     programs, retries, unsolved (0/1), subproblems, valid subproblems; status :data:`SOLVED`,
     :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats[0]`` holds the
@@ -98,10 +96,9 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget
         spins = np.empty((B, num_reads, nf), dtype=np.int8)
         energies = np.zeros((B, num_reads))
         if physical:
-            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), c_handle, sweeps, geometric, beta_hot,
-                                          beta_cold, mismatch, flip_prob, spins, energies)
+            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), machine, spins, energies)
         else:
-            emu[attempt] = solve_submit(hb, Js, num_reads, seed, l_handle, restarts, iterations, tenure, spins, energies)
+            emu[attempt] = solve_submit(hb, Js, num_reads, seed, solver, spins, energies)
         calls[attempt] = B * num_reads
         if k:
             bits = expand_branches(spins, free, frozen, n)

@@ -75,7 +75,7 @@ def _selection_ising(moves, gains, margin):
 
 @numba.njit(cache=True)
 def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh,
-                      Lj, num_reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
+                      Lj, num_reads, machine):
     """One start of the move-selection search (module docstring).
 
     Returns ``(route, status, stats (5,), clean (k,), wins (k,), calls (S,), emulation_s (S,))`` with
@@ -111,8 +111,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         M = gains.shape[0]
         spins = np.empty((k, num_reads, M), dtype=np.int8)
         energies = np.empty((k, num_reads))
-        emu[rounds] = anneal_submit(hq, Jq, num_reads, np.uint64(seed), handle, sweeps, geometric, beta_hot, beta_cold,
-                                    mismatch, flip_prob, spins, energies)
+        emu[rounds] = anneal_submit(hq, Jq, num_reads, np.uint64(seed), machine, spins, energies)
         calls[rounds] = k * num_reads
         rounds += 1
         clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
@@ -158,7 +157,7 @@ def nearest_neighbour_kernel(dist):
 
 @numba.njit(cache=True)
 def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj,
-                     num_reads, handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob):
+                     num_reads, machine):
     """``MoveSearch.starts`` with random restarts in one call: the nearest-neighbour route,
     then ``starts - 1`` random orders (``rng.permutation``), each improved by
     :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
@@ -186,7 +185,7 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
             route[1:] = 1 + rng.permutation(n)
         route, st, sst, sclean, swins, scalls, semu = select_moves_loop(
             rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj, num_reads,
-            handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)
+            machine)
         calls = np.concatenate((calls, scalls))
         emu = np.concatenate((emu, semu))
         status[s] = st

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, MachineLink, quantize,
+    ANNEAL_IDLE, QUANTIZE_RULE_IDS, SOLVE_IDLE, IsingModel, LogicalIsingSolver, as_logical_solver, quantize,
 )
 from planners.ising.tour.cluster import TourFailure, _Run
 from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, frozen_spins, solve_order
@@ -28,12 +28,9 @@ class OneHotSolver:
         self.config = config
         self.spec = chip.spec
         self.budget = int(self.spec.n_spins)
-        self.solver = solver if solver is not None else LogicalIsingSolver(
-            spec=self.spec, ledger=chip.ledger, health=getattr(chip, "health", None), **config.solver_options)
-        # the compiled subproblem solve reaches the logical solver and the chip through links (their
-        # kernels, or a callback)
-        self.solver_link = MachineLink(self.solver, logical=True)
-        self.chip_link = MachineLink(chip)
+        self.solver = as_logical_solver(solver) if solver is not None else LogicalIsingSolver(
+            spec=self.spec, ledger=chip.ledger, health=chip.health, **config.solver_options)
+        self.chip = chip  # the compiled subproblem solve reaches one of them through a session per call
 
     def sample(self, h, J, off, run: _Run) -> np.ndarray:
         """Bits ``(m, n)`` uint8 of every read of every branch of one program issue (logical Ising
@@ -72,16 +69,15 @@ class OneHotSolver:
         cfg = self.config
         s = d.shape[0]
         physical = cfg.backend != "logical"
-        link = self.chip_link if physical else self.solver_link
-        link.charged = run.charged
         width = min(s * s, self.budget)
-        status, order, st, calls, emu = solve_order(
-            run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
-            np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
-            self.budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
-            *(float(v) for v in self.spec.coefficient_limits),
-            *((-1, 1, 1, 1) if physical else self.solver_link.logical_args(width)), *self.chip_link.kernel_args)
-        link.settle(calls, emu, run.charged)
+        with (self.chip if physical else self.solver).session(run.charged) as link:
+            status, order, st, calls, emu = solve_order(
+                run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
+                np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
+                self.budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
+                *(float(v) for v in self.spec.coefficient_limits),
+                SOLVE_IDLE if physical else link.args_for(width), link.args if physical else ANNEAL_IDLE)
+            link.settle(calls, emu)
         if status == TOO_MANY_BITS:
             raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "
                               f"{cfg.max_branch_bits}")

@@ -53,9 +53,9 @@ class IsingTour(ConfigAttributes):
     defaults: TourConfig | None = None  # None: TourConfig()
 
     def __init__(self, chip=None, config: TourConfig | None = None, *, solver=None, **options) -> None:
-        from ising_backend import ChipSpec, EmulatedChip, as_machine
+        from ising_backend import as_machine
 
-        self.chip = EmulatedChip(ChipSpec()) if chip is None else as_machine(chip)
+        self.chip = as_machine(chip)  # the paper's emulated chip for None
         self.spec = self.chip.spec
         cfg = resolve_config(TourConfig, config, options, self.defaults)
         # sizes not given explicitly shrink to a smaller chip (an explicit config is taken as it is)

@@ -28,7 +28,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULE_IDS, MachineLink
+from ising_backend import QUANTIZE_RULE_IDS
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import (
     NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
@@ -62,20 +62,15 @@ class MoveSearch:
 
     @cached_property
     def _move_args(self) -> tuple:
-        """The compiled loop's fixed arguments: rule ids, coefficient limits, the chip's kernel arguments."""
+        """The compiled loop's fixed arguments: rule ids, coefficient limits, reads (the machine's record
+        comes from each call's session)."""
         rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
-        return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads,
-                *self._link.kernel_args)
-
-    @cached_property
-    def _link(self):
-        """How the compiled loops reach the chip (:class:`ising_backend.MachineLink`): any machine."""
-        return MachineLink(self.chip)
+        return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads)
 
     @property
     def _capacity(self) -> int:
         """Most moves per program: the spins a program may use (around stuck spins), at most ``max_moves``."""
-        return min(int(getattr(self.chip, "usable_spins", self.spec.n_spins)), self.config.max_moves)
+        return min(int(self.chip.usable_spins), self.config.max_moves)
 
     def starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
@@ -114,11 +109,11 @@ class MoveSearch:
         never selects a valid improving set for a route that has improving moves fails the start
         (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
-        self._link.charged = run.charged
-        new, status, st, clean, wins, calls, emu = select_moves_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
-            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
-        self._link.settle(calls, emu, run.charged)
+        with self.chip.session(run.charged) as link:
+            new, status, st, clean, wins, calls, emu = select_moves_loop(
+                run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+            link.settle(calls, emu)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == REFUSED:
             raise TourFailure(_REFUSED)
@@ -165,11 +160,11 @@ class MoveSearch:
         """:meth:`starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
         charged and counted as the per-start calls."""
         cfg = self.config
-        self._link.charged = run.charged
-        ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
-            run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
-            cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args)
-        self._link.settle(calls, emu, run.charged)
+        with self.chip.session(run.charged) as link:
+            ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
+                run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+            link.settle(calls, emu)
         self._count_starts(run, st, clean, wins, status.tolist())
         if not ok:
             raise TourFailure(_REFUSED)

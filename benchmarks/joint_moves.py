@@ -71,25 +71,25 @@ def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=
         J = np.zeros((len(batch), n, n), dtype=np.int64)
         q = np.empty((n, n), dtype=np.int64)
         build = []
-        for g, (pos, ostart, ocell, ocost, host) in enumerate(batch):
+        for g, (pos, ostart, opt, host) in enumerate(batch):
             t0 = time.perf_counter()
             size = len(pos)
             mem = np.arange(size)
-            pen = 1 + group_spread(0, size, ostart, ocost) if penalty is None else penalty
-            k = build_qubo(pos, mem, 0, size, ostart, ocell, ocost, pen, pen, q)
+            pen = 1 + group_spread(0, size, ostart, opt) if penalty is None else penalty
+            k = build_qubo(pos, mem, 0, size, ostart, opt, pen, pen, q)
             qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
             build.append(time.perf_counter() - t0)
         spins, _ = machine.anneal_batch(H, J, num_reads=num_reads, seed=seed + c0)
-        for g, (pos, ostart, ocell, ocost, host) in enumerate(batch):
+        for g, (pos, ostart, opt, host) in enumerate(batch):
             size = len(pos)
             mem = np.arange(size)
             choice = np.empty(size, dtype=np.int64)
             stats = np.zeros(2, dtype=np.int64)
             t0 = time.perf_counter()
-            e_chip = decode_reads(pos, mem, 0, size, ostart, ocell, ocost, host, spins[g], choice, stats)
+            e_chip = decode_reads(pos, mem, 0, size, ostart, opt, host, spins[g], choice, stats)
             t1 = time.perf_counter()
-            e_host = objective(mem, 0, size, ostart, ocost, host)
-            e_opt = solve_exact(pos, mem, 0, size, ostart, ocell, ocost, choice)
+            e_host = objective(0, size, ostart, opt, host)
+            e_opt = solve_exact(pos, mem, 0, size, ostart, opt, choice)
             out.append((e_host, e_chip, e_opt, stats[0], stats[1], build[g] + t1 - t0))
     return np.array(out, dtype=float)
 
@@ -110,9 +110,10 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--per-instance", type=int, default=400)
-    ap.add_argument("--reads", type=int, default=8)
-    ap.add_argument("--penalty", type=int, default=None)
+    ap.add_argument("--reads", type=int, default=32)
+    ap.add_argument("--penalty", type=int, default=10)
     ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--push", type=int, default=1)
     ap.add_argument("--max-robots", type=int, default=11)
     ap.add_argument("--accept", default="better")
     ap.add_argument("--json", default=None)
@@ -125,7 +126,7 @@ def main(argv=None):
         allres = []
         for name in names:
             probs, host_s, group_s, groups, _ = sample_decisions(ROOT / f"{name}.json", args.steps,
-                                                                 per_instance=args.per_instance, levels=args.levels,
+                                                                 per_instance=args.per_instance, levels=args.levels, push=args.push,
                                                                  max_robots=args.max_robots)
             res = solve_problems(probs, EmulatedChip(seed=0), num_reads=args.reads, penalty=args.penalty)
             allres.append(res)
@@ -143,10 +144,13 @@ def main(argv=None):
         from planners.mapf import TURNING_EXECUTORS
         from planners.mapf.joint_executor import JointMovesPIBT
 
+        made = []
+
         class Variant(JointMovesPIBT):
             def __init__(self, grid, seed=0):
-                super().__init__(grid, seed=seed, levels=args.levels, penalty=args.penalty, num_reads=args.reads,
-                                 max_robots=args.max_robots, accept=args.accept)
+                super().__init__(grid, seed=seed, levels=args.levels, push=args.push, penalty=args.penalty,
+                                 num_reads=args.reads, max_robots=args.max_robots, accept=args.accept)
+                made.append(self)
 
         TURNING_EXECUTORS["pibt-ising-bench"] = Variant
         for name in names:
@@ -155,6 +159,11 @@ def main(argv=None):
                     rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", ex, steps=args.steps, seed=seed)
                     row = {k: rec[k] for k in ("instance", "executor", "seed", "tasks_finished", "errors",
                                                "step_p50_s", "step_p99_s")}
+                    if ex != "pibt":
+                        e = made[-1]
+                        row.update(decisions=e.decisions, changed=e.changed, chip_calls=e.ledger.physical_calls,
+                                   chip_parallel_s=e.ledger.chip_time_parallel_s, emulation_s=e.ledger.emulation_s,
+                                   host_ms_per_decision=1e3 * e.host_s / max(e.decisions, 1))
                     rows.append(row)
                     print(json.dumps(row), flush=True)
     if args.json:

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from planners.mapf.common import mix
-from planners.mapf.joint_moves import (MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
+from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
                                        objective, qubo_to_ising, robot_options, select_groups, solve_exact)
 from planners.mapf.turning import TurningPIBT
 
@@ -47,10 +47,12 @@ class JointMovesPIBT(TurningPIBT):
         max_robots: robots per group (1..45).
         max_spins: options per group (default and upper limit: the machine's usable spins).
         levels: priority weight tiers inside a group (1 = every robot weighs 1; 1..7).
-        penalty: one-hot and conflict penalty of the QUBO; ``None`` = 1 + the group's largest
-            spread of one robot's option costs (the smallest value that keeps every single-robot
-            deviation from paying off).
-        num_reads: reads per group program (1..64).
+        push: a forward claim whose robot ahead does not move forward counts ``push / 2`` of its
+            cost (0: as a wait; 2: in full, PIBT's own view of a push; 0..2).
+        penalty: one-hot and conflict penalty of the QUBO (default 10: measured against 4, 7 and the
+            safe ``None`` = 1 + the group's largest spread of one robot's option costs, which leaves
+            the costs too little of the chip's 15 levels); infeasible reads are repaired.
+        num_reads: reads per group program (1..64; default 32: 4 batches of the 8 cores).
         accept: ``"better"``, ``"chip"`` or ``"host"`` (module docstring).
         audit: record every decision with its exact optimum (slow: for benchmarks and tests).
     """
@@ -58,7 +60,7 @@ class JointMovesPIBT(TurningPIBT):
     name = "pibt-ising"
 
     def __init__(self, grid, seed: int = 0, machine=None, *, max_robots: int = 11, max_spins: int | None = None,
-                 levels: int = 3, penalty: int | None = None, num_reads: int = 8, accept: str = "better",
+                 levels: int = 3, push: int = 1, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
                  audit: bool = False, **options) -> None:
         super().__init__(grid, seed=seed, **options)
         if machine is None:
@@ -72,6 +74,7 @@ class JointMovesPIBT(TurningPIBT):
         self.max_robots = _int_in("max_robots", max_robots, 1, 45)
         self.max_spins = usable if max_spins is None else _int_in("max_spins", max_spins, MAX_OPTIONS, usable)
         self.levels = _int_in("levels", levels, 1, 7)
+        self.push = _int_in("push", push, 0, 2)
         self.penalty = None if penalty is None else _int_in("penalty", penalty, 1, 1 << 20)
         self.num_reads = _int_in("num_reads", num_reads, 1, 64)
         if accept not in ACCEPT:
@@ -89,11 +92,11 @@ class JointMovesPIBT(TurningPIBT):
         self.repaired = np.zeros(2, dtype=np.int64)  # reads not one-hot, reads with a conflict repaired
         self.host_s = 0.0  # host seconds of the decision class (group building, mapping, decode; no emulation)
         self._claim = np.full(len(self.cell_of), -1, dtype=np.int64)
-        #: a list to collect every group as ``(pos, ostart, ocell, ocost, host)`` instead of deciding (benchmarks)
+        #: a list to collect every group as ``(pos, ostart, opt, host)`` instead of deciding (benchmarks)
         self.sample = None
 
     def groups(self, pc, orient, gc, rows, order, nxt, act):
-        """This step's groups: ``(ng, gstart, members, ostart, ocell, ocost, host)`` (kernels of
+        """This step's groups: ``(ng, gstart, members, ostart, opt, host)`` (kernels of
         :mod:`planners.mapf.joint_moves`; compact cells)."""
         r = len(pc)
         cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
@@ -108,24 +111,22 @@ class JointMovesPIBT(TurningPIBT):
         rank[order] = np.arange(r)
         m = gstart[ng]
         ostart = np.zeros(m + 1, dtype=np.int64)
-        ocell = np.empty(m * MAX_OPTIONS, dtype=np.int64)
-        ocost = np.empty(m * MAX_OPTIONS, dtype=np.int64)
+        opt = np.empty((m * MAX_OPTIONS, 5), dtype=np.int64)
         host = np.empty(m, dtype=np.int64)
         if ng:
-            group_options(pc, nxt, cand, cost, rank, gid, members, gstart, ng, self.levels, self._claim,
-                          self._occ_now, ostart, ocell, ocost, host)
-        return ng, gstart, members, ostart, ocell, ocost, host
+            group_options(self.nbr, pc, orient, nxt, act, cand, cost, rank, gid, members, gstart, ng, self.levels,
+                          self.push, self._claim, self._occ_now, ostart, opt, host)
+        return ng, gstart, members, ostart, opt, host
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         t0 = time.perf_counter()
         self.last_compute = self._report()
-        ng, gstart, members, ostart, ocell, ocost, host = self.groups(pc, orient, gc, rows, order, nxt, act)
+        ng, gstart, members, ostart, opt, host = self.groups(pc, orient, gc, rows, order, nxt, act)
         if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
             for g in range(ng):
                 a, b = gstart[g], gstart[g + 1]
                 self.sample.append((pc[members[a:b]].copy(), ostart[a:b + 1] - ostart[a],
-                                    ocell[ostart[a]:ostart[b]].copy(), ocost[ostart[a]:ostart[b]].copy(),
-                                    host[a:b].copy()))
+                                    opt[ostart[a]:ostart[b]].copy(), host[a:b].copy()))
             return
         if ng == 0:
             self.host_s += time.perf_counter() - t0
@@ -137,8 +138,8 @@ class JointMovesPIBT(TurningPIBT):
         J = np.zeros((ng, n, n), dtype=np.int64)
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
-            pen = 1 + group_spread(a, b, ostart, ocost) if self.penalty is None else self.penalty
-            k = build_qubo(pc, members, a, b, ostart, ocell, ocost, pen, pen, q)
+            pen = 1 + group_spread(a, b, ostart, opt) if self.penalty is None else self.penalty
+            k = build_qubo(pc, members, a, b, ostart, opt, pen, pen, q)
             qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
         seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
@@ -154,16 +155,16 @@ class JointMovesPIBT(TurningPIBT):
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
             before = stats.copy()
-            e_chip = decode_reads(pc, members, a, b, ostart, ocell, ocost, host, spins[g], choice, stats)
+            e_chip = decode_reads(pc, members, a, b, ostart, opt, host, spins[g], choice, stats)
             hostc[:b - a] = host[a:b]
-            e_host = objective(members, a, b, ostart, ocost, hostc)
+            e_host = objective(a, b, ostart, opt, hostc)
             use = self.accept == "chip" or (self.accept == "better" and e_chip < e_host)
             if use and (choice[:b - a] != host[a:b]).any():
                 self.changed += 1
-                nxt[members[a:b]] = ocell[ostart[a:b] + choice[:b - a]]
+                nxt[members[a:b]] = opt[ostart[a:b] + choice[:b - a], CELL]
             if self.audit is not None:
                 ta = time.perf_counter()
-                e_opt = solve_exact(pc, members, a, b, ostart, ocell, ocost, exact)
+                e_opt = solve_exact(pc, members, a, b, ostart, opt, exact)
                 self.audit.append({"t": self.t, "robots": int(b - a), "spins": int(sizes[g]), "host": int(e_host),
                                    "chip": int(e_chip), "exact": int(e_opt),
                                    "not_one_hot": int(stats[0] - before[0]), "conflict": int(stats[1] - before[1])})

@@ -17,9 +17,11 @@ in one ``anneal_batch``.
 **Objective** (minimised; the host rule's answer is scored with it too).  Robot ``i`` claiming cell
 ``v`` costs ``w_i * (2 * (d(v) - d(p_i)) + turns(o_i -> v))`` (0 for its own cell): ``d`` the BFS
 distance to its goal, turns 0 ahead, 1 to a side, 2 behind -- PIBT's own candidate order (distance,
-then turns) as a number.  ``w_i`` are priority tiers inside the group: ``levels`` .. 1 from the
-highest-priority third down (``levels=1``: every robot weighs 1).  Without weights a pure sum lets
-two robots meeting head-on both wait for ever; the tiers keep PIBT's push of the lower-priority one.
+then turns) as a number.  A forward claim into the cell of a robot that does not claim forward itself
+(it turns or waits, so the vacate check stops the move) costs ``push / 2`` of that (``push = 2``:
+PIBT's own view, the claim counts in full; 0: it counts as a wait) -- a pairwise term inside the
+group, a fixed one against a frozen robot.  ``w_i`` are priority tiers inside the group: ``levels``
+.. 1 from the highest-priority third down (``levels=1``: every robot weighs 1).
 
 **QUBO** (one binary per robot and allowed cell): the costs, a one-hot penalty ``A (sum_v x_iv - 1)^2``
 and a penalty ``P`` per pair of options claiming one cell or swapping.  Options taken by a frozen
@@ -39,9 +41,12 @@ import numpy as np
 from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance
 
 __all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo", "qubo_to_ising",
-           "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS"]
+           "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD"]
 
 MAX_OPTIONS = 5  # own cell + four neighbours
+#: Columns of the option table: claimed cell, cost, the group-local member whose cell is claimed by a
+#: forward move (-1: none), the cost when that member does not move forward, 1 for a forward claim.
+CELL, COST, DEP, UNREAL, FWD = 0, 1, 2, 3, 4
 _BIG = 1 << 40
 
 
@@ -152,15 +157,20 @@ def _ring(nbr, p, ring) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def group_options(pos, nxt, cand, cost, rank, gid, members, gstart, ng, levels, claim, occ,
-                  ostart, ocell, ocost, host):
-    """Allowed options of every group member (module docstring): member ``t``'s options are
-    ``ocell[ostart[t]:ostart[t + 1]]`` with weighted costs ``ocost``; ``host[t]`` the index of its host
-    claim among them.  ``claim`` / ``occ`` compact-cell scratch, -1 on entry and on return."""
+def group_options(nbr, pos, orient, nxt, act, cand, cost, rank, gid, members, gstart, ng, levels, push, claim, occ,
+                  ostart, opt, host):
+    """Allowed options of every group member (module docstring): member ``t``'s options are rows
+    ``opt[ostart[t]:ostart[t + 1]]`` (columns :data:`CELL`, :data:`COST`, :data:`DEP`, :data:`UNREAL`,
+    :data:`FWD`); ``host[t]`` the index of its host claim among them.  ``claim`` / ``occ`` compact-cell
+    scratch, -1 on entry and on return."""
     r = pos.shape[0]
     for k in range(r):
         claim[nxt[k]] = k
         occ[pos[k]] = k
+    slot = np.full(r, -1, dtype=np.int64)
+    for g in range(ng):
+        for t in range(gstart[g], gstart[g + 1]):
+            slot[members[t]] = t - gstart[g]
     n = 0
     ostart[0] = 0
     for g in range(ng):
@@ -172,6 +182,7 @@ def group_options(pos, nxt, cand, cost, rank, gid, members, gstart, ng, levels, 
             for u in range(a, b):
                 higher += rank[members[u]] < rank[k]
             w = levels - (levels * higher) // size
+            ahead = nbr[pos[k], orient[k]]
             host[t] = -1
             for j in range(MAX_OPTIONS):
                 v = cand[k, j]
@@ -185,8 +196,16 @@ def group_options(pos, nxt, cand, cost, rank, gid, members, gstart, ng, levels, 
                     continue  # a swap with a frozen robot
                 if v == nxt[k]:
                     host[t] = n - ostart[t]
-                ocell[n] = v
-                ocost[n] = w * cost[k, j]
+                opt[n, CELL] = v
+                opt[n, COST] = w * cost[k, j]
+                opt[n, UNREAL] = (push * w * cost[k, j]) // 2
+                opt[n, DEP] = -1
+                opt[n, FWD] = v == ahead
+                if v == ahead and o >= 0:
+                    if gid[o] == g:
+                        opt[n, DEP] = slot[o]
+                    elif act[o] != FORWARD:
+                        opt[n, COST] = opt[n, UNREAL]  # the frozen robot ahead stays: no move this step
                 n += 1
             ostart[t + 1] = n
     for k in range(r):
@@ -196,13 +215,13 @@ def group_options(pos, nxt, cand, cost, rank, gid, members, gstart, ng, levels, 
 
 
 @numba.njit(cache=True, nogil=True)
-def group_spread(a, b, ostart, ocost) -> int:
-    """Largest spread (max - min) of one member's option costs in the group ``a:b``."""
+def group_spread(a, b, ostart, opt) -> int:
+    """Largest spread (max - min) of one member's option costs (realised or not) in the group ``a:b``."""
     top = 0
     for t in range(a, b):
-        lo, hi = ocost[ostart[t]], ocost[ostart[t]]
+        lo, hi = opt[ostart[t], COST], opt[ostart[t], COST]
         for x in range(ostart[t], ostart[t + 1]):
-            lo, hi = min(lo, ocost[x]), max(hi, ocost[x])
+            lo, hi = min(lo, opt[x, COST], opt[x, UNREAL]), max(hi, opt[x, COST], opt[x, UNREAL])
         top = max(top, hi - lo)
     return top
 
@@ -214,7 +233,7 @@ def _conflict(v, pi, u, pj) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
-def build_qubo(pos, members, a, b, ostart, ocell, ocost, one_hot, pair, q):
+def build_qubo(pos, members, a, b, ostart, opt, one_hot, pair, q):
     """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
     returned); its energy plus ``one_hot * (b - a)`` is the objective on every feasible one-hot
     assignment."""
@@ -224,13 +243,19 @@ def build_qubo(pos, members, a, b, ostart, ocell, ocost, one_hot, pair, q):
     for t in range(a, b):
         for x in range(ostart[t], ostart[t + 1]):
             i = x - base
-            q[i, i] = ocost[x] - one_hot
+            q[i, i] += opt[x, COST] - one_hot
             for y in range(x + 1, ostart[t + 1]):
                 q[i, y - base] += 2 * one_hot
             for t2 in range(t + 1, b):
                 for y in range(ostart[t2], ostart[t2 + 1]):
-                    if _conflict(ocell[x], pos[members[t]], ocell[y], pos[members[t2]]):
+                    if _conflict(opt[x, CELL], pos[members[t]], opt[y, CELL], pos[members[t2]]):
                         q[i, y - base] += pair
+            d = opt[x, DEP]
+            if d >= 0:  # the robot ahead stays (turns or waits): this forward claim does not move
+                for y in range(ostart[a + d], ostart[a + d + 1]):
+                    if opt[y, FWD] == 0 and opt[y, CELL] != opt[x, CELL]:
+                        lo, hi = min(i, y - base), max(i, y - base)
+                        q[lo, hi] += opt[x, UNREAL] - opt[x, COST]
     return n
 
 
@@ -259,39 +284,54 @@ def qubo_to_ising(q, n, h, J):
 
 
 @numba.njit(cache=True, nogil=True)
-def objective(members, a, b, ostart, ocost, choice) -> int:
-    """Objective of the group's choice (``choice[t - a]`` option index of member ``t``)."""
+def _realised(x, a, ostart, opt, choice) -> int:
+    d = opt[x, DEP]
+    if d < 0 or opt[ostart[a + d] + choice[d], FWD]:
+        return opt[x, COST]
+    return opt[x, UNREAL]
+
+
+@numba.njit(cache=True, nogil=True)
+def objective(a, b, ostart, opt, choice) -> int:
+    """Objective of the group ``a:b``'s choice (``choice[t - a]`` option index of member ``t``)."""
     e = 0
     for t in range(a, b):
-        e += ocost[ostart[t] + choice[t - a]]
+        e += _realised(ostart[t] + choice[t - a], a, ostart, opt, choice)
     return e
 
 
 @numba.njit(cache=True, nogil=True)
-def solve_exact(pos, members, a, b, ostart, ocell, ocost, choice) -> int:
-    """Exact optimum of the group by depth-first branch and bound (options cheapest first, bound =
-    cost so far + each remaining member's cheapest option); ``choice`` gets it, the value is returned."""
+def _bound(x, opt) -> int:
+    return min(opt[x, COST], opt[x, UNREAL]) if opt[x, DEP] >= 0 else opt[x, COST]
+
+
+@numba.njit(cache=True, nogil=True)
+def solve_exact(pos, members, a, b, ostart, opt, choice) -> int:
+    """Exact optimum of the group by depth-first branch and bound (options cheapest first; a forward
+    claim whose robot ahead is not decided yet counts its lower cost until it is; bound = that + each
+    remaining member's cheapest option); ``choice`` gets it, the value is returned."""
     size = b - a
+    base = ostart[a]
     lo = np.zeros(size + 1, dtype=np.int64)
     for t in range(b - 1, a - 1, -1):
         c = _BIG
         for x in range(ostart[t], ostart[t + 1]):
-            c = min(c, ocost[x])
+            c = min(c, _bound(x, opt))
         lo[t - a] = lo[t - a + 1] + c
-    order = np.empty(ostart[b] - ostart[a], dtype=np.int64)  # per member, option indices cheapest first
+    order = np.empty(ostart[b] - base, dtype=np.int64)  # per member, option indices cheapest first
     for t in range(a, b):
-        s0, s1 = ostart[t], ostart[t + 1]
+        s0, s1 = ostart[t] - base, ostart[t + 1] - base
         for x in range(s0, s1):
-            order[x - ostart[a]] = x - s0
+            order[x] = x - s0
         for i in range(s0 + 1, s1):
             j = i
-            while j > s0 and ocost[s0 + order[j - 1 - ostart[a]]] > ocost[s0 + order[j - ostart[a]]]:
-                order[j - 1 - ostart[a]], order[j - ostart[a]] = order[j - ostart[a]], order[j - 1 - ostart[a]]
+            while j > s0 and _bound(base + s0 + order[j - 1], opt) > _bound(base + s0 + order[j], opt):
+                order[j - 1], order[j] = order[j], order[j - 1]
                 j -= 1
-    cur = np.zeros(size, dtype=np.int64)  # position in the member's order
+    cur = np.zeros(size, dtype=np.int64)
     pick = np.zeros(size, dtype=np.int64)
-    best = _BIG
     part = np.zeros(size + 1, dtype=np.int64)
+    best = _BIG
     d = 0
     cur[0] = -1
     while d >= 0:
@@ -300,23 +340,31 @@ def solve_exact(pos, members, a, b, ostart, ocell, ocost, choice) -> int:
         if cur[d] >= ostart[t + 1] - ostart[t]:
             d -= 1
             continue
-        x = ostart[t] + order[ostart[t] - ostart[a] + cur[d]]
-        val = part[d] + ocost[x]
-        if val + lo[d + 1] >= best:
-            continue
+        k = order[ostart[t] - base + cur[d]]
+        x = ostart[t] + k
         ok = True
+        val = part[d]
         for e in range(d):
             y = ostart[a + e] + pick[e]
-            if _conflict(ocell[x], pos[members[t]], ocell[y], pos[members[a + e]]):
+            if _conflict(opt[x, CELL], pos[members[t]], opt[y, CELL], pos[members[a + e]]):
                 ok = False
                 break
+            if opt[y, DEP] == d:  # an earlier forward claim into this robot's cell: now known
+                val += (opt[y, COST] if opt[x, FWD] else opt[y, UNREAL]) - _bound(y, opt)
         if not ok:
             continue
-        pick[d] = x - ostart[t]
+        dx = opt[x, DEP]
+        if dx >= 0 and dx < d:
+            val += opt[x, COST] if opt[ostart[a + dx] + pick[dx], FWD] else opt[x, UNREAL]
+        else:
+            val += _bound(x, opt)
+        if val + lo[d + 1] >= best:
+            continue
+        pick[d] = k
         part[d + 1] = val
         if d + 1 == size:
             best = val
-            choice[:size] = pick
+            choice[:size] = pick[:size]
         else:
             d += 1
             cur[d] = -1
@@ -324,7 +372,7 @@ def solve_exact(pos, members, a, b, ostart, ocell, ocost, choice) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def decode_reads(pos, members, a, b, ostart, ocell, ocost, host, spins, choice, stats) -> int:
+def decode_reads(pos, members, a, b, ostart, opt, host, spins, choice, stats) -> int:
     """Best read of the group after repair (module docstring) into ``choice``; returns its objective.
     ``stats[0]`` += reads not one-hot, ``stats[1]`` += reads with a conflict repaired."""
     size = b - a
@@ -352,7 +400,7 @@ def decode_reads(pos, members, a, b, ostart, ocell, ocost, host, spins, choice, 
                 for j in range(i + 1, size):
                     x = ostart[a + i] + cur[i]
                     y = ostart[a + j] + cur[j]
-                    if _conflict(ocell[x], pos[members[a + i]], ocell[y], pos[members[a + j]]):
+                    if _conflict(opt[x, CELL], pos[members[a + i]], opt[y, CELL], pos[members[a + j]]):
                         if cur[i] != host[a + i]:
                             cur[i] = host[a + i]
                             changed = True
@@ -362,7 +410,7 @@ def decode_reads(pos, members, a, b, ostart, ocell, ocost, host, spins, choice, 
                         fixed = True
         stats[0] += broken
         stats[1] += fixed
-        e = objective(members, a, b, ostart, ocost, cur)
+        e = objective(a, b, ostart, opt, cur)
         if e < best:
             best = e
             choice[:size] = cur

@@ -113,7 +113,7 @@ def main(argv=None):
     ap.add_argument("--reads", type=int, default=32)
     ap.add_argument("--penalty", type=int, default=10)
     ap.add_argument("--levels", type=int, default=3)
-    ap.add_argument("--push", type=int, default=1)
+    ap.add_argument("--push", type=int, default=2)
     ap.add_argument("--max-robots", type=int, default=11)
     ap.add_argument("--accept", default="better")
     ap.add_argument("--json", default=None)

@@ -12,6 +12,12 @@ Charges: :attr:`ledger` (this executor's calls) and :attr:`last_compute`, a
 :class:`~planners.compute.ComputeReport` of the latest step (chip calls, chip time with parallel
 dispatch, accelerator energy, emulation seconds).  With ``audit=True`` every decision appends a
 record to :attr:`audit` (robots, spins, host / chip / exact objective, reads repaired, host seconds).
+
+Measured (``benchmarks/joint_moves.py``, RANDOM-01..05, 300 steps, start kit greedy scheduler): the
+chip improves this one-step objective over PIBT in about a fifth of the decisions, but the pipeline
+finishes *fewer* tasks than with plain ``pibt`` on every instance tried (one-step progress is not
+throughput: PIBT's priority order keeps robots live).  Kept as a measured negative result and as the
+harness for a better objective; ``pibt`` stays the default executor.
 """
 
 from __future__ import annotations
@@ -48,7 +54,8 @@ class JointMovesPIBT(TurningPIBT):
         max_spins: options per group (default and upper limit: the machine's usable spins).
         levels: priority weight tiers inside a group (1 = every robot weighs 1; 1..7).
         push: a forward claim whose robot ahead does not move forward counts ``push / 2`` of its
-            cost (0: as a wait; 2: in full, PIBT's own view of a push; 0..2).
+            cost (0: as a wait; 2: in full, PIBT's own view of a push; 0..2; default 2, the least
+            harmful end to end of 0, 1, 2).
         penalty: one-hot and conflict penalty of the QUBO (default 10: measured against 4, 7 and the
             safe ``None`` = 1 + the group's largest spread of one robot's option costs, which leaves
             the costs too little of the chip's 15 levels); infeasible reads are repaired.
@@ -60,7 +67,7 @@ class JointMovesPIBT(TurningPIBT):
     name = "pibt-ising"
 
     def __init__(self, grid, seed: int = 0, machine=None, *, max_robots: int = 11, max_spins: int | None = None,
-                 levels: int = 3, push: int = 1, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
+                 levels: int = 3, push: int = 2, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
                  audit: bool = False, **options) -> None:
         super().__init__(grid, seed=seed, **options)
         if machine is None:

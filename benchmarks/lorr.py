@@ -71,6 +71,8 @@ def main(argv=None) -> None:
     parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
     parser.add_argument("--write", action="store_true")
     parser.add_argument("--json", default=None, help="also write every run's record to this JSON file")
+    parser.add_argument("--merge-json", default=None,
+                        help="records of an earlier run (its --json) kept for the runs this one does not repeat")
     args = parser.parse_args(argv)
     schedulers = [s for s in args.schedulers.split(",") if s]
     rows = []
@@ -94,6 +96,13 @@ def main(argv=None) -> None:
         r["tasks_per_step"] = r["tasks_finished"] / r["steps"]
         scale_rows.append(r)
         print(_fmt_row(r), f"tasks/step {r['tasks_per_step']:.2f}", flush=True)
+    if args.merge_json:  # an earlier run's records, where this run did not repeat them
+        old = json.loads(Path(args.merge_json).read_text())
+        done = {(r["instance"], r["scheduler"], r["executor"]) for r in rows + scale_rows}
+        keep = [r for r in old if (r["instance"], r["scheduler"], r["executor"]) not in done]
+        rows = [r for r in keep if "tasks_per_step" not in r] + rows
+        scale_rows = [r for r in keep if "tasks_per_step" in r] + scale_rows
+        rows.sort(key=lambda r: (r["instance"], executors.index(r["executor"]) if r["executor"] in executors else 9))
     lines = [SECTION, "", f"`python benchmarks/lorr.py --write` on {cpu_name()} (one core per run, runs in turn). "
              "Step = scheduler + executor host seconds (chip emulation excluded) + chip parallel seconds; "
              "best-known: the archive's record over the instance's full simulation time.", "", head, sep]

@@ -24,6 +24,7 @@ SUBCOMMANDS = {
     "sweep": "agents.commands.sweep",
     "warmup": "agents.commands.warmup",
     "lorr": "agents.commands.lorr",
+    "audit": "agents.commands.audit",
 }
 
 

@@ -171,7 +171,10 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     run = RunConfig(backend="inline" if jobs == 1 else "process", jobs=jobs, chunk_size=1, progress=progress)
     kwargs = dict(world_kwargs or {})
     try:
-        run_tasks(_warm_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
+        from ising_backend.audit import suspended
+
+        with suspended():  # compiling decides nothing: an open audit records none of it
+            run_tasks(_warm_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
     except Exception as exc:  # noqa: BLE001 -- the command itself will meet (and report) the same problem
         print(f"mrmt: warm-up stopped ({type(exc).__name__}: {exc}); compiling on first use instead",
               file=stream)

@@ -46,7 +46,7 @@ class IsingMachine(Protocol):
     def anneal_models(self, models, num_reads: int = 1, seed: int | None = None) -> list:
         ...
 
-    def session(self, ledger: CallLedger):
+    def session(self, ledger: CallLedger, decision: str = "unlabelled"):
         ...
 
 
@@ -152,10 +152,10 @@ class MachineBase(dimod.Sampler):
         spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
         return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
 
-    def session(self, ledger: CallLedger):
-        """A :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops reach this
-        machine by the callback (its own ``anneal_batch``)."""
-        return MachineSession(self, ledger)
+    def session(self, ledger: CallLedger, decision: str = "unlabelled"):
+        """A :class:`~ising_backend.link.MachineSession` charging ``ledger`` for submissions of the decision
+        class ``decision``: compiled loops reach this machine by the callback (its own ``anneal_batch``)."""
+        return MachineSession(self, ledger, decision=decision)
 
     def sample(self, bqm: dimod.BinaryQuadraticModel, num_reads: int = 1, seed: int | None = None,
                **kwargs) -> dimod.SampleSet:

@@ -122,14 +122,14 @@ class EmulatedChip(MachineBase):
         (``spec.n_spins`` without faults)."""
         return self.spec.n_spins if self.health is None else self.health.usable_spins
 
-    def session(self, ledger: CallLedger):
+    def session(self, ledger: CallLedger, decision: str = "unlabelled"):
         """A :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run this
         chip's kernel themselves when it is healthy and its own (:func:`kernel_capable`), else they
         call back into :meth:`anneal_batch`."""
         kernel = self._kernel
         if kernel is None:  # the spec and the mismatch are fixed at construction: worked out once
             kernel = self._kernel = self.kernel_args() if kernel_capable(self) else ()
-        return MachineSession(self, ledger, kernel or None)
+        return MachineSession(self, ledger, kernel or None, decision=decision)
 
     def _dispatch(self, hf, Jf, num_reads, seed, t0):
         """The anneal on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged

@@ -23,6 +23,7 @@ import numpy as np
 
 from ._clock import clock_ns
 from .anneal import anneal_kernel_timed
+from .audit import active_audit
 from .ledger import CallLedger
 from .logical import mix_seed, tabu_kernel
 from .meter import SolverOutputError
@@ -43,14 +44,20 @@ class MachineSession:
 
     ``kernel``: the machine's kernel arguments after the seed when the loop may run its kernel
     itself (``machine.kernel_args()``; for a logical solver a function of the program size), or
-    ``None`` for a machine reached by the callback.  ``ledger`` is charged what ran.
+    ``None`` for a machine reached by the callback.  ``ledger`` is charged what ran.  ``decision``
+    names the decision class of what the session submits; while an :class:`~ising_backend.audit.Audit`
+    is open every session goes through the callback and each submission is recorded under it.
     """
 
-    __slots__ = ("machine", "ledger", "logical", "direct", "handle", "_kernel", "args")
+    __slots__ = ("machine", "ledger", "logical", "direct", "handle", "_kernel", "args", "decision", "audit")
 
-    def __init__(self, machine, ledger: CallLedger, kernel=None, logical: bool = False):
+    def __init__(self, machine, ledger: CallLedger, kernel=None, logical: bool = False, decision: str = "unlabelled"):
         if not isinstance(ledger, CallLedger):
             raise TypeError(f"ledger = {ledger!r} must be an ising_backend.CallLedger")
+        self.audit = active_audit()
+        self.decision = decision
+        if self.audit is not None:  # the machine's own call, the same kernel and seeds: the same plans
+            kernel = None
         self.machine = machine
         self.ledger = ledger
         self.logical = bool(logical)
@@ -110,6 +117,8 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
         if machine.last_call is not before:
             link.ledger._add_in_place(machine.last_call)
     s = np.asarray(s)
+    if link.audit is not None:
+        link.audit.record(link.decision, h, J, s, e, machine.last_call, logical=link.logical, spec=machine.spec)
     if s.shape != spins.shape or (s.dtype != np.int8 and not ((s == 1) | (s == -1)).all()):
         raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
     spins[...] = s

@@ -398,14 +398,14 @@ class LogicalIsingSolver(dimod.Sampler):
         spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
         return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
 
-    def session(self, ledger: CallLedger):
+    def session(self, ledger: CallLedger, decision: str = "unlabelled"):
         """A logical :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run the
         tabu kernel themselves (method ``"tabu"``, no fault model, this very class), else call back
         into :meth:`solve_stack`."""
         from .link import MachineSession
 
         direct = type(self) is LogicalIsingSolver and self.method == "tabu" and self.health is None
-        return MachineSession(self, ledger, self.kernel_args if direct else None, logical=True)
+        return MachineSession(self, ledger, self.kernel_args if direct else None, logical=True, decision=decision)
 
     def charge(self, calls, seconds) -> list:
         """Charge submissions made through :meth:`kernel_args`: ``calls[i]`` logical calls and

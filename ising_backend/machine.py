@@ -261,8 +261,8 @@ class LogicalDriver:
         return np.stack([np.asarray(r.spins).reshape(int(num_reads), -1)
                          for r in self.solve_many(models, num_reads=num_reads, seed=seed)])
 
-    def session(self, ledger: CallLedger) -> MachineSession:
-        return MachineSession(self, ledger, None, logical=True)
+    def session(self, ledger: CallLedger, decision: str = "unlabelled") -> MachineSession:
+        return MachineSession(self, ledger, None, logical=True, decision=decision)
 
 
 def as_logical_solver(solver):

@@ -21,6 +21,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from .audit import active_audit
 from .health import ChipUnavailableError
 from .ledger import CallLedger
 
@@ -34,8 +35,9 @@ class SolverOutputError(RuntimeError):
 class MeteredSolver:
     """A solver seen through one planning call (see the module docstring)."""
 
-    def __init__(self, solver, charged: CallLedger | None = None):
+    def __init__(self, solver, charged: CallLedger | None = None, decision: str = "unlabelled"):
         self.solver = solver
+        self.decision = decision  # the decision class its calls are recorded under while an audit is open
         self.spec = getattr(solver, "spec", None)
         self.budget = getattr(solver, "budget", None if self.spec is None else self.spec.n_spins)
         self.charged = CallLedger() if charged is None else charged
@@ -45,10 +47,17 @@ class MeteredSolver:
         """The wrapped machine's usable spins (around the stuck spins a faulty chip's probe found)."""
         return int(self.solver.usable_spins)
 
-    def _charge(self, before) -> None:
+    def _charge(self, before) -> CallLedger:
         last = getattr(self.solver, "last_call", None)
         # the call's own charge adds up exactly; a difference of running float totals would not
-        self.charged._add_in_place(last if last is not None else self.solver.ledger.since(before))
+        charge = last if last is not None else self.solver.ledger.since(before)
+        self.charged._add_in_place(charge)
+        return charge
+
+    def _audit(self, h, J, spins, energies, charge, logical: bool) -> None:
+        audit = active_audit()
+        if audit is not None:
+            audit.record(self.decision, h, J, spins, energies, charge, logical=logical, spec=self.spec)
 
     @contextmanager
     def _charged_if_unavailable(self, before):
@@ -63,11 +72,12 @@ class MeteredSolver:
         before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
         with self._charged_if_unavailable(before):
             spins, energies = self.solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
-        self._charge(before)
+        charge = self._charge(before)
         spins = np.asarray(spins)
         want = (np.shape(h)[0], num_reads, np.shape(h)[1]) if np.ndim(h) == 2 else (num_reads, np.shape(h)[0])
         if spins.shape != want or not ((spins == 1) | (spins == -1)).all():
             raise SolverOutputError(f"got shape {spins.shape}, expected {want} spins in {{-1, +1}}")
+        self._audit(h, J, spins, energies, charge, logical=False)
         return spins, energies
 
     def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
@@ -76,26 +86,35 @@ class MeteredSolver:
         with self._charged_if_unavailable(before):
             out = self.solver.solve_many(models, num_reads=num_reads, seed=seed)
         if models:
-            self._charge(before)
+            charge = self._charge(before)
         for m, r in zip(models, out):
             s = np.asarray(r.spins)
             if s.shape != (num_reads, m.n) or not ((s == 1) | (s == -1)).all():
                 raise SolverOutputError(f"got shape {s.shape}, expected {(num_reads, m.n)} spins in {{-1, +1}}")
+        if models and active_audit() is not None:
+            from .programs import stack_programs
+
+            h, J = stack_programs(models)
+            spins = np.zeros((len(models), num_reads, h.shape[1]), dtype=np.int8)
+            for b, r in enumerate(out):
+                spins[b, :, : models[b].n] = np.asarray(r.spins).reshape(num_reads, -1)
+            self._audit(h, J, spins, None, charge, logical=True)
         return out
 
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_stack`` (:class:`LogicalIsingSolver`) with the answer checked and metered."""
         with self._charged_if_unavailable(None):
             spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)
-        self._charge(None)
+        charge = self._charge(None)
         want = (np.shape(h)[0], num_reads, np.shape(h)[1])
         if spins.shape != want or not ((spins == 1) | (spins == -1)).all():
             raise SolverOutputError(f"got shape {spins.shape}, expected {want} spins in {{-1, +1}}")
+        self._audit(h, np.broadcast_to(J, (np.shape(h)[0],) + np.shape(J)[-2:]), spins, None, charge, logical=True)
         return spins
 
     def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
         """Chip-legal models in one batch: ``[(spins (reads, n_b), energies + offset)]``."""
-        from .chip import stack_programs
+        from .programs import stack_programs
 
         h, J = stack_programs(models)
         spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)

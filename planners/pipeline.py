@@ -287,7 +287,10 @@ class Pipeline:
         scratch.warmup_first = False
         if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
             seed = copy.deepcopy(seed)
-        scratch.plan(world, seed=seed)
+        from ising_backend.audit import suspended
+
+        with suspended():  # the scratch run decides nothing of the plan: not audited
+            scratch.plan(world, seed=seed)
         self.warmup_s = _clock() - t0
         self._warm_state = "warm"
         return self.warmup_s

@@ -48,9 +48,29 @@ def add_arguments(parser) -> None:
     add_chip_argument(parser)
     parser.add_argument("--out", default=None, help="directory for episodes.csv and episodes.json")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--audit", default=None, metavar="DIR",
+                        help="record every chip decision in DIR (mrmt audit DIR judges it; --jobs 1, inline only)")
 
 
 def run(args) -> int:
+    from contextlib import nullcontext
+    from pathlib import Path
+
+    from ising_backend.audit import Audit
+
+    if args.audit:
+        if (args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1:
+            print("mrmt compare: error: --audit records the decisions made in this process: use --jobs 1 and the "
+                  "inline backend", file=sys.stderr)
+            return 2
+        if Path(args.audit).exists() and not Path(args.audit).is_dir():
+            print(f"mrmt compare: error: --audit {args.audit}: exists and is not a directory", file=sys.stderr)
+            return 2
+    with Audit(args.audit) if args.audit else nullcontext():
+        return _run(args)
+
+
+def _run(args) -> int:
     from agents.env_ids import check_env_id, check_worlds
     from agents.lifelong_eval import is_lifelong_id, run_compare
 

@@ -40,6 +40,8 @@ def add_arguments(parser) -> None:
     run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
     run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.add_argument("--audit", default=None, metavar="DIR",
+                     help="record every chip decision in DIR (mrmt audit DIR judges it; inline backend only)")
     add_runner_arguments(run)
     add_chip_argument(run, who="the ising scheduler")
     check = sub.add_parser("check", help="re-simulate an output file on its instance")
@@ -103,9 +105,13 @@ def _run(args) -> int:
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return _fail(str(exc))
+    if args.audit and Path(args.audit).exists() and not Path(args.audit).is_dir():
+        return _fail(f"--audit {args.audit}: exists and is not a directory")
     jobs = [(inst, s, seed) for inst in args.instances for s in schedulers
             for seed in range(args.seed, args.seed + args.seeds)]
     single = len(jobs) == 1
+    if args.audit and not (run.backend == "inline" or (single and run.backend != "ray")):
+        return _fail(f"--audit records the decisions made in this process: use --backend inline, not {run.backend}")
     tasks = [(inst, s, args.executor, args.steps, seed, chip, options, args.out,
               "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json")
              for inst, s, seed in jobs]
@@ -117,10 +123,15 @@ def _run(args) -> int:
 
         pipelines = [s for s in schedulers if s != "lorr-greedy" and not s.startswith("ppo:")]
         warm([f"lorr:{args.executor}", *pipelines], jobs=min(2, os.cpu_count() or 1), progress=progress)
-    if single and run.backend != "ray":
-        rows = [_single(tasks[0], progress)]
-    else:
-        rows = run_tasks(lorr_task, tasks, run)
+    from contextlib import nullcontext
+
+    from ising_backend.audit import Audit
+
+    with Audit(args.audit) if args.audit else nullcontext():
+        if single and run.backend != "ray":
+            rows = [_single(tasks[0], progress)]
+        else:
+            rows = run_tasks(lorr_task, tasks, run)
     if args.json:
         for r in rows:
             print(json.dumps(r))

@@ -75,6 +75,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
     parser.add_argument("--keep-going", action="store_true", help='continue past bad lines: each gets {"error": ..., "line": N} in its output place (still exit 2)')
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--audit", default=None, metavar="DIR",
+                        help="record every chip decision in DIR (judge it with: mrmt audit DIR); plans are unchanged")
 
 
 def _error(message: str) -> None:
@@ -134,6 +136,9 @@ def run(args) -> int:
     if args.seed < 0:
         _error(f"--seed must be >= 0 (a numpy seed), got {args.seed}")
         return 2
+    if args.audit and Path(args.audit).exists() and not Path(args.audit).is_dir():
+        _error(f"--audit {args.audit}: exists and is not a directory")
+        return 2
     try:
         pipeline = build_pipeline(args)
     except (ValueError, TypeError, ImportError, RuntimeError) as exc:
@@ -190,6 +195,11 @@ def run(args) -> int:
     failed = 0
     planned = 0
     done = 0
+    from contextlib import nullcontext
+
+    from ising_backend.audit import Audit
+
+    audit = Audit(args.audit) if args.audit else nullcontext()
     try:
         progress = tqdm(
             total=total,
@@ -198,7 +208,7 @@ def run(args) -> int:
             disable=args.no_progress or total < PROGRESS_MIN_WORLDS,
             desc="mrmt plan",
         )
-        with progress:
+        with progress, audit:
             for line, item in iter_worlds_text(text, str(path)):
                 progress.update(1)
                 done += 1

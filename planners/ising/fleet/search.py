@@ -189,7 +189,7 @@ class IsingFleetSharing(ConfigAttributes):
         order = np.argsort(d[r:], axis=1, kind="stable")  # nearest nodes of each target (itself first)
         neigh = np.ascontiguousarray(order[:, 1:k + 1])
         neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
-        metered = MeteredSolver(self.chip)
+        metered = MeteredSolver(self.chip, decision="fleet_moves")
         search = _Search(d, r, neigh, self.config, metered, rng)
         best = {"nxt": nxt.copy(), "cost": route_cost(d, nxt, r)}  # the cheapest routes so far (always valid)
         stats: dict = {}

@@ -120,7 +120,7 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
     cfg = runner.config
     charged = CallLedger()
     try:
-        with runner.chip.session(charged) as link:
+        with runner.chip.session(charged, decision="path_query") as link:
             done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
                 rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
                 *runner.loop_args(grid), link.args, grid, cfg.cut_loops)

@@ -90,7 +90,7 @@ class QueryRunner:
         ``anneal_batch`` would charge."""
         charged = CallLedger()
         try:
-            with self.chip.session(charged) as link:
+            with self.chip.session(charged, decision="path_query") as link:
                 out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
                                 *self.loop_args(grid), link.args)
                 link.settle(out[6], out[7])

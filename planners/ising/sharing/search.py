@@ -152,7 +152,7 @@ class IsingSharing(ConfigAttributes):
         compiled = (*self._compiled[:-1], (*self._compiled[-1], handle))
         mapping, counters, calls, emu, failure = book
         try:
-            with self.chip.session(stages.meter.charged) as link:
+            with self.chip.session(stages.meter.charged, decision="sharing_split") as link:
                 try:
                     ok, flat, sizes, failed = assign_kernel(dist, powered, mean, R, rng, stages.args(link.args),
                                                             *compiled, book)

@@ -37,13 +37,13 @@ class _Run:
     @property
     def solver(self) -> MeteredSolver:
         if self._solver is None:
-            self._solver = MeteredSolver(self._tour.solver, self.charged)
+            self._solver = MeteredSolver(self._tour.solver, self.charged, decision="tour_split")
         return self._solver
 
     @property
     def chip(self) -> MeteredSolver:
         if self._chip is None:
-            self._chip = MeteredSolver(self._tour.chip, self.charged)
+            self._chip = MeteredSolver(self._tour.chip, self.charged, decision="tour_split")
         return self._chip
 
 

@@ -70,7 +70,7 @@ class OneHotSolver:
         s = d.shape[0]
         physical = cfg.backend != "logical"
         width = min(s * s, self.budget)
-        with (self.chip if physical else self.solver).session(run.charged) as link:
+        with (self.chip if physical else self.solver).session(run.charged, decision="tour_order") as link:
             status, order, st, calls, emu = solve_order(
                 run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
                 np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,

@@ -109,7 +109,7 @@ class MoveSearch:
         never selects a valid improving set for a route that has improving moves fails the start
         (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
-        with self.chip.session(run.charged) as link:
+        with self.chip.session(run.charged, decision="tour_moves") as link:
             new, status, st, clean, wins, calls, emu = select_moves_loop(
                 run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
                 cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
@@ -160,7 +160,7 @@ class MoveSearch:
         """:meth:`starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
         charged and counted as the per-start calls."""
         cfg = self.config
-        with self.chip.session(run.charged) as link:
+        with self.chip.session(run.charged, decision="tour_moves") as link:
             ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
                 run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
                 cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)

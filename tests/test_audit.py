@@ -161,3 +161,17 @@ def test_lorr_run_and_compare_record_an_audit_without_changing_results(tmp_path)
     assert {"sharing_split", "tour_moves"} <= {x["class"] for x in read_records(tmp_path / "c")}
     refused = _mrmt("compare", "--controllers", "ising", "--worlds", "1", "--jobs", "2", "--audit", str(tmp_path / "d"))
     assert refused.returncode == 2 and "--jobs 1" in refused.stderr
+
+
+def test_joint_moves_decisions_are_audited_against_pibt_and_charged_to_the_run(tmp_path):
+    from agents.lorr.run import run_lorr
+    from mrmt_env.lorr.instance import example_instance_path
+
+    with Audit(tmp_path):
+        record, _sim, _steps = run_lorr(example_instance_path(), "lorr-greedy", "pibt-ising", steps=60)
+    rows = read_records(tmp_path)
+    assert rows and {r["class"] for r in rows} == {"joint_moves"} and {r["host_rule"] for r in rows} == {"pibt"}
+    assert record["chip_calls"] == sum(r["calls"] for r in rows) > 0  # the executor's chip calls are the run's
+    for r, j in zip(rows, judge(rows)):
+        assert j["host_energy"] == r["host_energy"] >= j["optimum"] - 1e-9
+        assert j["chip_energy"] >= j["optimum"] - 1e-9

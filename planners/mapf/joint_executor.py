@@ -27,6 +27,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ising_backend.audit import active_audit
 from planners.mapf.common import mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
                                        objective, qubo_to_ising, robot_options, select_groups, solve_exact)
@@ -70,14 +71,13 @@ class JointMovesPIBT(TurningPIBT):
                  levels: int = 3, push: int = 2, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
                  audit: bool = False, **options) -> None:
         super().__init__(grid, seed=seed, **options)
-        if machine is None:
-            from ising_backend import EmulatedChip
+        from ising_backend import EmulatedChip, as_machine
 
-            machine = EmulatedChip(seed=self.seed)
-        if not callable(getattr(machine, "anneal_batch", None)):
-            raise ValueError(f"machine = {machine!r} has no anneal_batch(h, J, num_reads, seed)")
-        self.machine = machine
-        usable = int(getattr(machine, "usable_spins", machine.spec.n_spins))
+        try:
+            self.machine = EmulatedChip(seed=self.seed) if machine is None else as_machine(machine)
+        except TypeError as exc:
+            raise ValueError(str(exc)) from None
+        usable = int(self.machine.usable_spins)
         self.max_robots = _int_in("max_robots", max_robots, 1, 45)
         self.max_spins = usable if max_spins is None else _int_in("max_spins", max_spins, MAX_OPTIONS, usable)
         self.levels = _int_in("levels", levels, 1, 7)
@@ -150,7 +150,7 @@ class JointMovesPIBT(TurningPIBT):
             qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
         seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
-        spins, _ = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
+        spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
         t2 = time.perf_counter()
         call = self.machine.last_call
         self.ledger = self.ledger + call
@@ -176,6 +176,8 @@ class JointMovesPIBT(TurningPIBT):
                                    "chip": int(e_chip), "exact": int(e_opt),
                                    "not_one_hot": int(stats[0] - before[0]), "conflict": int(stats[1] - before[1])})
                 audit_s += time.perf_counter() - ta
+        if active_audit() is not None:
+            self._audit(H, J, spins, energies, call, gstart, ostart, host, ng, len(pc))
         self.decisions += ng
         self.repaired += stats
         claims_to_actions(self.nbr, pc, orient, nxt, act, self._occ_now)
@@ -184,3 +186,19 @@ class JointMovesPIBT(TurningPIBT):
         self.host_s += (t3 - t0) - emul
         self.last_compute = replace(self._report.from_ledger(call), cpu_s=t3 - t0)
         self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups
+
+    def _audit(self, H, J, spins, energies, call, gstart, ostart, host, ng, robots) -> None:
+        """This step's programs into the open decision audit as class ``joint_moves``, beside the host rule's
+        answer (PIBT's cells as spins of the same program; its seconds: this step's PIBT kernel time, a
+        group's share by its robots)."""
+        from ising_backend.health import program_energy
+
+        hs = -np.ones(H.shape, dtype=np.int8)
+        secs = np.empty(ng)
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            hs[g, ostart[a:b] - ostart[a] + host[a:b]] = 1
+            secs[g] = self.kernel_s * (b - a) / robots
+        e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)
+        active_audit().record("joint_moves", H, J, spins, energies, call, host=(e_host, float(secs.mean()), "pibt"),
+                              spec=self.machine.spec)

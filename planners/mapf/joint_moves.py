@@ -38,7 +38,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance
+from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
 
 __all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo", "qubo_to_ising",
            "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD"]
@@ -429,31 +429,6 @@ def claims_to_actions(nbr, pos, orient, nxt, act, occ_now):
         for d in range(4):
             if v != p and nbr[p, d] == v:
                 act[k] = FORWARD if d == o else (COUNTER if d == (o + 3) % 4 else CLOCKWISE)
-    state = np.zeros(r, dtype=np.int8)
-    chain = np.empty(r, dtype=np.int64)
-    for k in range(r):
-        if act[k] != FORWARD or state[k] != 0:
-            continue
-        top = 0
-        cur = k
-        while True:
-            state[cur] = 1
-            chain[top] = cur
-            top += 1
-            j = occ_now[nxt[cur]]
-            if j == -1:
-                ok = True
-                break
-            if act[j] != FORWARD or state[j] == 3 or nxt[j] == pos[cur]:
-                ok = False
-                break
-            if state[j] != 0:
-                ok = True
-                break
-            cur = j
-        for i in range(top):
-            state[chain[i]] = 2 if ok else 3
-            if not ok:
-                act[chain[i]] = WAIT
+    vacate_check(pos, nxt, act, occ_now)
     for k in range(r):
         occ_now[pos[k]] = -1

@@ -27,12 +27,15 @@ distance).  Design and measurements: ``docs/design/lifelong_turning.md``.
 
 from __future__ import annotations
 
+import time
+
 import numba
 import numpy as np
 
+from planners.compute import ComputeReport
 from planners.mapf.common import mix
 
-__all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "compact_grid",
+__all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
            "DEAD_END_BONUS"]
 
@@ -273,25 +276,11 @@ def _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t,
 
 
 @numba.njit(cache=True, nogil=True)
-def turning_kernel(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, act, occ_now,
-                   occ_next):
-    """One joint action: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action (compact cells;
-    ``rows[k]`` the row of ``fields`` to ``goals[k]``, -1 for Manhattan distance; ``occ_now`` /
-    ``occ_next`` scratch over compact cells, all -1 on entry and on return)."""
+def vacate_check(pos, nxt, act, occ_now):
+    """The vacate check: a forward move (``act`` F towards ``nxt``) is kept only if the cell ahead is empty now
+    (``occ_now[cell]`` the robot on it, -1 none) or its robot keeps a forward move itself (chains followed to
+    their end; a closed rotation of three or more moves); otherwise it waits, with all queued behind it."""
     r = pos.shape[0]
-    for k in range(r):
-        occ_now[pos[k]] = k
-        nxt[k] = -1
-    _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next)
-    for k in range(r):
-        p, v, o = pos[k], nxt[k], orient[k]
-        act[k] = WAIT
-        if v == p or occ_next[v] != k:  # staying (the second test never holds: one owner per cell)
-            continue
-        for d in range(4):
-            if nbr[p, d] == v:
-                act[k] = FORWARD if d == o else (COUNTER if d == (o + 3) % 4 else CLOCKWISE)
-    # vacate check: F stays F only if the cell ahead is empty now or its robot keeps F
     state = np.zeros(r, dtype=np.int8)  # 0 open, 1 on the chain being followed, 2 moves, 3 waits
     chain = np.empty(r, dtype=np.int64)
     for k in range(r):
@@ -318,6 +307,28 @@ def turning_kernel(nbr, cell_of, width, pos, orient, goals, fields, rows, order,
             state[chain[i]] = 2 if ok else 3
             if not ok:
                 act[chain[i]] = WAIT
+
+
+@numba.njit(cache=True, nogil=True)
+def turning_kernel(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, act, occ_now,
+                   occ_next):
+    """One joint action: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action (compact cells;
+    ``rows[k]`` the row of ``fields`` to ``goals[k]``, -1 for Manhattan distance; ``occ_now`` /
+    ``occ_next`` scratch over compact cells, all -1 on entry and on return)."""
+    r = pos.shape[0]
+    for k in range(r):
+        occ_now[pos[k]] = k
+        nxt[k] = -1
+    _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next)
+    for k in range(r):
+        p, v, o = pos[k], nxt[k], orient[k]
+        act[k] = WAIT
+        if v == p or occ_next[v] != k:  # staying (the second test never holds: one owner per cell)
+            continue
+        for d in range(4):
+            if nbr[p, d] == v:
+                act[k] = FORWARD if d == o else (COUNTER if d == (o + 3) % 4 else CLOCKWISE)
+    vacate_check(pos, nxt, act, occ_now)
     for k in range(r):
         occ_now[pos[k]] = -1
         occ_next[nxt[k]] = -1
@@ -349,6 +360,9 @@ class TurningPIBT:
     """
 
     name = "pibt"
+    #: the chip charge of the latest step (none here; a subclass that decides on a chip sets it)
+    last_compute = ComputeReport()
+    kernel_s = 0.0
 
     def __init__(self, grid: np.ndarray, seed: int = 0, guidance: bool = False, *,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
@@ -424,8 +438,10 @@ class TurningPIBT:
         rows = self.fields.rows(gc, order)
         nxt = np.empty(r, dtype=np.int64)
         act = np.empty(r, dtype=np.int64)
+        t0 = time.perf_counter()
         turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, self.fields.fields, rows, order, self.seed,
                        self.t, nxt, act, self._occ_now, self._occ_next)
+        self.kernel_s = time.perf_counter() - t0  # the host rule's own seconds (a refinement's audit compares them)
         self._refine(pc, orient, gc, rows, order, nxt, act)
         self.targets = self.cell_of[nxt]
         moved = np.where(act == FORWARD, nxt, pc)

@@ -90,7 +90,7 @@ def _grid_frames(env, controller, seed, cell, max_frames):
 
 
 def _assign_frames(env, controller, seed, cell, max_frames):
-    from mrmt_env.assign_env import shortest_path
+    from mrmt_env.assign.env import shortest_path
 
     obs, info = env.reset(seed=seed)
     begin = getattr(controller, "begin_episode", None)

@@ -28,7 +28,7 @@ __all__ = [
 DEFAULT_ENV_ID = "mrmt_env/MRMT-v0"
 
 #: Spec prefixes of learned models: a saved model, and the same decoded from every first decision
-#: (plan-level env only; :mod:`agents.assign_search`).
+#: (plan-level env only; :mod:`agents.assign.search`).
 LEARNED_PREFIXES = ("ppo:", "ppo-ms:")
 
 #: Pipeline presets of :func:`planners.pipeline.make_pipeline`.
@@ -134,8 +134,8 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
     """Build the controller a spec names (see :func:`validate_controller_spec`) for the env ``env_id``.
 
     Planners become :class:`agents.policy.PlannerPolicy` in a grid env and
-    :class:`agents.assign_policy.AssignPlannerPolicy` in the plan-level env;
-    ``ppo:PATH`` becomes :class:`agents.learned.LearnedPolicy` (PPO or
+    :class:`agents.assign.policy.AssignPlannerPolicy` in the plan-level env;
+    ``ppo:PATH`` becomes :class:`agents.learned.training.LearnedPolicy` (PPO or
     MaskablePPO, as the model was trained).  Every controller has
     ``predict(obs, state, episode_start, deterministic)`` and
     ``episode_compute(index)``.  ``chip`` (an :class:`ising_backend.ChipSpec`) is the emulated
@@ -147,12 +147,12 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
     from agents.env_ids import is_assign_env
 
     if spec.startswith("ppo:"):
-        from agents.learned import load_policy
+        from agents.learned.training import load_policy
 
         return load_policy(spec[4:], seed=seed, env_id=env_id, env_kwargs=env_kwargs)
     if spec.startswith("ppo-ms:"):
-        from agents.assign_search import MultiStartPolicy
-        from agents.learned import load_policy
+        from agents.assign.search import MultiStartPolicy
+        from agents.learned.training import load_policy
 
         if env_id is None or not is_assign_env(env_id):
             raise ControllerError(f"{spec!r}: multi-start decoding needs the plan-level env (mrmt_env/MRMT-Assign-v0)")
@@ -162,7 +162,7 @@ def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=No
             raise ControllerError(f"{spec!r}: {exc}") from None
 
     if env_id is not None and is_assign_env(env_id):
-        from agents.assign_policy import AssignPlannerPolicy as Policy
+        from agents.assign.policy import AssignPlannerPolicy as Policy
     else:
         from agents.policy import PlannerPolicy as Policy
 

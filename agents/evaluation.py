@@ -40,9 +40,9 @@ measured wall-clock time and vary from run to run.
 Controllers are named by a spec string (:func:`make_controller`): a pipeline
 preset (``fast``, ``strong``, ``ising``), a layer triple
 ``sharing+tour+path`` (e.g. ``ssa+brute+astar``), ``ppo:PATH`` for a model
-saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned`), or
+saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned.training`), or
 ``ppo-ms:PATH`` for a plan-level model decoded from every legal first
-decision, the cheapest kept (:mod:`agents.assign_search`).
+decision, the cheapest kept (:mod:`agents.assign.search`).
 
 Episodes run on the task runner (:mod:`agents.runner`: a process pool of
 ``n_jobs`` workers by default, inline for ``n_jobs=1``, or Ray) with a tqdm

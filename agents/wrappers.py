@@ -14,7 +14,7 @@ base env's, unchanged.
 Where the numbers come from:
 
 * with ``controller=`` an object that has ``episode_compute(index)`` (a
-  :class:`agents.policy.PlannerPolicy` or :class:`agents.learned.LearnedPolicy`),
+  :class:`agents.policy.PlannerPolicy` or :class:`agents.learned.training.LearnedPolicy`),
   its report for the episode (planning compute, chip counts, inference time);
 * without one, the wrapper measures the host time the caller spends between
   one ``reset``/``step`` returning and the next ``step`` call -- the time the

@@ -34,7 +34,7 @@ def _sampled(model_path, worlds: int) -> tuple[float, float]:
     """Success rate and mean share of targets visited with actions sampled from the policy (seeded)."""
     import gymnasium as gym
 
-    from agents.learned import load_policy
+    from agents.learned.training import load_policy
 
     policy = load_policy(model_path)
     policy.model.set_random_seed(0)
@@ -54,7 +54,7 @@ def _sampled(model_path, worlds: int) -> tuple[float, float]:
 
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
-    from agents.learned import train
+    from agents.learned.training import train
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", choices=("mlp", "cnn"), default="cnn")

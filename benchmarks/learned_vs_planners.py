@@ -109,7 +109,7 @@ def _figure(rows, refs, path: Path, title: str) -> None:
 
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
-    from agents.learned import DEFAULT_TIMESTEPS, train
+    from agents.learned.training import DEFAULT_TIMESTEPS, train
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--timesteps", type=int, default=DEFAULT_TIMESTEPS["assign"])

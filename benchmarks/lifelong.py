@@ -5,7 +5,7 @@ stream with ``K = 1.5 R`` open tasks on pick cells, collisions blocked) each
 controller (``greedy``, ``strong``, ``ising`` through PIBT; ``greedy`` also
 through the windowed planner) runs ``--steps`` steps per robot count and
 seed.  Decision latency = host + chip seconds of one step's decision,
-measured outside the env (:mod:`agents.lifelong_eval`), p50 / p99 over every
+measured outside the env (:mod:`agents.lifelong.evaluation`), p50 / p99 over every
 decision.  Then the env itself: robot-moves per second of the single env
 and of the native vector env under random actions at 100 robots.  Writes
 the RESULTS.md section and ``docs/lifelong.png``.
@@ -35,7 +35,7 @@ CONTROLLERS = (("greedy", "greedy", "pibt", {}), ("strong", "strong", "pibt", {}
 
 
 def _fleet(robots: int, steps: int, seeds, controllers) -> list[dict]:
-    from agents.lifelong_eval import evaluate_lifelong, summarize
+    from agents.lifelong.evaluation import evaluate_lifelong, summarize
 
     kwargs = {"n_robots": robots, "n_targets": (3 * robots) // 2}
     out = []

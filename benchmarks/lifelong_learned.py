@@ -33,7 +33,7 @@ FIRST_SEED = 1000
 
 
 def _evaluate(env_id: str, specs: list[str], episodes: int, steps: int) -> list[dict]:
-    from agents.lifelong_eval import evaluate_lifelong, summarize
+    from agents.lifelong.evaluation import evaluate_lifelong, summarize
 
     seeds = range(FIRST_SEED, FIRST_SEED + episodes)
     rows = evaluate_lifelong(specs, env_id, seeds, steps)
@@ -66,7 +66,7 @@ def main(argv=None) -> int:
     tmp = tempfile.TemporaryDirectory()
     train_s = None
     if args.model is None:
-        from agents.learned import train
+        from agents.learned.training import train
 
         model = str(Path(tmp.name) / "lifelong_ppo.zip")
         t0 = time.perf_counter()
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
         model = args.model
     ware_model, ware_s = None, None
     if args.warehouse_timesteps:
-        from agents.learned import train
+        from agents.learned.training import train
 
         ware_model = str(Path(tmp.name) / "lifelong_warehouse_ppo.zip")
         t0 = time.perf_counter()
@@ -99,7 +99,7 @@ def main(argv=None) -> int:
              f"{args.warehouse_episodes} --warehouse-steps {args.warehouse_steps} --warehouse-timesteps "
              f"{args.warehouse_timesteps}` on {cpu_name()} (shared machine, "
              f"2 cores, one process). `ppo`: MaskablePPO (`LifelongTaskPolicy`: one shared MLP scores each candidate) choosing each idle robot's next task "
-             f"among its 8 nearest unclaimed ones (`agents/lifelong_choice.py`), model {how}; the first model on "
+             f"among its 8 nearest unclaimed ones (`agents/lifelong/choice.py`), model {how}; the first model on "
              f"both ids. Every controller moves through PIBT; seeds {FIRST_SEED}.. (not seen in training), the "
              "same worlds and task streams for every controller. `vs greedy`: mean of the per-episode throughput "
              "ratios; better / worse: episodes above / below greedy's throughput. Latency: host (+ chip) time "

@@ -1,7 +1,7 @@
 """How far does plain PPO on the grid env get against the planners?  (Issue 6's baseline.)
 
 Trains stable-baselines3 PPO (MlpPolicy, SB3 defaults, no masks, sparse
-reward; see agents/learned.py) on a grid env id for ``--timesteps`` steps,
+reward; see agents/learned/training.py) on a grid env id for ``--timesteps`` steps,
 then evaluates it with the planners on the same *unseen* worlds (reset seeds
 10_000 + i) through the evaluation runner, and prints the table plus a JSON
 line.  The learnable set-ups are benchmarks/grid_ppo.py (masks, dense
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from agents.evaluation import evaluate
-from agents.learned import train_ppo
+from agents.learned.training import train_ppo
 
 
 def main(argv=None) -> int:

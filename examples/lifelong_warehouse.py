@@ -11,7 +11,7 @@ import time
 import gymnasium as gym
 
 import mrmt_env  # noqa: F401  (registers the ids)
-from agents.lifelong import make_lifelong_controller
+from agents.lifelong.controllers import make_lifelong_controller
 
 
 def main() -> None:

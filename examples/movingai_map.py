@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from agents.policy import PlannerPolicy
-from mrmt_env.gym_env import MRMTEnv
+from mrmt_env.grid.env import MRMTEnv
 from mrmt_env.movingai import read_movingai_map, read_movingai_scen, world_from_movingai
 
 DATA = Path(__file__).resolve().parent / "data"

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 from agents.animation import episode_frames, write_gif
-from agents.learned import ASSIGN_ENV_ID, train
+from agents.learned.training import ASSIGN_ENV_ID, train
 
 
 def main(argv=None):

@@ -92,7 +92,7 @@ ASSIGN_IDS = {
 
 
 #: Registered lifelong ids -> (kwargs, max_episode_steps): tasks keep arriving, collisions are refused
-#: (:mod:`mrmt_env.lifelong_env`).
+#: (:mod:`mrmt_env.lifelong.env`).
 LIFELONG_IDS = {
     # the paper's 10x10 world, 3 robots, 10 open tasks (refilled as they are served)
     "mrmt_env/MRMT-Lifelong-v0": ({}, 500),
@@ -118,9 +118,9 @@ def _register() -> None:
             gymnasium.register(id=env_id, entry_point=entry)
 
     for ids, entry, vector in (
-        (GYM_IDS, "mrmt_env.gym_env:MRMTEnv", "mrmt_env.grid_vector:MRMTVectorEnv"),
-        (ASSIGN_IDS, "mrmt_env.assign_env:MRMTAssignEnv", "mrmt_env.assign_vector:MRMTAssignVectorEnv"),
-        (LIFELONG_IDS, "mrmt_env.lifelong_env:MRMTLifelongEnv", "mrmt_env.lifelong_vector:MRMTLifelongVectorEnv"),
+        (GYM_IDS, "mrmt_env.grid.env:MRMTEnv", "mrmt_env.grid.vector:MRMTVectorEnv"),
+        (ASSIGN_IDS, "mrmt_env.assign.env:MRMTAssignEnv", "mrmt_env.assign.vector:MRMTAssignVectorEnv"),
+        (LIFELONG_IDS, "mrmt_env.lifelong.env:MRMTLifelongEnv", "mrmt_env.lifelong.vector:MRMTLifelongVectorEnv"),
     ):
         for env_id, (kwargs, steps) in ids.items():
             if env_id not in gymnasium.registry:
@@ -132,15 +132,15 @@ def _register() -> None:
     except ImportError:  # older PettingZoo: no registry
         return
     if "mrmt_env/mrmt_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:env")
+        register("aec", "mrmt_env/mrmt_v0", entry_point="mrmt_env.grid.pz:env")
     if "mrmt_env/mrmt_v0" not in parallel_registry:
-        register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.pz_env:parallel_env")
+        register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.grid.pz:parallel_env")
     if "mrmt_env/mrmt_assign_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign_pz:assign_aec_env")
+        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign.pz:assign_aec_env")
     if "mrmt_env/mrmt_lifelong_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_env")
+        register("aec", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong.pz:lifelong_env")
     if "mrmt_env/mrmt_lifelong_v0" not in parallel_registry:
-        register("parallel", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong_pz:lifelong_parallel_env")
+        register("parallel", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong.pz:lifelong_parallel_env")
     if "mrmt_env/lorr_v0" not in parallel_registry:
         register("parallel", "mrmt_env/lorr_v0", entry_point="mrmt_env.lorr.pz:lorr_parallel_env")
 
@@ -153,17 +153,17 @@ _LAZY = {
     "ACTION_NAMES": "mrmt_env.core",
     "action_between": "mrmt_env.core",
     "actions_from_path": "mrmt_env.core",
-    "MRMTEnv": "mrmt_env.gym_env",
+    "MRMTEnv": "mrmt_env.grid.env",
     "world_from_observation": "mrmt_env.observation",
-    "MRMTParallelEnv": "mrmt_env.pz_env",
-    "env": "mrmt_env.pz_env",
-    "parallel_env": "mrmt_env.pz_env",
-    "MRMTAssignEnv": "mrmt_env.assign_env",
-    "assign_aec_env": "mrmt_env.assign_pz",
-    "MRMTAssignAECEnv": "mrmt_env.assign_pz",
-    "MRMTLifelongEnv": "mrmt_env.lifelong_env",
-    "lifelong_parallel_env": "mrmt_env.lifelong_pz",
-    "lifelong_env": "mrmt_env.lifelong_pz",
+    "MRMTParallelEnv": "mrmt_env.grid.pz",
+    "env": "mrmt_env.grid.pz",
+    "parallel_env": "mrmt_env.grid.pz",
+    "MRMTAssignEnv": "mrmt_env.assign.env",
+    "assign_aec_env": "mrmt_env.assign.pz",
+    "MRMTAssignAECEnv": "mrmt_env.assign.pz",
+    "MRMTLifelongEnv": "mrmt_env.lifelong.env",
+    "lifelong_parallel_env": "mrmt_env.lifelong.pz",
+    "lifelong_env": "mrmt_env.lifelong.pz",
     "LoRREnv": "mrmt_env.lorr.env",
     "lorr_parallel_env": "mrmt_env.lorr.pz",
 }

@@ -2,8 +2,8 @@
 
 :class:`MRMTCore` holds one episode's state (robot cells, visited targets,
 counters and the observation buffer) and advances it by one joint action.
-The Gymnasium env (:mod:`mrmt_env.gym_env`) and the PettingZoo env
-(:mod:`mrmt_env.pz_env`) only validate actions, wrap the results in their
+The Gymnasium env (:mod:`mrmt_env.grid.env`) and the PettingZoo env
+(:mod:`mrmt_env.grid.pz`) only validate actions, wrap the results in their
 API and handle the step limit.
 
 Dynamics (paper section 3 leaves inter-robot interaction open; it has no

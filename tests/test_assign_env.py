@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mrmt_env
-from mrmt_env.assign_env import MRMTAssignEnv, robot_path
+from mrmt_env.assign.env import MRMTAssignEnv, robot_path
 from mrmt_env.world import World
 
 ENV_ID = "mrmt_env/MRMT-Assign-v0"
@@ -106,7 +106,7 @@ def test_bad_arguments_are_named():
 
 
 def test_planner_adapter_matches_the_plan_cost():
-    from agents.assign_policy import AssignPlannerPolicy
+    from agents.assign.policy import AssignPlannerPolicy
     from planners.pipeline import make_pipeline
 
     env = gym.make(ENV_ID)
@@ -127,7 +127,7 @@ def test_planner_adapter_matches_the_plan_cost():
 
 
 def test_planner_adapter_needs_the_world():
-    from agents.assign_policy import AssignPlannerPolicy
+    from agents.assign.policy import AssignPlannerPolicy
 
     env = gym.make(ENV_ID)
     obs, info = env.reset(seed=0)

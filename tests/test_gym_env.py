@@ -293,7 +293,7 @@ def test_sb3_check_env():
                 warnings.filterwarnings("ignore", message="Treating image space as channels-last")
             if env_id in mrmt_env.ASSIGN_IDS:
                 # one row of features per target and robot: a set, read by a custom policy
-                # (agents.assign_net), which is what this warning recommends
+                # (agents.assign.net), which is what this warning recommends
                 warnings.filterwarnings("ignore", message="Your observation  has an unconventional shape")
             sb3_checker.check_env(env, warn=True)
 

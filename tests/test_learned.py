@@ -12,7 +12,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.cli import main  # noqa: E402
 from agents.evaluation import ControllerError, evaluate  # noqa: E402
-from agents.learned import SMALL_ENV_ID, load_policy, sidecar_path, train_ppo  # noqa: E402
+from agents.learned.training import SMALL_ENV_ID, load_policy, sidecar_path, train_ppo  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ pytest.importorskip("sb3_contrib")
 from agents.cli import main  # noqa: E402
 from agents.evaluation import evaluate  # noqa: E402
 from agents.errors import ControllerError  # noqa: E402
-from agents.learned import ASSIGN_ENV_ID, curve_paths, load_policy, sidecar_path, train  # noqa: E402
+from agents.learned.training import ASSIGN_ENV_ID, curve_paths, load_policy, sidecar_path, train  # noqa: E402
 
 
 @pytest.fixture(scope="module")

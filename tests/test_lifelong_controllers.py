@@ -10,8 +10,8 @@ import pytest
 
 import mrmt_env  # noqa: F401  (registers the ids)
 from agents.cli import main
-from agents.lifelong import GreedyAssigner, PipelineAssigner, make_lifelong_controller
-from agents.lifelong_eval import evaluate_lifelong, summarize
+from agents.lifelong.controllers import GreedyAssigner, PipelineAssigner, make_lifelong_controller
+from agents.lifelong.evaluation import evaluate_lifelong, summarize
 from planners.mapf.common import GoalFields
 
 SMALL = dict(height=12, width=14, n_robots=6, n_targets=9, layout="warehouse",

@@ -12,8 +12,8 @@ from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, see
 
 import mrmt_env
 from mrmt_env import MRMTEnv, MRMTLifelongEnv, World
-from mrmt_env.lifelong_pz import lifelong_env, lifelong_parallel_env
-from mrmt_env.lifelong_state import task_pool
+from mrmt_env.lifelong.pz import lifelong_env, lifelong_parallel_env
+from mrmt_env.lifelong.state import task_pool
 
 SMALL = dict(height=6, width=6, obstacle_density=0.1, n_robots=4, n_targets=3)
 
@@ -223,7 +223,7 @@ def resolve_oracle(pos, tgt):
 @settings(max_examples=200, deadline=None)
 @given(data=st.data(), n=st.integers(2, 9))
 def test_block_resolution_equals_its_fixpoint_oracle(data, n):
-    from mrmt_env.lifelong_kernels import resolve_block
+    from mrmt_env.lifelong.kernels import resolve_block
 
     cells = data.draw(st.lists(st.integers(0, 11), min_size=n, max_size=n, unique=True))  # a 3 x 4 grid
     pos = np.array(cells, dtype=np.int64)

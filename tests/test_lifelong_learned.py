@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import mrmt_env  # noqa: F401  (registers the ids)
-from agents.lifelong import LifelongController, make_lifelong_controller
-from agents.lifelong_choice import N_CANDIDATES, N_FEATURES, LearnedAssigner
-from agents.lifelong_learned import LifelongDecisionEnv
+from agents.lifelong.controllers import LifelongController, make_lifelong_controller
+from agents.lifelong.choice import N_CANDIDATES, N_FEATURES, LearnedAssigner
+from agents.lifelong.learned import LifelongDecisionEnv
 
 pytest.importorskip("sb3_contrib")
 
@@ -77,7 +77,7 @@ def test_masks_offer_only_open_unclaimed_tasks_to_an_idle_robot_and_refuse_the_r
 
 def test_tiny_training_run_gives_a_model_that_compare_evaluates(tmp_path, capsys):
     from agents.cli import main
-    from agents.lifelong_eval import run_lifelong_episode
+    from agents.lifelong.evaluation import run_lifelong_episode
 
     model = tmp_path / "ll.zip"
     assert main(["train", "--env-id", "mrmt_env/MRMT-Lifelong-v0", "--timesteps", "256", "--n-envs", "2",

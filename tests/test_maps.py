@@ -301,7 +301,7 @@ def test_strong_pipeline_episode_succeeds(env_id):
                                                    ("maze_31x31", 5, 40)])
 def test_example_maps_load_and_plan(name, robots, targets):
     from agents.policy import PlannerPolicy
-    from mrmt_env.gym_env import MRMTEnv
+    from mrmt_env.grid.env import MRMTEnv
 
     grid = read_movingai_map(DATA / f"{name}.map")
     scen = read_movingai_scen(DATA / f"{name}.scen")

@@ -131,7 +131,7 @@ def test_planners_do_not_import_the_env_classes():
     import sys
 
     code = ("import sys, planners.pipeline, planners.ising.path, planners.ising.tour, planners.ising.sharing; "
-            "print(sorted(m for m in sys.modules if m in ('mrmt_env.gym_env', 'mrmt_env.pz_env', 'agents')))")
+            "print(sorted(m for m in sys.modules if m in ('mrmt_env.grid.env', 'mrmt_env.grid.pz', 'agents')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -1,7 +1,7 @@
 """Model files are untrusted: loading one through the package never unpickles code from it.
 
 Each crafted file is first shown to run its payload through stable-baselines3's own loader (so the
-test can fail), then loaded through :func:`agents.learned.load_policy`, which must not run it.
+test can fail), then loaded through :func:`agents.learned.training.load_policy`, which must not run it.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from stable_baselines3 import PPO  # noqa: E402
 
 from agents.cli import main  # noqa: E402
 from agents.errors import ControllerError  # noqa: E402
-from agents.learned import ASSIGN_ENV_ID, SMALL_ENV_ID, load_policy, sidecar_path, train  # noqa: E402
+from agents.learned.training import ASSIGN_ENV_ID, SMALL_ENV_ID, load_policy, sidecar_path, train  # noqa: E402
 
 
 class Payload:
@@ -142,7 +142,7 @@ def test_sidecar_and_policy_class_come_from_fixed_lists(models, tmp_path):
 
 
 def test_size_limits(models, tmp_path, monkeypatch):
-    import agents.learned_policy as learned
+    import agents.learned.policy as learned
 
     src, _, _ = models["grid"]
     monkeypatch.setattr(learned, "MAX_MODEL_BYTES", 1000)

@@ -72,14 +72,14 @@ def run(args) -> int:
 
 def _run(args) -> int:
     from agents.env_ids import check_env_id, check_worlds
-    from agents.lifelong_eval import is_lifelong_id, run_compare
+    from agents.lifelong.evaluation import is_lifelong_id, run_compare
 
     try:  # the env id first: the controllers it takes depend on it
         check_env_id(args.env_id)
     except ValueError as exc:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)
         return 2
-    if is_lifelong_id(args.env_id):  # tasks keep arriving: greedy / pipelines through PIBT (agents.lifelong)
+    if is_lifelong_id(args.env_id):  # tasks keep arriving: greedy / pipelines through PIBT (agents.lifelong.controllers)
         return run_compare(args)
     from agents.evaluation import ControllerError, evaluate, parse_controllers
 

@@ -67,7 +67,7 @@ def run(args) -> int:
         import stable_baselines3  # noqa: F401
     except ImportError as exc:
         return _fail(f"training needs the rl extra ({exc.name} is not installed): pip install 'mrmt-ising[rl]'")
-    from agents.learned import curve_paths, model_path, sidecar_path, train
+    from agents.learned.training import curve_paths, model_path, sidecar_path, train
 
     env_kwargs = {}
     for key, value in (("n_robots", args.robots), ("n_targets", args.targets), ("observation", args.observation),

@@ -45,11 +45,11 @@ def run(args) -> int:
         import imageio  # noqa: F401
     except ImportError:
         return fail("writing a GIF needs imageio: pip install 'mrmt-ising[viz]'")
-    from agents.lifelong_eval import is_lifelong_id
+    from agents.lifelong.evaluation import is_lifelong_id
 
-    if is_lifelong_id(args.env_id):  # a task stream: greedy / pipelines through PIBT (agents.lifelong_watch)
+    if is_lifelong_id(args.env_id):  # a task stream: greedy / pipelines through PIBT (agents.lifelong.watch)
         from agents.animation import write_gif
-        from agents.lifelong_watch import lifelong_frames
+        from agents.lifelong.watch import lifelong_frames
 
         try:
             frames, info = lifelong_frames(args.controller, args.env_id, seed=args.seed, steps=args.steps,

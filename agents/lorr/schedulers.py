@@ -3,11 +3,11 @@
 * ``lorr-greedy``: the start kit's default (:class:`mrmt_env.lorr.greedy.GreedyScheduler`).
 * a pipeline spec (``strong``, ``ising``, ``fast``, ``ising-paper`` or ``sharing+tour``): the
   package's sharing and tour layers decide, through the lifelong assigner
-  (:class:`agents.lifelong.PipelineAssigner`: idle robots in Z-order groups, each call a
+  (:class:`agents.lifelong.controllers.PipelineAssigner`: idle robots in Z-order groups, each call a
   sub-world of the group's robots and their nearest free tasks, every robot taking the first
   task of its route).
 * ``ppo:MODEL.zip``: a model trained with ``mrmt train`` on a lifelong id
-  (:class:`agents.lifelong_choice.LearnedAssigner`).
+  (:class:`agents.lifelong.choice.LearnedAssigner`).
 
 A task enters those decisions as the cell of its next errand (where a robot must go to open it).
 Before a decision each free robot shortlists its ``shortlist`` free tasks of least makespan (the
@@ -61,7 +61,7 @@ class AssignerScheduler:
         self.last_compute = ComputeReport()
 
     def schedule(self, sim) -> np.ndarray:
-        from agents.lifelong import Round
+        from agents.lifelong.controllers import Round
 
         tasks = sim.tasks
         self.last_compute = ComputeReport()
@@ -121,7 +121,7 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         if options:
             raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")
         return _Greedy()
-    from agents.lifelong import PipelineAssigner, _learned
+    from agents.lifelong.controllers import PipelineAssigner, _learned
 
     replan = bool(options.pop("replan", False))
     shortlist = options.pop("shortlist", DEFAULT_SHORTLIST)

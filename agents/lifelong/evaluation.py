@@ -49,7 +49,7 @@ def _warm_up(spec: str, chip, executor: str) -> None:
         return
     import gymnasium as gym
 
-    from agents.lifelong import make_lifelong_controller
+    from agents.lifelong.controllers import make_lifelong_controller
 
     env = gym.make("mrmt_env/MRMT-Lifelong-v0")
     obs, _ = env.reset(seed=0)
@@ -62,10 +62,10 @@ def _warm_up(spec: str, chip, executor: str) -> None:
 def run_lifelong_episode(env_id: str, spec: str, seed: int, steps: int, env_kwargs: dict | None = None, chip=None,
                          executor: str = "pibt", options: dict | None = None) -> dict:
     """One episode of ``steps`` steps; returns its record (metrics, per-decision latencies, energies).
-    ``options``: the pipeline assigner's (:func:`agents.lifelong.make_lifelong_controller`)."""
+    ``options``: the pipeline assigner's (:func:`agents.lifelong.controllers.make_lifelong_controller`)."""
     import gymnasium as gym
 
-    from agents.lifelong import make_lifelong_controller
+    from agents.lifelong.controllers import make_lifelong_controller
 
     _warm_up(spec, chip, executor)
     env = gym.make(env_id, max_episode_steps=steps, **(env_kwargs or {}))
@@ -173,7 +173,7 @@ def run_compare(args) -> int:
     ``lifelong.csv`` and ``lifelong.json`` (one row per episode)."""
     from agents.commands.options import check_positive, check_seed
     from agents.errors import ControllerError
-    from agents.lifelong import LIFELONG_CONTROLLERS
+    from agents.lifelong.controllers import LIFELONG_CONTROLLERS
 
     specs = [s.strip() for s in str(args.controllers).split(",") if s.strip()]
     bad = [s for s in specs if s not in LIFELONG_CONTROLLERS and not (s.count("+") == 1 and all(s.split("+")))
@@ -193,7 +193,7 @@ def run_compare(args) -> int:
     try:
         from agents.commands.options import chip_from_args
         from agents.env_ids import check_worlds
-        from agents.lifelong import make_lifelong_controller
+        from agents.lifelong.controllers import make_lifelong_controller
 
         chip = chip_from_args(args)  # --chip spec fields and --sampler
         # before the progress bar: a world the env cannot hold, a model file or a layer name that cannot be used

@@ -3,7 +3,7 @@
 :class:`MultiStartPolicy` wraps a MaskablePPO model trained on
 ``MRMT-Assign-v0``.  At the start of an episode it replays the episode's
 world in a private batch of the env's own dynamics
-(:class:`~mrmt_env.assign_state.AssignBatch`): one rollout per legal first
+(:class:`~mrmt_env.assign.state.AssignBatch`): one rollout per legal first
 decision, each continued greedily by the model (all rollouts in one batched
 forward pass per decision), and keeps the cheapest (lowest route cost, first
 on ties).  It then acts that rollout's decisions in the real env; the
@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from mrmt_env.assign_state import AssignBatch
+from mrmt_env.assign.state import AssignBatch
 from planners.compute import ComputeReport
 
 __all__ = ["MultiStartPolicy"]
@@ -29,7 +29,7 @@ class MultiStartPolicy:
     """A learned plan-level allocator decoded from every legal first decision, best kept.
 
     Args:
-        learned: a :class:`agents.learned.LearnedPolicy` holding a MaskablePPO model.
+        learned: a :class:`agents.learned.training.LearnedPolicy` holding a MaskablePPO model.
     """
 
     uses_action_masks = True

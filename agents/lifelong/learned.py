@@ -1,4 +1,4 @@
-"""The training env of the learned lifelong controller (:mod:`agents.lifelong_choice`).
+"""The training env of the learned lifelong controller (:mod:`agents.lifelong.choice`).
 
 :class:`LifelongDecisionEnv` (``mrmt train --env-id mrmt_env/MRMT-Lifelong-v0``): one step per
 decision; reward = tasks served in the env steps it advances before the next decision minus the
@@ -11,8 +11,8 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from agents.lifelong import LifelongController
-from agents.lifelong_choice import N_CANDIDATES, TaskChooser, decision_spaces
+from agents.lifelong.controllers import LifelongController
+from agents.lifelong.choice import N_CANDIDATES, TaskChooser, decision_spaces
 
 __all__ = ["LifelongDecisionEnv", "decision_vec_env"]
 

@@ -7,7 +7,7 @@ Two set-ups (choices and measurements: docs/design/learned-agents.md):
 
 * plan level, ``mrmt_env/MRMT-Assign-v0`` (the default for a learned
   allocator): sb3-contrib ``MaskablePPO`` with
-  :class:`agents.assign_net.AssignPointerPolicy` (distance-biased attention
+  :class:`agents.assign.net.AssignPointerPolicy` (distance-biased attention
   encoder, pointer head), ``gamma = 1`` (the return is minus the route
   cost), rewards scaled by ``1 / (H + W)``, the native vector env;
 * grid level, ``mrmt_env/MRMT-v0``: SB3 ``PPO`` (``MlpPolicy``, SB3 defaults)
@@ -20,10 +20,10 @@ curve (``.curve.csv`` and ``.curve.png``: mean return, success and route
 cost of the episodes finished in each rollout).  :func:`load_policy` reads the
 algorithm from the sidecar (or from the model file), so ``ppo:model.zip`` in
 ``mrmt compare`` loads a PPO or a MaskablePPO model alike (``ppo-ms:`` adds
-multi-start decoding on the plan-level env: :mod:`agents.assign_search`); it
+multi-start decoding on the plan-level env: :mod:`agents.assign.search`); it
 unpickles nothing from the file (docs/untrusted_files.md).
 
-Loading and the policy object live in :mod:`agents.learned_policy` (re-exported here).
+Loading and the policy object live in :mod:`agents.learned.policy` (re-exported here).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import numpy as np
 
 from agents.env_ids import check_env_id as _spec
 from agents.env_ids import is_assign_env, is_lifelong_env
-from agents.learned_policy import (ALGORITHMS, MAX_MODEL_BYTES, MAX_MODEL_UNPACKED, MAX_SIDECAR_BYTES, LearnedPolicy,
+from agents.learned.policy import (ALGORITHMS, MAX_MODEL_BYTES, MAX_MODEL_UNPACKED, MAX_SIDECAR_BYTES, LearnedPolicy,
                                     load_policy, sidecar_path)
 
 __all__ = [
@@ -57,8 +57,8 @@ DEFAULT_TIMESTEPS = {"assign": 300_000, "grid": 100_000, "lifelong": 100_000}
 ASSIGN_HYPER = dict(n_steps=128, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=1.0,
                     gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 ASSIGN_N_ENVS = 16
-#: MaskablePPO settings for the lifelong task choice (agents.lifelong_learned): one step per decision,
-#: differential reward (tasks served minus the episode's rate times the steps; agents.lifelong_learned).
+#: MaskablePPO settings for the lifelong task choice (agents.lifelong.learned): one step per decision,
+#: differential reward (tasks served minus the episode's rate times the steps; agents.lifelong.learned).
 LIFELONG_HYPER = dict(n_steps=256, batch_size=256, n_epochs=4, learning_rate=3e-4, lr_schedule="linear", gamma=0.99,
                       gae_lambda=0.95, ent_coef=0.01, clip_range=0.2)
 LIFELONG_N_ENVS = 4
@@ -225,7 +225,7 @@ def train(
     probe = gym.make(env_id, **env_kwargs)  # validates the id and kwargs with a clear error
     probe.close()
     if lifelong:
-        from agents.lifelong_learned import decision_vec_env
+        from agents.lifelong.learned import decision_vec_env
 
         venv = decision_vec_env(env_id, env_kwargs, n_envs, int(seed))
     else:
@@ -240,7 +240,7 @@ def train(
 
         venv = ScaleReward(venv, float(reward_scale))
     if assign:
-        from agents.assign_net import AssignPointerPolicy
+        from agents.assign.net import AssignPointerPolicy
 
         params = dict(ASSIGN_HYPER)
         params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
@@ -251,7 +251,7 @@ def train(
         params = dict(LIFELONG_HYPER)
         params["n_steps"] = max(8, min(params["n_steps"], timesteps // n_envs))
         params["batch_size"] = min(params["batch_size"], params["n_steps"] * n_envs)
-        from agents.lifelong_net import LifelongTaskPolicy
+        from agents.lifelong.net import LifelongTaskPolicy
 
         policy_obj, policy_name = LifelongTaskPolicy, "LifelongTaskPolicy"
     else:

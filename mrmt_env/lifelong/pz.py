@@ -2,8 +2,8 @@
 
 ``lifelong_parallel_env(**kwargs)`` returns a :class:`MRMTLifelongParallelEnv`;
 ``lifelong_env(**kwargs)`` the AEC form (``parallel_to_aec``, each move checked
-when given).  Both run the same :class:`~mrmt_env.lifelong_state.LifelongBatch`
-as the Gymnasium env (:class:`mrmt_env.lifelong_env.MRMTLifelongEnv`: task
+when given).  Both run the same :class:`~mrmt_env.lifelong.state.LifelongBatch`
+as the Gymnasium env (:class:`mrmt_env.lifelong.env.MRMTLifelongEnv`: task
 stream, collision model, reward and ``info`` keys).
 
 * Agents ``robot_0 .. robot_{R-1}``; ``Discrete(5)`` each; all move at once.
@@ -23,9 +23,9 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from mrmt_env.core import N_ACTIONS, check_render_mode
-from mrmt_env.lifelong_env import LifelongSetup, render_state
+from mrmt_env.lifelong.env import LifelongSetup, render_state
 from mrmt_env.observation import agent_observation_space, observation_space
-from mrmt_env.pz_env import _CheckedAEC, check_move
+from mrmt_env.grid.pz import _CheckedAEC, check_move
 
 __all__ = ["MRMTLifelongParallelEnv", "lifelong_parallel_env", "lifelong_env", "DEFAULT_MAX_CYCLES"]
 

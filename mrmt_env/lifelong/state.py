@@ -2,7 +2,7 @@
 
 :class:`LifelongBatch` holds ``B`` lifelong episodes of ``H x W`` worlds with
 ``R`` robots; the single env uses ``B = 1`` and the native vector env
-``B = N``, so both run the same code (:mod:`mrmt_env.lifelong_kernels`).
+``B = N``, so both run the same code (:mod:`mrmt_env.lifelong.kernels`).
 :class:`LifelongOptions` is the validated task-stream and collision model.
 """
 
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrmt_env.grid_kernels import grid_masks
-from mrmt_env.lifelong_kernels import COUNTERS, lifelong_load, lifelong_step
+from mrmt_env.grid.kernels import grid_masks
+from mrmt_env.lifelong.kernels import COUNTERS, lifelong_load, lifelong_step
 from mrmt_env.maps import build_layout
 from mrmt_env.world import World
 

@@ -1,7 +1,7 @@
 """A set-suited policy for ``MRMT-Assign-v0``: a distance-biased attention encoder and a pointer head.
 
 The observation is a set of tokens (one per target, one per robot; see
-:class:`mrmt_env.assign_env.MRMTAssignEnv`).  Choices (measured in
+:class:`mrmt_env.assign.env.MRMTAssignEnv`).  Choices (measured in
 ``benchmarks/learned_vs_planners.py``; notes in docs/design/learned-agents.md):
 
 * encoder: a small transformer whose attention logits get a learned
@@ -28,7 +28,7 @@ from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 
 __all__ = ["AssignEncoder", "PointerHead", "AssignPointerPolicy", "N_BASE_FEATURES"]
 
-#: Feature columns before the per-target distance block (mrmt_env.assign_kernels.N_ROBOT_FEATURES).
+#: Feature columns before the per-target distance block (mrmt_env.assign.kernels.N_ROBOT_FEATURES).
 N_BASE_FEATURES = 8
 _DECIDER_COL = 6
 

@@ -2,14 +2,14 @@
 
 :class:`AssignBatch` holds ``B`` episodes of worlds with the same ``R`` and
 ``N``; the single env uses ``B = 1`` and the native vector env ``B = N``, so
-both run the same code (:mod:`mrmt_env.assign_kernels`).
+both run the same code (:mod:`mrmt_env.assign.kernels`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mrmt_env.assign_kernels import N_ROBOT_FEATURES, assign_load, assign_masks, assign_observe, assign_step
+from mrmt_env.assign.kernels import N_ROBOT_FEATURES, assign_load, assign_masks, assign_observe, assign_step
 from mrmt_env.world import World
 
 __all__ = ["AssignBatch", "assign_feature_count", "assign_obs_high"]

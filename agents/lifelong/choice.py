@@ -25,7 +25,7 @@ Per candidate task ``t`` (row ``j``, nearest first):
 | 7   | unclaimed tasks, / robots                                                      |
 
 Distances are divided by ``H + W``.  The training env is
-:mod:`agents.lifelong_learned`; :class:`LearnedAssigner` is the controller's assigner
+:mod:`agents.lifelong.learned`; :class:`LearnedAssigner` is the controller's assigner
 (``ppo:model.zip`` in ``mrmt compare``).
 """
 
@@ -54,7 +54,7 @@ def decision_spaces() -> tuple[spaces.Box, spaces.Discrete]:
 class TaskChooser:
     """The decisions of one step: idle robots in index order each take one of their nearest unclaimed tasks.
 
-    ``fleet`` is the step's :class:`agents.lifelong.Round`; ``fields`` the controller's
+    ``fleet`` is the step's :class:`agents.lifelong.controllers.Round`; ``fields`` the controller's
     :class:`planners.mapf.common.GoalFields`.  :meth:`next_robot` advances to the next idle robot with
     a candidate (``None`` when none is left), :meth:`observation` gives its features and mask,
     :meth:`choose` records its choice; :attr:`queues` are the choices as indices into ``fleet.unclaimed``.
@@ -145,9 +145,9 @@ class TaskChooser:
 
 
 class LearnedAssigner:
-    """An assigner (:class:`agents.lifelong.LifelongController`) asking a policy, one idle robot at a time.
+    """An assigner (:class:`agents.lifelong.controllers.LifelongController`) asking a policy, one idle robot at a time.
 
-    ``policy``: a :class:`agents.learned_policy.LearnedPolicy` (or anything with ``predict(obs,
+    ``policy``: a :class:`agents.learned.policy.LearnedPolicy` (or anything with ``predict(obs,
     action_masks=...)``).  Inference runs on the host; its time is part of the decision's latency."""
 
     accelerated = False

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from agents.policy import resolve_pipeline
-from mrmt_env.assign_kernels import N_ROBOT_FEATURES
+from mrmt_env.assign.kernels import N_ROBOT_FEATURES
 from planners.compute import ComputeReport
 
 __all__ = ["AssignPlannerPolicy"]

@@ -1,7 +1,7 @@
 """The PettingZoo form of the plan-level env: an AEC env where the idle robot is the agent to act.
 
 ``assign_aec_env(**kwargs)`` takes the arguments of
-:class:`mrmt_env.assign_env.MRMTAssignEnv` plus ``max_cycles`` (decisions
+:class:`mrmt_env.assign.env.MRMTAssignEnv` plus ``max_cycles`` (decisions
 before truncation, default 200).  Turn-based by nature (one robot decides at
 a time), so it is an AEC env (``agent_selection`` = the deciding robot),
 with PettingZoo's classic-games convention for masks:
@@ -24,8 +24,8 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import AECEnv
 
-from mrmt_env.assign_env import _check_action
-from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
+from mrmt_env.assign.env import _check_action
+from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import WorldSource, check_render_mode
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World

@@ -264,7 +264,7 @@ class LifelongController:
 
 def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str = "pibt",
                              **options) -> LifelongController:
-    """``greedy``, ``ppo:MODEL.zip`` (:mod:`agents.lifelong_choice`) or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
+    """``greedy``, ``ppo:MODEL.zip`` (:mod:`agents.lifelong.choice`) or a pipeline spec (:data:`PIPELINE_LAYERS`, or ``sharing+tour``), executed by ``executor``
     (``pibt`` or ``windowed``); ``options`` go to :class:`PipelineAssigner` (``group_size``,
     ``candidates``, ``commit``, ``fill``); ``ValueError`` naming an unknown spec or option."""
     from planners.mapf import EXECUTORS
@@ -282,8 +282,8 @@ def make_lifelong_controller(spec: str, seed: int = 0, chip=None, executor: str 
 
 def _learned(spec: str):
     """``ppo:PATH``: a model trained by ``mrmt train`` on a lifelong id, as a :class:`LearnedAssigner`."""
-    from agents.learned_policy import load_policy
-    from agents.lifelong_choice import LearnedAssigner
+    from agents.learned.policy import load_policy
+    from agents.lifelong.choice import LearnedAssigner
 
     policy = load_policy(spec[len("ppo:"):])
     if policy.meta.get("decision") != "lifelong-task":

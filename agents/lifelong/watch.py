@@ -1,6 +1,6 @@
 """A lifelong episode people can watch: one frame per step, each robot's way to its current task drawn.
 
-:func:`lifelong_frames` runs a lifelong controller (:mod:`agents.lifelong`) on a
+:func:`lifelong_frames` runs a lifelong controller (:mod:`agents.lifelong.controllers`) on a
 lifelong id and draws every step on the env's ``rgb_array`` image: open tasks
 as gold rings, robots as coloured squares, and a faint line in the robot's
 colour along a BFS shortest path to the task at the head of its queue.
@@ -32,7 +32,7 @@ def lifelong_frames(spec: str, env_id: str, seed: int = 0, steps: int = 100, cel
     """Frames ``(H * cell, W * cell, 3)`` uint8 of ``steps`` steps and the final ``info``."""
     import gymnasium as gym
 
-    from agents.lifelong import make_lifelong_controller
+    from agents.lifelong.controllers import make_lifelong_controller
 
     if isinstance(cell, bool) or int(cell) != cell or cell < 8:
         raise ValueError(f"cell must be an integer >= 8 pixels, got {cell!r}")

@@ -1,6 +1,6 @@
 """A pointer-style policy for the lifelong task choice: one shared scorer per candidate task.
 
-The observation of :mod:`agents.lifelong_choice` is ``N_CANDIDATES`` rows of
+The observation of :mod:`agents.lifelong.choice` is ``N_CANDIDATES`` rows of
 ``N_FEATURES`` numbers.  The actor scores every row with the same small MLP
 (the logit of candidate ``j`` depends on row ``j`` only, so the rule learnt
 for one candidate applies to all, whatever their order); the mask is applied
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from torch import nn
 
-from agents.assign_net import LogitsPolicy
-from agents.lifelong_choice import N_CANDIDATES, N_FEATURES
+from agents.assign.net import LogitsPolicy
+from agents.lifelong.choice import N_CANDIDATES, N_FEATURES
 
 __all__ = ["CandidateScorer", "LifelongTaskPolicy"]
 

@@ -6,7 +6,7 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
+from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import WorldSource, check_render_mode, check_step_limit, show
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World

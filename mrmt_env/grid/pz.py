@@ -4,7 +4,7 @@
 the AEC form (``parallel_to_aec``).  Both run the same
 :class:`~mrmt_env.core.MRMTCore` as the Gymnasium env, so the dynamics,
 reward and ``info`` keys are those documented in
-:class:`mrmt_env.gym_env.MRMTEnv`.
+:class:`mrmt_env.grid.env.MRMTEnv`.
 
 * Agents ``robot_0 .. robot_{R-1}``; action space ``Discrete(5)`` each
   (0 stay, 1 up, 2 down, 3 left, 4 right); all robots move at once.
@@ -69,7 +69,7 @@ class _CheckedAEC(parallel_to_aec_wrapper):
 class MRMTParallelEnv(ParallelEnv):
     """Multi-robot multi-target grid world, one PettingZoo agent per robot.
 
-    Arguments are those of :class:`mrmt_env.gym_env.MRMTEnv` (``height``,
+    Arguments are those of :class:`mrmt_env.grid.env.MRMTEnv` (``height``,
     ``width``, ``obstacle_density``, ``n_robots``, ``n_targets``, ``world``,
     ``placement``, ``layout``, ``layout_options``, ``target_reward``, ``render_mode``) plus ``max_cycles``
     (steps before truncation, default 200; ``max_episode_steps`` is accepted

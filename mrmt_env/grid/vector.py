@@ -2,7 +2,7 @@
 
 ``gymnasium.make_vec("mrmt_env/MRMT-v0", num_envs=B,
 vectorization_mode="vector_entry_point")`` builds it.  Dynamics are those of
-:class:`mrmt_env.core.MRMTCore` (:mod:`mrmt_env.grid_kernels`); semantics,
+:class:`mrmt_env.core.MRMTCore` (:mod:`mrmt_env.grid.kernels`); semantics,
 seeding and infos those of ``SyncVectorEnv`` over the single env
 (:mod:`mrmt_env.vector_base`).  Options as the single env: ``observation``
 (``"binary"`` / ``"image"``), ``dense_reward``, ``target_reward``;
@@ -17,8 +17,8 @@ from gymnasium.vector.utils import batch_space
 
 from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, show
 from mrmt_env.fast_generation import draw_world_arrays
-from mrmt_env.grid_kernels import grid_load, grid_masks, grid_step
-from mrmt_env.gym_env import OBSERVATIONS
+from mrmt_env.grid.kernels import grid_load, grid_masks, grid_step
+from mrmt_env.grid.env import OBSERVATIONS
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.vector_base import BatchedVectorEnv
 

@@ -22,7 +22,7 @@ from agents.env_ids import check_env_id as _spec
 from agents.errors import ControllerError
 from planners.compute import ComputeReport
 
-#: The algorithms a saved model may name (:func:`agents.learned.train` trains both).
+#: The algorithms a saved model may name (:func:`agents.learned.training.train` trains both).
 ALGORITHMS = ("ppo", "maskable_ppo")
 
 __all__ = ["ALGORITHMS", "LearnedPolicy", "load_policy", "sidecar_path", "MAX_MODEL_BYTES", "MAX_MODEL_UNPACKED", "MAX_SIDECAR_BYTES"]
@@ -164,9 +164,9 @@ def _policy_class(path: str, algo: str, meta: dict, data: dict):
     if algo == "maskable_ppo":
         from sb3_contrib import MaskablePPO as Algo
 
-        from agents.assign_net import AssignPointerPolicy
+        from agents.assign.net import AssignPointerPolicy
 
-        from agents.lifelong_net import LifelongTaskPolicy
+        from agents.lifelong.net import LifelongTaskPolicy
 
         known = {**Algo.policy_aliases, "AssignPointerPolicy": AssignPointerPolicy,
                  "LifelongTaskPolicy": LifelongTaskPolicy}
@@ -225,7 +225,7 @@ def _env_spaces(path: str, meta: dict, env_id, env_kwargs):
                             f"{str(env_kwargs)[:120]}")
     if meta.get("decision") == "lifelong-task":  # the task choice's spaces do not depend on the world
         from agents.env_ids import is_lifelong_env
-        from agents.lifelong_choice import decision_spaces
+        from agents.lifelong.choice import decision_spaces
 
         try:
             lifelong = is_lifelong_env(env_id)
@@ -350,7 +350,7 @@ def load_policy(path, seed: int = 0, torch_threads: int | None = 1, env_id: str 
 
     * every pickled entry of ``data`` is replaced (SB3's ``custom_objects``) before SB3 could read
       it: the policy class from a fixed list (SB3's and sb3-contrib's actor-critic policies, the
-      pointer policy of :mod:`agents.assign_net`), the observation and action spaces rebuilt from
+      pointer policy of :mod:`agents.assign.net`), the observation and action spaces rebuilt from
       the env the sidecar names (or ``env_id`` / ``env_kwargs`` when there is no sidecar; only
       ``mrmt_env/`` ids) and checked against the shapes the file describes, and what only training
       uses (schedules, rollout buffer, last rollout) set to neutral values; a pickled entry of any
@@ -422,5 +422,6 @@ def _algorithm_of(data_text: str, meta: dict) -> str:
     if meta.get("algo") in ALGORITHMS:
         return meta["algo"]
     # no sidecar: the policy class the file names gives the algorithm
-    return ("maskable_ppo" if ("sb3_contrib" in data_text or "Maskable" in data_text or "assign_net" in data_text)
+    return ("maskable_ppo" if ("sb3_contrib" in data_text or "Maskable" in data_text or "assign_net" in data_text
+            or "assign.net" in data_text)
             else "ppo")

@@ -2,8 +2,8 @@
 
 ``gymnasium.make_vec("mrmt_env/MRMT-Lifelong-v0", num_envs=B,
 vectorization_mode="vector_entry_point")`` builds it.  Dynamics are those of
-:class:`mrmt_env.lifelong_env.MRMTLifelongEnv` (:mod:`mrmt_env.lifelong_kernels`,
-the same :class:`~mrmt_env.lifelong_state.LifelongBatch`); semantics, seeding
+:class:`mrmt_env.lifelong.env.MRMTLifelongEnv` (:mod:`mrmt_env.lifelong.kernels`,
+the same :class:`~mrmt_env.lifelong.state.LifelongBatch`); semantics, seeding
 and infos those of ``SyncVectorEnv`` over the single env
 (:mod:`mrmt_env.vector_base`); ``action_masks()`` gives ``(B, 5 * R)`` bools.
 """
@@ -15,7 +15,7 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from mrmt_env.core import N_ACTIONS, show
-from mrmt_env.lifelong_env import LifelongSetup
+from mrmt_env.lifelong.env import LifelongSetup
 from mrmt_env.observation import observation_space
 from mrmt_env.vector_base import BatchedVectorEnv
 

@@ -163,7 +163,7 @@ def assign_observe(cell, free_at, active, open_, dist, decider, coords, scale, f
 
     ``coords[b]``: ``(R+N, 2)`` node cells already divided by ``(H-1, W-1)``;
     distances are divided by ``scale`` (= H + W); an unreachable distance
-    reads ``far``.  Layout: see :class:`mrmt_env.assign_env.MRMTAssignEnv`.
+    reads ``far``.  Layout: see :class:`mrmt_env.assign.env.MRMTAssignEnv`.
     """
     n_robots = cell.shape[1]
     n_targets = open_.shape[1]

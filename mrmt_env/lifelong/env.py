@@ -7,8 +7,8 @@ import numpy as np
 from gymnasium import spaces
 
 from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit
-from mrmt_env.gym_env import check_joint_action
-from mrmt_env.lifelong_state import LifelongBatch, LifelongOptions, task_pool
+from mrmt_env.grid.env import check_joint_action
+from mrmt_env.lifelong.state import LifelongBatch, LifelongOptions, task_pool
 from mrmt_env.observation import observation_space
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
@@ -53,7 +53,7 @@ class MRMTLifelongEnv(gym.Env):
     tasks (a task is a cell; it is served when a robot stands on it) and,
     by default, no collisions.  The League of Robot Runners' and POGEMA's
     lifelong setting on the package's worlds; the paper's one-shot problem
-    is ``mrmt_env/MRMT-v0``.  Dynamics: :mod:`mrmt_env.lifelong_kernels`.
+    is ``mrmt_env/MRMT-v0``.  Dynamics: :mod:`mrmt_env.lifelong.kernels`.
 
     ## Task stream
 
@@ -70,7 +70,7 @@ class MRMTLifelongEnv(gym.Env):
     ``collisions="block"`` (default): a move into a cell another robot keeps
     or claims first (lower index), or an exchange of two robots' cells, is
     refused and the robot stays; refusals cascade to robots that needed its
-    cell (``mrmt_env.lifelong_kernels.resolve_block``); each refusal counts in
+    cell (``mrmt_env.lifelong.kernels.resolve_block``); each refusal counts in
     ``blocked_moves``, and ``conflicts`` stays 0.  ``"allow"``: robots may
     share cells; vertex and swap conflicts are counted as in ``MRMT-v0``.
 

@@ -1,4 +1,4 @@
-"""Native vector env of ``mrmt_env/MRMT-Assign-v0``: one :class:`~mrmt_env.assign_state.AssignBatch` of ``B`` episodes.
+"""Native vector env of ``mrmt_env/MRMT-Assign-v0``: one :class:`~mrmt_env.assign.state.AssignBatch` of ``B`` episodes.
 
 ``gymnasium.make_vec("mrmt_env/MRMT-Assign-v0", num_envs=B,
 vectorization_mode="vector_entry_point")`` builds it.  Semantics, seeding and
@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.assign_state import AssignBatch, assign_feature_count, assign_obs_high
+from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import WorldSource, show
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.vector_base import BatchedVectorEnv

@@ -1,0 +1,1 @@
+"""Controllers of the lifelong envs: assignment on events, the learned choice, evaluation, watching."""

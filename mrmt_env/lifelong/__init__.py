@@ -1,0 +1,1 @@
+"""The lifelong envs: tasks keep arriving; Gymnasium, PettingZoo, native vector env."""

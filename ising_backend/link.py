@@ -104,7 +104,10 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     """One submission of a compiled loop on the linked machine (object mode): the answer copied into
     ``spins`` / ``energies``, the call's charge added to the session's ledger (also when it fails).
     int8 spins are checked for +-1 in compiled code after the copy (:func:`_all_spins`)."""
-    link = _SESSIONS[handle]
+    link = _SESSIONS.get(handle)
+    if link is None:
+        raise RuntimeError("a machine session's record was used outside its `with machine.session(ledger) as link:` "
+                           "block")
     machine = link.machine
     before = machine.last_call
     e = None

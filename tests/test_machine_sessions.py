@@ -144,3 +144,10 @@ def test_planners_never_name_an_emulator_setting_nor_probe_a_machine():
             if settings.search(line) or probe.search(line):
                 found.append(f"{path.relative_to(ROOT)}:{i}: {line.strip()}")
     assert not found, "\n".join(found)
+
+
+def test_a_callback_record_outside_its_session_is_a_clear_error():
+    h, J = _programs(4)
+    link = DriverMachine(_Minimal()).session(CallLedger())
+    with pytest.raises(RuntimeError, match="outside its `with machine.session"):
+        _submit_twice(h, J, 1, link.args)

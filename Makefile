@@ -34,7 +34,6 @@ demo: $(BASE_STAMP)
 	$(VENV)/bin/mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising,ising-paper --out results/demo
 
 test: $(FULL_STAMP)
-	$(VENV)/bin/mrmt warmup --no-progress  # every kernel compiled once, two parts at a time, before the workers need it
 	$(PY) -m pytest -q -n 2 --durations=15
 
 reproduce: $(BASE_STAMP)

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 
 from .audit import program_arrays
-from .logical import tabu_kernel
+from .tabu import tabu_kernel
 
 __all__ = ["exact_ground", "greedy_descent", "judge", "table", "export", "load_benchmark", "EXACT_MAX"]
 

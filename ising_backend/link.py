@@ -25,7 +25,7 @@ from ._clock import clock_ns
 from .anneal import anneal_kernel_timed
 from .audit import active_audit
 from .ledger import CallLedger
-from .logical import mix_seed, tabu_kernel
+from .tabu import mix_seed, tabu_kernel
 from .meter import SolverOutputError
 
 __all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback", "ANNEAL_IDLE", "SOLVE_IDLE"]

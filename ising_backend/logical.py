@@ -47,12 +47,10 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import dimod
-import numba
 import numpy as np
 
-from ._rng import GOLDEN as _GOLDEN
-from ._rng import splitmix as _splitmix
-from ._rng import xorshift_star as _next
+from .link import MachineSession
+from .tabu import _mix_py, mix_seed, tabu_kernel  # noqa: F401  (mix_seed: the compiled loops' sub-seed)
 from .programs import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
 from .health import dispatch, program_energy
 from .ledger import CallLedger
@@ -62,85 +60,6 @@ from .spec import ChipSpec
 __all__ = ["LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS", "tabu_kernel"]
 
 LOGICAL_METHODS = ("tabu", "dwave-tabu")
-
-@numba.njit(cache=True, nogil=True)
-def tabu_kernel(h, J, num_reads, seed, restarts, iterations, tenure, out_spins, out_energy):
-    """Tabu search on ``B`` programs x ``num_reads`` reads (energies without offset)."""
-    B = h.shape[0]
-    n = h.shape[1]
-    Js = np.zeros((n, n))
-    f = np.zeros(n)
-    s = np.zeros(n)
-    best_s = np.zeros(n)
-    tabu_until = np.zeros(n, dtype=np.int64)
-    seed64 = np.uint64(seed)
-    for b in range(B):
-        for i in range(n):
-            Js[i, i] = 0.0
-            for j in range(i + 1, n):
-                v = J[b, i, j] + J[b, j, i]
-                Js[i, j] = v
-                Js[j, i] = v
-        for r in range(num_reads):
-            state = _splitmix(seed64 ^ _splitmix(np.uint64(b) * _GOLDEN + np.uint64(r)))
-            if state == np.uint64(0):
-                state = _GOLDEN
-            best_e = np.inf
-            for rs in range(restarts):
-                if rs == 0 or best_e == np.inf:
-                    for i in range(n):
-                        state, x = _next(state)
-                        s[i] = 1.0 if (x >> np.uint64(63)) == np.uint64(1) else -1.0
-                else:
-                    for i in range(n):
-                        s[i] = best_s[i]
-                    for k in range(max(1, n // 4)):
-                        state, x = _next(state)
-                        i = np.int64(x >> np.uint64(33)) % n
-                        s[i] = -s[i]
-                e = 0.0
-                for i in range(n):
-                    acc = h[b, i]
-                    for j in range(n):
-                        acc += Js[i, j] * s[j]
-                    f[i] = acc
-                    e += s[i] * (h[b, i] + 0.5 * (acc - h[b, i]))
-                if e < best_e:
-                    best_e = e
-                    for i in range(n):
-                        best_s[i] = s[i]
-                for i in range(n):
-                    tabu_until[i] = 0
-                for it in range(iterations):
-                    pick = -1
-                    pick_d = np.inf
-                    for i in range(n):
-                        d = -2.0 * s[i] * f[i]
-                        if d < pick_d and (tabu_until[i] <= it or e + d < best_e - 1e-12):
-                            pick_d = d
-                            pick = i
-                    if pick < 0:
-                        continue
-                    s[pick] = -s[pick]
-                    dd = 2.0 * s[pick]
-                    for j in range(n):
-                        f[j] += dd * Js[pick, j]
-                    e += pick_d
-                    tabu_until[pick] = it + 1 + tenure
-                    if e < best_e - 1e-12:
-                        best_e = e
-                        for i in range(n):
-                            best_s[i] = s[i]
-            # exact energy of the best state
-            e = 0.0
-            for i in range(n):
-                acc = h[b, i]
-                for j in range(i + 1, n):
-                    acc += Js[i, j] * best_s[j]
-                e += best_s[i] * acc
-                out_spins[b, r, i] = np.int8(best_s[i])
-            out_energy[b, r] = e
-
 
 @dataclass(frozen=True)
 class LogicalResult:
@@ -402,8 +321,6 @@ class LogicalIsingSolver(dimod.Sampler):
         """A logical :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run the
         tabu kernel themselves (method ``"tabu"``, no fault model, this very class), else call back
         into :meth:`solve_stack`."""
-        from .link import MachineSession
-
         direct = type(self) is LogicalIsingSolver and self.method == "tabu" and self.health is None
         return MachineSession(self, ledger, self.kernel_args if direct else None, logical=True, decision=decision)
 
@@ -449,17 +366,3 @@ class LogicalIsingSolver(dimod.Sampler):
         if self.health is None:
             self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         return spins
-
-
-@numba.njit(cache=True)
-def mix_seed(seed, k):
-    """:func:`_mix_py` in compiled code (the sub-seed of a size group of :meth:`LogicalIsingSolver.solve_many`)."""
-    return _splitmix(np.uint64(seed) + _GOLDEN * np.uint64(k))
-
-
-def _mix_py(seed: int, k: int) -> int:
-    """Derive a sub-seed (splitmix64) so each size group gets its own stream."""
-    z = (seed + 0x9E3779B97F4A7C15 * (k + 1)) & 0xFFFFFFFFFFFFFFFF
-    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
-    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
-    return z ^ (z >> 31)

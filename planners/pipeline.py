@@ -460,23 +460,17 @@ def make_pipeline(
             f"make_pipeline needs a preset ({', '.join(PRESETS)}) or all of sharing, tour, path; missing {missing}"
         )
     options = {"sharing": sharing_options, "tour": tour_options, "path": path_options}
-    if "chip" not in shared and any(
-        isinstance(spec, str) and registry.accepts(registry.get_factory(layer, spec), "chip")
-        for layer, spec in chosen.items()
-    ):
-        # one chip, and so one ledger, for every layer that uses one
-        from ising_backend import as_machine
+    from ising_backend import IsingMachine, as_machine
 
-        shared = {**shared, "chip": as_machine()}
-    else:
-        from ising_backend import IsingMachine, as_machine
-
-        chip = shared.get("chip")
-        if chip is not None and not isinstance(chip, IsingMachine):
-            try:  # a bare sampler or minimal driver: wrapped once, so one ledger
-                shared = {**shared, "chip": as_machine(chip)}
-            except TypeError:  # not a machine at all: the layers' option checks name it
-                pass
+    chip = shared.get("chip")
+    if "chip" not in shared and any(isinstance(spec, str) and registry.accepts(registry.get_factory(layer, spec), "chip")
+                                    for layer, spec in chosen.items()):
+        shared = {**shared, "chip": as_machine()}  # one chip, and so one ledger, for every layer that uses one
+    elif chip is not None and not isinstance(chip, IsingMachine):
+        try:  # a bare sampler or minimal driver: wrapped once, so one ledger
+            shared = {**shared, "chip": as_machine(chip)}
+        except TypeError:  # not a machine at all: the layers' option checks name it
+            pass
     used: set[str] = set()
     layers = {}
     for layer, spec in chosen.items():

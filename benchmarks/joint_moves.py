@@ -5,8 +5,8 @@ TurningPIBT), each solved three ways under one objective (planners/mapf/joint_mo
 rule's answer, the chip's (best decoded read, repaired), the exact optimum (branch and bound).
 ``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds.
 
-    flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/joint_moves.py decisions --steps 200
-    flock /tmp/mrmt-bench.lock .venv/bin/python benchmarks/joint_moves.py e2e --steps 300
+    flock /tmp/mrmt-bench.lock python benchmarks/joint_moves.py decisions --steps 200
+    flock /tmp/mrmt-bench.lock python benchmarks/joint_moves.py e2e --steps 300
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path("/work/shared/lorr/2024-main/random.domain")
+ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
 
 
 def sample_decisions(path, steps, seed=0, per_instance=400, **options):

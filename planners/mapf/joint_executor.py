@@ -27,7 +27,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from ising_backend import CallLedger
 from ising_backend.audit import active_audit
+from planners.compute import ComputeReport
 from planners.mapf.common import mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
                                        objective, qubo_to_ising, robot_options, select_groups, solve_exact)
@@ -88,10 +90,6 @@ class JointMovesPIBT(TurningPIBT):
             raise ValueError(f"accept = {accept!r} must be one of {', '.join(ACCEPT)}")
         self.accept = accept
         self.audit = [] if audit else None
-        from ising_backend import CallLedger
-        from planners.compute import ComputeReport
-
-        self._report = ComputeReport
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
         self.decisions = 0
@@ -127,7 +125,7 @@ class JointMovesPIBT(TurningPIBT):
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         t0 = time.perf_counter()
-        self.last_compute = self._report()
+        self.last_compute = ComputeReport()
         ng, gstart, members, ostart, opt, host = self.groups(pc, orient, gc, rows, order, nxt, act)
         if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
             for g in range(ng):
@@ -184,7 +182,7 @@ class JointMovesPIBT(TurningPIBT):
         t3 = time.perf_counter() - audit_s
         emul = float(call.emulation_s)
         self.host_s += (t3 - t0) - emul
-        self.last_compute = replace(self._report.from_ledger(call), cpu_s=t3 - t0)
+        self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=t3 - t0)
         self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups
 
     def _audit(self, H, J, spins, energies, call, gstart, ostart, host, ng, robots) -> None:

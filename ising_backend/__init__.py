@@ -19,7 +19,7 @@ Modules:
 * :mod:`.machine` -- :class:`IsingMachine` (the interface every planner drives), :class:`MachineBase`
   (a device driver implements one method), :class:`SamplerChip` (any ``dimod.Sampler``), :class:`MachineSpec`;
 * :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
-* :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks` -- the mapping toolkit;
+* :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks`, :mod:`.stack` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
 * :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
 
@@ -48,6 +48,7 @@ from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, m
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
+from .stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack
 from .portfolio import (
     BranchMapping,
     IdentityMapping,
@@ -89,7 +90,8 @@ __all__ = [
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
-    "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks",
+    "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks", "pack_qubo_stack", "STACK_OK",
+    "STACK_NONFINITE", "STACK_UNFIT",
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",

@@ -1,13 +1,13 @@
 """The stage submission of Ising target sharing through ``anneal_batch``: the oracle of ``run_stage``.
 
 ``reference_solve_packed(sharing, w, R, problems, rng, stats)`` does what
-``StageSolver.solve_packed`` does in one compiled call (``planners.ising.sharing.engine.run_stage``)
+``StageSolver.solve_packed`` does in one submission (``planners.ising.sharing.submission.run_stage``)
 with separate calls: map every split by every rule, pack first-fit decreasing, anneal through the
 metered chip, score, name refused programs.  The mapping (``ising_backend``'s public
 ``ising_from_qubo`` and ``quantize_stack``, one split at a time), the decoding, the validity rule and
-the scoring of the reads are written here, independently of the compiled
-``planners.ising.sharing.kernels`` (``map_stage``, ``score_stage``, ``candidate_sides``).  Test code
-only: the package never imports it.
+the scoring of the reads are written here, independently of the compiled steps
+(``ising_backend.pack_qubo_stack``, ``planners.ising.sharing.kernels``' ``score_stage`` and
+``candidate_sides``).  Test code only: the package never imports it.
 """
 
 from __future__ import annotations

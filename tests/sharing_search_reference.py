@@ -2,10 +2,10 @@
 
 ``reference_assign(sharing, dist, R, tour, rng)`` makes, step by step in Python, the decisions
 :meth:`planners.ising.sharing.IsingSharing.assign` makes in one compiled call
-(``compiled_assign``, ``compiled_stages``, ``compiled_coarse``): the anchored split QUBO, the
+(``stages``, ``clusters``, ``placement``, ``refine``): the anchored split QUBO, the
 split stages with their memo and beam, coarse splits of groups beyond the chip, spin-budget
 branches, bundle placement, the choice of state and the boundary refinement, with the same chip
-submissions (``engine.run_stage``), charges and rng draws.  Test code only: the package never
+submissions (``submission.run_stage``), charges and rng draws.  Test code only: the package never
 imports it.
 """
 
@@ -19,9 +19,8 @@ from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver,
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
-from planners.ising.sharing.engine import STAGE_OK, run_stage
 from planners.ising.sharing.kernels import branch_problems, split_model
-from planners.ising.sharing.submit import StageSolver, stage_refusal
+from planners.ising.sharing.submission import STAGE_OK, StageSolver, run_stage, stage_refusal
 
 def choose_anchors(dist: np.ndarray, nodes, n_robots: int) -> tuple[int, int]:
     """The two anchors of a split of ``nodes`` (global indices; robots are
@@ -550,7 +549,7 @@ class ReferenceStages(StageSolver):
         """The submission of :meth:`solve` for splits that fit the chip: every split x quantization
         rule mapped, block-packed first-fit decreasing into one submission, every read decoded,
         checked and scored on the unquantized cut -- in one compiled call
-        (:func:`.engine.run_stage`, on any machine); each distinct valid partition becomes a
+        (:func:`.submission.run_stage`, on any machine); each distinct valid partition becomes a
         candidate."""
         cfg = self.config
         seed = int(rng.integers(2**63 - 1))
@@ -561,8 +560,8 @@ class ReferenceStages(StageSolver):
         q, Q, free, sizes, nfix, fixed, parent = branch_problems(q, Q, free, sizes, int(self.chip.spec.n_spins))
         try:
             with self.chip.session(self.meter.charged) as link:
-                out = run_stage(q, Q, sizes, self.rule_ids, *self.limits, self.capacity(), cfg.reads,
-                                np.uint64(seed), link.args, free, anchors[parent], w, R, reject[parent], nfix, fixed)
+                out = run_stage((q, Q, free, sizes, anchors[parent], reject[parent], nfix, fixed), self.program(),
+                                np.uint64(seed), link.args, w, R)
                 if out[0] == STAGE_OK:
                     link.settle([out[1]], [out[2]])
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode

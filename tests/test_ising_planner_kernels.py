@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ising_backend import CallLedger, QuboModel, branch
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from path_reference import build_patch_qubo_reference, component_of, cut_loops
@@ -555,7 +555,7 @@ def test_cut_walk_is_the_checked_path(seed, steps, cut, corrupt):
     ({}, {"reject_empty_robot_side": True}),  # the validity rule's other branch
 ])
 def test_compiled_stage_submission_makes_the_reference_decisions(spec, options):
-    """The compiled sharing (each stage one compiled call, planners.ising.sharing.engine.run_stage)
+    """The compiled sharing (each stage one submission, planners.ising.sharing.submission.run_stage)
     against the Python search with every stage submitted through anneal_batch: the same assignments,
     statistics, chip charges and rng state."""
     from ising_backend import ChipSpec, EmulatedChip
@@ -584,7 +584,7 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     """run_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
     programs the chip's check refuses; the sharing names the refusal."""
     from ising_backend import QUANTIZE_RULE_IDS, EmulatedChip
-    from planners.ising.sharing.engine import STAGE_NONFINITE, STAGE_OK, STAGE_UNFIT, run_stage
+    from planners.ising.sharing.submission import STAGE_NONFINITE, STAGE_OK, STAGE_UNFIT, run_stage
 
     chip = EmulatedChip()
     rules = np.array([QUANTIZE_RULE_IDS["linear"]], dtype=np.int64)
@@ -596,8 +596,9 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     Q = np.triu(np.ones((1, 4, 4)), k=1)
 
     def run(q, Lh=7.0, Lj=7.0):
-        return run_stage(q, Q, sizes, rules, Lh, Lj, 45, 2, np.uint64(5), (-1, *chip.kernel_args()), free, anchors, dist, 2,
-                         np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64), np.zeros((1, 4), dtype=np.int8))
+        problems = (q, Q, free, sizes, anchors, np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64),
+                    np.zeros((1, 4), dtype=np.int8))
+        return run_stage(problems, (rules, Lh, Lj, 45, 2), np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
 
     good = run(q)
     assert good[0] == STAGE_OK and good[1] == 2 and good[3].sum() <= 2
@@ -609,8 +610,8 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
 
 
 def test_sharing_on_distances_too_large_to_add_fails_naming_the_refused_stage():
-    """Split weights that overflow give a non-finite stage program: the compiled sharing stops and the
-    sharing fails naming it (no second code path, no rng rewind)."""
+    """Split weights that overflow give a non-finite stage program: the sharing stops before anything is
+    annealed and fails naming it (no second code path, no rng rewind)."""
     from ising_backend import EmulatedChip
     from planners.ising.sharing import IsingSharing
     from planners.tours_classical import ThreeOptTour
@@ -618,7 +619,6 @@ def test_sharing_on_distances_too_large_to_add_fails_naming_the_refused_stage():
     pts = np.random.default_rng(1).random((9, 2))
     dist = np.abs(pts[:, None] - pts[None]).sum(-1) * 1e308
     sharing = IsingSharing(EmulatedChip(), fallback="never")
-    assert sharing._compiled is not None
     res = sharing.assign(dist, 3, ThreeOptTour(), np.random.default_rng(0))
     assert res.failure is not None and "could not be quantized" in res.failure
     assert res.compute.chip_calls == 0

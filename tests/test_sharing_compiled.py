@@ -1,6 +1,6 @@
-"""The whole Ising target sharing in one compiled call against the Python search, its oracle.
+"""The Ising target sharing against the Python search in tests, its oracle.
 
-``planners.ising.sharing.compiled_assign.assign_kernel`` must make every decision of the Python
+``planners.ising.sharing.IsingSharing.assign`` (a search over compiled steps on node-set ids) must make every decision of the Python
 search in ``tests/sharing_search_reference.py`` (stages, memo, beam, coarse splits of groups
 beyond the chip, spin-budget branches, bundle placement, state choice, boundary refinement): the
 same assignment, statistics, chip charges, rng state and failures, for every option.
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.compiled_assign import split_weights_kernel
+from planners.ising.sharing.placement import split_weights_kernel
 from planners.ising.sharing.kernels import pair_mean
 from planners.tours_classical import ThreeOptTour
 from sharing_search_reference import reference_assign

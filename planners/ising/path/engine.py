@@ -23,7 +23,7 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend import anneal_submit, fill_packs, merge_styles_flat, pack_layout
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 

@@ -1,10 +1,10 @@
 """Recursive Ising target sharing (paper section 5.3, Algorithm 3).
 
-``config`` (options), ``kernels`` (the anchored eq. 8 split QUBO, spin-budget branches, read
-scoring), ``engine`` (a stage's chip submission in one compiled call), ``compiled_stages`` /
-``compiled_coarse`` / ``compiled_assign`` (the whole search in one compiled call: split stages,
-coarse splits of groups beyond the chip, bundle placement, pair re-splits), ``node_sets``
-(its node sets), ``bundles`` (bundle pricing by a tour solver), ``search`` (``IsingSharing``).
+``search`` (``IsingSharing``: the search), ``stages`` (the split stages, with their compiled
+``stage_steps``), ``submission`` (a stage's chip submission), ``clusters`` (coarse splits of groups
+beyond the chip), ``placement`` (bundle placement and pricing), ``refine`` (pair re-splits),
+``kernels`` (the anchored eq. 8 split QUBO, spin-budget branches, read scoring), ``node_sets``
+(node sets as ids), ``bundles`` (pricing by any tour solver), ``config`` (options).
 """
 
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure

@@ -7,7 +7,7 @@
   encodes, the validity rule, the unquantized cut
   (``cut_value`` there) and the first read with the same spins.
 
-Sums follow numpy's order (:func:`planners.ising.numeric.pairwise_sum`), so the results are
+Sums follow numpy's order (:func:`ising_backend.numeric.pairwise_sum`), so the results are
 the bits of the numpy functions, which the tests compare against.
 """
 
@@ -16,10 +16,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import quantize_rules
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 
-__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "map_stage", "branch_problems", "score_stage"]
+__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "branch_problems", "score_stage"]
 
 
 @numba.njit(cache=True)
@@ -212,39 +211,6 @@ def score_split_reads(blocks, free, a, b, dist, n_robots, reject_empty_robot_sid
                 k += 1
         cut[r] = pairwise_sum(prod, 0, k)
     return valid, cut, first
-
-
-@numba.njit(cache=True)
-def map_stage(q, Q, sizes, rules, Lh, Lj):
-    """Every split of a stage mapped by every quantization rule in one call.
-
-    ``q (P, f)`` / ``Q (P, f, f)`` are the splits' reduced QUBOs (zero-padded to ``f``), ``sizes``
-    their free spins.  Each QUBO is converted to Ising form with
-    :func:`ising_backend.ising_from_qubo`'s arithmetic and quantized by
-    :func:`ising_backend.quantize_stack`'s kernel (``keep_sign``, percentile 95).  Returns
-    ``(status (P, k), h (P * k, f), J (P * k, f, f))``, row ``p * k + r`` = split ``p``, rule ``r``.
-    """
-    P, f = q.shape
-    k = rules.shape[0]
-    status = np.zeros((P, k), dtype=np.int64)
-    h_out = np.zeros((P * k, f))
-    J_out = np.zeros((P * k, f, f))
-    for p in range(P):
-        n = sizes[p]
-        h = np.empty(n)
-        J = np.zeros((n, n))
-        row = np.empty(n)
-        for i in range(n):
-            for j in range(n):
-                row[j] = Q[p, i, j] + Q[p, j, i]
-                J[i, j] = Q[p, i, j] / 4.0
-            h[i] = q[p, i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
-        st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
-        for r in range(k):
-            status[p, r] = st[r]
-            h_out[p * k + r, :n] = hq[r]
-            J_out[p * k + r, :n, :n] = Jq[r]
-    return status, h_out, J_out
 
 
 @numba.njit(cache=True)

@@ -2,14 +2,14 @@
 
 Contract: ``IsingSharing(chip, config).assign(dist, n_robots, tour, rng) -> SharingResult``;
 a split that never decodes valid, a group the chip cannot take or a refused program is a
-failure result (``result.failure``), never an invented split.  The search runs in one compiled
-call (:mod:`.compiled_assign`): stages split every group with several robots, then refine
-one-robot groups and bundles, a beam of distinct candidates carried to the complete
-assignments, which are compared by route cost; each stage's splits x quantization rules go
-block-packed into one chip submission (:class:`~.submit.StageSolver` holds the chip side);
-groups beyond the chip split on clusters or spin-budget branches.  Then, beyond the paper
-(``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between neighbouring robots are
-re-split on the chip.  Chip calls are metered (:class:`ising_backend.MeteredSolver`); a chip
+failure result (``result.failure``), never an invented split.  The search is Python over small
+compiled steps: stages split every group with several robots, then refine one-robot groups and
+bundles, a beam of distinct candidates carried to the complete assignments (:mod:`.stages`),
+whose bundles are placed and which are compared by route cost (:mod:`.placement`); each stage's
+splits x quantization rules go block-packed into one chip submission (:mod:`.submission`);
+groups beyond the chip split on clusters (:mod:`.clusters`) or spin-budget branches.  Then,
+beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between
+neighbouring robots are re-split on the chip (:mod:`.refine`).  Chip calls are metered (:class:`ising_backend.MeteredSolver`); a chip
 that cannot answer hands the call to SSA (flagged; :mod:`planners.ising.fallback`).  The Python
 search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
 docs/design/ising_sharing.md.
@@ -27,12 +27,14 @@ from planners.compute import ComputeReport
 from planners.ising.config import ConfigAttributes, resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
-from planners.ising.sharing.compiled_assign import ORDER_IDS, PRICERS, assign_kernel
-from planners.ising.sharing.kernels import pair_mean
-from planners.ising.sharing.compiled_stages import COUNTERS, FAILED_SPLIT, REFUSED_STAGE, UNCOARSENED
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.submit import StageSolver, stage_refusal
+from planners.ising.sharing.kernels import pair_mean
+from planners.ising.sharing.node_sets import new_pool
+from planners.ising.sharing.placement import ORDER_IDS, PRICERS, flat_sets, new_memo, place_bundles, split_weights_kernel
+from planners.ising.sharing.refine import refine_boundaries
+from planners.ising.sharing.stages import COUNTERS, CandidateStore, SharingStop, SplitStages
+from planners.ising.sharing.submission import StageSolver
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]
 
@@ -57,17 +59,8 @@ class IsingSharing(ConfigAttributes):
 
         self.config = resolve_config(SharingConfig, config, options, self.defaults)
         self.chip = as_machine(chip)  # the paper's emulated chip for None
-        spec = self.chip.spec
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         self.stages = StageSolver(self.config, self.chip)
-        cfg = self.config
-        # the arguments of the whole sharing in one compiled call (.compiled_assign), after the stage record
-        opts = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
-                cfg.refine_above, int(cfg.reject_empty_robot_side))
-        pair_opts = (ORDER_IDS[cfg.bundle_order], cfg.pair_rounds, cfg.pair_neighbours)
-        self._compiled = (cfg.retries, int(spec.n_spins) + cfg.max_frozen, opts,
-                          (cfg.weight_shift, cfg.robot_weight, float(cfg.balance)), np.array(cfg.pair_shifts),
-                          pair_opts)
 
     def __repr__(self) -> str:
         return f"IsingSharing({self.config!r})"
@@ -106,9 +99,9 @@ class IsingSharing(ConfigAttributes):
         self._powered_for = None  # a new call: the split weights' base is recomputed
         pricer = None
         try:
-            if self.config.pricing_tour != "auto":  # priced by the pricing tour (a callback of the compiled call)
+            if self.config.pricing_tour != "auto":  # priced by the pricing tour (a callback of the compiled pricing)
                 pricer = BundlePricer(dist, tour, self.config.pricing_tour, rng, stats)
-            return self._assign_compiled(dist, R, rng, stats, pricer)
+            return self._assign_search(dist, R, rng, stats, pricer)
         except (SharingFailure, ChipUnavailableError) as exc:
             compute = ComputeReport.from_ledger(meter.charged)
             return self.failed(exc, compute if pricer is None else compute + pricer.compute, dist, R, tour, rng, stats)
@@ -127,39 +120,32 @@ class IsingSharing(ConfigAttributes):
                                  stats=flag(stats, "sharing", reason))
         return SharingResult(assignment=tuple(() for _ in range(R)), compute=compute, stats=stats, failure=reason)
 
-    def _assign_compiled(self, dist, R, rng, stats, pricer) -> SharingResult | None:
-        """The sharing in one compiled call (:func:`.compiled_assign.assign_kernel`), charged and
-        counted; where it stops (a split without a valid candidate, a refused stage, robots that
-        cannot be coarsened onto the chip) a :class:`SharingFailure` naming it."""
+    def _assign_search(self, dist, R, rng, stats, pricer) -> SharingResult:
+        """The search (module docstring) on one chip session, charged and counted; where it stops (a
+        split without a valid candidate, a refused stage, robots that cannot be coarsened onto the
+        chip) a :class:`SharingFailure` naming it."""
         cfg = self.config
-        powered, mean = self._powered(dist)
-        # room for every submission: each stage (splits down to single robots, refinement, pair rounds) and
-        # each coarse split (at most one per group beyond the chip in a state's stage, per pair and shift)
-        # submits at most retries + 1 times
-        n = dist.shape[0]
-        stages = 2 * R + cfg.refine_stages + cfg.pair_rounds * R + 2
-        if n - 2 > int(self.chip.spec.n_spins) + cfg.max_frozen:
-            stages += cfg.max_states * stages * (n // (int(self.chip.spec.n_spins) + cfg.max_frozen + 3) + 1)
-            stages += cfg.pair_rounds * R * max(1, cfg.pair_neighbours) * len(cfg.pair_shifts)
-        subs = stages * (cfg.retries + 1)
-        book = (np.zeros((len(cfg.rules), 3), dtype=np.int64), np.zeros(len(COUNTERS), dtype=np.int64),
-                np.zeros(subs, dtype=np.int64), np.zeros(subs), np.zeros(3, dtype=np.int64))
-        stages = self.stages
+        n_spins = int(self.chip.spec.n_spins)
+        limit = n_spins + cfg.max_frozen
+        # distinct candidates per split: rules x reads x the spin-budget branches of a split beyond the chip
+        width = len(cfg.rules) * cfg.reads * (1 << max(0, min(limit - n_spins, dist.shape[0] - 2 - n_spins)))
+        counters = np.zeros(len(COUNTERS), dtype=np.int64)
+        mapping = np.zeros((len(cfg.rules), 3), dtype=np.int64)
         handle = -1
         if pricer is not None:  # its handle, found by the price callback while this call runs
             handle = next(_PRICING_HANDLES)
             PRICERS[handle] = pricer
-        compiled = (*self._compiled[:-1], (*self._compiled[-1], handle))
-        mapping, counters, calls, emu, failure = book
+        stop = None
         try:
-            with self.chip.session(stages.meter.charged, decision="sharing_split") as link:
+            with self.chip.session(self.stages.meter.charged, decision="sharing_split") as link:
+                stages = SplitStages(self.stages, link.args, new_pool(R), rng, limit, CandidateStore(width), counters,
+                                     mapping)
                 try:
-                    ok, flat, sizes, failed = assign_kernel(dist, powered, mean, R, rng, stages.args(link.args),
-                                                            *compiled, book)
-                except SharingFailure:  # a pricing tour that failed: what the chip ran so far is charged
-                    link.settle(calls[:counters[-1]], emu[:counters[-1]])
-                    raise
-                link.settle(calls[:counters[-1]], emu[:counters[-1]])
+                    sets = self._search(stages, dist, R, (new_memo(), handle))
+                except SharingStop as exc:
+                    stop = exc
+                finally:  # what the chip ran is charged, also when a pricing tour failed
+                    link.settle(stages.calls, stages.seconds)
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
@@ -167,7 +153,6 @@ class IsingSharing(ConfigAttributes):
         finally:
             PRICERS.pop(handle, None)
         counts = dict(zip(COUNTERS, counters.tolist()))
-        counts.pop("submissions")
         for key in ("pair_resplits", "pair_accepted", "coarse_splits"):  # present once made
             if not counts[key]:
                 del counts[key]
@@ -175,27 +160,42 @@ class IsingSharing(ConfigAttributes):
             stats[key] = stats.get(key, 0) + value
         for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
             stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
-        if not ok:
-            raise SharingFailure(self._stopped(failed.tolist(), *failure.tolist()))
+        if stop is not None:
+            raise SharingFailure(str(stop))
+        flat, sizes = flat_sets(sets, stages.pool)
         ends = np.cumsum(sizes).tolist()
         flat = (flat - R).tolist()
         assignment = tuple(tuple(flat[e - c:e]) for e, c in zip(ends, sizes.tolist()))
-        compute = ComputeReport.from_ledger(stages.meter.charged)
+        compute = ComputeReport.from_ledger(self.stages.meter.charged)
         return SharingResult(assignment=assignment, compute=compute if pricer is None else compute + pricer.compute,
                              stats=stats)
 
-    def _stopped(self, nodes: list, code: int, what: int, submissions: int) -> str:
-        """Why the compiled sharing stopped (``book[4]`` of :func:`.compiled_assign.assign_kernel`; ``nodes``:
-        the group of a failed split)."""
-        if code == FAILED_SPLIT:
-            return f"every chip candidate for the split of group {nodes} was invalid after {submissions} submissions"
-        if code == REFUSED_STAGE:
-            return stage_refusal(what)
-        if code == UNCOARSENED:
-            n_spins = int(self.chip.spec.n_spins)
-            return (f"a group of {what} robots and {submissions} targets cannot be coarsened onto the chip: its split "
-                    f"needs at least {max(2, (n_spins + 2) // 2) - 1} free spins, the chip has {n_spins}")
-        return f"internal error: the compiled sharing met a group outside its contract (check {what})"
+    def _search(self, stages, dist, R, prices) -> np.ndarray:
+        """The split stages, bundle placement in every state, the choice of state and the boundary
+        refinement: each robot's target set id."""
+        cfg = self.config
+        memo, pricing = prices
+        powered, mean = self._powered(dist)
+        # C-contiguous like the pair weights, so the stage steps compile for one layout only
+        w = np.ascontiguousarray(split_weights_kernel(powered, mean, float(cfg.weight_shift), R, float(cfg.robot_weight)))
+        options = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
+                   cfg.refine_above, int(cfg.reject_empty_robot_side))
+        groups, ng = stages.split_all(w, R, options, float(cfg.balance))
+        S = groups.shape[0]
+        sets, best = None, np.inf
+        for si in range(S):  # every state's bundles placed; the state of least route cost (ties: larger cuts)
+            ok, placed, total = place_bundles(dist, R, groups[si, :ng[si]], ORDER_IDS[cfg.bundle_order], memo,
+                                              stages.counters, pricing, stages.pool, S > 1)
+            if not ok:
+                raise SharingStop("internal error: a group of several robots is left after the split stages")
+            if si == 0 or total < best - 1e-9:
+                sets, best = placed, total
+        if cfg.pair_rounds:
+            pair_w = np.empty((len(cfg.pair_shifts),) + w.shape)
+            for s, shift in enumerate(cfg.pair_shifts):
+                pair_w[s] = split_weights_kernel(powered, mean, float(shift), R, float(cfg.robot_weight))
+            refine_boundaries(stages, dist, pair_w, R, sets, cfg.pair_rounds, cfg.pair_neighbours, prices)
+        return sets
 
     def split_weights(self, dist: np.ndarray, R: int, shift: float | None = None) -> np.ndarray:
         """Edge weights ``w_ij`` of the split graph: ``dist ** weight_power`` minus

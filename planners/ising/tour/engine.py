@@ -16,7 +16,7 @@ import numba
 import numpy as np
 
 from ising_backend import anneal_submit, quantize_rules, solve_submit
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 
 __all__ = ["solve_order", "frozen_spins", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 
 __all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances",
            "dist_flags", "route_cost"]

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from ising_backend import anneal_submit, quantize_rules
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
 
 __all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",

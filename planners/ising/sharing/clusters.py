@@ -1,11 +1,11 @@
-"""Coarse splits of groups larger than the chip in compiled code (big worlds; beyond paper 5.3).
+"""The clusters of a coarse split (big worlds; beyond paper 5.3): compiled steps.
 
-Contract: :func:`.compiled_stages.coarse_split` solves the split of a group too large for the chip even with
+Contract: :meth:`.stages.SplitStages.coarse_split` splits a group too large for the chip even with
 spin-budget branching as ``coarse_split`` of ``tests/sharing_search_reference.py`` does (its
-oracle; the tests compare both): the targets gathered into farthest-point clusters (robots single, or clustered when they
-alone would take more than half the chip), the split solved on the clusters' summed weights
-through the same stage submission (:func:`.compiled_stages.solve_problems`), every candidate
-expanded to the group's nodes and re-scored on the fine weights, best cut first.
+oracle): the targets gathered into farthest-point clusters (:func:`coarsen`; robots single, or
+clustered when they alone would take more than half the chip), the split solved on the clusters'
+summed weights, every candidate expanded to the group's nodes and re-scored on the fine weights,
+best cut first (:func:`expand_candidates`).
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.numeric import pairwise_sum
+from ising_backend.numeric import pairwise_sum
 from planners.ising.sharing.node_sets import intern, nodes_of
 
-__all__ = ["farthest_point_labels", "coarsen", "fine_cut"]
+__all__ = ["farthest_point_labels", "coarsen", "fine_cut", "expand_candidates"]
 
 
 @numba.njit(cache=True)
@@ -143,3 +143,24 @@ def fine_cut(w, pool, side0, side1):
             block[t] = w[i, j]
             t += 1
     return pairwise_sum(block, 0, t)
+
+
+@numba.njit(cache=True)
+def expand_candidates(w, pool, store, scratch, row, members, start):
+    """The candidates of the coarse split in store row ``scratch`` expanded to fine sets and re-scored
+    on ``w`` (:func:`fine_cut`) into row ``row``, best cut first (ties in candidate order)."""
+    c_cut, c_m0, c_m1, c_n = store
+    n = c_n[scratch]
+    cut = np.empty(n)
+    f0 = np.empty(n, dtype=np.int64)
+    f1 = np.empty(n, dtype=np.int64)
+    for j in range(n):
+        f0[j] = expand(pool, c_m0[scratch, j], members, start)
+        f1[j] = expand(pool, c_m1[scratch, j], members, start)
+        cut[j] = fine_cut(w, pool, f0[j], f1[j])
+    order = np.argsort(-cut, kind="mergesort")
+    for j in range(n):
+        c_cut[row, j] = cut[order[j]]
+        c_m0[row, j] = f0[order[j]]
+        c_m1[row, j] = f1[order[j]]
+    c_n[row] = n

@@ -1,0 +1,63 @@
+"""A stack of QUBOs to packed chip programs in one compiled step: map by every rule, pack, check.
+
+Contract: :func:`pack_qubo_stack` takes ``P`` reduced QUBOs ``E(x) = q.x + x.Q.x`` (``Q`` strictly
+upper, zero-padded to ``f``) and returns the chip programs of one submission: each QUBO converted
+to Ising form with :func:`~ising_backend.models.ising_from_qubo`'s arithmetic, quantized by every
+rule of the portfolio (:func:`~ising_backend._quantize_kernel.quantize_rules`, ``keep_sign``,
+percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint blocks
+(:func:`~ising_backend.blocks.pack_layout`, :func:`~ising_backend.blocks.fill_packs`) and checked
+against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
+``p * k + r`` is QUBO ``p`` under rule ``r``.  The caller anneals them through its machine session
+and decodes the reads at ``where``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ._quantize_kernel import quantize_rules
+from .blocks import fill_packs, pack_layout
+from .numeric import pairwise_sum
+from .programs import programs_fit
+
+__all__ = ["pack_qubo_stack", "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT"]
+
+#: :func:`pack_qubo_stack`'s status: programs ready; a quantized coefficient not finite; a program
+#: outside the chip's symmetric coefficient limits (the chip's own check would refuse it).
+STACK_OK, STACK_NONFINITE, STACK_UNFIT = 0, 1, 2
+
+
+@numba.njit(cache=True)
+def pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity):
+    """The submission of QUBO stack ``q (P, f)``, ``Q (P, f, f)`` (``sizes[p]`` free spins each) under
+    the rule ids ``rules`` (module docstring).  Returns ``(status, h (packs, W), J (packs, W, W),
+    where (P * k, 2))``; ``status`` is :data:`STACK_OK` or why nothing should be annealed."""
+    P, f = q.shape
+    k = rules.shape[0]
+    bad = False
+    qh = np.zeros((P * k, f))
+    qJ = np.zeros((P * k, f, f))
+    for p in range(P):
+        n = sizes[p]
+        h = np.empty(n)
+        J = np.zeros((n, n))
+        row = np.empty(n)
+        for i in range(n):
+            for j in range(n):
+                row[j] = Q[p, i, j] + Q[p, j, i]
+                J[i, j] = Q[p, i, j] / 4.0
+            h[i] = q[p, i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
+        st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+        for r in range(k):
+            bad = bad or st[r] != 0
+            qh[p * k + r, :n] = hq[r]
+            qJ[p * k + r, :n, :n] = Jq[r]
+    prog_sizes = np.empty(P * k, dtype=np.int64)
+    for p in range(P):
+        for r in range(k):
+            prog_sizes[p * k + r] = sizes[p]
+    pack_of, order, n_packs, width = pack_layout(prog_sizes, capacity)
+    h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
+    status = STACK_NONFINITE if bad else (STACK_OK if programs_fit(h, J, -Lh, Lh, -Lj, Lj) else STACK_UNFIT)
+    return status, h, J, where

@@ -1,0 +1,91 @@
+"""Boundary refinement of Ising target sharing (beyond paper 5.3): neighbouring robots re-split on the chip.
+
+Contract: :func:`refine_boundaries` does what ``refine_boundaries`` of
+``tests/sharing_search_reference.py`` does (its oracle): up to ``pair_rounds`` rounds; in each, every
+pair of neighbouring robots (each robot's ``pair_neighbours`` nearest, by the least distance between
+their nodes) not yet tried with the same sets is re-split -- its two robots and their targets as one
+group, once per weight shift of ``pair_shifts``, all pairs in one chip submission -- and the re-split
+that lowers the pair's route cost most is kept, largest gain first, each robot moved at most once a
+round.  The chip proposes the partitions; the route cost decides.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.ising.sharing.node_sets import EMPTY
+from planners.ising.sharing.placement import neighbour_pairs, pair_gains, pair_groups
+from planners.ising.sharing.stage_steps import problems_of, set_sizes
+from planners.ising.sharing.stages import PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS
+
+__all__ = ["refine_boundaries"]
+
+
+def _pair_problems(stages, pair_w, R, groups, rows):
+    """Split the pair groups beyond the chip on clusters (per shift, in order) and stack the others'
+    split problems, problem ``i * S + s`` for the ``i``-th pair that fits and shift ``s``: ``(problems,
+    store rows, group ids)`` of those, or ``None`` when every pair went to clusters."""
+    S = pair_w.shape[0]
+    coarse = set_sizes(stages.pool, groups) - 2 > stages.limit
+    for j in np.flatnonzero(coarse).tolist():
+        for s in range(S):
+            stages.coarse_split(pair_w[s], R, int(groups[j]), False, 0.0, int(rows[j * S + s]), stages.n_prob)
+    normal = np.flatnonzero(~coarse)
+    if normal.shape[0] == 0:
+        return None
+    per_shift = [problems_of(pair_w[s], groups[normal], R, 0.0, stages.pool) for s in range(S)]
+    Pn = normal.shape[0] * S
+    f = per_shift[0][0].shape[1]
+    q, Q = np.zeros((Pn, f)), np.zeros((Pn, f, f))
+    free = np.zeros((Pn, f), dtype=np.int64)
+    sizes = np.empty(Pn, dtype=np.int64)
+    anchors = np.empty((Pn, 2), dtype=np.int64)
+    for s, (qs, Qs, fs, zs, As) in enumerate(per_shift):
+        q[s::S], Q[s::S], free[s::S], sizes[s::S], anchors[s::S] = qs, Qs, fs, zs, As
+    pick = (normal[:, None] * S + np.arange(S)).reshape(-1)
+    problems = (q, Q, free, sizes, anchors, np.zeros(Pn, dtype=np.bool_))
+    return problems, rows[pick], np.repeat(groups[normal], S)
+
+
+def refine_boundaries(stages, dist, pair_w, R, sets, rounds: int, per_robot: int, prices) -> None:
+    """Refine ``sets`` (each robot's target set id, updated in place) by ``rounds`` rounds of pair
+    re-splits (module docstring) on the split weights ``pair_w (shifts, n, n)``; ``stages``: the call's
+    :class:`~.stages.SplitStages`; ``prices = (memo, pricing handle)`` of :mod:`.placement`."""
+    memo, pricing = prices
+    counters = stages.counters
+    S = pair_w.shape[0]
+    tried: set = set()
+    for _ in range(rounds):
+        near = neighbour_pairs(dist, sets, R, per_robot, stages.pool)
+        pairs = []
+        for k in range(R):
+            for l in range(k + 1, R):
+                key = (k, l, int(sets[k]), int(sets[l]))
+                if near[k, l] and (sets[k] != EMPTY or sets[l] != EMPTY) and key not in tried:
+                    tried.add(key)  # a pair seen unchanged has nothing new
+                    pairs.append((k, l))
+        if not pairs:
+            break
+        pk, pl = (np.array(side, dtype=np.int64) for side in zip(*pairs))
+        groups = pair_groups(stages.pool, sets, pk, pl)
+        P = len(pairs) * S
+        stages.store.reserve(stages.n_prob + P + 1)
+        rows = stages.n_prob + np.arange(P)
+        stages.n_prob += P
+        stacked = _pair_problems(stages, pair_w, R, groups, rows)
+        if stacked is not None:  # one submission; candidates ordered by the first shift's cut
+            problems, prow, gids = stacked
+            counters[SPLITS] += prow.shape[0]
+            stages.solve(problems, prow, gids, pair_w[0], R)
+        counters[PAIR_RESPLITS] += len(pairs)
+        gain, gk, gl, new_k, new_l = pair_gains(dist, pk, pl, rows, S, sets, stages.store.arrays, memo, counters,
+                                                pricing, stages.pool, R)
+        if gain.shape[0] == 0:
+            break
+        moved = np.zeros(R, dtype=bool)
+        for i in sorted(range(gain.shape[0]), key=lambda i: (-gain[i], gk[i], gl[i])):  # largest gain first
+            k, l = gk[i], gl[i]
+            if not moved[k] and not moved[l]:
+                sets[k], sets[l] = new_k[i], new_l[i]
+                moved[k] = moved[l] = True
+                counters[PAIR_ACCEPTED] += 1

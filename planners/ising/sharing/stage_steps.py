@@ -1,0 +1,225 @@
+"""The compiled steps of the split stages (paper 5.3, Algorithm 3) on node-set ids.
+
+Each step is one small compiled call from :mod:`.stages` (the search itself is Python): the split
+problems of a list of groups (:func:`problems_of`), the one-partition splits (:func:`put_trivial`),
+a submission's reads merged into each split's candidates (:func:`keep_candidates`), the groups a
+stage splits (:func:`todo_groups`) and the states it leaves (:func:`expand_states`).
+
+Candidates live in a *store* ``(cut (rows, C), side0 (rows, C), side1 (rows, C), count (rows,))``:
+row ``i`` holds problem ``i``'s distinct valid partitions (set ids of :mod:`.node_sets`), best cut
+first.  Sums and ties follow ``tests/sharing_search_reference.py``, their oracle.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.ising.sharing.kernels import add_balance, split_model
+from planners.ising.sharing.node_sets import ROBOTS, SIZE, intern, nodes_of, size, sizes_of
+
+__all__ = ["problems_of", "put_trivial", "keep_candidates", "todo_groups", "expand_states", "set_sizes", "set_nodes"]
+
+
+@numba.njit(cache=True)
+def set_sizes(pool, ids):
+    """The node counts of sets ``ids``."""
+    out = np.empty(ids.shape[0], dtype=np.int64)
+    for i in range(ids.shape[0]):
+        out[i] = size(pool, ids[i])
+    return out
+
+
+@numba.njit(cache=True)
+def set_nodes(pool, s):
+    """A copy of set ``s``'s sorted nodes."""
+    return nodes_of(pool, s).copy()
+
+
+@numba.njit(cache=True)
+def problems_of(w, groups, R, balance, pool):
+    """:func:`.kernels.split_model` of every group (set ids), with the balance term (:func:`.kernels.add_balance`)
+    when ``balance``: ``(q (P, f), Q (P, f, f), free (P, f), sizes, anchors (P, 2))``, zero-padded to the
+    largest split."""
+    P = groups.shape[0]
+    sizes = np.empty(P, dtype=np.int64)
+    f = 0
+    for p in range(P):
+        sizes[p] = size(pool, groups[p]) - 2
+        f = max(f, sizes[p])
+    q = np.zeros((P, f))
+    Q = np.zeros((P, f, f))
+    free = np.zeros((P, f), dtype=np.int64)
+    anchors = np.empty((P, 2), dtype=np.int64)
+    for p in range(P):
+        a, b, fr, qq, QQ, _off = split_model(w, nodes_of(pool, groups[p]), R)
+        if balance:
+            add_balance(w, fr, a, b, R, qq, QQ, balance)
+        n = sizes[p]
+        anchors[p, 0] = a
+        anchors[p, 1] = b
+        free[p, :n] = fr
+        q[p, :n] = qq
+        Q[p, :n, :n] = QQ
+    return q, Q, free, sizes, anchors
+
+
+@numba.njit(cache=True)
+def put_trivial(w, anchors, rows, store, pool):
+    """The one partition of each anchored split without a free node (anchors ``a | b``) into store
+    row ``rows[j]``, scored ``w[a, b]``."""
+    c_cut, c_m0, c_m1, c_n = store
+    for j in range(rows.shape[0]):
+        a, b = anchors[j, 0], anchors[j, 1]
+        row = rows[j]
+        c_cut[row, 0] = w[a, b]
+        c_m0[row, 0] = intern(pool, np.array([a], dtype=np.int64))
+        c_m1[row, 0] = intern(pool, np.array([b], dtype=np.int64))
+        c_n[row] = 1
+
+
+@numba.njit(cache=True)
+def keep_candidates(out, parent, pending, pids, reads, rng, mapping, store, pool):
+    """A submission's reads (``out``: :func:`.submission.run_stage`'s arrays after ``calls, emu``) into the
+    candidates of the pending splits: split ``i`` (problem ``pending[i]``, branches ``parent == i``)
+    gets its distinct valid partitions in store row ``pids[pending[i]]``, best cut first; per rule
+    ``mapping`` counts candidates, valid reads and wins (ties between rules drawn from ``rng``).
+    Returns ``(room, failed)``: ``room`` False when a split has more candidates than the store's
+    width; ``failed`` the pending problems without a valid candidate."""
+    b_valid, b_best, c_split, cut, s0, n0, s1, n1 = out
+    c_cut, c_m0, c_m1, c_n = store
+    P = pending.shape[0]
+    nk = b_valid.shape[1]
+    n_valid = np.zeros((P, nk), dtype=np.int64)
+    best = np.full((P, nk), np.inf)
+    for e in range(parent.shape[0]):
+        for r in range(nk):
+            n_valid[parent[e], r] += b_valid[e, r]
+            best[parent[e], r] = min(best[parent[e], r], b_best[e, r])
+    for r in range(nk):
+        mapping[r, 0] += reads * parent.shape[0]
+        for i in range(P):
+            mapping[r, 1] += n_valid[i, r]
+    M = c_split.shape[0]
+    idx = np.empty(M, dtype=np.int64)
+    winners = np.empty(nk, dtype=np.int64)
+    n_failed = 0
+    failed = np.empty(P, dtype=np.int64)
+    for i in range(P):
+        cnt = 0
+        for m in range(M):
+            if parent[c_split[m]] == i:
+                idx[cnt] = m
+                cnt += 1
+        if cnt == 0:
+            failed[n_failed] = pending[i]
+            n_failed += 1
+            continue
+        if cnt > c_cut.shape[1]:
+            return False, failed[:n_failed]
+        top = best[i].min()
+        tol = 1e-9 * max(1.0, abs(top))
+        nw = 0
+        for r in range(nk):
+            if best[i, r] <= top + tol:
+                winners[nw] = r
+                nw += 1
+        win = winners[rng.integers(0, nw)] if nw > 1 else winners[0]
+        mapping[win, 2] += 1
+        keys = np.empty(cnt)
+        for j in range(cnt):
+            keys[j] = -cut[idx[j]]
+        order = np.argsort(keys, kind="mergesort")  # best cut first, ties in first-read order
+        row = pids[pending[i]]
+        for j in range(cnt):
+            m = idx[order[j]]
+            c_cut[row, j] = cut[m]
+            c_m0[row, j] = intern(pool, s0[m, :n0[m]])
+            c_m1[row, j] = intern(pool, s1[m, :n1[m]])
+        c_n[row] = cnt
+    return True, failed[:n_failed]
+
+
+@numba.njit(cache=True)
+def todo_groups(groups, ng, R, kind, base_max, above, pool):
+    """(state, group) pairs to split: groups with several robots (``kind`` 0), else one-robot groups
+    with more than ``base_max`` targets and robotless ones with more than ``above``."""
+    S = groups.shape[0]
+    meta = sizes_of(pool)
+    ts = np.empty(S * groups.shape[1], dtype=np.int64)
+    tg = np.empty_like(ts)
+    n = 0
+    for si in range(S):
+        for gi in range(ng[si]):
+            g = groups[si, gi]
+            nr = meta[g, ROBOTS]
+            if kind == 0:
+                take = nr >= 2
+            else:
+                take = meta[g, SIZE] - nr > (base_max if nr else above)
+            if take:
+                ts[n] = si
+                tg[n] = gi
+                n += 1
+    return ts[:n], tg[:n]
+
+
+@numba.njit(cache=True)
+def expand_states(score, groups, ng, todo_s, todo_g, rows, width, max_states, store):
+    """``SplitSearch.expand`` (the oracle) on set ids: every state's split groups replaced by up to
+    ``width`` candidates each, at most ``max_states`` states, best summed cut first."""
+    c_cut, c_m0, c_m1, c_n = store
+    S, G = groups.shape
+    cap = S * max_states
+    out_score = np.empty(cap)
+    out_groups = np.zeros((cap, G), dtype=np.int64)
+    out_ng = np.zeros(cap, dtype=np.int64)
+    pos = np.full(G, -1, dtype=np.int64)
+    n_out = 0
+    for si in range(S):
+        mine = np.where(todo_s == si)[0]
+        nm = mine.shape[0]
+        if nm == 0:
+            out_score[n_out] = score[si]
+            out_groups[n_out] = groups[si]
+            out_ng[n_out] = ng[si]
+            n_out += 1
+            continue
+        combo_sc = np.zeros(1)
+        combo = np.zeros((1, nm), dtype=np.int64)
+        for j in range(nm):
+            row = rows[mine[j]]
+            nc = min(width, c_n[row])
+            n_new = combo_sc.shape[0] * nc
+            new_sc = np.empty(n_new)
+            new = np.empty((n_new, nm), dtype=np.int64)
+            t = 0
+            for c in range(combo_sc.shape[0]):
+                for x in range(nc):
+                    new_sc[t] = combo_sc[c] + c_cut[row, x]
+                    new[t] = combo[c]
+                    new[t, j] = x
+                    t += 1
+            order = np.argsort(-new_sc, kind="mergesort")[:max_states]
+            combo_sc = new_sc[order]
+            combo = new[order]
+        pos[:] = -1
+        for j in range(nm):
+            pos[todo_g[mine[j]]] = j
+        for c in range(combo_sc.shape[0]):
+            n = 0
+            for gi in range(ng[si]):
+                j = pos[gi]
+                if j < 0:
+                    out_groups[n_out, n] = groups[si, gi]
+                    n += 1
+                else:
+                    row = rows[mine[j]]
+                    out_groups[n_out, n] = c_m0[row, combo[c, j]]
+                    out_groups[n_out, n + 1] = c_m1[row, combo[c, j]]
+                    n += 2
+            out_ng[n_out] = n
+            out_score[n_out] = score[si] + combo_sc[c]
+            n_out += 1
+    order = np.argsort(-out_score[:n_out], kind="mergesort")[:max_states]
+    return out_score[order], out_groups[order], out_ng[order]

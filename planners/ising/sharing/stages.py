@@ -1,0 +1,218 @@
+"""The split stages of Ising target sharing (paper 5.3, Algorithm 3): the search, in Python.
+
+Contract: :meth:`SplitStages.split_all` makes the decisions of ``SplitSearch.split_all`` in
+``tests/sharing_search_reference.py`` (its oracle; the tests compare both): the same groups, memo,
+stage submissions (:func:`.submission.run_stage`), seeds and win draws from the caller's
+``numpy.random.Generator``, retries, candidate order and beam.  Groups are ids of a node-set pool
+(:mod:`.node_sets`) and the loops over nodes and reads are small compiled steps
+(:mod:`.stage_steps`, :mod:`.clusters`); this module only decides what to split, submits and
+keeps.  A split a few spins beyond the chip goes into its stage's submission as its spin-budget
+branches (:func:`.kernels.branch_problems`); a group beyond that is split on target clusters first
+(:meth:`SplitStages.coarse_split`).  Where the search cannot go on it raises :class:`SharingStop`
+naming why (a split with no valid candidate after the retries, a stage program the chip would
+refuse, robots that cannot be coarsened onto the chip).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planners.ising.sharing.bundles import SharingFailure
+from planners.ising.sharing.clusters import coarsen, expand_candidates
+from planners.ising.sharing.kernels import branch_problems
+from planners.ising.sharing.node_sets import intern
+from planners.ising.sharing.stage_steps import (expand_states, keep_candidates, problems_of, put_trivial, set_nodes,
+                                                set_sizes, todo_groups)
+from planners.ising.sharing.submission import STAGE_OK, stage_refusal
+
+__all__ = ["COUNTERS", "SplitStages", "SharingStop", "CandidateStore"]
+
+COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
+            "pair_accepted", "coarse_splits")
+STAGES, SPLITS, TRIVIAL, BUNDLES, TOUR_SOLVES, STATES, PAIR_RESPLITS, PAIR_ACCEPTED, COARSE = range(9)
+_SEED_HIGH = 9223372036854775807  # rng.integers(2**63 - 1), as the reference draws chip seeds
+
+
+class SharingStop(SharingFailure):
+    """The search stopped where it could not go on (the message names why); the caller records the
+    counters so far and reports the failure."""
+
+
+class CandidateStore:
+    """Each split problem's distinct valid candidates, best cut first: ``arrays = (cut (rows, C),
+    side0 (rows, C), side1 (rows, C), count (rows,))``, grown by rows as problems come."""
+
+    def __init__(self, width: int, rows: int = 16):
+        self.arrays = (np.zeros((rows, width)), np.zeros((rows, width), dtype=np.int64),
+                       np.zeros((rows, width), dtype=np.int64), np.zeros(rows, dtype=np.int64))
+
+    def reserve(self, n: int) -> None:
+        """Room for ``n`` problems (rows kept)."""
+        rows = self.arrays[0].shape[0]
+        if n > rows:
+            cap = max(n, 2 * rows)
+            grown = []
+            for a in self.arrays:
+                b = np.zeros((cap,) + a.shape[1:], dtype=a.dtype)
+                b[:rows] = a
+                grown.append(b)
+            self.arrays = tuple(grown)
+
+
+class SplitStages:
+    """The split stages of one sharing call on one chip session (module docstring).
+
+    ``solver``: the call's :class:`~.submission.StageSolver`; ``machine``: the session's record;
+    ``counters`` / ``mapping``: the call's counters (indexed as :data:`COUNTERS`) and per-rule
+    candidates / valid / wins, updated in place; ``calls`` / ``seconds`` list each submission's chip
+    calls and emulation seconds for the session's ``settle``."""
+
+    def __init__(self, solver, machine, pool, rng, limit: int, store: CandidateStore, counters, mapping):
+        self.solver = solver
+        self.machine = machine
+        self.pool = pool
+        self.rng = rng
+        self.limit = limit
+        self.store = store
+        self.counters = counters
+        self.mapping = mapping
+        self.retries = solver.config.retries
+        self.n_prob = 0
+        self.memo: dict = {}
+        self.calls: list[int] = []
+        self.seconds: list[float] = []
+
+    # ------------------------------------------------------------ submissions
+
+    def solve(self, problems, pids, gids, score_w, R) -> None:
+        """Solve split ``problems = (q, Q, free, sizes, anchors, reject)`` (groups ``gids``) into store rows
+        ``pids``, re-submitting those without a valid candidate up to ``retries`` times
+        (``ReferenceStages.solve_all``, the oracle)."""
+        q, Q, free, sizes, anchors, reject = problems
+        n_spins = self.solver.n_spins
+        self.store.arrays[3][pids] = 0
+        pending = np.arange(sizes.shape[0])
+        attempts = 0
+        while pending.shape[0]:
+            seed = int(self.rng.integers(0, _SEED_HIGH))
+            if sizes[pending].max() > n_spins:  # splits beyond the chip as their spin-budget branches
+                bq, bQ, bfree, bsizes, nfix, fixed, parent = branch_problems(q[pending], Q[pending], free[pending],
+                                                                            sizes[pending], n_spins)
+            else:
+                bq, bQ, bfree, bsizes = q[pending], Q[pending], free[pending], sizes[pending]
+                parent = np.arange(pending.shape[0])
+                nfix = np.zeros(pending.shape[0], dtype=np.int64)
+                fixed = np.zeros((pending.shape[0], 0), dtype=np.int8)
+            out = self.solver.submit((bq, bQ, bfree, bsizes, anchors[pending][parent], reject[pending][parent], nfix,
+                                      fixed), seed, self.machine, score_w, R)
+            if out[0] != STAGE_OK:
+                raise SharingStop(stage_refusal(out[0]))
+            self.calls.append(out[1])
+            self.seconds.append(out[2])
+            room, failed = keep_candidates(out[3:], parent, pending, pids, self.solver.config.reads, self.rng,
+                                           self.mapping, self.store.arrays, self.pool)
+            if not room:
+                raise SharingStop("internal error: a split has more candidates than the sharing made room for")
+            if failed.shape[0] and attempts >= self.retries:
+                nodes = set_nodes(self.pool, gids[failed[0]]).tolist()
+                raise SharingStop(f"every chip candidate for the split of group {nodes} was invalid after "
+                                  f"{attempts + 1} submissions")
+            attempts += 1
+            pending = failed
+
+    def coarse_split(self, w, R, g, reject, balance, row, scratch) -> None:
+        """The split of group ``g`` (beyond the chip) on target clusters into store row ``row``
+        (``scratch``: a free row for the coarse split) -- ``coarse_split`` of the oracle."""
+        n_spins = self.solver.n_spins
+        nodes = set_nodes(self.pool, g)
+        robots = int(np.searchsorted(nodes, R))
+        clustered = 0
+        if n_spins + 2 - robots < max(1, n_spins // 2):
+            # more robots than leave half the chip to target clusters: neighbouring robots are clustered too
+            clustered = max(2, (n_spins + 2) // 2)
+            if robots < 2 or n_spins + 2 - clustered < 1:
+                raise SharingStop(f"a group of {robots} robots and {nodes.shape[0] - robots} targets cannot be "
+                                  f"coarsened onto the chip: its split needs at least {clustered - 1} free spins, "
+                                  f"the chip has {n_spins}")
+        n_clusters = n_spins + 2 - (robots if clustered == 0 else min(robots, clustered))
+        members, start, wc = coarsen(w, nodes, R, n_clusters, clustered)
+        coarse_robots = int((members[start[:-1]] < R).sum())
+        self.counters[STAGES] += 1  # the coarse split is a stage of one split
+        self.counters[SPLITS] += 1
+        cg = np.array([intern(self.pool, np.arange(start.shape[0] - 1))], dtype=np.int64)
+        q, Q, free, sizes, anchors = problems_of(wc, cg, coarse_robots, balance, self.pool)
+        self.store.reserve(max(row, scratch) + 1)
+        if sizes[0] == 0:  # one partition only (its cut is the fine one, below)
+            self.counters[TRIVIAL] += 1
+            put_trivial(wc, anchors, np.array([scratch], dtype=np.int64), self.store.arrays, self.pool)
+        else:
+            self.solve((q, Q, free, sizes, anchors, np.array([reject])), np.array([scratch], dtype=np.int64), cg, wc,
+                       coarse_robots)
+        expand_candidates(w, self.pool, self.store.arrays, scratch, row, members, start)
+        self.counters[COARSE] += 1
+
+    # ----------------------------------------------------------------- stages
+
+    def stage(self, w, R, todo, kind: int, reject_robots: bool, balance: float) -> np.ndarray:
+        """The store rows of the splits of groups ``todo`` (``SplitSearch.stage``, the oracle): the
+        groups met before (any state, any stage of this ``kind``) reuse their row; the others are
+        solved in one submission (plus retries), groups beyond the chip on clusters first."""
+        n_prob = self.n_prob
+        rows = np.empty(todo.shape[0], dtype=np.int64)
+        fresh: list[int] = []
+        for t, g in enumerate(todo.tolist()):
+            key = (g, kind)
+            if key not in self.memo:
+                self.memo[key] = n_prob + len(fresh)
+                fresh.append(g)
+            rows[t] = self.memo[key]
+        nf = len(fresh)
+        fresh = np.array(fresh, dtype=np.int64)
+        self.store.reserve(n_prob + nf + 1)
+        bal = balance if kind == 0 else 0.0
+        reject = reject_robots and kind == 0
+        big = set_sizes(self.pool, fresh) - 2 > self.limit
+        for i in np.flatnonzero(big).tolist():  # groups beyond the chip split on clusters first, in order
+            self.coarse_split(w, R, int(fresh[i]), reject, bal, n_prob + i, n_prob + nf)
+        self.counters[STAGES] += 1
+        self.counters[SPLITS] += nf
+        normal = np.flatnonzero(~big)
+        q, Q, free, sizes, anchors = problems_of(w, fresh[normal], R, bal, self.pool)
+        one = sizes == 0  # one partition only: nothing to solve
+        self.counters[TRIVIAL] += int(one.sum())
+        put_trivial(w, anchors[one], n_prob + normal[one], self.store.arrays, self.pool)
+        k = np.flatnonzero(~one)
+        if k.shape[0]:
+            self.solve((q[k], Q[k], free[k], sizes[k], anchors[k], np.full(k.shape[0], reject)), n_prob + normal[k],
+                       fresh[normal[k]], w, R)
+        self.n_prob = n_prob + nf
+        return rows
+
+    def split_all(self, w, R, options, balance: float):
+        """``SplitSearch.split_all`` (the oracle): ``(groups (S, G), ng (S,))``, the candidate partial
+        solutions as rows of group ids, best summed cut first.  ``options = (beam, refine_beam,
+        max_states, refine_stages, base_max, refine_above, reject_robots)``."""
+        beam, refine_beam, max_states, refine_stages, base_max, above, reject_robots = options
+        n = w.shape[0]
+        score = np.zeros(1)
+        groups = np.zeros((1, n), dtype=np.int64)
+        groups[0, 0] = intern(self.pool, np.arange(n))
+        ng = np.ones(1, dtype=np.int64)
+        stage = 0
+        while True:
+            kind = 0 if stage == 0 else 1
+            ts, tg = todo_groups(groups, ng, R, kind, base_max, above, self.pool)
+            if ts.shape[0] == 0:
+                if stage == 0:  # robot stages done: the refinement stages
+                    stage = 1
+                    continue
+                break
+            if stage > refine_stages:
+                break
+            rows = self.stage(w, R, groups[ts, tg], kind, bool(reject_robots), balance)
+            score, groups, ng = expand_states(score, groups, ng, ts, tg, rows, beam if kind == 0 else refine_beam,
+                                              max_states, self.store.arrays)
+            if stage:
+                stage += 1
+        self.counters[STATES] += groups.shape[0]
+        return groups, ng

@@ -2,8 +2,8 @@
 
 Every kernel is compiled with ``cache=True``: the first run after an install (or after a kernel's
 source changed) compiles it and writes numba's on-disk cache; later processes load it in well
-under a second.  That first compile takes about a minute on two cores, most of it in the Ising
-sharing search (one compiled call), so a command that is about to pay it prints one line first
+under a second.  That first compile takes minutes on two cores, most of it in the Ising layers'
+kernels, so a command that is about to pay it prints one line first
 (what, why, roughly how long, once per install) and then compiles the *parts* it needs -- the
 sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
 processes with a progress bar, longest part first.  Each part is a pipeline warm-up

@@ -1,7 +1,7 @@
-"""The stage submission of Ising target sharing through ``anneal_batch``: the oracle of ``run_stage``.
+"""The stage submission of Ising target sharing through ``anneal_batch``: the oracle of ``submit_stage``.
 
 ``reference_solve_packed(sharing, w, R, problems, rng, stats)`` does what
-``StageSolver.solve_packed`` does in one submission (``planners.ising.sharing.submission.run_stage``)
+``StageSolver.solve_packed`` does in one submission (``planners.ising.sharing.stage_steps.submit_stage``)
 with separate calls: map every split by every rule, pack first-fit decreasing, anneal through the
 metered chip, score, name refused programs.  The mapping (``ising_backend``'s public
 ``ising_from_qubo`` and ``quantize_stack``, one split at a time), the decoding, the validity rule and

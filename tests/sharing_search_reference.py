@@ -5,7 +5,7 @@
 (``stages``, ``clusters``, ``placement``, ``refine``): the anchored split QUBO, the
 split stages with their memo and beam, coarse splits of groups beyond the chip, spin-budget
 branches, bundle placement, the choice of state and the boundary refinement, with the same chip
-submissions (``submission.run_stage``), charges and rng draws.  Test code only: the package never
+submissions (``stage_steps.submit_stage``), charges and rng draws.  Test code only: the package never
 imports it.
 """
 
@@ -20,7 +20,9 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.kernels import branch_problems, split_model
-from planners.ising.sharing.submission import STAGE_OK, StageSolver, run_stage, stage_refusal
+from ising_backend import STACK_OK
+from planners.ising.sharing.stage_steps import submit_stage
+from planners.ising.sharing.submission import StageSolver, stage_refusal
 
 def choose_anchors(dist: np.ndarray, nodes, n_robots: int) -> tuple[int, int]:
     """The two anchors of a split of ``nodes`` (global indices; robots are
@@ -549,7 +551,7 @@ class ReferenceStages(StageSolver):
         """The submission of :meth:`solve` for splits that fit the chip: every split x quantization
         rule mapped, block-packed first-fit decreasing into one submission, every read decoded,
         checked and scored on the unquantized cut -- in one compiled call
-        (:func:`.submission.run_stage`, on any machine); each distinct valid partition becomes a
+        (:func:`.stage_steps.submit_stage`, on any machine); each distinct valid partition becomes a
         candidate."""
         cfg = self.config
         seed = int(rng.integers(2**63 - 1))
@@ -560,17 +562,17 @@ class ReferenceStages(StageSolver):
         q, Q, free, sizes, nfix, fixed, parent = branch_problems(q, Q, free, sizes, int(self.chip.spec.n_spins))
         try:
             with self.chip.session(self.meter.charged) as link:
-                out = run_stage((q, Q, free, sizes, anchors[parent], reject[parent], nfix, fixed), self.program(),
-                                np.uint64(seed), link.args, w, R)
-                if out[0] == STAGE_OK:
-                    link.settle([out[1]], [out[2]])
+                status, calls, emu, out = submit_stage((q, Q, free, sizes, anchors[parent], reject[parent], nfix, fixed),
+                                                       self.program(), np.uint64(seed), link.args, w, R)
+                if status == STACK_OK:
+                    link.settle([calls], [emu])
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
             raise SharingFailure(f"the chip returned malformed samples: {exc}") from exc
         except ChipProgramError as exc:
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
-        if out[0] != STAGE_OK:
-            raise SharingFailure(stage_refusal(out[0]))
-        b_valid, b_best, c_split, c_cut, s0, n0, s1, n1 = out[3:]
+        if status != STACK_OK:
+            raise SharingFailure(stage_refusal(status))
+        b_valid, b_best, c_split, c_cut, s0, n0, s1, n1 = out
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]
         for m, (k, cut, a, b) in enumerate(zip(parent[c_split].tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):

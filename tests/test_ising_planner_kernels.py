@@ -555,7 +555,7 @@ def test_cut_walk_is_the_checked_path(seed, steps, cut, corrupt):
     ({}, {"reject_empty_robot_side": True}),  # the validity rule's other branch
 ])
 def test_compiled_stage_submission_makes_the_reference_decisions(spec, options):
-    """The compiled sharing (each stage one submission, planners.ising.sharing.submission.run_stage)
+    """The compiled sharing (each stage one submission, planners.ising.sharing.stage_steps.submit_stage)
     against the Python search with every stage submitted through anneal_batch: the same assignments,
     statistics, chip charges and rng state."""
     from ising_backend import ChipSpec, EmulatedChip
@@ -581,10 +581,10 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec, options):
 
 
 def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
-    """run_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
+    """submit_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
     programs the chip's check refuses; the sharing names the refusal."""
-    from ising_backend import QUANTIZE_RULE_IDS, EmulatedChip
-    from planners.ising.sharing.submission import STAGE_NONFINITE, STAGE_OK, STAGE_UNFIT, run_stage
+    from ising_backend import QUANTIZE_RULE_IDS, STACK_NONFINITE, STACK_OK, STACK_UNFIT, EmulatedChip
+    from planners.ising.sharing.stage_steps import submit_stage
 
     chip = EmulatedChip()
     rules = np.array([QUANTIZE_RULE_IDS["linear"]], dtype=np.int64)
@@ -598,15 +598,15 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     def run(q, Lh=7.0, Lj=7.0):
         problems = (q, Q, free, sizes, anchors, np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64),
                     np.zeros((1, 4), dtype=np.int8))
-        return run_stage(problems, (rules, Lh, Lj, 45, 2), np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
+        return submit_stage(problems, (rules, Lh, Lj, 45, 2, 45, 0), np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
 
     good = run(q)
-    assert good[0] == STAGE_OK and good[1] == 2 and good[3].sum() <= 2
+    assert good[0] == STACK_OK and good[1] == 2 and good[3][0].sum() <= 2
     bad = q.copy()
     bad[0, 1] = np.nan
     out = run(bad)
-    assert out[0] == STAGE_NONFINITE and out[1] == 0 and len(out[5]) == 0
-    assert run(q, Lh=7.5)[0] == STAGE_UNFIT  # a non-integer limit: the quantized fields are not the chip's integers
+    assert out[0] == STACK_NONFINITE and out[1] == 0 and len(out[3][2]) == 0
+    assert run(q, Lh=7.5)[0] == STACK_UNFIT  # a non-integer limit: the quantized fields are not the chip's integers
 
 
 def test_sharing_on_distances_too_large_to_add_fails_naming_the_refused_stage():

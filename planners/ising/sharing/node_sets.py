@@ -1,12 +1,15 @@
-"""Node sets of the compiled Ising target sharing: sorted node arrays interned in a pool.
+"""Node sets of the Ising target sharing: sorted node arrays interned in a pool, as integer ids.
 
-A set is an ``int64`` id into a pool of one world (``R`` robots): its sorted nodes are stored
-back to back in one arena, and a table holds per id the start in the arena, the size, the robot
-count (nodes ``< R``), the next id with the same hash (-1: none) and the id of its targets (-1:
-not yet known); a dict maps a set's hash (XOR of a splitmix64 of each node) to the first id with
-that hash, another the unions made so far.  Equal sets get the same id, so ids compare, key memos
-and fill tables as the sets would, in worlds of any size.  Id :data:`EMPTY` is the empty set.
-Arrays handed out are views of the arena: callers never write to them.
+A set is an ``int64`` id into a pool of one world (``R`` robots): its sorted nodes are stored back to
+back in one arena, and a table holds per id the start in the arena, the size, the robot count (nodes
+``< R``) and the id of its targets (-1: not yet known).  Two open-addressing hash tables map a set's
+hash (XOR of a splitmix64 of each node) to the ids with that hash, and a pair of ids to the id of
+their union.  Equal sets get the same id, so ids compare, key memos and fill tables as the sets
+would, in worlds of any size.  Id :data:`EMPTY` is the empty set.  Arrays handed out are views of the
+arena: callers never write to them.
+
+The pool is one ``numba.typed.List`` of ``int64`` arrays (grown by replacing an entry), so Python code
+hands it to a compiled step in a few microseconds: a tuple of typed containers costs numba tens.
 """
 
 from __future__ import annotations
@@ -14,14 +17,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 from numba import types
-from numba.typed import Dict, List
+from numba.typed import List
 
-__all__ = ["EMPTY", "new_pool", "intern", "nodes_of", "size", "sizes_of", "union", "robots_in", "targets_of",
-           "contains"]
+__all__ = ["EMPTY", "new_pool", "intern", "nodes_of", "size", "union", "robots_in", "targets_of", "contains"]
 
 EMPTY = 0
-_PAIR = types.UniTuple(types.int64, 2)
-START, SIZE, ROBOTS, CHAIN, TARGETS = range(5)  # columns of the table
+_ARENA, _TABLE, _COUNT, _HKEY, _HVAL, _UA, _UB, _UVAL = range(8)  # the pool's arrays
+_START, _SIZE, _ROBOTS, _TARGETS = range(4)  # columns of the table, 4 entries per id
+_SETS, _USED, _R, _HN, _UN = range(5)  # counts: ids, arena entries used, robots, hash entries, unions
 
 
 @numba.njit(cache=True, inline="always")
@@ -33,85 +36,153 @@ def _mix(x):
 
 
 @numba.njit(cache=True)
-def intern(pool, nodes):
-    """The id of the sorted, distinct ``nodes`` (a new id, the nodes copied in, when first met)."""
-    arena_of, index, table_of, _unions, R, count = pool
+def _slot(keys, vals, key, start):
+    """The slot of ``key`` in an open-addressing table (linear probing from ``start``), or of the first
+    empty entry on its probe path (``vals == -1``)."""
+    mask = keys.shape[0] - 1
+    i = start & mask
+    while vals[i] >= 0 and keys[i] != key:
+        i = (i + 1) & mask
+    return i
+
+
+@numba.njit(cache=True)
+def _grow_hash(pool):
+    """Double the set-hash table (kept at most half full); entries re-inserted in slot order."""
+    keys, vals = pool[_HKEY], pool[_HVAL]
+    cap = 2 * keys.shape[0]
+    k2 = np.zeros(cap, dtype=np.int64)
+    v2 = np.full(cap, -1, dtype=np.int64)
+    for i in range(keys.shape[0]):
+        if vals[i] >= 0:
+            j = _slot(k2, v2, keys[i], keys[i])
+            k2[j] = keys[i]
+            v2[j] = vals[i]
+    pool[_HKEY] = k2
+    pool[_HVAL] = v2
+
+
+@numba.njit(cache=True)
+def _find(pool, nodes, h):
+    """The id of ``nodes`` (hash ``h``, as int64 bits) or -1, and the slot where it is or would go: ids
+    with equal hashes sit in consecutive probe positions."""
+    keys, vals = pool[_HKEY], pool[_HVAL]
+    arena, table = pool[_ARENA], pool[_TABLE]
     n = nodes.shape[0]
-    h = np.uint64(0)
-    for v in nodes:
-        h ^= _mix(np.uint64(v))
-    new = count[0]
-    table = table_of[0]
-    arena = arena_of[0]
-    if h in index:
-        i = index[h]
-        while True:
-            if table[i, SIZE] == n:
-                start = table[i, START]
+    mask = keys.shape[0] - 1
+    i = h & mask
+    while vals[i] >= 0:
+        if keys[i] == h:
+            s = vals[i]
+            if table[4 * s + _SIZE] == n:
+                start = table[4 * s + _START]
                 same = True
                 for k in range(n):
                     if arena[start + k] != nodes[k]:
                         same = False
                         break
                 if same:
-                    return i
-            if table[i, CHAIN] < 0:
-                break
-            i = table[i, CHAIN]
-        table[i, CHAIN] = new
-    else:
-        index[h] = new
-    if new >= table.shape[0]:
-        grown = np.empty((2 * table.shape[0], 5), dtype=np.int64)
-        grown[:new] = table[:new]
-        table_of[0] = grown
-        table = grown
-    used = count[1]
-    if used + n > arena.shape[0]:
-        more = np.empty(max(2 * arena.shape[0], used + n), dtype=np.int64)
-        more[:used] = arena[:used]
-        arena_of[0] = more
-        arena = more
-    arena[used:used + n] = nodes
-    table[new, START] = used
-    table[new, SIZE] = n
-    table[new, ROBOTS] = np.searchsorted(nodes, R)
-    table[new, CHAIN] = -1
-    table[new, TARGETS] = -1
-    count[0] += 1
-    count[1] += n
+                    return s, i
+        i = (i + 1) & mask
+    return -1, i
+
+
+@numba.njit(cache=True)
+def intern(pool, nodes):
+    """The id of the sorted, distinct ``nodes`` (a new id, the nodes copied in, when first met)."""
+    h = np.uint64(0)
+    for v in nodes:
+        h ^= _mix(np.uint64(v))
+    key = np.int64(h >> np.uint64(1))  # 63 bits: a non-negative int64 key
+    found, slot = _find(pool, nodes, key)
+    if found >= 0:
+        return found
+    count = pool[_COUNT]
+    new = count[_SETS]
+    n = nodes.shape[0]
+    if 4 * (new + 1) > pool[_TABLE].shape[0]:
+        grown = np.empty(2 * pool[_TABLE].shape[0], dtype=np.int64)
+        grown[:4 * new] = pool[_TABLE][:4 * new]
+        pool[_TABLE] = grown
+    used = count[_USED]
+    if used + n > pool[_ARENA].shape[0]:
+        more = np.empty(max(2 * pool[_ARENA].shape[0], used + n), dtype=np.int64)
+        more[:used] = pool[_ARENA][:used]
+        pool[_ARENA] = more
+    pool[_ARENA][used:used + n] = nodes
+    table = pool[_TABLE]
+    table[4 * new + _START] = used
+    table[4 * new + _SIZE] = n
+    table[4 * new + _ROBOTS] = np.searchsorted(nodes, count[_R])
+    table[4 * new + _TARGETS] = -1
+    pool[_HKEY][slot] = key
+    pool[_HVAL][slot] = new
+    count[_SETS] += 1
+    count[_USED] += n
+    count[_HN] += 1
+    if 2 * count[_HN] > pool[_HKEY].shape[0]:
+        _grow_hash(pool)
     return new
 
 
 @numba.njit(cache=True)
 def new_pool(R):
     """An empty pool holding :data:`EMPTY`, for a world of ``R`` robots."""
-    arena = List.empty_list(types.int64[::1])
-    arena.append(np.empty(1024, dtype=np.int64))
-    table = List.empty_list(types.int64[:, ::1])
-    table.append(np.empty((128, 5), dtype=np.int64))
-    pool = (arena, Dict.empty(key_type=types.uint64, value_type=types.int64), table,
-            Dict.empty(key_type=_PAIR, value_type=types.int64), np.int64(R), np.zeros(2, dtype=np.int64))
+    pool = List.empty_list(types.int64[::1])
+    pool.append(np.empty(1024, dtype=np.int64))  # arena
+    pool.append(np.empty(4 * 128, dtype=np.int64))  # table
+    pool.append(np.array([0, 0, R, 0, 0], dtype=np.int64))  # counts
+    pool.append(np.zeros(256, dtype=np.int64))  # set hashes
+    pool.append(np.full(256, -1, dtype=np.int64))
+    pool.append(np.zeros(256, dtype=np.int64))  # unions: first id, second id, union
+    pool.append(np.zeros(256, dtype=np.int64))
+    pool.append(np.full(256, -1, dtype=np.int64))
     intern(pool, np.zeros(0, dtype=np.int64))
     return pool
 
 
 @numba.njit(cache=True, inline="always")
 def nodes_of(pool, s):
-    row = pool[2][0][s]
-    return pool[0][0][row[START]:row[START] + row[SIZE]]
+    start = pool[_TABLE][4 * s + _START]
+    return pool[_ARENA][start:start + pool[_TABLE][4 * s + _SIZE]]
 
 
 @numba.njit(cache=True, inline="always")
 def size(pool, s):
-    return pool[2][0][s, SIZE]
+    return pool[_TABLE][4 * s + _SIZE]
 
 
 @numba.njit(cache=True, inline="always")
-def sizes_of(pool):
-    """The table (columns :data:`SIZE`, :data:`ROBOTS`, ...) of every set so far; read it before the
-    next :func:`intern`, which may grow it."""
-    return pool[2][0]
+def robots_in(pool, s, R):
+    """How many of set ``s``'s nodes are robots (nodes ``< R``, the pool's robot count)."""
+    return pool[_TABLE][4 * s + _ROBOTS]
+
+
+@numba.njit(cache=True)
+def _union_slot(pool, a, b):
+    """The slot of the union of ids ``a < b`` in the union table, found or empty."""
+    ua, ub, uv = pool[_UA], pool[_UB], pool[_UVAL]
+    mask = ua.shape[0] - 1
+    i = np.int64(_mix(np.uint64(a) * np.uint64(0x100000001B3) ^ np.uint64(b)) >> np.uint64(1)) & mask
+    while uv[i] >= 0 and (ua[i] != a or ub[i] != b):
+        i = (i + 1) & mask
+    return i
+
+
+@numba.njit(cache=True)
+def _grow_unions(pool):
+    """Double the union table (kept at most half full)."""
+    ua, ub, uv = pool[_UA], pool[_UB], pool[_UVAL]
+    cap = 2 * ua.shape[0]
+    pool[_UA] = np.zeros(cap, dtype=np.int64)
+    pool[_UB] = np.zeros(cap, dtype=np.int64)
+    pool[_UVAL] = np.full(cap, -1, dtype=np.int64)
+    for i in range(ua.shape[0]):
+        if uv[i] >= 0:
+            j = _union_slot(pool, ua[i], ub[i])
+            pool[_UA][j] = ua[i]
+            pool[_UB][j] = ub[i]
+            pool[_UVAL][j] = uv[i]
 
 
 @numba.njit(cache=True)
@@ -121,10 +192,10 @@ def union(pool, a, b):
         return a
     if a == EMPTY:
         return b
-    key = (min(a, b), max(a, b))
-    unions = pool[3]
-    if key in unions:
-        return unions[key]
+    lo, hi = min(a, b), max(a, b)
+    i = _union_slot(pool, lo, hi)
+    if pool[_UVAL][i] >= 0:
+        return pool[_UVAL][i]
     x, y = nodes_of(pool, a), nodes_of(pool, b)
     out = np.empty(x.shape[0] + y.shape[0], dtype=np.int64)
     i = j = n = 0
@@ -141,24 +212,26 @@ def union(pool, a, b):
             j += 1
         n += 1
     u = intern(pool, out[:n])
-    unions[key] = u
+    k = _union_slot(pool, lo, hi)  # interning may not move the union table, but look again all the same
+    pool[_UA][k] = lo
+    pool[_UB][k] = hi
+    pool[_UVAL][k] = u
+    count = pool[_COUNT]
+    count[_UN] += 1
+    if 2 * count[_UN] > pool[_UA].shape[0]:
+        _grow_unions(pool)
     return u
-
-
-@numba.njit(cache=True, inline="always")
-def robots_in(pool, s, R):
-    """How many of set ``s``'s nodes are robots (nodes ``< R``, the pool's robot count)."""
-    return pool[2][0][s, ROBOTS]
 
 
 @numba.njit(cache=True)
 def targets_of(pool, s, R):
     """The id of set ``s`` without its robots."""
-    t = pool[2][0][s, TARGETS]
+    table = pool[_TABLE]
+    t = table[4 * s + _TARGETS]
     if t < 0:
-        r = pool[2][0][s, ROBOTS]
+        r = table[4 * s + _ROBOTS]
         t = s if r == 0 else intern(pool, nodes_of(pool, s)[r:])
-        pool[2][0][s, TARGETS] = t
+        pool[_TABLE][4 * s + _TARGETS] = t  # the table as it is after interning
     return t
 
 

@@ -15,36 +15,26 @@ import numpy as np
 
 from planners.ising.sharing.node_sets import EMPTY
 from planners.ising.sharing.placement import neighbour_pairs, pair_gains, pair_groups
-from planners.ising.sharing.stage_steps import problems_of, set_sizes
+from planners.ising.sharing.stage_steps import set_sizes
 from planners.ising.sharing.stages import PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS
 
 __all__ = ["refine_boundaries"]
 
 
-def _pair_problems(stages, pair_w, R, groups, rows):
-    """Split the pair groups beyond the chip on clusters (per shift, in order) and stack the others'
-    split problems, problem ``i * S + s`` for the ``i``-th pair that fits and shift ``s``: ``(problems,
-    store rows, group ids)`` of those, or ``None`` when every pair went to clusters."""
+def _split_pairs(stages, pair_w, R, groups, rows) -> None:
+    """Split the pair groups into store ``rows`` (row ``j * S + s``: pair ``j``, shift ``s``): groups beyond
+    the chip on clusters (per shift, in order), the others in one submission, their candidates ordered by
+    the first shift's cut (the route cost decides)."""
     S = pair_w.shape[0]
     coarse = set_sizes(stages.pool, groups) - 2 > stages.limit
     for j in np.flatnonzero(coarse).tolist():
         for s in range(S):
             stages.coarse_split(pair_w[s], R, int(groups[j]), False, 0.0, int(rows[j * S + s]), stages.n_prob)
     normal = np.flatnonzero(~coarse)
-    if normal.shape[0] == 0:
-        return None
-    per_shift = [problems_of(pair_w[s], groups[normal], R, 0.0, stages.pool) for s in range(S)]
-    Pn = normal.shape[0] * S
-    f = per_shift[0][0].shape[1]
-    q, Q = np.zeros((Pn, f)), np.zeros((Pn, f, f))
-    free = np.zeros((Pn, f), dtype=np.int64)
-    sizes = np.empty(Pn, dtype=np.int64)
-    anchors = np.empty((Pn, 2), dtype=np.int64)
-    for s, (qs, Qs, fs, zs, As) in enumerate(per_shift):
-        q[s::S], Q[s::S], free[s::S], sizes[s::S], anchors[s::S] = qs, Qs, fs, zs, As
-    pick = (normal[:, None] * S + np.arange(S)).reshape(-1)
-    problems = (q, Q, free, sizes, anchors, np.zeros(Pn, dtype=np.bool_))
-    return problems, rows[pick], np.repeat(groups[normal], S)
+    if normal.shape[0]:
+        prow = rows[(normal[:, None] * S + np.arange(S)).reshape(-1)]
+        stages.counters[SPLITS] += prow.shape[0]
+        stages.solve(pair_w, R, groups[normal], 0.0, False, prow)
 
 
 def refine_boundaries(stages, dist, pair_w, R, sets, rounds: int, per_robot: int, prices) -> None:
@@ -72,11 +62,7 @@ def refine_boundaries(stages, dist, pair_w, R, sets, rounds: int, per_robot: int
         stages.store.reserve(stages.n_prob + P + 1)
         rows = stages.n_prob + np.arange(P)
         stages.n_prob += P
-        stacked = _pair_problems(stages, pair_w, R, groups, rows)
-        if stacked is not None:  # one submission; candidates ordered by the first shift's cut
-            problems, prow, gids = stacked
-            counters[SPLITS] += prow.shape[0]
-            stages.solve(problems, prow, gids, pair_w[0], R)
+        _split_pairs(stages, pair_w, R, groups, rows)
         counters[PAIR_RESPLITS] += len(pairs)
         gain, gk, gl, new_k, new_l = pair_gains(dist, pk, pl, rows, S, sets, stages.store.arrays, memo, counters,
                                                 pricing, stages.pool, R)

@@ -1,9 +1,13 @@
 """The compiled steps of the split stages (paper 5.3, Algorithm 3) on node-set ids.
 
-Each step is one small compiled call from :mod:`.stages` (the search itself is Python): the split
-problems of a list of groups (:func:`problems_of`), the one-partition splits (:func:`put_trivial`),
-a submission's reads merged into each split's candidates (:func:`keep_candidates`), the groups a
-stage splits (:func:`todo_groups`) and the states it leaves (:func:`expand_states`).
+Each step is one compiled call from :mod:`.stages` / :mod:`.refine` (the search itself is Python):
+the splits of a list of groups solved on the chip (:func:`solve_splits`: their split problems
+(:func:`problems_of`), the one-partition splits, the submissions with their retries (map and pack by
+:func:`ising_backend.pack_qubo_stack`, anneal through the session record, decode and score) and the
+reads merged into each split's candidates (:func:`keep_candidates`)), the groups a stage splits
+(:func:`todo_groups`) and the states it leaves (:func:`expand_states`).  A stage is one call rather
+than one per step: Python's cost per compiled call (microseconds each) is what a paper world's whole
+sharing costs, so the loops stay together where they run once per stage.
 
 Candidates live in a *store* ``(cut (rows, C), side0 (rows, C), side1 (rows, C), count (rows,))``:
 row ``i`` holds problem ``i``'s distinct valid partitions (set ids of :mod:`.node_sets`), best cut
@@ -15,10 +19,19 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.sharing.kernels import add_balance, split_model
-from planners.ising.sharing.node_sets import ROBOTS, SIZE, intern, nodes_of, size, sizes_of
+from ising_backend import STACK_OK, anneal_submit, pack_qubo_stack, via_callback
+from planners.ising.sharing.kernels import add_balance, branch_problems, candidate_sides, score_stage, split_model
+from planners.ising.sharing.node_sets import intern, nodes_of, robots_in, size
 
-__all__ = ["problems_of", "put_trivial", "keep_candidates", "todo_groups", "expand_states", "set_sizes", "set_nodes"]
+__all__ = ["solve_splits", "submit_stage", "problems_of", "keep_candidates", "todo_groups", "expand_states", "set_sizes",
+           "set_nodes", "SOLVED", "FAILED_SPLIT", "REFUSED_STAGE", "NO_ROOM", "TRIVIAL"]
+
+#: :func:`solve_splits`' status: every split has candidates; a split had none after the retries (``what``:
+#: its group's set id); a stage the chip would refuse (``what``: the :func:`ising_backend.pack_qubo_stack`
+#: status); a split with more candidates than the store's width.
+SOLVED, FAILED_SPLIT, REFUSED_STAGE, NO_ROOM = 0, 1, 2, 3
+TRIVIAL = 2  # the counter of one-partition splits (``stages.COUNTERS``)
+_SEED_HIGH = 9223372036854775807  # rng.integers(2**63 - 1), as the reference draws chip seeds
 
 
 @numba.njit(cache=True)
@@ -65,22 +78,8 @@ def problems_of(w, groups, R, balance, pool):
 
 
 @numba.njit(cache=True)
-def put_trivial(w, anchors, rows, store, pool):
-    """The one partition of each anchored split without a free node (anchors ``a | b``) into store
-    row ``rows[j]``, scored ``w[a, b]``."""
-    c_cut, c_m0, c_m1, c_n = store
-    for j in range(rows.shape[0]):
-        a, b = anchors[j, 0], anchors[j, 1]
-        row = rows[j]
-        c_cut[row, 0] = w[a, b]
-        c_m0[row, 0] = intern(pool, np.array([a], dtype=np.int64))
-        c_m1[row, 0] = intern(pool, np.array([b], dtype=np.int64))
-        c_n[row] = 1
-
-
-@numba.njit(cache=True)
 def keep_candidates(out, parent, pending, pids, reads, rng, mapping, store, pool):
-    """A submission's reads (``out``: :func:`.submission.run_stage`'s arrays after ``calls, emu``) into the
+    """A submission's reads (``out``: :func:`submit_stage`'s arrays) into the
     candidates of the pending splits: split ``i`` (problem ``pending[i]``, branches ``parent == i``)
     gets its distinct valid partitions in store row ``pids[pending[i]]``, best cut first; per rule
     ``mapping`` counts candidates, valid reads and wins (ties between rules drawn from ``rng``).
@@ -145,18 +144,17 @@ def todo_groups(groups, ng, R, kind, base_max, above, pool):
     """(state, group) pairs to split: groups with several robots (``kind`` 0), else one-robot groups
     with more than ``base_max`` targets and robotless ones with more than ``above``."""
     S = groups.shape[0]
-    meta = sizes_of(pool)
     ts = np.empty(S * groups.shape[1], dtype=np.int64)
     tg = np.empty_like(ts)
     n = 0
     for si in range(S):
         for gi in range(ng[si]):
             g = groups[si, gi]
-            nr = meta[g, ROBOTS]
+            nr = robots_in(pool, g, R)
             if kind == 0:
                 take = nr >= 2
             else:
-                take = meta[g, SIZE] - nr > (base_max if nr else above)
+                take = size(pool, g) - nr > (base_max if nr else above)
             if take:
                 ts[n] = si
                 tg[n] = gi
@@ -223,3 +221,110 @@ def expand_states(score, groups, ng, todo_s, todo_g, rows, width, max_states, st
             n_out += 1
     order = np.argsort(-out_score[:n_out], kind="mergesort")[:max_states]
     return out_score[order], out_groups[order], out_ng[order]
+
+
+@numba.njit(cache=True)
+def submit_stage(problems, program, seed, machine, dist, n_robots):
+    """One stage submission of the split ``problems = (q (P, f), Q (P, f, f), free (P, f), sizes (P,), anchors
+    (P, 2), reject (P,), nfix (P,), fixed (P, f))`` (spin-budget branches: the ``nfix[p]`` nodes after the free
+    ones frozen at spins ``fixed[p]``) under ``program = (rule ids, Lh, Lj, capacity, reads, ...)``: every
+    split x rule mapped and packed (:func:`ising_backend.pack_qubo_stack`), annealed with ``seed`` on the
+    session record ``machine``, every read decoded, checked and scored on ``dist``.  Returns ``(status,
+    calls, emulation_s, (n_valid, best, c_split, c_cut, side0, n0, side1, n1))`` (as
+    :func:`.kernels.score_stage` and :func:`.kernels.candidate_sides`); nothing is annealed unless
+    ``status`` is ``STACK_OK``."""
+    q, Q, free, sizes, anchors, reject, nfix, fixed = problems
+    rules, Lh, Lj, capacity, num_reads = program[0], program[1], program[2], program[3], program[4]
+    k = rules.shape[0]
+    if via_callback(machine):  # a machine behind the callback: packs up to its usable spins, as the checked path
+        capacity = max(capacity, sizes.max())
+    status, h, J, where = pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity)
+    n_packs, width = J.shape[0], J.shape[1]
+    reads = num_reads if status == STACK_OK else 0  # a refused stage: nothing annealed, no read to score
+    spins = np.zeros((n_packs, reads, width), dtype=np.int8)
+    emu = 0.0
+    if status == STACK_OK:
+        energies = np.empty((n_packs, reads))
+        emu = anneal_submit(h, J, reads, seed, machine, spins, energies)
+    calls = n_packs * reads if width > 0 else 0
+    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject,
+                                                        nfix, fixed)
+    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes + nfix, anchors)
+    return status, calls, emu, (n_valid, best, c_split, c_cut, s0, n0, s1, n1)
+
+
+@numba.njit(cache=True)
+def solve_splits(ws, R, groups, balance, reject, rows, rng, program, machine, book, store, pool):
+    """The splits of ``groups`` (set ids) solved on the chip: problem ``i * S + s`` is group ``i``'s anchored
+    split on the weights ``ws[s]`` (``S = ws.shape[0]``; the balance term when ``balance``), its distinct
+    valid candidates, best cut on ``ws[0]`` first, into store row ``rows[i * S + s]`` -- one partition for a
+    split without a free node, else the submissions of ``ReferenceStages.solve_all`` (the oracle): all
+    pending splits in one submission, those without a valid candidate again, up to ``retries`` times.
+    ``program = (rule ids, Lh, Lj, capacity, reads, n_spins, retries)``; ``book = (mapping (k, 3), counters,
+    calls (retries + 1,), emulation_s (retries + 1,))`` gets each submission's charge.  Returns ``(status,
+    what, submissions)``."""
+    n_spins, retries = program[5], program[6]
+    mapping, counters, sub_calls, sub_emu = book
+    c_cut, c_m0, c_m1, c_n = store
+    S = ws.shape[0]
+    P = groups.shape[0] * S
+    f = 0
+    for g in groups:
+        f = max(f, size(pool, g) - 2)
+    q = np.zeros((P, f))
+    Q = np.zeros((P, f, f))
+    free = np.zeros((P, f), dtype=np.int64)
+    sizes = np.empty(P, dtype=np.int64)
+    anchors = np.empty((P, 2), dtype=np.int64)
+    for s in range(S):
+        qs, Qs, fs, zs, As = problems_of(ws[s], groups, R, balance, pool)
+        for i in range(groups.shape[0]):
+            p = i * S + s
+            n = zs[i]
+            sizes[p] = n
+            anchors[p] = As[i]
+            free[p, :n] = fs[i, :n]
+            q[p, :n] = qs[i, :n]
+            Q[p, :n, :n] = Qs[i, :n, :n]
+    n_pending = 0
+    pending = np.empty(P, dtype=np.int64)
+    for p in range(P):
+        row = rows[p]
+        c_n[row] = 0
+        if sizes[p] == 0:  # one partition only: nothing to solve
+            counters[TRIVIAL] += 1
+            a, b = anchors[p, 0], anchors[p, 1]
+            c_cut[row, 0] = ws[0][a, b]
+            c_m0[row, 0] = intern(pool, np.array([a], dtype=np.int64))
+            c_m1[row, 0] = intern(pool, np.array([b], dtype=np.int64))
+            c_n[row] = 1
+        else:
+            pending[n_pending] = p
+            n_pending += 1
+    pending = pending[:n_pending]
+    attempts = 0
+    while pending.shape[0] > 0:
+        seed = rng.integers(0, _SEED_HIGH)
+        m = pending.shape[0]
+        if sizes[pending].max() > n_spins:  # splits beyond the chip as their spin-budget branches, merged below
+            bq, bQ, bfree, bsizes, nfix, fixed, parent = branch_problems(q[pending], Q[pending], free[pending],
+                                                                        sizes[pending], n_spins)
+        else:
+            bq, bQ, bfree, bsizes = q[pending], Q[pending], free[pending], sizes[pending]
+            parent = np.arange(m)
+            nfix = np.zeros(m, dtype=np.int64)
+            fixed = np.zeros((m, 0), dtype=np.int8)
+        problems = (bq, bQ, bfree, bsizes, anchors[pending][parent], np.full(parent.shape[0], reject), nfix, fixed)
+        status, calls, emu, out = submit_stage(problems, program, np.uint64(seed), machine, ws[0], R)
+        if status != STACK_OK:
+            return REFUSED_STAGE, status, attempts
+        sub_calls[attempts] = calls
+        sub_emu[attempts] = emu
+        room, failed = keep_candidates(out, parent, pending, rows, program[4], rng, mapping, store, pool)
+        if not room:
+            return NO_ROOM, 0, attempts + 1
+        if failed.shape[0] and attempts >= retries:
+            return FAILED_SPLIT, groups[failed[0] // S], attempts + 1
+        attempts += 1
+        pending = failed
+    return SOLVED, 0, attempts

@@ -2,7 +2,7 @@
 
 Contract: :meth:`SplitStages.split_all` makes the decisions of ``SplitSearch.split_all`` in
 ``tests/sharing_search_reference.py`` (its oracle; the tests compare both): the same groups, memo,
-stage submissions (:func:`.submission.run_stage`), seeds and win draws from the caller's
+stage submissions (:func:`.stage_steps.solve_splits`), seeds and win draws from the caller's
 ``numpy.random.Generator``, retries, candidate order and beam.  Groups are ids of a node-set pool
 (:mod:`.node_sets`) and the loops over nodes and reads are small compiled steps
 (:mod:`.stage_steps`, :mod:`.clusters`); this module only decides what to split, submits and
@@ -19,18 +19,16 @@ import numpy as np
 
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.clusters import coarsen, expand_candidates
-from planners.ising.sharing.kernels import branch_problems
 from planners.ising.sharing.node_sets import intern
-from planners.ising.sharing.stage_steps import (expand_states, keep_candidates, problems_of, put_trivial, set_nodes,
-                                                set_sizes, todo_groups)
-from planners.ising.sharing.submission import STAGE_OK, stage_refusal
+from planners.ising.sharing.stage_steps import (FAILED_SPLIT, NO_ROOM, REFUSED_STAGE, expand_states, set_nodes,
+                                                set_sizes, solve_splits, todo_groups)
+from planners.ising.sharing.submission import stage_refusal
 
 __all__ = ["COUNTERS", "SplitStages", "SharingStop", "CandidateStore"]
 
 COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
             "pair_accepted", "coarse_splits")
 STAGES, SPLITS, TRIVIAL, BUNDLES, TOUR_SOLVES, STATES, PAIR_RESPLITS, PAIR_ACCEPTED, COARSE = range(9)
-_SEED_HIGH = 9223372036854775807  # rng.integers(2**63 - 1), as the reference draws chip seeds
 
 
 class SharingStop(SharingFailure):
@@ -77,6 +75,8 @@ class SplitStages:
         self.counters = counters
         self.mapping = mapping
         self.retries = solver.config.retries
+        self.n_spins = solver.n_spins
+        self.program = solver.program()
         self.n_prob = 0
         self.memo: dict = {}
         self.calls: list[int] = []
@@ -84,46 +84,29 @@ class SplitStages:
 
     # ------------------------------------------------------------ submissions
 
-    def solve(self, problems, pids, gids, score_w, R) -> None:
-        """Solve split ``problems = (q, Q, free, sizes, anchors, reject)`` (groups ``gids``) into store rows
-        ``pids``, re-submitting those without a valid candidate up to ``retries`` times
-        (``ReferenceStages.solve_all``, the oracle)."""
-        q, Q, free, sizes, anchors, reject = problems
-        n_spins = self.solver.n_spins
-        self.store.arrays[3][pids] = 0
-        pending = np.arange(sizes.shape[0])
-        attempts = 0
-        while pending.shape[0]:
-            seed = int(self.rng.integers(0, _SEED_HIGH))
-            if sizes[pending].max() > n_spins:  # splits beyond the chip as their spin-budget branches
-                bq, bQ, bfree, bsizes, nfix, fixed, parent = branch_problems(q[pending], Q[pending], free[pending],
-                                                                            sizes[pending], n_spins)
-            else:
-                bq, bQ, bfree, bsizes = q[pending], Q[pending], free[pending], sizes[pending]
-                parent = np.arange(pending.shape[0])
-                nfix = np.zeros(pending.shape[0], dtype=np.int64)
-                fixed = np.zeros((pending.shape[0], 0), dtype=np.int8)
-            out = self.solver.submit((bq, bQ, bfree, bsizes, anchors[pending][parent], reject[pending][parent], nfix,
-                                      fixed), seed, self.machine, score_w, R)
-            if out[0] != STAGE_OK:
-                raise SharingStop(stage_refusal(out[0]))
-            self.calls.append(out[1])
-            self.seconds.append(out[2])
-            room, failed = keep_candidates(out[3:], parent, pending, pids, self.solver.config.reads, self.rng,
-                                           self.mapping, self.store.arrays, self.pool)
-            if not room:
-                raise SharingStop("internal error: a split has more candidates than the sharing made room for")
-            if failed.shape[0] and attempts >= self.retries:
-                nodes = set_nodes(self.pool, gids[failed[0]]).tolist()
-                raise SharingStop(f"every chip candidate for the split of group {nodes} was invalid after "
-                                  f"{attempts + 1} submissions")
-            attempts += 1
-            pending = failed
+    def solve(self, ws, R, groups, balance: float, reject: bool, rows) -> None:
+        """Solve the splits of ``groups`` on the weights ``ws (S, n, n)`` into store ``rows`` (problem
+        ``i * S + s``: group ``i``, weights ``s``) -- :func:`.stage_steps.solve_splits`, charged and
+        counted; where it cannot go on a :class:`SharingStop` naming why."""
+        room = self.retries + 1
+        book = (self.mapping, self.counters, np.zeros(room, dtype=np.int64), np.zeros(room))
+        status, what, subs = solve_splits(ws, R, groups, balance, reject, rows, self.rng, self.program, self.machine,
+                                          book, self.store.arrays, self.pool)
+        self.calls.extend(book[2][:subs].tolist())
+        self.seconds.extend(book[3][:subs].tolist())
+        if status == FAILED_SPLIT:
+            nodes = set_nodes(self.pool, what).tolist()
+            raise SharingStop(f"every chip candidate for the split of group {nodes} was invalid after {subs} "
+                              "submissions")
+        if status == REFUSED_STAGE:
+            raise SharingStop(stage_refusal(what))
+        if status == NO_ROOM:
+            raise SharingStop("internal error: a split has more candidates than the sharing made room for")
 
     def coarse_split(self, w, R, g, reject, balance, row, scratch) -> None:
         """The split of group ``g`` (beyond the chip) on target clusters into store row ``row``
         (``scratch``: a free row for the coarse split) -- ``coarse_split`` of the oracle."""
-        n_spins = self.solver.n_spins
+        n_spins = self.n_spins
         nodes = set_nodes(self.pool, g)
         robots = int(np.searchsorted(nodes, R))
         clustered = 0
@@ -140,14 +123,8 @@ class SplitStages:
         self.counters[STAGES] += 1  # the coarse split is a stage of one split
         self.counters[SPLITS] += 1
         cg = np.array([intern(self.pool, np.arange(start.shape[0] - 1))], dtype=np.int64)
-        q, Q, free, sizes, anchors = problems_of(wc, cg, coarse_robots, balance, self.pool)
         self.store.reserve(max(row, scratch) + 1)
-        if sizes[0] == 0:  # one partition only (its cut is the fine one, below)
-            self.counters[TRIVIAL] += 1
-            put_trivial(wc, anchors, np.array([scratch], dtype=np.int64), self.store.arrays, self.pool)
-        else:
-            self.solve((q, Q, free, sizes, anchors, np.array([reject])), np.array([scratch], dtype=np.int64), cg, wc,
-                       coarse_robots)
+        self.solve(wc[None], coarse_robots, cg, balance, reject, np.array([scratch], dtype=np.int64))
         expand_candidates(w, self.pool, self.store.arrays, scratch, row, members, start)
         self.counters[COARSE] += 1
 
@@ -177,14 +154,8 @@ class SplitStages:
         self.counters[STAGES] += 1
         self.counters[SPLITS] += nf
         normal = np.flatnonzero(~big)
-        q, Q, free, sizes, anchors = problems_of(w, fresh[normal], R, bal, self.pool)
-        one = sizes == 0  # one partition only: nothing to solve
-        self.counters[TRIVIAL] += int(one.sum())
-        put_trivial(w, anchors[one], n_prob + normal[one], self.store.arrays, self.pool)
-        k = np.flatnonzero(~one)
-        if k.shape[0]:
-            self.solve((q[k], Q[k], free[k], sizes[k], anchors[k], np.full(k.shape[0], reject)), n_prob + normal[k],
-                       fresh[normal[k]], w, R)
+        if normal.shape[0]:
+            self.solve(w[None], R, fresh[normal], bal, reject, n_prob + normal)
         self.n_prob = n_prob + nf
         return rows
 

@@ -45,11 +45,17 @@ _PRESETS = {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"), 
             "ising-fleet": ("ising-fleet", "keep", "field")}
 
 
-def _layers(part: str) -> tuple[str, str, str]:
-    """The (sharing, tour, path) registry names whose warm-up compiles ``part``."""
+def _layers(part: str) -> list[tuple[str, str, str]]:
+    """The (sharing, tour, path) registry names whose warm-ups compile ``part``: the Ising sharing part
+    warms both presets' sharing (the paper's configuration runs the same kernels, so one worker
+    compiles them once)."""
     name, _, side = part.partition(":")
     if side == "sharing":
-        return name, "nn", "bfs"
+        return [(preset, "nn", "bfs") for preset in _ISING]
+    return [_layer_triple(name, side)]
+
+
+def _layer_triple(name: str, side: str) -> tuple[str, str, str]:
     if side == "tour+path":
         return "psa", name, _PRESETS[name][2] if name in _PRESETS else name
     return _PRESETS[name] if name in _PRESETS else tuple(name.split("+"))
@@ -57,13 +63,14 @@ def _layers(part: str) -> tuple[str, str, str]:
 
 def parts_for(controllers) -> list[str]:
     """The warm-up parts of controller specs (presets and layer triples; learned models have none),
-    longest first.  An Ising preset is two parts (its sharing layer, its tour and path layers);
-    ``ising`` also the fleet search it runs above 20 targets."""
+    longest first.  An Ising preset is two parts: the Ising sharing (one part for both presets, whose
+    sharing layers run the same kernels) and its tour and path layers; ``ising`` also the fleet search
+    it runs above 20 targets."""
     parts: list[str] = []
     for spec in controllers:
         spec = spec.strip()
         if spec in _ISING:
-            new = [f"{spec}:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" else [])
+            new = ["ising:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" else [])
         elif spec in _PRESETS:
             new = [spec]
         elif spec.startswith("lorr:"):  # a LoRR executor with the start kit's scheduler (mrmt lorr run)
@@ -71,7 +78,7 @@ def parts_for(controllers) -> list[str]:
         elif spec.count("+") == 2:
             s, t, p = spec.split("+")
             tp = f"{t}:tour+path" if t == p and t in _ISING else f"psa+{t}+{p}"  # a preset's part when it is one
-            new = [f"{s}:sharing" if s in _ISING else None, tp if t in _ISING or p in _ISING else None]
+            new = ["ising:sharing" if s in _ISING else None, tp if t in _ISING or p in _ISING else None]
             new = [x for x in new if x] or [spec]
         else:
             new = []
@@ -148,9 +155,9 @@ def _warm_part(part: str, world_kwargs: dict) -> str:
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
 
-    sharing, tour, path = _layers(part)
     world = generate_world(0, **world_kwargs)
-    make_pipeline(sharing=sharing, tour=tour, path=path).warmup(world, seed=0)
+    for sharing, tour, path in _layers(part):
+        make_pipeline(sharing=sharing, tour=tour, path=path).warmup(world, seed=0)
     return part
 
 

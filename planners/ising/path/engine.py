@@ -311,14 +311,16 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
                 w = width[slots[0]]
                 spins = np.empty((k, num_reads, w), dtype=np.int8)
                 energies = np.empty((k, num_reads))
-                sub_emu[nsub] = anneal_submit(ph[slots[0], : k * w].reshape((k, w)),
-                                              pJ[slots[0], : k * w * w].reshape((k, w, w)), num_reads,
-                                              np.uint64(seed), machine, spins, energies)
+                # float64 programs: the one anneal specialization every layer shares (the same samples)
+                sub_emu[nsub] = anneal_submit(ph[slots[0], : k * w].reshape((k, w)).astype(np.float64),
+                                              pJ[slots[0], : k * w * w].reshape((k, w, w)).astype(np.float64),
+                                              num_reads, np.uint64(seed), machine, spins, energies)
             else:
                 h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
                 spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
                 energies = np.empty((h.shape[0], num_reads))
-                sub_emu[nsub] = anneal_submit(h, J, num_reads, np.uint64(seed), machine, spins, energies)
+                sub_emu[nsub] = anneal_submit(h.astype(np.float64), J.astype(np.float64), num_reads, np.uint64(seed),
+                                              machine, spins, energies)
             sub_calls[nsub] = spins.shape[0] * num_reads
             used += spins.shape[0] * num_reads
             nsub += 1

@@ -28,13 +28,11 @@ from pathlib import Path
 
 __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
 
-#: Rough cold compile seconds of each part, two parts at a time on a 2-core machine (docs/design/cold_start.md):
-#: `fast`, `strong` and the LoRR executors measured alone with an empty cache; the Ising parts' earlier shares
-#: scaled to a measured cold `make demo` (benchmarks/cold_start.py, 2026-11-26: 374 s wall, 650 s CPU, 2-core
-#: AMD EPYC).
-PART_SECONDS = {"ising:sharing": 280, "ising:tour+path": 240, "ising-paper:sharing": 40,
-                "ising-paper:tour+path": 40, "ising-fleet": 20, "strong": 16, "fast": 7, "exact": 7,
-                "lorr:pibt": 6, "lorr:windowed": 9}
+#: Rough cold compile seconds of each part, each measured alone with an empty cache on a 2-core AMD EPYC
+#: (2026-11-26; docs/design/cold_start.md).  Parts compiled side by side share the anneal and
+#: quantization kernels, so the sum over two workers is an upper estimate.
+PART_SECONDS = {"ising:sharing": 140, "ising-paper:tour+path": 130, "ising:tour+path": 55, "ising-fleet": 36,
+                "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 6, "lorr:windowed": 9}
 
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.
 LONG_S = 10

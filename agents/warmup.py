@@ -34,6 +34,11 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 PART_SECONDS = {"ising:sharing": 140, "ising-paper:tour+path": 130, "ising:tour+path": 55, "ising-fleet": 36,
                 "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 6, "lorr:windowed": 9}
 
+#: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,
+#: quantization and tour kernels they share compile once per worker (measured: one process compiling
+#: every part in turn, 263 s for a 391 s sum; a cold `make demo` on 2 workers, 130 s for 196 s).
+SHARED_SHARE = 0.67
+
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.
 LONG_S = 10
 
@@ -172,7 +177,7 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     stream = sys.stderr if stream is None else stream
     secs = [PART_SECONDS.get(p, 5) for p in todo]
     jobs = max(1, min(jobs, len(todo)))
-    guess = max(max(secs), sum(secs) / max(1, jobs))
+    guess = max(max(secs), SHARED_SHARE * sum(secs) / max(1, jobs))
     print(f"mrmt: compiling the numba kernels of {', '.join(todo)} (first run after install; cached "
           f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s)",
           file=stream, flush=True)

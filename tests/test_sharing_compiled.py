@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.placement import split_weights_kernel
 from planners.ising.sharing.kernels import pair_mean
 from planners.tours_classical import ThreeOptTour
 from sharing_search_reference import reference_assign
@@ -146,16 +145,21 @@ def test_a_failing_pricing_tour_fails_the_sharing_with_the_chip_calls_charged():
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.integers(0, 2**31), st.integers(2, 9), st.integers(1, 4), st.sampled_from([0.0, 0.5, -1.0]),
        st.sampled_from([1.0, 0.25, 3.0]), st.sampled_from([1.0, 2.0]))
-def test_split_weights_kernel_is_split_weights(seed, n, R, shift, robot_weight, power):
+def test_split_weights_are_the_shifted_powered_distances_with_robot_edges_scaled(seed, n, R, shift, robot_weight,
+                                                                                power):
     R = min(R, n)
     x = np.random.default_rng(seed).integers(0, 20, size=(n, n)).astype(float)
     dist = x + x.T
     np.fill_diagonal(dist, 0.0)
     sharing = IsingSharing(config=SharingConfig(robot_weight=robot_weight, weight_power=power))
-    powered, mean = sharing._powered(dist)
-    got = split_weights_kernel(powered, mean, shift, R, robot_weight)
-    assert np.array_equal(got, sharing.split_weights(dist, R, shift=shift))
-    assert np.array_equal(powered, dist ** power)  # the base is not changed in place
+    base = dist ** power
+    want = base - shift * (base[np.triu_indices(n, 1)].mean() if n > 1 else 0.0)
+    np.fill_diagonal(want, 0.0)
+    want[:R, R:] *= robot_weight
+    want[R:, :R] *= robot_weight
+    got = sharing.split_weights(dist, R, shift=shift)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+    assert np.array_equal(sharing._powered(dist)[0], base)  # the cached base is not changed in place
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -24,27 +24,12 @@ from planners.ising.sharing.stages import BUNDLES, TOUR_SOLVES
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 from planners.tours_classical import three_opt_cost
 
-__all__ = ["split_weights_kernel", "new_memo", "place_bundles", "neighbour_pairs", "pair_groups", "pair_gains",
+__all__ = ["new_memo", "place_bundles", "place_states", "neighbour_pairs", "pair_groups", "pair_gains",
            "flat_sets", "ORDER_IDS", "PRICERS"]
 
 #: the bundle pricers of running sharing calls with a pricing tour other than ``"auto"``, by handle
 PRICERS: "weakref.WeakValueDictionary[int, object]" = weakref.WeakValueDictionary()
 ORDER_IDS = {name: i for i, name in enumerate(BUNDLE_ORDERS)}  # creation, far_first, near_first, largest_first
-
-
-@numba.njit(cache=True)
-def split_weights_kernel(powered, mean, shift, R, robot_weight):
-    """:meth:`~.search.IsingSharing.split_weights` from ``dist ** weight_power`` and its pair mean."""
-    w = powered
-    if shift:
-        w = powered - shift * mean
-        for i in range(w.shape[0]):
-            w[i, i] = 0.0
-    if robot_weight != 1.0:
-        w = w.copy()
-        w[:R, R:] *= robot_weight
-        w[R:, :R] *= robot_weight
-    return w
 
 
 def _price_callback(handle: int, nodes: np.ndarray) -> float:
@@ -143,6 +128,22 @@ def place_bundles(dist, R, groups, order_id, memo, counters, pricing, pool, with
     for k in range(R if with_total else 0):
         total += _price(dist, k, sets[k], memo, counters, pricing, pool, R)
     return True, sets, total
+
+
+@numba.njit(cache=True)
+def place_states(dist, R, groups, ng, order_id, memo, counters, pricing, pool):
+    """Every state's bundles placed (:func:`place_bundles`, states ``groups[si, :ng[si]]``, best summed cut
+    first): ``(ok, sets)`` of the state of least route cost, ties to the earlier state."""
+    S = groups.shape[0]
+    sets = np.full(R, EMPTY, dtype=np.int64)
+    best = np.inf
+    for si in range(S):
+        ok, placed, total = place_bundles(dist, R, groups[si, :ng[si]], order_id, memo, counters, pricing, pool, S > 1)
+        if not ok:
+            return False, sets
+        if si == 0 or total < best - 1e-9:
+            sets, best = placed, total
+    return True, sets
 
 
 @numba.njit(cache=True)

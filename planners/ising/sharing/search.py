@@ -31,7 +31,7 @@ from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
 from planners.ising.sharing.kernels import pair_mean
 from planners.ising.sharing.node_sets import new_pool
-from planners.ising.sharing.placement import ORDER_IDS, PRICERS, flat_sets, new_memo, place_bundles, split_weights_kernel
+from planners.ising.sharing.placement import ORDER_IDS, PRICERS, flat_sets, new_memo, place_states
 from planners.ising.sharing.refine import refine_boundaries
 from planners.ising.sharing.stages import COUNTERS, CandidateStore, SharingStop, SplitStages
 from planners.ising.sharing.submission import StageSolver
@@ -175,25 +175,17 @@ class IsingSharing(ConfigAttributes):
         refinement: each robot's target set id."""
         cfg = self.config
         memo, pricing = prices
-        powered, mean = self._powered(dist)
-        # C-contiguous like the pair weights, so the stage steps compile for one layout only
-        w = np.ascontiguousarray(split_weights_kernel(powered, mean, float(cfg.weight_shift), R, float(cfg.robot_weight)))
+        w = np.ascontiguousarray(self.split_weights(dist, R))  # one layout for the stage steps
         options = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
                    cfg.refine_above, int(cfg.reject_empty_robot_side))
         groups, ng = stages.split_all(w, R, options, float(cfg.balance))
-        S = groups.shape[0]
-        sets, best = None, np.inf
-        for si in range(S):  # every state's bundles placed; the state of least route cost (ties: larger cuts)
-            ok, placed, total = place_bundles(dist, R, groups[si, :ng[si]], ORDER_IDS[cfg.bundle_order], memo,
-                                              stages.counters, pricing, stages.pool, S > 1)
-            if not ok:
-                raise SharingStop("internal error: a group of several robots is left after the split stages")
-            if si == 0 or total < best - 1e-9:
-                sets, best = placed, total
+        # every state's bundles placed; the state of least route cost (ties: larger cuts)
+        ok, sets = place_states(dist, R, groups, ng, ORDER_IDS[cfg.bundle_order], memo, stages.counters, pricing,
+                                stages.pool)
+        if not ok:
+            raise SharingStop("internal error: a group of several robots is left after the split stages")
         if cfg.pair_rounds:
-            pair_w = np.empty((len(cfg.pair_shifts),) + w.shape)
-            for s, shift in enumerate(cfg.pair_shifts):
-                pair_w[s] = split_weights_kernel(powered, mean, float(shift), R, float(cfg.robot_weight))
+            pair_w = np.stack([self.split_weights(dist, R, shift=shift) for shift in cfg.pair_shifts])
             refine_boundaries(stages, dist, pair_w, R, sets, cfg.pair_rounds, cfg.pair_neighbours, prices)
         return sets
 

@@ -141,11 +141,13 @@ def keep_candidates(out, parent, pending, pids, reads, rng, mapping, store, pool
 
 @numba.njit(cache=True)
 def todo_groups(groups, ng, R, kind, base_max, above, pool):
-    """(state, group) pairs to split: groups with several robots (``kind`` 0), else one-robot groups
-    with more than ``base_max`` targets and robotless ones with more than ``above``."""
+    """(state, group) pairs to split -- groups with several robots (``kind`` 0), else one-robot groups
+    with more than ``base_max`` targets and robotless ones with more than ``above`` -- and each one's
+    node count: ``(states, groups, sizes)``."""
     S = groups.shape[0]
     ts = np.empty(S * groups.shape[1], dtype=np.int64)
     tg = np.empty_like(ts)
+    tz = np.empty_like(ts)
     n = 0
     for si in range(S):
         for gi in range(ng[si]):
@@ -158,8 +160,9 @@ def todo_groups(groups, ng, R, kind, base_max, above, pool):
             if take:
                 ts[n] = si
                 tg[n] = gi
+                tz[n] = size(pool, g)
                 n += 1
-    return ts[:n], tg[:n]
+    return ts[:n], tg[:n], tz[:n]
 
 
 @numba.njit(cache=True)

@@ -21,7 +21,7 @@ from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.clusters import coarsen, expand_candidates
 from planners.ising.sharing.node_sets import intern
 from planners.ising.sharing.stage_steps import (FAILED_SPLIT, NO_ROOM, REFUSED_STAGE, expand_states, set_nodes,
-                                                set_sizes, solve_splits, todo_groups)
+                                                solve_splits, todo_groups)
 from planners.ising.sharing.submission import stage_refusal
 
 __all__ = ["COUNTERS", "SplitStages", "SharingStop", "CandidateStore"]
@@ -77,6 +77,8 @@ class SplitStages:
         self.retries = solver.config.retries
         self.n_spins = solver.n_spins
         self.program = solver.program()
+        # the compiled step's counters and per-submission charges (one row per submission of a call)
+        self._book = (mapping, counters, np.zeros(self.retries + 1, dtype=np.int64), np.zeros(self.retries + 1))
         self.n_prob = 0
         self.memo: dict = {}
         self.calls: list[int] = []
@@ -88,8 +90,7 @@ class SplitStages:
         """Solve the splits of ``groups`` on the weights ``ws (S, n, n)`` into store ``rows`` (problem
         ``i * S + s``: group ``i``, weights ``s``) -- :func:`.stage_steps.solve_splits`, charged and
         counted; where it cannot go on a :class:`SharingStop` naming why."""
-        room = self.retries + 1
-        book = (self.mapping, self.counters, np.zeros(room, dtype=np.int64), np.zeros(room))
+        book = self._book
         status, what, subs = solve_splits(ws, R, groups, balance, reject, rows, self.rng, self.program, self.machine,
                                           book, self.store.arrays, self.pool)
         self.calls.extend(book[2][:subs].tolist())
@@ -130,25 +131,28 @@ class SplitStages:
 
     # ----------------------------------------------------------------- stages
 
-    def stage(self, w, R, todo, kind: int, reject_robots: bool, balance: float) -> np.ndarray:
+    def stage(self, w, R, todo, sizes, kind: int, reject_robots: bool, balance: float) -> np.ndarray:
         """The store rows of the splits of groups ``todo`` (``SplitSearch.stage``, the oracle): the
         groups met before (any state, any stage of this ``kind``) reuse their row; the others are
-        solved in one submission (plus retries), groups beyond the chip on clusters first."""
+        solved in one submission (plus retries), groups beyond the chip on clusters first.  ``sizes``:
+        the groups' node counts."""
         n_prob = self.n_prob
         rows = np.empty(todo.shape[0], dtype=np.int64)
         fresh: list[int] = []
-        for t, g in enumerate(todo.tolist()):
+        big: list[bool] = []
+        for t, (g, z) in enumerate(zip(todo.tolist(), sizes.tolist())):
             key = (g, kind)
             if key not in self.memo:
                 self.memo[key] = n_prob + len(fresh)
                 fresh.append(g)
+                big.append(z - 2 > self.limit)
             rows[t] = self.memo[key]
         nf = len(fresh)
         fresh = np.array(fresh, dtype=np.int64)
+        big = np.array(big, dtype=bool)
         self.store.reserve(n_prob + nf + 1)
         bal = balance if kind == 0 else 0.0
         reject = reject_robots and kind == 0
-        big = set_sizes(self.pool, fresh) - 2 > self.limit
         for i in np.flatnonzero(big).tolist():  # groups beyond the chip split on clusters first, in order
             self.coarse_split(w, R, int(fresh[i]), reject, bal, n_prob + i, n_prob + nf)
         self.counters[STAGES] += 1
@@ -172,7 +176,7 @@ class SplitStages:
         stage = 0
         while True:
             kind = 0 if stage == 0 else 1
-            ts, tg = todo_groups(groups, ng, R, kind, base_max, above, self.pool)
+            ts, tg, sizes = todo_groups(groups, ng, R, kind, base_max, above, self.pool)
             if ts.shape[0] == 0:
                 if stage == 0:  # robot stages done: the refinement stages
                     stage = 1
@@ -180,7 +184,7 @@ class SplitStages:
                 break
             if stage > refine_stages:
                 break
-            rows = self.stage(w, R, groups[ts, tg], kind, bool(reject_robots), balance)
+            rows = self.stage(w, R, groups[ts, tg], sizes, kind, bool(reject_robots), balance)
             score, groups, ng = expand_states(score, groups, ng, ts, tg, rows, beam if kind == 0 else refine_beam,
                                               max_states, self.store.arrays)
             if stage:

@@ -30,7 +30,9 @@ import numpy as np
 
 from ising_backend import QUANTIZE_RULE_IDS
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.move_engine import NO_PROGRESS, REFUSED, STALLED, nearest_neighbour_kernel, select_moves_loop
+from planners.ising.tour.move_engine import (
+    NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
+)
 
 __all__ = ["MoveSearch", "double_bridge", "KICK_ABOVE"]
 
@@ -71,59 +73,53 @@ class MoveSearch:
         return min(int(self.chip.usable_spins), self.config.max_moves)
 
     def starts(self, dist: np.ndarray, run) -> list[int]:
-        """The cheapest route over ``n_starts`` move-selection searches (module docstring), each one
-        compiled call (:func:`.move_engine.select_moves_loop`) on one chip session, charged per
-        submission.  A start whose chip never selects a valid improving set for a route that has
-        improving moves fails (its route would be the host's, not the chip's); a program the chip
-        would refuse fails the search."""
+        """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
-        dist = np.ascontiguousarray(dist, dtype=np.float64)
-        best, best_cost = None, math.inf
-        with self.chip.session(run.charged, decision="tour_moves") as link:
-            for s in range(starts):
-                if s == 0:
-                    route = nearest_neighbour_kernel(dist)
-                elif kicks and best is not None and n >= 4:
-                    route = double_bridge(best, run.rng)
-                else:
-                    route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
-                status, route = self._select(dist, route, run, link)
-                if status == REFUSED:
-                    raise TourFailure(_REFUSED)
-                if status == NO_PROGRESS:  # this start gave up; other starts may still succeed
-                    run.stats["failed_starts"] += 1
-                    continue
-                cost = float(dist[route[:-1], route[1:]].sum())
-                run.stats["start_costs"].append(cost)
-                if cost < best_cost - 1e-9:
-                    best, best_cost = route, cost
+        if not kicks:
+            return self._move_starts_compiled(dist, run, starts)
+        best, best_cost, failure = None, math.inf, None
+        for s in range(starts):
+            if s == 0:
+                route = nearest_neighbour_kernel(np.ascontiguousarray(dist, dtype=np.float64))
+            elif best is not None and n >= 4 and (self.config.chip_restart == "kick" or (
+                    self.config.chip_restart == "auto" and n > KICK_ABOVE)):
+                route = double_bridge(best, run.rng)
+            else:
+                route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+            try:
+                route = self.select(dist, route, run)
+            except TourFailure as exc:  # this start gave up; other starts may still succeed
+                failure = exc
+                run.stats["failed_starts"] += 1
+                continue
+            cost = float(dist[route[:-1], route[1:]].sum())
+            run.stats["start_costs"].append(cost)
+            if cost < best_cost - 1e-9:
+                best, best_cost = route, cost
         if best is None:
-            raise TourFailure(self._no_progress)
+            raise failure
         return [int(t) for t in best[1:]]
 
     def select(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
         """One start, ``route`` improved by chip-selected moves until no move improves it (or the chip
-        selects nothing valid ``max_retries + 1`` times in a row), on its own chip session; a start
-        that fails raises :class:`TourFailure` naming why."""
+        selects nothing valid ``max_retries + 1`` times in a row), in one compiled call
+        (:func:`.move_engine.select_moves_loop`), charged to the chip per submission.  A chip that
+        never selects a valid improving set for a route that has improving moves fails the start
+        (:class:`TourFailure`): the route would be the host's, not the chip's."""
+        cfg = self.config
         with self.chip.session(run.charged, decision="tour_moves") as link:
-            status, new = self._select(np.ascontiguousarray(dist, dtype=np.float64), route, run, link)
+            new, status, st, clean, wins, calls, emu = select_moves_loop(
+                run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+            link.settle(calls, emu)
+        self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == REFUSED:
             raise TourFailure(_REFUSED)
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
         return new
-
-    def _select(self, dist, route, run, link):
-        """One start in one compiled call on the session ``link``, charged and counted: ``(status, route)``."""
-        cfg = self.config
-        new, status, st, clean, wins, calls, emu = select_moves_loop(
-            run.rng, dist, route, cfg.max_segment, self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds,
-            *self._move_args, link.args)
-        link.settle(calls, emu)
-        self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
-        return status, new
 
     @property
     def _no_progress(self) -> str:
@@ -159,3 +155,24 @@ class MoveSearch:
         for status in statuses:
             if status in (STALLED, NO_PROGRESS):
                 run.stats["unsolved"]["moves"] += 1
+
+    def _move_starts_compiled(self, dist, run, starts: int):
+        """:meth:`starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
+        charged and counted as the per-start calls."""
+        cfg = self.config
+        with self.chip.session(run.charged, decision="tour_moves") as link:
+            ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
+                run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+            link.settle(calls, emu)
+        self._count_starts(run, st, clean, wins, status.tolist())
+        if not ok:
+            raise TourFailure(_REFUSED)
+        for s, code in enumerate(status.tolist()):
+            if code == NO_PROGRESS:
+                run.stats["failed_starts"] += 1
+            else:
+                run.stats["start_costs"].append(float(costs[s]))
+        if not len(best):
+            raise TourFailure(self._no_progress)
+        return [int(t) for t in best[1:]]

@@ -289,7 +289,7 @@ def _three_opt_open(d, full):
 @numba.njit(cache=True, nogil=True)
 def three_opt_cost(d):
     """Cost of :class:`ThreeOptTour`'s open route (``moves="4"``) over a finite ``d`` of 3 or more
-    nodes: the compiled sharing prices bundles of more than 13 targets with it."""
+    nodes: the sharing's compiled placement prices bundles of more than 13 targets with it."""
     route, _ = _three_opt_open(d, False)
     return _route_cost(d, route)
 

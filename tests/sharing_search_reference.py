@@ -1,8 +1,8 @@
-"""The Python search of Ising target sharing (paper 5.3): the oracle of the compiled sharing.
+"""The Python search of Ising target sharing (paper 5.3): the oracle of the package's sharing.
 
-``reference_assign(sharing, dist, R, tour, rng)`` makes, step by step in Python, the decisions
-:meth:`planners.ising.sharing.IsingSharing.assign` makes in one compiled call
-(``stages``, ``clusters``, ``placement``, ``refine``): the anchored split QUBO, the
+``reference_assign(sharing, dist, R, tour, rng)`` makes, step by step in plain Python and numpy, the
+decisions :meth:`planners.ising.sharing.IsingSharing.assign` makes over compiled steps on node-set
+ids (``stages``, ``stage_steps``, ``clusters``, ``placement``, ``refine``): the anchored split QUBO, the
 split stages with their memo and beam, coarse splits of groups beyond the chip, spin-budget
 branches, bundle placement, the choice of state and the boundary refinement, with the same chip
 submissions (``stage_steps.submit_stage``), charges and rng draws.  Test code only: the package never

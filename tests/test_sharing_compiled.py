@@ -171,7 +171,7 @@ def test_pair_mean_is_numpys_mean_over_pairs(seed, n):
 
 
 def test_a_split_without_a_valid_candidate_fails_as_the_python_search_fails():
-    """Noisy reads and no retries: splits end without a valid candidate; the compiled sharing stops
+    """Noisy reads and no retries: splits end without a valid candidate; the package's sharing stops
     there and names the group as the Python search does (same statistics, charges and rng state)."""
     config = SharingConfig(reads=1, retries=0, reject_empty_robot_side=True, fallback="never")
     fast, ref = _pair(config, ChipSpec(readout_flip_prob=0.2))

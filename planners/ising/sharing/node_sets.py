@@ -193,9 +193,9 @@ def union(pool, a, b):
     if a == EMPTY:
         return b
     lo, hi = min(a, b), max(a, b)
-    i = _union_slot(pool, lo, hi)
-    if pool[_UVAL][i] >= 0:
-        return pool[_UVAL][i]
+    slot = _union_slot(pool, lo, hi)
+    if pool[_UVAL][slot] >= 0:
+        return pool[_UVAL][slot]
     x, y = nodes_of(pool, a), nodes_of(pool, b)
     out = np.empty(x.shape[0] + y.shape[0], dtype=np.int64)
     i = j = n = 0
@@ -211,11 +211,10 @@ def union(pool, a, b):
             i += 1
             j += 1
         n += 1
-    u = intern(pool, out[:n])
-    k = _union_slot(pool, lo, hi)  # interning may not move the union table, but look again all the same
-    pool[_UA][k] = lo
-    pool[_UB][k] = hi
-    pool[_UVAL][k] = u
+    u = intern(pool, out[:n])  # interning never touches the union table: the slot is still free
+    pool[_UA][slot] = lo
+    pool[_UB][slot] = hi
+    pool[_UVAL][slot] = u
     count = pool[_COUNT]
     count[_UN] += 1
     if 2 * count[_UN] > pool[_UA].shape[0]:

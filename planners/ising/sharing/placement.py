@@ -20,7 +20,7 @@ from numba.typed import Dict
 
 from planners.ising.sharing.config import BUNDLE_ORDERS
 from planners.ising.sharing.node_sets import EMPTY, contains, intern, nodes_of, robots_in, size, targets_of, union
-from planners.ising.sharing.stages import BUNDLES, TOUR_SOLVES
+from planners.ising.sharing.stage_steps import BUNDLES, TOUR_SOLVES
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 from planners.tours_classical import three_opt_cost
 

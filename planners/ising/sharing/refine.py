@@ -15,8 +15,7 @@ import numpy as np
 
 from planners.ising.sharing.node_sets import EMPTY
 from planners.ising.sharing.placement import neighbour_pairs, pair_gains, pair_groups
-from planners.ising.sharing.stage_steps import set_sizes
-from planners.ising.sharing.stages import PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS
+from planners.ising.sharing.stage_steps import PAIR_ACCEPTED, PAIR_RESPLITS, SPLITS, set_sizes
 
 __all__ = ["refine_boundaries"]
 

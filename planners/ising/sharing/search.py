@@ -33,7 +33,8 @@ from planners.ising.sharing.kernels import pair_mean
 from planners.ising.sharing.node_sets import new_pool
 from planners.ising.sharing.placement import ORDER_IDS, PRICERS, flat_sets, new_memo, place_states
 from planners.ising.sharing.refine import refine_boundaries
-from planners.ising.sharing.stages import COUNTERS, CandidateStore, SharingStop, SplitStages
+from planners.ising.sharing.stage_steps import COUNTERS
+from planners.ising.sharing.stages import CandidateStore, SharingStop, SplitStages
 from planners.ising.sharing.submission import StageSolver
 
 __all__ = ["IsingSharing", "PaperIsingSharing"]

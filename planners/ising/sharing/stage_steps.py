@@ -24,13 +24,16 @@ from planners.ising.sharing.kernels import add_balance, branch_problems, candida
 from planners.ising.sharing.node_sets import intern, nodes_of, robots_in, size
 
 __all__ = ["solve_splits", "submit_stage", "problems_of", "keep_candidates", "todo_groups", "expand_states", "set_sizes",
-           "set_nodes", "SOLVED", "FAILED_SPLIT", "REFUSED_STAGE", "NO_ROOM", "TRIVIAL"]
+           "set_nodes", "SOLVED", "FAILED_SPLIT", "REFUSED_STAGE", "NO_ROOM", "COUNTERS"]
 
 #: :func:`solve_splits`' status: every split has candidates; a split had none after the retries (``what``:
 #: its group's set id); a stage the chip would refuse (``what``: the :func:`ising_backend.pack_qubo_stack`
 #: status); a split with more candidates than the store's width.
 SOLVED, FAILED_SPLIT, REFUSED_STAGE, NO_ROOM = 0, 1, 2, 3
-TRIVIAL = 2  # the counter of one-partition splits (``stages.COUNTERS``)
+#: The sharing call's counters, in the order of its ``counters`` array (indices below).
+COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
+            "pair_accepted", "coarse_splits")
+STAGES, SPLITS, TRIVIAL, BUNDLES, TOUR_SOLVES, STATES, PAIR_RESPLITS, PAIR_ACCEPTED, COARSE = range(9)
 _SEED_HIGH = 9223372036854775807  # rng.integers(2**63 - 1), as the reference draws chip seeds
 
 

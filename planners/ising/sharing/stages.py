@@ -20,15 +20,12 @@ import numpy as np
 from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.clusters import coarsen, expand_candidates
 from planners.ising.sharing.node_sets import intern
-from planners.ising.sharing.stage_steps import (FAILED_SPLIT, NO_ROOM, REFUSED_STAGE, expand_states, set_nodes,
-                                                solve_splits, todo_groups)
+from planners.ising.sharing.stage_steps import (COARSE, FAILED_SPLIT, NO_ROOM, REFUSED_STAGE, SPLITS,
+                                                STAGES, STATES, expand_states, set_nodes, solve_splits, todo_groups)
 from planners.ising.sharing.submission import stage_refusal
 
-__all__ = ["COUNTERS", "SplitStages", "SharingStop", "CandidateStore"]
+__all__ = ["SplitStages", "SharingStop", "CandidateStore"]
 
-COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "states", "pair_resplits",
-            "pair_accepted", "coarse_splits")
-STAGES, SPLITS, TRIVIAL, BUNDLES, TOUR_SOLVES, STATES, PAIR_RESPLITS, PAIR_ACCEPTED, COARSE = range(9)
 
 
 class SharingStop(SharingFailure):
@@ -61,7 +58,7 @@ class SplitStages:
     """The split stages of one sharing call on one chip session (module docstring).
 
     ``solver``: the call's :class:`~.submission.StageSolver`; ``machine``: the session's record;
-    ``counters`` / ``mapping``: the call's counters (indexed as :data:`COUNTERS`) and per-rule
+    ``counters`` / ``mapping``: the call's counters (indexed as :data:`.stage_steps.COUNTERS`) and per-rule
     candidates / valid / wins, updated in place; ``calls`` / ``seconds`` list each submission's chip
     calls and emulation seconds for the session's ``settle``."""
 

@@ -26,19 +26,3 @@ atexit.register(shutil.rmtree, os.environ["XDG_CACHE_HOME"], True)
 from agents.warmup import PART_SECONDS, mark_warm  # noqa: E402
 
 mark_warm(PART_SECONDS)
-
-
-def pytest_configure(config):
-    """With xdist workers, compile the Ising and LoRR parts once, in the controller, on as many
-    processes as there are workers, before any worker starts: otherwise every worker compiles the
-    same kernels side by side (numba's cache is shared through the source tree, so the workers then
-    only load it).  ``MRMT_TEST_WARM=0`` skips this; a single-process run compiles on first use."""
-    if hasattr(config, "workerinput") or os.environ.get("MRMT_TEST_WARM", "1") == "0":
-        return
-    workers = getattr(config.option, "numprocesses", None)
-    if not workers or not isinstance(workers, int) or workers < 2:
-        return
-    from agents.warmup import warm
-
-    warm(["ising", "ising-paper", "strong", "fast", "exact", "lorr:pibt", "lorr:windowed"],
-         jobs=min(workers, os.cpu_count() or 1), progress=False, force=True)

@@ -36,7 +36,7 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
     sched = make_scheduler("lorr-greedy", seed=seed)
     sched.reset(sim)
     ex = JointMovesPIBT(inst.grid, seed=seed, accept="host", **options)
-    ref = TurningPIBT(inst.grid, seed=seed)  # the host rule alone, timed on the same states
+    ref = TurningPIBT(inst.grid, seed=seed, guidance=0)  # the host rule alone, timed on the same states
     ex.sample = []
     host_s, group_s, groups = [], [], []
     for _ in range(steps):

@@ -49,6 +49,16 @@ def test_runs_are_deterministic_for_a_seed():
     assert [x.tolist() for x in sim_a.actual] == [x.tolist() for x in sim_b.actual]
 
 
+def test_guidance_reaches_the_executor_and_the_record():
+    plain, sim_plain, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=1, options={"guidance": 0})
+    lanes, sim_lanes, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=1)
+    assert plain["guidance"] == 0 and lanes["guidance"] == 2  # pibt's default
+    assert [x.tolist() for x in sim_plain.actual] != [x.tolist() for x in sim_lanes.actual]
+    again, sim_again, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=1, options={"guidance": 2})
+    assert [x.tolist() for x in sim_again.actual] == [x.tolist() for x in sim_lanes.actual]
+    assert run_lorr(EXAMPLE, "lorr-greedy", "windowed", steps=5, seed=1)[0]["guidance"] == 0
+
+
 def test_check_counts_a_tampered_file_not_its_claim():
     _, sim, step_s = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=0)
     data = output_dict(sim, step_s)
@@ -90,6 +100,8 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'"),
     (["run", str(EXAMPLE), "--executor", "teleport"], "unknown executor 'teleport'"),
     (["run", str(EXAMPLE), "--steps", "0"], "--steps must be >= 1, got 0"),
+    (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "
+                                                "its lane), got 17"),
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
     (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),
 ])

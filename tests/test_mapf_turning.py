@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 from collections import deque
 
 import numpy as np
@@ -60,11 +61,42 @@ def bfs(grid, goal):
     return dist
 
 
+def lane_cost(grid, p, d, weight):
+    """A forward move from flat ``p`` in direction ``d``: 1, or 1 + weight against the lane (even rows
+    run east, odd rows west, even columns south, odd columns north)."""
+    r, c = divmod(p, grid.shape[1])
+    against = (d == 0 and r % 2 == 1) or (d == 2 and r % 2 == 0) or (d == 1 and c % 2 == 1) or (
+        d == 3 and c % 2 == 0)
+    return 1 + weight * against
+
+
+def guided(grid, goal, weight):
+    """Least lane cost from every free cell to ``goal`` (Dijkstra, backwards)."""
+    h, w = grid.shape
+    dist, heap = {goal: 0}, [(0, goal)]
+    while heap:
+        d, p = heapq.heappop(heap)
+        if d > dist[p]:
+            continue
+        r, c = divmod(p, w)
+        for e in range(4):  # q one step in direction e from p moves to p in direction e + 2
+            nr, nc = r + DR[e], c + DC[e]
+            if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
+                q = nr * w + nc
+                nd = d + lane_cost(grid, q, (e + 2) % 4, weight)
+                if nd < dist.get(q, FAR):
+                    dist[q] = nd
+                    heapq.heappush(heap, (nd, q))
+    return dist
+
+
 class Oracle:
     """PIBT with turning as the module docstring states it, written recursively (a step ending in a
-    dead end off the goal adds 1 + 10 to the priority)."""
+    dead end off the goal adds 1 + 10 to the priority); distances by BFS, or by lane cost with
+    ``guidance``."""
 
-    def __init__(self, grid, seed, n):
+    def __init__(self, grid, seed, n, guidance=0):
+        self.guidance = guidance
         self.grid, self.seed, self.t = grid, seed, 0
         self.elapsed = [0] * n
         self.tie = np.random.default_rng(seed).random(n).tolist()
@@ -80,7 +112,7 @@ class Oracle:
     def actions(self, pos, orient, goals):
         pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
         n = len(pos)
-        dist = {g: bfs(self.grid, g) for g in set(goals)}
+        dist = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
         order = sorted(range(n), key=lambda k: (-self.elapsed[k], -self.tie[k]))
         occ_now = {p: k for k, p in enumerate(pos)}
         occ_next, nxt = {}, [None] * n
@@ -155,12 +187,12 @@ def retarget(rng, free, pos, goals):
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 8), w=st.integers(3, 8),
-       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9))
-def test_kernel_equals_recursive_oracle(seed, h, w, density, fill):
+       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 1, 3]))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
-    ex = TurningPIBT(grid, seed=seed)
-    oracle = Oracle(grid, ex.seed, len(pos))
+    ex = TurningPIBT(grid, seed=seed, guidance=guidance)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance)
     for _ in range(12):
         expect, targets = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
@@ -202,7 +234,7 @@ def test_rotation_moves_and_a_robot_behind_a_turn_waits():
 def test_a_robot_leaving_a_dead_end_overtakes_one_waiting_to_enter():
     grid = np.array([[1, 1, 0, 1, 1], [0, 0, 0, 0, 0]], dtype=bool)  # cell 2 is a dead end above cell 7
     pos, orient, goals = np.array([2, 7]), np.array([1, 3]), np.array([9, 2])  # X out to 9, Y into 2
-    ex = TurningPIBT(grid, seed=0)
+    ex = TurningPIBT(grid, seed=0, guidance=0)  # X's way east runs against row 1's lane: plain distances here
     ex.order(2)
     ex.elapsed[:] = [0, 50]  # Y first: it cannot push X out (X's only way out is Y's cell)
     for _ in range(20):
@@ -277,6 +309,33 @@ def test_bad_input_names_the_value():
     for change, message in cases:
         with pytest.raises(ValueError, match=message):
             ex.actions(**{**ok, **change})
+    for bad in (-1, 17, 2.5, True, "3"):
+        with pytest.raises(ValueError, match=rf"guidance must be an integer in 0..16 .*got {bad!r}"):
+            TurningPIBT(grid, guidance=bad)
     with pytest.raises(ValueError, match="unknown turning executor 'cbs'; known: pibt"):
         make_turning_executor("cbs", grid)
     assert TURNING_EXECUTORS["pibt"] is TurningPIBT and ex.name == "pibt"
+
+
+@pytest.mark.parametrize("guidance", [1, 4])
+def test_guided_fields_equal_the_lane_cost_oracle(guidance):
+    rng = np.random.default_rng(guidance)
+    grid = rng.random((7, 9)) < 0.25
+    grid[0, 0] = False
+    ex = TurningPIBT(grid, guidance=guidance)
+    goals = np.arange(len(ex.cell_of))
+    rows = ex.fields.rows(goals, goals)
+    for gc, row in zip(goals.tolist(), rows.tolist()):
+        want = guided(grid, int(ex.cell_of[gc]), guidance)
+        got = ex.fields.fields[row]
+        assert [int(x) for x in got] == [want.get(int(cell), ex.fields.far) for cell in ex.cell_of]
+
+
+def test_no_guidance_is_plain_bfs_and_lanes_change_the_route():
+    grid = np.zeros((4, 6), dtype=bool)
+    plain, lanes = TurningPIBT(grid, guidance=0), TurningPIBT(grid, guidance=3)
+    assert plain.fields.cost is None and plain.guidance == 0
+    # row 1 runs west: going east from (1, 0) to (1, 5) the guided robot leaves its row for row 0 or 2
+    pos, orient, goals = np.array([6]), np.array([0]), np.array([11])
+    assert plain.actions(pos, orient, goals).tolist() == [F]
+    assert lanes.actions(pos, orient, goals).tolist() != [F]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 from collections import deque
 
 import numpy as np
@@ -100,7 +101,7 @@ def test_dense_crowds_only_get_valid_joint_actions_and_conflict_free_plans(seed)
                                            0.1 + 0.03 * seed, 0.5 + 0.05 * seed)
     options = [{}, {"window": 2}, {"window": 3, "passes": 2}, {"expansions": 3, "rollouts": 3},
                {"bfs_budget": 1, "work": 40},
-               {"window": 12, "patience": 0}][seed]
+               {"window": 12, "patience": 0, "guidance": 3}][seed]
     ex = make_turning_executor("windowed", grid, seed=seed, **options)
     moved = reached = 0
     for step in range(60):
@@ -122,7 +123,7 @@ def test_dense_crowds_only_get_valid_joint_actions_and_conflict_free_plans(seed)
 def test_one_rollout_and_no_pass_is_turning_pibt_and_a_pass_never_makes_a_plan_worse():
     rng = np.random.default_rng(5)
     grid, free, pos, orient, goals = crowd(rng, 12, 12, 0.15, 0.5)
-    pibt, zero = TurningPIBT(grid, seed=3), WindowedTurningPlanner(grid, seed=3, passes=0, rollouts=1)
+    pibt, zero = TurningPIBT(grid, seed=3, guidance=0), WindowedTurningPlanner(grid, seed=3, passes=0, rollouts=1)
     p, o, g = pos, orient, goals
     for _ in range(30):
         act = zero.actions(p, o, g)
@@ -142,6 +143,18 @@ def test_one_rollout_and_no_pass_is_turning_pibt_and_a_pass_never_makes_a_plan_w
         ex.actions(p, o, g)
         costs.append(cost(ex.paths))
     assert (costs[1] <= costs[0]).all() and (costs[2] <= costs[1]).all() and costs[1].sum() < costs[0].sum()
+
+
+def test_with_guidance_one_rollout_and_no_pass_is_guided_turning_pibt():
+    rng = np.random.default_rng(6)
+    grid, free, pos, orient, goals = crowd(rng, 12, 12, 0.15, 0.5)
+    pibt = TurningPIBT(grid, seed=4, guidance=3)
+    zero = WindowedTurningPlanner(grid, seed=4, passes=0, rollouts=1, guidance=3)
+    for _ in range(30):
+        act = zero.actions(pos, orient, goals)
+        assert act.tolist() == pibt.actions(pos, orient, goals).tolist()
+        pos, orient, _ = apply(grid, pos, orient, act)
+        goals = retarget(rng, free, pos, goals)
 
 
 def test_a_robot_that_stays_put_longer_than_its_patience_keeps_the_pibt_plan():
@@ -183,6 +196,50 @@ def test_orientation_fields_equal_a_forward_search():
         for v, cell in enumerate(ex.cell_of.tolist()):
             for o in range(4):
                 assert fields.fields[row, v * 4 + o] == want.get(cell * 4 + o, fields.far)
+
+
+def lane_cost(grid, p, d, weight):
+    r, c = divmod(p, grid.shape[1])
+    against = (d == 0 and r % 2 == 1) or (d == 2 and r % 2 == 0) or (d == 1 and c % 2 == 1) or (
+        d == 3 and c % 2 == 0)
+    return 1 + weight * against
+
+
+def guided_oriented_costs(grid, goal, weight):
+    """Least cost from every (cell, orientation) to ``goal`` (a turn 1, F its lane cost): forward Dijkstra per source."""
+    out = {}
+    for p in np.flatnonzero(~grid.reshape(-1)).tolist():
+        for o in range(4):
+            best, heap = {(p, o): 0}, [(0, p, o)]
+            while heap:
+                d, q, e = heapq.heappop(heap)
+                if d > best[(q, e)]:
+                    continue
+                if q == goal:
+                    out[p * 4 + o] = d
+                    break
+                for a in (F, R, C):
+                    s = _after(grid, q, e, a)
+                    if s is not None:
+                        nd = d + (lane_cost(grid, q, e, weight) if a == F else 1)
+                        if nd < best.get((s >> 2, s & 3), 1 << 40):
+                            best[(s >> 2, s & 3)] = nd
+                            heapq.heappush(heap, (nd, s >> 2, s & 3))
+    return out
+
+
+def test_guided_orientation_fields_equal_a_forward_search():
+    rng = np.random.default_rng(4)
+    grid = rng.random((5, 6)) < 0.25
+    grid[0, 0] = False
+    ex = WindowedTurningPlanner(grid, guidance=2)
+    goals = ex.cid[np.flatnonzero(~grid.reshape(-1))]
+    rows = ex.ofields.rows(goals, np.arange(len(goals)))
+    for gc, row in zip(goals.tolist(), rows.tolist()):
+        want = guided_oriented_costs(grid, int(ex.cell_of[gc]), 2)
+        for v, cell in enumerate(ex.cell_of.tolist()):
+            for o in range(4):
+                assert ex.ofields.fields[row, v * 4 + o] == want.get(cell * 4 + o, ex.ofields.far)
 
 
 @pytest.mark.parametrize("window", [2, 8])

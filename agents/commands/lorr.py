@@ -31,7 +31,11 @@ def add_arguments(parser) -> None:
     run.add_argument("--scheduler", default="lorr-greedy",
                      help="comma-separated: lorr-greedy (the start kit's default), strong, ising, fast, "
                           "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
-    run.add_argument("--executor", default="pibt", help="the one-step planner: pibt (PIBT with turning; default)")
+    run.add_argument("--executor", default="pibt",
+                     help="the one-step planner: pibt (PIBT with turning; default), windowed, pibt-ising")
+    run.add_argument("--guidance", type=int, default=None, metavar="N",
+                     help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
+                          "default: the executor's own, pibt 2, windowed and pibt-ising 0)")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
     run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
@@ -102,6 +106,10 @@ def _run(args) -> int:
         options = {"replan": True} if args.replan else {}
         for s in schedulers:  # names and model files checked before anything starts
             make_scheduler(s, chip=chip, **options)
+        if args.guidance is not None:
+            from planners.mapf.guidance import check_guidance
+
+            options["guidance"] = check_guidance(args.guidance)
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return _fail(str(exc))

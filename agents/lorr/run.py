@@ -25,7 +25,7 @@ from planners.compute import CPU_WATTS_PER_CORE
 
 __all__ = ["run_lorr", "best_known", "proposal_goals", "RUN_KEYS"]
 
-RUN_KEYS = ("instance", "scheduler", "executor", "seed", "robots", "steps", "tasks_finished", "best_known",
+RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "seed", "robots", "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "chip_s", "paper_energy_per_task_j",
             "total_energy_per_task_j")
@@ -77,8 +77,10 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar):
     from agents.lorr.schedulers import make_scheduler
     from planners.mapf import make_turning_executor
 
+    options = dict(options)
+    ex_options = {"guidance": options.pop("guidance")} if "guidance" in options else {}
     sched = make_scheduler(scheduler, seed=seed, chip=chip, **options)
-    ex = make_turning_executor(executor, inst.grid, seed=seed)
+    ex = make_turning_executor(executor, inst.grid, seed=seed, **ex_options)
     sim = LoRRSimulator(inst)
     sched.reset(sim)
     n = np.zeros((steps, 3))  # scheduler host, executor host, chip seconds
@@ -100,13 +102,15 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar):
             bar.update(1)
     host_s = float(n[:, :2].sum())
     chip_s = float(n[:, 2].sum())
-    return sim, sched, n, host_s, chip_s, accel_j, calls
+    return sim, sched, ex, n, host_s, chip_s, accel_j, calls
 
 
 def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", steps: int | None = None,
              seed: int = 0, chip=None, progress: bool = False, options: dict | None = None):
     """Run ``instance`` (a path or :class:`LoRRInstance`) for ``steps`` (default: its simulation
-    time); returns ``(record, sim, step_seconds)`` -- the record's keys are :data:`RUN_KEYS`."""
+    time); returns ``(record, sim, step_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
+    the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), and ``guidance`` for the executor
+    (:mod:`planners.mapf.guidance`; default: the executor's own)."""
     inst = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
     steps = int(steps or inst.steps or DEFAULT_STEPS)
     options = dict(options or {})
@@ -117,7 +121,7 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
 
         bar = tqdm(total=steps, desc=f"{inst.name} {scheduler}+{executor}", file=sys.stderr, leave=False)
     try:
-        sim, sched, n, host_s, chip_s, accel_j, calls = _loop(inst, scheduler, executor, steps, seed, chip,
+        sim, sched, ex, n, host_s, chip_s, accel_j, calls = _loop(inst, scheduler, executor, steps, seed, chip,
                                                               options, bar)
     finally:
         if bar is not None:
@@ -127,7 +131,7 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
     host_j = host_s * CPU_WATTS_PER_CORE
     best = best_known(inst)
     record = {
-        "instance": inst.name, "scheduler": scheduler, "executor": executor, "seed": int(seed),
+        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": ex.guidance, "seed": int(seed),
         "robots": inst.team_size, "steps": steps, "tasks_finished": sim.finished, "best_known": best,
         # the best-known is over the instance's full simulation time: a share only for a full run
         "share_of_best": (sim.finished / best) if best and steps == inst.steps else None,

@@ -65,6 +65,8 @@ class JointMovesPIBT(TurningPIBT):
         num_reads: reads per group program (1..64; default 32: 4 batches of the 8 cores).
         accept: ``"better"``, ``"chip"`` or ``"host"`` (module docstring).
         audit: record every decision with its exact optimum (slow: for benchmarks and tests).
+        options: :class:`~planners.mapf.turning.TurningPIBT`'s; ``guidance`` defaults to 0 here (the
+            option costs and the QUBO's weights were tuned on plain distances).
     """
 
     name = "pibt-ising"
@@ -72,6 +74,7 @@ class JointMovesPIBT(TurningPIBT):
     def __init__(self, grid, seed: int = 0, machine=None, *, max_robots: int = 11, max_spins: int | None = None,
                  levels: int = 3, push: int = 2, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
                  audit: bool = False, **options) -> None:
+        options.setdefault("guidance", 0)
         super().__init__(grid, seed=seed, **options)
         from ising_backend import EmulatedChip, as_machine
 

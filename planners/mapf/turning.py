@@ -34,10 +34,11 @@ import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import mix
+from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
-           "DEAD_END_BONUS"]
+           "DEAD_END_BONUS", "DEFAULT_GUIDANCE"]
 
 FORWARD, CLOCKWISE, COUNTER, WAIT = 0, 1, 2, 3
 #: Default memory bound of the goal-field cache (the fields of the goals asked for in one call are always kept).
@@ -47,6 +48,12 @@ DEFAULT_BFS_BUDGET = 1 << 24
 #: Extra priority per step spent in a dead end off the goal (the start kit's value; without it a robot
 #: leaving a dead end and a higher-priority robot entering it block each other for good).
 DEAD_END_BONUS = 10
+#: BFS fields' worth of work of one guided field (bucketed Dijkstra: 2.7 ms against 0.5 ms for BFS on CITY-01's
+#: 47,240 free cells), so that a call's field budget holds under guidance too.
+GUIDED_WORK = 5
+#: Extra cost of a move against its lane (:mod:`planners.mapf.guidance`) of TurningPIBT, by default: chosen
+#: on RANDOM-01..05 (0, 2 and 4 tried, three seeds; docs/design/lifelong_turning.md).
+DEFAULT_GUIDANCE = 2
 _DR = (0, 1, 0, -1)  # east, south, west, north
 _DC = (1, 0, -1, 0)
 
@@ -109,22 +116,25 @@ class TurnFields:
     65,535 free cells or more; the dtype's maximum = unreachable), in a cache bounded by
     ``max_bytes``: when full, the fields least recently asked for make room and are recomputed on
     demand (the goals of one call always fit: the cache grows past the bound for them).  One call
-    computes at most ``bfs_budget // free cells`` new fields (at least one), for the goals of the
+    computes at most ``bfs_budget // free cells`` new fields (a fifth of that under guidance costs,
+    :data:`GUIDED_WORK`; at least one), for the goals of the
     highest-priority robots first; the others get row -1 (the kernel then uses Manhattan distance).
-    A subclass may keep :attr:`per_cell` entries per free cell (it then overrides :meth:`_fill`)."""
+    A subclass may keep :attr:`per_cell` entries per free cell (it then names its own kernels)."""
 
     #: Entries of a field per free cell (a distance is below the field's length: uint16 while it is < 65,535).
     per_cell = 1
 
     def __init__(self, nbr: np.ndarray, max_bytes: int = DEFAULT_FIELD_BYTES,
-                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+                 bfs_budget: int = DEFAULT_BFS_BUDGET, cost: np.ndarray | None = None) -> None:
         self.nbr = nbr
+        self.cost = cost  # (n, 4) forward-move costs (guidance), None: every action costs 1
         n = nbr.shape[0]
         size = n * self.per_cell
-        self.dtype = np.dtype(np.uint16 if size < 65535 else np.uint32)
+        top = size * (1 if cost is None else int(cost.max(initial=1)))  # above any finite distance
+        self.dtype = np.dtype(np.uint16 if top < 65535 else np.uint32)
         self.far = int(np.iinfo(self.dtype).max)
         self.capacity = max(min(int(max_bytes) // (max(size, 1) * self.dtype.itemsize), n), 1)
-        self.per_call = max(int(bfs_budget) // max(size, 1), 1)
+        self.per_call = max(int(bfs_budget) // (max(size, 1) * (1 if cost is None else GUIDED_WORK)), 1)
         self.fields = np.empty((0, size), dtype=self.dtype)
         self.row_of = np.full(n, -1, dtype=np.int64)  # compact goal -> row
         self.goal_of = np.empty(0, dtype=np.int64)  # row -> compact goal
@@ -174,9 +184,16 @@ class TurnFields:
         self.computed += len(miss)
         return self.row_of[goals]
 
+    #: the kernels that fill fields: by BFS (every action costs 1) and by Dijkstra under ``cost``
+    plain_kernel = staticmethod(_bfs_rows)
+    cost_kernel = staticmethod(cost_rows)
+
     def _fill(self, goals: np.ndarray, rows: np.ndarray) -> None:
-        """Compute the fields of compact ``goals`` into ``rows``."""
-        _bfs_rows(self.nbr, goals, rows, self.fields, self.dtype.type(self.far))
+        """Compute the fields of compact ``goals`` into ``rows`` (BFS, or Dijkstra under guidance costs)."""
+        if self.cost is None:
+            self.plain_kernel(self.nbr, goals, rows, self.fields, self.dtype.type(self.far))
+        else:
+            self.cost_kernel(self.nbr, self.cost, goals, rows, self.fields, self.far)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -351,9 +368,9 @@ class TurningPIBT:
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: tie-breaks (robot priorities and equal cells).
-        guidance: a traffic-flow penalty in the candidate order; not implemented (``True`` raises
-            ``ValueError``): the simple forms tried finished no measurably more errands
-            (``docs/design/lifelong_turning.md``).
+        guidance: extra cost of a forward move against its lane's direction (crisscross lanes,
+            :mod:`planners.mapf.guidance`; default 2; 0 = off, plain BFS distances); goal fields and
+            the candidate order then go by the guided cost.
         field_bytes: memory bound of the goal-field cache (:class:`TurnFields`).
         bfs_budget: BFS work per call in cells (new goal fields per call = this // free cells; a robot
             whose goal has no field yet goes by Manhattan distance meanwhile).
@@ -364,17 +381,16 @@ class TurningPIBT:
     last_compute = ComputeReport()
     kernel_s = 0.0
 
-    def __init__(self, grid: np.ndarray, seed: int = 0, guidance: bool = False, *,
+    def __init__(self, grid: np.ndarray, seed: int = 0, guidance: int = DEFAULT_GUIDANCE, *,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
-        if guidance:
-            raise ValueError(f"guidance={guidance!r} is not implemented (no measured gain); use guidance=False")
         self.grid = np.asarray(grid, dtype=bool)
         if self.grid.ndim != 2:
             raise ValueError(f"grid must be 2-d (H, W), got shape {self.grid.shape}")
         self.width = int(self.grid.shape[1])
-        self.guidance = False
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
-        self.fields = TurnFields(self.nbr, field_bytes, bfs_budget)
+        self.guidance = check_guidance(guidance)
+        self.move_cost = crisscross_costs(self.cell_of, self.width, guidance) if self.guidance else None
+        self.fields = TurnFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)
         self.t = 0

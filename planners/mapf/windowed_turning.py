@@ -16,6 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planners.mapf.guidance import orient_cost_rows
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
                                    FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
 from planners.mapf.windowed import _pop, _push
@@ -70,13 +71,12 @@ def _orient_bfs_rows(nbr, goals, rows, fields, far):
 
 class OrientFields(TurnFields):
     """:class:`~planners.mapf.turning.TurnFields` over (free cell, orientation): ``fields[row, v * 4 + o]``
-    = fewest actions from compact ``v`` facing ``o`` to the goal, facing any way (same cache bound,
-    BFS budget in states)."""
+    = fewest actions from compact ``v`` facing ``o`` to the goal, facing any way, or their least cost
+    under guidance (same cache bound, BFS budget in states)."""
 
     per_cell = 4
-
-    def _fill(self, goals: np.ndarray, rows: np.ndarray) -> None:
-        _orient_bfs_rows(self.nbr, goals, rows, self.fields, self.dtype.type(self.far))
+    plain_kernel = staticmethod(_orient_bfs_rows)
+    cost_kernel = staticmethod(orient_cost_rows)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -90,23 +90,27 @@ def _h(fields, row, far, v, o, goal, cell_of, width):
 
 
 @numba.njit(cache=True, nogil=True)
-def _cost(paths, k, w, goal, fields, row, far, cell_of, width):
-    """Robot ``k``'s plan cost: steps not spent on the goal + the cost to go from its last state."""
+def _cost(paths, k, w, goal, fields, row, far, cell_of, width, move):
+    """Robot ``k``'s plan cost: its steps not spent on the goal (a forward move from ``v`` facing ``o``
+    costs ``move[v, o]``, anything else 1) + the cost to go from its last state."""
     c = 0
     for t in range(w):
-        if not (paths[k, t] >> 2 == goal and paths[k, t + 1] >> 2 == goal):
+        s, s2 = paths[k, t], paths[k, t + 1]
+        if s >> 2 != s2 >> 2:
+            c += move[s >> 2, s & 3]
+        elif s >> 2 != goal:
             c += 1
     last = paths[k, w]
     return c + _h(fields, row, far, last >> 2, last & 3, goal, cell_of, width)
 
 
 @numba.njit(cache=True, nogil=True)
-def plan_cost(paths, goals, fields, rows, far, cell_of, width) -> int:
+def plan_cost(paths, goals, fields, rows, far, cell_of, width, move) -> int:
     """Sum over robots of the plan cost (steps off the goal + cost to go from the last state)."""
     w = paths.shape[1] - 1
     total = 0
     for k in range(paths.shape[0]):
-        total += _cost(paths, k, w, goals[k], fields, rows[k], far, cell_of, width)
+        total += _cost(paths, k, w, goals[k], fields, rows[k], far, cell_of, width, move)
     return total
 
 
@@ -117,8 +121,8 @@ def _reserve(occ, paths, k, n, w, who):
 
 
 @numba.njit(cache=True, nogil=True)
-def windowed_turning_kernel(nbr, cell_of, width, goals, fields, rows, far, order, window, expansions, keep, paths,
-                            occ, seen, parent, heap, stamp):
+def windowed_turning_kernel(nbr, cell_of, width, move, goals, fields, rows, far, order, window, expansions, keep,
+                            paths, occ, seen, parent, heap, stamp):
     """Re-plan every robot's window in ``order`` against all the others' plans (compact cells):
     ``paths[k, t]`` = robot ``k``'s ``v * 4 + o`` at step ``t``, a conflict-free joint plan on entry and
     on return; a robot with ``keep[k]`` keeps its plan, another takes the plan A* finds within
@@ -136,7 +140,7 @@ def windowed_turning_kernel(nbr, cell_of, width, goals, fields, rows, far, order
     for idx in range(r):
         k = order[idx]
         goal, row = goals[k], rows[k]
-        bound = _cost(paths, k, w, goal, fields, row, far, cell_of, width)
+        bound = _cost(paths, k, w, goal, fields, row, far, cell_of, width, move)
         if bound == 0 or keep[k]:
             continue
         _reserve(occ, paths, k, n, w, -1)
@@ -174,7 +178,7 @@ def windowed_turning_kernel(nbr, cell_of, width, goals, fields, rows, far, order
                     j = occ[(t + 1) * n + v]  # the robot coming into my cell ...
                     if j != -1 and occ[t * n + v2] == j:  # ... from the cell I go to: a swap
                         continue
-                g2 = g + (0 if v == goal and v2 == goal else 1)
+                g2 = g + (move[v, o] if v2 != v else (0 if v == goal else 1))
                 f2 = g2 + _h(fields, row, far, v2, o2, goal, cell_of, width)
                 if f2 <= bound:  # key: cost, then turns (no turn where a wait does as well)
                     turns = f % _TURNS + (1 if a == CLOCKWISE or a == COUNTER else 0)
@@ -186,7 +190,7 @@ def windowed_turning_kernel(nbr, cell_of, width, goals, fields, rows, far, order
             while s != -1:
                 paths[k, s // ns] = s % ns
                 s = parent[s]
-            if _cost(paths, k, w, goal, fields, row, far, cell_of, width) < bound:
+            if _cost(paths, k, w, goal, fields, row, far, cell_of, width, move) < bound:
                 improved += 1
         _reserve(occ, paths, k, n, w, k)
     for k in range(r):
@@ -246,6 +250,9 @@ class WindowedTurningPlanner(TurningPIBT):
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: priority tie-breaks (of the PIBT rollout too).
+        guidance: extra cost of a move against its lane (:class:`~planners.mapf.turning.TurningPIBT`);
+            the rollouts, the (cell, orientation) fields and A*'s step costs all go by it.  Default 0:
+            on RANDOM-01..05 it helped at 400-700 robots and cost tasks at 100-200 and 800.
         window: planning horizon in steps (2..64, default 16; with 1, A* undoes the turns by which PIBT
             makes way, whose use comes a step later: robots facing each other wait for good).
         expansions: A* expansions per robot and pass (>= 1; a search out of budget keeps the plan).
@@ -265,7 +272,7 @@ class WindowedTurningPlanner(TurningPIBT):
     name = "windowed"
 
     def __init__(self, grid: np.ndarray, seed: int = 0, window: int = DEFAULT_WINDOW, *,
-                 expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = DEFAULT_ROLLOUTS,
+                 guidance: int = 0, expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = DEFAULT_ROLLOUTS,
                  patience: int = DEFAULT_PATIENCE, work: int = DEFAULT_WORK, field_bytes: int = DEFAULT_FIELD_BYTES,
                  bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         for name, value, low, top in (("window", window, 2, MAX_WINDOW), ("expansions", expansions, 1, None),
@@ -274,10 +281,11 @@ class WindowedTurningPlanner(TurningPIBT):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
                     top is not None and value > top):
                 raise ValueError(f"{name} must be an integer in {low}..{top or 'any'}, got {value!r}")
-        super().__init__(grid, seed=seed, field_bytes=field_bytes, bfs_budget=bfs_budget)
+        super().__init__(grid, seed=seed, guidance=guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         self.window, self.expansions, self.passes = int(window), int(expansions), int(passes)
         self.rollouts, self.patience, self.work = int(rollouts), int(patience), int(work)
-        self.ofields = OrientFields(self.nbr, field_bytes, bfs_budget)
+        self.ofields = OrientFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
+        self.move = self.move_cost if self.move_cost is not None else np.ones((len(self.cell_of), 4), np.int64)
         n = len(self.cell_of)
         states = (self.window + 1) * 4 * n
         self._occ = np.full((self.window + 1) * n, -1, dtype=np.int64)
@@ -333,10 +341,10 @@ class WindowedTurningPlanner(TurningPIBT):
         rows = self.ofields.rows(gc, order)
         far = self.ofields.dtype.type(self.ofields.far)
         if rollouts > 1:
-            best = plan_cost(paths, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
+            best = plan_cost(paths, gc, self.ofields.fields, rows, far, self.cell_of, self.width, self.move)
             for k in range(1, rollouts):
                 other = self._rollout(pc, orient, gc, order, window, k)
-                cost = plan_cost(other, gc, self.ofields.fields, rows, far, self.cell_of, self.width)
+                cost = plan_cost(other, gc, self.ofields.fields, rows, far, self.cell_of, self.width, self.move)
                 if cost < best:
                     paths, best = other, cost
         self.improved = self.failed = 0
@@ -347,8 +355,8 @@ class WindowedTurningPlanner(TurningPIBT):
         keep = self.still > self.patience
         for _ in range(self.passes):
             self._stamp, improved, failed = windowed_turning_kernel(
-                self.nbr, self.cell_of, self.width, gc, self.ofields.fields, rows, far, order, window, self.expansions,
-                keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
+                self.nbr, self.cell_of, self.width, self.move, gc, self.ofields.fields, rows, far, order, window,
+                self.expansions, keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
             self.improved += improved
             self.failed += failed
         p0, p1 = paths[:, 0], paths[:, 1]

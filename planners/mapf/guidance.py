@@ -1,0 +1,129 @@
+"""Crisscross guidance for the turning executors: one-way preferences on a grid, as move costs.
+
+A forward move costs 1, or ``1 + weight`` against the lane's preferred direction: even rows prefer
+east and odd rows west, even columns south and odd columns north (the human-designed "crisscross"
+guidance graph of Zhang et al., "Guidance Graph Optimization for Lifelong Multi-Agent Path
+Finding", IJCAI 2024).  Robots then keep to lanes, which breaks the head-on meetings that jam
+PIBT on crowded maps.  Goal fields become the least guided cost to the goal (Dijkstra instead of
+BFS); a turn or a wait costs 1.  Measurements: ``docs/design/lifelong_turning.md``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+__all__ = ["check_guidance", "crisscross_costs", "cost_rows", "orient_cost_rows", "MAX_GUIDANCE"]
+
+#: Largest extra cost of a move against its lane.
+MAX_GUIDANCE = 16
+
+
+def check_guidance(weight) -> int:
+    """``weight`` as an int; ``ValueError`` naming it unless it is an integer in 0..:data:`MAX_GUIDANCE`."""
+    if isinstance(weight, bool) or not isinstance(weight, (int, np.integer)) or not 0 <= weight <= MAX_GUIDANCE:
+        raise ValueError(f"guidance must be an integer in 0..{MAX_GUIDANCE} (extra cost of a move against "
+                         f"its lane), got {weight!r}")
+    return int(weight)
+
+
+def crisscross_costs(cell_of: np.ndarray, width: int, weight: int) -> np.ndarray:
+    """``(n, 4)`` int64 cost of a forward move from compact cell ``i`` in direction ``d`` (0 east,
+    1 south, 2 west, 3 north): 1 along the lane's direction, ``1 + weight`` against it."""
+    weight = check_guidance(weight)
+    row, col = cell_of // width, cell_of % width
+    cost = np.ones((len(cell_of), 4), dtype=np.int64)
+    east, south = row % 2 == 0, col % 2 == 0
+    cost[~east, 0] += weight
+    cost[east, 2] += weight
+    cost[~south, 1] += weight
+    cost[south, 3] += weight
+    return cost
+
+
+@numba.njit(cache=True, nogil=True)
+def _push(node, d, ent_node, ent_next, head, m):
+    """Queue entry ``m`` of ``node`` into bucket ``d`` (a bucket: a linked list through the entries)."""
+    ent_node[m] = node
+    ent_next[m] = head[d]
+    head[d] = m
+
+
+@numba.njit(cache=True, nogil=True)
+def cost_rows(nbr, cost, goals, rows, fields, far):
+    """``fields[rows[i], v]`` = least cost from compact ``v`` to ``goals[i]`` under the move costs
+    ``cost[v, d]`` (Dijkstra backwards with a bucket per cost modulo the largest move cost + 1, as
+    costs are small integers; ``far`` where unreachable)."""
+    n = nbr.shape[0]
+    span = cost.max() + 1
+    dist = np.empty(n, dtype=np.int64)
+    ent_node, ent_next = np.empty(4 * n + 1, dtype=np.int64), np.empty(4 * n + 1, dtype=np.int64)
+    head = np.empty(span, dtype=np.int64)
+    for i in range(goals.shape[0]):
+        dist[:] = far
+        head[:] = -1
+        dist[goals[i]] = 0
+        _push(goals[i], 0, ent_node, ent_next, head, 0)
+        m, pending, d = 1, 1, 0
+        while pending > 0:
+            e = head[d % span]
+            head[d % span] = -1
+            while e != -1:
+                p, e = ent_node[e], ent_next[e]
+                pending -= 1
+                if dist[p] != d:
+                    continue
+                for k in range(4):
+                    q = nbr[p, k]  # q -> p is a move in direction k + 2
+                    if q >= 0:
+                        nd = d + cost[q, (k + 2) & 3]
+                        if nd < dist[q]:
+                            dist[q] = nd
+                            _push(q, nd % span, ent_node, ent_next, head, m)
+                            m += 1
+                            pending += 1
+            d += 1
+        f = fields[rows[i]]
+        for v in range(n):
+            f[v] = min(dist[v], far)
+
+
+@numba.njit(cache=True, nogil=True)
+def orient_cost_rows(nbr, cost, goals, rows, fields, far):
+    """``fields[rows[i], v * 4 + o]`` = least cost from compact ``v`` facing ``o`` to ``goals[i]`` (any
+    orientation): F from the cell behind costs ``cost[behind, o]``, a turn 1 (Dijkstra backwards,
+    buckets as :func:`cost_rows`)."""
+    n = nbr.shape[0]
+    span = cost.max() + 1
+    dist = np.empty(4 * n, dtype=np.int64)
+    ent_node, ent_next = np.empty(12 * n + 4, dtype=np.int64), np.empty(12 * n + 4, dtype=np.int64)
+    head = np.empty(span, dtype=np.int64)
+    for i in range(goals.shape[0]):
+        dist[:] = far
+        head[:] = -1
+        for o in range(4):
+            dist[goals[i] * 4 + o] = 0
+            _push(goals[i] * 4 + o, 0, ent_node, ent_next, head, o)
+        m, pending, d = 4, 4, 0
+        while pending > 0:
+            e = head[d % span]
+            head[d % span] = -1
+            while e != -1:
+                s, e = ent_node[e], ent_next[e]
+                pending -= 1
+                if dist[s] != d:
+                    continue
+                v, o = s >> 2, s & 3
+                u = nbr[v, (o + 2) & 3]
+                for q, c in ((u * 4 + o if u >= 0 else -1, cost[u, o] if u >= 0 else 0),
+                             (v * 4 + ((o + 3) & 3), 1), (v * 4 + ((o + 1) & 3), 1)):
+                    if q >= 0 and d + c < dist[q]:
+                        dist[q] = d + c
+                        _push(q, (d + c) % span, ent_node, ent_next, head, m)
+                        m += 1
+                        pending += 1
+            d += 1
+        f = fields[rows[i]]
+        for s in range(4 * n):
+            f[s] = min(dist[s], far)

@@ -130,6 +130,14 @@ def uses_chip(spec: str) -> bool:
                for kind, name in zip(("sharing", "tour", "path"), layers))
 
 
+def check_chip_use(specs, chip) -> None:
+    """``ControllerError`` when a chip spec is given but none of the planner ``specs`` runs on a chip."""
+    if chip is not None and not any(isinstance(s, str) and uses_chip(s) for s in specs):
+        names = [s if isinstance(s, str) else s[0] for s in specs]
+        raise ControllerError(f"a chip spec was given, but none of the controllers {names} runs on a chip "
+                              "(add ising or a layer triple with an ising layer)")
+
+
 def make_controller(spec: str, seed: int = 0, env_id: str | None = None, chip=None, env_kwargs: dict | None = None):
     """Build the controller a spec names (see :func:`validate_controller_spec`) for the env ``env_id``.
 

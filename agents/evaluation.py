@@ -61,8 +61,8 @@ from pathlib import Path
 import numpy as np
 
 from agents.controllers import (  # noqa: F401  (re-exported: the evaluation API of before)
-    DEFAULT_ENV_ID, LEARNED_PREFIXES, PIPELINE_PRESETS, make_controller, parse_controllers, planner_pipeline,
-    uses_chip, validate_controller_spec,
+    DEFAULT_ENV_ID, LEARNED_PREFIXES, PIPELINE_PRESETS, check_chip_use, make_controller, parse_controllers,
+    planner_pipeline, uses_chip, validate_controller_spec,
 )
 from agents.errors import ControllerError
 from agents.runner import RunConfig, run_tasks
@@ -455,9 +455,7 @@ def evaluate(
     if int(n_jobs) < 1:
         raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
     env_kwargs = dict(env_kwargs or {})
-    if chip is not None and not any(isinstance(e, str) and uses_chip(e) for e in entries):
-        raise ControllerError(f"a chip spec was given, but none of the controllers {specs} runs on a chip "
-                              "(add ising or a layer triple with an ising layer)")
+    check_chip_use(entries, chip)
     run = RunConfig.from_jobs(n_jobs, progress=progress, backend=backend, address=address)
     max_steps = resolve_max_steps(env_id, env_kwargs, max_steps)
     tasks = [

@@ -15,9 +15,9 @@ targets on 64 x 64: ``MRMT-64x64-v0`` (uniform, 20 % obstacles),
 ``MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets).  Plan level:
 ``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Lifelong (:data:`LIFELONG_IDS`: a task
 stream, collisions refused): ``MRMT-Lifelong-v0`` and ``MRMT-Lifelong-Warehouse-v0`` (PettingZoo
-``mrmt_env/mrmt_lifelong_v0``).  Every id takes the
-generator's arguments, e.g. ``gymnasium.make("mrmt_env/MRMT-v0",
-layout="rooms", height=32, width=32)``.
+``mrmt_env/mrmt_lifelong_v0``).  Every id and env takes the
+world's arguments as one frozen :class:`~mrmt_env.config.WorldConfig` (``config=``) or as
+keywords, e.g. ``gymnasium.make("mrmt_env/MRMT-v0", layout="rooms", height=32, width=32)``.
 """
 
 from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_distance_fields
@@ -32,6 +32,7 @@ __all__ = [
     "bfs_distance_fields",
     "UNREACHABLE",
     "MOVES",
+    "WorldConfig",
     "MRMTEnv",
     "MRMTParallelEnv",
     "parallel_env",
@@ -153,6 +154,7 @@ _LAZY = {
     "ACTION_NAMES": "mrmt_env.core",
     "action_between": "mrmt_env.core",
     "actions_from_path": "mrmt_env.core",
+    "WorldConfig": "mrmt_env.config",
     "MRMTEnv": "mrmt_env.grid.env",
     "world_from_observation": "mrmt_env.observation",
     "MRMTParallelEnv": "mrmt_env.grid.pz",

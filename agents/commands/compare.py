@@ -81,7 +81,7 @@ def _run(args) -> int:
         return 2
     if is_lifelong_id(args.env_id):  # tasks keep arriving: greedy / pipelines through PIBT (agents.lifelong.controllers)
         return run_compare(args)
-    from agents.evaluation import ControllerError, evaluate, parse_controllers
+    from agents.evaluation import ControllerError, check_chip_use, evaluate, parse_controllers
 
     try:
         specs = parse_controllers(args.controllers)
@@ -108,6 +108,7 @@ def _run(args) -> int:
         run = runner_from_args(args)
         chip = chip_from_args(args)
         check_worlds(args.env_id, env_kwargs, range(args.seed, args.seed + args.worlds))  # before any pool or bar
+        check_chip_use(specs, chip)  # before the compile notice
         if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
             from agents.warmup import warm
 

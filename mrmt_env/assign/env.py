@@ -6,8 +6,9 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
+from mrmt_env.config import WorldConfig
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource, check_render_mode, check_step_limit, show
+from mrmt_env.core import check_render_mode, check_step_limit, show
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -115,7 +116,7 @@ class MRMTAssignEnv(gym.Env):
 
     ## Arguments
 
-    Those of ``MRMTEnv``: ``height``, ``width``, ``obstacle_density``,
+    Those of ``MRMTEnv``: ``config`` (a :class:`~mrmt_env.config.WorldConfig`) or ``height``, ``width``, ``obstacle_density``,
     ``n_robots``, ``n_targets``, ``placement``, ``layout``, ``layout_options``, ``world``,
     ``max_episode_steps``, ``render_mode`` (``"ansi"``, ``"rgb_array"``,
     ``"human"``).  Worlds and seeding are the grid env's: the same
@@ -128,27 +129,12 @@ class MRMTAssignEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 2}
 
-    def __init__(
-        self,
-        height: int | None = None,
-        width: int | None = None,
-        obstacle_density: float | None = None,
-        n_robots: int | None = None,
-        n_targets: int | None = None,
-        world: World | str | None = None,
-        placement: str | None = None,
-        max_episode_steps: int | None = None,
-        render_mode: str | None = None,
-        layout: str | None = None,
-        layout_options: dict | None = None,
-    ) -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
+                 render_mode: str | None = None, **world) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.max_episode_steps = check_step_limit(max_episode_steps)
-        self.source = WorldSource(
-            world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options,
-        )
+        self.source = WorldConfig.of(config, **world).source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.fixed.n_targets if self.source.fixed is not None else self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

@@ -24,9 +24,10 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import AECEnv
 
+from mrmt_env.config import WorldConfig
 from mrmt_env.assign.env import _check_action
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource, check_render_mode
+from mrmt_env.core import check_render_mode
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -41,9 +42,8 @@ class MRMTAssignAECEnv(AECEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_assign_v0", "is_parallelizable": False,
                 "render_fps": 2}
 
-    def __init__(self, height=None, width=None, obstacle_density=None, n_robots=None, n_targets=None,
-                 world: World | str | None = None, placement=None, max_cycles: int | None = None,
-                 render_mode: str | None = None, layout=None, layout_options=None) -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
+                 render_mode: str | None = None, **world) -> None:
         super().__init__()
         check_render_mode(render_mode, self.metadata["render_modes"])
         limit = DEFAULT_MAX_CYCLES if max_cycles is None else max_cycles
@@ -51,9 +51,7 @@ class MRMTAssignAECEnv(AECEnv):
             raise ValueError(f"max_cycles must be an integer >= 1, got {limit!r}")
         self.max_cycles = int(limit)
         self.render_mode = render_mode
-        self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
-                                  layout_options=layout_options)
+        self.source = WorldConfig.of(config, **world).source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

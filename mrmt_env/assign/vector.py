@@ -12,8 +12,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
+from mrmt_env.config import WorldConfig
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import WorldSource, show
+from mrmt_env.core import show
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.vector_base import BatchedVectorEnv
 
@@ -26,15 +27,12 @@ class MRMTAssignVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
-                 n_targets=None, world=None, placement=None, max_episode_steps=None, render_mode=None,
-                 autoreset_mode="NextStep", copy: bool = True, layout=None, layout_options=None) -> None:
+    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
+                 render_mode=None, autoreset_mode="NextStep", copy: bool = True, **world) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
         super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
-                                  layout_options=layout_options)
+        self.source = WorldConfig.of(config, **world).source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

@@ -6,7 +6,8 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit, show
+from mrmt_env.config import WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, show
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
@@ -175,8 +176,13 @@ class MRMTEnv(gym.Env):
 
     ```
 
+    The world's arguments come as one frozen :class:`~mrmt_env.config.WorldConfig` (``config``, the
+    first positional argument) or as keywords of the same names, which override it (what
+    ``gym.make(id, n_robots=5)`` passes); every env of the package takes them so.
+
     | Parameter          | Type                 | Default     | Description                                        |
     |--------------------|----------------------|-------------|----------------------------------------------------|
+    | `config`           | WorldConfig or None  | None        | the world's arguments below, as one record         |
     | `height`           | int                  | 10          | grid rows (generated worlds)                       |
     | `width`            | int                  | 10          | grid columns (generated worlds)                    |
     | `obstacle_density` | float or None        | 0.2         | obstacle share of the `uniform` layout             |
@@ -210,23 +216,9 @@ class MRMTEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 4}
 
-    def __init__(
-        self,
-        height: int | None = None,
-        width: int | None = None,
-        obstacle_density: float | None = None,
-        n_robots: int | None = None,
-        n_targets: int | None = None,
-        world: World | str | None = None,
-        placement: str | None = None,
-        max_episode_steps: int | None = None,
-        target_reward: float | None = None,
-        render_mode: str | None = None,
-        observation: str = "binary",
-        dense_reward: float = 0.0,
-        layout: str | None = None,
-        layout_options: dict | None = None,
-    ) -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
+                 target_reward: float | None = None, render_mode: str | None = None, observation: str = "binary",
+                 dense_reward: float = 0.0, **world) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         if observation not in OBSERVATIONS:
             raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
@@ -237,10 +229,7 @@ class MRMTEnv(gym.Env):
         self.dense_reward = float(dense_reward)
         self.render_mode = render_mode
         self.max_episode_steps = check_step_limit(max_episode_steps)
-        self.source = WorldSource(
-            world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options, grid_env=True,
-        )
+        self.source = WorldConfig.of(config, **world).source(grid_env=True)
         self.n_robots = self.source.n_robots
         self.action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)
         space = image_observation_space if observation == "image" else observation_space

@@ -30,7 +30,8 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, show
+from mrmt_env.config import WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, show
 from mrmt_env.observation import ROBOT_CHANNEL0, agent_observation_space, observation_space
 from mrmt_env.world import World
 
@@ -69,7 +70,7 @@ class _CheckedAEC(parallel_to_aec_wrapper):
 class MRMTParallelEnv(ParallelEnv):
     """Multi-robot multi-target grid world, one PettingZoo agent per robot.
 
-    Arguments are those of :class:`mrmt_env.grid.env.MRMTEnv` (``height``,
+    Arguments are those of :class:`mrmt_env.grid.env.MRMTEnv` (``config`` or ``height``,
     ``width``, ``obstacle_density``, ``n_robots``, ``n_targets``, ``world``,
     ``placement``, ``layout``, ``layout_options``, ``target_reward``, ``render_mode``) plus ``max_cycles``
     (steps before truncation, default 200; ``max_episode_steps`` is accepted
@@ -79,22 +80,9 @@ class MRMTParallelEnv(ParallelEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_v0", "is_parallelizable": True,
                 "render_fps": 4}
 
-    def __init__(
-        self,
-        height: int | None = None,
-        width: int | None = None,
-        obstacle_density: float | None = None,
-        n_robots: int | None = None,
-        n_targets: int | None = None,
-        world: World | str | None = None,
-        placement: str | None = None,
-        max_cycles: int | None = None,
-        max_episode_steps: int | None = None,
-        target_reward: float | None = None,
-        render_mode: str | None = None,
-        layout: str | None = None,
-        layout_options: dict | None = None,
-    ) -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
+                 max_episode_steps: int | None = None, target_reward: float | None = None,
+                 render_mode: str | None = None, **world) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         if max_cycles is not None and max_episode_steps is not None and max_cycles != max_episode_steps:
             raise ValueError(f"max_cycles={max_cycles} and max_episode_steps={max_episode_steps} disagree; give one")
@@ -104,10 +92,7 @@ class MRMTParallelEnv(ParallelEnv):
             raise ValueError(f"max_cycles must be an integer >= 1, got {limit!r}")
         self.max_cycles = int(limit)
         self.render_mode = render_mode
-        self.source = WorldSource(
-            world, height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-            n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options, grid_env=True,
-        )
+        self.source = WorldConfig.of(config, **world).source(grid_env=True)
         r, h, w = self.source.n_robots, self.source.height, self.source.width
         self.n_robots = r
         self.possible_agents = [f"robot_{k}" for k in range(r)]

@@ -15,7 +15,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, show
+from mrmt_env.config import WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, show
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.grid.kernels import grid_load, grid_masks, grid_step
 from mrmt_env.grid.env import OBSERVATIONS
@@ -31,10 +32,9 @@ class MRMTVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
-                 n_targets=None, world=None, placement=None, max_episode_steps=None, target_reward=None,
-                 render_mode=None, observation: str = "binary", dense_reward: float = 0.0,
-                 autoreset_mode="NextStep", copy: bool = True, layout=None, layout_options=None) -> None:
+    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
+                 target_reward=None, render_mode=None, observation: str = "binary", dense_reward: float = 0.0,
+                 autoreset_mode="NextStep", copy: bool = True, **world) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
         if observation not in OBSERVATIONS:
@@ -42,9 +42,7 @@ class MRMTVectorEnv(BatchedVectorEnv):
         if isinstance(dense_reward, bool) or not np.isfinite(dense_reward) or dense_reward < 0:
             raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
         super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        self.source = WorldSource(world, height=height, width=width, obstacle_density=obstacle_density,
-                                  n_robots=n_robots, n_targets=n_targets, placement=placement, layout=layout,
-                                  layout_options=layout_options, grid_env=True)
+        self.source = WorldConfig.of(config, **world).source(grid_env=True)
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         b = self.num_envs

@@ -6,7 +6,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from mrmt_env.core import N_ACTIONS, MRMTCore, WorldSource, check_render_mode, check_step_limit
+from mrmt_env.config import WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit
 from mrmt_env.grid.env import check_joint_action
 from mrmt_env.lifelong.state import LifelongBatch, LifelongOptions, task_pool
 from mrmt_env.observation import observation_space
@@ -20,9 +21,9 @@ class LifelongSetup:
     """What a lifelong env (single, vector or PettingZoo) is built from: the world source, the options
     and the task reward; ``start(batch, i, rng, options)`` draws a world, its pool and stream key."""
 
-    def __init__(self, world, params: dict, tasks, task_rate, collisions, target_reward) -> None:
+    def __init__(self, config: WorldConfig, tasks, task_rate, collisions, target_reward) -> None:
         self.options = LifelongOptions(tasks=tasks, task_rate=task_rate, collisions=collisions)
-        self.source = WorldSource(world, grid_env=True, **params)
+        self.source = config.source(grid_env=True)
         MRMTCore(target_reward)  # validates target_reward with the one-shot env's message
         h, w = self.source.height, self.source.width
         self.task_reward = MRMTCore.default_target_reward(h, w) if target_reward is None else float(target_reward)
@@ -99,7 +100,7 @@ class MRMTLifelongEnv(gym.Env):
 
     ## Arguments
 
-    Those of ``MRMTEnv`` (``height``, ``width``, ``obstacle_density``,
+    Those of ``MRMTEnv`` (``config``, a :class:`~mrmt_env.config.WorldConfig`, or ``height``, ``width``, ``obstacle_density``,
     ``n_robots``, ``n_targets`` = ``K``, ``placement``, ``layout``,
     ``layout_options``, ``world``, ``target_reward``, ``max_episode_steps``,
     ``render_mode``) plus ``tasks``, ``task_rate`` and ``collisions``.
@@ -107,18 +108,13 @@ class MRMTLifelongEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 4}
 
-    def __init__(self, height: int | None = None, width: int | None = None, obstacle_density: float | None = None,
-                 n_robots: int | None = None, n_targets: int | None = None, world: World | str | None = None,
-                 placement: str | None = None, max_episode_steps: int | None = None,
-                 target_reward: float | None = None, render_mode: str | None = None, layout: str | None = None,
-                 layout_options: dict | None = None, tasks: str = "refill", task_rate: float | None = None,
-                 collisions: str = "block") -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
+                 target_reward: float | None = None, render_mode: str | None = None, tasks: str = "refill",
+                 task_rate: float | None = None, collisions: str = "block", **world) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.max_episode_steps = check_step_limit(max_episode_steps)
-        params = dict(height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-                      n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options)
-        self.setup = LifelongSetup(world, params, tasks, task_rate, collisions, target_reward)
+        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
         self.source = self.setup.source
         self.options = self.setup.options
         self.n_robots = self.source.n_robots

@@ -22,6 +22,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
+from mrmt_env.config import WorldConfig
 from mrmt_env.core import N_ACTIONS, check_render_mode
 from mrmt_env.lifelong.env import LifelongSetup, render_state
 from mrmt_env.observation import agent_observation_space, observation_space
@@ -38,10 +39,9 @@ class MRMTLifelongParallelEnv(ParallelEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_lifelong_v0",
                 "is_parallelizable": True, "render_fps": 4}
 
-    def __init__(self, height=None, width=None, obstacle_density=None, n_robots=None, n_targets=None, world=None,
-                 placement=None, max_cycles: int | None = None, max_episode_steps: int | None = None,
-                 target_reward=None, render_mode: str | None = None, layout=None, layout_options=None,
-                 tasks: str = "refill", task_rate=None, collisions: str = "block") -> None:
+    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
+                 max_episode_steps: int | None = None, target_reward=None, render_mode: str | None = None,
+                 tasks: str = "refill", task_rate=None, collisions: str = "block", **world) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         if max_cycles is not None and max_episode_steps is not None and max_cycles != max_episode_steps:
             raise ValueError(f"max_cycles={max_cycles} and max_episode_steps={max_episode_steps} disagree; give one")
@@ -51,9 +51,7 @@ class MRMTLifelongParallelEnv(ParallelEnv):
             raise ValueError(f"max_cycles must be an integer >= 1, got {limit!r}")
         self.max_cycles = int(limit)
         self.render_mode = render_mode
-        params = dict(height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-                      n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options)
-        self.setup = LifelongSetup(world, params, tasks, task_rate, collisions, target_reward)
+        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
         s = self.setup.source
         r, h, w = s.n_robots, s.height, s.width
         self.n_robots = r

@@ -14,6 +14,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
+from mrmt_env.config import WorldConfig
 from mrmt_env.core import N_ACTIONS, show
 from mrmt_env.lifelong.env import LifelongSetup
 from mrmt_env.observation import observation_space
@@ -28,16 +29,13 @@ class MRMTLifelongVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, height=None, width=None, obstacle_density=None, n_robots=None,
-                 n_targets=None, world=None, placement=None, max_episode_steps=None, target_reward=None,
-                 render_mode=None, layout=None, layout_options=None, tasks: str = "refill", task_rate=None,
-                 collisions: str = "block", autoreset_mode="NextStep", copy: bool = True) -> None:
+    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
+                 target_reward=None, render_mode=None, tasks: str = "refill", task_rate=None,
+                 collisions: str = "block", autoreset_mode="NextStep", copy: bool = True, **world) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
         super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        params = dict(height=height, width=width, obstacle_density=obstacle_density, n_robots=n_robots,
-                      n_targets=n_targets, placement=placement, layout=layout, layout_options=layout_options)
-        self.setup = LifelongSetup(world, params, tasks, task_rate, collisions, target_reward)
+        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
         s = self.setup.source
         self.height, self.width, self.n_robots = s.height, s.width, s.n_robots
         self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)

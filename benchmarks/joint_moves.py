@@ -3,7 +3,8 @@
 ``decisions``: groups sampled from LoRR runs driven by the host rule (start kit greedy scheduler,
 TurningPIBT), each solved three ways under one objective (planners/mapf/joint_moves.py): the host
 rule's answer, the chip's (best decoded read, repaired), the exact optimum (branch and bound).
-``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds.
+``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds and the
+same lane guidance (``--guidance``, default 0).
 
     flock /tmp/mrmt-bench.lock python benchmarks/joint_moves.py decisions --steps 200
     flock /tmp/mrmt-bench.lock python benchmarks/joint_moves.py e2e --steps 300
@@ -116,6 +117,8 @@ def main(argv=None):
     ap.add_argument("--push", type=int, default=2)
     ap.add_argument("--max-robots", type=int, default=11)
     ap.add_argument("--accept", default="better")
+    ap.add_argument("--guidance", type=int, default=0,
+                    help="lane guidance of both executors in e2e (the same for the chip and the host rule)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     from ising_backend import EmulatedChip
@@ -149,14 +152,16 @@ def main(argv=None):
         class Variant(JointMovesPIBT):
             def __init__(self, grid, seed=0):
                 super().__init__(grid, seed=seed, levels=args.levels, push=args.push, penalty=args.penalty,
-                                 num_reads=args.reads, max_robots=args.max_robots, accept=args.accept)
+                                 num_reads=args.reads, max_robots=args.max_robots, accept=args.accept,
+                                 guidance=args.guidance)
                 made.append(self)
 
         TURNING_EXECUTORS["pibt-ising-bench"] = Variant
         for name in names:
             for seed in range(args.seeds):
                 for ex in ("pibt", "pibt-ising-bench"):
-                    rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", ex, steps=args.steps, seed=seed)
+                    rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", ex, steps=args.steps, seed=seed,
+                                                options={"guidance": args.guidance} if ex == "pibt" else None)
                     row = {k: rec[k] for k in ("instance", "executor", "seed", "tasks_finished", "errors",
                                                "step_p50_s", "step_p99_s")}
                     if ex != "pibt":

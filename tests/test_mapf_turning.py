@@ -63,8 +63,17 @@ def bfs(grid, goal):
 
 def lane_cost(grid, p, d, weight):
     """A forward move from flat ``p`` in direction ``d``: 1, or 1 + weight against the lane (even rows
-    run east, odd rows west, even columns south, odd columns north)."""
+    run east, odd rows west, even columns south, odd columns north; one-cell corridors have none)."""
     r, c = divmod(p, grid.shape[1])
+    h, w = grid.shape
+
+    def free(rr, cc):
+        return 0 <= rr < h and 0 <= cc < w and not grid[rr, cc]
+
+    if d in (0, 2) and not (free(r - 1, c) or free(r + 1, c)):
+        return 1  # a one-cell-wide horizontal corridor has no lane
+    if d in (1, 3) and not (free(r, c - 1) or free(r, c + 1)):
+        return 1
     against = (d == 0 and r % 2 == 1) or (d == 2 and r % 2 == 0) or (d == 1 and c % 2 == 1) or (
         d == 3 and c % 2 == 0)
     return 1 + weight * against
@@ -283,7 +292,7 @@ def test_same_seed_same_actions_and_a_small_field_cache_changes_nothing():
 def test_maps_of_65535_free_cells_or_more_use_uint32_fields():
     grid = np.zeros((256, 256), dtype=bool)
     pos, orient, goals = np.array([0, 300, 65535]), np.array([0, 1, 2]), np.array([5, 300 + 256 * 4, 65535 - 3])
-    ex = TurningPIBT(grid)
+    ex = TurningPIBT(grid, guidance=0)  # plain BFS: a distance may reach the cell count
     assert ex.fields.dtype == np.uint32
     for _ in range(12):
         pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
@@ -339,3 +348,18 @@ def test_no_guidance_is_plain_bfs_and_lanes_change_the_route():
     pos, orient, goals = np.array([6]), np.array([0]), np.array([11])
     assert plain.actions(pos, orient, goals).tolist() == [F]
     assert lanes.actions(pos, orient, goals).tolist() != [F]
+
+
+def test_a_one_cell_corridor_has_no_lane_and_big_maps_keep_uint16_guided_fields():
+    grid = np.ones((3, 8), dtype=bool)
+    grid[1, :] = False  # one corridor, on an odd row (whose lane would run west)
+    ex = TurningPIBT(grid, guidance=4)
+    assert (ex.move_cost[:, [0, 2]] == 1).all()  # east and west alike
+    goals = np.array([ex.cid[8 + 7]])
+    row = ex.fields.rows(goals, np.zeros(1, dtype=np.int64))[0]
+    assert ex.fields.fields[row, ex.cid[8]] == 7  # east along the corridor: 7 moves of cost 1
+    big = TurningPIBT(np.zeros((300, 300), dtype=bool), guidance=2)
+    assert big.fields.dtype == np.uint16 and TurningPIBT(np.zeros((300, 300), dtype=bool), guidance=0).fields.dtype \
+        == np.uint32
+    row = big.fields.rows(np.array([0]), np.zeros(1, dtype=np.int64))[0]
+    assert big.fields.fields[row].max() < big.fields.far  # every cell reached, within the dtype

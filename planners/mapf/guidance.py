@@ -3,7 +3,7 @@
 A forward move costs 1, or ``1 + weight`` against the lane's preferred direction: even rows prefer
 east and odd rows west, even columns south and odd columns north (the human-designed "crisscross"
 guidance graph of Zhang et al., "Guidance Graph Optimization for Lifelong Multi-Agent Path
-Finding", IJCAI 2024).  Robots then keep to lanes, which breaks the head-on meetings that jam
+Finding", IJCAI 2024); a corridor one cell wide has no lane (both ways cost 1).  Robots then keep to lanes, which breaks the head-on meetings that jam
 PIBT on crowded maps.  Goal fields become the least guided cost to the goal (Dijkstra instead of
 BFS); a turn or a wait costs 1.  Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 
-__all__ = ["check_guidance", "crisscross_costs", "cost_rows", "orient_cost_rows", "MAX_GUIDANCE"]
+__all__ = ["check_guidance", "crisscross_costs", "distance_bound", "cost_rows", "orient_cost_rows", "MAX_GUIDANCE"]
 
 #: Largest extra cost of a move against its lane.
 MAX_GUIDANCE = 16
@@ -28,18 +28,62 @@ def check_guidance(weight) -> int:
     return int(weight)
 
 
-def crisscross_costs(cell_of: np.ndarray, width: int, weight: int) -> np.ndarray:
+def crisscross_costs(nbr: np.ndarray, cell_of: np.ndarray, width: int, weight: int) -> np.ndarray:
     """``(n, 4)`` int64 cost of a forward move from compact cell ``i`` in direction ``d`` (0 east,
-    1 south, 2 west, 3 north): 1 along the lane's direction, ``1 + weight`` against it."""
+    1 south, 2 west, 3 north): 1 along the lane's direction, ``1 + weight`` against it.  A corridor
+    one cell wide has no lane: a horizontal move from a cell with neither a free cell above nor below
+    costs 1 both ways (and a vertical one likewise); else maps whose corridors share a row parity
+    (sortation_large: every corridor on an odd row) would be one-way throughout."""
     weight = check_guidance(weight)
     row, col = cell_of // width, cell_of % width
     cost = np.ones((len(cell_of), 4), dtype=np.int64)
+    wide_h = (nbr[:, 1] >= 0) | (nbr[:, 3] >= 0)  # a horizontal lane needs a neighbour lane
+    wide_v = (nbr[:, 0] >= 0) | (nbr[:, 2] >= 0)
     east, south = row % 2 == 0, col % 2 == 0
-    cost[~east, 0] += weight
-    cost[east, 2] += weight
-    cost[~south, 1] += weight
-    cost[south, 3] += weight
+    cost[~east & wide_h, 0] += weight
+    cost[east & wide_h, 2] += weight
+    cost[~south & wide_v, 1] += weight
+    cost[south & wide_v, 3] += weight
     return cost
+
+
+def distance_bound(nbr: np.ndarray, cost: np.ndarray, per_cell: int) -> int:
+    """An upper bound on any finite guided distance: twice the largest BFS eccentricity of one cell
+    per connected component (a bound on every component's diameter in moves) times the costliest
+    move (plus two turns a move over (cell, orientation))."""
+    n = nbr.shape[0]
+    field = np.empty((1, n), dtype=np.uint32)
+    far = np.iinfo(np.uint32).max
+    seen = np.zeros(n, dtype=bool)
+    ecc = 0
+    for start in range(n):
+        if seen[start]:
+            continue
+        _reach(nbr, start, field[0], far)
+        reached = field[0] != far
+        seen |= reached
+        ecc = max(ecc, int(field[0][reached].max()))
+    step = int(cost.max()) + (2 if per_cell == 4 else 0)
+    return (2 * ecc + 1) * step + 2
+
+
+@numba.njit(cache=True, nogil=True)
+def _reach(nbr, start, f, far):
+    """BFS moves from compact ``start`` into ``f`` (``far`` where not reached)."""
+    f[:] = far
+    f[start] = 0
+    queue = np.empty(nbr.shape[0], dtype=np.int64)
+    queue[0] = start
+    head, tail = 0, 1
+    while head < tail:
+        p = queue[head]
+        head += 1
+        for d in range(4):
+            q = nbr[p, d]
+            if q >= 0 and f[q] == far:
+                f[q] = f[p] + 1
+                queue[tail] = q
+                tail += 1
 
 
 @numba.njit(cache=True, nogil=True)

@@ -34,7 +34,7 @@ import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import mix
-from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs
+from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
@@ -130,7 +130,7 @@ class TurnFields:
         self.cost = cost  # (n, 4) forward-move costs (guidance), None: every action costs 1
         n = nbr.shape[0]
         size = n * self.per_cell
-        top = size * (1 if cost is None else int(cost.max(initial=1)))  # above any finite distance
+        top = size if cost is None else distance_bound(nbr, cost, self.per_cell)  # above any finite distance
         self.dtype = np.dtype(np.uint16 if top < 65535 else np.uint32)
         self.far = int(np.iinfo(self.dtype).max)
         self.capacity = max(min(int(max_bytes) // (max(size, 1) * self.dtype.itemsize), n), 1)
@@ -389,7 +389,7 @@ class TurningPIBT:
         self.width = int(self.grid.shape[1])
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
         self.guidance = check_guidance(guidance)
-        self.move_cost = crisscross_costs(self.cell_of, self.width, guidance) if self.guidance else None
+        self.move_cost = crisscross_costs(self.nbr, self.cell_of, self.width, guidance) if self.guidance else None
         self.fields = TurnFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)

@@ -29,6 +29,7 @@ from mrmt_env.assign.env import _check_action
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import check_render_mode
 from mrmt_env.render import render_ansi, render_rgb
+from mrmt_env.team import check_cycles
 from mrmt_env.world import World
 
 __all__ = ["MRMTAssignAECEnv", "assign_aec_env", "DEFAULT_MAX_CYCLES"]
@@ -46,10 +47,7 @@ class MRMTAssignAECEnv(AECEnv):
                  render_mode: str | None = None, **world) -> None:
         super().__init__()
         check_render_mode(render_mode, self.metadata["render_modes"])
-        limit = DEFAULT_MAX_CYCLES if max_cycles is None else max_cycles
-        if isinstance(limit, bool) or int(limit) != limit or limit < 1:
-            raise ValueError(f"max_cycles must be an integer >= 1, got {limit!r}")
-        self.max_cycles = int(limit)
+        self.max_cycles = check_cycles(max_cycles, None, DEFAULT_MAX_CYCLES)
         self.render_mode = render_mode
         self.source = WorldConfig.of(config, **world).source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots

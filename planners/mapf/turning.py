@@ -112,8 +112,9 @@ def _bfs_rows(nbr, goals, rows, fields, far):
 
 
 class TurnFields:
-    """BFS distance fields to goal cells over the free cells only, uint16 (uint32 when a map has
-    65,535 free cells or more; the dtype's maximum = unreachable), in a cache bounded by
+    """BFS distance fields to goal cells over the free cells only (least guided cost under ``cost``),
+    uint16 (uint32 when a distance may reach 65,535: a map of that many free cells, or under ``cost``
+    a bound on the map's diameter that high; the dtype's maximum = unreachable), in a cache bounded by
     ``max_bytes``: when full, the fields least recently asked for make room and are recomputed on
     demand (the goals of one call always fit: the cache grows past the bound for them).  One call
     computes at most ``bfs_budget // free cells`` new fields (a fifth of that under guidance costs,

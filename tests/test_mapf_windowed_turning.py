@@ -8,6 +8,7 @@ from collections import deque
 import numpy as np
 import pytest
 
+from lanes_reference import lane_cost
 from planners.mapf import TURNING_EXECUTORS, TurningPIBT, WindowedTurningPlanner, make_turning_executor
 from planners.mapf.windowed_turning import OrientFields
 
@@ -196,22 +197,6 @@ def test_orientation_fields_equal_a_forward_search():
         for v, cell in enumerate(ex.cell_of.tolist()):
             for o in range(4):
                 assert fields.fields[row, v * 4 + o] == want.get(cell * 4 + o, fields.far)
-
-
-def lane_cost(grid, p, d, weight):
-    r, c = divmod(p, grid.shape[1])
-    h, w = grid.shape
-
-    def free(rr, cc):
-        return 0 <= rr < h and 0 <= cc < w and not grid[rr, cc]
-
-    if d in (0, 2) and not (free(r - 1, c) or free(r + 1, c)):
-        return 1  # a one-cell-wide horizontal corridor has no lane
-    if d in (1, 3) and not (free(r, c - 1) or free(r, c + 1)):
-        return 1
-    against = (d == 0 and r % 2 == 1) or (d == 2 and r % 2 == 0) or (d == 1 and c % 2 == 1) or (
-        d == 3 and c % 2 == 0)
-    return 1 + weight * against
 
 
 def guided_oriented_costs(grid, goal, weight):

@@ -24,6 +24,7 @@ import numpy as np
 from ._clock import clock_ns
 from .anneal import anneal_kernel_timed
 from .audit import active_audit
+from .host_rule import host_answer, host_rule_classes
 from .ledger import CallLedger
 from .tabu import mix_seed, tabu_kernel
 from .meter import SolverOutputError
@@ -49,14 +50,15 @@ class MachineSession:
     is open every session goes through the callback and each submission is recorded under it.
     """
 
-    __slots__ = ("machine", "ledger", "logical", "direct", "handle", "_kernel", "args", "decision", "audit")
+    __slots__ = ("machine", "ledger", "logical", "direct", "handle", "_kernel", "args", "decision", "audit", "host")
 
     def __init__(self, machine, ledger: CallLedger, kernel=None, logical: bool = False, decision: str = "unlabelled"):
         if not isinstance(ledger, CallLedger):
             raise TypeError(f"ledger = {ledger!r} must be an ising_backend.CallLedger")
         self.audit = active_audit()
         self.decision = decision
-        if self.audit is not None:  # the machine's own call, the same kernel and seeds: the same plans
+        self.host = decision in host_rule_classes()  # an ablation: the host rule answers (host_rule.py)
+        if self.audit is not None or self.host:  # the machine's own call (same kernel and seeds), or the host rule
             kernel = None
         self.machine = machine
         self.ledger = ledger
@@ -108,6 +110,12 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     if link is None:
         raise RuntimeError("a machine session's record was used outside its `with machine.session(ledger) as link:` "
                            "block")
+    if link.host:  # the host rule's answer: no machine call, nothing charged, nothing audited as the chip's
+        s, e = host_answer(h, J, int(num_reads))
+        spins[...] = s
+        if energies.shape == e.shape:
+            energies[...] = e
+        return 0.0
     machine = link.machine
     before = machine.last_call
     e = None

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from .audit import active_audit
+from .host_rule import host_answer, host_rule_classes
 from .health import ChipUnavailableError
 from .ledger import CallLedger
 
@@ -69,6 +70,8 @@ class MeteredSolver:
 
     def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.anneal_batch`` with the answer checked and its charge metered."""
+        if self.decision in host_rule_classes():  # an ablation: the host rule answers, nothing is charged
+            return host_answer(h, J, num_reads)
         before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
         with self._charged_if_unavailable(before):
             spins, energies = self.solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
@@ -82,6 +85,16 @@ class MeteredSolver:
 
     def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_many`` (logical solvers) with the answers checked and the charge metered."""
+        if self.decision in host_rule_classes():
+            from .logical import LogicalResult
+            from .programs import stack_programs
+
+            out = []
+            for m in models:
+                h, J = stack_programs([m])
+                spins, energies = host_answer(h, J, num_reads)
+                out.append(LogicalResult(spins[0, :, :m.n], energies[0] + m.offset))
+            return out
         before = None if hasattr(self.solver, "last_call") else self.solver.ledger.snapshot()
         with self._charged_if_unavailable(before):
             out = self.solver.solve_many(models, num_reads=num_reads, seed=seed)
@@ -103,6 +116,9 @@ class MeteredSolver:
 
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_stack`` (:class:`LogicalIsingSolver`) with the answer checked and metered."""
+        if self.decision in host_rule_classes():  # J (n, n) may be shared by the B programs
+            J = np.broadcast_to(J, (np.shape(h)[0],) + np.shape(J)[-2:]) if np.ndim(J) == 2 else J
+            return host_answer(h, J, num_reads)[0]
         with self._charged_if_unavailable(None):
             spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)
         charge = self._charge(None)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import (add_chip_argument, chip_from_args, add_runner_arguments, check_positive, check_seed,
+from agents.commands.options import (add_chip_argument, add_host_rule_argument, chip_from_args, host_rule_from_args, add_runner_arguments, check_positive, check_seed,
                                      runner_from_args)
 
 NAME = "compare"
@@ -50,6 +50,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--audit", default=None, metavar="DIR",
                         help="record every chip decision in DIR (mrmt audit DIR judges it; --jobs 1, inline only)")
+    add_host_rule_argument(parser)
 
 
 def run(args) -> int:
@@ -66,7 +67,16 @@ def run(args) -> int:
         if Path(args.audit).exists() and not Path(args.audit).is_dir():
             print(f"mrmt compare: error: --audit {args.audit}: exists and is not a directory", file=sys.stderr)
             return 2
-    with Audit(args.audit) if args.audit else nullcontext():
+    if args.host_rule and ((args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1):
+        print("mrmt compare: error: --host-rule acts on the decisions made in this process: use --jobs 1 and the "
+              "inline backend", file=sys.stderr)
+        return 2
+    try:
+        host_rule = host_rule_from_args(args)
+    except ValueError as exc:
+        print(f"mrmt compare: error: --host-rule: {exc}", file=sys.stderr)
+        return 2
+    with Audit(args.audit) if args.audit else nullcontext(), host_rule:
         return _run(args)
 
 

@@ -23,7 +23,7 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 
 
 def add_arguments(parser) -> None:
-    from agents.commands.options import add_chip_argument, add_runner_arguments
+    from agents.commands.options import add_chip_argument, add_host_rule_argument, add_runner_arguments
 
     sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,check}")
     run = sub.add_parser("run", help="run instances with a scheduler and an executor")
@@ -46,6 +46,7 @@ def add_arguments(parser) -> None:
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--audit", default=None, metavar="DIR",
                      help="record every chip decision in DIR (mrmt audit DIR judges it; inline backend only)")
+    add_host_rule_argument(run)
     add_runner_arguments(run)
     add_chip_argument(run, who="the ising scheduler")
     check = sub.add_parser("check", help="re-simulate an output file on its instance")
@@ -120,6 +121,14 @@ def _run(args) -> int:
     single = len(jobs) == 1
     if args.audit and not (run.backend == "inline" or (single and run.backend != "ray")):
         return _fail(f"--audit records the decisions made in this process: use --backend inline, not {run.backend}")
+    if args.host_rule and not (run.backend == "inline" or (single and run.backend != "ray")):
+        return _fail(f"--host-rule acts on the decisions made in this process: use --backend inline, not {run.backend}")
+    from agents.commands.options import host_rule_from_args
+
+    try:
+        host_rule = host_rule_from_args(args)
+    except ValueError as exc:
+        return _fail(f"--host-rule: {exc}")
     tasks = [(inst, s, args.executor, args.steps, seed, chip, options, args.out,
               "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json")
              for inst, s, seed in jobs]
@@ -135,7 +144,7 @@ def _run(args) -> int:
 
     from ising_backend.audit import Audit
 
-    with Audit(args.audit) if args.audit else nullcontext():
+    with Audit(args.audit) if args.audit else nullcontext(), host_rule:
         if single and run.backend != "ray":
             rows = [_single(tasks[0], progress)]
         else:

@@ -115,3 +115,21 @@ def check_positive(args, names) -> str | None:
         if value is not None and value < 1:
             return f"--{name} must be >= 1, got {value}"
     return None
+
+
+def add_host_rule_argument(parser) -> None:
+    """``--host-rule CLASS[,CLASS...]|all``: the host rule answers those decision classes instead of the chip."""
+    from ising_backend.host_rule import HOST_RULE_CLASSES
+
+    parser.add_argument("--host-rule", default=None, metavar="CLASSES",
+                        help="ablation: the host rule (greedy + descent) answers these decision classes where the chip "
+                             f"decided ({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")
+
+
+def host_rule_from_args(args):
+    """The ``HostRule`` context of ``--host-rule`` (a null context without it); ``ValueError`` naming a bad class."""
+    from contextlib import nullcontext
+
+    from ising_backend.host_rule import HostRule
+
+    return HostRule(args.host_rule) if args.host_rule else nullcontext()

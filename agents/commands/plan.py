@@ -77,6 +77,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--audit", default=None, metavar="DIR",
                         help="record every chip decision in DIR (judge it with: mrmt audit DIR); plans are unchanged")
+    from agents.commands.options import add_host_rule_argument
+
+    add_host_rule_argument(parser)
 
 
 def _error(message: str) -> None:
@@ -139,6 +142,14 @@ def run(args) -> int:
     if args.audit and Path(args.audit).exists() and not Path(args.audit).is_dir():
         _error(f"--audit {args.audit}: exists and is not a directory")
         return 2
+    if args.host_rule:
+        from ising_backend.host_rule import parse_classes
+
+        try:
+            parse_classes(args.host_rule)
+        except ValueError as exc:
+            _error(f"--host-rule: {exc}")
+            return 2
     try:
         pipeline = build_pipeline(args)
     except (ValueError, TypeError, ImportError, RuntimeError) as exc:
@@ -199,7 +210,10 @@ def run(args) -> int:
 
     from ising_backend.audit import Audit
 
+    from agents.commands.options import host_rule_from_args
+
     audit = Audit(args.audit) if args.audit else nullcontext()
+    host_rule = host_rule_from_args(args)  # checked in run()
     try:
         progress = tqdm(
             total=total,
@@ -208,7 +222,7 @@ def run(args) -> int:
             disable=args.no_progress or total < PROGRESS_MIN_WORLDS,
             desc="mrmt plan",
         )
-        with progress, audit:
+        with progress, audit, host_rule:
             for line, item in iter_worlds_text(text, str(path)):
                 progress.update(1)
                 done += 1

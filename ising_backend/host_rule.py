@@ -1,0 +1,75 @@
+"""Host-rule ablation: a decision class's programs answered by the host rule instead of the machine.
+
+``with HostRule({"sharing_split"}):`` (or ``HostRule("all")``) makes every submission of the named
+decision classes -- through a session (``machine.session(ledger, decision=CLASS)``) or a metered
+solver (``MeteredSolver(..., decision=CLASS)``) -- take the generic host rule's answer: greedy
+construction then steepest single-flip descent (:func:`ising_backend.audit_judge.greedy_descent`), the
+same answer for every read, on the host, charged nothing to the machine (its seconds are host
+seconds of the planner that asked).  So one flag puts the host rule where the chip decided and the
+plan says what the chip was worth there.  Closed, nothing changes.  ``joint_moves`` has a host rule
+of its own (PIBT: the executor's ``accept="host"``) and is not taken here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["HostRule", "host_rule_classes", "host_answer", "HOST_RULE_CLASSES"]
+
+#: The decision classes whose programs the generic host rule can answer.
+HOST_RULE_CLASSES = ("path_query", "sharing_split", "tour_split", "tour_order", "tour_moves", "fleet_moves")
+_ACTIVE: list[frozenset] = []
+
+
+def host_rule_classes() -> frozenset:
+    """The classes the innermost open :class:`HostRule` names (empty when none is open)."""
+    return _ACTIVE[-1] if _ACTIVE else frozenset()
+
+
+def parse_classes(spec) -> frozenset:
+    """``"all"``, a comma-separated string or an iterable of class names as a set; ``ValueError`` naming
+    an unknown class and the known ones."""
+    names = spec.split(",") if isinstance(spec, str) else list(spec)
+    names = [n.strip() for n in names if n.strip()]
+    if names == ["all"]:
+        return frozenset(HOST_RULE_CLASSES)
+    unknown = [n for n in names if n not in HOST_RULE_CLASSES]
+    if unknown or not names:
+        raise ValueError(f"unknown host-rule class(es) {unknown or names}; known: {', '.join(HOST_RULE_CLASSES)} "
+                         "or all (joint_moves has its own: the executor's accept='host')")
+    return frozenset(names)
+
+
+class HostRule:
+    """While open, the named classes' programs get the host rule's answer (module docstring)."""
+
+    def __init__(self, classes) -> None:
+        self.classes = parse_classes(classes)
+
+    def __enter__(self) -> "HostRule":
+        _ACTIVE.append(self.classes)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        _ACTIVE.pop()
+
+
+def host_answer(h, J, num_reads: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(spins (B, num_reads, n) int8, energies (B, num_reads))`` of programs ``h (B, n)``, ``J (B, n, n)``
+    (``J (n, n)`` with ``h (B, n)``: shared by the B programs; one program: ``h (n,)``, ``J (n, n)`` gives ``(num_reads, n)`` and ``(num_reads,)``): the host
+    rule's answer repeated over the reads."""
+    from .audit_judge import greedy_descent
+
+    h, J = np.asarray(h, dtype=np.float64), np.asarray(J, dtype=np.float64)
+    single = h.ndim == 1
+    if single:
+        h, J = h[None], J[None]
+    elif J.ndim == 2:
+        J = np.broadcast_to(J, (h.shape[0],) + J.shape)
+    spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
+    energies = np.empty((h.shape[0], num_reads))
+    for b in range(h.shape[0]):
+        e, s = greedy_descent(np.ascontiguousarray(h[b]), np.ascontiguousarray(J[b]))
+        spins[b] = s.astype(np.int8)
+        energies[b] = e
+    return (spins[0], energies[0]) if single else (spins, energies)

@@ -116,8 +116,7 @@ class MeteredSolver:
 
     def solve_stack(self, h, J, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_stack`` (:class:`LogicalIsingSolver`) with the answer checked and metered."""
-        if self.decision in host_rule_classes():  # J (n, n) may be shared by the B programs
-            J = np.broadcast_to(J, (np.shape(h)[0],) + np.shape(J)[-2:]) if np.ndim(J) == 2 else J
+        if self.decision in host_rule_classes():  # (host_answer takes a J shared by the B programs too)
             return host_answer(h, J, num_reads)[0]
         with self._charged_if_unavailable(None):
             spins = self.solver.solve_stack(h, J, num_reads=num_reads, seed=seed)

@@ -53,29 +53,27 @@ def add_arguments(parser) -> None:
     add_host_rule_argument(parser)
 
 
+def _error(message: str) -> int:
+    print(f"mrmt compare: error: {message}", file=sys.stderr)
+    return 2
+
+
 def run(args) -> int:
     from contextlib import nullcontext
     from pathlib import Path
 
     from ising_backend.audit import Audit
 
-    if args.audit:
-        if (args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1:
-            print("mrmt compare: error: --audit records the decisions made in this process: use --jobs 1 and the "
-                  "inline backend", file=sys.stderr)
-            return 2
-        if Path(args.audit).exists() and not Path(args.audit).is_dir():
-            print(f"mrmt compare: error: --audit {args.audit}: exists and is not a directory", file=sys.stderr)
-            return 2
-    if args.host_rule and ((args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1):
-        print("mrmt compare: error: --host-rule acts on the decisions made in this process: use --jobs 1 and the "
-              "inline backend", file=sys.stderr)
-        return 2
+    elsewhere = (args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1
+    for flag, given, what in (("--audit", args.audit, "records"), ("--host-rule", args.host_rule, "acts on")):
+        if given and elsewhere:
+            return _error(f"{flag} {what} the decisions made in this process: use --jobs 1 and the inline backend")
+    if args.audit and Path(args.audit).exists() and not Path(args.audit).is_dir():
+        return _error(f"--audit {args.audit}: exists and is not a directory")
     try:
         host_rule = host_rule_from_args(args)
     except ValueError as exc:
-        print(f"mrmt compare: error: --host-rule: {exc}", file=sys.stderr)
-        return 2
+        return _error(f"--host-rule: {exc}")
     with Audit(args.audit) if args.audit else nullcontext(), host_rule:
         return _run(args)
 

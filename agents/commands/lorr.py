@@ -119,10 +119,10 @@ def _run(args) -> int:
     jobs = [(inst, s, seed) for inst in args.instances for s in schedulers
             for seed in range(args.seed, args.seed + args.seeds)]
     single = len(jobs) == 1
-    if args.audit and not (run.backend == "inline" or (single and run.backend != "ray")):
-        return _fail(f"--audit records the decisions made in this process: use --backend inline, not {run.backend}")
-    if args.host_rule and not (run.backend == "inline" or (single and run.backend != "ray")):
-        return _fail(f"--host-rule acts on the decisions made in this process: use --backend inline, not {run.backend}")
+    here = run.backend == "inline" or (single and run.backend != "ray")  # the runs in this process
+    for flag, given, what in (("--audit", args.audit, "records"), ("--host-rule", args.host_rule, "acts on")):
+        if given and not here:
+            return _fail(f"{flag} {what} the decisions made in this process: use --backend inline, not {run.backend}")
     from agents.commands.options import host_rule_from_args
 
     try:

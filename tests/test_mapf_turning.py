@@ -101,16 +101,21 @@ class Oracle:
             if 0 <= nr < h and 0 <= nc < w and not self.grid[nr, nc]:
                 yield d, nr * w + nc
 
+    def distances(self, goals):
+        """Robot ``k``'s distances ``{cell: distance}`` (its goal's BFS or lane-cost field)."""
+        by_goal = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
+        return [by_goal[g] for g in goals]
+
     def actions(self, pos, orient, goals):
         pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
         n = len(pos)
-        dist = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
+        dist = self.distances(goals)
         order = sorted(range(n), key=lambda k: (-self.elapsed[k], -self.tie[k]))
         occ_now = {p: k for k, p in enumerate(pos)}
         occ_next, nxt = {}, [None] * n
 
         def cands(a):
-            o, f = orient[a], dist[goals[a]]
+            o, f = orient[a], dist[a]
             cells = [(pos[a], 0)] + [(v, 0 if d == o else 2 if d == (o + 2) % 4 else 1)
                                      for d, v in self.neighbours(pos[a])]
             return [v for v, turns in sorted(cells, key=lambda x: (

@@ -452,11 +452,11 @@ class TurningPIBT:
         order = self.order(r)
         pc = self.cid[pos]
         gc = self.cid[goals]
-        rows = self.fields.rows(gc, order)
+        fields, rows = self._heuristic(pc, gc, order)
         nxt = np.empty(r, dtype=np.int64)
         act = np.empty(r, dtype=np.int64)
         t0 = time.perf_counter()
-        turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, self.fields.fields, rows, order, self.seed,
+        turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, fields, rows, order, self.seed,
                        self.t, nxt, act, self._occ_now, self._occ_next)
         self.kernel_s = time.perf_counter() - t0  # the host rule's own seconds (a refinement's audit compares them)
         self._refine(pc, orient, gc, rows, order, nxt, act)
@@ -466,6 +466,11 @@ class TurningPIBT:
         self.elapsed = np.where(moved == gc, 0, self.elapsed + 1 + extra)
         self.t += 1
         return act
+
+    def _heuristic(self, pc, gc, order):
+        """``(fields, rows)``: PIBT ranks robot ``k``'s cells by ``fields[rows[k]]`` (here its goal's field;
+        row -1: Manhattan distance)."""
+        return self.fields.fields, self.fields.rows(gc, order)
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         """Hook for subclasses: may change the claims ``nxt`` (compact cells; kept distinct and swap-free)

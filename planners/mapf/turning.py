@@ -470,7 +470,8 @@ class TurningPIBT:
     def _heuristic(self, pc, gc, order):
         """``(fields, rows)``: PIBT ranks robot ``k``'s cells by ``fields[rows[k]]`` (here its goal's field;
         row -1: Manhattan distance)."""
-        return self.fields.fields, self.fields.rows(gc, order)
+        rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
+        return self.fields.fields, rows
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         """Hook for subclasses: may change the claims ``nxt`` (compact cells; kept distinct and swap-free)

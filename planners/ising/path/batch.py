@@ -52,8 +52,7 @@ def usable_legs(cells, grid):
 
 
 @numba.njit(cache=True)
-def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-             padded, fields, stops, nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine, grid, cut):
+def run_legs(rng, keys, tables, padded, fields, stops, loop, machine, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each (the same arguments),
     until the first leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s
     ranking field (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
@@ -62,7 +61,7 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     ``last`` is the :func:`run_query` output of the last leg run (the one not done when ``done <
     L``); the first ``n_sub`` submissions are the legs done', the rest that leg's."""
     L = stops.shape[0] - 1
-    k = style_ids.shape[0]
+    k = loop[6].shape[0]  # the merge styles
     cap = 64
     points = np.empty((cap, 2), dtype=np.int64)
     ends = np.zeros(L + 1, dtype=np.int64)
@@ -73,14 +72,12 @@ def run_legs(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr,
     walked = 0
     done = 0
     n_sub = 0
-    last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp,
-                     ptarget, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], nbr, ring,
-                     offsets, adj4, diag, coef, style_ids, options, machine)
+    last = run_query(rng, keys, tables, padded, fields[0], stops[0, 0], stops[0, 1], stops[1, 0], stops[1, 1], loop,
+                     machine)
     for j in range(L):
         if j:
-            last = run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p,
-                             pcomp, ptarget, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
-                             stops[j + 1, 1], nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine)
+            last = run_query(rng, keys, tables, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
+                             stops[j + 1, 1], loop, machine)
         status, walk, leg_counts, leg_map, sub_calls, sub_emu = last[0], last[3], last[4], last[5], last[6], last[7]
         calls = np.concatenate((calls, sub_calls))
         emu = np.concatenate((emu, sub_emu))
@@ -123,7 +120,7 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
         with runner.chip.session(charged, decision="path_query") as link:
             done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
                 rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
-                *runner.loop_args(grid), link.args, grid, cfg.cut_loops)
+                runner.loop_args(grid), link.args, grid, cfg.cut_loops)
     except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
         return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
     failed = None

@@ -70,11 +70,13 @@ class ProgramPool:
         self.comp = np.zeros((cap, n_cells), dtype=np.bool_)  # the slot's problem, checked on a hashed key
         self.target = np.zeros(cap, dtype=np.int64)
 
-        self._arrays = (self.keys, self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width,
+        self._tables = (self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width,
                         self.ph, self.pJ, self.ptr, self.idx, self.status, self.comp, self.target)
 
     def arrays(self) -> tuple:
-        return self._arrays
+        """``(keys, tables)``: the typed dict apart from the tuple of arrays (a tuple holding a typed
+        dict is typed in Python on every compiled call; a tuple of arrays is not)."""
+        return self.keys, self._tables
 
     def __deepcopy__(self, memo) -> "ProgramPool":
         """An empty pool of the same size (a memo: a copy's plans are the same without its entries;
@@ -202,12 +204,12 @@ def _submission(pool, slots, nb, k, pack, n_spins):
 
 
 @numba.njit(cache=True)
-def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget,
-              padded, field, sr, sc, gr, gc, nbr, ring, offsets, adj4, diag, coef, style_ids, options, machine):
-    """One query of Algorithm 1 (see the module docstring); ``keys .. ptarget`` are
-    :meth:`ProgramPool.arrays`, ``nbr .. diag`` the patch frame's tables, ``coef`` the QUBO weights,
-    ``style_ids`` the merge styles, ``options`` a :data:`QUERY_OPTIONS` record (``per_call``: the local
-    targets per submission), ``machine`` the session's record (:attr:`ising_backend.MachineSession.args`).
+def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
+    """One query of Algorithm 1 (see the module docstring); ``keys, tables`` are
+    :meth:`ProgramPool.arrays`; ``loop`` is ``(nbr .. diag, coef, style_ids, options)``
+    (:meth:`~.runner.QueryRunner.loop_args`): the patch frame's tables, the QUBO weights, the merge
+    styles and a :data:`QUERY_OPTIONS` record (``per_call``: the local targets per submission);
+    ``machine`` the session's record (:attr:`ising_backend.MachineSession.args`).
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
     err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
@@ -215,6 +217,8 @@ def run_query(rng, keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr
     its calls and emulation seconds; ``err`` = (row, col, local target, style) of the first program
     a style could not map (``-1`` if none) and ``err_comp`` its free-cell mask.
     """
+    nbr, ring, offsets, adj4, diag, coef, style_ids, options = loop
+    count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget = tables
     o = options[0]
     size, interior, merged, backtrack = o.size, o.interior, o.merged, o.backtrack
     num_reads, per_call, pack, max_attempts, max_calls = o.num_reads, o.per_call, o.pack, o.max_attempts, o.max_calls

@@ -70,7 +70,8 @@ class QueryRunner:
         return self._for_grid(grid)[1]
 
     def loop_args(self, grid) -> tuple:
-        """:func:`.engine.run_query`'s arguments after the goal on ``grid``, but the machine's."""
+        """:func:`.engine.run_query`'s ``loop`` record on ``grid``: ``(nbr, ring, offsets, adj4, diag,
+        coef, style_ids, options)``."""
         return self._for_grid(grid)[3]
 
     def budgets(self, grid) -> tuple[int, int, int]:
@@ -92,7 +93,7 @@ class QueryRunner:
         try:
             with self.chip.session(charged, decision="path_query") as link:
                 out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
-                                *self.loop_args(grid), link.args)
+                                self.loop_args(grid), link.args)
                 link.settle(out[6], out[7])
         except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
             unavailable = isinstance(exc, ChipUnavailableError)

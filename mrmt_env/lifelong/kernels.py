@@ -69,9 +69,11 @@ def poisson_count(u, rate) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def lifelong_load(b, grid, width, robots, tasks, pool, succ, pos, at, task_t, free, free_idx, n_free, moves,
-                  counters, obs) -> None:
-    """Start env ``b``: flat grid, robot cells, the initial open tasks and the task pool (flat cells)."""
+def lifelong_load(b, grid, width, robots, tasks, pool, state) -> None:
+    """Start env ``b``: flat grid, robot cells, the initial open tasks and the task pool (flat cells).
+    ``state`` = ``(succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs)``, the batch's
+    arrays (:attr:`~mrmt_env.lifelong.state.LifelongBatch.state`)."""
+    succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs = state
     n = grid.shape[0]
     h = n // width
     ob = obs[b]
@@ -202,9 +204,10 @@ def resolve_block(pos, tgt, at, claim, stack) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def lifelong_step(actions, live, succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs, keys, draws,
-                  block, poisson, rate, task_reward, claim, rewards) -> None:
-    """Apply the joint action (``actions (B, R)`` in 0..4, checked) of every live env; see the module docstring."""
+def lifelong_step(actions, live, state, keys, draws, block, poisson, rate, task_reward, claim, rewards) -> None:
+    """Apply the joint action (``actions (B, R)`` in 0..4, checked) of every live env; see the module docstring.
+    ``state`` as in :func:`lifelong_load`."""
+    succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs = state
     n_robots = pos.shape[1]
     tgt = np.empty(n_robots, dtype=np.int64)
     stack = np.empty(n_robots + 1, dtype=np.int64)

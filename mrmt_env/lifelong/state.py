@@ -93,6 +93,9 @@ class LifelongBatch:
         self.draws = np.zeros(b, dtype=np.uint64)
         self.claim = np.full((b, hw), -1, dtype=np.int64)
         self.rewards = np.zeros(b, dtype=np.float64)
+        #: The arrays every kernel call takes, as one tuple (:func:`~mrmt_env.lifelong.kernels.lifelong_load`).
+        self.state = (self.succ, self.pos, self.at, self.task_t, self.free, self.free_idx, self.n_free, self.moves,
+                      self.counters, self.obs)
         self.worlds: list[World | None] = [None] * b
 
     def load(self, i: int, world: World, pool: np.ndarray, key: int) -> None:
@@ -100,8 +103,7 @@ class LifelongBatch:
         w = world.width
         robots = (world.robots[:, 0] * w + world.robots[:, 1]).astype(np.int64)
         tasks = (world.targets[:, 0] * w + world.targets[:, 1]).astype(np.int64)
-        lifelong_load(i, np.ascontiguousarray(world.grid.reshape(-1)), w, robots, tasks, pool, self.succ, self.pos,
-                      self.at, self.task_t, self.free, self.free_idx, self.n_free, self.moves, self.counters, self.obs)
+        lifelong_load(i, np.ascontiguousarray(world.grid.reshape(-1)), w, robots, tasks, pool, self.state)
         self.keys[i] = np.uint64(key)
         self.draws[i] = np.uint64(0)
         self.worlds[i] = world
@@ -109,8 +111,7 @@ class LifelongBatch:
     def step(self, actions: np.ndarray, live: np.ndarray) -> np.ndarray:
         """Advance every live env by its joint action (``(B, R)`` int64, checked); returns the rewards (a view)."""
         o = self.options
-        lifelong_step(actions, live, self.succ, self.pos, self.at, self.task_t, self.free, self.free_idx, self.n_free,
-                      self.moves, self.counters, self.obs, self.keys, self.draws, o.collisions == "block",
+        lifelong_step(actions, live, self.state, self.keys, self.draws, o.collisions == "block",
                       o.tasks == "poisson", 0.0 if o.task_rate is None else o.task_rate, self.task_reward,
                       self.claim, self.rewards)
         return self.rewards

@@ -35,8 +35,10 @@ def nearest_field(grid, width, targets, visited, field) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def grid_load(b, grid, width, robots, targets, succ, tgt_at, pos, visited, moves, counters, obs, field, dense) -> None:
-    """Start env ``b`` on a world (flat grid, robot and target cells)."""
+def grid_load(b, grid, width, robots, targets, state, field, dense) -> None:
+    """Start env ``b`` on a world (flat grid, robot and target cells).  ``state`` = ``(succ, tgt_at, pos,
+    visited, moves, counters, obs)``, the vector env's arrays."""
+    succ, tgt_at, pos, visited, moves, counters, obs = state
     n = grid.shape[0]
     h = n // width
     for p in range(n):
@@ -83,9 +85,10 @@ def _potential(field_b, pos_b) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def grid_step(actions, live, succ, tgt_at, pos, visited, moves, counters, obs, target_reward, grids, width,
-              targets, field, dense, rewards, terminated) -> None:
-    """Apply the joint action of every live env (``actions (B, R)`` in 0..4, already checked)."""
+def grid_step(actions, live, state, target_reward, grids, width, targets, field, dense, rewards, terminated) -> None:
+    """Apply the joint action of every live env (``actions (B, R)`` in 0..4, already checked); ``state``
+    as in :func:`grid_load`."""
+    succ, tgt_at, pos, visited, moves, counters, obs = state
     n_robots = pos.shape[1]
     n_targets = visited.shape[1]
     frm = np.empty(n_robots, dtype=np.int64)

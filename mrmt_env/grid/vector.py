@@ -69,13 +69,13 @@ class MRMTVectorEnv(BatchedVectorEnv):
         self._rewards = np.zeros(b, dtype=np.float64)
         self._terminated = np.zeros(b, dtype=np.bool_)
         self._masks = np.zeros((b, N_ACTIONS * r), dtype=np.bool_)
+        self._state = (self.succ, self.tgt_at, self.pos, self.visited, self.moves, self.counters, self._obs)
 
     def _load(self, i: int, rng: np.random.Generator) -> None:
         flat, robots, targets = draw_world_arrays(rng, self.source.params, self.source.fixed)
         self.grids[i] = flat
         self.targets[i] = targets
-        grid_load(i, self.grids[i], self.width, robots, targets, self.succ, self.tgt_at, self.pos, self.visited,
-                  self.moves, self.counters, self._obs, self.field, self.dense_reward > 0)
+        grid_load(i, self.grids[i], self.width, robots, targets, self._state, self.field, self.dense_reward > 0)
 
     def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
         shape = (self.num_envs, self.n_robots)
@@ -97,9 +97,8 @@ class MRMTVectorEnv(BatchedVectorEnv):
         return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
 
     def _step(self, actions: np.ndarray, live: np.ndarray):
-        grid_step(actions, live, self.succ, self.tgt_at, self.pos, self.visited, self.moves, self.counters, self._obs,
-                  self.target_reward, self.grids, self.width, self.targets, self.field, self.dense_reward,
-                  self._rewards, self._terminated)
+        grid_step(actions, live, self._state, self.target_reward, self.grids, self.width, self.targets, self.field,
+                  self.dense_reward, self._rewards, self._terminated)
         return self._rewards.copy(), self._terminated.copy()
 
     def _observe(self) -> np.ndarray:

@@ -59,10 +59,12 @@ def _over_pairs(C, b, n, Lj, out):
 
 
 @numba.njit(cache=True)
-def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, excess, exj, over, n_over, pex):
+def _copy_counts(H, C, b, n, style, limits, spin_stats, pairs, a, err, work):
     """The duplication loop of one style on model ``b`` (``n`` spins): copy counts into ``a``;
-    returns a status code.  ``over[:n_over]``: :func:`_over_pairs` of the model; ``excess``,
-    ``exj``, ``pex``: work arrays (at least ``n``, ``n``, ``n_over``).
+    returns a status code.  ``limits`` = ``(Lh, Lj, n_spins)``; ``spin_stats`` = ``(degree,
+    strength)`` (:func:`_spin_stats`); ``pairs`` = ``(over, n_over)``: ``over[:n_over]`` are
+    :func:`_over_pairs` of the model; ``work`` = ``(excess, exj, pex)``: work arrays (at least
+    ``n``, ``n``, ``n_over``).
 
     Each round recomputes, as the reference does, the excess of every field
     (``|H_i| - Lh a_i``) and coupling (``|C_ij| - Lj a_i a_j``), the per-spin total
@@ -70,6 +72,10 @@ def _copy_counts(H, C, b, n, style, Lh, Lj, n_spins, degree, strength, a, err, e
     one copy to the spin the style picks.  Couplings outside ``over`` have no excess, so every
     scan over pairs visits ``over`` alone, in the reference's row-major order.
     """
+    Lh, Lj, n_spins = limits
+    degree, strength = spin_stats
+    over, n_over = pairs
+    excess, exj, pex = work
     for i in range(n):
         a[i] = 1
     if n > n_spins:
@@ -335,8 +341,8 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
         n_over = _over_pairs(C, b, nb, Lj, over)
         for s in range(k):
             r = b * k + s
-            status[r] = _copy_counts(H, C, b, nb, styles[s], Lh, Lj, n_spins, degree, strength, a[r], err[r],
-                                     excess, exj, over, n_over, pex)
+            status[r] = _copy_counts(H, C, b, nb, styles[s], (Lh, Lj, n_spins), (degree, strength), (over, n_over),
+                                     a[r], err[r], (excess, exj, pex))
             if status[r] == MERGE_OK:
                 n_phys[r] = a[r].sum()
                 N = max(N, n_phys[r])
@@ -396,8 +402,8 @@ def merge_styles_flat(H, C, styles, Lh, Lj, tie, n_spins, h_out, J_out, ptr, idx
     n_over = _over_pairs(C1, 0, n, Lj, over)
     w = 0
     for s in range(k):
-        status[s] = _copy_counts(H1, C1, 0, n, styles[s], Lh, Lj, n_spins, degree, strength, a[s], err, excess, exj,
-                                 over, n_over, pex)
+        status[s] = _copy_counts(H1, C1, 0, n, styles[s], (Lh, Lj, n_spins), (degree, strength), (over, n_over),
+                                 a[s], err, (excess, exj, pex))
         if status[s] == MERGE_OK:
             w = max(w, a[s].sum())
     h_out[: k * w] = 0

@@ -39,10 +39,10 @@ def frozen_spins(h, J, k):
 
 
 @numba.njit(cache=True)
-def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj,
-                solver, machine):
+def solve_order(rng, d, entry, ex, options, solver, machine):
     """Best valid order of one one-hot open-path subproblem (module docstring).
 
+    ``options`` = ``(margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj)``;
     ``solver`` = the logical solver's session record (:meth:`~ising_backend.MachineSession.args_for`),
     ``machine`` = the chip's (:attr:`~ising_backend.MachineSession.args`), used when ``physical``
     (programs quantized by ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
@@ -51,6 +51,7 @@ def solve_order(rng, d, entry, ex, margin_factor, max_retries, num_reads, budget
     :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats[0]`` holds the
     bits needed) or :data:`UNQUANTIZABLE` (a non-finite coefficient).
     """
+    margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj = options
     s = d.shape[0]
     n = s * s
     w_max = 0.0

@@ -73,9 +73,9 @@ class OneHotSolver:
         with (self.chip if physical else self.solver).session(run.charged, decision="tour_order") as link:
             status, order, st, calls, emu = solve_order(
                 run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
-                np.ascontiguousarray(ex, dtype=np.float64), cfg.penalty_factor, cfg.max_retries, cfg.num_reads,
-                self.budget, cfg.max_branch_bits, physical, QUANTIZE_RULE_IDS[cfg.chip_quantize],
-                *(float(v) for v in self.spec.coefficient_limits),
+                np.ascontiguousarray(ex, dtype=np.float64),
+                (cfg.penalty_factor, cfg.max_retries, cfg.num_reads, self.budget, cfg.max_branch_bits, physical,
+                 QUANTIZE_RULE_IDS[cfg.chip_quantize], *(float(v) for v in self.spec.coefficient_limits)),
                 SOLVE_IDLE if physical else link.args_for(width), link.args if physical else ANNEAL_IDLE)
             link.settle(calls, emu)
         if status == TOO_MANY_BITS:

@@ -54,7 +54,7 @@ def _sampled(model_path, worlds: int) -> tuple[float, float]:
 
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
-    from agents.learned.training import train
+    from agents.learned.training import TrainOptions, train
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", choices=("mlp", "cnn"), default="cnn")
@@ -78,8 +78,8 @@ def main(argv=None) -> int:
         train_s, args.timesteps = meta["train_wall_s"], meta["timesteps"]
     else:
         t0 = time.perf_counter()
-        train(ENV_ID, args.timesteps, out=model, algo="maskable_ppo", env_kwargs=env_kwargs, n_envs=args.n_envs,
-              seed=0, reward_scale=0.01, **HYPER)
+        options = TrainOptions(algo="maskable_ppo", n_envs=args.n_envs, seed=0, reward_scale=0.01)
+        train(ENV_ID, args.timesteps, out=model, options=options, env_kwargs=env_kwargs, **HYPER)
         train_s = time.perf_counter() - t0
     print(f"trained {args.timesteps} steps in {train_s:.0f} s")
     res = evaluate(["strong", f"ppo:{model}"], n_worlds=args.worlds, world_seed=10_000, env_id=ENV_ID, n_jobs=2,

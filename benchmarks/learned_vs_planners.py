@@ -109,7 +109,7 @@ def _figure(rows, refs, path: Path, title: str) -> None:
 
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
-    from agents.learned.training import DEFAULT_TIMESTEPS, train
+    from agents.learned.training import DEFAULT_TIMESTEPS, TrainOptions, train
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--timesteps", type=int, default=DEFAULT_TIMESTEPS["assign"])
@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     curve_seeds = range(UNSEEN, UNSEEN + args.curve_worlds)
     cb = _checkpoint_callback(max(1, args.timesteps // args.checkpoints), curve_seeds)
     t0 = time.perf_counter()
-    train(ENV_ID, args.timesteps, out=model_path, seed=args.seed, callback=cb, progress=False)
+    train(ENV_ID, args.timesteps, out=model_path, options=TrainOptions(seed=args.seed), callback=cb)
     wall = time.perf_counter() - t0
     train_s = wall - cb.eval_s
     print(f"trained {args.timesteps} steps in {train_s:.0f} s (+{cb.eval_s:.0f} s of checkpoint evaluation)")

@@ -66,22 +66,22 @@ def main(argv=None) -> int:
     tmp = tempfile.TemporaryDirectory()
     train_s = None
     if args.model is None:
-        from agents.learned.training import train
+        from agents.learned.training import TrainOptions, train
 
         model = str(Path(tmp.name) / "lifelong_ppo.zip")
         t0 = time.perf_counter()
-        train(SMALL_ID, args.timesteps, model, seed=args.seed, curve=False)
+        train(SMALL_ID, args.timesteps, model, options=TrainOptions(seed=args.seed, curve=False))
         train_s = time.perf_counter() - t0
         print(f"trained {args.timesteps} decisions in {train_s:.0f} s", flush=True)
     else:
         model = args.model
     ware_model, ware_s = None, None
     if args.warehouse_timesteps:
-        from agents.learned.training import train
+        from agents.learned.training import TrainOptions, train
 
         ware_model = str(Path(tmp.name) / "lifelong_warehouse_ppo.zip")
         t0 = time.perf_counter()
-        train(WAREHOUSE_ID, args.warehouse_timesteps, ware_model, seed=args.seed, curve=False)
+        train(WAREHOUSE_ID, args.warehouse_timesteps, ware_model, options=TrainOptions(seed=args.seed, curve=False))
         ware_s = time.perf_counter() - t0
         print(f"trained {args.warehouse_timesteps} warehouse decisions in {ware_s:.0f} s", flush=True)
     specs = ["greedy", "strong", "ising", f"ppo:{model}"]

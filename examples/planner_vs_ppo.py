@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 from agents.evaluation import evaluate
-from agents.learned.training import ASSIGN_ENV_ID, train
+from agents.learned.training import ASSIGN_ENV_ID, TrainOptions, train
 
 
 def main(argv=None):
@@ -31,7 +31,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         model = Path(tmp) / "ppo_small.zip"
         print(f"training MaskablePPO for {args.timesteps} steps on {ASSIGN_ENV_ID} ...")
-        train(ASSIGN_ENV_ID, args.timesteps, out=model, seed=0)
+        train(ASSIGN_ENV_ID, args.timesteps, out=model, options=TrainOptions(seed=0))
         # unseen worlds: training draws worlds from seed 0's stream, evaluation uses seeds 10_000+
         result = evaluate(
             ["strong", "ising", f"ppo:{model}"],

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 from agents.animation import episode_frames, write_gif
-from agents.learned.training import ASSIGN_ENV_ID, train
+from agents.learned.training import ASSIGN_ENV_ID, TrainOptions, train
 
 
 def main(argv=None):
@@ -33,7 +33,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         model = Path(tmp) / "allocator.zip"
         print(f"training MaskablePPO for {args.timesteps} steps on {ASSIGN_ENV_ID} ...")
-        train(ASSIGN_ENV_ID, args.timesteps, out=model, seed=0)
+        train(ASSIGN_ENV_ID, args.timesteps, out=model, options=TrainOptions(seed=0))
         for name, controller in (("strong", "strong"), ("learned", f"ppo:{model}")):
             frames, info = episode_frames(controller, ASSIGN_ENV_ID, seed=args.seed)
             path = out / f"{name}.gif"

@@ -14,13 +14,14 @@ pytest.importorskip("sb3_contrib")
 from agents.cli import main  # noqa: E402
 from agents.evaluation import evaluate  # noqa: E402
 from agents.errors import ControllerError  # noqa: E402
-from agents.learned.training import ASSIGN_ENV_ID, curve_paths, load_policy, sidecar_path, train  # noqa: E402
+from agents.learned.training import (ASSIGN_ENV_ID, TrainOptions, curve_paths, load_policy, sidecar_path,  # noqa: E402
+                                     train)
 
 
 @pytest.fixture(scope="module")
 def assign_model(tmp_path_factory):
     path = tmp_path_factory.mktemp("assign") / "m.zip"
-    train(ASSIGN_ENV_ID, 512, out=path, seed=0, n_envs=4)
+    train(ASSIGN_ENV_ID, 512, out=path, options=TrainOptions(seed=0, n_envs=4))
     return path
 
 
@@ -84,7 +85,7 @@ def test_train_cli_assign(tmp_path, capsys):
 
 def test_grid_cnn_maskable_model_is_scored_on_the_binary_env(tmp_path):
     path = tmp_path / "cnn.zip"
-    train("mrmt_env/MRMT-5x5-v0", 256, out=path, algo="maskable_ppo", n_envs=2,
+    train("mrmt_env/MRMT-5x5-v0", 256, out=path, options=TrainOptions(algo="maskable_ppo", n_envs=2),
           env_kwargs={"observation": "image", "dense_reward": 1.0}, n_steps=64, batch_size=64)
     meta = json.loads(sidecar_path(path).read_text())
     assert meta["policy"] == "CnnPolicy" and meta["env_kwargs"]["observation"] == "image"

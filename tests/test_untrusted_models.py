@@ -25,7 +25,8 @@ from stable_baselines3 import PPO  # noqa: E402
 
 from agents.cli import main  # noqa: E402
 from agents.errors import ControllerError  # noqa: E402
-from agents.learned.training import ASSIGN_ENV_ID, SMALL_ENV_ID, load_policy, sidecar_path, train  # noqa: E402
+from agents.learned.training import (ASSIGN_ENV_ID, SMALL_ENV_ID, TrainOptions, load_policy, sidecar_path,  # noqa: E402
+                                     train)
 
 
 class Payload:
@@ -42,8 +43,8 @@ class Payload:
 def models(tmp_path_factory):
     d = tmp_path_factory.mktemp("models")
     grid, assign = d / "grid.zip", d / "assign.zip"
-    train(SMALL_ENV_ID, 64, out=grid, seed=0, n_envs=1)
-    train(ASSIGN_ENV_ID, 256, out=assign, seed=0, n_envs=4)
+    train(SMALL_ENV_ID, 64, out=grid, options=TrainOptions(seed=0, n_envs=1))
+    train(ASSIGN_ENV_ID, 256, out=assign, options=TrainOptions(seed=0, n_envs=4))
     return {"grid": (grid, PPO, SMALL_ENV_ID), "assign": (assign, MaskablePPO, ASSIGN_ENV_ID)}
 
 

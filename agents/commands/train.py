@@ -67,7 +67,7 @@ def run(args) -> int:
         import stable_baselines3  # noqa: F401
     except ImportError as exc:
         return _fail(f"training needs the rl extra ({exc.name} is not installed): pip install 'mrmt-ising[rl]'")
-    from agents.learned.training import curve_paths, model_path, sidecar_path, train
+    from agents.learned.training import TrainOptions, curve_paths, model_path, sidecar_path, train
 
     env_kwargs = {}
     for key, value in (("n_robots", args.robots), ("n_targets", args.targets), ("observation", args.observation),
@@ -75,8 +75,9 @@ def run(args) -> int:
         if value is not None:
             env_kwargs[key] = value
     try:
-        train(args.env_id, args.timesteps, out=args.out, algo=args.algo, policy=args.policy, env_kwargs=env_kwargs,
-              seed=args.seed, n_envs=args.n_envs, progress=not args.no_progress)
+        options = TrainOptions(algo=args.algo, policy=args.policy, seed=args.seed, n_envs=args.n_envs,
+                               progress=not args.no_progress)
+        train(args.env_id, args.timesteps, out=args.out, options=options, env_kwargs=env_kwargs)
     except (ValueError, TypeError) as exc:
         return _fail(str(exc))
     zpath = model_path(args.out)

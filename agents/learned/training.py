@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,8 @@ from agents.learned.policy import (ALGORITHMS, MAX_MODEL_BYTES, MAX_MODEL_UNPACK
                                     load_policy, sidecar_path)
 
 __all__ = [
-    "SMALL_ENV_ID", "ASSIGN_ENV_ID", "ALGORITHMS", "DEFAULT_TIMESTEPS", "train", "train_ppo", "LearnedPolicy",
+    "SMALL_ENV_ID", "ASSIGN_ENV_ID", "ALGORITHMS", "DEFAULT_TIMESTEPS", "TrainOptions", "train", "train_ppo",
+    "LearnedPolicy",
     "load_policy", "sidecar_path", "curve_paths", "model_path", "is_assign_env", "MAX_MODEL_BYTES",
     "MAX_MODEL_UNPACKED", "MAX_SIDECAR_BYTES",
 ]
@@ -157,48 +159,78 @@ def _write_curve(rows: list[dict], model_path, title: str) -> None:
     plt.close(fig)
 
 
+@dataclass(frozen=True)
+class TrainOptions:
+    """How :func:`train` trains, apart from the env, the budget, the output and the hyper-parameters.
+
+    Attributes:
+        algo: ``"ppo"`` or ``"maskable_ppo"`` (default: MaskablePPO on a plan-level or lifelong env,
+            PPO on a grid env).
+        policy: SB3 policy name (grid: default ``MlpPolicy``, ``CnnPolicy``
+            for ``observation="image"``); ignored for the plan-level env.
+        seed: the training seed.
+        n_envs: envs stepped together (the id's native vector env; plan level
+            default 16, lifelong 4, grid 1).
+        verbose: SB3's verbosity.
+        progress: SB3's progress bar.
+        curve: write the training curve next to the model.
+        torch_threads: ``torch.set_num_threads`` (default 1: the networks are
+            small; ``None`` leaves torch's setting alone).
+        reward_scale: multiply the rewards the learner sees (default
+            ``1 / (H + W)`` on the plan-level env, 1 on a grid env); the
+            curve and ``info`` keep the env's own rewards.
+    """
+
+    algo: str | None = None
+    policy: str | None = None
+    seed: int = 0
+    n_envs: int | None = None
+    verbose: int = 0
+    progress: bool = False
+    curve: bool = True
+    torch_threads: int | None = 1
+    reward_scale: float | None = None
+
+
+_OPTION_NAMES = frozenset(f.name for f in fields(TrainOptions))
+
+
 def train(
     env_id: str = "mrmt_env/MRMT-v0",
     timesteps: int | None = None,
     out=None,
     *,
-    algo: str | None = None,
-    policy: str | None = None,
+    options: TrainOptions | None = None,
     env_kwargs: dict | None = None,
-    seed: int = 0,
-    n_envs: int | None = None,
-    verbose: int = 0,
-    progress: bool = False,
-    curve: bool = True,
-    torch_threads: int | None = 1,
     callback=None,
-    reward_scale: float | None = None,
     **algo_kwargs,
 ):
     """Train an agent on ``env_id`` for ``timesteps`` env steps; save to ``out`` if given.
 
     Args:
         env_id, env_kwargs: the env (a plan-level id gets MaskablePPO and the
-            pointer policy, a grid id PPO unless ``algo`` says otherwise).
+            pointer policy, a grid id PPO unless ``options.algo`` says otherwise).
         timesteps: env steps (default :data:`DEFAULT_TIMESTEPS` for the kind).
         out: the model file to write (:func:`model_path`: ``.zip`` appended unless it ends so),
             with its ``.json`` sidecar and curve.
-        algo: ``"ppo"`` or ``"maskable_ppo"``.
-        policy: SB3 policy name (grid: default ``MlpPolicy``, ``CnnPolicy``
-            for ``observation="image"``); ignored for the plan-level env.
-        n_envs: envs stepped together (the id's native vector env; plan level
-            default 16, grid default 1).
-        torch_threads: ``torch.set_num_threads`` (default 1: the networks are
-            small; ``None`` leaves torch's setting alone).
+        options: :class:`TrainOptions` (algorithm, policy, seed, envs, output, threads, reward
+            scale); default ``TrainOptions()``.
         callback: an extra SB3 callback.
-        reward_scale: multiply the rewards the learner sees (default
-            ``1 / (H + W)`` on the plan-level env, 1 on a grid env); the
-            curve and ``info`` keep the env's own rewards.
         **algo_kwargs: override the algorithm's hyper-parameters.
 
     Returns:
         the trained model.
     """
+    options = TrainOptions() if options is None else options
+    if not isinstance(options, TrainOptions):
+        raise TypeError(f"options must be an agents.learned.training.TrainOptions, got {type(options).__name__}")
+    moved = sorted(_OPTION_NAMES & algo_kwargs.keys())
+    if moved:
+        raise TypeError(f"train() got {', '.join(moved)} as keywords: pass them as "
+                        f"options=TrainOptions({', '.join(f'{k}=...' for k in moved)})")
+    algo, policy, seed, n_envs = options.algo, options.policy, options.seed, options.n_envs
+    verbose, progress, curve = options.verbose, options.progress, options.curve
+    torch_threads, reward_scale = options.torch_threads, options.reward_scale
     assign = is_assign_env(env_id)
     lifelong = is_lifelong_env(env_id)
     kind = "assign" if assign else "lifelong" if lifelong else "grid"
@@ -310,5 +342,7 @@ def train_ppo(timesteps: int, out=None, env_id: str = "mrmt_env/MRMT-v0", env_kw
               torch_threads: int | None = 1, **ppo_kwargs):
     """PPO on a grid env (kept for existing callers): :func:`train` with ``algo="ppo"`` unless the env needs masks."""
     algo = "maskable_ppo" if is_assign_env(env_id) else "ppo"
-    return train(env_id, timesteps, out, algo=algo, env_kwargs=env_kwargs, seed=seed, n_envs=n_envs,
-                 verbose=verbose, progress=progress, torch_threads=torch_threads, **ppo_kwargs)
+    given = {k: ppo_kwargs.pop(k) for k in ("policy", "curve", "reward_scale") if k in ppo_kwargs}  # train()'s own
+    options = TrainOptions(algo=algo, seed=seed, n_envs=n_envs, verbose=verbose, progress=progress,
+                           torch_threads=torch_threads, **given)
+    return train(env_id, timesteps, out, options=options, env_kwargs=env_kwargs, **ppo_kwargs)

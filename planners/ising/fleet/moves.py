@@ -68,7 +68,11 @@ def route_cost(d, nxt, r):
 
 
 @numba.njit(cache=True, inline="always")
-def _add(moves, spans, gains, m, kind, a, b, g, r1, lo1, hi1, r2, lo2, hi2):
+def _add(out, m, kind, a, b, g, span1, span2):
+    """Move ``m`` into ``out`` = ``(moves, spans, gains)``; ``span1`` / ``span2`` = ``(route, lo, hi)``."""
+    moves, spans, gains = out
+    r1, lo1, hi1 = span1
+    r2, lo2, hi2 = span2
     moves[m, 0] = kind
     moves[m, 1] = a
     moves[m, 2] = b
@@ -94,6 +98,7 @@ def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
     moves = np.empty((cap, 3), dtype=np.int64)
     spans = np.empty((cap, 6), dtype=np.int64)
     gains = np.empty(cap)
+    out = (moves, spans, gains)
     m = 0
     for u in range(r, m_nodes):
         pu, nu, ou = prv[u], nxt[u], owner[u]
@@ -112,7 +117,7 @@ def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
                     continue
                 g = out_u + _e(d, w, wn) - d[w, u] - _e(d, u, wn)
                 if g > _EPS and g < np.inf:
-                    _add(moves, spans, gains, m, 0, u, w, g, ou, pos[u] - 1, pos[u], owner[w], pos[w], pos[w])
+                    _add(out, m, 0, u, w, g, (ou, pos[u] - 1, pos[u]), (owner[w], pos[w], pos[w]))
                     m += 1
             if v < r:
                 continue
@@ -122,13 +127,13 @@ def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
                 new = d[pu, v] + _e(d, v, nu) + d[pv, u] + _e(d, u, nv)
                 g = old - new
                 if g > _EPS and g < np.inf:
-                    _add(moves, spans, gains, m, 1, u, v, g, ou, pos[u] - 1, pos[u], ov, pos[v] - 1, pos[v])
+                    _add(out, m, 1, u, v, g, (ou, pos[u] - 1, pos[u]), (ov, pos[v] - 1, pos[v]))
                     m += 1
                 # 2-opt*: u -> v, prv[v] -> nxt[u]
                 b = pv
                 g = _e(d, u, nu) + d[b, v] - d[u, v] - _e(d, b, nu)
                 if g > _EPS and g < np.inf:
-                    _add(moves, spans, gains, m, 2, u, b, g, ou, pos[u], length[ou], ov, pos[b], length[ov])
+                    _add(out, m, 2, u, b, g, (ou, pos[u], length[ou]), (ov, pos[b], length[ov]))
                     m += 1
             else:
                 a, b = (u, v) if pos[u] < pos[v] else (v, u)
@@ -136,7 +141,7 @@ def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
                     an, bn = nxt[a], nxt[b]
                     g = d[a, an] + _e(d, b, bn) - d[a, b] - _e(d, an, bn)
                     if g > _EPS and g < np.inf:
-                        _add(moves, spans, gains, m, 3, a, b, g, ou, pos[a], pos[b], -1, 0, 0)
+                        _add(out, m, 3, a, b, g, (ou, pos[a], pos[b]), (np.int64(-1), np.int64(0), np.int64(0)))
                         m += 1
     return moves[:m].copy(), spans[:m].copy(), gains[:m].copy()
 

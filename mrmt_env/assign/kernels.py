@@ -47,9 +47,10 @@ def next_decider(cell, free_at, active, open_, dist, n_targets) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def assign_load(b, flat_grid, width, height, nodes, n_robots, dist, coords, cell, free_at, active, open_, counters,
-                decider) -> None:
-    """Start env ``b`` on a world given as a flat grid and node cells (robots, then targets)."""
+def assign_load(b, flat_grid, width, height, nodes, n_robots, state) -> None:
+    """Start env ``b`` on a world given as a flat grid and node cells (robots, then targets);
+    ``state`` = ``(dist, coords, cell, free_at, active, open_, counters, decider)``, the batch's arrays."""
+    dist, coords, cell, free_at, active, open_, counters, decider = state
     node_distances(flat_grid, width, nodes, dist[b])
     n_targets = open_.shape[1]
     for a in range(nodes.shape[0]):

@@ -55,9 +55,9 @@ class AssignBatch:
     def load_arrays(self, i: int, flat_grid: np.ndarray, robots: np.ndarray, targets: np.ndarray) -> None:
         """:meth:`load` from flat cell indices (``r * W + c``), as the vector env draws them."""
         nodes = np.concatenate([robots, targets]).astype(np.int64)
+        state = (self.dist, self.coords, self.cell, self.free_at, self.active, self.open_, self.counters, self.decider)
         assign_load(i, np.ascontiguousarray(flat_grid, dtype=np.bool_), self.width, self.height, nodes, self.n_robots,
-                    self.dist, self.coords, self.cell, self.free_at, self.active, self.open_, self.counters,
-                    self.decider)
+                    state)
         self.worlds[i] = None
         self._arrays[i] = (flat_grid, nodes)
 

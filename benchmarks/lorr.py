@@ -29,6 +29,7 @@ SECTION = "## League of Robot Runners 2024 (issue 32)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 RANDOM = [f"RANDOM-0{i}" for i in range(1, 6)]
 SCALE = ["CITY-01", "CITY-02", "GAME", "WAREHOUSE", "SORTATION"]
+ORDER = ["pibt", "pibt-flow", "windowed", "pibt-ising"]  # executors in the table
 
 
 def _path(name: str) -> Path:
@@ -62,11 +63,12 @@ def _fmt_row(r: dict) -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
-    parser.add_argument("--executors", default="pibt,windowed",
-                        help="each runs every scheduler; the first also runs the large instances")
+    parser.add_argument("--executors", default="pibt,pibt-flow,windowed",
+                        help="each runs every scheduler")
     parser.add_argument("--instances", default=",".join(RANDOM))
     parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")
     parser.add_argument("--scale-steps", type=int, default=500)
+    parser.add_argument("--scale-executor", default="pibt", help="the executor of the large instances")
     parser.add_argument("--steps", type=int, default=None, help="steps of the RANDOM runs (default: in full)")
     parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
     parser.add_argument("--write", action="store_true")
@@ -92,7 +94,7 @@ def main(argv=None) -> None:
                     print(_fmt_row(r), flush=True)
     scale_rows = []
     for name in [n for n in args.scale.split(",") if n]:
-        r = _one(name, "lorr-greedy", executors[0], args.scale_steps, {})
+        r = _one(name, "lorr-greedy", args.scale_executor, args.scale_steps, {})
         r["tasks_per_step"] = r["tasks_finished"] / r["steps"]
         scale_rows.append(r)
         print(_fmt_row(r), f"tasks/step {r['tasks_per_step']:.2f}", flush=True)
@@ -102,7 +104,7 @@ def main(argv=None) -> None:
         keep = [r for r in old if (r["instance"], r["scheduler"], r["executor"]) not in done]
         rows = [r for r in keep if "tasks_per_step" not in r] + rows
         scale_rows = [r for r in keep if "tasks_per_step" in r] + scale_rows
-        rows.sort(key=lambda r: (r["instance"], executors.index(r["executor"]) if r["executor"] in executors else 9))
+        rows.sort(key=lambda r: (r["instance"], ORDER.index(r["executor"]) if r["executor"] in ORDER else 9))
     lines = [SECTION, "", f"`python benchmarks/lorr.py --write` on {cpu_name()} (one core per run, runs in turn). "
              "Step = scheduler + executor host seconds (chip emulation excluded) + chip parallel seconds; "
              "best-known: the archive's record over the instance's full simulation time.", "", head, sep]
@@ -110,16 +112,17 @@ def main(argv=None) -> None:
     by = {}
     for r in rows:
         by.setdefault((r["scheduler"], r["executor"]), []).append(r)
+    first = "pibt" if ("lorr-greedy", "pibt") in by else (executors[0] if executors else "")
     lines += ["", "| scheduler | executor | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy + "
-              f"{executors[0] if executors else ''} |", "|---|---|---|---|---|"]
-    base = {r["instance"]: r["tasks_finished"] for r in by.get(("lorr-greedy", executors[0] if executors else ""), [])}
+              f"{first} |", "|---|---|---|---|---|"]
+    base = {r["instance"]: r["tasks_finished"] for r in by.get(("lorr-greedy", first), [])}
     for (s, ex), rs in by.items():
         shares = [r["share_of_best"] for r in rs if r["share_of_best"] is not None]
         gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
         lines.append(f"| {s} | {ex} | {100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} % | "
                      f"{100 * sum(gain) / len(gain):+.1f} % |" if shares and gain else f"| {s} | {ex} | - | - | - |")
     if scale_rows:
-        lines += ["", f"Large instances, lorr-greedy + {executors[0]}, first {args.scale_steps} steps:", "",
+        lines += ["", f"Large instances, lorr-greedy + {args.scale_executor}, first {args.scale_steps} steps:", "",
                   "| instance | robots | tasks | tasks / step | step p50 ms | step p99 ms | step max ms | errors | "
                   "peak MB |", "|---|---|---|---|---|---|---|---|---|"]
         for r in scale_rows:

@@ -23,9 +23,11 @@ def _mrmt(*args, timeout=600):
     return subprocess.run([sys.executable, "-m", "agents.cli", *args], capture_output=True, text=True, timeout=timeout)
 
 
-@pytest.mark.parametrize("scheduler", ["lorr-greedy", "strong"])
-def test_a_run_finishes_tasks_without_errors_and_its_file_rechecks_to_its_count(scheduler):
-    record, sim, step_s = run_lorr(EXAMPLE, scheduler, "pibt", steps=120, seed=0)
+@pytest.mark.parametrize("scheduler, executor", [("lorr-greedy", "pibt"), ("strong", "pibt"),
+                                                 ("lorr-greedy", "pibt-flow")])
+def test_a_run_finishes_tasks_without_errors_and_its_file_rechecks_to_its_count(scheduler, executor):
+    record, sim, step_s = run_lorr(EXAMPLE, scheduler, executor, steps=120, seed=0)
+    assert record["executor"] == executor
     assert set(RUN_KEYS) <= set(record)
     assert record["errors"] == 0 and record["schedule_errors"] == 0
     assert record["tasks_finished"] == sim.finished > 5

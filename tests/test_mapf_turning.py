@@ -87,8 +87,9 @@ class Oracle:
     dead end off the goal adds 1 + 10 to the priority); distances by BFS, or by lane cost with
     ``guidance``."""
 
-    def __init__(self, grid, seed, n, guidance=0):
-        self.guidance = guidance
+    def __init__(self, grid, seed, n, guidance=0, commits=False):
+        self.guidance, self.commits = guidance, commits
+        self.commit = [None] * n  # the cell a robot keeps claiming until it stands on it
         self.grid, self.seed, self.t = grid, seed, 0
         self.elapsed = [0] * n
         self.tie = np.random.default_rng(seed).random(n).tolist()
@@ -113,6 +114,9 @@ class Oracle:
         order = sorted(range(n), key=lambda k: (-self.elapsed[k], -self.tie[k]))
         occ_now = {p: k for k, p in enumerate(pos)}
         occ_next, nxt = {}, [None] * n
+        for k in range(n):
+            if self.commit[k] is not None and self.commit[k] != pos[k]:
+                occ_next[self.commit[k]], nxt[k] = k, self.commit[k]
 
         def cands(a):
             o, f = orient[a], dist[a]
@@ -138,7 +142,7 @@ class Oracle:
                 pibt(a, None)
         act = []
         for k in range(n):
-            d = next((d for d, v in self.neighbours(pos[k]) if v == nxt[k]), None)
+            d = next((d for d, v in self.neighbours(pos[k]) if v == nxt[k] and occ_next[v] == k), None)
             o = orient[k]
             act.append(W if d is None else F if d == o else C if d == (o + 3) % 4 else R)
         verdict, visiting = {}, set()
@@ -157,6 +161,8 @@ class Oracle:
             if act[k] == F and not moves(k):
                 act[k] = W
         moved = [nxt[k] if act[k] == F else pos[k] for k in range(n)]
+        if self.commits:
+            self.commit = [None if moved[k] == nxt[k] else nxt[k] for k in range(n)]
         dead_end = [len(list(self.neighbours(moved[k]))) == 1 for k in range(n)]
         self.elapsed = [0 if moved[k] == goals[k] else self.elapsed[k] + 1 + 10 * dead_end[k] for k in range(n)]
         self.t += 1
@@ -184,12 +190,13 @@ def retarget(rng, free, pos, goals):
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 8), w=st.integers(3, 8),
-       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 1, 3]))
-def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance):
+       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 1, 3]),
+       commits=st.booleans())
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, commits):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
-    ex = TurningPIBT(grid, seed=seed, guidance=guidance)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance)
+    ex = TurningPIBT(grid, seed=seed, guidance=guidance, commits=commits)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance, commits)
     for _ in range(12):
         expect, targets = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)

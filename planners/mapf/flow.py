@@ -22,10 +22,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.mapf.common import mix
 from planners.mapf.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
-__all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths"]
+__all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths", "DEFAULT_REPLAN_WORK"]
+
+#: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this
+#: // free cells, at most one per robot (every robot on RANDOM's 819 cells; 22 on CITY-01's 47,240).
+DEFAULT_REPLAN_WORK = 1 << 20
 
 
 @numba.njit(cache=True, nogil=True)
@@ -207,7 +210,8 @@ class FlowGuide:
     Args:
         nbr, cell_of, width: the compact grid (:func:`~planners.mapf.turning.compact_grid`).
         cost: ``(n, 4)`` moves counted per forward move (lane guidance), ``None``: 1 each.
-        replans: guide paths re-planned per call beyond those of new goals (``None``: one per robot).
+        replans: guide paths re-planned per call beyond those of new goals (``None``: one per robot, at
+            most :data:`DEFAULT_REPLAN_WORK` // free cells).
         max_bytes: memory bound of the paths and fields of all robots.
         seed: the tie among robots equally due for a re-plan.
     """
@@ -253,10 +257,11 @@ class FlowGuide:
         new = np.flatnonzero((self.lengths == 0) | (ends != gc))
         on = np.empty(r, dtype=np.bool_)
         _on_path(self.paths, self.lengths, pc, on)
-        tie = np.array([mix(self.seed, self.calls, k, 0) for k in range(r)], dtype=np.uint64)
+        tie = np.random.default_rng((self.seed, self.calls)).random(r)
         rest = np.setdiff1d(np.arange(r), new)
         rest = rest[np.lexsort((tie[rest], self.last[rest], on[rest]))]
-        extra = r if self.replans is None else int(self.replans)
+        n = self.nbr.shape[0]
+        extra = min(r, max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
         who = np.concatenate([new, rest[:extra]]).astype(np.int64)
         replan_paths((self.nbr, self.cell_of, self.width, self.cost), self.flow, (goal_fields, goal_rows),
                      (pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)
@@ -271,16 +276,18 @@ class FlowPIBT(TurningPIBT):
     Args:
         grid, seed, guidance: as :class:`~planners.mapf.turning.TurningPIBT` (guidance, default 0 here,
             adds lane costs to the guide paths' moves).
-        replans: guide paths re-planned per call beyond those of new goals (default: one per robot).
+        replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
+            :data:`DEFAULT_REPLAN_WORK` // free cells).
         field_bytes: memory bound of the goal fields, and of the paths and fields of the robots.
-        bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT`.
+        bfs_budget, commits: as :class:`~planners.mapf.turning.TurningPIBT`.
     """
 
     name = "pibt-flow"
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, replans: int | None = None,
-                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
-        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
+                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
+                 commits: bool = False) -> None:
+        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits)
         if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
                                     or replans < 0):
             raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")

@@ -207,9 +207,16 @@ def _distance(fields, row, goal, v, cell_of, width) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _candidates(nbr, cell_of, width, p, o, fields, row, goal, seed, t, a, out, keys, turns, ties) -> int:
-    """Robot ``a``'s cells from compact ``p`` facing ``o`` (itself first, then the free neighbours),
-    sorted by (distance to goal, turns to face the cell, ``mix(seed, t, a, flat cell)``)."""
+def _candidates(grid, robots, heuristic, stamp, a, out, buf) -> int:
+    """Robot ``a``'s cells from its compact cell (itself first, then the free neighbours) into ``out``,
+    sorted by (distance, turns to face the cell, ``mix(seed, t, a, flat cell)``); records as
+    :func:`turning_kernel`, ``buf = (keys, turns, ties)`` scratch."""
+    nbr, cell_of, width = grid
+    pos, orient, goals = robots[0], robots[1], robots[2]
+    fields, rows = heuristic
+    seed, t = stamp
+    keys, turns, ties = buf
+    p, o, row, goal = pos[a], orient[a], rows[a], goals[a]
     out[0], turns[0] = p, 0
     keys[0] = _distance(fields, row, goal, p, cell_of, width)
     ties[0] = mix(seed, t, a, cell_of[p])
@@ -236,8 +243,11 @@ def _candidates(nbr, cell_of, width, p, o, fields, row, goal, seed, t, a, out, k
 
 
 @numba.njit(cache=True, nogil=True)
-def _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next):
-    """PIBT over compact cells on an explicit stack (the recursion of the oracle in the tests)."""
+def _pibt(grid, robots, heuristic, order, stamp, nxt, occ):
+    """PIBT over compact cells on an explicit stack (the recursion of the oracle in the tests); a robot
+    with ``nxt`` set on entry (a commitment) is neither planned nor pushed."""
+    pos = robots[0]
+    occ_now, occ_next = occ
     r = pos.shape[0]
     st_a = np.empty(r, dtype=np.int64)
     st_b = np.empty(r, dtype=np.int64)
@@ -247,13 +257,13 @@ def _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t,
     keys = np.empty(5, dtype=np.int64)
     turns = np.empty(5, dtype=np.int64)
     ties = np.empty(5, dtype=np.uint64)
+    buf = (keys, turns, ties)
     for idx in range(r):
         a0 = order[idx]
         if nxt[a0] != -1:
             continue
         st_a[0], st_b[0], st_i[0] = a0, -1, 0
-        st_n[0] = _candidates(nbr, cell_of, width, pos[a0], orient[a0], fields, rows[a0], goals[a0], seed, t,
-                              a0, cand[0], keys, turns, ties)
+        st_n[0] = _candidates(grid, robots, heuristic, stamp, a0, cand[0], buf)
         top = 1
         returned = False
         result = False
@@ -276,8 +286,7 @@ def _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t,
                 c = occ_now[v]
                 if c != -1 and nxt[c] == -1:
                     st_a[top], st_b[top], st_i[top] = c, a, 0
-                    st_n[top] = _candidates(nbr, cell_of, width, pos[c], orient[c], fields, rows[c], goals[c],
-                                            seed, t, c, cand[top], keys, turns, ties)
+                    st_n[top] = _candidates(grid, robots, heuristic, stamp, c, cand[top], buf)
                     top += 1
                     pushed = True
                 else:
@@ -328,20 +337,29 @@ def vacate_check(pos, nxt, act, occ_now):
 
 
 @numba.njit(cache=True, nogil=True)
-def turning_kernel(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, act, occ_now,
-                   occ_next):
-    """One joint action: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action (compact cells;
-    ``rows[k]`` the row of ``fields`` to ``goals[k]``, -1 for Manhattan distance; ``occ_now`` /
-    ``occ_next`` scratch over compact cells, all -1 on entry and on return)."""
+def turning_kernel(grid, robots, heuristic, order, stamp, out, occ):
+    """One joint action into ``out = (nxt, act)``: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action.
+    ``grid = (nbr, cell_of, width)``; ``robots = (pos, orient, goals, commit)`` in compact cells,
+    ``commit[k]`` a cell robot ``k`` keeps claiming (-1 none); ``heuristic = (fields, rows)``, ``rows[k]``
+    the row of ``fields`` robot ``k`` goes by (-1: Manhattan distance to its goal); ``stamp = (seed, t)``;
+    ``occ = (occ_now, occ_next)`` scratch over compact cells, all -1 on entry and on return."""
+    nbr = grid[0]
+    pos, orient, commit = robots[0], robots[1], robots[3]
+    nxt, act = out
+    occ_now, occ_next = occ
     r = pos.shape[0]
     for k in range(r):
         occ_now[pos[k]] = k
         nxt[k] = -1
-    _pibt(nbr, cell_of, width, pos, orient, goals, fields, rows, order, seed, t, nxt, occ_now, occ_next)
+    for k in range(r):
+        if commit[k] >= 0 and commit[k] != pos[k]:
+            nxt[k] = commit[k]
+            occ_next[commit[k]] = k
+    _pibt(grid, robots, heuristic, order, stamp, nxt, occ)
     for k in range(r):
         p, v, o = pos[k], nxt[k], orient[k]
         act[k] = WAIT
-        if v == p or occ_next[v] != k:  # staying (the second test never holds: one owner per cell)
+        if v == p or occ_next[v] != k:  # staying, or a commitment a robot that could not move took back
             continue
         for d in range(4):
             if nbr[p, d] == v:
@@ -375,6 +393,8 @@ class TurningPIBT:
         field_bytes: memory bound of the goal-field cache (:class:`TurnFields`).
         bfs_budget: BFS work per call in cells (new goal fields per call = this // free cells; a robot
             whose goal has no field yet goes by Manhattan distance meanwhile).
+        commits: a robot keeps claiming the cell it chose until it stands on it (through its turns and
+            waits; no other robot may claim it, as in the start kit's default planner); default off.
     """
 
     name = "pibt"
@@ -383,7 +403,8 @@ class TurningPIBT:
     kernel_s = 0.0
 
     def __init__(self, grid: np.ndarray, seed: int = 0, guidance: int = DEFAULT_GUIDANCE, *,
-                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
+                 commits: bool = False) -> None:
         self.grid = np.asarray(grid, dtype=bool)
         if self.grid.ndim != 2:
             raise ValueError(f"grid must be 2-d (H, W), got shape {self.grid.shape}")
@@ -393,9 +414,13 @@ class TurningPIBT:
         self.move_cost = crisscross_costs(self.nbr, self.cell_of, self.width, guidance) if self.guidance else None
         self.fields = TurnFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
+        if not isinstance(commits, (bool, np.bool_)):
+            raise ValueError(f"commits must be True or False, got {commits!r}")
+        self.commits = bool(commits)
         self.seed = int(seed) & ((1 << 63) - 1)
         self.t = 0
         self.elapsed = np.zeros(0, dtype=np.int64)
+        self.commit = np.zeros(0, dtype=np.int64)  # per robot: the compact cell it keeps claiming, -1 none
         self.tie = np.zeros(0)
         self.targets = np.zeros(0, dtype=np.int64)  # the last call's PIBT cells (flat)
         n = len(self.cell_of)
@@ -405,6 +430,7 @@ class TurningPIBT:
     def _ensure(self, n_robots: int) -> None:
         if len(self.elapsed) != n_robots:
             self.elapsed = np.zeros(n_robots, dtype=np.int64)
+            self.commit = np.full(n_robots, -1, dtype=np.int64)
             self.tie = np.random.default_rng(self.seed).random(n_robots)
             self.t = 0
 
@@ -452,16 +478,19 @@ class TurningPIBT:
         order = self.order(r)
         pc = self.cid[pos]
         gc = self.cid[goals]
-        fields, rows = self._heuristic(pc, gc, order)
+        heuristic = self._heuristic(pc, gc, order)
         nxt = np.empty(r, dtype=np.int64)
         act = np.empty(r, dtype=np.int64)
+        commit = self.commit if self.commits else np.full(r, -1, dtype=np.int64)
         t0 = time.perf_counter()
-        turning_kernel(self.nbr, self.cell_of, self.width, pc, orient, gc, fields, rows, order, self.seed,
-                       self.t, nxt, act, self._occ_now, self._occ_next)
+        turning_kernel((self.nbr, self.cell_of, self.width), (pc, orient, gc, commit), heuristic, order,
+                       (self.seed, self.t), (nxt, act), (self._occ_now, self._occ_next))
         self.kernel_s = time.perf_counter() - t0  # the host rule's own seconds (a refinement's audit compares them)
-        self._refine(pc, orient, gc, rows, order, nxt, act)
+        self._refine(pc, orient, gc, heuristic[1], order, nxt, act)
         self.targets = self.cell_of[nxt]
         moved = np.where(act == FORWARD, nxt, pc)
+        if self.commits:  # a robot keeps claiming its cell until it stands on it
+            self.commit = np.where(moved == nxt, -1, nxt)
         extra = DEAD_END_BONUS * self.dead_end[moved]
         self.elapsed = np.where(moved == gc, 0, self.elapsed + 1 + extra)
         self.t += 1

@@ -317,10 +317,11 @@ class WindowedTurningPlanner(TurningPIBT):
         paths = np.empty((r, window + 1), dtype=np.int64)
         pos, ori, elapsed = pc.copy(), orient.copy(), self.elapsed.copy()
         nxt, act = np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64)
+        none = np.full(r, -1, dtype=np.int64)  # no commitments in a rollout
         paths[:, 0] = pos * 4 + ori
         for i in range(window):
-            turning_kernel(self.nbr, self.cell_of, self.width, pos, ori, gc, self.fields.fields, rows, order,
-                           seed, self.t + i, nxt, act, self._occ_now, self._occ_next)
+            turning_kernel((self.nbr, self.cell_of, self.width), (pos, ori, gc, none), (self.fields.fields, rows),
+                           order, (seed, self.t + i), (nxt, act), (self._occ_now, self._occ_next))
             pos = np.where(act == FORWARD, nxt, pos)
             ori = (ori + np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))) % 4
             elapsed = np.where(pos == gc, 0, elapsed + 1 + DEAD_END_BONUS * self.dead_end[pos])

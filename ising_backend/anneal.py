@@ -184,18 +184,20 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     on core ``k % n_cores``.
     """
     anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                        _NO_CORES, _NO_CLAMP, out_spins, out_energy)
+                        (_NO_CORES, _NO_CLAMP), (out_spins, out_energy))
 
 
 @numba.njit(cache=True, nogil=True)
 def anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
-                        mismatch, flip_prob, cores, clamp, out_spins, out_energy):
-    """:func:`anneal_kernel` with each read's core given: read ``k`` runs on core ``cores[k]``
-    (``cores`` empty: ``k % n_cores``), whose factor matrix ``mismatch[core]`` (if any) and
-    stuck spins ``clamp[core]`` (``(n_cores, N)`` int8: 0 free, +-1 stuck at that value; or
-    ``(0, 0)`` for none) it anneals with.  A stuck spin starts at its value and never flips;
-    the readout flips after the anneal apply to it like to any spin.
+                        mismatch, flip_prob, faults, out):
+    """:func:`anneal_kernel` with each read's core given, ``faults`` = ``(cores, clamp)`` and ``out`` =
+    ``(out_spins, out_energy)``: read ``k`` runs on core ``cores[k]`` (``cores`` empty: ``k % n_cores``),
+    whose factor matrix ``mismatch[core]`` (if any) and stuck spins ``clamp[core]`` (``(n_cores, N)``
+    int8: 0 free, +-1 stuck at that value; or ``(0, 0)`` for none) it anneals with.  A stuck spin
+    starts at its value and never flips; the readout flips after the anneal apply to it like to any spin.
     """
+    cores, clamp = faults
+    out_spins, out_energy = out
     B = h.shape[0]
     n = h.shape[1]
     R = num_reads

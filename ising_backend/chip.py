@@ -160,8 +160,8 @@ class EmulatedChip(MachineBase):
         mismatch = self._mismatch if raw else self.health.mismatch
         anneal_kernel_cores(np.ascontiguousarray(h), np.ascontiguousarray(J), reads, np.uint64(seed), self.spec.sweeps,
                             self.spec.schedule == "geometric", hot, cold, mismatch,
-                            float(self.spec.readout_flip_prob), np.asarray(cores, dtype=np.int64), clamp, spins,
-                            energies)
+                            float(self.spec.readout_flip_prob), (np.asarray(cores, dtype=np.int64), clamp),
+                            (spins, energies))
         return spins, energies
 
     def _charge_probe(self, calls, seconds, retries, probe):

@@ -78,7 +78,7 @@ def test_fault_free_chip_has_no_health_and_same_samples():
     spec = chip.spec
     out = np.empty_like(spins), np.empty_like(energies)
     anneal_kernel_cores(h.astype(np.int64), J.astype(np.int64), 5, np.uint64(7), spec.sweeps, True, -1.0, -1.0,
-                        chip._mismatch, 0.0, np.arange(15) % 8, np.zeros((0, 0), dtype=np.int8), *out)
+                        chip._mismatch, 0.0, (np.arange(15) % 8, np.zeros((0, 0), dtype=np.int8)), out)
     assert np.array_equal(out[0], spins) and np.array_equal(out[1], energies)
     plain = np.empty_like(spins), np.empty_like(energies)
     anneal_kernel(h.astype(np.int64), J.astype(np.int64), 5, np.uint64(7), spec.sweeps, True, -1.0, -1.0,

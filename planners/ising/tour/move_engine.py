@@ -74,14 +74,15 @@ def _selection_ising(moves, gains, margin):
 
 
 @numba.njit(cache=True)
-def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh,
-                      Lj, num_reads, machine):
-    """One start of the move-selection search (module docstring).
+def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine):
+    """One start of the move-selection search (module docstring); ``program`` = ``(rules, Lh, Lj,
+    num_reads)``: the quantization rules' ids, the coefficient limits and the reads per program.
 
     Returns ``(route, status, stats (5,), clean (k,), wins (k,), calls (S,), emulation_s (S,))`` with
     stats = rounds, retries, moves applied, rounds with a valid read, programs with a valid read;
     ``clean`` / ``wins`` per rule: valid reads that select a move, best reads.
     """
+    rules, Lh, Lj, num_reads = program
     route = route.copy()
     k = rules.shape[0]
     stats = np.zeros(5, dtype=np.int64)
@@ -156,16 +157,15 @@ def nearest_neighbour_kernel(dist):
 
 
 @numba.njit(cache=True)
-def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj,
-                     num_reads, machine):
+def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine):
     """``MoveSearch.starts`` with random restarts in one call: the nearest-neighbour route,
     then ``starts - 1`` random orders (``rng.permutation``), each improved by
-    :func:`select_moves_loop`.  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
+    :func:`select_moves_loop` (the same ``program`` record).  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
     (starts,), stats (5,), clean (k,), wins (starts, k), calls, emulation_s)``, the statistics summed
     over the starts; ``ok`` is False (the search stops, what was annealed is returned to be charged) at
     a program the quantizer could not map."""
     n = dist.shape[0] - 1
-    k = rules.shape[0]
+    k = program[0].shape[0]  # the quantization rules
     best = np.zeros(0, dtype=np.int64)
     best_cost = np.inf
     costs = np.full(starts, np.nan)
@@ -184,8 +184,7 @@ def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_
             route[0] = 0
             route[1:] = 1 + rng.permutation(n)
         route, st, sst, sclean, swins, scalls, semu = select_moves_loop(
-            rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, rules, Lh, Lj, num_reads,
-            machine)
+            rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine)
         calls = np.concatenate((calls, scalls))
         emu = np.concatenate((emu, semu))
         status[s] = st

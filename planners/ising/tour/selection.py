@@ -62,7 +62,7 @@ class MoveSearch:
 
     @cached_property
     def _move_args(self) -> tuple:
-        """The compiled loop's fixed arguments: rule ids, coefficient limits, reads (the machine's record
+        """The compiled loop's ``program`` record: rule ids, coefficient limits, reads (the machine's record
         comes from each call's session)."""
         rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
         return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads)
@@ -112,7 +112,7 @@ class MoveSearch:
         with self.chip.session(run.charged, decision="tour_moves") as link:
             new, status, st, clean, wins, calls, emu = select_moves_loop(
                 run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
-                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._move_args, link.args)
             link.settle(calls, emu)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == REFUSED:
@@ -163,7 +163,7 @@ class MoveSearch:
         with self.chip.session(run.charged, decision="tour_moves") as link:
             ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
                 run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
-                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, *self._move_args, link.args)
+                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._move_args, link.args)
             link.settle(calls, emu)
         self._count_starts(run, st, clean, wins, status.tolist())
         if not ok:

@@ -44,9 +44,9 @@ saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned.training`), or
 ``ppo-ms:PATH`` for a plan-level model decoded from every legal first
 decision, the cheapest kept (:mod:`agents.assign.search`).
 
-Episodes run on the task runner (:mod:`agents.runner`: a process pool of
-``n_jobs`` workers by default, inline for ``n_jobs=1``, or Ray) with a tqdm
-progress bar on stderr; each worker builds each controller and env once.  Note that ``cpu_s`` measured by parallel workers
+Episodes run on the task runner (``run``, an :class:`agents.runner.RunConfig`: a process
+pool of two workers by default, inline, or Ray) with a tqdm progress bar on stderr; each
+worker builds each controller and env once.  Note that ``cpu_s`` measured by parallel workers
 includes contention with other processes on the machine.
 """
 
@@ -404,13 +404,10 @@ def evaluate(
     world_seed: int = 0,
     env_id: str = DEFAULT_ENV_ID,
     env_kwargs: dict | None = None,
-    n_jobs: int = 2,
-    progress: bool = True,
+    run: RunConfig | None = None,
     warmup: bool = True,
     chip=None,
     max_steps: int | None = None,
-    backend: str | None = None,
-    address: str | None = None,
 ) -> EvaluationResult:
     """Run every controller on worlds ``world_seed .. world_seed + n_worlds - 1`` for each seed.
 
@@ -419,13 +416,15 @@ def evaluate(
             :func:`make_controller`); an entry may also be a ``(name,
             factory)`` pair with ``factory(seed) -> controller`` (picklable,
             e.g. a module-level function or ``functools.partial``, when
-            ``n_jobs > 1``).
+            the runner is not inline).
         n_worlds: episodes per controller and seed (one world each).
         seeds: controller seeds.
         world_seed: first env reset seed.
         env_id, env_kwargs: the Gymnasium env (``gymnasium.make(env_id, **env_kwargs)``).
-        n_jobs: workers; 1 runs inline in this process (unless ``backend`` says otherwise).
-        progress: show a tqdm bar on stderr.
+        run: the runner (:class:`agents.runner.RunConfig`: ``inline``, ``process`` or ``ray``,
+            workers, Ray address, progress bar on stderr); default ``RunConfig.from_jobs(2)``, two
+            worker processes with a bar.  ``RunConfig.from_jobs(1, progress=False)`` runs inline,
+            quietly.
         warmup: before a controller's first timed episode in a process, run
             one untimed episode (reset seed :data:`WARMUP_WORLD_SEED`) so
             numba compilation/cache loading and torch start-up are not
@@ -434,8 +433,6 @@ def evaluate(
             paper's chip); refused when no controller runs on a chip.
         max_steps: the episode step limit (truncation); default :func:`step_limit`, the env
             id's limit scaled up with the world's size and target count.
-        backend, address: the runner (:mod:`agents.runner`): ``inline``, ``process`` or
-            ``ray`` (``address`` of a Ray cluster); default inline for ``n_jobs=1``, else process.
 
     Returns:
         :class:`EvaluationResult` with rows ordered by controller, seed, world.
@@ -452,11 +449,11 @@ def evaluate(
     seeds = [int(s) for s in (seeds if np.iterable(seeds) else [seeds])]
     if not seeds:
         raise ValueError("seeds must name at least one seed")
-    if int(n_jobs) < 1:
-        raise ValueError(f"n_jobs must be >= 1, got {n_jobs}")
+    run = RunConfig.from_jobs(2) if run is None else run
+    if not isinstance(run, RunConfig):
+        raise TypeError(f"run must be an agents.runner.RunConfig, got {type(run).__name__}")
     env_kwargs = dict(env_kwargs or {})
     check_chip_use(entries, chip)
-    run = RunConfig.from_jobs(n_jobs, progress=progress, backend=backend, address=address)
     max_steps = resolve_max_steps(env_id, env_kwargs, max_steps)
     tasks = [
         (entry, s, int(world_seed) + i, env_id, env_kwargs, bool(warmup), chip, max_steps)

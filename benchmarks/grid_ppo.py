@@ -55,6 +55,7 @@ def _sampled(model_path, worlds: int) -> tuple[float, float]:
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
     from agents.learned.training import TrainOptions, train
+    from agents.runner import RunConfig
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", choices=("mlp", "cnn"), default="cnn")
@@ -82,8 +83,8 @@ def main(argv=None) -> int:
         train(ENV_ID, args.timesteps, out=model, options=options, env_kwargs=env_kwargs, **HYPER)
         train_s = time.perf_counter() - t0
     print(f"trained {args.timesteps} steps in {train_s:.0f} s")
-    res = evaluate(["strong", f"ppo:{model}"], n_worlds=args.worlds, world_seed=10_000, env_id=ENV_ID, n_jobs=2,
-                   progress=False)
+    res = evaluate(["strong", f"ppo:{model}"], n_worlds=args.worlds, world_seed=10_000, env_id=ENV_ID,
+                   run=RunConfig.from_jobs(2, progress=False))
     print(res.format_summary())
     rows = res.by_controller(f"ppo:{model}")
     sampled_success, sampled_frac = _sampled(model, args.worlds)

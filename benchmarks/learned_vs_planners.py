@@ -110,6 +110,7 @@ def _figure(rows, refs, path: Path, title: str) -> None:
 def main(argv=None) -> int:
     from agents.evaluation import evaluate
     from agents.learned.training import DEFAULT_TIMESTEPS, TrainOptions, train
+    from agents.runner import RunConfig
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--timesteps", type=int, default=DEFAULT_TIMESTEPS["assign"])
@@ -134,7 +135,7 @@ def main(argv=None) -> int:
     print(f"trained {args.timesteps} steps in {train_s:.0f} s (+{cb.eval_s:.0f} s of checkpoint evaluation)")
 
     res = evaluate(list(PLANNERS) + [f"ppo:{model_path}", f"ppo-ms:{model_path}"], n_worlds=args.worlds,
-                   world_seed=UNSEEN, env_id=ENV_ID, n_jobs=2, progress=False)
+                   world_seed=UNSEEN, env_id=ENV_ID, run=RunConfig.from_jobs(2, progress=False))
     print(res.format_summary())
     summary = {s["controller"]: s for s in res.summary()}
     ppo_name, ms_name = f"ppo:{model_path}", f"ppo-ms:{model_path}"
@@ -145,8 +146,8 @@ def main(argv=None) -> int:
                 if by[name][w]["is_success"] and by["strong"][w]["route_cost"] > 0]
 
     ratios, ms_ratios = per_world(ppo_name), per_world(ms_name)
-    refs_curve = evaluate(list(PLANNERS), n_worlds=args.curve_worlds, world_seed=UNSEEN, env_id=ENV_ID, n_jobs=2,
-                          progress=False)
+    refs_curve = evaluate(list(PLANNERS), n_worlds=args.curve_worlds, world_seed=UNSEEN, env_id=ENV_ID,
+                          run=RunConfig.from_jobs(2, progress=False))
     refs = {s["controller"]: dict(s, mean_route_cost=float(np.mean(
         [r["route_cost"] for r in refs_curve.by_controller(s["controller"]) if r["is_success"]])))
         for s in refs_curve.summary()}

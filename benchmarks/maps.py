@@ -57,10 +57,11 @@ def planners(ids, n_worlds: int, controllers) -> list[dict]:
     import gymnasium as gym
 
     from agents.evaluation import evaluate
+    from agents.runner import RunConfig
 
     rows = []
     for env_id in ids:
-        res = evaluate(list(controllers), env_id=env_id, n_worlds=n_worlds, n_jobs=1, progress=False)
+        res = evaluate(list(controllers), env_id=env_id, n_worlds=n_worlds, run=RunConfig.from_jobs(1, progress=False))
         spec = gym.spec(env_id)
         for name in controllers:
             rs = [r for r in res.rows if r["controller"] == name]

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from agents.evaluation import evaluate
+from agents.runner import RunConfig
 from agents.learned.training import train_ppo
 
 
@@ -40,7 +41,8 @@ def main(argv=None) -> int:
         train_s = time.perf_counter() - t0
         print(f"trained {args.timesteps} steps on {args.env_id} in {train_s:.0f} s -> {args.model}")
     specs = [s for s in args.controllers.split(",") if s] + [f"ppo:{args.model}"]
-    res = evaluate(specs, n_worlds=args.worlds, world_seed=10_000, env_id=args.env_id, n_jobs=args.jobs)
+    res = evaluate(specs, n_worlds=args.worlds, world_seed=10_000, env_id=args.env_id,
+                   run=RunConfig.from_jobs(args.jobs))
     print(res.format_summary())
     ppo_rows = res.by_controller(f"ppo:{args.model}")
     out = {

@@ -15,6 +15,7 @@ import functools
 import numpy as np
 
 from agents.evaluation import evaluate
+from agents.runner import RunConfig
 from agents.policy import PlannerPolicy
 from ising_backend import ChipSpec, EmulatedChip
 from planners.pipeline import make_pipeline
@@ -38,7 +39,7 @@ def main(argv=None):
         ("ising, default chip", functools.partial(ising_policy, ChipSpec())),
         ("ising, custom chip", functools.partial(ising_policy, CUSTOM)),
     ]
-    result = evaluate(controllers, n_worlds=args.worlds, n_jobs=args.jobs)
+    result = evaluate(controllers, n_worlds=args.worlds, run=RunConfig.from_jobs(args.jobs))
     print(f"default chip: {ChipSpec().n_spins} spins, h/J in {ChipSpec().h_range}, {ChipSpec().n_cores} cores")
     print(f"custom chip:  {CUSTOM.n_spins} spins, h/J in {CUSTOM.h_range}, {CUSTOM.n_cores} cores")
     print(result.format_summary())

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from agents.evaluation import evaluate
 from agents.learned.training import ASSIGN_ENV_ID, TrainOptions, train
+from agents.runner import RunConfig
 
 
 def main(argv=None):
@@ -38,7 +39,7 @@ def main(argv=None):
             n_worlds=args.worlds,
             world_seed=10_000,
             env_id=ASSIGN_ENV_ID,
-            n_jobs=args.jobs,
+            run=RunConfig.from_jobs(args.jobs),
         )
     print(result.format_summary())
     return 0

@@ -7,6 +7,7 @@ import pytest
 
 from agents.cli import main
 from agents.evaluation import evaluate
+from agents.runner import RunConfig
 from agents.policy import PlannerPolicy
 from ising_backend import IsingModel, MergeError, QuantizeError, merge_spins, quantize, saturate
 from mrmt_env import World, WorldError, generate_world
@@ -72,7 +73,7 @@ def test_policy_episode_start_length():
 
 def test_evaluate_n_worlds_not_truncated():
     with pytest.raises(ValueError, match="n_worlds must be an integer >= 1, got 1.5"):
-        evaluate(["fast"], n_worlds=1.5, progress=False)
+        evaluate(["fast"], n_worlds=1.5, run=RunConfig.from_jobs(2, progress=False))
 
 
 def test_cli_plan_negative_seed(tmp_path, capsys):

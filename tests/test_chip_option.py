@@ -7,6 +7,7 @@ import pytest
 from agents.cli import main
 from agents.errors import ControllerError
 from agents.evaluation import evaluate, make_controller, uses_chip
+from agents.runner import RunConfig
 from ising_backend import ChipSpec
 
 
@@ -27,8 +28,9 @@ def test_make_controller_builds_the_ising_layers_on_the_given_chip():
 
 def test_evaluate_with_a_chip_uses_its_accounting_numbers():
     slow = ChipSpec(solve_time_s=100e-6)  # twice the paper's 50 us per call (and so twice the energy)
-    base = evaluate("ising", n_worlds=2, n_jobs=1, progress=False, env_kwargs={"n_targets": 6})
-    res = evaluate("ising", n_worlds=2, n_jobs=1, progress=False, env_kwargs={"n_targets": 6}, chip=slow)
+    base = evaluate("ising", n_worlds=2, env_kwargs={"n_targets": 6}, run=RunConfig.from_jobs(1, progress=False))
+    res = evaluate("ising", n_worlds=2, env_kwargs={"n_targets": 6}, chip=slow,
+                   run=RunConfig.from_jobs(1, progress=False))
     assert res.config["chip"]["solve_time_s"] == 100e-6 and base.config["chip"] is None
     for a, b in zip(base.rows, res.rows):
         assert a["route_cost"] == b["route_cost"] and a["chip_calls"] == b["chip_calls"]
@@ -38,7 +40,7 @@ def test_evaluate_with_a_chip_uses_its_accounting_numbers():
 
 def test_a_chip_without_a_chip_controller_is_refused():
     with pytest.raises(ControllerError, match="none of the controllers"):
-        evaluate("fast,strong", n_worlds=1, n_jobs=1, progress=False, chip=ChipSpec(n_spins=64))
+        evaluate("fast,strong", n_worlds=1, chip=ChipSpec(n_spins=64), run=RunConfig.from_jobs(1, progress=False))
 
 
 def test_compare_chip_option_errors_are_one_line(capsys):

@@ -15,6 +15,7 @@ from agents.evaluation import (
     evaluate,
     parse_controllers,
 )
+from agents.runner import RunConfig
 
 SMALL = {"n_robots": 2, "n_targets": 5}
 
@@ -24,7 +25,8 @@ def _route_view(rows):
 
 
 def test_rows_join_route_metrics_and_compute(tmp_path):
-    res = evaluate("fast,strong", n_worlds=3, seeds=[0, 1], env_kwargs=SMALL, n_jobs=1, progress=False)
+    res = evaluate("fast,strong", n_worlds=3, seeds=[0, 1], env_kwargs=SMALL,
+                   run=RunConfig.from_jobs(1, progress=False))
     assert len(res.rows) == 2 * 2 * 3
     for r in res.rows:
         assert set(ROUTE_KEYS) <= set(r) and set(COMPUTE_KEYS) <= set(r)
@@ -50,19 +52,19 @@ def test_rows_join_route_metrics_and_compute(tmp_path):
 
 
 def test_deterministic_and_pool_matches_inline():
-    a = evaluate(["strong"], n_worlds=3, env_kwargs=SMALL, n_jobs=1, progress=False)
-    b = evaluate(["strong"], n_worlds=3, env_kwargs=SMALL, n_jobs=2, progress=False)
+    a = evaluate(["strong"], n_worlds=3, env_kwargs=SMALL, run=RunConfig.from_jobs(1, progress=False))
+    b = evaluate(["strong"], n_worlds=3, env_kwargs=SMALL, run=RunConfig.from_jobs(2, progress=False))
     assert _route_view(a.rows) == _route_view(b.rows)
 
 
 def test_layer_triple_controller():
-    res = evaluate(["ssa+brute+bfs"], n_worlds=2, env_kwargs=SMALL, n_jobs=1, progress=False)
+    res = evaluate(["ssa+brute+bfs"], n_worlds=2, env_kwargs=SMALL, run=RunConfig.from_jobs(1, progress=False))
     assert all(r["is_success"] for r in res.rows)
 
 
 def test_ising_controller_reports_chip_compute():
     pytest.importorskip("planners.ising.path")
-    res = evaluate(["ising"], n_worlds=1, env_kwargs=SMALL, n_jobs=1, progress=False)
+    res = evaluate(["ising"], n_worlds=1, env_kwargs=SMALL, run=RunConfig.from_jobs(1, progress=False))
     (row,) = res.rows
     assert row["chip_calls"] > 0 and row["accelerator_energy_j"] > 0
     assert row["chip_time_parallel_s"] <= row["chip_time_s"]
@@ -114,8 +116,8 @@ def test_compare_cli_writes_table_and_files(tmp_path, capsys):
 
 def test_ising_route_metrics_do_not_depend_on_workers():
     pytest.importorskip("planners.ising.path")
-    a = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=1, progress=False)
-    b = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, n_jobs=2, progress=False)
+    a = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, run=RunConfig.from_jobs(1, progress=False))
+    b = evaluate(["ising"], n_worlds=2, env_kwargs=SMALL, run=RunConfig.from_jobs(2, progress=False))
     assert _route_view(a.rows) == _route_view(b.rows)
     assert [r["chip_calls"] for r in a.rows] == [r["chip_calls"] for r in b.rows]
 
@@ -137,7 +139,7 @@ def _fast_policy(seed):
 
 def test_summary_shows_long_controller_labels_whole():
     label = "fast pipeline, a label longer than the column"
-    res = evaluate([(label, _fast_policy)], n_worlds=1, env_kwargs=SMALL, n_jobs=1, progress=False)
+    res = evaluate([(label, _fast_policy)], n_worlds=1, env_kwargs=SMALL, run=RunConfig.from_jobs(1, progress=False))
     header, row = res.format_summary().splitlines()[:2]
     assert row.startswith(label + " ") and "..." not in row
     assert header.startswith("controller".ljust(len(label)) + " ")  # the column widens to the label

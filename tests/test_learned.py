@@ -12,6 +12,7 @@ pytest.importorskip("stable_baselines3")
 
 from agents.cli import main  # noqa: E402
 from agents.evaluation import ControllerError, evaluate  # noqa: E402
+from agents.runner import RunConfig  # noqa: E402
 from agents.learned.training import SMALL_ENV_ID, load_policy, sidecar_path, train_ppo  # noqa: E402
 
 
@@ -29,7 +30,8 @@ def test_train_writes_model_and_sidecar(model_path):
 
 
 def test_ppo_evaluated_by_the_same_runner(model_path):
-    res = evaluate([f"ppo:{model_path}", "strong"], n_worlds=2, env_id=SMALL_ENV_ID, n_jobs=1, progress=False)
+    res = evaluate([f"ppo:{model_path}", "strong"], n_worlds=2, env_id=SMALL_ENV_ID,
+                   run=RunConfig.from_jobs(1, progress=False))
     ppo = res.by_controller(f"ppo:{model_path}")
     strong = res.by_controller("strong")
     assert len(ppo) == len(strong) == 2

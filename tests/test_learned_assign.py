@@ -13,6 +13,7 @@ pytest.importorskip("sb3_contrib")
 
 from agents.cli import main  # noqa: E402
 from agents.evaluation import evaluate  # noqa: E402
+from agents.runner import RunConfig  # noqa: E402
 from agents.errors import ControllerError  # noqa: E402
 from agents.learned.training import (ASSIGN_ENV_ID, TrainOptions, curve_paths, load_policy, sidecar_path,  # noqa: E402
                                      train)
@@ -45,7 +46,8 @@ def test_algorithm_read_from_the_model_file_without_sidecar(assign_model, tmp_pa
 
 
 def test_learned_agent_acts_legally_and_always_succeeds(assign_model):
-    res = evaluate(["strong", f"ppo:{assign_model}"], n_worlds=3, env_id=ASSIGN_ENV_ID, n_jobs=1, progress=False)
+    res = evaluate(["strong", f"ppo:{assign_model}"], n_worlds=3, env_id=ASSIGN_ENV_ID,
+                   run=RunConfig.from_jobs(1, progress=False))
     for r in res.rows:
         assert r["is_success"] and r["invalid_moves"] == 0 and r["steps"] <= 13
     ppo = res.by_controller(f"ppo:{assign_model}")
@@ -89,7 +91,8 @@ def test_grid_cnn_maskable_model_is_scored_on_the_binary_env(tmp_path):
           env_kwargs={"observation": "image", "dense_reward": 1.0}, n_steps=64, batch_size=64)
     meta = json.loads(sidecar_path(path).read_text())
     assert meta["policy"] == "CnnPolicy" and meta["env_kwargs"]["observation"] == "image"
-    res = evaluate([f"ppo:{path}"], n_worlds=2, env_id="mrmt_env/MRMT-5x5-v0", n_jobs=1, progress=False)
+    res = evaluate([f"ppo:{path}"], n_worlds=2, env_id="mrmt_env/MRMT-5x5-v0",
+                   run=RunConfig.from_jobs(1, progress=False))
     assert [r["steps"] >= 1 for r in res.rows] == [True, True]
     for r in res.rows:  # masked: the agent never walks into a wall
         assert r["invalid_moves"] == 0
@@ -163,7 +166,7 @@ def test_grid_options_pass_the_env_checkers():
 
 def test_multi_start_decoding(assign_model, capsys):
     greedy, multi = f"ppo:{assign_model}", f"ppo-ms:{assign_model}"
-    res = evaluate([greedy, multi], n_worlds=4, env_id=ASSIGN_ENV_ID, n_jobs=1, progress=False)
+    res = evaluate([greedy, multi], n_worlds=4, env_id=ASSIGN_ENV_ID, run=RunConfig.from_jobs(1, progress=False))
     g, m = res.by_controller(greedy), res.by_controller(multi)
     assert all(r["is_success"] and r["invalid_moves"] == 0 and r["cpu_s"] > 0 for r in m)
     # the greedy rollout is one of the starts, so the best start costs no more (summed: robust to float ties)

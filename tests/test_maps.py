@@ -290,8 +290,10 @@ def test_new_ids_are_registered_with_their_worlds():
 @pytest.mark.parametrize("env_id", NEW_IDS)
 def test_strong_pipeline_episode_succeeds(env_id):
     from agents.evaluation import evaluate
+    from agents.runner import RunConfig
 
-    rows = evaluate(["strong"], env_id=env_id, n_worlds=1, n_jobs=1, progress=False, warmup=False).rows
+    rows = evaluate(["strong"], env_id=env_id, n_worlds=1, warmup=False,
+                    run=RunConfig.from_jobs(1, progress=False)).rows
     assert [r["is_success"] for r in rows] == [True]
     assert rows[0]["steps"] <= gym.spec(env_id).max_episode_steps
 

@@ -106,8 +106,8 @@ def test_ray_backend_matches_the_process_backend():
     # the process-backend references first, before Ray's threads exist in this process
     keys = ("controller", "seed", "world_seed", "route_cost", "makespan", "is_success", "chip_calls",
             "logical_calls", "accelerator_energy_j")
-    kw = dict(n_worlds=3, seeds=(0, 1), progress=False)
-    b = evaluate("strong,ising", n_jobs=2, backend="process", **kw)
+    kw = dict(n_worlds=3, seeds=(0, 1))
+    b = evaluate("strong,ising", run=RunConfig.from_jobs(2, progress=False, backend="process"), **kw)
     cfg = SweepConfig(axes={"j_range": ["7", "15"]}, controllers=("ising", "strong"), n_worlds=2)
     sb = run_sweep(cfg, RunConfig(backend="process", jobs=2, progress=False))
     on_ray = RunConfig(backend="ray", jobs=2, chunk_size=4, progress=False)
@@ -122,7 +122,7 @@ def test_ray_backend_matches_the_process_backend():
         with pytest.raises(ValueError, match="invalid literal"):  # the task's own exception type
             run_tasks(int, [("1",), ("2",), ("3x",)], on_ray)
 
-        a = evaluate("strong,ising", n_jobs=2, backend="ray", **kw)
+        a = evaluate("strong,ising", run=RunConfig.from_jobs(2, progress=False, backend="ray"), **kw)
         assert [[r[k] for k in keys] for r in a.rows] == [[r[k] for k in keys] for r in b.rows]
 
         sa = run_sweep(cfg, on_ray)

@@ -84,7 +84,7 @@ def test_a_chip_too_small_for_the_planner_is_a_failed_row_with_the_reason(small_
 def test_sweep_rows_equal_the_evaluation_of_the_same_spec(small_sweep):
     from agents.evaluation import evaluate
 
-    ev = evaluate([CHIP_PATHS], n_worlds=3, n_jobs=1, progress=False, chip=ChipSpec(n_spins=64))
+    ev = evaluate([CHIP_PATHS], n_worlds=3, chip=ChipSpec(n_spins=64), run=RunConfig.from_jobs(1, progress=False))
     mine = [r for r in small_sweep.rows if r.get("n_spins") == 64]
     keys = ("world_seed", "route_cost", "makespan", "chip_calls", "logical_calls", "accelerator_energy_j")
     assert [[r[k] for k in keys] for r in mine] == [[r[k] for k in keys] for r in ev.rows]
@@ -157,11 +157,11 @@ def test_step_limit_scales_with_the_world_and_is_an_option():
     assert step_limit("mrmt_env/MRMT-v0", {"height": 200, "width": 200}) == 4000
     assert step_limit("mrmt_env/MRMT-v0", {"height": 200, "width": 200, "n_targets": 20}) == 8000
     assert step_limit("mrmt_env/MRMT-5x5-v0", {}) == 50
-    short = evaluate(["strong"], n_worlds=2, n_jobs=1, progress=False, max_steps=3)
+    short = evaluate(["strong"], n_worlds=2, max_steps=3, run=RunConfig.from_jobs(1, progress=False))
     assert all(r["steps"] == 3 and r["truncated"] and not r["is_success"] for r in short.rows)
     assert short.config["max_steps"] == 3
     with pytest.raises(ValueError, match="max_steps = 0"):
-        evaluate(["strong"], n_worlds=1, n_jobs=1, progress=False, max_steps=0)
+        evaluate(["strong"], n_worlds=1, max_steps=0, run=RunConfig.from_jobs(1, progress=False))
 
 
 @pytest.mark.parametrize("spread", [1.07, 1e3])  # a tiny sweep's points within a decade, and across decades

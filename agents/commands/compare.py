@@ -128,12 +128,9 @@ def _run(args) -> int:
             world_seed=args.seed,
             env_id=args.env_id,
             env_kwargs=env_kwargs,
-            n_jobs=args.jobs,
-            progress=not args.no_progress,
             chip=chip,
             max_steps=args.max_steps,
-            backend=run.backend,
-            address=run.address,
+            run=run,
         )
     except (ControllerError, ValueError) as exc:
         print(f"mrmt compare: error: {exc}", file=sys.stderr)

@@ -118,12 +118,13 @@ class FlowOracle(Oracle):
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 8), w=st.integers(3, 8),
-       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.8), replans=st.sampled_from([None, 0, 2]))
-def test_pibt_follows_the_guide_fields_and_the_flow_is_the_paths(seed, h, w, density, fill, replans):
+       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.8), replans=st.sampled_from([None, 0, 2]),
+       commits=st.booleans())
+def test_pibt_follows_the_guide_fields_and_the_flow_is_the_paths(seed, h, w, density, fill, replans, commits):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
-    ex = FlowPIBT(grid, seed=seed, replans=replans)
-    oracle = FlowOracle(grid, ex.seed, len(pos))
+    ex = FlowPIBT(grid, seed=seed, replans=replans, commits=commits)
+    oracle = FlowOracle(grid, ex.seed, len(pos), commits=commits)
     cell_of = ex.cell_of
     for _ in range(10):
         act = ex.actions(pos, orient, goals)

@@ -12,7 +12,8 @@ plus the path's length left from the cell where it joins (a multi-source BFS who
 path's cells, the goal's end first).
 
 Each call re-plans the paths of robots whose goal changed, then ``replans`` more in turn (robots off
-their path first, then the longest since their last re-plan, then a seeded tie): a fixed count
+their path first, then the longest since their last re-plan, then a seeded tie; past the last robot
+the turn starts again): a fixed count
 where the start kit fills its time, so that a seed gives one run.  Memory: a path and a field per
 robot over the free cells.  Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -262,7 +263,7 @@ class FlowGuide:
         rest = rest[np.lexsort((tie[rest], self.last[rest], on[rest]))]
         n = self.nbr.shape[0]
         extra = min(r, max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
-        who = np.concatenate([new, rest[:extra]]).astype(np.int64)
+        who = np.concatenate([new, np.resize(rest, extra if len(rest) else 0)]).astype(np.int64)  # cyclic passes
         replan_paths((self.nbr, self.cell_of, self.width, self.cost), self.flow, (goal_fields, goal_rows),
                      (pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)
         self.last[who] = self.calls
@@ -279,14 +280,15 @@ class FlowPIBT(TurningPIBT):
         replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
             :data:`DEFAULT_REPLAN_WORK` // free cells).
         field_bytes: memory bound of the goal fields, and of the paths and fields of the robots.
-        bfs_budget, commits: as :class:`~planners.mapf.turning.TurningPIBT`.
+        bfs_budget, commits: as :class:`~planners.mapf.turning.TurningPIBT`; commitments on by default
+            here (as in the start kit).
     """
 
     name = "pibt-flow"
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, replans: int | None = None,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = False) -> None:
+                 commits: bool = True) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits)
         if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
                                     or replans < 0):

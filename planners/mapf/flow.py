@@ -262,7 +262,7 @@ class FlowGuide:
         rest = np.setdiff1d(np.arange(r), new)
         rest = rest[np.lexsort((tie[rest], self.last[rest], on[rest]))]
         n = self.nbr.shape[0]
-        extra = min(r, max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
+        extra = min(len(rest), max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
         who = np.concatenate([new, np.resize(rest, extra if len(rest) else 0)]).astype(np.int64)  # cyclic passes
         replan_paths((self.nbr, self.cell_of, self.width, self.cost), self.flow, (goal_fields, goal_rows),
                      (pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)

@@ -113,8 +113,8 @@ class JointMovesPIBT(TurningPIBT):
         gid = np.empty(r, dtype=np.int64)
         members = np.empty(r, dtype=np.int64)
         gstart = np.empty(r + 1, dtype=np.int64)
-        ng = select_groups(self.nbr, pc, nxt, act, cand, cost, order, self.max_robots, self.max_spins,
-                           self._occ_now, gid, members, gstart)
+        ng = select_groups(self.nbr, (pc, nxt, act), (cand, cost), order, (self.max_robots, self.max_spins),
+                           self._occ_now, (gid, members, gstart))
         rank = np.empty(r, dtype=np.int64)
         rank[order] = np.arange(r)
         m = gstart[ng]
@@ -122,8 +122,8 @@ class JointMovesPIBT(TurningPIBT):
         opt = np.empty((m * MAX_OPTIONS, 5), dtype=np.int64)
         host = np.empty(m, dtype=np.int64)
         if ng:
-            group_options(self.nbr, pc, orient, nxt, act, cand, cost, rank, gid, members, gstart, ng, self.levels,
-                          self.push, self._claim, self._occ_now, ostart, opt, host)
+            group_options(self.nbr, (pc, orient, nxt, act), (cand, cost), rank, (gid, members, gstart), ng,
+                          (self.levels, self.push), (self._claim, self._occ_now), (ostart, opt, host))
         return ng, gstart, members, ostart, opt, host
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:

@@ -72,10 +72,16 @@ def robot_options(nbr, cell_of, width, fields, rows, goals, pos, orient, cand, c
 
 
 @numba.njit(cache=True, nogil=True)
-def select_groups(nbr, pos, nxt, act, cand, cost, order, max_robots, max_spins, occ, gid, members, gstart):
-    """Groups of this step (module docstring): ``members[gstart[g]:gstart[g + 1]]`` robots of group ``g``
-    (BFS order from its seed), ``gid[k]`` robot ``k``'s group or -1; returns the number of groups.
-    ``occ`` is compact-cell scratch, all -1 on entry and on return."""
+def select_groups(nbr, step, options, order, limits, occ, groups):
+    """Groups of this step (module docstring) into ``groups = (gid, members, gstart)``:
+    ``members[gstart[g]:gstart[g + 1]]`` robots of group ``g`` (BFS order from its seed), ``gid[k]``
+    robot ``k``'s group or -1; returns the number of groups.  ``step = (pos, nxt, act)`` (the host
+    rule's claims), ``options = (cand, cost)``, ``limits = (max_robots, max_spins)``; ``occ`` is
+    compact-cell scratch, all -1 on entry and on return."""
+    pos, nxt, act = step
+    cand, cost = options
+    max_robots, max_spins = limits
+    gid, members, gstart = groups
     r = pos.shape[0]
     for k in range(r):
         occ[pos[k]] = k
@@ -157,12 +163,19 @@ def _ring(nbr, p, ring) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def group_options(nbr, pos, orient, nxt, act, cand, cost, rank, gid, members, gstart, ng, levels, push, claim, occ,
-                  ostart, opt, host):
-    """Allowed options of every group member (module docstring): member ``t``'s options are rows
-    ``opt[ostart[t]:ostart[t + 1]]`` (columns :data:`CELL`, :data:`COST`, :data:`DEP`, :data:`UNREAL`,
-    :data:`FWD`); ``host[t]`` the index of its host claim among them.  ``claim`` / ``occ`` compact-cell
+def group_options(nbr, step, options, rank, groups, ng, weights, scratch, out):
+    """Allowed options of every group member (module docstring) into ``out = (ostart, opt, host)``:
+    member ``t``'s options are rows ``opt[ostart[t]:ostart[t + 1]]`` (columns :data:`CELL`,
+    :data:`COST`, :data:`DEP`, :data:`UNREAL`, :data:`FWD`); ``host[t]`` the index of its host claim
+    among them.  ``step = (pos, orient, nxt, act)``, ``options = (cand, cost)``, ``groups`` as
+    :func:`select_groups`, ``weights = (levels, push)``; ``scratch = (claim, occ)`` compact-cell
     scratch, -1 on entry and on return."""
+    pos, orient, nxt, act = step
+    cand, cost = options
+    gid, members, gstart = groups
+    levels, push = weights
+    claim, occ = scratch
+    ostart, opt, host = out
     r = pos.shape[0]
     for k in range(r):
         claim[nxt[k]] = k

@@ -121,15 +121,20 @@ def _reserve(occ, paths, k, n, w, who):
 
 
 @numba.njit(cache=True, nogil=True)
-def windowed_turning_kernel(nbr, cell_of, width, move, goals, fields, rows, far, order, window, expansions, keep,
-                            paths, occ, seen, parent, heap, stamp):
+def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, scratch, stamp):
     """Re-plan every robot's window in ``order`` against all the others' plans (compact cells):
     ``paths[k, t]`` = robot ``k``'s ``v * 4 + o`` at step ``t``, a conflict-free joint plan on entry and
     on return; a robot with ``keep[k]`` keeps its plan, another takes the plan A* finds within
     ``expansions`` when it costs no more (and does not stand still off the goal where the old plan
-    moved).  ``occ ((W+1)*n)`` -1 on entry and return; ``seen`` / ``parent`` A* scratch over
+    moved).  ``grid = (nbr, cell_of, width, move)``; ``heuristic = (fields, rows, far)``, the
+    (cell, orientation) fields; ``limits = (window, expansions)``; ``scratch = (occ, seen, parent,
+    heap)``: ``occ ((W+1)*n)`` -1 on entry and return; ``seen`` / ``parent`` A* scratch over
     ``(W+1)*4n`` states, ``stamp`` their last stamp.  Returns ``(stamp, plans improved, searches out
     of budget)``."""
+    nbr, cell_of, width, move = grid
+    fields, rows, far = heuristic
+    window, expansions = limits
+    occ, seen, parent, heap = scratch
     n = nbr.shape[0]
     ns = 4 * n
     w = window
@@ -356,8 +361,8 @@ class WindowedTurningPlanner(TurningPIBT):
         keep = self.still > self.patience
         for _ in range(self.passes):
             self._stamp, improved, failed = windowed_turning_kernel(
-                self.nbr, self.cell_of, self.width, self.move, gc, self.ofields.fields, rows, far, order, window,
-                self.expansions, keep, paths, self._occ, self._seen, self._parent, self._heap, self._stamp)
+                (self.nbr, self.cell_of, self.width, self.move), gc, (self.ofields.fields, rows, far), order,
+                (window, self.expansions), keep, paths, (self._occ, self._seen, self._parent, self._heap), self._stamp)
             self.improved += improved
             self.failed += failed
         p0, p1 = paths[:, 0], paths[:, 1]

@@ -31,17 +31,15 @@ TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "p
 
 def make_executor(name: str, grid, seed: int = 0, **options):
     """The executor ``name`` (``pibt`` or ``windowed``) on ``grid``; ``ValueError`` naming the known ones."""
-    try:
-        cls = EXECUTORS[name]
-    except KeyError:
-        raise ValueError(f"unknown executor {name!r}; known: {', '.join(EXECUTORS)}") from None
-    return cls(grid, seed=seed, **options)
+    return _make(EXECUTORS, "executor", name, grid, seed, options)
 
 
 def make_turning_executor(name: str, grid, seed: int = 0, **options):
-    """The turning executor ``name`` (``pibt`` or ``windowed``) on ``grid``; ``ValueError`` naming the known ones."""
-    try:
-        cls = TURNING_EXECUTORS[name]
-    except KeyError:
-        raise ValueError(f"unknown turning executor {name!r}; known: {', '.join(TURNING_EXECUTORS)}") from None
-    return cls(grid, seed=seed, **options)
+    """The turning executor ``name`` (:data:`TURNING_EXECUTORS`) on ``grid``; ``ValueError`` naming the known ones."""
+    return _make(TURNING_EXECUTORS, "turning executor", name, grid, seed, options)
+
+
+def _make(table: dict, kind: str, name: str, grid, seed: int, options: dict):
+    if name not in table:
+        raise ValueError(f"unknown {kind} {name!r}; known: {', '.join(table)}")
+    return table[name](grid, seed=seed, **options)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planners.mapf.guidance import spread
 from planners.mapf.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
 __all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths", "DEFAULT_REPLAN_WORK"]
@@ -166,16 +167,7 @@ def path_field(nbr, path, length, field, far, queue):
             field[p] = length - 1 - i
             queue[tail] = p
             tail += 1
-    head = 0
-    while head < tail:
-        p = queue[head]
-        head += 1
-        for d in range(4):
-            q = nbr[p, d]
-            if q >= 0 and field[q] == far:
-                field[q] = field[p] + 1
-                queue[tail] = q
-                tail += 1
+    spread(nbr, field, far, queue, tail)
 
 
 @numba.njit(cache=True, nogil=True)

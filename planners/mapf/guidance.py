@@ -14,7 +14,8 @@ import numba
 import numpy as np
 
 
-__all__ = ["check_guidance", "crisscross_costs", "distance_bound", "cost_rows", "orient_cost_rows", "MAX_GUIDANCE"]
+__all__ = ["check_guidance", "crisscross_costs", "distance_bound", "cost_rows", "orient_cost_rows", "spread",
+           "MAX_GUIDANCE"]
 
 #: Largest extra cost of a move against its lane.
 MAX_GUIDANCE = 16
@@ -74,7 +75,14 @@ def _reach(nbr, start, f, far):
     f[start] = 0
     queue = np.empty(nbr.shape[0], dtype=np.int64)
     queue[0] = start
-    head, tail = 0, 1
+    spread(nbr, f, far, queue, 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def spread(nbr, f, far, queue, tail):
+    """Breadth-first from the seeds ``queue[:tail]`` (their ``f`` set, every other cell ``far``): a cell
+    reached gets its parent's value + 1, the seeds' order deciding among parents of equal depth."""
+    head = 0
     while head < tail:
         p = queue[head]
         head += 1

@@ -132,19 +132,18 @@ def _register() -> None:
         from pettingzoo.env_registry.registration import aec_registry, parallel_registry, register
     except ImportError:  # older PettingZoo: no registry
         return
-    if "mrmt_env/mrmt_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_v0", entry_point="mrmt_env.grid.pz:env")
-    if "mrmt_env/mrmt_v0" not in parallel_registry:
-        register("parallel", "mrmt_env/mrmt_v0", entry_point="mrmt_env.grid.pz:parallel_env")
-    if "mrmt_env/mrmt_assign_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_assign_v0", entry_point="mrmt_env.assign.pz:assign_aec_env")
-    if "mrmt_env/mrmt_lifelong_v0" not in aec_registry:
-        register("aec", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong.pz:lifelong_env")
-    if "mrmt_env/mrmt_lifelong_v0" not in parallel_registry:
-        register("parallel", "mrmt_env/mrmt_lifelong_v0", entry_point="mrmt_env.lifelong.pz:lifelong_parallel_env")
-    if "mrmt_env/lorr_v0" not in parallel_registry:
-        register("parallel", "mrmt_env/lorr_v0", entry_point="mrmt_env.lorr.pz:lorr_parallel_env")
+    for kind, env_id, entry in _PETTINGZOO:
+        if env_id not in (aec_registry if kind == "aec" else parallel_registry):
+            register(kind, env_id, entry_point=entry)
 
+
+#: PettingZoo registrations: (API, id, entry point).
+_PETTINGZOO = (("aec", "mrmt_env/mrmt_v0", "mrmt_env.grid.pz:env"),
+               ("parallel", "mrmt_env/mrmt_v0", "mrmt_env.grid.pz:parallel_env"),
+               ("aec", "mrmt_env/mrmt_assign_v0", "mrmt_env.assign.pz:assign_aec_env"),
+               ("aec", "mrmt_env/mrmt_lifelong_v0", "mrmt_env.lifelong.pz:lifelong_env"),
+               ("parallel", "mrmt_env/mrmt_lifelong_v0", "mrmt_env.lifelong.pz:lifelong_parallel_env"),
+               ("parallel", "mrmt_env/lorr_v0", "mrmt_env.lorr.pz:lorr_parallel_env"))
 
 _register()
 

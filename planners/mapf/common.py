@@ -15,7 +15,10 @@ import numpy as np
 
 from mrmt_env.distances import bfs_flat
 
-__all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions"]
+__all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid"]
+
+_DR = (0, 1, 0, -1)  # east, south, west, north
+_DC = (1, 0, -1, 0)
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -123,3 +126,33 @@ def moves_to_actions(succ: np.ndarray, pos: np.ndarray, nxt: np.ndarray) -> np.n
     out = np.empty(len(pos), dtype=np.int64)
     _actions(succ, np.asarray(pos, dtype=np.int64), np.asarray(nxt, dtype=np.int64), out)
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _neighbours(flat_grid, width, cid, nbr):
+    h = flat_grid.shape[0] // width
+    for p in range(flat_grid.shape[0]):
+        i = cid[p]
+        if i < 0:
+            continue
+        r, c = p // width, p % width
+        for d in range(4):
+            nr, nc = r + _DR[d], c + _DC[d]
+            nbr[i, d] = -1
+            if 0 <= nr < h and 0 <= nc < width:
+                q = nr * width + nc
+                if not flat_grid[q]:
+                    nbr[i, d] = cid[q]
+
+
+def compact_grid(grid: np.ndarray):
+    """``(cid, cell_of, nbr)``: compact index of each flat cell (-1 blocked), the flat cell of each
+    compact index, and ``nbr[i, d]`` the compact neighbour of ``i`` in direction ``d`` (0 east,
+    1 south, 2 west, 3 north; -1 off the map or blocked -- a row end does not wrap)."""
+    flat = np.ascontiguousarray(grid, dtype=np.bool_).reshape(-1)
+    cell_of = np.flatnonzero(~flat).astype(np.int64)
+    cid = np.full(flat.size, -1, dtype=np.int64)
+    cid[cell_of] = np.arange(len(cell_of))
+    nbr = np.empty((len(cell_of), 4), dtype=np.int32)
+    _neighbours(flat, int(np.asarray(grid).shape[1]), cid, nbr)
+    return cid, cell_of, nbr

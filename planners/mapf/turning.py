@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.mapf.common import mix
+from planners.mapf.common import compact_grid, mix
 from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
@@ -54,38 +54,6 @@ GUIDED_WORK = 5
 #: Extra cost of a move against its lane (:mod:`planners.mapf.guidance`) of TurningPIBT, by default: chosen
 #: on RANDOM-01..05 (0, 2 and 4 tried, three seeds; docs/design/lifelong_turning.md).
 DEFAULT_GUIDANCE = 2
-_DR = (0, 1, 0, -1)  # east, south, west, north
-_DC = (1, 0, -1, 0)
-
-
-@numba.njit(cache=True, nogil=True)
-def _neighbours(flat_grid, width, cid, nbr):
-    h = flat_grid.shape[0] // width
-    for p in range(flat_grid.shape[0]):
-        i = cid[p]
-        if i < 0:
-            continue
-        r, c = p // width, p % width
-        for d in range(4):
-            nr, nc = r + _DR[d], c + _DC[d]
-            nbr[i, d] = -1
-            if 0 <= nr < h and 0 <= nc < width:
-                q = nr * width + nc
-                if not flat_grid[q]:
-                    nbr[i, d] = cid[q]
-
-
-def compact_grid(grid: np.ndarray):
-    """``(cid, cell_of, nbr)``: compact index of each flat cell (-1 blocked), the flat cell of each
-    compact index, and ``nbr[i, d]`` the compact neighbour of ``i`` in direction ``d`` (0 east,
-    1 south, 2 west, 3 north; -1 off the map or blocked -- a row end does not wrap)."""
-    flat = np.ascontiguousarray(grid, dtype=np.bool_).reshape(-1)
-    cell_of = np.flatnonzero(~flat).astype(np.int64)
-    cid = np.full(flat.size, -1, dtype=np.int64)
-    cid[cell_of] = np.arange(len(cell_of))
-    nbr = np.empty((len(cell_of), 4), dtype=np.int32)
-    _neighbours(flat, int(np.asarray(grid).shape[1]), cid, nbr)
-    return cid, cell_of, nbr
 
 
 @numba.njit(cache=True, nogil=True)

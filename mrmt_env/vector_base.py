@@ -28,9 +28,31 @@ import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from mrmt_env.core import check_step_limit
+from mrmt_env.core import N_ACTIONS, check_step_limit, show
 
-__all__ = ["BatchedVectorEnv"]
+__all__ = ["BatchedVectorEnv", "check_joint_moves"]
+
+
+def check_joint_moves(actions, live: np.ndarray, n_robots: int) -> np.ndarray:
+    """``(B, R)`` joint moves of a batch of robot envs as contiguous int64 (ignored envs' moves 0), or a
+    ``ValueError`` that names the first bad env and robot."""
+    shape = (live.shape[0], n_robots)
+    try:
+        a = np.asarray(actions)
+    except (TypeError, ValueError):
+        raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {show(actions)}") \
+            from None
+    if a.shape != shape or a.dtype.kind not in "iu":
+        raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
+                         f"shape {a.shape}")
+    if a.dtype == np.int64 and a.flags.c_contiguous and a.min() >= 0 and a.max() < N_ACTIONS:
+        return a  # the common case; an ignored env's action never matters
+    bad = live[:, None] & ((a < 0) | (a >= N_ACTIONS))
+    if bad.any():
+        b, k = (int(v) for v in np.argwhere(bad)[0])
+        raise ValueError(f"action for env {b} robot {k} is {int(a[b, k])}; valid moves are 0..{N_ACTIONS - 1} "
+                         "(0 stay, 1 up, 2 down, 3 left, 4 right)")
+    return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
 
 
 class BatchedVectorEnv(VectorEnv):

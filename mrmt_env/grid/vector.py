@@ -16,12 +16,12 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, MRMTCore, show
+from mrmt_env.core import N_ACTIONS, MRMTCore
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.grid.kernels import grid_load, grid_masks, grid_step
 from mrmt_env.grid.env import OBSERVATIONS
 from mrmt_env.observation import image_observation_space, observation_space, to_image
-from mrmt_env.vector_base import BatchedVectorEnv
+from mrmt_env.vector_base import BatchedVectorEnv, check_joint_moves
 
 __all__ = ["MRMTVectorEnv"]
 
@@ -78,23 +78,7 @@ class MRMTVectorEnv(BatchedVectorEnv):
         grid_load(i, self.grids[i], self.width, robots, targets, self._state, self.field, self.dense_reward > 0)
 
     def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
-        shape = (self.num_envs, self.n_robots)
-        try:
-            a = np.asarray(actions)
-        except (TypeError, ValueError):
-            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {show(actions)}") \
-                from None
-        if a.shape != shape or a.dtype.kind not in "iu":
-            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
-                             f"shape {a.shape}")
-        if a.dtype == np.int64 and a.flags.c_contiguous and a.min() >= 0 and a.max() < N_ACTIONS:
-            return a  # the common case; an ignored env's action never matters
-        bad = live[:, None] & ((a < 0) | (a >= N_ACTIONS))
-        if bad.any():
-            b, k = (int(v) for v in np.argwhere(bad)[0])
-            raise ValueError(f"action for env {b} robot {k} is {int(a[b, k])}; valid moves are 0..{N_ACTIONS - 1} "
-                             "(0 stay, 1 up, 2 down, 3 left, 4 right)")
-        return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
+        return check_joint_moves(actions, live, self.n_robots)
 
     def _step(self, actions: np.ndarray, live: np.ndarray):
         grid_step(actions, live, self._state, self.target_reward, self.grids, self.width, self.targets, self.field,

@@ -15,10 +15,10 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, show
+from mrmt_env.core import N_ACTIONS
 from mrmt_env.lifelong.env import LifelongSetup
 from mrmt_env.observation import observation_space
-from mrmt_env.vector_base import BatchedVectorEnv
+from mrmt_env.vector_base import BatchedVectorEnv, check_joint_moves
 
 __all__ = ["MRMTLifelongVectorEnv"]
 
@@ -48,23 +48,7 @@ class MRMTLifelongVectorEnv(BatchedVectorEnv):
         self.setup.start(self.state, i, rng)
 
     def _check_actions(self, actions, live: np.ndarray) -> np.ndarray:
-        shape = (self.num_envs, self.n_robots)
-        try:
-            a = np.asarray(actions)
-        except (TypeError, ValueError):
-            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {show(actions)}") \
-                from None
-        if a.shape != shape or a.dtype.kind not in "iu":
-            raise ValueError(f"actions must be integers 0..{N_ACTIONS - 1} of shape {shape}, got {a.dtype} "
-                             f"shape {a.shape}")
-        if a.dtype == np.int64 and a.flags.c_contiguous and a.min() >= 0 and a.max() < N_ACTIONS:
-            return a
-        bad = live[:, None] & ((a < 0) | (a >= N_ACTIONS))
-        if bad.any():
-            b, k = (int(v) for v in np.argwhere(bad)[0])
-            raise ValueError(f"action for env {b} robot {k} is {int(a[b, k])}; valid moves are 0..{N_ACTIONS - 1} "
-                             "(0 stay, 1 up, 2 down, 3 left, 4 right)")
-        return np.ascontiguousarray(np.where(live[:, None], a, 0), dtype=np.int64)
+        return check_joint_moves(actions, live, self.n_robots)
 
     def _step(self, actions: np.ndarray, live: np.ndarray):
         rewards = self.state.step(actions, live).copy()

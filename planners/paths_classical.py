@@ -46,6 +46,17 @@ __all__ = ["BFSPath", "AStarPath", "GreedyBestFirstPath", "grid_search"]
 _BFS, _ASTAR, _GBFS = 0, 1, 2
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _neighbour(grid, cur, m):
+    """Flat index of the free neighbour of cell ``cur`` in direction ``m`` (up, down, left, right), or -1."""
+    h, w = grid.shape
+    nr = cur // w + (-1, 1, 0, 0)[m]
+    nc = cur % w + (0, 0, -1, 1)[m]
+    if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
+        return nr * w + nc
+    return -1
+
+
 @numba.njit(cache=True, nogil=True)
 def _search(grid, sr, sc, gr, gc, mode):
     """Search from (sr, sc) to (gr, gc).  Returns (path (L+1, 2) int64, expanded).
@@ -57,8 +68,6 @@ def _search(grid, sr, sc, gr, gc, mode):
     parent = np.full(n, -1, dtype=np.int64)
     g = np.full(n, -1, dtype=np.int64)
     closed = np.zeros(n, dtype=np.bool_)
-    dr = (-1, 1, 0, 0)
-    dc = (0, 0, -1, 1)
     start = sr * w + sc
     goal = gr * w + gc
     g[start] = 0
@@ -73,21 +82,16 @@ def _search(grid, sr, sc, gr, gc, mode):
             cur = queue[head]
             head += 1
             expanded += 1
-            r = cur // w
-            c = cur % w
             for m in range(4):
-                nr = r + dr[m]
-                nc = c + dc[m]
-                if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
-                    nxt = nr * w + nc
-                    if g[nxt] < 0:
-                        g[nxt] = g[cur] + 1
-                        parent[nxt] = cur
-                        if nxt == goal:
-                            found = True
-                            break
-                        queue[tail] = nxt
-                        tail += 1
+                nxt = _neighbour(grid, cur, m)
+                if nxt >= 0 and g[nxt] < 0:
+                    g[nxt] = g[cur] + 1
+                    parent[nxt] = cur
+                    if nxt == goal:
+                        found = True
+                        break
+                    queue[tail] = nxt
+                    tail += 1
     else:
         # heap entries: (primary key, secondary key, insertion counter, cell)
         counter = 0
@@ -103,26 +107,21 @@ def _search(grid, sr, sc, gr, gc, mode):
             if cur == goal:
                 found = True
                 break
-            r = cur // w
-            c = cur % w
             for m in range(4):
-                nr = r + dr[m]
-                nc = c + dc[m]
-                if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
-                    nxt = nr * w + nc
-                    if closed[nxt]:
-                        continue
-                    ng = g[cur] + 1
-                    if g[nxt] >= 0 and (mode == _GBFS or ng >= g[nxt]):
-                        continue  # GBFS: first discovery fixes the parent
-                    g[nxt] = ng
-                    parent[nxt] = cur
-                    hn = abs(nr - gr) + abs(nc - gc)
-                    counter += 1
-                    if mode == _ASTAR:
-                        heapq.heappush(heap, (ng + hn, -ng, counter, nxt))
-                    else:
-                        heapq.heappush(heap, (hn, 0, counter, nxt))
+                nxt = _neighbour(grid, cur, m)
+                if nxt < 0 or closed[nxt]:
+                    continue
+                ng = g[cur] + 1
+                if g[nxt] >= 0 and (mode == _GBFS or ng >= g[nxt]):
+                    continue  # GBFS: first discovery fixes the parent
+                g[nxt] = ng
+                parent[nxt] = cur
+                hn = abs(nxt // w - gr) + abs(nxt % w - gc)
+                counter += 1
+                if mode == _ASTAR:
+                    heapq.heappush(heap, (ng + hn, -ng, counter, nxt))
+                else:
+                    heapq.heappush(heap, (hn, 0, counter, nxt))
     if not found:
         return np.empty((0, 2), dtype=np.int64), expanded
     length = g[goal]

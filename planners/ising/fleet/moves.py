@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 __all__ = ["walk", "candidate_moves", "conflicts", "pick_candidates", "score_reads", "apply_move", "route_cost",
-           "MOVE_KINDS"]
+           "unlink", "insert_after", "MOVE_KINDS"]
 
 MOVE_KINDS = ("relocate", "swap", "2-opt*", "2-opt")
 _EPS = 1e-9
@@ -223,20 +223,32 @@ def score_reads(spins, clash, gains):
     return valid, best_p, best_r, best
 
 
+@numba.njit(cache=True, inline="always")
+def unlink(nxt, prv, u):
+    """Take node ``u`` out of its route (``u``'s own links are left as they were)."""
+    p, n = prv[u], nxt[u]
+    nxt[p] = n
+    if n >= 0:
+        prv[n] = p
+
+
+@numba.njit(cache=True, inline="always")
+def insert_after(nxt, prv, u, x):
+    """Put node ``u`` right after node ``x``."""
+    w = nxt[x]
+    nxt[x] = u
+    prv[u] = x
+    nxt[u] = w
+    if w >= 0:
+        prv[w] = u
+
+
 @numba.njit(cache=True)
 def apply_move(nxt, prv, kind, a, b):
     """Apply one move by node (linked lists changed in place)."""
     if kind == 0:  # relocate a after b
-        p, n = prv[a], nxt[a]
-        nxt[p] = n
-        if n >= 0:
-            prv[n] = p
-        w = nxt[b]
-        nxt[b] = a
-        prv[a] = b
-        nxt[a] = w
-        if w >= 0:
-            prv[w] = a
+        unlink(nxt, prv, a)
+        insert_after(nxt, prv, a, b)
     elif kind == 1:  # swap a, b (different routes)
         pa, na, pb, nb = prv[a], nxt[a], prv[b], nxt[b]
         nxt[pa] = b

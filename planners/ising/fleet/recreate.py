@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planners.ising.fleet.moves import insert_after, unlink
+
 __all__ = ["ruin_recreate"]
 
 
@@ -32,10 +34,7 @@ def ruin_recreate(d, nxt, prv, r, seed, near, q, order):
     placed = np.ones(m, dtype=np.bool_)
     for i in range(q):  # take them out
         u = out[i]
-        p, n = prv[u], nxt[u]
-        nxt[p] = n
-        if n >= 0:
-            prv[n] = p
+        unlink(nxt, prv, u)
         nxt[u] = -1
         prv[u] = -1
         placed[u] = False
@@ -51,10 +50,5 @@ def ruin_recreate(d, nxt, prv, r, seed, near, q, order):
             g = d[x, u] + (d[u, w] - d[x, w] if w >= 0 else 0.0)
             if g < best:
                 best, best_x = g, x
-        w = nxt[best_x]
-        nxt[best_x] = u
-        prv[u] = best_x
-        nxt[u] = w
-        if w >= 0:
-            prv[w] = u
+        insert_after(nxt, prv, u, best_x)
         placed[u] = True

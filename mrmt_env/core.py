@@ -41,7 +41,7 @@ from mrmt_env.world import World
 
 __all__ = [
     "MRMTCore", "WorldSource", "action_between", "show", "actions_from_path", "check_render_mode", "check_step_limit",
-    "N_ACTIONS", "ACTION_NAMES",
+    "render_ready", "N_ACTIONS", "ACTION_NAMES",
     "successor_table", "MAX_GRID_ENV_CELLS", "check_grid_env_cells",
 ]
 
@@ -68,6 +68,20 @@ def check_render_mode(render_mode, render_modes) -> None:
     """Raise ``ValueError`` unless ``render_mode`` is ``None`` or one of ``render_modes``."""
     if render_mode is not None and render_mode not in render_modes:
         raise ValueError(f"render_mode must be one of {render_modes} or None, got {render_mode!r}")
+
+
+def render_ready(started: bool, render_mode) -> bool:
+    """A single env's ``render()`` guard: ``RuntimeError`` before ``reset()``; ``False`` (with gymnasium's
+    warning) without a render mode."""
+    if not started:
+        raise RuntimeError("call reset() before render()")
+    if render_mode is None:
+        from gymnasium import logger
+
+        logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'",
+                    stacklevel=2)  # attributed to the env's render(), as before
+        return False
+    return True
 
 
 #: Largest grid (cells; 1024 x 1024) of the step-level grid envs: they keep a Python move table per

@@ -8,7 +8,7 @@ from gymnasium import spaces
 
 from mrmt_env.config import WorldConfig
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import check_render_mode, check_step_limit, show
+from mrmt_env.core import check_render_mode, check_step_limit, render_ready, show
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -185,10 +185,7 @@ class MRMTAssignEnv(gym.Env):
         return self.state.masks()[0]
 
     def render(self):
-        if self.world is None:
-            raise RuntimeError("call reset() before render()")
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'")
+        if not render_ready(self.world is not None, self.render_mode):
             return None
         pos = self.state.positions(0)
         visited = self.state.visited(0)

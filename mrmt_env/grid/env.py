@@ -7,7 +7,7 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, show
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, render_ready, show
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
@@ -286,10 +286,7 @@ class MRMTEnv(gym.Env):
         return self._obs(), float(reward), terminated, truncated, core.info()
 
     def render(self):
-        if self.core.world is None:
-            raise RuntimeError("call reset() before render()")
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'")
+        if not render_ready(self.core.world is not None, self.render_mode):
             return None
         return self.core.render(self.render_mode, makespan=True)
 

@@ -7,7 +7,7 @@ import numpy as np
 from gymnasium import spaces
 
 from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, render_ready
 from mrmt_env.grid.env import check_joint_action
 from mrmt_env.lifelong.state import LifelongBatch, LifelongOptions, task_pool
 from mrmt_env.observation import observation_space
@@ -154,10 +154,7 @@ class MRMTLifelongEnv(gym.Env):
         return self._obs(), reward, False, truncated, info
 
     def render(self):
-        if self.world is None:
-            raise RuntimeError("call reset() before render()")
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='ansi' or 'rgb_array'")
+        if not render_ready(self.world is not None, self.render_mode):
             return None
         return render_state(self.state, 0, self.render_mode)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import sys
 
 from agents.commands.options import (add_chip_argument, add_host_rule_argument, chip_from_args, host_rule_from_args, add_runner_arguments, check_positive, check_seed,
-                                     runner_from_args)
+                                     add_world_arguments, runner_from_args)
 
 NAME = "compare"
 HELP = "compare planners and learned agents episode by episode on the same worlds"
@@ -23,17 +23,7 @@ HELP = "compare planners and learned agents episode by episode on the same world
 
 def add_arguments(parser) -> None:
     parser.add_argument("--worlds", type=int, default=20, help="worlds (episodes) per controller and seed (default 20)")
-    parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
-    parser.add_argument("--robots", type=int, default=None, help="robots per world (default: the env id's, 3)")
-    parser.add_argument("--targets", type=int, default=None, help="targets per world (default: the env id's, 10)")
-    parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
-    parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
-    parser.add_argument("--density", type=float, default=None, help="obstacle density (default: the env id's, 0.2)")
-    parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
-    from mrmt_env.maps import LAYOUTS
-
-    parser.add_argument("--layout", default=None, choices=LAYOUTS,
-                        help="map family (default: the env id's; docs/maps.md)")
+    add_world_arguments(parser)
     parser.add_argument(
         "--controllers",
         default="fast,strong,ising",

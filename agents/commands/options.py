@@ -37,6 +37,23 @@ def runner_from_args(args):
     return run
 
 
+def add_world_arguments(parser, density: bool = True) -> None:
+    """``--env-id`` and the world overrides ``--robots/--targets/--height/--width[/--density]/--placement/--layout``
+    (each ``None`` unless given: the env id's default)."""
+    from mrmt_env.maps import LAYOUTS
+
+    parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
+    parser.add_argument("--robots", type=int, default=None, help="robots per world (default: the env id's, 3)")
+    parser.add_argument("--targets", type=int, default=None, help="targets per world (default: the env id's, 10)")
+    parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
+    parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
+    if density:
+        parser.add_argument("--density", type=float, default=None, help="obstacle density (default: the env id's, 0.2)")
+    parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
+    parser.add_argument("--layout", default=None, choices=LAYOUTS,
+                        help="map family (default: the env id's; docs/maps.md)")
+
+
 def add_chip_argument(parser, who: str = "the Ising planners", chip: bool = True) -> None:
     """``--chip`` (unless ``chip=False``: the command has its own), ``--sampler`` and ``--sampler-option``."""
     from ising_backend import SAMPLERS

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import add_chip_argument, add_runner_arguments, chip_from_args, check_positive, check_seed, runner_from_args
+from agents.commands.options import (add_chip_argument, add_runner_arguments, add_world_arguments, chip_from_args, check_positive,
+                                     check_seed, runner_from_args)
 
 NAME = "sweep"
 HELP = "sweep chip specs (a grid of ChipSpec values) over worlds and controllers; Pareto figures and a summary"
@@ -37,16 +38,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--worlds", type=int, default=20, help="worlds per spec and controller (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="first world seed (default 0)")
     parser.add_argument("--seeds", type=int, default=1, help="controller seeds per world: 0..K-1 (default 1)")
-    parser.add_argument("--env-id", default="mrmt_env/MRMT-v0", help="Gymnasium env id (default mrmt_env/MRMT-v0)")
-    parser.add_argument("--robots", type=int, default=None, help="robots per world (default: the env id's, 3)")
-    parser.add_argument("--targets", type=int, default=None, help="targets per world (default: the env id's, 10)")
-    parser.add_argument("--height", type=int, default=None, help="grid height (default: the env id's, 10)")
-    parser.add_argument("--width", type=int, default=None, help="grid width (default: the env id's, 10)")
-    parser.add_argument("--placement", default=None, choices=("uniform", "centre"), help="robot placement")
-    from mrmt_env.maps import LAYOUTS
-
-    parser.add_argument("--layout", default=None, choices=LAYOUTS,
-                        help="map family (default: the env id's; docs/maps.md)")
+    add_world_arguments(parser, density=False)
     parser.add_argument("--max-steps", type=int, default=None, help="episode step limit (default as mrmt compare)")
     add_runner_arguments(parser)
     parser.add_argument("--out", required=True, help="output directory")

@@ -66,6 +66,25 @@ def _labels(labels, n: int):
     return labels
 
 
+def _checked(lin, quad, offset, labels, lin_name: str, quad_name: str):
+    """``(lin, quad, offset, labels)`` of a public construction: copied float64, ``quad`` folded upper,
+    all finite, arrays read-only; a :class:`ModelError` names the first fault."""
+    lin = np.array(lin, dtype=np.float64, copy=True).reshape(-1)
+    quad = _as_upper(quad if np.size(quad) else np.zeros((lin.size, lin.size)), lin.size, quad_name)
+    _check_finite(lin, lin_name)
+    _check_finite(quad, quad_name)
+    if not np.isfinite(offset):
+        raise ModelError(f"offset = {offset!r} is not finite")
+    lin.setflags(write=False)
+    quad.setflags(write=False)
+    return lin, quad, float(offset), _labels(labels, lin.size)
+
+
+def _energy(values: np.ndarray, lin: np.ndarray, quad: np.ndarray, offset: float) -> np.ndarray | float:
+    e = values @ lin + np.einsum("...i,ij,...j->...", values, quad, values) + offset
+    return float(e) if np.ndim(e) == 0 else e
+
+
 @dataclass(frozen=True, eq=False)
 class IsingModel:
     """Ising model ``E(s) = h.s + sum_{i<j} J_ij s_i s_j + offset``.
@@ -83,18 +102,11 @@ class IsingModel:
     labels: tuple | None = field(default=None)
 
     def __post_init__(self):
-        h = np.array(self.h, dtype=np.float64, copy=True).reshape(-1)
-        J = _as_upper(self.J if np.size(self.J) else np.zeros((h.size, h.size)), h.size, "J")
-        _check_finite(h, "h")
-        _check_finite(J, "J")
-        if not np.isfinite(self.offset):
-            raise ModelError(f"offset = {self.offset!r} is not finite")
-        h.setflags(write=False)
-        J.setflags(write=False)
+        h, J, offset, labels = _checked(self.h, self.J, self.offset, self.labels, "h", "J")
         object.__setattr__(self, "h", h)
         object.__setattr__(self, "J", J)
-        object.__setattr__(self, "offset", float(self.offset))
-        object.__setattr__(self, "labels", _labels(self.labels, h.size))
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "labels", labels)
 
     @classmethod
     def trusted(cls, h: np.ndarray, J: np.ndarray, offset: float = 0.0, labels: tuple | None = None) -> "IsingModel":
@@ -132,8 +144,7 @@ class IsingModel:
         s = np.asarray(spins, dtype=np.float64)
         if s.shape[-1:] != (self.n,):
             raise ModelError(f"spins have trailing size {s.shape[-1:]} for a model of {self.n} spins")
-        e = s @ self.h + np.einsum("...i,ij,...j->...", s, self.J, s) + self.offset
-        return float(e) if np.ndim(e) == 0 else e
+        return _energy(s, self.h, self.J, self.offset)
 
     def is_integer(self) -> bool:
         return bool(np.all(self.h == np.round(self.h)) and np.all(self.J == np.round(self.J)))
@@ -188,18 +199,11 @@ class QuboModel:
     labels: tuple | None = field(default=None)
 
     def __post_init__(self):
-        q = np.array(self.q, dtype=np.float64, copy=True).reshape(-1)
-        Q = _as_upper(self.Q if np.size(self.Q) else np.zeros((q.size, q.size)), q.size, "Q")
-        _check_finite(q, "q")
-        _check_finite(Q, "Q")
-        if not np.isfinite(self.offset):
-            raise ModelError(f"offset = {self.offset!r} is not finite")
-        q.setflags(write=False)
-        Q.setflags(write=False)
+        q, Q, offset, labels = _checked(self.q, self.Q, self.offset, self.labels, "q", "Q")
         object.__setattr__(self, "q", q)
         object.__setattr__(self, "Q", Q)
-        object.__setattr__(self, "offset", float(self.offset))
-        object.__setattr__(self, "labels", _labels(self.labels, q.size))
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "labels", labels)
 
     @property
     def n(self) -> int:
@@ -214,8 +218,7 @@ class QuboModel:
         b = np.asarray(x, dtype=np.float64)
         if b.shape[-1:] != (self.n,):
             raise ModelError(f"bits have trailing size {b.shape[-1:]} for a model of {self.n} variables")
-        e = b @ self.q + np.einsum("...i,ij,...j->...", b, self.Q, b) + self.offset
-        return float(e) if np.ndim(e) == 0 else e
+        return _energy(b, self.q, self.Q, self.offset)
 
     def to_ising(self) -> IsingModel:
         """Exact Ising model with ``x = (1 + s) / 2`` (same energy for every configuration)."""

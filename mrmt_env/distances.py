@@ -11,7 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat", "component_labels"]
+__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat", "component_labels",
+           "free_neighbour"]
 
 UNREACHABLE = -1
 
@@ -52,6 +53,17 @@ def _bfs_many(grid: np.ndarray, sources: np.ndarray, out: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
+def free_neighbour(flat_grid, width, p, m) -> int:
+    """The free flat cell next to flat ``p`` in direction ``m`` (0 up, 1 down, 2 left, 3 right: the order
+    of :data:`MOVES`), -1 off the map or blocked (``width`` columns; a row end does not wrap)."""
+    r, c = p // width, p % width
+    nr, nc = r + (-1, 1, 0, 0)[m], c + (0, 0, -1, 1)[m]
+    if 0 <= nr < flat_grid.shape[0] // width and 0 <= nc < width and not flat_grid[nr * width + nc]:
+        return nr * width + nc
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
 def bfs_flat(flat_grid, width, field, queue, n_sources) -> int:
     """Multi-source BFS on a flat grid (cells ``r * width + c``), in place, for compiled callers.
 
@@ -60,22 +72,16 @@ def bfs_flat(flat_grid, width, field, queue, n_sources) -> int:
     source (-1 where none is reachable) and ``queue[:k]`` the ``k`` cells reached
     (sources included); returns ``k``.  Cells already >= 0 in ``field`` are not entered.
     """
-    n = flat_grid.shape[0]
-    h = n // width
     head, tail = 0, n_sources
     while head < tail:
         p = queue[head]
         head += 1
-        r, c = p // width, p % width
         for m in range(4):
-            nr = r + (-1, 1, 0, 0)[m]
-            nc = c + (0, 0, -1, 1)[m]
-            if 0 <= nr < h and 0 <= nc < width:
-                q = nr * width + nc
-                if not flat_grid[q] and field[q] < 0:
-                    field[q] = field[p] + 1
-                    queue[tail] = q
-                    tail += 1
+            q = free_neighbour(flat_grid, width, p, m)
+            if q >= 0 and field[q] < 0:
+                field[q] = field[p] + 1
+                queue[tail] = q
+                tail += 1
     return tail
 
 

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mrmt_env.distances import free_neighbour
+
 __all__ = ["GreedyScheduler", "pair_distances", "greedy_kernel", "FAR"]
 
 #: Cost of an unreachable errand (larger than any path).
@@ -31,7 +33,6 @@ def pair_distances(flat_grid, width, a, b, out) -> int:
     """``out[k]`` = BFS moves from ``a[k]`` to ``b[k]`` (flat cells), -1 if unreachable; returns the
     cells visited (the work done)."""
     n = flat_grid.shape[0]
-    h = n // width
     dist = np.full(n, -1, dtype=np.int64)
     queue = np.empty(n, dtype=np.int64)
     work = 0
@@ -48,18 +49,14 @@ def pair_distances(flat_grid, width, a, b, out) -> int:
         while head < tail and found < 0:
             p = queue[head]
             head += 1
-            r, c = p // width, p % width
             for m in range(4):
-                nr = r + (-1, 1, 0, 0)[m]
-                nc = c + (0, 0, -1, 1)[m]
-                if 0 <= nr < h and 0 <= nc < width:
-                    q = nr * width + nc
-                    if not flat_grid[q] and dist[q] < 0:
-                        dist[q] = dist[p] + 1
-                        queue[tail] = q
-                        tail += 1
-                        if q == g:
-                            found = dist[q]
+                q = free_neighbour(flat_grid, width, p, m)
+                if q >= 0 and dist[q] < 0:
+                    dist[q] = dist[p] + 1
+                    queue[tail] = q
+                    tail += 1
+                    if q == g:
+                        found = dist[q]
         out[k] = found
         work += tail
         for i in range(tail):
@@ -77,7 +74,6 @@ def greedy_kernel(flat_grid, width, robots, cell_start, cell_tasks, length, task
     plus ``min_len`` exceeds the best cost found, so near tasks cost a small search.  Robots are
     taken in order until ``budget`` cells were visited (at least one); returns how many were."""
     n = flat_grid.shape[0]
-    h = n // width
     dist = np.full(n, -1, dtype=np.int64)
     queue = np.empty(n, dtype=np.int64)
     left = 0
@@ -110,16 +106,12 @@ def greedy_kernel(flat_grid, width, robots, cell_start, cell_tasks, length, task
                     if c < best_cost or (c == best_cost and task_id[k] < task_id[best]):
                         best_cost = c
                         best = k
-            r, cc = p // width, p % width
             for m in range(4):
-                nr = r + (-1, 1, 0, 0)[m]
-                nc = cc + (0, 0, -1, 1)[m]
-                if 0 <= nr < h and 0 <= nc < width:
-                    q = nr * width + nc
-                    if not flat_grid[q] and dist[q] < 0:
-                        dist[q] = d + 1
-                        queue[tail] = q
-                        tail += 1
+                q = free_neighbour(flat_grid, width, p, m)
+                if q >= 0 and dist[q] < 0:
+                    dist[q] = d + 1
+                    queue[tail] = q
+                    tail += 1
         work += tail
         for j in range(tail):
             dist[queue[j]] = -1

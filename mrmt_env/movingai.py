@@ -20,15 +20,14 @@ from mrmt_env.generation import MAX_GRID_CELLS, _largest_component
 from mrmt_env.io import _short, grid_from_rows, grid_to_rows, read_text
 from mrmt_env.world import World, WorldError
 
-__all__ = ["Scenario", "read_movingai_map", "read_movingai_scen", "world_from_movingai", "write_movingai_map",
+__all__ = ["Scenario", "map_header", "read_movingai_map", "read_movingai_scen", "world_from_movingai", "write_movingai_map",
            "write_movingai_scen", "octile_distance_field"]
 
 
-def read_movingai_map(path) -> np.ndarray:
-    """Read a MovingAI ``.map`` file as a bool obstacle grid ``(H, W)``."""
-    text = read_text(path, "map file")
-    lines = (text[:-1] if text.endswith("\n") else text).split("\n")
-    header: dict[str, str] = {}
+def map_header(lines: list[str], path, error=WorldError) -> tuple[dict[str, tuple[int, str]], int]:
+    """The header of a MovingAI map's ``lines``: ``({key: (line number, value)}, index of the first map
+    row)``; a bad line or no ``map`` line raises ``error`` naming the file and the line."""
+    header: dict[str, tuple[int, str]] = {}
     i = 0
     while i < len(lines):
         line = lines[i].strip()
@@ -36,14 +35,21 @@ def read_movingai_map(path) -> np.ndarray:
         if not line:
             continue
         if line.lower() == "map":
-            break
+            return header, i
         parts = line.split(None, 1)
         if len(parts) != 2:
-            raise WorldError(f"{path} line {i}: bad header line {_short(line)} (expected 'type', 'height', "
-                             "'width', 'map')")
-        header[parts[0].lower()] = parts[1].strip()
-    else:
-        raise WorldError(f"{path}: no 'map' line ending the header")
+            raise error(f"{path} line {i}: bad header line {_short(line)} (expected 'type octile', 'height H', "
+                        "'width W', 'map')")
+        header[parts[0].lower()] = (i, parts[1].strip())
+    raise error(f"{path}: no 'map' line ending the header")
+
+
+def read_movingai_map(path) -> np.ndarray:
+    """Read a MovingAI ``.map`` file as a bool obstacle grid ``(H, W)``."""
+    text = read_text(path, "map file")
+    lines = (text[:-1] if text.endswith("\n") else text).split("\n")
+    numbered, i = map_header(lines, path)
+    header = {key: value for key, (_n, value) in numbered.items()}
     try:
         height = int(header["height"])
         width = int(header["width"])

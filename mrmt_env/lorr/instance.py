@@ -21,6 +21,7 @@ import numpy as np
 
 from mrmt_env.generation import MAX_GRID_CELLS
 from mrmt_env.io import read_text
+from mrmt_env.movingai import map_header
 from mrmt_env.world import WorldError
 
 __all__ = ["LoRRInstance", "LoRRFormatError", "read_instance", "read_lorr_map", "example_instance_path",
@@ -114,22 +115,7 @@ def read_lorr_map(path) -> np.ndarray:
     """A MovingAI map as the start kit reads it: ``(H, W)`` bool, ``@`` and ``T`` blocked."""
     path = Path(path)
     lines = _lines(path, "map file")
-    header: dict[str, tuple[int, str]] = {}
-    i = 0
-    while i < len(lines):
-        line = lines[i].strip()
-        i += 1
-        if not line:
-            continue
-        if line.lower() == "map":
-            break
-        parts = line.split(None, 1)
-        if len(parts) != 2:
-            raise LoRRFormatError(f"{path} line {i}: bad header line {line[:60]!r} (expected 'type octile', "
-                                  "'height H', 'width W', 'map')")
-        header[parts[0].lower()] = (i, parts[1].strip())
-    else:
-        raise LoRRFormatError(f"{path}: no 'map' line ending the header")
+    header, i = map_header(lines, path, LoRRFormatError)
     dims = []
     for key in ("height", "width"):
         if key not in header:

@@ -54,6 +54,16 @@ class LoRRSetup:
         self.sim: LoRRSimulator | None = None
         self.pending: np.ndarray | None = None
 
+    def observation_space(self, shape: tuple) -> spaces.Dict:
+        """The observation of ``shape`` (``(R,)`` for the whole team, ``()`` for one robot)."""
+        cells, big = self.instance.grid.size, np.iinfo(np.int64).max
+        return spaces.Dict({
+            "position": spaces.Box(0, cells - 1, shape, np.int64),
+            "orientation": spaces.Box(0, 3, shape, np.int64),
+            "task": spaces.Box(-1, big, shape, np.int64),
+            "goal": spaces.Box(-1, cells - 1, shape, np.int64),
+        })
+
     def reset(self) -> None:
         self.sim = LoRRSimulator(self.instance, action_model=self.action_model)
         if self.scheduler is not None and hasattr(self.scheduler, "reset"):
@@ -124,16 +134,10 @@ class LoRREnv(gym.Env):
         self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance
         self.instance = inst
-        r, cells = inst.team_size, inst.grid.size
+        r = inst.team_size
         self.n_robots = r
         self.action_space = spaces.MultiDiscrete([self.setup.n_actions] * r)
-        big = np.iinfo(np.int64).max
-        self.observation_space = spaces.Dict({
-            "position": spaces.Box(0, cells - 1, (r,), np.int64),
-            "orientation": spaces.Box(0, 3, (r,), np.int64),
-            "task": spaces.Box(-1, big, (r,), np.int64),
-            "goal": spaces.Box(-1, cells - 1, (r,), np.int64),
-        })
+        self.observation_space = self.setup.observation_space((r,))
 
     @property
     def sim(self) -> LoRRSimulator:

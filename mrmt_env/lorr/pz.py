@@ -31,16 +31,10 @@ class LoRRParallelEnv(ParallelEnv):
         self.render_mode = render_mode
         self.setup = LoRRSetup(instance, steps, scheduler, action_model)
         inst = self.setup.instance
-        cells = inst.grid.size
         self.possible_agents = [f"robot_{k}" for k in range(inst.team_size)]
         self.agents: list[str] = []
         big = np.iinfo(np.int64).max
-        obs = spaces.Dict({
-            "position": spaces.Box(0, cells - 1, (), np.int64),
-            "orientation": spaces.Box(0, 3, (), np.int64),
-            "task": spaces.Box(-1, big, (), np.int64),
-            "goal": spaces.Box(-1, cells - 1, (), np.int64),
-        })
+        obs = self.setup.observation_space(())
         self._obs_space = obs
         self._act_space = spaces.Discrete(self.setup.n_actions)
         self.state_space = spaces.Box(-1, big, (inst.team_size, 4), np.int64)

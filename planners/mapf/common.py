@@ -15,7 +15,8 @@ import numpy as np
 
 from mrmt_env.distances import bfs_flat
 
-__all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid"]
+__all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid", "sort_options",
+           "pibt_core"]
 
 _DR = (0, 1, 0, -1)  # east, south, west, north
 _DC = (1, 0, -1, 0)
@@ -156,3 +157,73 @@ def compact_grid(grid: np.ndarray):
     nbr = np.empty((len(cell_of), 4), dtype=np.int32)
     _neighbours(flat, int(np.asarray(grid).shape[1]), cid, nbr)
     return cid, cell_of, nbr
+
+
+@numba.njit(cache=True, nogil=True)
+def sort_options(n, out, keys, turns, ties) -> None:
+    """Insertion sort of ``out[:n]`` by (``keys``, ``turns``, ``ties``), the arrays permuted alike."""
+    for i in range(1, n):
+        j = i
+        while j > 0 and (keys[j - 1] > keys[j] or (keys[j - 1] == keys[j] and (
+                turns[j - 1] > turns[j] or (turns[j - 1] == turns[j] and ties[j - 1] > ties[j])))):
+            keys[j - 1], keys[j] = keys[j], keys[j - 1]
+            turns[j - 1], turns[j] = turns[j], turns[j - 1]
+            ties[j - 1], ties[j] = ties[j], ties[j - 1]
+            out[j - 1], out[j] = out[j], out[j - 1]
+            j -= 1
+
+
+@numba.njit(cache=True, nogil=True)
+def pibt_core(pos, order, options, nxt, occ) -> None:
+    """PIBT on an explicit stack (the recursion of the tests' oracles): robots in ``order`` with ``nxt``
+    -1 claim the first free cell of ``cand[a, :ncand[a]]`` (``options = (cand, ncand)``, fixed for the
+    step), pushing the robot standing there, which may not take its pusher's cell; a robot left
+    without a cell stays, taking its cell back.  A robot whose ``nxt`` is set on entry is neither
+    planned nor pushed.  ``occ = (occ_now, occ_next)``: the robot on each cell now and each cell's
+    claimant (-1 none)."""
+    cand, ncand = options
+    occ_now, occ_next = occ
+    r = pos.shape[0]
+    st_a = np.empty(r, dtype=np.int64)
+    st_b = np.empty(r, dtype=np.int64)
+    st_i = np.empty(r, dtype=np.int64)
+    for idx in range(r):
+        a0 = order[idx]
+        if nxt[a0] != -1:
+            continue
+        st_a[0], st_b[0], st_i[0] = a0, -1, 0
+        top = 1
+        returned = False  # the frame on top gets a child's result
+        result = False
+        while top > 0:
+            f = top - 1
+            a, b = st_a[f], st_b[f]
+            if returned and result:  # the pushed robot moved away: a keeps its cell
+                top -= 1
+                continue
+            returned = False
+            pushed = False
+            done = False
+            while st_i[f] < ncand[a]:
+                v = cand[a, st_i[f]]
+                st_i[f] += 1
+                if occ_next[v] != -1 or (b != -1 and v == pos[b]):
+                    continue
+                occ_next[v] = a
+                nxt[a] = v
+                c = occ_now[v]
+                if c != -1 and nxt[c] == -1:
+                    st_a[top], st_b[top], st_i[top] = c, a, 0
+                    top += 1
+                    pushed = True
+                else:
+                    done = True
+                break
+            if pushed:
+                continue
+            if not done:  # nowhere to go: stay (taking the cell back from whoever claimed it)
+                occ_next[pos[a]] = a
+                nxt[a] = pos[a]
+            top -= 1
+            returned = True
+            result = done

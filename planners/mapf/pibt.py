@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.mapf.common import GoalFields, mix, moves_to_actions, successor_table
+from planners.mapf.common import GoalFields, mix, moves_to_actions, pibt_core, sort_options, successor_table
 
 __all__ = ["PIBT", "pibt_kernel", "candidates"]
 
@@ -49,13 +49,7 @@ def candidates(succ, pos_a, field, seed, t, a, out) -> int:
         ties[n] = mix(seed, t, a, v)
         out[n] = v
         n += 1
-    for i in range(1, n):  # insertion sort on (distance, tie)
-        j = i
-        while j > 0 and (keys[j - 1] > keys[j] or (keys[j - 1] == keys[j] and ties[j - 1] > ties[j])):
-            keys[j - 1], keys[j] = keys[j], keys[j - 1]
-            ties[j - 1], ties[j] = ties[j], ties[j - 1]
-            out[j - 1], out[j] = out[j], out[j - 1]
-            j -= 1
+    sort_options(n, out, keys, np.zeros(5, dtype=np.int64), ties)
     return n
 
 
@@ -65,59 +59,13 @@ def pibt_kernel(succ, pos, fields, rows, order, seed, t, nxt, occ_now, occ_next)
     distance field, ``order`` the robots by decreasing priority; ``occ_now`` / ``occ_next`` are
     scratch arrays over cells, all -1 on entry and on return."""
     r = pos.shape[0]
-    st_a = np.empty(r, dtype=np.int64)
-    st_b = np.empty(r, dtype=np.int64)
-    st_i = np.empty(r, dtype=np.int64)
-    st_n = np.empty(r, dtype=np.int64)
     cand = np.empty((r, 5), dtype=np.int64)
+    ncand = np.empty(r, dtype=np.int64)
     for k in range(r):
         occ_now[pos[k]] = k
         nxt[k] = -1
-    for idx in range(r):
-        a0 = order[idx]
-        if nxt[a0] != -1:
-            continue
-        top = 0
-        st_a[0], st_b[0], st_i[0] = a0, -1, 0
-        st_n[0] = candidates(succ, pos[a0], fields[rows[a0]], seed, t, a0, cand[0])
-        top = 1
-        returned = False  # the frame on top gets a child's result
-        result = False
-        while top > 0:
-            f = top - 1
-            a, b = st_a[f], st_b[f]
-            if returned and result:  # the child moved away: a keeps its reserved cell
-                top -= 1
-                continue
-            returned = False
-            pushed = False
-            done = False
-            while st_i[f] < st_n[f]:
-                v = cand[f, st_i[f]]
-                st_i[f] += 1
-                if occ_next[v] != -1:
-                    continue
-                if b != -1 and v == pos[b]:
-                    continue
-                occ_next[v] = a
-                nxt[a] = v
-                c = occ_now[v]
-                if c != -1 and nxt[c] == -1:
-                    st_a[top], st_b[top], st_i[top] = c, a, 0
-                    st_n[top] = candidates(succ, pos[c], fields[rows[c]], seed, t, c, cand[top])
-                    top += 1
-                    pushed = True
-                else:
-                    done = True
-                break
-            if pushed:
-                continue
-            if not done:  # no cell left: stay (the cell is taken from whoever reserved it)
-                occ_next[pos[a]] = a
-                nxt[a] = pos[a]
-            top -= 1
-            returned = True
-            result = done
+        ncand[k] = candidates(succ, pos[k], fields[rows[k]], seed, t, k, cand[k])
+    pibt_core(pos, order, (cand, ncand), nxt, (occ_now, occ_next))
     for k in range(r):
         occ_now[pos[k]] = -1
         occ_next[nxt[k]] = -1

@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.mapf.common import compact_grid, mix
+from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
 from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
@@ -198,76 +198,22 @@ def _candidates(grid, robots, heuristic, stamp, a, out, buf) -> int:
         turns[n] = 0 if d == o else (2 if d == (o + 2) % 4 else 1)
         ties[n] = mix(seed, t, a, cell_of[v])
         n += 1
-    for i in range(1, n):  # insertion sort
-        j = i
-        while j > 0 and (keys[j - 1] > keys[j] or (keys[j - 1] == keys[j] and (
-                turns[j - 1] > turns[j] or (turns[j - 1] == turns[j] and ties[j - 1] > ties[j])))):
-            keys[j - 1], keys[j] = keys[j], keys[j - 1]
-            turns[j - 1], turns[j] = turns[j], turns[j - 1]
-            ties[j - 1], ties[j] = ties[j], ties[j - 1]
-            out[j - 1], out[j] = out[j], out[j - 1]
-            j -= 1
+    sort_options(n, out, keys, turns, ties)
     return n
 
 
 @numba.njit(cache=True, nogil=True)
 def _pibt(grid, robots, heuristic, order, stamp, nxt, occ):
-    """PIBT over compact cells on an explicit stack (the recursion of the oracle in the tests); a robot
-    with ``nxt`` set on entry (a commitment) is neither planned nor pushed."""
+    """PIBT (:func:`~planners.mapf.common.pibt_core`) over every robot's cells of :func:`_candidates`; a
+    robot with ``nxt`` set on entry (a commitment) is neither planned nor pushed."""
     pos = robots[0]
-    occ_now, occ_next = occ
     r = pos.shape[0]
-    st_a = np.empty(r, dtype=np.int64)
-    st_b = np.empty(r, dtype=np.int64)
-    st_i = np.empty(r, dtype=np.int64)
-    st_n = np.empty(r, dtype=np.int64)
     cand = np.empty((r, 5), dtype=np.int64)
-    keys = np.empty(5, dtype=np.int64)
-    turns = np.empty(5, dtype=np.int64)
-    ties = np.empty(5, dtype=np.uint64)
-    buf = (keys, turns, ties)
-    for idx in range(r):
-        a0 = order[idx]
-        if nxt[a0] != -1:
-            continue
-        st_a[0], st_b[0], st_i[0] = a0, -1, 0
-        st_n[0] = _candidates(grid, robots, heuristic, stamp, a0, cand[0], buf)
-        top = 1
-        returned = False
-        result = False
-        while top > 0:
-            f = top - 1
-            a, b = st_a[f], st_b[f]
-            if returned and result:  # the pushed robot moved away: a keeps its cell
-                top -= 1
-                continue
-            returned = False
-            pushed = False
-            done = False
-            while st_i[f] < st_n[f]:
-                v = cand[f, st_i[f]]
-                st_i[f] += 1
-                if occ_next[v] != -1 or (b != -1 and v == pos[b]):
-                    continue
-                occ_next[v] = a
-                nxt[a] = v
-                c = occ_now[v]
-                if c != -1 and nxt[c] == -1:
-                    st_a[top], st_b[top], st_i[top] = c, a, 0
-                    st_n[top] = _candidates(grid, robots, heuristic, stamp, c, cand[top], buf)
-                    top += 1
-                    pushed = True
-                else:
-                    done = True
-                break
-            if pushed:
-                continue
-            if not done:  # nowhere to go: stay (taking the cell back from the robot that pushed)
-                occ_next[pos[a]] = a
-                nxt[a] = pos[a]
-            top -= 1
-            returned = True
-            result = done
+    ncand = np.empty(r, dtype=np.int64)
+    buf = (np.empty(5, dtype=np.int64), np.empty(5, dtype=np.int64), np.empty(5, dtype=np.uint64))
+    for k in range(r):
+        ncand[k] = _candidates(grid, robots, heuristic, stamp, k, cand[k], buf)
+    pibt_core(pos, order, (cand, ncand), nxt, occ)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -175,3 +175,12 @@ def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
     assert set(keep.tolist()) <= want
     with pytest.raises(ValueError, match="shortlist must be an integer >= 1 or None"):
         make_scheduler("strong", shortlist=0)
+
+
+@needs_shared
+def test_an_executor_that_cannot_take_the_team_is_refused_before_the_run():
+    warehouse = SHARED / "2024-main" / "warehouse.domain" / "WAREHOUSE.json"
+    proc = _mrmt("lorr", "run", str(warehouse), "--executor", "pibt-flow", "--steps", "2", timeout=120)
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "10000 robots x 38586 free cells need 3,086,880,000 bytes" in lines[0]

@@ -200,3 +200,6 @@ def test_bad_options_name_the_value():
     ex = FlowPIBT(grid, field_bytes=100)
     with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
         ex.actions(np.array([0, 1, 2]), np.zeros(3, dtype=np.int64), np.array([5, 6, 7]))
+    with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
+        FlowPIBT.check_team(grid, 3, field_bytes=100)
+    FlowPIBT.check_team(grid, 3)  # fits the default bound

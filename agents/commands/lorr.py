@@ -102,8 +102,9 @@ def _run(args) -> int:
     if args.seed < 0:
         return _fail(f"--seed must be >= 0, got {args.seed}")
     try:
-        for path in args.instances:
-            read_instance(path)
+        for path in args.instances:  # the instance, and whether the executor takes its team
+            inst = read_instance(path)
+            TURNING_EXECUTORS[args.executor].check_team(inst.grid, inst.team_size)
         chip = chip_from_args(args)
         options = {"replan": True} if args.replan else {}
         for s in schedulers:  # names and model files checked before anything starts

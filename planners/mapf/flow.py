@@ -26,7 +26,8 @@ import numpy as np
 from planners.mapf.guidance import spread
 from planners.mapf.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
-__all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths", "DEFAULT_REPLAN_WORK"]
+__all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths", "guide_bytes", "check_team",
+           "DEFAULT_REPLAN_WORK"]
 
 #: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this
 #: // free cells, at most one per robot (every robot on RANDOM's 819 cells; 22 on CITY-01's 47,240).
@@ -197,6 +198,21 @@ def _on_path(paths, lengths, pos, out):
                 break
 
 
+def guide_bytes(n_free: int, n_robots: int, cost_max: int = 1) -> tuple[int, np.dtype]:
+    """Bytes of the guide paths (int32) and fields of ``n_robots`` robots over ``n_free`` free cells, and
+    the fields' dtype (uint16 while any value, at most ``2 * n_free * cost_max + 1``, fits)."""
+    dtype = np.dtype(np.uint16 if 2 * n_free * cost_max + 2 < 65535 else np.uint32)
+    return n_robots * n_free * (4 + dtype.itemsize), dtype
+
+
+def check_team(n_free: int, n_robots: int, max_bytes: int) -> None:
+    """``ValueError`` naming the numbers when the robots' paths and fields exceed ``max_bytes``."""
+    need, _ = guide_bytes(n_free, n_robots)
+    if need > max_bytes:
+        raise ValueError(f"pibt-flow keeps a path and a field per robot: {n_robots} robots x {n_free} free cells "
+                         f"need {need:,} bytes, over field_bytes = {max_bytes:,} (use the executor pibt)")
+
+
 class FlowGuide:
     """The robots' guide paths, their flow and each robot's PIBT field (module docstring).
 
@@ -213,8 +229,7 @@ class FlowGuide:
         self.nbr, self.cell_of, self.width = nbr, cell_of, int(width)
         n = nbr.shape[0]
         self.cost = np.ones((n, 4), dtype=np.int64) if cost is None else np.asarray(cost, dtype=np.int64)
-        top = 2 * n * int(self.cost.max()) + 2  # above any path length + moves to the path
-        self.dtype = np.dtype(np.uint16 if top < 65535 else np.uint32)
+        self.dtype = guide_bytes(n, 0, int(self.cost.max()))[1]
         self.far = self.dtype.type(np.iinfo(self.dtype).max)
         self.replans = replans
         self.max_bytes = int(max_bytes)
@@ -229,10 +244,7 @@ class FlowGuide:
         if r == self.robots:
             return
         n = self.nbr.shape[0]
-        need = r * n * (4 + self.dtype.itemsize)
-        if need > self.max_bytes:
-            raise ValueError(f"pibt-flow keeps a path and a field per robot: {r} robots x {n} free cells need "
-                             f"{need:,} bytes, over field_bytes = {self.max_bytes:,}")
+        check_team(n, r, self.max_bytes)
         self.robots = r
         self.paths = np.zeros((r, n), dtype=np.int32)
         self.lengths = np.zeros(r, dtype=np.int64)
@@ -286,6 +298,11 @@ class FlowPIBT(TurningPIBT):
                                     or replans < 0):
             raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes, self.seed)
+
+    @staticmethod
+    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
+        """``ValueError`` when ``n_robots`` robots' paths and fields on ``grid`` exceed ``field_bytes``."""
+        check_team(int((~np.asarray(grid, dtype=bool)).sum()), int(n_robots), int(field_bytes))
 
     def _heuristic(self, pc, gc, order):
         rows = self.fields.rows(gc, order)

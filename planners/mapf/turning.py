@@ -341,6 +341,11 @@ class TurningPIBT:
         self._occ_now = np.full(n, -1, dtype=np.int64)
         self._occ_next = np.full(n, -1, dtype=np.int64)
 
+    @staticmethod
+    def check_team(grid, n_robots: int) -> None:
+        """``ValueError`` when the executor cannot take ``n_robots`` robots on ``grid`` (any number here;
+        :class:`~planners.mapf.flow.FlowPIBT` bounds its memory)."""
+
     def _ensure(self, n_robots: int) -> None:
         if len(self.elapsed) != n_robots:
             self.elapsed = np.zeros(n_robots, dtype=np.int64)

@@ -71,6 +71,7 @@ def main(argv=None) -> None:
     parser.add_argument("--scale-executor", default="pibt", help="the executor of the large instances")
     parser.add_argument("--steps", type=int, default=None, help="steps of the RANDOM runs (default: in full)")
     parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
+    parser.add_argument("--replan-only", action="store_true", help="pipeline schedulers with replan=True only")
     parser.add_argument("--write", action="store_true")
     parser.add_argument("--json", default=None, help="also write every run's record to this JSON file")
     parser.add_argument("--merge-json", default=None,
@@ -86,6 +87,8 @@ def main(argv=None) -> None:
         for ex in executors:
             for s in schedulers:
                 variants = [{}] + ([{"replan": True}] if args.replan and s != "lorr-greedy" else [])
+                if args.replan_only:
+                    variants = [{"replan": True}] if s != "lorr-greedy" else []
                 for options in variants:
                     r = _one(name, s, ex, args.steps, options)
                     if options:

@@ -205,9 +205,9 @@ def guide_bytes(n_free: int, n_robots: int, cost_max: int = 1) -> tuple[int, np.
     return n_robots * n_free * (4 + dtype.itemsize), dtype
 
 
-def check_team(n_free: int, n_robots: int, max_bytes: int) -> None:
+def check_team(n_free: int, n_robots: int, max_bytes: int, cost_max: int = 1) -> None:
     """``ValueError`` naming the numbers when the robots' paths and fields exceed ``max_bytes``."""
-    need, _ = guide_bytes(n_free, n_robots)
+    need, _ = guide_bytes(n_free, n_robots, cost_max)
     if need > max_bytes:
         raise ValueError(f"pibt-flow keeps a path and a field per robot: {n_robots} robots x {n_free} free cells "
                          f"need {need:,} bytes, over field_bytes = {max_bytes:,} (use the executor pibt)")
@@ -244,7 +244,7 @@ class FlowGuide:
         if r == self.robots:
             return
         n = self.nbr.shape[0]
-        check_team(n, r, self.max_bytes)
+        check_team(n, r, self.max_bytes, int(self.cost.max()))
         self.robots = r
         self.paths = np.zeros((r, n), dtype=np.int32)
         self.lengths = np.zeros(r, dtype=np.int64)

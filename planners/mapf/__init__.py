@@ -8,11 +8,13 @@ env actions.  :func:`make_executor` builds one by name (:data:`EXECUTORS`).
 turning (flat cells and orientations -> actions F, R, C, W);
 :class:`WindowedTurningPlanner` is windowed prioritized space-time A* over (cell,
 orientation, time) for the same rules; :func:`make_turning_executor` builds either by name
-(:data:`TURNING_EXECUTORS`); :class:`FlowPIBT` is PIBT with turning along traffic-flow guide paths.
+(:data:`TURNING_EXECUTORS`); :class:`FlowPIBT` is PIBT with turning along traffic-flow guide paths;
+:class:`EPIBT` is PIBT over multi-action operations along the same guide paths.
 """
 
 from __future__ import annotations
 
+from planners.mapf.epibt import EPIBT
 from planners.mapf.flow import FlowPIBT
 from planners.mapf.joint_executor import JointMovesPIBT
 from planners.mapf.pibt import PIBT
@@ -21,12 +23,12 @@ from planners.mapf.windowed import WindowedPlanner
 from planners.mapf.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT"]
+           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
 TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
-                     "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
+                     "epibt": EPIBT, "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):

@@ -410,10 +410,14 @@ class TurningPIBT:
         moved = np.where(act == FORWARD, nxt, pc)
         if self.commits:  # a robot keeps claiming its cell until it stands on it
             self.commit = np.where(moved == nxt, -1, nxt)
+        self._advance(moved, gc)
+        return act
+
+    def _advance(self, moved, gc) -> None:
+        """Priorities after the robots reach compact cells ``moved`` (goals ``gc``); the next call's step."""
         extra = DEAD_END_BONUS * self.dead_end[moved]
         self.elapsed = np.where(moved == gc, 0, self.elapsed + 1 + extra)
         self.t += 1
-        return act
 
     def _heuristic(self, pc, gc, order):
         """``(fields, rows)``: PIBT ranks robot ``k``'s cells by ``fields[rows[k]]`` (here its goal's field;

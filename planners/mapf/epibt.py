@@ -1,0 +1,371 @@
+"""EPIBT: PIBT over multi-action operations for the action model with turning (MAPF_T), compiled.
+
+Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; default 3, no R next to C, no three
+equal turns), of which only the first is executed before the next call re-plans (the 2024 League of
+Robot Runners winner's core; arXiv 2511.09193).  A robot's operations are ranked by the cost-to-go where
+they end -- 0 on the goal, else the least ``move cost + field of a neighbour + turns to face it`` from
+the end cell and orientation -- then by the actions that do not move (early ones weigh more), then by
+``mix(seed, t, robot, operation)``; operations with the same cells at every time keep the best only.
+
+Per call, every robot's *inherited* operation (the rest of last call's, then W) is reserved in a
+space-time table over ``op_len + 1`` times: the inherited operations are jointly conflict-free, so each
+robot always has a fallback.  Robots in priority order (as :class:`~planners.mapf.turning.TurningPIBT`)
+then take the first operation that collides with no one (vertex or swap at any time), or with one robot
+of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
+most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
+The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
+goal fields of :class:`~planners.mapf.turning.TurnFields`, or (``flow=True``, default) the traffic-flow
+guide paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import numba
+import numpy as np
+
+from planners.mapf.common import mix
+from planners.mapf.flow import FlowGuide, check_team
+from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
+                                   TurningPIBT, _distance)
+
+__all__ = ["EPIBT", "operations", "epibt_kernel", "DEFAULT_OP_LEN", "DEFAULT_REVISITS"]
+
+DEFAULT_OP_LEN = 3
+MAX_OP_LEN = 5
+#: Choices a robot may make per call (the first, then each time it is pushed).
+DEFAULT_REVISITS = 10
+_SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
+
+
+def operations(op_len: int = DEFAULT_OP_LEN) -> np.ndarray:
+    """``(n, op_len)`` int8: every action sequence without R next to C and without three equal turns in
+    a row, F-first order."""
+    if isinstance(op_len, bool) or not isinstance(op_len, (int, np.integer)) or not 1 <= op_len <= MAX_OP_LEN:
+        raise ValueError(f"op_len must be an integer 1..{MAX_OP_LEN} (actions per operation), got {op_len!r}")
+    keep = []
+    for op in itertools.product((FORWARD, CLOCKWISE, COUNTER, WAIT), repeat=int(op_len)):
+        pairs = zip(op, op[1:])
+        if any({a, b} == {CLOCKWISE, COUNTER} for a, b in pairs):
+            continue
+        if any(op[i] == op[i + 1] == op[i + 2] != FORWARD and op[i] != WAIT for i in range(len(op) - 2)):
+            continue
+        keep.append(op)
+    return np.array(keep, dtype=np.int8)
+
+
+@numba.njit(cache=True, nogil=True)
+def _walk(nbr, p, o, op, cells) -> int:
+    """Cells of ``op`` from compact ``p`` facing ``o`` into ``cells`` (start first); the final
+    orientation, or -1 when a forward move leaves the free cells."""
+    cells[0] = p
+    for t in range(op.shape[0]):
+        a = op[t]
+        if a == FORWARD:
+            p = nbr[p, o]
+            if p < 0:
+                return -1
+        elif a == CLOCKWISE:
+            o = (o + 1) & 3
+        elif a == COUNTER:
+            o = (o + 3) & 3
+        cells[t + 1] = p
+    return o
+
+
+@numba.njit(cache=True, nogil=True)
+def _to_go(grid, heuristic, goal, row, c, o) -> int:
+    """Cost-to-go from compact ``c`` facing ``o``: 0 on the goal, else the least ``cost[c, d] + field of the
+    neighbour in d + turns to face d``."""
+    nbr, cell_of, width, cost = grid
+    fields, far = heuristic
+    if c == goal:
+        return 0
+    best = -1
+    for d in range(4):
+        v = nbr[c, d]
+        if v < 0:
+            continue
+        h = _distance(fields, row, goal, v, cell_of, width)
+        if row >= 0 and h >= far:
+            continue
+        turns = 0 if d == o else (2 if d == ((o + 2) & 3) else 1)
+        val = cost[c, d] + h + turns
+        if best < 0 or val < best:
+            best = val
+    if best < 0:
+        return _distance(fields, row, goal, c, cell_of, width)
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
+    """Robot ``robot = (k, p, o, goal, row)``'s operations, ranked and without equal cell sequences, into
+    ``cand = (cells, which)`` (``cells[i]`` its cells, ``which[i]`` the operation); returns how many."""
+    nbr = grid[0]
+    k, p, o, goal, row = robot
+    seed, t = stamp
+    cells, which = cand
+    tmp, keys = scratch
+    n_ops = ops.shape[0]
+    n = 0
+    for i in range(n_ops):
+        end = _walk(nbr, p, o, ops[i], tmp[i])
+        if end < 0:
+            keys[i] = -1
+            continue
+        h = _to_go(grid, heuristic, goal, row, tmp[i, ops.shape[1]], end)
+        keys[i] = (np.int64(h) << _SHIFT) | (np.int64(idle[i]) << 16) | np.int64(mix(seed, t, k, i) & np.uint64(0xFFFF))
+        n += 1
+    idx = np.argsort(keys, kind="mergesort")  # stable: equal keys by operation
+    m = 0
+    for j in range(n_ops - n, n_ops):
+        i = idx[j]
+        dup = False
+        for q in range(m):
+            same = True
+            for s in range(1, ops.shape[1] + 1):
+                if cells[q, s] != tmp[i, s]:
+                    same = False
+                    break
+            if same:
+                dup = True
+                break
+        if not dup:
+            cells[m] = tmp[i]
+            which[m] = i
+            m += 1
+    return m
+
+
+@numba.njit(cache=True, nogil=True)
+def _reserve(res, path, a, who) -> None:
+    """Put robot ``a`` (``who`` = a) on ``path`` in the table, or take it off (``who`` = -1)."""
+    for t in range(path.shape[0]):
+        if who >= 0:
+            res[t, path[t]] = a
+        elif res[t, path[t]] == a:
+            res[t, path[t]] = -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _conflict(res, path, a) -> int:
+    """The one robot ``path`` collides with (vertex or swap, times 1..), -1 none, -2 more than one."""
+    found = -1
+    for t in range(1, path.shape[0]):
+        v, u = path[t], path[t - 1]
+        for b in (res[t, v], res[t - 1, v] if u != v and res[t, u] == res[t - 1, v] else -1):
+            if b < 0 or b == a:
+                continue
+            if found == -1:
+                found = b
+            elif found != b:
+                return -2
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _choose(root, prio, cand, plans, tables, revisits) -> bool:
+    """Robot ``root``'s choice with pushes, on an explicit stack (module docstring); ``cand = (cells, which,
+    ncand)``, ``plans = (cur, src, inh)``: each robot's cells now, the candidate they are (-1 inherited)
+    and its inherited cells; ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its
+    inherited cells, unreserved."""
+    cells, which, ncand = cand
+    cur, src, inh = plans
+    res, visit, hit, stack = tables
+    st_a, st_i, st_l, st_src, saved = stack
+    p = prio[root]
+    top = 0
+    st_a[0], st_i[0], st_l[0] = root, 0, -1
+    visit[root] += 1
+    hit[root] = 1
+    result = False
+    returned = False
+    while top >= 0:
+        a = st_a[top]
+        if returned:
+            returned = False
+            if result:
+                hit[a] = 0
+                top -= 1
+                returned = True
+                continue
+            lo = st_l[top]  # the pushed robot found nothing: take back a's try, give lo its cells back
+            _reserve(res, cur[a], a, -1)
+            cur[lo] = saved[top]
+            src[lo] = st_src[top]
+            _reserve(res, cur[lo], lo, lo)
+            st_l[top] = -1
+        state = 0  # 0 nothing left, 1 chosen, 2 pushed
+        while st_i[top] < ncand[a]:
+            c = st_i[top]
+            st_i[top] += 1
+            path = cells[a, c]
+            lo = _conflict(res, path, a)
+            if lo == -2:
+                continue
+            if lo >= 0 and (hit[lo] == 1 or visit[lo] >= revisits or prio[lo] >= p):
+                continue
+            if lo >= 0:
+                saved[top] = cur[lo]
+                st_src[top] = src[lo]
+                _reserve(res, cur[lo], lo, -1)
+            cur[a] = path
+            src[a] = c
+            _reserve(res, path, a, a)
+            if lo < 0:
+                state = 1
+                break
+            st_l[top] = lo
+            top += 1
+            st_a[top], st_i[top], st_l[top] = lo, 0, -1
+            visit[lo] += 1
+            hit[lo] = 1
+            state = 2
+            break
+        if state == 2:
+            continue
+        if state == 0:
+            cur[a] = inh[a]
+            src[a] = -1
+        hit[a] = 0
+        top -= 1
+        result = state == 1
+        returned = True
+    return result
+
+
+@numba.njit(cache=True, nogil=True)
+def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
+    """One joint plan: ``out = (chosen, act)``, ``chosen[k]`` robot ``k``'s operation (actions), ``act[k]``
+    its first action.  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient, goals, rows, prio,
+    inherited)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1 Manhattan distance;
+    ``inherited[k]`` its fallback operation, jointly conflict-free); ``heuristic = (fields, far)``;
+    ``stamp = (seed, t, revisits)``; ``res`` ``(op_len + 1, cells)`` scratch, all -1 on entry and return."""
+    nbr = grid[0]
+    pos, orient, goals, rows, prio, inherited = robots
+    seed, t, revisits = stamp
+    chosen, act = out
+    r = pos.shape[0]
+    n_ops, length = ops.shape
+    idle = np.zeros(n_ops, dtype=np.int64)
+    for i in range(n_ops):
+        for s in range(length):
+            if ops[i, s] != FORWARD:
+                idle[i] += 2 * (length - s) + (1 if ops[i, s] == WAIT else 0)
+    cells = np.empty((r, n_ops, length + 1), dtype=np.int64)
+    which = np.empty((r, n_ops), dtype=np.int64)
+    ncand = np.empty(r, dtype=np.int64)
+    scratch = (np.empty((n_ops, length + 1), dtype=np.int64), np.empty(n_ops, dtype=np.int64))
+    cur = np.empty((r, length + 1), dtype=np.int64)
+    inh = np.empty((r, length + 1), dtype=np.int64)
+    for k in range(r):
+        ncand[k] = _options(grid, heuristic, (k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
+                            (cells[k], which[k]), scratch)
+        if _walk(nbr, pos[k], orient[k], inherited[k], inh[k]) < 0:  # never after a valid plan: stay
+            inh[k] = pos[k]
+        cur[k] = inh[k]
+        _reserve(res, inh[k], k, k)
+    src = np.full(r, -1, dtype=np.int64)
+    visit = np.zeros(r, dtype=np.int64)
+    hit = np.zeros(r, dtype=np.int8)
+    stack = (np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
+             np.empty(r, dtype=np.int64), np.empty((r, length + 1), dtype=np.int64))
+    for idx in range(r):
+        k = order[idx]
+        if visit[k] != 0:
+            continue
+        _reserve(res, cur[k], k, -1)
+        if not _choose(k, prio, (cells, which, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
+            _reserve(res, cur[k], k, k)
+    for k in range(r):
+        if src[k] >= 0:
+            chosen[k] = ops[which[k, src[k]]]
+        else:
+            chosen[k] = inherited[k]
+        act[k] = chosen[k, 0]
+        _reserve(res, cur[k], k, -1)
+
+
+class EPIBT(TurningPIBT):
+    """EPIBT on one grid (module docstring).
+
+    Args:
+        grid, seed, guidance: as :class:`~planners.mapf.turning.TurningPIBT` (guidance default 0 here).
+        flow: rank by traffic-flow guide paths (:class:`~planners.mapf.flow.FlowGuide`; default) instead of
+            the goal fields.
+        op_len: actions per operation (1..5; default 3).
+        revisits: choices a robot may make per call (default 10).
+        replans: guide paths re-planned per call beyond new goals (``flow`` only; as
+            :class:`~planners.mapf.flow.FlowPIBT`).
+        field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
+    """
+
+    name = "epibt"
+
+    def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int = DEFAULT_OP_LEN,
+                 revisits: int = DEFAULT_REVISITS, replans: int | None = None,
+                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
+        if not isinstance(flow, (bool, np.bool_)):
+            raise ValueError(f"flow must be True or False, got {flow!r}")
+        if isinstance(revisits, bool) or not isinstance(revisits, (int, np.integer)) or revisits < 1:
+            raise ValueError(f"revisits must be an integer >= 1 (choices per robot and call), got {revisits!r}")
+        if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
+                                    or replans < 0):
+            raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
+        self.ops = operations(op_len)
+        self.revisits = int(revisits)
+        self.flow = bool(flow)
+        n = len(self.cell_of)
+        self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
+        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,
+                               self.seed) if self.flow else None
+        self.inherited = np.zeros((0, self.ops.shape[1]), dtype=np.int8)
+        self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
+        self._res = np.full((self.ops.shape[1] + 1, n), -1, dtype=np.int64)
+        self.plans = np.zeros((0, self.ops.shape[1]), dtype=np.int8)  # the last call's operations
+
+    @staticmethod
+    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
+        """``ValueError`` when ``n_robots`` robots' guide paths and fields on ``grid`` exceed ``field_bytes``."""
+        check_team(int((~np.asarray(grid, dtype=bool)).sum()), int(n_robots), int(field_bytes))
+
+    def _heuristic(self, pc, gc, order):
+        rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
+        if self.guide is None:
+            return self.fields.fields, rows
+        self.guide.update(pc, gc, self.fields.fields, rows)
+        return self.guide.fields, np.arange(len(pc), dtype=np.int64)
+
+    def actions(self, pos, orient, goals) -> np.ndarray:
+        """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the
+        last call's plans put it (another executor acted, a new episode) drops every inherited operation."""
+        pos, orient, goals = self._check(pos, orient, goals)
+        r = len(pos)
+        order = self.order(r)
+        pc, gc = self.cid[pos], self.cid[goals]
+        if len(self.inherited) != r or not (np.array_equal(self._expect[0], pc)
+                                            and np.array_equal(self._expect[1], orient)):
+            self.inherited = np.full((r, self.ops.shape[1]), WAIT, dtype=np.int8)
+        fields, rows = self._heuristic(pc, gc, order)
+        far = int(np.iinfo(fields.dtype).max)
+        prio = self.elapsed + self.tie
+        chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
+        act = np.empty(r, dtype=np.int64)
+        t0 = time.perf_counter()
+        epibt_kernel((self.nbr, self.cell_of, self.width, self.cost),
+                     (pc, orient, gc, rows, prio, self.inherited), (fields, far), order,
+                     (self.seed, self.t, self.revisits), self.ops, (chosen, act), self._res)
+        self.kernel_s = time.perf_counter() - t0
+        self.plans = chosen
+        ahead = self.nbr[pc, orient].astype(np.int64)
+        nxt = np.where(act == FORWARD, ahead, pc)
+        turn = np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))
+        self.inherited = np.concatenate([chosen[:, 1:], np.full((r, 1), WAIT, dtype=np.int8)], axis=1)
+        self._expect = (nxt, (orient + turn) % 4)
+        self.targets = self.cell_of[nxt]
+        self._advance(nxt, gc)
+        return act

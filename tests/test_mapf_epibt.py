@@ -1,0 +1,273 @@
+"""EPIBT (PIBT over multi-action operations): a recursive Python oracle, the joint plan checked at every time."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
+from planners.mapf.common import mix
+from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, guided, random_instance, retarget
+
+FAR = 1 << 40
+
+
+def walk(grid, p, o, op):
+    """Cells of ``op`` from flat ``p`` facing ``o`` (start first) and the final orientation; None off the free cells."""
+    h, w = grid.shape
+    cells = [p]
+    for a in op:
+        if a == F:
+            r, c = divmod(p, w)
+            r, c = r + DR[o], c + DC[o]
+            if not (0 <= r < h and 0 <= c < w) or grid[r, c]:
+                return None
+            p = r * w + c
+        elif a in (R, C):
+            o = (o + (1 if a == R else 3)) % 4
+        cells.append(p)
+    return cells, o
+
+
+def plan_conflicts(grid, pos, orient, plans):
+    """Every vertex or swap conflict of the joint plan at any time (independent of the executor)."""
+    paths = [walk(grid, p, o, op) for p, o, op in zip(pos.tolist(), orient.tolist(), plans.tolist())]
+    assert all(x is not None for x in paths), "a plan leaves the free cells"
+    cells = [x[0] for x in paths]
+    bad = []
+    for t in range(1, len(cells[0])):
+        at = [c[t] for c in cells]
+        if len(set(at)) != len(at):
+            bad.append(("vertex", t))
+        moves = {(c[t - 1], c[t]) for c in cells if c[t - 1] != c[t]}
+        if any((v, u) in moves for u, v in moves):
+            bad.append(("swap", t))
+    return bad
+
+
+def oracle_operations(length):
+    ops = []
+    for op in itertools.product((F, R, C, W), repeat=length):
+        if any({a, b} == {R, C} for a, b in zip(op, op[1:])):
+            continue
+        if any(op[i] == op[i + 1] == op[i + 2] and op[i] in (R, C) for i in range(length - 2)):
+            continue
+        ops.append(op)
+    return ops
+
+
+class Oracle:
+    """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
+
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10):
+        self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
+        self.ops = oracle_operations(op_len)
+        self.t, self.elapsed = 0, [0] * n
+        self.tie = np.random.default_rng(seed).random(n).tolist()
+        self.inherited = [(W,) * op_len] * n
+        self.expect = None
+        h, w = grid.shape
+        free = ~grid
+        self.dead = {p for p in range(h * w) if free.flat[p] and sum(1 for _ in self.nbrs(p)) == 1}
+
+    def nbrs(self, p):
+        h, w = self.grid.shape
+        r, c = divmod(p, w)
+        for d in range(4):
+            nr, nc = r + DR[d], c + DC[d]
+            if 0 <= nr < h and 0 <= nc < w and not self.grid[nr, nc]:
+                yield d, nr * w + nc
+
+    def to_go(self, dist, goal, c, o):
+        if c == goal:
+            return 0
+        vals = []
+        for d, v in self.nbrs(c):
+            if v in dist:
+                cost = self.lane(c, d) if self.guidance else 1
+                vals.append(cost + dist[v] + (0 if d == o else (2 if d == (o + 2) % 4 else 1)))
+        return min(vals) if vals else dist.get(c, FAR)
+
+    def lane(self, c, d):
+        from lanes_reference import lane_cost
+        return lane_cost(self.grid, c, d, self.guidance)
+
+    def options(self, k, p, o, goal, dist):
+        n = len(self.ops[0])
+        ranked = []
+        for i, op in enumerate(self.ops):
+            got = walk(self.grid, p, o, op)
+            if got is None:
+                continue
+            cells, end = got
+            idle = sum(2 * (n - s) + (a == W) for s, a in enumerate(op) if a != F)
+            ranked.append(((self.to_go(dist, goal, cells[-1], end), idle, int(mix(self.seed, self.t, k, i)) & 0xFFFF, i),
+                           tuple(cells), op))
+        ranked.sort()
+        out, seen = [], set()
+        for _, cells, op in ranked:
+            if cells not in seen:
+                seen.add(cells)
+                out.append((cells, op))
+        return out
+
+    def actions(self, pos, orient, goals):
+        pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
+        r = len(pos)
+        if self.expect != (pos, orient):
+            self.inherited = [(W,) * len(self.ops[0])] * r
+        dist = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
+        opts = [self.options(k, pos[k], orient[k], goals[k], dist[goals[k]]) for k in range(r)]
+        inh = [(tuple(walk(self.grid, pos[k], orient[k], self.inherited[k])[0]), self.inherited[k]) for k in range(r)]
+        prio = [e + t for e, t in zip(self.elapsed, self.tie)]
+        plan = list(inh)
+        visit, hit = [0] * r, [False] * r
+
+        def collide(a, cells):
+            found = set()
+            for b in range(r):
+                if b == a or plan[b] is None:
+                    continue
+                other = plan[b][0]
+                for t in range(1, len(cells)):
+                    if other[t] == cells[t] or (cells[t] != cells[t - 1] and other[t - 1] == cells[t]
+                                                and other[t] == cells[t - 1]):
+                        found.add(b)
+                        break
+            return found
+
+        def choose(a, p):
+            visit[a] += 1
+            hit[a] = True
+            for cells, op in opts[a]:
+                hits = collide(a, cells)
+                if not hits:
+                    plan[a] = (cells, op)
+                    hit[a] = False
+                    return True
+                if len(hits) > 1:
+                    continue
+                (b,) = hits
+                if hit[b] or visit[b] >= self.revisits or prio[b] >= p:
+                    continue
+                old = plan[b]
+                plan[b] = None
+                plan[a] = (cells, op)
+                if choose(b, p):
+                    hit[a] = False
+                    return True
+                plan[b] = old
+            plan[a] = None
+            hit[a] = False
+            return False
+
+        order = sorted(range(r), key=lambda k: (-self.elapsed[k], -self.tie[k]))
+        for k in order:
+            if visit[k]:
+                continue
+            plan[k] = None
+            if not choose(k, prio[k]):
+                plan[k] = inh[k]
+        ops = [plan[k][1] for k in range(r)]
+        act = [op[0] for op in ops]
+        nxt = [plan[k][0][1] for k in range(r)]
+        nor = [(o + (a == R) - (a == C)) % 4 for o, a in zip(orient, act)]
+        self.inherited = [tuple(op[1:]) + (W,) for op in ops]
+        self.expect = (nxt, nor)
+        for k in range(r):
+            bonus = 10 if nxt[k] in self.dead else 0
+            self.elapsed[k] = 0 if nxt[k] == goals[k] else self.elapsed[k] + 1 + bonus
+        self.t += 1
+        return act, ops
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10**6), h=st.integers(3, 7), w=st.integers(3, 7),
+       density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
+       op_len=st.sampled_from([1, 2, 3, 3]))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len):
+    rng = np.random.default_rng(seed)
+    grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
+    ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len)
+    for _ in range(10):
+        expect, ops = oracle.actions(pos, orient, goals)
+        act = ex.actions(pos, orient, goals)
+        assert act.tolist() == expect
+        assert [tuple(op) for op in ex.plans.tolist()] == ops
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None, err
+        goals = retarget(rng, free, pos, goals)
+
+
+def test_operations_follow_the_pruning_rules():
+    from planners.mapf.epibt import operations
+
+    for n in (1, 2, 3, 4):
+        assert [tuple(op) for op in operations(n).tolist()] == oracle_operations(n)
+    assert len(operations(3)) == 48
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dense_crowds_get_conflict_free_plans_at_every_time(seed):
+    rng = np.random.default_rng(300 + seed)
+    h, w = int(rng.integers(8, 17)), int(rng.integers(8, 17))
+    grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.03 * seed, 0.5 + 0.07 * seed)
+    ex = make_turning_executor("epibt", grid, seed=seed, flow=seed % 2 == 0)
+    reached = moved = 0
+    for step in range(120):
+        act = ex.actions(pos, orient, goals)
+        assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
+        assert act.tolist() == ex.plans[:, 0].tolist()
+        pos2, orient, err = apply(grid, pos, orient, act)
+        assert err is None, f"step {step}: {err}"
+        moved += int((pos2 != pos).sum())
+        pos = pos2
+        reached += int((pos == goals).sum())
+        goals = retarget(rng, free, pos, goals)
+    assert moved > 0 and reached > 0
+
+
+def test_a_robot_moved_elsewhere_drops_the_inherited_operations():
+    rng = np.random.default_rng(7)
+    grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.15, 0.6)
+    ex = EPIBT(grid, seed=1)
+    for step in range(30):  # positions that no plan led to: every call starts from waits, still valid
+        act = ex.actions(pos, orient, goals)
+        assert apply(grid, pos, orient, act)[2] is None
+        pos = rng.permutation(free)[:len(pos)].astype(np.int64)
+        orient = rng.integers(0, 4, len(pos)).astype(np.int64)
+
+
+def test_same_seed_same_actions_and_robots_reach_goals():
+    rng = np.random.default_rng(3)
+    grid, free, pos, orient, goals = random_instance(rng, 12, 12, 0.15, 0.3)
+    runs = []
+    for _ in range(2):
+        ex, p, o, g = EPIBT(grid, seed=5), pos.copy(), orient.copy(), goals.copy()
+        r2 = np.random.default_rng(11)
+        acts, reached = [], 0
+        for _ in range(60):
+            a = ex.actions(p, o, g)
+            acts.append(a.tolist())
+            p, o, err = apply(grid, p, o, a)
+            assert err is None
+            reached += int((p == g).sum())
+            g = retarget(r2, free, p, g)
+        runs.append((acts, reached))
+    assert runs[0] == runs[1] and runs[0][1] > 0
+
+
+def test_registered_and_bad_options_name_the_value():
+    assert TURNING_EXECUTORS["epibt"] is EPIBT
+    grid = np.zeros((4, 4), dtype=bool)
+    for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"), ({"revisits": 0}, "revisits"),
+                       ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans")):
+        with pytest.raises(ValueError, match=word):
+            EPIBT(grid, **opts)
+    with pytest.raises(ValueError, match="pibt-flow keeps a path"):
+        EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)

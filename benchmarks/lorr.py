@@ -29,7 +29,7 @@ SECTION = "## League of Robot Runners 2024 (issue 32)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 RANDOM = [f"RANDOM-0{i}" for i in range(1, 6)]
 SCALE = ["CITY-01", "CITY-02", "GAME", "WAREHOUSE", "SORTATION"]
-ORDER = ["pibt", "pibt-flow", "windowed", "pibt-ising"]  # executors in the table
+ORDER = ["pibt", "pibt-flow", "epibt", "windowed", "pibt-ising"]  # executors in the table
 
 
 def _path(name: str) -> Path:
@@ -63,7 +63,7 @@ def _fmt_row(r: dict) -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
-    parser.add_argument("--executors", default="pibt,pibt-flow,windowed",
+    parser.add_argument("--executors", default="pibt,pibt-flow,epibt,windowed",
                         help="each runs every scheduler")
     parser.add_argument("--instances", default=",".join(RANDOM))
     parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")

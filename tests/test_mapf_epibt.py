@@ -63,8 +63,9 @@ def oracle_operations(length):
 class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
-    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10):
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16):
         self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
+        self.lns, self.group = lns, group
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
         self.tie = np.random.default_rng(seed).random(n).tolist()
@@ -109,10 +110,10 @@ class Oracle:
                            tuple(cells), op))
         ranked.sort()
         out, seen = [], set()
-        for _, cells, op in ranked:
+        for key, cells, op in ranked:
             if cells not in seen:
                 seen.add(cells)
-                out.append((cells, op))
+                out.append((cells, op, key[0], len(out)))
         return out
 
     def actions(self, pos, orient, goals):
@@ -122,7 +123,10 @@ class Oracle:
             self.inherited = [(W,) * len(self.ops[0])] * r
         dist = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
         opts = [self.options(k, pos[k], orient[k], goals[k], dist[goals[k]]) for k in range(r)]
-        inh = [(tuple(walk(self.grid, pos[k], orient[k], self.inherited[k])[0]), self.inherited[k]) for k in range(r)]
+        inh = []
+        for k in range(r):
+            cells, end = walk(self.grid, pos[k], orient[k], self.inherited[k])
+            inh.append((tuple(cells), self.inherited[k], self.to_go(dist[goals[k]], goals[k], cells[-1], end), -1))
         prio = [e + t for e, t in zip(self.elapsed, self.tie)]
         plan = list(inh)
         visit, hit = [0] * r, [False] * r
@@ -143,10 +147,11 @@ class Oracle:
         def choose(a, p):
             visit[a] += 1
             hit[a] = True
-            for cells, op in opts[a]:
+            for entry in opts[a]:
+                cells = entry[0]
                 hits = collide(a, cells)
                 if not hits:
-                    plan[a] = (cells, op)
+                    plan[a] = entry
                     hit[a] = False
                     return True
                 if len(hits) > 1:
@@ -156,7 +161,7 @@ class Oracle:
                     continue
                 old = plan[b]
                 plan[b] = None
-                plan[a] = (cells, op)
+                plan[a] = entry
                 if choose(b, p):
                     hit[a] = False
                     return True
@@ -172,6 +177,7 @@ class Oracle:
             plan[k] = None
             if not choose(k, prio[k]):
                 plan[k] = inh[k]
+        self.search(plan, opts, inh, collide)
         ops = [plan[k][1] for k in range(r)]
         act = [op[0] for op in ops]
         nxt = [plan[k][0][1] for k in range(r)]
@@ -185,15 +191,52 @@ class Oracle:
         return act, ops
 
 
+    def search(self, plan, opts, inh, collide):
+        """Large-neighbourhood search as the module docstring states it (plan entries: cells, op, cost, index)."""
+        r = len(plan)
+        start = int(mix(self.seed, self.t, r, 0)) % r
+        for it in range(self.lns):
+            k = (start + it) % r
+            now = plan[k][3]
+            if now == 0 or not opts[k]:
+                continue
+            members = [k]
+            for cells, _, _, _ in opts[k][:now if now > 0 else len(opts[k])]:
+                for s in range(1, len(cells)):
+                    at = [b for b in range(r) if plan[b][0][s] == cells[s]]
+                    swap = [b for b in range(r) if cells[s] != cells[s - 1] and plan[b][0][s - 1] == cells[s]
+                            and plan[b][0][s] == cells[s - 1]]
+                    for b in at + swap:
+                        if b not in members and len(members) < self.group:
+                            members.append(b)
+            old = [plan[i] for i in members]
+            before = sum(plan[i][2] for i in members)
+            for i in members:
+                plan[i] = None
+            after, ok = 0, True
+            for i in sorted(members, key=lambda i: int(mix(self.seed, self.t, it, i))):
+                pick = next((o for o in opts[i] if not collide(i, o[0])), None)
+                if pick is None and not collide(i, inh[i][0]):
+                    pick = inh[i]
+                if pick is None or after >= before:
+                    ok = False
+                    break
+                plan[i] = pick
+                after += pick[2]
+            if not (ok and after < before):
+                for i, entry in zip(members, old):
+                    plan[i] = entry
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 7), w=st.integers(3, 7),
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
-       op_len=st.sampled_from([1, 2, 3, 3]))
-def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len):
+       op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
-    ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len)
+    ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)

@@ -13,7 +13,8 @@ robot always has a fallback.  Robots in priority order (as :class:`~planners.map
 then take the first operation that collides with no one (vertex or swap at any time), or with one robot
 of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
 most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
-The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
+Then large-neighbourhood search (:func:`_lns`) re-chooses small groups in other orders while the sum of their
+costs-to-go falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
 goal fields of :class:`~planners.mapf.turning.TurnFields`, or (``flow=True``, default) the traffic-flow
 guide paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -31,12 +32,18 @@ from planners.mapf.flow import FlowGuide, check_team
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "DEFAULT_OP_LEN", "DEFAULT_REVISITS"]
+__all__ = ["EPIBT", "operations", "epibt_kernel", "DEFAULT_OP_LEN", "DEFAULT_REVISITS", "DEFAULT_GROUP",
+           "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX"]
 
 DEFAULT_OP_LEN = 3
 MAX_OP_LEN = 5
 #: Choices a robot may make per call (the first, then each time it is pushed).
 DEFAULT_REVISITS = 10
+#: Large-neighbourhood iterations per call and robot (at most :data:`DEFAULT_LNS_MAX`), robots per neighbourhood
+#: (chosen on RANDOM-01, -03, -04, 300 steps: docs/design/lifelong_turning.md).
+DEFAULT_LNS_PER_ROBOT = 50
+DEFAULT_LNS_MAX = 1 << 15
+DEFAULT_GROUP = 16
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
 
@@ -103,11 +110,12 @@ def _to_go(grid, heuristic, goal, row, c, o) -> int:
 @numba.njit(cache=True, nogil=True)
 def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
     """Robot ``robot = (k, p, o, goal, row)``'s operations, ranked and without equal cell sequences, into
-    ``cand = (cells, which)`` (``cells[i]`` its cells, ``which[i]`` the operation); returns how many."""
+    ``cand = (cells, which, costs)`` (``cells[i]`` its cells, ``which[i]`` the operation, ``costs[i]`` its
+    cost-to-go); returns how many."""
     nbr = grid[0]
     k, p, o, goal, row = robot
     seed, t = stamp
-    cells, which = cand
+    cells, which, costs = cand
     tmp, keys = scratch
     n_ops = ops.shape[0]
     n = 0
@@ -136,6 +144,7 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
         if not dup:
             cells[m] = tmp[i]
             which[m] = i
+            costs[m] = keys[i] >> _SHIFT
             m += 1
     return m
 
@@ -168,11 +177,10 @@ def _conflict(res, path, a) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def _choose(root, prio, cand, plans, tables, revisits) -> bool:
-    """Robot ``root``'s choice with pushes, on an explicit stack (module docstring); ``cand = (cells, which,
-    ncand)``, ``plans = (cur, src, inh)``: each robot's cells now, the candidate they are (-1 inherited)
+    """Robot ``root``'s choice with pushes, on an explicit stack (module docstring); ``cand = (cells, ncand)``, ``plans = (cur, src, inh)``: each robot's cells now, the candidate they are (-1 inherited)
     and its inherited cells; ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its
     inherited cells, unreserved."""
-    cells, which, ncand = cand
+    cells, ncand = cand
     cur, src, inh = plans
     res, visit, hit, stack = tables
     st_a, st_i, st_l, st_src, saved = stack
@@ -238,15 +246,98 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
+def _blockers(k, cells, top, res, size, members, mark) -> int:
+    """``members[:n]``: robot ``k``, then the robots in the way of its first ``top`` operations (at most
+    ``size`` in all); ``mark`` set for them."""
+    members[0] = k
+    mark[k] = 1
+    n = 1
+    for c in range(top):
+        path = cells[k, c]
+        for s in range(1, path.shape[0]):
+            v, u = path[s], path[s - 1]
+            for b in (res[s, v], res[s - 1, v] if u != v and res[s, u] == res[s - 1, v] else -1):
+                if b >= 0 and mark[b] == 0 and n < size:
+                    members[n] = b
+                    mark[b] = 1
+                    n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _lns(cand, plans, res, stamp) -> None:
+    """Large-neighbourhood search over the joint plan: ``iters`` times, a robot not on its best operation
+    and the robots in the way of its better ones (at most ``group``) leave the table and choose again in a
+    seeded order, each its best operation that collides with no one (or its inherited one); kept when the
+    sum of their costs-to-go falls, else put back.  ``cand = (cells, costs, ncand)``, ``plans = (cur, src,
+    inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
+    cells, costs, ncand = cand
+    cur, src, inh, inh_cost = plans
+    seed, t, iters, group = stamp
+    r = cur.shape[0]
+    members = np.empty(group, dtype=np.int64)
+    mark = np.zeros(r, dtype=np.int8)
+    keys = np.empty(group, dtype=np.uint64)
+    old_src = np.empty(group, dtype=np.int64)
+    old_cur = np.empty((group, cur.shape[1]), dtype=np.int64)
+    start = np.int64(mix(seed, t, r, 0) % np.uint64(max(r, 1)))
+    for it in range(iters):
+        k = (start + it) % r
+        if src[k] == 0 or ncand[k] == 0:
+            continue
+        top = src[k] if src[k] > 0 else ncand[k]
+        n = _blockers(k, cells, top, res, group, members, mark)
+        before = 0
+        for j in range(n):
+            i = members[j]
+            mark[i] = 0
+            before += costs[i, src[i]] if src[i] >= 0 else inh_cost[i]
+            old_src[j] = src[i]
+            old_cur[j] = cur[i]
+            _reserve(res, cur[i], i, -1)
+            keys[j] = mix(seed, t, it, i)
+        idx = np.argsort(keys[:n])
+        after = 0
+        placed = 0
+        for j in idx:
+            i = members[j]
+            pick = -2
+            for c in range(ncand[i]):
+                if _conflict(res, cells[i, c], i) == -1:
+                    pick = c
+                    break
+            if pick == -2 and _conflict(res, inh[i], i) == -1:
+                pick = -1
+            if pick == -2 or after >= before:
+                after = before
+                break
+            cur[i] = cells[i, pick] if pick >= 0 else inh[i]
+            src[i] = pick
+            _reserve(res, cur[i], i, i)
+            after += costs[i, pick] if pick >= 0 else inh_cost[i]
+            placed += 1
+        if placed == n and after < before:
+            continue
+        for j in idx[:placed]:
+            _reserve(res, cur[members[j]], members[j], -1)
+        for j in range(n):
+            i = members[j]
+            src[i] = old_src[j]
+            cur[i] = old_cur[j]
+            _reserve(res, cur[i], i, i)
+
+
+@numba.njit(cache=True, nogil=True)
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
     """One joint plan: ``out = (chosen, act)``, ``chosen[k]`` robot ``k``'s operation (actions), ``act[k]``
     its first action.  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient, goals, rows, prio,
     inherited)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1 Manhattan distance;
     ``inherited[k]`` its fallback operation, jointly conflict-free); ``heuristic = (fields, far)``;
-    ``stamp = (seed, t, revisits)``; ``res`` ``(op_len + 1, cells)`` scratch, all -1 on entry and return."""
+    ``stamp = (seed, t, revisits, lns, group)`` (``lns`` iterations of :func:`_lns` over groups of at most
+    ``group`` robots); ``res`` ``(op_len + 1, cells)`` scratch, all -1 on entry and return."""
     nbr = grid[0]
     pos, orient, goals, rows, prio, inherited = robots
-    seed, t, revisits = stamp
+    seed, t, revisits, lns, group = stamp
     chosen, act = out
     r = pos.shape[0]
     n_ops, length = ops.shape
@@ -257,15 +348,20 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
                 idle[i] += 2 * (length - s) + (1 if ops[i, s] == WAIT else 0)
     cells = np.empty((r, n_ops, length + 1), dtype=np.int64)
     which = np.empty((r, n_ops), dtype=np.int64)
+    costs = np.empty((r, n_ops), dtype=np.int64)
+    inh_cost = np.empty(r, dtype=np.int64)
     ncand = np.empty(r, dtype=np.int64)
     scratch = (np.empty((n_ops, length + 1), dtype=np.int64), np.empty(n_ops, dtype=np.int64))
     cur = np.empty((r, length + 1), dtype=np.int64)
     inh = np.empty((r, length + 1), dtype=np.int64)
     for k in range(r):
         ncand[k] = _options(grid, heuristic, (k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
-                            (cells[k], which[k]), scratch)
-        if _walk(nbr, pos[k], orient[k], inherited[k], inh[k]) < 0:  # never after a valid plan: stay
+                            (cells[k], which[k], costs[k]), scratch)
+        end = _walk(nbr, pos[k], orient[k], inherited[k], inh[k])
+        if end < 0:  # never after a valid plan: stay
             inh[k] = pos[k]
+            end = orient[k]
+        inh_cost[k] = _to_go(grid, heuristic, goals[k], rows[k], inh[k, length], end)
         cur[k] = inh[k]
         _reserve(res, inh[k], k, k)
     src = np.full(r, -1, dtype=np.int64)
@@ -278,8 +374,10 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
         if visit[k] != 0:
             continue
         _reserve(res, cur[k], k, -1)
-        if not _choose(k, prio, (cells, which, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
+        if not _choose(k, prio, (cells, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
             _reserve(res, cur[k], k, k)
+    if lns > 0:
+        _lns((cells, costs, ncand), (cur, src, inh, inh_cost), res, (seed, t, lns, group))
     for k in range(r):
         if src[k] >= 0:
             chosen[k] = ops[which[k, src[k]]]
@@ -298,6 +396,9 @@ class EPIBT(TurningPIBT):
             the goal fields.
         op_len: actions per operation (1..5; default 3).
         revisits: choices a robot may make per call (default 10).
+        lns: large-neighbourhood iterations per call over the joint plan (default: 50 per robot, at most
+            32,768; 0 = off).
+        group: robots per neighbourhood (default 16).
         replans: guide paths re-planned per call beyond new goals (``flow`` only; as
             :class:`~planners.mapf.flow.FlowPIBT`).
         field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
@@ -306,7 +407,8 @@ class EPIBT(TurningPIBT):
     name = "epibt"
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int = DEFAULT_OP_LEN,
-                 revisits: int = DEFAULT_REVISITS, replans: int | None = None,
+                 revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
+                 replans: int | None = None,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
@@ -316,8 +418,12 @@ class EPIBT(TurningPIBT):
         if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
                                     or replans < 0):
             raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
+        for name, value, lo in (("lns", lns, 0), ("group", group, 2)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo):
+                raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
         self.ops = operations(op_len)
         self.revisits = int(revisits)
+        self.lns_option, self.group = lns, int(group)
         self.flow = bool(flow)
         n = len(self.cell_of)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
@@ -353,12 +459,13 @@ class EPIBT(TurningPIBT):
         fields, rows = self._heuristic(pc, gc, order)
         far = int(np.iinfo(fields.dtype).max)
         prio = self.elapsed + self.tie
+        self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else int(self.lns_option)
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         t0 = time.perf_counter()
         epibt_kernel((self.nbr, self.cell_of, self.width, self.cost),
                      (pc, orient, gc, rows, prio, self.inherited), (fields, far), order,
-                     (self.seed, self.t, self.revisits), self.ops, (chosen, act), self._res)
+                     (self.seed, self.t, self.revisits, self.lns, self.group), self.ops, (chosen, act), self._res)
         self.kernel_s = time.perf_counter() - t0
         self.plans = chosen
         ahead = self.nbr[pc, orient].astype(np.int64)

@@ -32,7 +32,7 @@ from planners.mapf.flow import FlowGuide, check_team
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "DEFAULT_OP_LEN", "DEFAULT_REVISITS", "DEFAULT_GROUP",
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "DEFAULT_OP_LEN", "DEFAULT_REVISITS", "DEFAULT_GROUP",
            "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX"]
 
 DEFAULT_OP_LEN = 3
@@ -327,18 +327,28 @@ def _lns(cand, plans, res, stamp) -> None:
             _reserve(res, cur[i], i, i)
 
 
+def new_state(r: int, ops: np.ndarray):
+    """Arrays of one call's plan, filled by :func:`epibt_kernel`: ``(cells, which, costs, ncand, cur, src, inh,
+    inh_cost)`` -- each robot's ranked operations (cells, operation, cost-to-go; how many), its cells now, the
+    candidate they are (-1 inherited), its inherited cells and their cost-to-go."""
+    n_ops, length = ops.shape
+    return (np.empty((r, n_ops, length + 1), np.int64), np.empty((r, n_ops), np.int64), np.empty((r, n_ops), np.int64),
+            np.empty(r, np.int64), np.empty((r, length + 1), np.int64), np.full(r, -1, np.int64),
+            np.empty((r, length + 1), np.int64), np.empty(r, np.int64))
+
+
 @numba.njit(cache=True, nogil=True)
-def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
-    """One joint plan: ``out = (chosen, act)``, ``chosen[k]`` robot ``k``'s operation (actions), ``act[k]``
-    its first action.  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient, goals, rows, prio,
-    inherited)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1 Manhattan distance;
-    ``inherited[k]`` its fallback operation, jointly conflict-free); ``heuristic = (fields, far)``;
-    ``stamp = (seed, t, revisits, lns, group)`` (``lns`` iterations of :func:`_lns` over groups of at most
-    ``group`` robots); ``res`` ``(op_len + 1, cells)`` scratch, all -1 on entry and return."""
+def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
+    """One joint plan into ``state`` (:func:`new_state`), left reserved in ``res`` (``(op_len + 1, cells)``,
+    all -1 on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots =
+    (pos, orient, goals, rows, prio, inherited)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields,
+    -1 Manhattan distance; ``inherited[k]`` its fallback operation, jointly conflict-free); ``heuristic =
+    (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (``lns`` iterations of :func:`_lns` over
+    groups of at most ``group`` robots)."""
     nbr = grid[0]
     pos, orient, goals, rows, prio, inherited = robots
     seed, t, revisits, lns, group = stamp
-    chosen, act = out
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
     r = pos.shape[0]
     n_ops, length = ops.shape
     idle = np.zeros(n_ops, dtype=np.int64)
@@ -346,14 +356,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
         for s in range(length):
             if ops[i, s] != FORWARD:
                 idle[i] += 2 * (length - s) + (1 if ops[i, s] == WAIT else 0)
-    cells = np.empty((r, n_ops, length + 1), dtype=np.int64)
-    which = np.empty((r, n_ops), dtype=np.int64)
-    costs = np.empty((r, n_ops), dtype=np.int64)
-    inh_cost = np.empty(r, dtype=np.int64)
-    ncand = np.empty(r, dtype=np.int64)
     scratch = (np.empty((n_ops, length + 1), dtype=np.int64), np.empty(n_ops, dtype=np.int64))
-    cur = np.empty((r, length + 1), dtype=np.int64)
-    inh = np.empty((r, length + 1), dtype=np.int64)
     for k in range(r):
         ncand[k] = _options(grid, heuristic, (k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
                             (cells[k], which[k], costs[k]), scratch)
@@ -363,8 +366,8 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
             end = orient[k]
         inh_cost[k] = _to_go(grid, heuristic, goals[k], rows[k], inh[k, length], end)
         cur[k] = inh[k]
+        src[k] = -1
         _reserve(res, inh[k], k, k)
-    src = np.full(r, -1, dtype=np.int64)
     visit = np.zeros(r, dtype=np.int64)
     hit = np.zeros(r, dtype=np.int8)
     stack = (np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
@@ -378,7 +381,14 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, out, res):
             _reserve(res, cur[k], k, k)
     if lns > 0:
         _lns((cells, costs, ncand), (cur, src, inh, inh_cost), res, (seed, t, lns, group))
-    for k in range(r):
+
+
+@numba.njit(cache=True, nogil=True)
+def epibt_finish(ops, inherited, state, out, res) -> None:
+    """``out = (chosen, act)``: robot ``k``'s operation (actions) and its first action; ``res`` cleared."""
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    chosen, act = out
+    for k in range(cur.shape[0]):
         if src[k] >= 0:
             chosen[k] = ops[which[k, src[k]]]
         else:
@@ -462,11 +472,14 @@ class EPIBT(TurningPIBT):
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else int(self.lns_option)
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
+        state = new_state(r, self.ops)
         t0 = time.perf_counter()
         epibt_kernel((self.nbr, self.cell_of, self.width, self.cost),
                      (pc, orient, gc, rows, prio, self.inherited), (fields, far), order,
-                     (self.seed, self.t, self.revisits, self.lns, self.group), self.ops, (chosen, act), self._res)
+                     (self.seed, self.t, self.revisits, self.lns, self.group), self.ops, state, self._res)
         self.kernel_s = time.perf_counter() - t0
+        self._improve(state)
+        epibt_finish(self.ops, self.inherited, state, (chosen, act), self._res)
         self.plans = chosen
         ahead = self.nbr[pc, orient].astype(np.int64)
         nxt = np.where(act == FORWARD, ahead, pc)
@@ -476,3 +489,7 @@ class EPIBT(TurningPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         return act
+
+    def _improve(self, state) -> None:
+        """Hook for subclasses: may change the plan ``state`` (kept conflict-free in :attr:`_res`) before its
+        first actions are taken (here: nothing)."""

@@ -15,6 +15,7 @@ orientation, time) for the same rules; :func:`make_turning_executor` builds eith
 from __future__ import annotations
 
 from planners.mapf.epibt import EPIBT
+from planners.mapf.epibt_ising import EPIBTIsing
 from planners.mapf.flow import FlowPIBT
 from planners.mapf.joint_executor import JointMovesPIBT
 from planners.mapf.pibt import PIBT
@@ -23,12 +24,13 @@ from planners.mapf.windowed import WindowedPlanner
 from planners.mapf.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT"]
+           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT", "EPIBTIsing"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
 TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
-                     "epibt": EPIBT, "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
+                     "epibt": EPIBT, "epibt-ising": EPIBTIsing,
+                     "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):

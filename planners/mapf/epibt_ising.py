@@ -1,0 +1,387 @@
+"""EPIBT whose neighbourhood groups choose their operations jointly on an Ising machine (``epibt-ising``).
+
+After :class:`~planners.mapf.epibt.EPIBT`'s plan and search, each call poses up to ``groups`` decisions of
+class ``lns_groups``: a robot not on its best operation and the robots in the way of its better ones (up
+to ``max_robots``; robots of one group in no other), each with its operation now (option 0) and its best
+others that collide with no robot outside the group (up to ``max_options``; at most the machine's usable
+spins in all).  The program: one-hot spins per robot, the options' costs-to-go above the robot's least as
+linear terms, a penalty on each pair of options of two robots that collide (vertex or swap at any time).
+The host rule in the chip's place (``decider="host"``, no machine call): the robots in a seeded order, each
+its cheapest option that collides with no one placed before (the search's own greedy).  A group takes the
+decided choice when it is one-hot, collides with no one and costs less than the group's plan now;
+groups apply in turn, each checked against the plan as the ones before it left it.
+
+Charges as :class:`~planners.mapf.joint_executor.JointMovesPIBT` (:attr:`ledger`, :attr:`last_compute`); an
+open decision audit records every program with the host rule's answer as spins of the same program.
+Measurements: ``docs/design/lifelong_turning.md``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numba
+import numpy as np
+
+from ising_backend import CallLedger
+from ising_backend.audit import active_audit
+from planners.compute import ComputeReport
+from planners.mapf.common import mix
+from planners.mapf.epibt import EPIBT, _conflict, _reserve
+from planners.mapf.joint_moves import qubo_to_ising
+
+__all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
+           "DECIDERS"]
+
+DECIDERS = ("chip", "host")
+_BIG = 1 << 60
+
+
+@numba.njit(cache=True, nogil=True)
+def _collide(p, q) -> bool:
+    """Cell sequences ``p`` and ``q`` (same times) meet in a cell or swap cells at some time."""
+    for t in range(1, p.shape[0]):
+        if p[t] == q[t] or (p[t] != p[t - 1] and p[t] == q[t - 1] and q[t] == p[t - 1]):
+            return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def select_groups(state, res, limits, stamp, taken, out) -> int:
+    """This call's groups (module docstring) into ``out = (members, gstart, ostart, opt)``: group ``g`` is
+    ``members[gstart[g]:gstart[g + 1]]``, robot slot ``m``'s options ``opt[ostart[m]:ostart[m + 1]]`` (a
+    candidate index, -1 its inherited operation; option 0 its operation now).  ``limits = (groups,
+    max_robots, max_options, max_spins)``, ``stamp = (seed, t)``, ``taken`` (robots) all 0 on entry."""
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    n_groups, max_robots, max_options, max_spins = limits
+    seed, t = stamp
+    members, gstart, ostart, opt = out
+    r = cur.shape[0]
+    ng = 0
+    m = 0
+    gstart[0] = 0
+    ostart[0] = 0
+    if r == 0:
+        return 0
+    start = np.int64(mix(seed, t, r, 0x6C) % np.uint64(r))
+    for j in range(r):
+        if ng == n_groups:
+            break
+        k = (start + j) % r
+        if src[k] == 0 or ncand[k] == 0 or taken[k]:
+            continue
+        a = m
+        members[m] = k
+        taken[k] = 1
+        m += 1
+        top = src[k] if src[k] > 0 else ncand[k]
+        for c in range(top):
+            path = cells[k, c]
+            for s in range(1, path.shape[0]):
+                v, u = path[s], path[s - 1]
+                for b in (res[s, v], res[s - 1, v] if u != v and res[s, u] == res[s - 1, v] else -1):
+                    if b >= 0 and taken[b] == 0 and m - a < max_robots:
+                        members[m] = b
+                        taken[b] = 1
+                        m += 1
+        size = m - a
+        if size < 2:  # nothing in the way to choose with
+            m = a
+            continue
+        per = min(max_options, max_spins // size)
+        for i in range(a, m):
+            _reserve(res, cur[members[i]], members[i], -1)
+        for i in range(a, m):
+            q = members[i]
+            x = ostart[i]
+            opt[x] = src[q]
+            x += 1
+            for c in range(ncand[q]):
+                if x - ostart[i] >= per:
+                    break
+                if c != src[q] and _conflict(res, cells[q, c], q) == -1:
+                    opt[x] = c
+                    x += 1
+            ostart[i + 1] = x
+        for i in range(a, m):
+            _reserve(res, cur[members[i]], members[i], members[i])
+        ng += 1
+        gstart[ng] = m
+    return ng
+
+
+@numba.njit(cache=True, nogil=True)
+def _path(state, q, c):
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    return cells[q, c] if c >= 0 else inh[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cost(state, q, c) -> int:
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    return costs[q, c] if c >= 0 else inh_cost[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def group_qubo(state, members, a, b, ostart, opt, q) -> int:
+    """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
+    returned): costs above each robot's least; one-hot and collision penalties of ``1 +`` the largest such
+    cost (small, for the chip's few levels: among one-hot, collision-free choices the energy ranks as the
+    cost; a read that is not one of them is rejected by :func:`decode_choice`)."""
+    base = ostart[a]
+    n = ostart[b] - base
+    q[:n, :n] = 0
+    spread = 0
+    for i in range(a, b):
+        lo = _BIG
+        for x in range(ostart[i], ostart[i + 1]):
+            lo = min(lo, _cost(state, members[i], opt[x]))
+        for x in range(ostart[i], ostart[i + 1]):
+            spread = max(spread, _cost(state, members[i], opt[x]) - lo)
+    pen = spread + 1
+    for i in range(a, b):
+        lo = _BIG
+        for x in range(ostart[i], ostart[i + 1]):
+            lo = min(lo, _cost(state, members[i], opt[x]))
+        for x in range(ostart[i], ostart[i + 1]):
+            xi = x - base
+            q[xi, xi] += _cost(state, members[i], opt[x]) - lo - pen
+            for y in range(x + 1, ostart[i + 1]):
+                q[xi, y - base] += 2 * pen
+            px = _path(state, members[i], opt[x])
+            for i2 in range(i + 1, b):
+                for y in range(ostart[i2], ostart[i2 + 1]):
+                    if _collide(px, _path(state, members[i2], opt[y])):
+                        q[xi, y - base] += pen
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def _feasible_cost(state, members, a, b, ostart, opt, choice) -> int:
+    """Cost of ``choice`` (an option per robot of the group), or -1 when two chosen options collide."""
+    total = 0
+    for i in range(a, b):
+        p = _path(state, members[i], opt[ostart[i] + choice[i - a]])
+        for i2 in range(i + 1, b):
+            if _collide(p, _path(state, members[i2], opt[ostart[i2] + choice[i2 - a]])):
+                return -1
+        total += _cost(state, members[i], opt[ostart[i] + choice[i - a]])
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def greedy_choice(state, members, a, b, ostart, opt, stamp, choice) -> int:
+    """The host rule: robots in the order of ``mix(seed, t, g, robot)``, each its cheapest option colliding with
+    none placed before; returns the cost (-1 when a robot is left without one: the group keeps its plan)."""
+    seed, t, g = stamp
+    size = b - a
+    keys = np.empty(size, dtype=np.uint64)
+    for i in range(size):
+        keys[i] = mix(seed, t, g, members[a + i])
+    order = np.argsort(keys)
+    placed = np.zeros(size, dtype=np.int8)
+    total = 0
+    for i in order:
+        q = members[a + i]
+        best = -1
+        for x in range(ostart[a + i], ostart[a + i + 1]):
+            p = _path(state, q, opt[x])
+            ok = True
+            for j in range(size):
+                if placed[j] and _collide(p, _path(state, members[a + j], opt[ostart[a + j] + choice[j]])):
+                    ok = False
+                    break
+            if ok and (best < 0 or _cost(state, q, opt[x]) < _cost(state, q, opt[best])):
+                best = x
+        if best < 0:
+            return -1
+        choice[i] = best - ostart[a + i]
+        placed[i] = 1
+        total += _cost(state, q, opt[best])
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
+    """The chip's answer: the cheapest read that is one-hot per robot and collision-free, into ``choice``;
+    its cost (-1 when no read is)."""
+    size = b - a
+    base = ostart[a]
+    cur = np.empty(size, dtype=np.int64)
+    best = -1
+    for rd in range(spins.shape[0]):
+        ok = True
+        for i in range(size):
+            cnt = 0
+            for x in range(ostart[a + i], ostart[a + i + 1]):
+                if spins[rd, x - base] > 0:
+                    cnt += 1
+                    cur[i] = x - ostart[a + i]
+            if cnt != 1:
+                ok = False
+                break
+        if not ok:
+            continue
+        e = _feasible_cost(state, members, a, b, ostart, opt, cur)
+        if e >= 0 and (best < 0 or e < best):
+            best = e
+            choice[:size] = cur
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def apply_choices(state, res, groups, choices, costs_now) -> int:
+    """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
+    when it costs less than their plan now and collides with nothing left in the plan; returns how many did.
+    ``groups = (ng, members, gstart, ostart, opt)``."""
+    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    ng, members, gstart, ostart, opt = groups
+    applied = 0
+    for g in range(ng):
+        a, b = gstart[g], gstart[g + 1]
+        if costs_now[g] < 0:
+            continue
+        before = 0
+        for i in range(a, b):
+            before += _cost(state, members[i], src[members[i]])
+        if costs_now[g] >= before:
+            continue
+        for i in range(a, b):
+            _reserve(res, cur[members[i]], members[i], -1)
+        ok = True
+        for i in range(a, b):
+            if _conflict(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i]) != -1:
+                ok = False
+                break
+            _reserve(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i], members[i])
+        for i in range(a, b):
+            q = members[i]
+            _reserve(res, _path(state, q, opt[ostart[i] + choices[i]]), q, -1)
+        if ok:
+            for i in range(a, b):
+                q = members[i]
+                src[q] = opt[ostart[i] + choices[i]]
+                cur[q] = _path(state, q, src[q])
+            applied += 1
+        for i in range(a, b):
+            _reserve(res, cur[members[i]], members[i], members[i])
+    return applied
+
+
+def _int_in(name, value, lo, hi):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise ValueError(f"{name} = {value!r} must be an integer in [{lo}, {hi}]")
+    return int(value)
+
+
+class EPIBTIsing(EPIBT):
+    """EPIBT plus the joint choice of operations of neighbourhood groups (module docstring).
+
+    Args:
+        grid, seed: as :class:`~planners.mapf.epibt.EPIBT` (its options pass through).
+        machine: any Ising machine; default ``ising_backend.EmulatedChip(seed=seed)`` (not built with
+            ``decider="host"``).
+        decider: ``"chip"`` (the machine decides) or ``"host"`` (the host rule, no machine call).
+        groups: decisions per call (default 32).
+        max_robots, max_options: robots per group (2..22, default 11) and options per robot (2..8, default 4).
+        num_reads: reads per program (1..64, default 16).
+    """
+
+    name = "epibt-ising"
+
+    def __init__(self, grid, seed: int = 0, machine=None, *, decider: str = "chip", groups: int = 32,
+                 max_robots: int = 11, max_options: int = 4, num_reads: int = 16, **options) -> None:
+        super().__init__(grid, seed=seed, **options)
+        if decider not in DECIDERS:
+            raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
+        self.decider = decider
+        self.machine = None
+        spins = 45
+        if decider == "chip":
+            from ising_backend import EmulatedChip, as_machine
+
+            try:
+                self.machine = EmulatedChip(seed=self.seed) if machine is None else as_machine(machine)
+            except TypeError as exc:
+                raise ValueError(str(exc)) from None
+            spins = int(self.machine.usable_spins)
+        self.n_groups = _int_in("groups", groups, 0, 1 << 16)
+        self.max_robots = _int_in("max_robots", max_robots, 2, 22)
+        self.max_options = _int_in("max_options", max_options, 2, 8)
+        self.num_reads = _int_in("num_reads", num_reads, 1, 64)
+        self.max_spins = spins
+        if self.max_spins < 2 * self.max_robots:
+            raise ValueError(f"max_robots = {max_robots} needs {2 * max_robots} spins; the machine has {spins}")
+        self.ledger = CallLedger()
+        self.last_compute = ComputeReport()
+        #: decisions so far; taken (the decided choice applied); the chip's cost below / above the host rule's
+        self.stats = {"decisions": 0, "applied": 0, "chip_better": 0, "chip_worse": 0, "host_s": 0.0}
+
+    def _improve(self, state) -> None:
+        t0 = time.perf_counter()
+        self.last_compute = ComputeReport()
+        r = len(state[3])
+        members = np.empty(r, dtype=np.int64)
+        gstart = np.empty(self.n_groups + 1, dtype=np.int64)
+        ostart = np.empty(r + 1, dtype=np.int64)
+        opt = np.empty(r * self.max_options, dtype=np.int64)
+        taken = np.zeros(r, dtype=np.int8)
+        ng = select_groups(state, self._res, (self.n_groups, self.max_robots, self.max_options, self.max_spins),
+                           (self.seed, self.t), taken, (members, gstart, ostart, opt))
+        if ng == 0:
+            return
+        m = gstart[ng]
+        host = np.zeros(m, dtype=np.int64)
+        host_cost = np.empty(ng, dtype=np.int64)
+        th = time.perf_counter()
+        for g in range(ng):
+            host_cost[g] = greedy_choice(state, members, gstart[g], gstart[g + 1], ostart, opt,
+                                         (self.seed, self.t, g), host[gstart[g]:])
+        host_s = time.perf_counter() - th
+        choice, cost, call = host, host_cost, None
+        if self.decider == "chip":
+            sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
+            n = int(sizes.max())
+            q = np.empty((n, n), dtype=np.int64)
+            H = np.zeros((ng, n), dtype=np.int64)
+            J = np.zeros((ng, n, n), dtype=np.int64)
+            for g in range(ng):
+                k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q)
+                qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+            seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
+            spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
+            call = self.machine.last_call
+            self.ledger = self.ledger + call
+            choice = np.zeros(m, dtype=np.int64)
+            cost = np.empty(ng, dtype=np.int64)
+            for g in range(ng):
+                cost[g] = decode_choice(state, members, gstart[g], gstart[g + 1], ostart, opt, spins[g],
+                                        choice[gstart[g]:])
+            better = (cost >= 0) & ((host_cost < 0) | (cost < host_cost))
+            worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
+            self.stats["chip_better"] += int(better.sum())
+            self.stats["chip_worse"] += int(worse.sum())
+            if active_audit() is not None:
+                self._audit(H, J, spins, energies, call, (ng, gstart, ostart, host, host_cost), host_s)
+        self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost)
+        self.stats["decisions"] += ng
+        total = time.perf_counter() - t0
+        emul = 0.0 if call is None else float(call.emulation_s)
+        self.stats["host_s"] += total - emul
+        if call is not None:
+            self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=total)
+
+    def _audit(self, H, J, spins, energies, call, groups, host_s) -> None:
+        """The programs into the open decision audit as class ``lns_groups``, beside the host rule's choice as
+        spins of the same program (a group the host rule leaves without a choice: its plan now, option 0)."""
+        from ising_backend.health import program_energy
+
+        ng, gstart, ostart, host, host_cost = groups
+        hs = -np.ones(H.shape, dtype=np.int8)
+        for g in range(ng):
+            for i in range(gstart[g], gstart[g + 1]):
+                hs[g, ostart[i] - ostart[gstart[g]] + (host[i] if host_cost[g] >= 0 else 0)] = 1
+        e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)
+        active_audit().record("lns_groups", H, J, spins, energies, call, host=(e_host, host_s / ng, "greedy"),
+                              spec=self.machine.spec)

@@ -1,0 +1,189 @@
+"""EPIBT's neighbourhood groups decided jointly (``epibt-ising``): groups, QUBO, host rule and decoding against
+brute force, plans conflict-free at every time, charges against the machine's ledger."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from ising_backend import CallLedger, EmulatedChip
+from planners.mapf import TURNING_EXECUTORS, EPIBT, EPIBTIsing
+from planners.mapf.common import mix
+from planners.mapf.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
+from test_mapf_epibt import plan_conflicts
+from test_mapf_turning import apply, random_instance, retarget
+
+
+class Capture(EPIBT):
+    """EPIBT that keeps a copy of each call's plan state and reservation table."""
+
+    def _improve(self, state):
+        self.captured = (tuple(a.copy() for a in state), self._res.copy())
+
+
+def collide(p, q):
+    return any(p[t] == q[t] or (p[t] != p[t - 1] and p[t] == q[t - 1] and q[t] == p[t - 1]) for t in range(1, len(p)))
+
+
+def captured_states(seed, steps=8):
+    rng = np.random.default_rng(seed)
+    grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.12, 0.7)
+    ex = Capture(grid, seed=seed, lns=0)
+    for _ in range(steps):
+        act = ex.actions(pos, orient, goals)
+        yield ex.captured
+        pos, orient, _ = apply(grid, pos, orient, act)
+        goals = retarget(rng, free, pos, goals)
+
+
+def groups_of(state, res, seed=0, t=0, limits=(8, 6, 4, 45)):
+    r = len(state[3])
+    members, gstart = np.empty(r, np.int64), np.empty(limits[0] + 1, np.int64)
+    ostart, opt = np.empty(r + 1, np.int64), np.empty(r * limits[2], np.int64)
+    ng = select_groups(state, res, limits, (seed, t), np.zeros(r, np.int8), (members, gstart, ostart, opt))
+    return ng, members, gstart, ostart, opt
+
+
+def path(state, q, c):
+    return tuple(state[0][q, c]) if c >= 0 else tuple(state[6][q])
+
+
+def cost(state, q, c):
+    return int(state[2][q, c]) if c >= 0 else int(state[7][q])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_groups_are_disjoint_and_their_options_collide_with_no_outsider(seed):
+    seen = 0
+    for state, res in captured_states(seed):
+        res0 = res.copy()
+        ng, members, gstart, ostart, opt = groups_of(state, res, seed)
+        assert np.array_equal(res, res0)  # the table is left as found
+        cur, src = state[4], state[5]
+        r = len(src)
+        inside = members[:gstart[ng]]
+        assert len(set(inside.tolist())) == len(inside)
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            assert 2 <= b - a <= 6 and ostart[b] - ostart[a] <= 45
+            group = set(members[a:b].tolist())
+            assert src[members[a]] != 0  # the seed robot is not on its best operation
+            for i in range(a, b):
+                q = members[i]
+                assert opt[ostart[i]] == src[q] and 1 <= ostart[i + 1] - ostart[i] <= 4
+                for c in opt[ostart[i] + 1:ostart[i + 1]]:
+                    assert not any(collide(path(state, q, c), tuple(cur[o])) for o in range(r) if o not in group)
+            seen += 1
+    assert seen > 0
+
+
+def brute(state, members, a, b, ostart, opt):
+    """Least cost over every collision-free choice of the group (None when there is none)."""
+    best = None
+    sizes = [range(ostart[i + 1] - ostart[i]) for i in range(a, b)]
+    for choice in itertools.product(*sizes):
+        paths = [path(state, members[a + i], opt[ostart[a + i] + c]) for i, c in enumerate(choice)]
+        if any(collide(p, q) for p, q in itertools.combinations(paths, 2)):
+            continue
+        total = sum(cost(state, members[a + i], opt[ostart[a + i] + c]) for i, c in enumerate(choice))
+        best = total if best is None else min(best, total)
+    return best
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
+    checked = 0
+    for t, (state, res) in enumerate(captured_states(seed, steps=5)):
+        ng, members, gstart, ostart, opt = groups_of(state, res, seed, t, limits=(4, 4, 3, 45))
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            n = ostart[b] - ostart[a]
+            if n > 12:
+                continue
+            q = np.empty((n, n), np.int64)
+            assert group_qubo(state, members, a, b, ostart, opt, q) == n
+            # every one-hot assignment: energy = its cost + a constant + a penalty per colliding pair (the penalty
+            # is 1 + the widest cost range of one robot: kept small for the chip's 15 levels; the decoder rejects
+            # colliding reads, so the ranking need only hold among collision-free ones)
+            base = [min(cost(state, members[i], opt[x]) for x in range(ostart[i], ostart[i + 1])) for i in range(a, b)]
+            pen = 1 + max(cost(state, members[i], opt[x]) - base[i - a] for i in range(a, b)
+                          for x in range(ostart[i], ostart[i + 1]))
+            costs = {}
+            for choice in itertools.product(*[range(ostart[i + 1] - ostart[i]) for i in range(a, b)]):
+                x = np.zeros(n, np.int64)
+                for i, c in zip(range(a, b), choice):
+                    x[ostart[i] - ostart[a] + c] = 1
+                paths = [path(state, members[i], opt[ostart[i] + c]) for i, c in zip(range(a, b), choice)]
+                clashes = sum(collide(p, r) for p, r in itertools.combinations(paths, 2))
+                total = sum(cost(state, members[i], opt[ostart[i] + c]) for i, c in zip(range(a, b), choice))
+                assert int(x @ np.triu(q) @ x) == total - sum(base) - pen * (b - a) + pen * clashes
+                if not clashes:
+                    costs[choice] = total
+            assert min(costs.values()) == brute(state, members, a, b, ostart, opt)
+            # the host rule: a seeded order, each robot its cheapest option colliding with none placed before
+            order = sorted(range(b - a), key=lambda i: int(mix(seed, t, g, members[a + i])))
+            placed, total = {}, 0
+            for i in order:
+                q_ = members[a + i]
+                ok = [x for x in range(ostart[a + i], ostart[a + i + 1])
+                      if not any(collide(path(state, q_, opt[x]), path(state, members[a + j], opt[ostart[a + j] + c]))
+                                 for j, c in placed.items())]
+                if not ok:
+                    total = -1
+                    break
+                x = min(ok, key=lambda x: (cost(state, q_, opt[x]), x))
+                placed[i] = x - ostart[a + i]
+                total += cost(state, q_, opt[x])
+            choice = np.zeros(b - a, np.int64)
+            assert greedy_choice(state, members, a, b, ostart, opt, (seed, t, g), choice) == total
+            # decoding: the cheapest one-hot, collision-free read
+            rng = np.random.default_rng(g)
+            spins = np.where(rng.random((6, n)) < 0.3, 1, -1).astype(np.int8)
+            x0 = np.full(n, -1, np.int8)
+            x0[ostart[a:b] - ostart[a]] = 1  # the plan now: always a valid read
+            spins[0] = x0
+            want = min(costs.get(tuple(int(np.argmax(s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0))
+                                       for i in range(a, b)), 1 << 62)
+                       for s in spins if all((s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0).sum() == 1
+                                             for i in range(a, b)))
+            got = decode_choice(state, members, a, b, ostart, opt, spins, np.zeros(b - a, np.int64))
+            assert got == want
+            checked += 1
+    assert checked > 0
+
+
+@pytest.mark.parametrize("decider", ["chip", "host"])
+def test_plans_stay_conflict_free_and_charges_equal_the_ledger(decider):
+    rng = np.random.default_rng(5)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    chip = EmulatedChip(seed=3)
+    ex = TURNING_EXECUTORS["epibt-ising"](grid, seed=2, machine=chip, decider=decider, lns=0, groups=8)
+    calls = 0
+    for step in range(40):
+        before = chip.ledger.physical_calls if decider == "chip" else 0
+        act = ex.actions(pos, orient, goals)
+        assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
+        if decider == "chip":
+            assert ex.last_compute.chip_calls == chip.ledger.physical_calls - before
+            calls += ex.last_compute.chip_calls
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None
+        goals = retarget(rng, free, pos, goals)
+    assert ex.stats["decisions"] > 0
+    if decider == "chip":
+        assert calls == ex.ledger.physical_calls == chip.ledger.physical_calls > 0
+    else:
+        assert ex.machine is None and ex.ledger == CallLedger()
+
+
+def test_same_seed_same_plans_and_bad_options():
+    rng = np.random.default_rng(9)
+    grid, free, pos, orient, goals = random_instance(rng, 8, 8, 0.1, 0.6)
+    runs = [[EPIBTIsing(grid, seed=1, lns=0).actions(pos, orient, goals).tolist() for _ in range(1)] for _ in range(2)]
+    assert runs[0] == runs[1]
+    for opts, word in (({"decider": "gpu"}, "decider"), ({"max_robots": 1}, "max_robots"),
+                       ({"max_options": 9}, "max_options"), ({"num_reads": 0}, "num_reads"), ({"groups": -1}, "groups")):
+        with pytest.raises(ValueError, match=word):
+            EPIBTIsing(grid, **opts)

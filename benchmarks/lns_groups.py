@@ -1,0 +1,165 @@
+"""Neighbourhood groups of EPIBT's search decided on the Ising chip vs the search's greedy (issue 33, item 3).
+
+Every run: the start kit's greedy scheduler on RANDOM-0x for ``--steps`` steps, executor ``epibt-ising`` with the
+chip deciding (``decider="chip"``) and with the host rule in its place (``decider="host"``, same seeds, same
+groups per step), beside plain ``epibt`` (its own search, the best host configuration).  ``--lns`` sets the
+search iterations of both ``epibt-ising`` arms (default 0: the groups are the only search).  In the chip arm each
+decision is also solved exactly (depth-first over the group's options), so the chip's and the host rule's costs
+are compared with the optimum of the same problem.
+
+    flock /tmp/mrmt-bench.lock python benchmarks/lns_groups.py --steps 300 --write
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import cpu_name, finish  # noqa: E402
+from planners.mapf.epibt_ising import _collide, _cost, _path  # noqa: E402
+
+SECTION = "## Neighbourhood groups of EPIBT on the chip (`epibt-ising`, issue 33)"
+ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
+
+
+@numba.njit(cache=True)
+def exact_cost(state, members, a, b, ostart, opt) -> int:
+    """Least cost of a collision-free choice of the group (depth-first, pruned by collisions and cost)."""
+    size = b - a
+    cur = np.zeros(size, dtype=np.int64)
+    acc = np.zeros(size + 1, dtype=np.int64)
+    best = 1 << 60
+    d = 0
+    cur[0] = -1
+    while d >= 0:
+        cur[d] += 1
+        if cur[d] >= ostart[a + d + 1] - ostart[a + d]:
+            d -= 1
+            continue
+        q = members[a + d]
+        c = _cost(state, q, opt[ostart[a + d] + cur[d]])
+        if acc[d] + c >= best:
+            continue
+        p = _path(state, q, opt[ostart[a + d] + cur[d]])
+        ok = True
+        for e in range(d):
+            if _collide(p, _path(state, members[a + e], opt[ostart[a + e] + cur[e]])):
+                ok = False
+                break
+        if not ok:
+            continue
+        acc[d + 1] = acc[d] + c
+        if d == size - 1:
+            best = acc[d + 1]
+        else:
+            d += 1
+            cur[d] = -1
+    return best
+
+
+def run(instance: str, steps: int, executor: str, options: dict, exact: bool):
+    from agents.lorr.run import proposal_goals
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.instance import read_instance
+    from mrmt_env.lorr.sim import LoRRSimulator
+    from planners.mapf import make_turning_executor
+    from planners.mapf import epibt_ising as E
+
+    inst = read_instance(ROOT / f"{instance}.json")
+    sim = LoRRSimulator(inst, record=False)
+    sched = make_scheduler("lorr-greedy", seed=0)
+    sched.reset(sim)
+    ex = make_turning_executor(executor, inst.grid, seed=0, **options)
+    gaps = []  # per decision: host cost, chip cost, optimum
+    fill = [0]
+    if exact:  # wrap the decoder: each decision's host rule, chip and exact costs on the same problem
+        greedy, decode = E.greedy_choice, E.decode_choice
+
+        def greedy_rec(state, members, a, b, ostart, opt, stamp, choice):
+            c = greedy(state, members, a, b, ostart, opt, stamp, choice)
+            gaps.append([c, None, exact_cost(state, members, a, b, ostart, opt)])
+            return c
+
+        def decode_rec(state, members, a, b, ostart, opt, spins, choice):
+            c = decode(state, members, a, b, ostart, opt, spins, choice)
+            gaps[fill[0]][1] = c  # groups are decoded in the order the host rule took them
+            fill[0] += 1
+            return c
+
+        E.greedy_choice, E.decode_choice = greedy_rec, decode_rec
+    step_s = np.zeros(steps)
+    try:
+        for t in range(steps):
+            proposal = sched.schedule(sim)
+            t0 = time.perf_counter()
+            act = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal))
+            emul = float(ex.last_compute.emulation_s)
+            step_s[t] = time.perf_counter() - t0 - emul + ex.last_compute.chip_time_parallel_s
+            sim.step(act, proposal)
+    finally:
+        if exact:
+            E.greedy_choice, E.decode_choice = greedy, decode
+    stats = getattr(ex, "stats", {})
+    return {"tasks": sim.finished, "errors": len(sim.errors), "p99": float(np.percentile(step_s, 99)),
+            "stats": stats, "gaps": gaps}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--instances", default="1,2,3,4,5")
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--groups", type=int, default=64)
+    ap.add_argument("--lns", type=int, default=0)
+    ap.add_argument("--write", action="store_true")
+    args = ap.parse_args(argv)
+    rows, decisions = [], []
+    for i in [int(x) for x in args.instances.split(",") if x]:
+        name = f"RANDOM-0{i}"
+        base = run(name, args.steps, "epibt", {}, False)
+        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "lns": args.lns, "groups": args.groups},
+                       d == "chip") for d in ("host", "chip")}
+        g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 3)
+        decisions.append(g)
+        st = arms["chip"]["stats"]
+        row = (f"| {name} | {base['tasks']} | {arms['host']['tasks']} | {arms['chip']['tasks']} | "
+               f"{100 * (arms['chip']['tasks'] / max(arms['host']['tasks'], 1) - 1):+.1f} % | "
+               f"{st['decisions']:,} | {st['applied']:,} / {arms['host']['stats']['applied']:,} | "
+               f"{1e3 * arms['host']['p99']:.0f} / {1e3 * arms['chip']['p99']:.0f} | "
+               f"{arms['host']['errors'] + arms['chip']['errors'] + base['errors']} |")
+        rows.append(row)
+        print(row, flush=True)
+    g = np.concatenate(decisions)
+    host, chip, best = g[:, 0], g[:, 1], g[:, 2]
+    ok_h, ok_c = host >= 0, chip >= 0
+    better = ok_c & (~ok_h | (chip < host))
+    worse = ok_h & (~ok_c | (chip > host))
+    denom = np.maximum(np.abs(best), 1)
+    hg = np.where(ok_h, (host - best) / denom, np.nan)
+    cg = np.where(ok_c, (chip - best) / denom, np.nan)
+    lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns} "
+             f"--write` on {cpu_name()}: start kit greedy scheduler, seed 0, {args.steps} steps per instance; "
+             f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations, 16 reads) and "
+             f"{args.lns} search iterations, the chip deciding or the host rule (the search's greedy) in its place; "
+             "`epibt` = EPIBT with its own search (default), the best host configuration.  Step p99: executor host "
+             "seconds (emulation excluded) + chip seconds at 50 us a call, parallel dispatch.", "",
+             "| instance | epibt tasks | host rule tasks | chip tasks | chip vs host rule | decisions | applied chip / "
+             "host | step p99 ms host / chip | errors |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|", *rows, "",
+             "Per decision (chip arm's own trajectory; cost = the group's summed cost-to-go; gaps as fractions of "
+             "the optimum; a host rule or chip without a collision-free answer keeps the plan and counts as no "
+             "answer):", "",
+             "| decisions | chip better | chip worse | host rule no answer | chip no answer | host gap | chip gap | "
+             "chip optimal |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
+             f"| {len(g):,} | {100 * better.mean():.1f} % | {100 * worse.mean():.1f} % | {100 * (~ok_h).mean():.1f} % | "
+             f"{100 * (~ok_c).mean():.1f} % | {100 * np.nanmean(hg):.2f} % | {100 * np.nanmean(cg):.2f} % | "
+             f"{100 * (ok_c & (chip == best)).mean():.1f} % |"]
+    finish(SECTION, lines, args.write)
+
+
+if __name__ == "__main__":
+    main()

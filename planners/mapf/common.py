@@ -16,7 +16,7 @@ import numpy as np
 from mrmt_env.distances import bfs_flat
 
 __all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid", "sort_options",
-           "pibt_core"]
+           "pibt_core", "int_in", "machine_for"]
 
 _DR = (0, 1, 0, -1)  # east, south, west, north
 _DC = (1, 0, -1, 0)
@@ -227,3 +227,21 @@ def pibt_core(pos, order, options, nxt, occ) -> None:
             top -= 1
             returned = True
             result = done
+
+
+def int_in(name: str, value, lo: int, hi: int) -> int:
+    """``value`` as an int when it is an integer in ``[lo, hi]``; else ``ValueError`` naming it and the range."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise ValueError(f"{name} = {value!r} must be an integer in [{lo}, {hi}]")
+    return int(value)
+
+
+def machine_for(machine, seed: int):
+    """An executor's Ising machine: ``machine`` as :func:`ising_backend.as_machine` takes it, the emulated chip
+    seeded with ``seed`` for ``None``; ``ValueError`` for anything that is not a machine."""
+    from ising_backend import EmulatedChip, as_machine
+
+    try:
+        return EmulatedChip(seed=seed) if machine is None else as_machine(machine)
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None

@@ -27,7 +27,7 @@ import numpy as np
 from ising_backend import CallLedger
 from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
-from planners.mapf.common import mix
+from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT, _conflict, _reserve
 from planners.mapf.joint_moves import qubo_to_ising
 
@@ -269,11 +269,6 @@ def apply_choices(state, res, groups, choices, costs_now) -> int:
     return applied
 
 
-def _int_in(name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ValueError(f"{name} = {value!r} must be an integer in [{lo}, {hi}]")
-    return int(value)
-
 
 class EPIBTIsing(EPIBT):
     """EPIBT plus the joint choice of operations of neighbourhood groups (module docstring).
@@ -299,17 +294,12 @@ class EPIBTIsing(EPIBT):
         self.machine = None
         spins = 45
         if decider == "chip":
-            from ising_backend import EmulatedChip, as_machine
-
-            try:
-                self.machine = EmulatedChip(seed=self.seed) if machine is None else as_machine(machine)
-            except TypeError as exc:
-                raise ValueError(str(exc)) from None
+            self.machine = machine_for(machine, self.seed)
             spins = int(self.machine.usable_spins)
-        self.n_groups = _int_in("groups", groups, 0, 1 << 16)
-        self.max_robots = _int_in("max_robots", max_robots, 2, 22)
-        self.max_options = _int_in("max_options", max_options, 2, 8)
-        self.num_reads = _int_in("num_reads", num_reads, 1, 64)
+        self.n_groups = int_in("groups", groups, 0, 1 << 16)
+        self.max_robots = int_in("max_robots", max_robots, 2, 22)
+        self.max_options = int_in("max_options", max_options, 2, 8)
+        self.num_reads = int_in("num_reads", num_reads, 1, 64)
         self.max_spins = spins
         if self.max_spins < 2 * self.max_robots:
             raise ValueError(f"max_robots = {max_robots} needs {2 * max_robots} spins; the machine has {spins}")

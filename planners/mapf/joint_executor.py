@@ -30,7 +30,7 @@ import numpy as np
 from ising_backend import CallLedger
 from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
-from planners.mapf.common import mix
+from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
                                        objective, qubo_to_ising, robot_options, select_groups, solve_exact)
 from planners.mapf.turning import TurningPIBT
@@ -39,11 +39,6 @@ __all__ = ["JointMovesPIBT", "ACCEPT"]
 
 ACCEPT = ("better", "chip", "host")
 
-
-def _int_in(name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ValueError(f"{name} = {value!r} must be an integer in [{lo}, {hi}]")
-    return int(value)
 
 
 class JointMovesPIBT(TurningPIBT):
@@ -76,19 +71,14 @@ class JointMovesPIBT(TurningPIBT):
                  audit: bool = False, **options) -> None:
         options.setdefault("guidance", 0)
         super().__init__(grid, seed=seed, **options)
-        from ising_backend import EmulatedChip, as_machine
-
-        try:
-            self.machine = EmulatedChip(seed=self.seed) if machine is None else as_machine(machine)
-        except TypeError as exc:
-            raise ValueError(str(exc)) from None
+        self.machine = machine_for(machine, self.seed)
         usable = int(self.machine.usable_spins)
-        self.max_robots = _int_in("max_robots", max_robots, 1, 45)
-        self.max_spins = usable if max_spins is None else _int_in("max_spins", max_spins, MAX_OPTIONS, usable)
-        self.levels = _int_in("levels", levels, 1, 7)
-        self.push = _int_in("push", push, 0, 2)
-        self.penalty = None if penalty is None else _int_in("penalty", penalty, 1, 1 << 20)
-        self.num_reads = _int_in("num_reads", num_reads, 1, 64)
+        self.max_robots = int_in("max_robots", max_robots, 1, 45)
+        self.max_spins = usable if max_spins is None else int_in("max_spins", max_spins, MAX_OPTIONS, usable)
+        self.levels = int_in("levels", levels, 1, 7)
+        self.push = int_in("push", push, 0, 2)
+        self.penalty = None if penalty is None else int_in("penalty", penalty, 1, 1 << 20)
+        self.num_reads = int_in("num_reads", num_reads, 1, 64)
         if accept not in ACCEPT:
             raise ValueError(f"accept = {accept!r} must be one of {', '.join(ACCEPT)}")
         self.accept = accept

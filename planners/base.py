@@ -57,8 +57,22 @@ class PathResult:
         return None if self.path is None else len(self.path) - 1
 
 
+@dataclass(frozen=True, kw_only=True)
+class Outcome:
+    """What a tour or sharing result carries beside its answer (keywords only): the compute charge,
+    statistics, and ``failure``, the one failure channel (a message; ``None`` on success)."""
+
+    compute: ComputeReport = field(default_factory=ComputeReport)
+    stats: dict = field(default_factory=dict, compare=False)
+    failure: str | None = None
+
+    @property
+    def success(self) -> bool:
+        return self.failure is None
+
+
 @dataclass(frozen=True)
-class TourResult:
+class TourResult(Outcome):
     """An open route over local nodes ``1..n`` starting from node 0.
 
     ``order`` is a permutation of ``1..n`` (local node indices); ``cost`` is
@@ -69,17 +83,10 @@ class TourResult:
 
     order: tuple[int, ...]
     cost: float
-    compute: ComputeReport = field(default_factory=ComputeReport)
-    stats: dict = field(default_factory=dict, compare=False)
-    failure: str | None = None
-
-    @property
-    def success(self) -> bool:
-        return self.failure is None
 
 
 @dataclass(frozen=True)
-class SharingResult:
+class SharingResult(Outcome):
     """Targets assigned to robots: ``assignment[k]`` lists target indices (0..N-1)
     for robot ``k`` (order not meaningful; the tour layer orders them).
 
@@ -88,13 +95,6 @@ class SharingResult:
     """
 
     assignment: tuple[tuple[int, ...], ...]
-    compute: ComputeReport = field(default_factory=ComputeReport)
-    stats: dict = field(default_factory=dict, compare=False)
-    failure: str | None = None
-
-    @property
-    def success(self) -> bool:
-        return self.failure is None
 
 
 @runtime_checkable

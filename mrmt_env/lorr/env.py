@@ -54,6 +54,14 @@ class LoRRSetup:
         self.sim: LoRRSimulator | None = None
         self.pending: np.ndarray | None = None
 
+    @classmethod
+    def attach(cls, env, instance, steps, scheduler, render_mode, action_model) -> LoRRInstance:
+        """Check ``render_mode`` against ``env.metadata``, set ``env.render_mode`` and ``env.setup``; the instance."""
+        check_render_mode(render_mode, env.metadata["render_modes"])
+        env.render_mode = render_mode
+        env.setup = cls(instance, steps, scheduler, action_model)
+        return env.setup.instance
+
     def observation_space(self, shape: tuple) -> spaces.Dict:
         """The observation of ``shape`` (``(R,)`` for the whole team, ``()`` for one robot)."""
         cells, big = self.instance.grid.size, np.iinfo(np.int64).max
@@ -129,10 +137,7 @@ class LoRREnv(gym.Env):
 
     def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
                  action_model: str = "MAPF_T") -> None:
-        check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        self.setup = LoRRSetup(instance, steps, scheduler, action_model)
-        inst = self.setup.instance
+        inst = LoRRSetup.attach(self, instance, steps, scheduler, render_mode, action_model)
         self.instance = inst
         r = inst.team_size
         self.n_robots = r

@@ -13,7 +13,6 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from mrmt_env.core import check_render_mode
 from mrmt_env.lorr.env import LoRRSetup, render_lorr
 
 __all__ = ["LoRRParallelEnv", "lorr_parallel_env"]
@@ -27,10 +26,7 @@ class LoRRParallelEnv(ParallelEnv):
 
     def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
                  action_model: str = "MAPF_T") -> None:
-        check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        self.setup = LoRRSetup(instance, steps, scheduler, action_model)
-        inst = self.setup.instance
+        inst = LoRRSetup.attach(self, instance, steps, scheduler, render_mode, action_model)
         self.possible_agents = [f"robot_{k}" for k in range(inst.team_size)]
         self.agents: list[str] = []
         big = np.iinfo(np.int64).max

@@ -29,7 +29,7 @@ from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT, _conflict, _reserve
-from planners.mapf.joint_moves import qubo_to_ising
+from planners.mapf.joint_moves import program_batch, qubo_to_ising
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
@@ -331,11 +331,7 @@ class EPIBTIsing(EPIBT):
         host_s = time.perf_counter() - th
         choice, cost, call = host, host_cost, None
         if self.decider == "chip":
-            sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
-            n = int(sizes.max())
-            q = np.empty((n, n), dtype=np.int64)
-            H = np.zeros((ng, n), dtype=np.int64)
-            J = np.zeros((ng, n, n), dtype=np.int64)
+            _, q, H, J = program_batch(ng, gstart, ostart)
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q)
                 qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])

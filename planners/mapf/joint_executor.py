@@ -32,7 +32,7 @@ from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
-                                       objective, qubo_to_ising, robot_options, select_groups, solve_exact)
+                                       objective, program_batch, qubo_to_ising, robot_options, select_groups, solve_exact)
 from planners.mapf.turning import TurningPIBT
 
 __all__ = ["JointMovesPIBT", "ACCEPT"]
@@ -129,11 +129,7 @@ class JointMovesPIBT(TurningPIBT):
         if ng == 0:
             self.host_s += time.perf_counter() - t0
             return
-        sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
-        n = int(sizes.max())
-        q = np.empty((n, n), dtype=np.int64)
-        H = np.zeros((ng, n), dtype=np.int64)
-        J = np.zeros((ng, n, n), dtype=np.int64)
+        sizes, q, H, J = program_batch(ng, gstart, ostart)
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
             pen = 1 + group_spread(a, b, ostart, opt) if self.penalty is None else self.penalty

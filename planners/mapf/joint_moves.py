@@ -272,6 +272,14 @@ def build_qubo(pos, members, a, b, ostart, opt, one_hot, pair, q):
     return n
 
 
+def program_batch(ng: int, gstart: np.ndarray, ostart: np.ndarray):
+    """``(sizes, q, H, J)`` for ``ng`` groups whose options are ``ostart[gstart[g]]:ostart[gstart[g + 1]]``: each
+    program's spins, a QUBO scratch of the largest, and the batch's zeroed integer ``H (ng, n)``, ``J (ng, n, n)``."""
+    sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
+    n = int(sizes.max())
+    return sizes, np.empty((n, n), dtype=np.int64), np.zeros((ng, n), dtype=np.int64), np.zeros((ng, n, n), np.int64)
+
+
 @numba.njit(cache=True, nogil=True)
 def qubo_to_ising(q, n, h, J):
     """The mapping rule: Ising of ``q[:n, :n]`` times 4 (integers), scaled so max ``|h|, |J|`` = 7, rounded

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from agents.commands.options import (add_chip_argument, add_host_rule_argument, chip_from_args, host_rule_from_args, add_runner_arguments, check_positive, check_seed,
+from agents.commands.options import (add_chip_argument, add_decision_arguments, chip_from_args, host_rule_from_args, add_runner_arguments, check_positive, check_seed,
                                      add_world_arguments, runner_from_args)
 
 NAME = "compare"
@@ -37,10 +37,7 @@ def add_arguments(parser) -> None:
     add_runner_arguments(parser)
     add_chip_argument(parser)
     parser.add_argument("--out", default=None, help="directory for episodes.csv and episodes.json")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    parser.add_argument("--audit", default=None, metavar="DIR",
-                        help="record every chip decision in DIR (mrmt audit DIR judges it; --jobs 1, inline only)")
-    add_host_rule_argument(parser)
+    add_decision_arguments(parser, "--jobs 1, inline only")
 
 
 def _error(message: str) -> int:

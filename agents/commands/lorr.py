@@ -23,7 +23,7 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 
 
 def add_arguments(parser) -> None:
-    from agents.commands.options import add_chip_argument, add_host_rule_argument, add_runner_arguments
+    from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
     sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,check}")
     run = sub.add_parser("run", help="run instances with a scheduler and an executor")
@@ -44,10 +44,7 @@ def add_arguments(parser) -> None:
                      help="pipeline schedulers re-plan robots whose task is not opened yet when a task finishes")
     run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
     run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
-    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--audit", default=None, metavar="DIR",
-                     help="record every chip decision in DIR (mrmt audit DIR judges it; inline backend only)")
-    add_host_rule_argument(run)
+    add_decision_arguments(run, "inline backend only")
     add_runner_arguments(run)
     add_chip_argument(run, who="the ising scheduler")
     check = sub.add_parser("check", help="re-simulate an output file on its instance")

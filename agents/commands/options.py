@@ -134,10 +134,14 @@ def check_positive(args, names) -> str | None:
     return None
 
 
-def add_host_rule_argument(parser) -> None:
-    """``--host-rule CLASS[,CLASS...]|all``: the host rule answers those decision classes instead of the chip."""
+def add_decision_arguments(parser, where: str) -> None:
+    """``--no-progress``, ``--audit DIR`` (every chip decision recorded; ``where`` says where it applies) and
+    ``--host-rule CLASS[,CLASS...]|all`` (the host rule answers those decision classes instead of the chip)."""
     from ising_backend.host_rule import HOST_RULE_CLASSES
 
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--audit", default=None, metavar="DIR",
+                        help=f"record every chip decision in DIR (mrmt audit DIR judges it; {where}); plans are unchanged")
     parser.add_argument("--host-rule", default=None, metavar="CLASSES",
                         help="ablation: the host rule (greedy + descent) answers these decision classes where the chip "
                              f"decided ({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")

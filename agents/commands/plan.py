@@ -74,12 +74,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default=None, help="write the plans here (JSON Lines) instead of stdout")
     parser.add_argument("--seed", type=int, default=0, help="planning seed (default 0); line N uses [seed, N]")
     parser.add_argument("--keep-going", action="store_true", help='continue past bad lines: each gets {"error": ..., "line": N} in its output place (still exit 2)')
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    parser.add_argument("--audit", default=None, metavar="DIR",
-                        help="record every chip decision in DIR (judge it with: mrmt audit DIR); plans are unchanged")
-    from agents.commands.options import add_host_rule_argument
+    from agents.commands.options import add_decision_arguments
 
-    add_host_rule_argument(parser)
+    add_decision_arguments(parser, "this process")
 
 
 def _error(message: str) -> None:

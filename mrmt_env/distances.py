@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat", "component_labels",
+__all__ = ["UNREACHABLE", "MOVES", "bfs_distance_field", "bfs_distance_fields", "bfs_flat", "bfs_until", "component_labels",
            "free_neighbour"]
 
 UNREACHABLE = -1
@@ -72,8 +72,16 @@ def bfs_flat(flat_grid, width, field, queue, n_sources) -> int:
     source (-1 where none is reachable) and ``queue[:k]`` the ``k`` cells reached
     (sources included); returns ``k``.  Cells already >= 0 in ``field`` are not entered.
     """
+    return bfs_until(flat_grid, width, field, queue, n_sources, -1)
+
+
+@numba.njit(cache=True, nogil=True)
+def bfs_until(flat_grid, width, field, queue, n_sources, stop) -> int:
+    """:func:`bfs_flat` that stops once flat cell ``stop`` is reached (after the neighbours of the cell it
+    was reached from; -1: never)."""
     head, tail = 0, n_sources
-    while head < tail:
+    found = False
+    while head < tail and not found:
         p = queue[head]
         head += 1
         for m in range(4):
@@ -82,6 +90,7 @@ def bfs_flat(flat_grid, width, field, queue, n_sources) -> int:
                 field[q] = field[p] + 1
                 queue[tail] = q
                 tail += 1
+                found = found or q == stop
     return tail
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mrmt_env.distances import free_neighbour
+from mrmt_env.distances import bfs_until, free_neighbour
 
 __all__ = ["GreedyScheduler", "pair_distances", "greedy_kernel", "FAR"]
 
@@ -44,20 +44,8 @@ def pair_distances(flat_grid, width, a, b, out) -> int:
             continue
         dist[s] = 0
         queue[0] = s
-        head, tail = 0, 1
-        found = -1
-        while head < tail and found < 0:
-            p = queue[head]
-            head += 1
-            for m in range(4):
-                q = free_neighbour(flat_grid, width, p, m)
-                if q >= 0 and dist[q] < 0:
-                    dist[q] = dist[p] + 1
-                    queue[tail] = q
-                    tail += 1
-                    if q == g:
-                        found = dist[q]
-        out[k] = found
+        tail = bfs_until(flat_grid, width, dist, queue, 1, g)
+        out[k] = dist[g]
         work += tail
         for i in range(tail):
             dist[queue[i]] = -1

@@ -6,8 +6,9 @@ solver (``MeteredSolver(..., decision=CLASS)``) -- take the generic host rule's 
 construction then steepest single-flip descent (:func:`ising_backend.audit_judge.greedy_descent`), the
 same answer for every read, on the host, charged nothing to the machine (its seconds are host
 seconds of the planner that asked).  So one flag puts the host rule where the chip decided and the
-plan says what the chip was worth there.  Closed, nothing changes.  ``joint_moves`` has a host rule
-of its own (PIBT: the executor's ``accept="host"``) and is not taken here.
+plan says what the chip was worth there.  Closed, nothing changes.  ``joint_moves`` and ``lns_groups``
+have host rules of their own (PIBT: ``accept="host"``; the search's greedy: ``decider="host"``) and are not
+taken here.
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ def parse_classes(spec) -> frozenset:
     unknown = [n for n in names if n not in HOST_RULE_CLASSES]
     if unknown or not names:
         raise ValueError(f"unknown host-rule class(es) {unknown or names}; known: {', '.join(HOST_RULE_CLASSES)} "
-                         "or all (joint_moves has its own: the executor's accept='host')")
+                         "or all (joint_moves and lns_groups have their own: the executors' accept='host' and "
+                         "decider='host')")
     return frozenset(names)
 
 

@@ -187,3 +187,36 @@ def test_same_seed_same_plans_and_bad_options():
                        ({"max_options": 9}, "max_options"), ({"num_reads": 0}, "num_reads"), ({"groups": -1}, "groups")):
         with pytest.raises(ValueError, match=word):
             EPIBTIsing(grid, **opts)
+
+
+def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
+    from ising_backend.audit import Audit, read_records
+    from ising_backend.audit_judge import judge
+
+    rng = np.random.default_rng(4)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    runs = []
+    for audit in (None, tmp_path / "audit"):
+        ex = EPIBTIsing(grid, seed=3, lns=0, groups=6)
+        p, o, g, acts = pos.copy(), orient.copy(), goals.copy(), []
+        r2 = np.random.default_rng(1)
+        ctx = Audit(audit) if audit else None
+        if ctx:
+            ctx.__enter__()
+        try:
+            for _ in range(15):
+                a = ex.actions(p, o, g)
+                acts.append(a.tolist())
+                p, o, _ = apply(grid, p, o, a)
+                g = retarget(r2, free, p, g)
+        finally:
+            if ctx:
+                ctx.__exit__(None, None, None)
+        runs.append((acts, ex.stats["decisions"], ex.ledger.physical_calls))
+    assert runs[0] == runs[1]
+    records = read_records(tmp_path / "audit")
+    assert {r["class"] for r in records} == {"lns_groups"}
+    assert len(records) == runs[1][1] > 0  # one program per decision
+    assert sum(r["calls"] for r in records) == runs[1][2]  # charges summed = the ledger
+    rows = judge(records)
+    assert len(rows) == len(records) and all(r["host_rule"] == "greedy" for r in rows)

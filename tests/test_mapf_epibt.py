@@ -314,3 +314,9 @@ def test_registered_and_bad_options_name_the_value():
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a path"):
         EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)
+
+
+def test_no_robots_no_actions():
+    grid = np.zeros((4, 4), dtype=bool)
+    for ex in (EPIBT(grid, lns=10), EPIBT(grid, flow=False)):
+        assert ex.actions(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)).tolist() == []

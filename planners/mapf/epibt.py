@@ -275,6 +275,8 @@ def _lns(cand, plans, res, stamp) -> None:
     cur, src, inh, inh_cost = plans
     seed, t, iters, group = stamp
     r = cur.shape[0]
+    if r == 0:
+        return
     members = np.empty(group, dtype=np.int64)
     mark = np.zeros(r, dtype=np.int8)
     keys = np.empty(group, dtype=np.uint64)

@@ -144,7 +144,8 @@ def main(argv=None) -> None:
     cg = np.where(ok_c, (chip - best) / denom, np.nan)
     lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns} "
              f"--write` on {cpu_name()}: start kit greedy scheduler, seed 0, {args.steps} steps per instance; "
-             f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations, 16 reads) and "
+             f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations; 64 reads, penalty 2: "
+             "the defaults) and "
              f"{args.lns} search iterations, the chip deciding or the host rule (the search's greedy) in its place; "
              "`epibt` = EPIBT with its own search (default), the best host configuration.  Step p99: executor host "
              "seconds (emulation excluded) + chip seconds at 50 us a call, parallel dispatch.", "",

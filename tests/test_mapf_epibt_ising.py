@@ -102,14 +102,15 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
             n = ostart[b] - ostart[a]
             if n > 12:
                 continue
+            weight = 1 + (g % 2)
             q = np.empty((n, n), np.int64)
-            assert group_qubo(state, members, a, b, ostart, opt, q) == n
+            assert group_qubo(state, members, a, b, ostart, opt, q, weight) == n
             # every one-hot assignment: energy = its cost + a constant + a penalty per colliding pair (the penalty
             # is 1 + the widest cost range of one robot: kept small for the chip's 15 levels; the decoder rejects
             # colliding reads, so the ranking need only hold among collision-free ones)
             base = [min(cost(state, members[i], opt[x]) for x in range(ostart[i], ostart[i + 1])) for i in range(a, b)]
-            pen = 1 + max(cost(state, members[i], opt[x]) - base[i - a] for i in range(a, b)
-                          for x in range(ostart[i], ostart[i + 1]))
+            pen = weight * (1 + max(cost(state, members[i], opt[x]) - base[i - a] for i in range(a, b)
+                                    for x in range(ostart[i], ostart[i + 1])))
             costs = {}
             for choice in itertools.product(*[range(ostart[i + 1] - ostart[i]) for i in range(a, b)]):
                 x = np.zeros(n, np.int64)
@@ -184,7 +185,8 @@ def test_same_seed_same_plans_and_bad_options():
     runs = [[EPIBTIsing(grid, seed=1, lns=0).actions(pos, orient, goals).tolist() for _ in range(1)] for _ in range(2)]
     assert runs[0] == runs[1]
     for opts, word in (({"decider": "gpu"}, "decider"), ({"max_robots": 1}, "max_robots"),
-                       ({"max_options": 9}, "max_options"), ({"num_reads": 0}, "num_reads"), ({"groups": -1}, "groups")):
+                       ({"max_options": 9}, "max_options"), ({"num_reads": 0}, "num_reads"), ({"groups": -1}, "groups"),
+                       ({"penalty": 0}, "penalty")):
         with pytest.raises(ValueError, match=word):
             EPIBTIsing(grid, **opts)
 

@@ -124,10 +124,10 @@ def _cost(state, q, c) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def group_qubo(state, members, a, b, ostart, opt, q) -> int:
+def group_qubo(state, members, a, b, ostart, opt, q, weight=1) -> int:
     """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
-    returned): costs above each robot's least; one-hot and collision penalties of ``1 +`` the largest such
-    cost (small, for the chip's few levels: among one-hot, collision-free choices the energy ranks as the
+    returned): costs above each robot's least; one-hot and collision penalties of ``weight x (1 +`` the largest
+    such cost) (small, for the chip's few levels: among one-hot, collision-free choices the energy ranks as the
     cost; a read that is not one of them is rejected by :func:`decode_choice`)."""
     base = ostart[a]
     n = ostart[b] - base
@@ -139,7 +139,7 @@ def group_qubo(state, members, a, b, ostart, opt, q) -> int:
             lo = min(lo, _cost(state, members[i], opt[x]))
         for x in range(ostart[i], ostart[i + 1]):
             spread = max(spread, _cost(state, members[i], opt[x]) - lo)
-    pen = spread + 1
+    pen = weight * (spread + 1)
     for i in range(a, b):
         lo = _BIG
         for x in range(ostart[i], ostart[i + 1]):
@@ -280,13 +280,16 @@ class EPIBTIsing(EPIBT):
         decider: ``"chip"`` (the machine decides) or ``"host"`` (the host rule, no machine call).
         groups: decisions per call (default 32).
         max_robots, max_options: robots per group (2..22, default 11) and options per robot (2..8, default 4).
-        num_reads: reads per program (1..64, default 16).
+        num_reads: reads per program (1..64, default 64).
+        penalty: the one-hot and collision penalties in units of ``1 +`` the widest cost range of one robot
+            (1..64, default 2; reads and penalty chosen on RANDOM-03: docs/design/lifelong_turning.md).
     """
 
     name = "epibt-ising"
 
     def __init__(self, grid, seed: int = 0, machine=None, *, decider: str = "chip", groups: int = 32,
-                 max_robots: int = 11, max_options: int = 4, num_reads: int = 16, **options) -> None:
+                 max_robots: int = 11, max_options: int = 4, num_reads: int = 64, penalty: int = 2,
+                 **options) -> None:
         super().__init__(grid, seed=seed, **options)
         if decider not in DECIDERS:
             raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
@@ -300,6 +303,7 @@ class EPIBTIsing(EPIBT):
         self.max_robots = int_in("max_robots", max_robots, 2, 22)
         self.max_options = int_in("max_options", max_options, 2, 8)
         self.num_reads = int_in("num_reads", num_reads, 1, 64)
+        self.penalty = int_in("penalty", penalty, 1, 64)
         self.max_spins = spins
         if self.max_spins < 2 * self.max_robots:
             raise ValueError(f"max_robots = {max_robots} needs {2 * max_robots} spins; the machine has {spins}")
@@ -333,7 +337,7 @@ class EPIBTIsing(EPIBT):
         if self.decider == "chip":
             _, q, H, J = program_batch(ng, gstart, ostart)
             for g in range(ng):
-                k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q)
+                k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)
                 qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
             seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
             spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)

@@ -3,7 +3,7 @@
 Records every chip program (``ising_backend.audit.Audit``) of: the ``ising-paper`` and ``ising`` presets on
 ``--worlds`` paper worlds (10x10, 3 robots, 10 targets), the ``ising`` preset on ``--fleet`` fleet worlds
 (20x20, 5 robots, 40 targets: the fleet search), and the ``ising`` LoRR scheduler on RANDOM-01 for ``--steps``
-steps; judges each class (``mrmt audit``: chip vs the host rule vs the optimum) and exports the problems as a
+steps, and the ``pibt-ising`` and ``epibt-ising`` executors on RANDOM-03; judges each class (``mrmt audit``: chip vs the host rule vs the optimum) and exports the problems as a
 benchmark set (``--export DIR``).  Writes the RESULTS.md section (``--write``).
 
     flock /tmp/mrmt-bench.lock python benchmarks/audit.py --export /tmp/qubo-set --write
@@ -54,6 +54,12 @@ def _record(directory: Path, args) -> dict:
         with Audit(directory) as audit:
             run_lorr(path, "lorr-greedy", "pibt-ising", steps=args.joint_steps)
         sources[f"LoRR RANDOM-03, lorr-greedy + pibt-ising, {args.joint_steps} steps"] = dict(audit.counts)
+    if args.lns_steps:  # EPIBT's neighbourhood groups (executor epibt-ising), host rule the search's greedy
+        path = next(LORR.glob("*/RANDOM-03.json"))
+        run_lorr(path, "lorr-greedy", "epibt-ising", steps=3)
+        with Audit(directory) as audit:
+            run_lorr(path, "lorr-greedy", "epibt-ising", steps=args.lns_steps)
+        sources[f"LoRR RANDOM-03, lorr-greedy + epibt-ising, {args.lns_steps} steps"] = dict(audit.counts)
     return sources
 
 
@@ -63,6 +69,8 @@ def main(argv=None) -> None:
     parser.add_argument("--fleet", type=int, default=3)
     parser.add_argument("--steps", type=int, default=300, help="LoRR steps (0 = none)")
     parser.add_argument("--joint-steps", type=int, default=100, help="LoRR steps with the pibt-ising executor (0 = none)")
+    parser.add_argument("--lns-steps", type=int, default=40,
+                        help="LoRR steps with the epibt-ising executor (0 = none)")
     parser.add_argument("--audit", default=None, help="audit directory (default: a temporary one)")
     parser.add_argument("--export", default=None, help="also export the benchmark set here")
     parser.add_argument("--write", action="store_true")
@@ -80,12 +88,13 @@ def main(argv=None) -> None:
     t2 = time.perf_counter()
     counts = export(records, judged, args.export, read_specs(directory)) if args.export else {}
     lines = [SECTION, "", f"`python benchmarks/audit.py --worlds {args.worlds} --fleet {args.fleet} --steps {args.steps} "
-             f"--joint-steps {args.joint_steps}"
+             f"--joint-steps {args.joint_steps} --lns-steps {args.lns_steps}"
              f"{' --export DIR' if args.export else ''} --write` on {cpu_name()}: {len(records)} chip programs recorded in "
              f"{t1 - t0:.0f} s, judged in {t2 - t1:.0f} s.  A decision = one program as the machine took it (quantized; a "
              "packed program holds several problems).  Chip = the best of its reads; host rule = greedy construction "
              "then steepest single-flip descent on the same program (the rule a host would run in the chip's place), "
-             "except joint_moves, whose host rule is PIBT's own answer encoded in the same program; "
+             "except joint_moves, whose host rule is PIBT's own answer, and lns_groups, whose host rule is the "
+             "search's greedy, each encoded in the same program; "
              "optimum exact up to 20 active spins, else the best of a long tabu run (share exact in the last column). "
              "Gaps are fractions of max(|optimum|, 1); chip us at 50 us a call (paper rule), host us measured.", "",
              "| source | programs per class |", "|---|---|"]

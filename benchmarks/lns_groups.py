@@ -115,14 +115,15 @@ def main(argv=None) -> None:
     ap.add_argument("--instances", default="1,2,3,4,5")
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--groups", type=int, default=64)
-    ap.add_argument("--lns", type=int, default=0)
+    ap.add_argument("--lns", type=int, default=0, help="search iterations of both arms (-1: the executor's default)")
     ap.add_argument("--write", action="store_true")
     args = ap.parse_args(argv)
     rows, decisions = [], []
     for i in [int(x) for x in args.instances.split(",") if x]:
         name = f"RANDOM-0{i}"
         base = run(name, args.steps, "epibt", {}, False)
-        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "lns": args.lns, "groups": args.groups},
+        lns = {} if args.lns < 0 else {"lns": args.lns}
+        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns},
                        d == "chip") for d in ("host", "chip")}
         g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 3)
         decisions.append(g)

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
 from planners.mapf.common import mix
-from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, guided, random_instance, retarget
+from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, guided, random_instance, retarget
 
 FAR = 1 << 40
 
@@ -261,17 +261,12 @@ def test_dense_crowds_get_conflict_free_plans_at_every_time(seed):
     h, w = int(rng.integers(8, 17)), int(rng.integers(8, 17))
     grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.03 * seed, 0.5 + 0.07 * seed)
     ex = make_turning_executor("epibt", grid, seed=seed, flow=seed % 2 == 0)
-    reached = moved = 0
-    for step in range(120):
-        act = ex.actions(pos, orient, goals)
+
+    def check(step, pos, orient, act):
         assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
         assert act.tolist() == ex.plans[:, 0].tolist()
-        pos2, orient, err = apply(grid, pos, orient, act)
-        assert err is None, f"step {step}: {err}"
-        moved += int((pos2 != pos).sum())
-        pos = pos2
-        reached += int((pos == goals).sum())
-        goals = retarget(rng, free, pos, goals)
+
+    moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 120, check)
     assert moved > 0 and reached > 0
 
 

@@ -183,6 +183,24 @@ def random_instance(rng, h, w, density, fill):
     return grid, free, pos, orient, goals
 
 
+def drive(ex, grid, free, state, rng, steps, check=None):
+    """``ex`` for ``steps`` steps from ``state = (pos, orient, goals)``, every joint action checked valid and reached
+    goals re-drawn; ``check(step, pos, orient, act)`` before each action runs.  Returns (robots moved, goals reached)."""
+    pos, orient, goals = state
+    reached = moved = 0
+    for step in range(steps):
+        act = ex.actions(pos, orient, goals)
+        if check is not None:
+            check(step, pos, orient, act)
+        pos2, orient, err = apply(grid, pos, orient, act)
+        assert err is None, f"step {step}: {err}"
+        moved += int((pos2 != pos).sum())
+        pos = pos2
+        reached += int((pos == goals).sum())
+        goals = retarget(rng, free, pos, goals)
+    return moved, reached
+
+
 def retarget(rng, free, pos, goals):
     done = pos == goals
     return np.where(done & (rng.random(len(pos)) < 0.8), rng.choice(free, size=len(pos)), goals)
@@ -214,15 +232,7 @@ def test_dense_crowds_only_get_valid_joint_actions(seed):
     grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.04 * seed, 0.6)
     budget = {"bfs_budget": 1} if seed % 2 else {}  # odd seeds: one new goal field per call, Manhattan meanwhile
     ex = make_turning_executor("pibt", grid, seed=seed, **budget)
-    reached = moved = 0
-    for step in range(150):
-        act = ex.actions(pos, orient, goals)
-        pos2, orient, err = apply(grid, pos, orient, act)
-        assert err is None, f"step {step}: {err}"
-        moved += int((pos2 != pos).sum())
-        pos = pos2
-        reached += int((pos == goals).sum())
-        goals = retarget(rng, free, pos, goals)
+    moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 150)
     assert moved > 0 and reached > 0
 
 

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
 from planners.mapf.common import mix
-from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, guided, random_instance, retarget
+from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, free_neighbours, guided, random_instance, retarget
 
 FAR = 1 << 40
 
@@ -76,12 +76,7 @@ class Oracle:
         self.dead = {p for p in range(h * w) if free.flat[p] and sum(1 for _ in self.nbrs(p)) == 1}
 
     def nbrs(self, p):
-        h, w = self.grid.shape
-        r, c = divmod(p, w)
-        for d in range(4):
-            nr, nc = r + DR[d], c + DC[d]
-            if 0 <= nr < h and 0 <= nc < w and not self.grid[nr, nc]:
-                yield d, nr * w + nc
+        return free_neighbours(self.grid, p)
 
     def to_go(self, dist, goal, c, o):
         if c == goal:

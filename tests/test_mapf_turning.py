@@ -47,6 +47,16 @@ def apply(grid, pos, orient, act):
 
 # ---------------------------------------------------------------- the oracle: recursive PIBT + vacate check
 
+def free_neighbours(grid, p):
+    """``(direction, flat cell)`` of each free neighbour of flat cell ``p``."""
+    h, w = grid.shape
+    r, c = divmod(p, w)
+    for d in range(4):
+        nr, nc = r + DR[d], c + DC[d]
+        if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
+            yield d, nr * w + nc
+
+
 def bfs(grid, goal):
     h, w = grid.shape
     dist = {goal: 0}
@@ -95,12 +105,7 @@ class Oracle:
         self.tie = np.random.default_rng(seed).random(n).tolist()
 
     def neighbours(self, p):
-        h, w = self.grid.shape
-        r, c = divmod(p, w)
-        for d in range(4):
-            nr, nc = r + DR[d], c + DC[d]
-            if 0 <= nr < h and 0 <= nc < w and not self.grid[nr, nc]:
-                yield d, nr * w + nc
+        return free_neighbours(self.grid, p)
 
     def distances(self, goals):
         """Robot ``k``'s distances ``{cell: distance}`` (its goal's BFS or lane-cost field)."""

@@ -15,17 +15,7 @@ from planners.mapf import TURNING_EXECUTORS, FlowPIBT, make_turning_executor
 from planners.mapf.flow import astar_scratch, flow_astar, path_field
 from planners.mapf.turning import compact_grid
 from test_mapf_turning import Oracle, apply, random_instance, retarget
-
-DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)
-
-
-def neighbours(grid, p):
-    h, w = grid.shape
-    r, c = divmod(p, w)
-    for d in range(4):
-        nr, nc = r + DR[d], c + DC[d]
-        if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
-            yield d, nr * w + nc
+from test_mapf_turning import free_neighbours as neighbours
 
 
 def move_weight(grid, flow, u, d, v):

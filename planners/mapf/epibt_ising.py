@@ -28,7 +28,7 @@ from ising_backend import CallLedger
 from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
-from planners.mapf.epibt import EPIBT, _conflict, _reserve
+from planners.mapf.epibt import EPIBT, _blockers, _conflict, _reserve
 from planners.mapf.joint_moves import program_batch, qubo_to_ising
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
@@ -72,20 +72,8 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
         if src[k] == 0 or ncand[k] == 0 or taken[k]:
             continue
         a = m
-        members[m] = k
-        taken[k] = 1
-        m += 1
-        top = src[k] if src[k] > 0 else ncand[k]
-        for c in range(top):
-            path = cells[k, c]
-            for s in range(1, path.shape[0]):
-                v, u = path[s], path[s - 1]
-                for b in (res[s, v], res[s - 1, v] if u != v and res[s, u] == res[s - 1, v] else -1):
-                    if b >= 0 and taken[b] == 0 and m - a < max_robots:
-                        members[m] = b
-                        taken[b] = 1
-                        m += 1
-        size = m - a
+        size = _blockers(k, cells, src[k] if src[k] > 0 else ncand[k], res, max_robots, members[a:], taken)
+        m = a + size
         if size < 2:  # nothing in the way to choose with
             m = a
             continue

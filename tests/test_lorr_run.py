@@ -184,3 +184,17 @@ def test_an_executor_that_cannot_take_the_team_is_refused_before_the_run():
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "10000 robots x 38586 free cells need 3,086,880,000 bytes" in lines[0]
+
+
+def test_run_help_names_every_turning_executor(capsys):
+    import argparse
+
+    from agents.commands.lorr import add_arguments
+    from planners.mapf import TURNING_EXECUTORS
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["run", "--help"])
+    words = set(capsys.readouterr().out.replace(",", " ").replace("(", " ").split())
+    assert [name for name in TURNING_EXECUTORS if name not in words] == []

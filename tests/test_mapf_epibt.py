@@ -63,9 +63,9 @@ def oracle_operations(length):
 class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
-    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16):
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=2):
         self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
-        self.lns, self.group = lns, group
+        self.lns, self.group, self.weight_power = lns, group, weight_power
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
         self.tie = np.random.default_rng(seed).random(n).tolist()
@@ -172,7 +172,10 @@ class Oracle:
             plan[k] = None
             if not choose(k, prio[k]):
                 plan[k] = inh[k]
-        self.search(plan, opts, inh, collide)
+        weight = [0] * r
+        for rank, k in enumerate(order):
+            weight[k] = (r + 1 - rank) ** self.weight_power
+        self.search(plan, opts, inh, collide, weight)
         ops = [plan[k][1] for k in range(r)]
         act = [op[0] for op in ops]
         nxt = [plan[k][0][1] for k in range(r)]
@@ -186,8 +189,9 @@ class Oracle:
         return act, ops
 
 
-    def search(self, plan, opts, inh, collide):
-        """Large-neighbourhood search as the module docstring states it (plan entries: cells, op, cost, index)."""
+    def search(self, plan, opts, inh, collide, weight):
+        """Large-neighbourhood search as the module docstring states it (plan entries: cells, op, cost, index;
+        costs weighted by ``weight``)."""
         r = len(plan)
         start = int(mix(self.seed, self.t, r, 0)) % r
         for it in range(self.lns):
@@ -205,7 +209,7 @@ class Oracle:
                         if b not in members and len(members) < self.group:
                             members.append(b)
             old = [plan[i] for i in members]
-            before = sum(plan[i][2] for i in members)
+            before = sum(weight[i] * plan[i][2] for i in members)
             for i in members:
                 plan[i] = None
             after, ok = 0, True
@@ -217,7 +221,7 @@ class Oracle:
                     ok = False
                     break
                 plan[i] = pick
-                after += pick[2]
+                after += weight[i] * pick[2]
             if not (ok and after < before):
                 for i, entry in zip(members, old):
                     plan[i] = entry
@@ -226,12 +230,14 @@ class Oracle:
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 7), w=st.integers(3, 7),
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
-       op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]))
-def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group):
+       op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]),
+       weight_power=st.sampled_from([0, 1, 2]))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
-    ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group)
+    ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
+               weight_power=weight_power)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)

@@ -33,10 +33,12 @@ def add_arguments(parser) -> None:
                           "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
     run.add_argument("--executor", default="pibt",
                      help="the one-step planner: pibt (PIBT with turning; default), pibt-flow (PIBT along traffic-flow "
-                          "guide paths, the start kit's default planner), windowed, pibt-ising")
+                          "guide paths, the start kit's default planner), epibt (PIBT over 3-action operations with "
+                          "large-neighbourhood search, the best on RANDOM), epibt-ising (epibt with the chip choosing "
+                          "neighbourhood groups), windowed, pibt-ising")
     run.add_argument("--guidance", type=int, default=None, metavar="N",
                      help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
-                          "default: the executor's own, pibt 2, pibt-flow, windowed and pibt-ising 0)")
+                          "default: the executor's own, pibt 2, the others 0)")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
     run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")

@@ -14,7 +14,7 @@ then take the first operation that collides with no one (vertex or swap at any t
 of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
 most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
 Then large-neighbourhood search (:func:`_lns`) re-chooses small groups in other orders while the sum of their
-costs-to-go falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
+costs-to-go, weighted by priority rank (``(R + 1 - rank) ** 2``), falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
 goal fields of :class:`~planners.mapf.turning.TurnFields`, or (``flow=True``, default) the traffic-flow
 guide paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -33,7 +33,7 @@ from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAU
                                    TurningPIBT, _distance)
 
 __all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "DEFAULT_OP_LEN", "DEFAULT_REVISITS", "DEFAULT_GROUP",
-           "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX"]
+           "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER"]
 
 DEFAULT_OP_LEN = 3
 MAX_OP_LEN = 5
@@ -44,6 +44,9 @@ DEFAULT_REVISITS = 10
 DEFAULT_LNS_PER_ROBOT = 50
 DEFAULT_LNS_MAX = 1 << 15
 DEFAULT_GROUP = 16
+#: The search weighs robot ``k``'s cost-to-go by ``(R + 1 - rank_k) ** DEFAULT_WEIGHT_POWER`` (rank 0 the first in
+#: priority order): the longest-waiting robots' progress counts most (chosen on RANDOM-04, -05, 300 steps).
+DEFAULT_WEIGHT_POWER = 2
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
 
@@ -269,7 +272,7 @@ def _lns(cand, plans, res, stamp) -> None:
     """Large-neighbourhood search over the joint plan: ``iters`` times, a robot not on its best operation
     and the robots in the way of its better ones (at most ``group``) leave the table and choose again in a
     seeded order, each its best operation that collides with no one (or its inherited one); kept when the
-    sum of their costs-to-go falls, else put back.  ``cand = (cells, costs, ncand)``, ``plans = (cur, src,
+    sum of their costs-to-go (``costs``, weighted by the kernel) falls, else put back.  ``cand = (cells, costs, ncand)``, ``plans = (cur, src,
     inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
     cells, costs, ncand = cand
     cur, src, inh, inh_cost = plans
@@ -348,7 +351,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
     (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (``lns`` iterations of :func:`_lns` over
     groups of at most ``group`` robots)."""
     nbr = grid[0]
-    pos, orient, goals, rows, prio, inherited = robots
+    pos, orient, goals, rows, prio, inherited, weight = robots
     seed, t, revisits, lns, group = stamp
     cells, which, costs, ncand, cur, src, inh, inh_cost = state
     r = pos.shape[0]
@@ -366,7 +369,9 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         if end < 0:  # never after a valid plan: stay
             inh[k] = pos[k]
             end = orient[k]
-        inh_cost[k] = _to_go(grid, heuristic, goals[k], rows[k], inh[k, length], end)
+        inh_cost[k] = _to_go(grid, heuristic, goals[k], rows[k], inh[k, length], end) * weight[k]
+        for c in range(ncand[k]):
+            costs[k, c] *= weight[k]
         cur[k] = inh[k]
         src[k] = -1
         _reserve(res, inh[k], k, k)
@@ -411,6 +416,8 @@ class EPIBT(TurningPIBT):
         lns: large-neighbourhood iterations per call over the joint plan (default: 50 per robot, at most
             32,768; 0 = off).
         group: robots per neighbourhood (default 16).
+        weight_power: the search weighs each robot's cost-to-go by ``(R + 1 - rank) ** weight_power``, rank 0
+            the first in priority order (0 = unweighted; default 2).
         replans: guide paths re-planned per call beyond new goals (``flow`` only; as
             :class:`~planners.mapf.flow.FlowPIBT`).
         field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
@@ -420,7 +427,7 @@ class EPIBT(TurningPIBT):
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int = DEFAULT_OP_LEN,
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
-                 replans: int | None = None,
+                 replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
@@ -433,10 +440,14 @@ class EPIBT(TurningPIBT):
         for name, value, lo in (("lns", lns, 0), ("group", group, 2)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo):
                 raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+        if isinstance(weight_power, bool) or not isinstance(weight_power, (int, np.integer)) or not 0 <= weight_power <= 2:
+            raise ValueError(f"weight_power must be an integer 0..2 (the search's weights (R + 1 - rank) ** p), "
+                             f"got {weight_power!r}")
         self.ops = operations(op_len)
         self.revisits = int(revisits)
         self.lns_option, self.group = lns, int(group)
         self.flow = bool(flow)
+        self.weight_power = int(weight_power)
         n = len(self.cell_of)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,
@@ -470,14 +481,16 @@ class EPIBT(TurningPIBT):
             self.inherited = np.full((r, self.ops.shape[1]), WAIT, dtype=np.int8)
         fields, rows = self._heuristic(pc, gc, order)
         far = int(np.iinfo(fields.dtype).max)
+        grid = (self.nbr, self.cell_of, self.width, self.cost)
         prio = self.elapsed + self.tie
+        weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
+        weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else int(self.lns_option)
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         state = new_state(r, self.ops)
         t0 = time.perf_counter()
-        epibt_kernel((self.nbr, self.cell_of, self.width, self.cost),
-                     (pc, orient, gc, rows, prio, self.inherited), (fields, far), order,
+        epibt_kernel(grid, (pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order,
                      (self.seed, self.t, self.revisits, self.lns, self.group), self.ops, state, self._res)
         self.kernel_s = time.perf_counter() - t0
         self._improve(state)

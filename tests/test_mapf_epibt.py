@@ -63,7 +63,7 @@ def oracle_operations(length):
 class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
-    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=2):
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0):
         self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
         self.lns, self.group, self.weight_power = lns, group, weight_power
         self.ops = oracle_operations(op_len)

@@ -14,7 +14,7 @@ then take the first operation that collides with no one (vertex or swap at any t
 of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
 most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
 Then large-neighbourhood search (:func:`_lns`) re-chooses small groups in other orders while the sum of their
-costs-to-go, weighted by priority rank (``(R + 1 - rank) ** 2``), falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
+costs-to-go (optionally weighted by priority rank) falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
 goal fields of :class:`~planners.mapf.turning.TurnFields`, or (``flow=True``, default) the traffic-flow
 guide paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -44,9 +44,9 @@ DEFAULT_REVISITS = 10
 DEFAULT_LNS_PER_ROBOT = 50
 DEFAULT_LNS_MAX = 1 << 15
 DEFAULT_GROUP = 16
-#: The search weighs robot ``k``'s cost-to-go by ``(R + 1 - rank_k) ** DEFAULT_WEIGHT_POWER`` (rank 0 the first in
-#: priority order): the longest-waiting robots' progress counts most (chosen on RANDOM-04, -05, 300 steps).
-DEFAULT_WEIGHT_POWER = 2
+#: The search weighs robot ``k``'s cost-to-go by ``(R + 1 - rank_k) ** weight_power`` (rank 0 the first in priority
+#: order); 0, unweighted, did best over full RANDOM runs (2 helps at 700 robots only: docs/design/lifelong_turning.md).
+DEFAULT_WEIGHT_POWER = 0
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
 
@@ -417,7 +417,7 @@ class EPIBT(TurningPIBT):
             32,768; 0 = off).
         group: robots per neighbourhood (default 16).
         weight_power: the search weighs each robot's cost-to-go by ``(R + 1 - rank) ** weight_power``, rank 0
-            the first in priority order (0 = unweighted; default 2).
+            the first in priority order (default 0, unweighted).
         replans: guide paths re-planned per call beyond new goals (``flow`` only; as
             :class:`~planners.mapf.flow.FlowPIBT`).
         field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-__all__ = ["ConfigAttributes", "IsingConfig", "check_choice", "check_int", "check_real", "resolve_config"]
+__all__ = ["IsingConfig", "check_choice", "check_int", "check_real", "resolve_config"]
 
 
 def check_choice(name: str, value, options) -> None:
@@ -43,19 +43,6 @@ def check_real(name: str, value, *, lo: float | None = None, lo_open: bool = Fal
         raise ValueError(f"{name} = {value!r} must be a finite number")
     if lo is not None and (v <= lo if lo_open else v < lo):
         raise ValueError(f"{name} = {value!r} must be {'>' if lo_open else '>='} {lo:g}")
-
-
-class ConfigAttributes:
-    """Mixin for the Ising planners: the options of ``self.config`` read as attributes
-    (``planner.num_reads``); the class names its config in ``config_class``."""
-
-    config_class: type = type(None)
-
-    def __getattr__(self, name):
-        cfg = self.__dict__.get("config")
-        if cfg is not None and name in getattr(self.config_class, "__dataclass_fields__", {}):
-            return getattr(cfg, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
 
 class IsingConfig:

@@ -32,7 +32,7 @@ from ising_backend import (ChipUnavailableError, MeteredSolver, as_machine, isin
                            quantize_stack)
 from planners.base import SharingResult
 from planners.compute import ComputeReport
-from planners.ising.config import ConfigAttributes, IsingConfig, check_choice, check_int, check_real, resolve_config
+from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
 from planners.ising.fleet.moves import (apply_move, candidate_moves, conflicts, pick_candidates, route_cost,
                                         score_reads, walk)
@@ -158,7 +158,7 @@ class _Search:
         return np.flatnonzero(spins[p, rd] > 0)
 
 
-class IsingFleetSharing(ConfigAttributes):
+class IsingFleetSharing:
     """Sharing layer ``ising-fleet``: SSA routes improved by chip-selected moves between robots."""
 
     name = "ising-fleet"

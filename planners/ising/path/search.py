@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.config import resolve_config
 from planners.ising.fallback import path_fallback
 from planners.ising.path.batch import LegBatch, plan_legs
 from planners.ising.path.config import PathConfig
@@ -25,7 +25,7 @@ from planners.ising.path.runner import QueryRunner
 __all__ = ["IsingPath", "PaperIsingPath"]
 
 
-class IsingPath(ConfigAttributes):
+class IsingPath:
     """Patch-sliding Ising pathfinder (paper Algorithm 1).
 
     Built from two components: ``runner`` (:class:`~.runner.QueryRunner`: the compiled query

@@ -24,7 +24,7 @@ import numpy as np
 from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
-from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.config import resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.components import assign_components
@@ -42,7 +42,7 @@ __all__ = ["IsingSharing", "PaperIsingSharing"]
 _PRICING_HANDLES = itertools.count()
 
 
-class IsingSharing(ConfigAttributes):
+class IsingSharing:
     """Recursive Ising target sharing on the emulated physical chip (module docstring).
 
     Args:

@@ -22,7 +22,7 @@ import numpy as np
 from ising_backend import ChipUnavailableError, SolverOutputError
 from planners.base import TourResult
 from planners.compute import ComputeReport
-from planners.ising.config import ConfigAttributes, resolve_config
+from planners.ising.config import resolve_config
 from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
 from planners.ising.tour.cluster import Clusters, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
@@ -33,7 +33,7 @@ from planners.ising.tour.selection import MoveSearch
 __all__ = ["IsingTour", "PaperIsingTour"]
 
 
-class IsingTour(ConfigAttributes):
+class IsingTour:
     """Clustered Ising tour construction (see the module docstring), built from components:
     ``moves`` (:class:`~.selection.MoveSearch`, the chip backend), ``onehot``
     (:class:`~.onehot.OneHotSolver`, one-hot and max-cut programs) and ``clusters``

@@ -276,12 +276,12 @@ def as_logical_solver(solver):
     return LogicalDriver(solver)
 
 
-def as_machine(chip=None) -> IsingMachine:
-    """``chip`` itself when it is an Ising machine; the paper's emulated chip for ``None``; a bare
+def as_machine(chip=None, seed: int | None = None) -> IsingMachine:
+    """``chip`` itself when it is an Ising machine; the paper's emulated chip (seeded with ``seed``) for ``None``; a bare
     ``dimod.Sampler`` behind a :class:`SamplerChip` of the paper's spec; a minimal driver behind a
     :class:`DriverMachine`; anything else is refused naming what is missing."""
     if chip is None:
-        return EmulatedChip(ChipSpec())
+        return EmulatedChip(ChipSpec(), seed=seed)
     if isinstance(chip, IsingMachine):
         return chip
     if isinstance(chip, dimod.Sampler):

@@ -239,9 +239,9 @@ def int_in(name: str, value, lo: int, hi: int) -> int:
 def machine_for(machine, seed: int):
     """An executor's Ising machine: ``machine`` as :func:`ising_backend.as_machine` takes it, the emulated chip
     seeded with ``seed`` for ``None``; ``ValueError`` for anything that is not a machine."""
-    from ising_backend import EmulatedChip, as_machine
+    from ising_backend import as_machine
 
     try:
-        return EmulatedChip(seed=seed) if machine is None else as_machine(machine)
+        return as_machine(machine, seed=seed)
     except TypeError as exc:
         raise ValueError(str(exc)) from None

@@ -9,11 +9,17 @@ from pathlib import Path
 RESULTS = Path(__file__).with_name("RESULTS.md")
 
 
+#: In a section, what follows this line (readings, subsections written by hand) is kept when the section
+#: is rewritten.
+KEEP_MARK = "<!-- kept when the tables above are rewritten -->"
+
+
 def write_results_section(section: str, block: str, path: Path = RESULTS) -> None:
     """Put ``block`` (text starting with the heading line ``section``) into ``path``.
 
     An existing section (from its heading to the next ``## `` heading or the end)
-    is replaced; otherwise the block is appended.  Other sections are kept as
+    is replaced, except what follows a :data:`KEEP_MARK` line in it, which stays after the
+    new block; otherwise the block is appended.  Other sections are kept as
     they are.  The block is written with one trailing newline plus the blank line
     before the next section.
     """
@@ -21,7 +27,11 @@ def write_results_section(section: str, block: str, path: Path = RESULTS) -> Non
     text = path.read_text() if path.exists() else "# Benchmark results\n\n"
     body = block.rstrip("\n")
     pattern = re.compile(r"^" + re.escape(section) + r"\n.*?(?=^## |\Z)", re.S | re.M)
-    if pattern.search(text):
+    found = pattern.search(text)
+    if found:
+        old = found.group(0)
+        if KEEP_MARK in old and KEEP_MARK not in body:
+            body += "\n\n" + KEEP_MARK + old.split(KEEP_MARK, 1)[1].rstrip("\n")
         text = pattern.sub(lambda _: body + "\n\n", text)
     else:
         text = text.rstrip("\n") + "\n\n" + body + "\n"

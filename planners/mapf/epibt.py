@@ -13,10 +13,10 @@ robot always has a fallback.  Robots in priority order (as :class:`~planners.map
 then take the first operation that collides with no one (vertex or swap at any time), or with one robot
 of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
 most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
-Then large-neighbourhood search (:func:`_lns`) re-chooses small groups in other orders while the sum of their
-costs-to-go (optionally weighted by priority rank) falls.  The joint plan stays conflict-free, so its first actions are a valid joint action.  Robot fields: the
-goal fields of :class:`~planners.mapf.turning.TurnFields`, or (``flow=True``, default) the traffic-flow
-guide paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
+Then large-neighbourhood search (:func:`_lns`) re-chooses small groups while their summed (optionally
+rank-weighted) costs-to-go fall; the plan stays conflict-free, so its first actions are a valid joint action.
+Fields: :class:`~planners.mapf.turning.TurnFields`' or (``flow=True``) :class:`~planners.mapf.flow.FlowGuide`'s
+guide paths.  Measurements: ``docs/design/lifelong_turning.md``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import time
 import numba
 import numpy as np
 
-from planners.mapf.common import mix
+from planners.mapf.common import int_in, mix
 from planners.mapf.flow import FlowGuide, check_team
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
@@ -44,8 +44,7 @@ DEFAULT_REVISITS = 10
 DEFAULT_LNS_PER_ROBOT = 50
 DEFAULT_LNS_MAX = 1 << 15
 DEFAULT_GROUP = 16
-#: The search weighs robot ``k``'s cost-to-go by ``(R + 1 - rank_k) ** weight_power`` (rank 0 the first in priority
-#: order); 0, unweighted, did best over full RANDOM runs (2 helps at 700 robots only: docs/design/lifelong_turning.md).
+#: The search's weights ``(R + 1 - rank) ** p``: p = 0 did best over full RANDOM runs (design note).
 DEFAULT_WEIGHT_POWER = 0
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
@@ -269,11 +268,10 @@ def _blockers(k, cells, top, res, size, members, mark) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def _lns(cand, plans, res, stamp) -> None:
-    """Large-neighbourhood search over the joint plan: ``iters`` times, a robot not on its best operation
-    and the robots in the way of its better ones (at most ``group``) leave the table and choose again in a
-    seeded order, each its best operation that collides with no one (or its inherited one); kept when the
-    sum of their costs-to-go (``costs``, weighted by the kernel) falls, else put back.  ``cand = (cells, costs, ncand)``, ``plans = (cur, src,
-    inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
+    """Large-neighbourhood search: ``iters`` times, a robot not on its best operation and the robots in the way
+    of its better ones (at most ``group``) choose again in a seeded order, each its best operation colliding
+    with no one (or its inherited one); kept when their summed ``costs`` fall.  ``cand = (cells, costs, ncand)``,
+    ``plans = (cur, src, inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
     cells, costs, ncand = cand
     cur, src, inh, inh_cost = plans
     seed, t, iters, group = stamp
@@ -344,12 +342,11 @@ def new_state(r: int, ops: np.ndarray):
 
 @numba.njit(cache=True, nogil=True)
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
-    """One joint plan into ``state`` (:func:`new_state`), left reserved in ``res`` (``(op_len + 1, cells)``,
-    all -1 on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots =
-    (pos, orient, goals, rows, prio, inherited)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields,
-    -1 Manhattan distance; ``inherited[k]`` its fallback operation, jointly conflict-free); ``heuristic =
-    (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (``lns`` iterations of :func:`_lns` over
-    groups of at most ``group`` robots)."""
+    """One joint plan into ``state`` (:func:`new_state`), left reserved in ``res`` (``(op_len + 1, cells)``, all -1
+    on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient,
+    goals, rows, prio, inherited, weight)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1
+    Manhattan; ``inherited[k]`` its fallback operation, jointly conflict-free; ``weight[k]`` multiplies its
+    costs); ``heuristic = (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (:func:`_lns`'s)."""
     nbr = grid[0]
     pos, orient, goals, rows, prio, inherited, weight = robots
     seed, t, revisits, lns, group = stamp
@@ -432,22 +429,15 @@ class EPIBT(TurningPIBT):
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
-        if isinstance(revisits, bool) or not isinstance(revisits, (int, np.integer)) or revisits < 1:
-            raise ValueError(f"revisits must be an integer >= 1 (choices per robot and call), got {revisits!r}")
-        if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
-                                    or replans < 0):
-            raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
-        for name, value, lo in (("lns", lns, 0), ("group", group, 2)):
-            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo):
-                raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-        if isinstance(weight_power, bool) or not isinstance(weight_power, (int, np.integer)) or not 0 <= weight_power <= 2:
-            raise ValueError(f"weight_power must be an integer 0..2 (the search's weights (R + 1 - rank) ** p), "
-                             f"got {weight_power!r}")
+        big = 1 << 62
+        self.revisits = int_in("revisits (choices per robot and call)", revisits, 1, big)
+        if replans is not None:
+            int_in("replans (guide paths re-planned per call)", replans, 0, big)
+        self.lns_option = None if lns is None else int_in("lns", lns, 0, big)
+        self.group = int_in("group", group, 2, big)
+        self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
         self.ops = operations(op_len)
-        self.revisits = int(revisits)
-        self.lns_option, self.group = lns, int(group)
         self.flow = bool(flow)
-        self.weight_power = int(weight_power)
         n = len(self.cell_of)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,

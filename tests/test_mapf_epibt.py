@@ -305,7 +305,8 @@ def test_registered_and_bad_options_name_the_value():
     assert TURNING_EXECUTORS["epibt"] is EPIBT
     grid = np.zeros((4, 4), dtype=bool)
     for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"), ({"revisits": 0}, "revisits"),
-                       ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans")):
+                       ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans"), ({"lns": -1}, r"lns .* -1 .*\[0, "),
+                       ({"group": 1}, r"group .* 1 .*\[2, 4096\]"), ({"weight_power": 3}, r"weight_power .* 3 .*\[0, 2\]")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a path"):

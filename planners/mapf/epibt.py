@@ -15,8 +15,8 @@ of lower priority, which is pushed to choose again with the pusher's priority (P
 most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
 Then large-neighbourhood search (:func:`_lns`) re-chooses small groups while their summed (optionally
 rank-weighted) costs-to-go fall; the plan stays conflict-free, so its first actions are a valid joint action.
-Fields: :class:`~planners.mapf.turning.TurnFields`' or (``flow=True``) :class:`~planners.mapf.flow.FlowGuide`'s
-guide paths.  Measurements: ``docs/design/lifelong_turning.md``.
+Fields: the goal fields (:class:`~planners.mapf.turning.TurnFields`) or, with ``flow=True`` (default), the guide
+paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
 """
 
 from __future__ import annotations
@@ -429,12 +429,12 @@ class EPIBT(TurningPIBT):
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
-        big = 1 << 62
-        self.revisits = int_in("revisits (choices per robot and call)", revisits, 1, big)
+        big = 1 << 24
+        self.revisits = int_in("revisits (choices per robot and call)", revisits, 1, 1000)
         if replans is not None:
             int_in("replans (guide paths re-planned per call)", replans, 0, big)
-        self.lns_option = None if lns is None else int_in("lns", lns, 0, big)
-        self.group = int_in("group", group, 2, big)
+        self.lns_option = None if lns is None else int_in("lns (search iterations per call)", lns, 0, big)
+        self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
         self.ops = operations(op_len)
         self.flow = bool(flow)

@@ -475,7 +475,7 @@ class EPIBT(TurningPIBT):
         prio = self.elapsed + self.tie
         weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
         weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power
-        self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else int(self.lns_option)
+        self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else self.lns_option
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         state = new_state(r, self.ops)

@@ -112,9 +112,9 @@ def _cost(state, q, c) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def group_qubo(state, members, a, b, ostart, opt, q, weight=1) -> int:
+def group_qubo(state, members, a, b, ostart, opt, q, penalty=1) -> int:
     """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
-    returned): costs above each robot's least; one-hot and collision penalties of ``weight x (1 +`` the largest
+    returned): costs above each robot's least; one-hot and collision penalties of ``penalty x (1 +`` the largest
     such cost) (small, for the chip's few levels: among one-hot, collision-free choices the energy ranks as the
     cost; a read that is not one of them is rejected by :func:`decode_choice`)."""
     base = ostart[a]
@@ -127,7 +127,7 @@ def group_qubo(state, members, a, b, ostart, opt, q, weight=1) -> int:
             lo = min(lo, _cost(state, members[i], opt[x]))
         for x in range(ostart[i], ostart[i + 1]):
             spread = max(spread, _cost(state, members[i], opt[x]) - lo)
-    pen = weight * (spread + 1)
+    pen = penalty * (spread + 1)
     for i in range(a, b):
         lo = _BIG
         for x in range(ostart[i], ostart[i + 1]):

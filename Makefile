@@ -33,7 +33,10 @@ $(FULL_STAMP): pyproject.toml $(BASE_STAMP)
 demo: $(BASE_STAMP)
 	$(VENV)/bin/mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising,ising-paper --out results/demo
 
+# the kernels are compiled once, on two processes, before the suite (its two workers would otherwise each
+# compile the same kernels side by side on first use); a warm install skips it in about a second
 test: $(FULL_STAMP)
+	$(VENV)/bin/mrmt warmup --no-progress --lorr pibt,pibt-flow,epibt,windowed
 	$(PY) -m pytest -q -n 2 --durations=15
 
 reproduce: $(BASE_STAMP)

@@ -57,6 +57,7 @@ def test_plan_prints_the_notice_only_when_cold(tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["warmup", "--jobs", "0"], "--jobs must be >= 1"),
     (["warmup", "--pipelines", "nope"], "unknown controller 'nope'"),
+    (["warmup", "--lorr", "epibt,nope"], "--lorr: unknown executor 'nope'; expected `all` or some of pibt"),
 ])
 def test_bad_input_is_one_line(argv, message, capsys):
     assert main(argv) == 2
@@ -70,3 +71,13 @@ def test_other_installs_keep_their_stamps():
     assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress"]) == 0
     data = json.loads(stamp_path().read_text())
     assert data["another-install"] == ["ising:sharing"] and ["fast"] in data.values()
+
+
+def test_lorr_executors_are_warmed_as_parts_of_their_own():
+    """``--lorr`` adds the named executors' parts (``all``: every registered one) to the presets'."""
+    from agents.commands.warmup import _lorr_executors
+    from planners.mapf import TURNING_EXECUTORS
+
+    assert main(["warmup", "--pipelines", "fast", "--lorr", "pibt", "--jobs", "1", "--no-progress"]) == 0
+    assert {"fast", "lorr:pibt"} <= set(json.loads(stamp_path().read_text()).popitem()[1])
+    assert _lorr_executors("all") == list(TURNING_EXECUTORS) and _lorr_executors(" epibt, pibt ") == ["epibt", "pibt"]

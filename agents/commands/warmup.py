@@ -2,6 +2,7 @@
 
     mrmt warmup                       # every preset: fast, strong, ising, ising-paper, exact
     mrmt warmup --pipelines ising --jobs 2
+    mrmt warmup --lorr epibt,pibt        # also the kernels of `mrmt lorr run`'s executors (or --lorr all)
 
 The kernels are cached on disk by numba, so this is needed once per install (and after an
 upgrade); the first command that plans does it anyway (:mod:`agents.warmup`).  Parts run on
@@ -21,6 +22,9 @@ HELP = "compile the planners' numba kernels up front (once per install; otherwis
 def add_arguments(parser) -> None:
     parser.add_argument("--pipelines", default="fast,strong,ising,ising-paper,exact",
                         help="comma-separated presets or sharing+tour+path triples (default: every preset)")
+    parser.add_argument("--lorr", default="",
+                        help="comma-separated LoRR executors of `mrmt lorr run` to compile as well, or `all` "
+                             "(default: none)")
     parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
                         help="worker processes (default 2, or 1 on a one-core machine)")
     parser.add_argument("--force", action="store_true", help="compile again even if already warm")
@@ -44,6 +48,11 @@ def run(args) -> int:
     if learned:
         print(f"mrmt warmup: error: {learned[0]!r} is not a planner (learned models compile nothing)", file=sys.stderr)
         return 2
+    try:
+        specs = specs + [f"lorr:{name}" for name in _lorr_executors(args.lorr)]
+    except ValueError as exc:
+        print(f"mrmt warmup: error: {exc}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     done = warm(specs, jobs=args.jobs, progress=not args.no_progress, force=args.force, minimum_s=0)
     if done:
@@ -51,3 +60,18 @@ def run(args) -> int:
     else:
         print(f"already warm: {', '.join(parts_for(specs))} (--force compiles again)")
     return 0
+
+
+def _lorr_executors(text: str) -> list[str]:
+    """The LoRR executor names of ``--lorr`` (``all``: every registered one); ``ValueError`` naming an
+    unknown one and the known ones."""
+    from planners.mapf import TURNING_EXECUTORS
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if names == ["all"]:
+        return list(TURNING_EXECUTORS)
+    unknown = [n for n in names if n not in TURNING_EXECUTORS]
+    if unknown:
+        raise ValueError(f"--lorr: unknown executor {unknown[0]!r}; expected `all` or some of "
+                         f"{', '.join(TURNING_EXECUTORS)}")
+    return names

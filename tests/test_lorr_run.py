@@ -83,6 +83,21 @@ def test_check_command_on_the_2023_record(tmp_path):
                                        "scheduleErrors": 0, "claimedTaskFinished": 1741}
 
 
+def test_executor_options_reach_the_executor_and_the_record(tmp_path):
+    """``--executor-option`` builds the executor with its own options (the run then differs from the
+    default one and equals the API run with the same options), and the record names them."""
+    row = lambda proc: json.loads(proc.stdout.splitlines()[0])  # noqa: E731
+    base = ["lorr", "run", str(EXAMPLE), "--executor", "epibt", "--steps", "40", "--no-progress", "--json"]
+    plain = _mrmt(*base, "--out", str(tmp_path / "plain"))
+    opted = _mrmt(*base, "--executor-option", "op_len=2", "--executor-option", "flow=false", "--out", str(tmp_path / "o"))
+    assert plain.returncode == 0 and opted.returncode == 0, plain.stderr + opted.stderr
+    assert row(plain)["executor_options"] == {} and row(opted)["executor_options"] == {"op_len": 2, "flow": False}
+    paths = lambda d: read_output(tmp_path / d / "output.json")["actualPaths"]  # noqa: E731
+    assert paths("plain") != paths("o")
+    _, sim, _ = run_lorr(EXAMPLE, "lorr-greedy", "epibt", steps=40, options={"executor_options": {"op_len": 2, "flow": False}})
+    assert output_dict(sim)["actualPaths"] == paths("o")
+
+
 def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     proc = _mrmt("lorr", "run", str(EXAMPLE), "--scheduler", "lorr-greedy", "--steps", "50", "--out", str(tmp_path),
                  "--no-progress", "--json")
@@ -105,6 +120,12 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "
                                                 "its lane), got 17"),
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
+    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power"],
+     "--executor-option 'weight_power': expected KEY=VALUE"),
+    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "warp=9"],
+     "epibt takes no option 'warp'; its options: flow, op_len"),
+    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power=3"],
+     "weight_power (the search's weights (R + 1 - rank) ** p) = 3 must be an integer in [0, 2]"),
     (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, needle):

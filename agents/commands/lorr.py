@@ -39,6 +39,9 @@ def add_arguments(parser) -> None:
     run.add_argument("--guidance", type=int, default=None, metavar="N",
                      help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
                           "default: the executor's own, pibt 2, the others 0)")
+    run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="an option of the executor's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
+                          "op_len=4; values: integers, true / false, else text)")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
     run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
@@ -53,6 +56,42 @@ def add_arguments(parser) -> None:
     check.add_argument("instance", metavar="INSTANCE.json")
     check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
     check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
+
+
+def executor_options(executor: str, items: list[str], grid) -> dict:
+    """``KEY=VALUE`` items as the executor's keyword options (integers, ``true`` / ``false``, else text),
+    checked by building the executor once on ``grid``; ``ValueError`` naming a malformed item, an option
+    the executor does not take (and those it takes) or a value it refuses."""
+    import inspect
+
+    from planners.mapf import TURNING_EXECUTORS
+
+    cls = TURNING_EXECUTORS[executor]
+    known = [n for n, p in inspect.signature(cls).parameters.items()
+             if n not in ("grid", "seed", "guidance") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    options: dict = {}
+    for item in items:
+        key, eq, text = item.partition("=")
+        key = key.strip().replace("-", "_")
+        if not eq or not key:
+            raise ValueError(f"--executor-option {item!r}: expected KEY=VALUE")
+        if key not in known:
+            raise ValueError(f"--executor-option {item!r}: {executor} takes no option {key!r}; "
+                             f"its options: {', '.join(known)}")
+        text = text.strip()
+        low = text.lower()
+        if low in ("true", "false"):
+            options[key] = low == "true"
+        else:
+            try:
+                options[key] = int(text)
+            except ValueError:
+                options[key] = text
+    try:
+        cls(grid, **options)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"--executor-option: {exc}") from None
+    return options
 
 
 def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, chip, options: dict, out: str | None,
@@ -112,6 +151,8 @@ def _run(args) -> int:
             from planners.mapf.guidance import check_guidance
 
             options["guidance"] = check_guidance(args.guidance)
+        if args.executor_option:
+            options["executor_options"] = executor_options(args.executor, args.executor_option, inst.grid)
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return _fail(str(exc))

@@ -25,7 +25,7 @@ from planners.compute import CPU_WATTS_PER_CORE
 
 __all__ = ["run_lorr", "best_known", "proposal_goals", "RUN_KEYS"]
 
-RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "seed", "robots", "steps", "tasks_finished", "best_known",
+RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "seed", "robots", "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "chip_s", "paper_energy_per_task_j",
             "total_energy_per_task_j")
@@ -78,7 +78,9 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar):
     from planners.mapf import make_turning_executor
 
     options = dict(options)
-    ex_options = {"guidance": options.pop("guidance")} if "guidance" in options else {}
+    ex_options = dict(options.pop("executor_options", None) or {})
+    if "guidance" in options:
+        ex_options["guidance"] = options.pop("guidance")
     sched = make_scheduler(scheduler, seed=seed, chip=chip, **options)
     ex = make_turning_executor(executor, inst.grid, seed=seed, **ex_options)
     sim = LoRRSimulator(inst)
@@ -109,8 +111,9 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
              seed: int = 0, chip=None, progress: bool = False, options: dict | None = None):
     """Run ``instance`` (a path or :class:`LoRRInstance`) for ``steps`` (default: its simulation
     time); returns ``(record, sim, step_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
-    the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), and ``guidance`` for the executor
-    (:mod:`planners.mapf.guidance`; default: the executor's own)."""
+    the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), ``guidance`` for the executor
+    (:mod:`planners.mapf.guidance`; default: the executor's own) and ``executor_options``, a dict of the
+    executor's own keyword options (e.g. ``{"weight_power": 2}`` for ``epibt``)."""
     inst = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
     steps = int(steps or inst.steps or DEFAULT_STEPS)
     options = dict(options or {})
@@ -131,7 +134,8 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
     host_j = host_s * CPU_WATTS_PER_CORE
     best = best_known(inst)
     record = {
-        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": ex.guidance, "seed": int(seed),
+        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": ex.guidance,
+        "executor_options": dict(options.get("executor_options") or {}), "seed": int(seed),
         "robots": inst.team_size, "steps": steps, "tasks_finished": sim.finished, "best_known": best,
         # the best-known is over the instance's full simulation time: a share only for a full run
         "share_of_best": (sim.finished / best) if best and steps == inst.steps else None,

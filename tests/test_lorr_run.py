@@ -219,3 +219,49 @@ def test_run_help_names_every_turning_executor(capsys):
         parser.parse_args(["run", "--help"])
     words = set(capsys.readouterr().out.replace(",", " ").replace("(", " ").split())
     assert [name for name in TURNING_EXECUTORS if name not in words] == []
+
+
+def test_a_replanned_robot_keeps_its_task_unless_given_a_shorter_one_or_its_task_goes_to_another():
+    """``keep``: after a re-plan, a robot moved off its unopened task takes it back unless another robot got
+    it or the robot's new task has a strictly smaller makespan (checked against BFS makespans computed here)."""
+    from lorr_reference import bfs as grid_bfs
+
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.sim import LoRRSimulator
+
+    inst = read_instance(EXAMPLE)
+    sim = LoRRSimulator(inst)
+    sched = make_scheduler("strong", replan=True)
+    sched.reset(sim)
+    tasks = sim.tasks
+
+    def makespan(task, cell):
+        e = tasks.errands_of(task)
+        return int(grid_bfs(inst.grid, cell)[int(e[0])]) + sum(int(grid_bfs(inst.grid, int(a))[int(b)])
+                                                               for a, b in zip(e[:-1], e[1:]))
+
+    ids = sorted(tasks.open)
+    a, b = 0, 1
+    ranked = sorted((makespan(k, int(sim.pos[a])), k) for k in ids)
+    worse, better = ranked[-1][1], ranked[0][1]
+    ref = makespan(worse, int(sim.pos[a]))
+    assert makespan(better, int(sim.pos[a])) < ref  # a strictly shorter task exists for robot a
+    for old_cost_task, new_task, other, want in [
+        (better, worse, -1, better),  # the new task is longer: robot a keeps its task, the new one is free
+        (worse, better, -1, better),  # the new task is shorter: robot a takes it
+        (better, worse, better, worse),  # robot b got a's task: a keeps its new one
+        (better, -1, -1, better),  # the re-plan left a without a task: it keeps its own
+    ]:
+        before = np.full(inst.team_size, -1, dtype=np.int64)
+        before[a] = old_cost_task
+        proposal = np.full(inst.team_size, -1, dtype=np.int64)
+        proposal[a], proposal[b] = new_task, other
+        sched._keep(tasks, sim.pos, before, proposal)
+        assert proposal[a] == want and proposal[b] == other
+        assert sched.makespan(tasks, int(proposal[a]), int(sim.pos[a])) == makespan(int(proposal[a]), int(sim.pos[a]))
+    off, sim_off, _ = run_lorr(EXAMPLE, "strong", "pibt", steps=80, options={"replan": True, "keep": False})
+    on, sim_on, _ = run_lorr(EXAMPLE, "strong", "pibt", steps=80, options={"replan": True})
+    assert on["errors"] == off["errors"] == 0 and on["schedule_errors"] == off["schedule_errors"] == 0
+    assert [x.tolist() for x in sim_on.actual] != [x.tolist() for x in sim_off.actual]
+    with pytest.raises(ValueError, match="keep must be True or False, got 1"):
+        make_scheduler("strong", replan=True, keep=1)

@@ -17,8 +17,11 @@ decision leaves without a task take the nearest shortlisted one still free (``fi
 defaults (6, on) were chosen on RANDOM-01..05, seeds 0-2, for ising and strong alike (shortlists of
 1, 3, 6 tried; docs/lorr.md).  Free robots are the robots without a task; with
 ``replan=True`` robots whose task is not opened yet are free again (their tasks back in the
-pool) whenever a task finishes, so the decision may re-plan them, as the rules allow.  Every
-scheduler leaves its step's :class:`~planners.compute.ComputeReport` in ``last_compute``.
+pool) whenever a task finishes, so the decision may re-plan them, as the rules allow; with ``keep``
+(default, with ``replan``) a re-planned robot keeps its task unless the decision gives that task to another
+robot or gives it one of smaller makespan (a robot turning back towards a new errand of the same worth
+loses steps: docs/lorr.md measures it).  Every scheduler leaves its step's
+:class:`~planners.compute.ComputeReport` in ``last_compute``.
 """
 
 from __future__ import annotations
@@ -40,7 +43,11 @@ class AssignerScheduler:
     """A lifelong assigner (``assign(grid, fields, idle_cells, task_cells, seed, fleet)``) as a LoRR
     scheduler (see the module docstring)."""
 
-    def __init__(self, assigner, seed: int = 0, replan: bool = False, shortlist: int | None = DEFAULT_SHORTLIST) -> None:
+    def __init__(self, assigner, seed: int = 0, replan: bool = False, shortlist: int | None = DEFAULT_SHORTLIST,
+                 keep: bool = True) -> None:
+        for name, flag in (("replan", replan), ("keep", keep)):
+            if not isinstance(flag, (bool, np.bool_)):
+                raise ValueError(f"{name} must be True or False, got {flag!r}")
         if shortlist is not None and (isinstance(shortlist, bool) or not isinstance(shortlist, int) or shortlist < 1):
             raise ValueError(f"shortlist must be an integer >= 1 or None (every free task), got {shortlist!r}")
         self.shortlist = shortlist
@@ -49,6 +56,7 @@ class AssignerScheduler:
         self.accelerated = bool(assigner.accelerated)
         self.seed = int(seed)
         self.replan = bool(replan)
+        self.keep = bool(keep)
         self.last_compute = ComputeReport()
 
     def reset(self, sim) -> None:
@@ -65,7 +73,8 @@ class AssignerScheduler:
 
         tasks = sim.tasks
         self.last_compute = ComputeReport()
-        proposal = tasks.assigned.copy()
+        before = tasks.assigned
+        proposal = before.copy()
         held = proposal >= 0
         if self.replan and len(tasks.new_free):
             unopened = np.array([k >= 0 and not tasks.is_opened(int(k)) for k in proposal.tolist()])
@@ -96,7 +105,30 @@ class AssignerScheduler:
         for i, q in enumerate(queues):
             if q:
                 proposal[free_robots[i]] = ids[q[0]]
+        if self.replan and self.keep:
+            self._keep(tasks, pos, before, proposal)
         return proposal
+
+    def makespan(self, tasks, task: int, cell: int) -> int:
+        """The start kit's makespan of unopened ``task`` from ``cell``: the way to its first errand, then through
+        every errand (:data:`~mrmt_env.lorr.greedy.FAR` when cut off)."""
+        way = int(self.fields.fields[self.fields.rows(np.array([tasks.remaining(task)[0]]))[0], cell])
+        length = int(self.lengths.task_length(tasks, np.array([task]), 1 << 62)[0])
+        return FAR if way < 0 or length >= FAR else way + length
+
+    def _keep(self, tasks, pos, before: np.ndarray, proposal: np.ndarray) -> None:
+        """In place: each robot the re-plan moved off its task takes it back, in robot order, when no other robot
+        got it and the re-plan gave the robot no task of smaller makespan (its new task is then free again)."""
+        given = set(proposal.tolist())
+        for a in np.flatnonzero((before >= 0) & (proposal != before)).tolist():
+            old, new = int(before[a]), int(proposal[a])
+            if old in given:
+                continue
+            if new >= 0 and self.makespan(tasks, new, int(pos[a])) < self.makespan(tasks, old, int(pos[a])):
+                continue
+            proposal[a] = old
+            given.add(old)
+            given.discard(new)
 
     def _shortlist(self, tasks, ids: np.ndarray, cells: np.ndarray, robot_cells: np.ndarray):
         """Indices of the tasks among some free robot's ``shortlist`` least-makespan tasks, and every
@@ -123,16 +155,16 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         return _Greedy()
     from agents.lifelong.controllers import PipelineAssigner, _learned
 
-    replan = bool(options.pop("replan", False))
-    shortlist = options.pop("shortlist", DEFAULT_SHORTLIST)
+    own = {"replan": options.pop("replan", False), "shortlist": options.pop("shortlist", DEFAULT_SHORTLIST),
+           "keep": options.pop("keep", True)}
     if name.startswith("ppo:"):
         if options:
-            raise ValueError(f"{name} takes no options besides replan and shortlist, got {sorted(options)}")
-        return AssignerScheduler(_learned(name), seed=seed, replan=replan, shortlist=shortlist)
+            raise ValueError(f"{name} takes no options besides replan, keep and shortlist, got {sorted(options)}")
+        return AssignerScheduler(_learned(name), seed=seed, **own)
     options.setdefault("fill", True)
     try:
         assigner = PipelineAssigner(name, chip=chip, **options)
     except ValueError as exc:
         raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}, a sharing+tour pair "
                          f"or ppo:MODEL.zip ({exc})") from None
-    return AssignerScheduler(assigner, seed=seed, replan=replan, shortlist=shortlist)
+    return AssignerScheduler(assigner, seed=seed, **own)

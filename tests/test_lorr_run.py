@@ -120,6 +120,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "
                                                 "its lane), got 17"),
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
+    (["run", str(EXAMPLE), "--scheduler", "strong", "--no-keep"], "--no-keep acts on --replan: add --replan"),
     (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power"],
      "--executor-option 'weight_power': expected KEY=VALUE"),
     (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "warp=9"],

@@ -47,6 +47,9 @@ def add_arguments(parser) -> None:
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
     run.add_argument("--replan", action="store_true",
                      help="pipeline schedulers re-plan robots whose task is not opened yet when a task finishes")
+    run.add_argument("--no-keep", action="store_true",
+                     help="with --replan: re-plan from scratch (by default a re-planned robot keeps its task unless "
+                          "given one of smaller makespan or its task goes to another robot)")
     run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
     run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
     add_decision_arguments(run, "inline backend only")
@@ -145,6 +148,10 @@ def _run(args) -> int:
             TURNING_EXECUTORS[args.executor].check_team(inst.grid, inst.team_size)
         chip = chip_from_args(args)
         options = {"replan": True} if args.replan else {}
+        if args.no_keep:
+            if not args.replan:
+                raise ValueError("--no-keep acts on --replan: add --replan")
+            options["keep"] = False
         for s in schedulers:  # names and model files checked before anything starts
             make_scheduler(s, chip=chip, **options)
         if args.guidance is not None:

@@ -36,8 +36,22 @@ def _path(name: str) -> Path:
     return next(ROOT.glob(f"*/{name}.json"))
 
 
-def _one(name: str, scheduler: str, executor: str, steps: int | None, options: dict) -> dict:
-    """One run in a fresh process (peak memory is the run's own)."""
+def _executor_spec(spec: str) -> tuple[str, dict]:
+    """``NAME[:KEY=VALUE[:KEY=VALUE...]]`` (e.g. ``epibt:weight_power=2``) as the executor and its own
+    options (integer values), as ``mrmt lorr run --executor NAME --executor-option KEY=VALUE`` takes them."""
+    name, *items = spec.split(":")
+    options = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        options[key] = int(value)
+    return name, options
+
+
+def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict) -> dict:
+    """One run in a fresh process (peak memory is the run's own); the row's executor is ``spec``."""
+    executor, own = _executor_spec(spec)
+    if own:
+        options = {**options, "executor_options": own}
     code = ("import json, resource, sys; from agents.lorr.run import run_lorr; "
             f"r, sim, s = run_lorr({str(_path(name))!r}, {scheduler!r}, {executor!r}, steps={steps!r}, "
             f"options={options!r}); r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; "
@@ -48,8 +62,14 @@ def _one(name: str, scheduler: str, executor: str, steps: int | None, options: d
     if proc.returncode != 0:
         raise RuntimeError(f"{name} {scheduler}: {proc.stderr.strip().splitlines()[-1:]}")
     row = json.loads(proc.stdout.strip().splitlines()[-1])
+    row["executor"] = spec
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def _rank(spec: str) -> tuple:
+    name = spec.split(":")[0]
+    return (ORDER.index(name) if name in ORDER else 9, spec)
 
 
 def _fmt_row(r: dict) -> str:
@@ -64,7 +84,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
     parser.add_argument("--executors", default="pibt,pibt-flow,epibt,windowed",
-                        help="each runs every scheduler")
+                        help="each runs every scheduler; NAME:KEY=VALUE passes the executor an option of its own "
+                             "(e.g. epibt:weight_power=2)")
     parser.add_argument("--instances", default=",".join(RANDOM))
     parser.add_argument("--scale", default=",".join(SCALE), help="large instances run for --scale-steps ('' = none)")
     parser.add_argument("--scale-steps", type=int, default=500)
@@ -107,7 +128,7 @@ def main(argv=None) -> None:
         keep = [r for r in old if (r["instance"], r["scheduler"], r["executor"]) not in done]
         rows = [r for r in keep if "tasks_per_step" not in r] + rows
         scale_rows = [r for r in keep if "tasks_per_step" in r] + scale_rows
-        rows.sort(key=lambda r: (r["instance"], ORDER.index(r["executor"]) if r["executor"] in ORDER else 9))
+        rows.sort(key=lambda r: (r["instance"], _rank(r["executor"])))
     lines = [SECTION, "", f"`python benchmarks/lorr.py --write` on {cpu_name()} (one core per run, runs in turn). "
              "Step = scheduler + executor host seconds (chip emulation excluded) + chip parallel seconds; "
              "best-known: the archive's record over the instance's full simulation time.", "", head, sep]

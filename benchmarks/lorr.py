@@ -36,20 +36,19 @@ def _path(name: str) -> Path:
     return next(ROOT.glob(f"*/{name}.json"))
 
 
-def _executor_spec(spec: str) -> tuple[str, dict]:
-    """``NAME[:KEY=VALUE[:KEY=VALUE...]]`` (e.g. ``epibt:weight_power=2``) as the executor and its own
-    options (integer values), as ``mrmt lorr run --executor NAME --executor-option KEY=VALUE`` takes them."""
-    name, *items = spec.split(":")
-    options = {}
-    for item in items:
-        key, _, value = item.partition("=")
-        options[key] = int(value)
-    return name, options
+def _executor_spec(spec: str, name: str) -> tuple[str, dict]:
+    """``NAME[:KEY=VALUE[:KEY=VALUE...]]`` (e.g. ``epibt:weight_power=2``) as the executor and its own options,
+    parsed and checked on instance ``name`` as ``mrmt lorr run --executor-option KEY=VALUE`` does."""
+    from agents.commands.lorr import executor_options
+    from mrmt_env.lorr.instance import read_instance
+
+    executor, *items = spec.split(":")
+    return executor, (executor_options(executor, items, read_instance(_path(name)).grid) if items else {})
 
 
 def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict) -> dict:
     """One run in a fresh process (peak memory is the run's own); the row's executor is ``spec``."""
-    executor, own = _executor_spec(spec)
+    executor, own = _executor_spec(spec, name)
     if own:
         options = {**options, "executor_options": own}
     code = ("import json, resource, sys; from agents.lorr.run import run_lorr; "

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
+from planners.mapf.epibt import AUTO_OP_LEN_FILL, DEFAULT_OP_LEN
 from planners.mapf.common import mix
 from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, free_neighbours, guided, random_instance, retarget
 
@@ -304,13 +305,28 @@ def test_same_seed_same_actions_and_robots_reach_goals():
 def test_registered_and_bad_options_name_the_value():
     assert TURNING_EXECUTORS["epibt"] is EPIBT
     grid = np.zeros((4, 4), dtype=bool)
-    for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"), ({"revisits": 0}, "revisits"),
+    for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"), ({"op_len": "fast"}, "'auto'.*'fast'"),
+                       ({"revisits": 0}, "revisits"),
                        ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans"), ({"lns": -1}, r"lns .* -1 .*\[0, "),
                        ({"group": 1}, r"group .* 1 .*\[2, 4096\]"), ({"weight_power": 3}, r"weight_power .* 3 .*\[0, 2\]")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a path"):
         EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)
+
+
+@pytest.mark.parametrize("robots, op_len", [(8, 4), (16, 4), (17, 3), (30, 3)])
+def test_auto_op_len_follows_the_teams_share_of_free_cells(robots, op_len):
+    grid = np.zeros((6, 6), dtype=bool)
+    grid[0, :4] = True  # 32 free cells: 4 actions up to 16 robots, 3 beyond
+    assert AUTO_OP_LEN_FILL == 0.5
+    free = np.flatnonzero(~grid.reshape(-1))
+    pos, goals = free[:robots], free[::-1][:robots].copy()
+    auto, fixed = EPIBT(grid, seed=3, op_len="auto"), EPIBT(grid, seed=3, op_len=op_len)
+    orient = np.zeros(robots, np.int64)
+    assert auto.ops.shape[1] == DEFAULT_OP_LEN  # chosen on the first call, from its team
+    assert auto.actions(pos, orient, goals).tolist() == fixed.actions(pos, orient, goals).tolist()
+    assert auto.ops.shape[1] == op_len and np.array_equal(auto.plans, fixed.plans)
 
 
 def test_no_robots_no_actions():

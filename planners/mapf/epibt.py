@@ -1,22 +1,14 @@
 """EPIBT: PIBT over multi-action operations for the action model with turning (MAPF_T), compiled.
 
-Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; default 3, no R next to C, no three
-equal turns), of which only the first is executed before the next call re-plans (the 2024 League of
-Robot Runners winner's core; arXiv 2511.09193).  A robot's operations are ranked by the cost-to-go where
-they end -- 0 on the goal, else the least ``move cost + field of a neighbour + turns to face it`` from
-the end cell and orientation -- then by the actions that do not move (early ones weigh more), then by
-``mix(seed, t, robot, operation)``; operations with the same cells at every time keep the best only.
-
-Per call, every robot's *inherited* operation (the rest of last call's, then W) is reserved in a
-space-time table over ``op_len + 1`` times: the inherited operations are jointly conflict-free, so each
-robot always has a fallback.  Robots in priority order (as :class:`~planners.mapf.turning.TurningPIBT`)
-then take the first operation that collides with no one (vertex or swap at any time), or with one robot
-of lower priority, which is pushed to choose again with the pusher's priority (PIBT's inheritance; at
-most ``revisits`` choices per robot and call); a robot left without one keeps its inherited operation.
-Then large-neighbourhood search (:func:`_lns`) re-chooses small groups while their summed (optionally
-rank-weighted) costs-to-go fall; the plan stays conflict-free, so its first actions are a valid joint action.
-Fields: the goal fields (:class:`~planners.mapf.turning.TurnFields`) or, with ``flow=True`` (default), the guide
-paths of :class:`~planners.mapf.flow.FlowGuide`.  Measurements: ``docs/design/lifelong_turning.md``.
+Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; no R next to C, no three equal turns),
+of which only the first is executed before the next call re-plans (the 2024 League of Robot Runners
+winner's core; arXiv 2511.09193).  Operations are ranked by the cost-to-go where they end, then by the
+actions that do not move, then by a seeded tie.  Each robot's *inherited* operation (last call's rest,
+then W) is reserved first, so every robot has a conflict-free fallback; robots in priority order then take
+the first operation that collides with no one or with one lower robot, which is pushed (PIBT's
+inheritance, at most ``revisits`` choices per robot and call); large-neighbourhood search (:func:`_lns`)
+re-chooses small groups while their summed (optionally rank-weighted) costs-to-go fall.  Fields: goal
+fields or the guide paths of :class:`~planners.mapf.flow.FlowGuide`.  See docs/design/lifelong_turning.md.
 """
 
 from __future__ import annotations
@@ -28,15 +20,18 @@ import numba
 import numpy as np
 
 from planners.mapf.common import int_in, mix
-from planners.mapf.flow import FlowGuide, check_team
+from planners.mapf.flow import FlowGuide, FlowPIBT
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "DEFAULT_OP_LEN", "DEFAULT_REVISITS", "DEFAULT_GROUP",
-           "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER"]
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL",
+           "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER"]
 
 DEFAULT_OP_LEN = 3
 MAX_OP_LEN = 5
+#: ``op_len="auto"``: 4 while the robots fill at most this share of the free cells, else 3 (measured on
+#: random-32-32-20: 4 gains at 100-400 robots and loses at 700-800, docs/design/lifelong_turning.md).
+AUTO_OP_LEN_FILL = 0.5
 #: Choices a robot may make per call (the first, then each time it is pushed).
 DEFAULT_REVISITS = 10
 #: Large-neighbourhood iterations per call and robot (at most :data:`DEFAULT_LNS_MAX`), robots per neighbourhood
@@ -53,7 +48,8 @@ def operations(op_len: int = DEFAULT_OP_LEN) -> np.ndarray:
     """``(n, op_len)`` int8: every action sequence without R next to C and without three equal turns in
     a row, F-first order."""
     if isinstance(op_len, bool) or not isinstance(op_len, (int, np.integer)) or not 1 <= op_len <= MAX_OP_LEN:
-        raise ValueError(f"op_len must be an integer 1..{MAX_OP_LEN} (actions per operation), got {op_len!r}")
+        raise ValueError(f"op_len must be an integer 1..{MAX_OP_LEN} (actions per operation) or 'auto' (EPIBT), "
+                         f"got {op_len!r}")
     keep = []
     for op in itertools.product((FORWARD, CLOCKWISE, COUNTER, WAIT), repeat=int(op_len)):
         pairs = zip(op, op[1:])
@@ -408,7 +404,8 @@ class EPIBT(TurningPIBT):
         grid, seed, guidance: as :class:`~planners.mapf.turning.TurningPIBT` (guidance default 0 here).
         flow: rank by traffic-flow guide paths (:class:`~planners.mapf.flow.FlowGuide`; default) instead of
             the goal fields.
-        op_len: actions per operation (1..5; default 3).
+        op_len: actions per operation (1..5; default 3), or ``"auto"``: chosen on the first call from the
+            team's share of the free cells (:data:`AUTO_OP_LEN_FILL`).
         revisits: choices a robot may make per call (default 10).
         lns: large-neighbourhood iterations per call over the joint plan (default: 50 per robot, at most
             32,768; 0 = off).
@@ -422,7 +419,7 @@ class EPIBT(TurningPIBT):
 
     name = "epibt"
 
-    def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int = DEFAULT_OP_LEN,
+    def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int | str = DEFAULT_OP_LEN,
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
                  replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
@@ -436,34 +433,37 @@ class EPIBT(TurningPIBT):
         self.lns_option = None if lns is None else int_in("lns (search iterations per call)", lns, 0, big)
         self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
-        self.ops = operations(op_len)
+        self.auto_op_len = isinstance(op_len, str) and op_len == "auto"
         self.flow = bool(flow)
         n = len(self.cell_of)
+        self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else op_len)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,
                                self.seed) if self.flow else None
-        self.inherited = np.zeros((0, self.ops.shape[1]), dtype=np.int8)
         self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
-        self._res = np.full((self.ops.shape[1] + 1, n), -1, dtype=np.int64)
+
+    def _set_ops(self, op_len) -> None:
+        self.ops = operations(op_len)
+        self.inherited = np.zeros((0, self.ops.shape[1]), dtype=np.int8)
+        self._res = np.full((self.ops.shape[1] + 1, len(self.cell_of)), -1, dtype=np.int64)
         self.plans = np.zeros((0, self.ops.shape[1]), dtype=np.int8)  # the last call's operations
 
-    @staticmethod
-    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
-        """``ValueError`` when ``n_robots`` robots' guide paths and fields on ``grid`` exceed ``field_bytes``."""
-        check_team(int((~np.asarray(grid, dtype=bool)).sum()), int(n_robots), int(field_bytes))
+    check_team = staticmethod(FlowPIBT.check_team)  # the same guide paths and fields
 
     def _heuristic(self, pc, gc, order):
         rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
-        if self.guide is None:
-            return self.fields.fields, rows
-        self.guide.update(pc, gc, self.fields.fields, rows)
-        return self.guide.fields, np.arange(len(pc), dtype=np.int64)
+        if self.guide is not None:
+            self.guide.update(pc, gc, self.fields.fields, rows)
+        return (self.fields.fields, rows) if self.guide is None else (self.guide.fields, np.arange(len(pc)))
 
     def actions(self, pos, orient, goals) -> np.ndarray:
         """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the
         last call's plans put it (another executor acted, a new episode) drops every inherited operation."""
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
+        if self.auto_op_len:
+            self.auto_op_len = False
+            self._set_ops(4 if r <= AUTO_OP_LEN_FILL * len(self.cell_of) else DEFAULT_OP_LEN)
         order = self.order(r)
         pc, gc = self.cid[pos], self.cid[goals]
         if len(self.inherited) != r or not (np.array_equal(self._expect[0], pc)

@@ -142,8 +142,8 @@ def main(argv=None) -> None:
     for (s, ex), rs in by.items():
         shares = [r["share_of_best"] for r in rs if r["share_of_best"] is not None]
         gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
-        lines.append(f"| {s} | {ex} | {100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} % | "
-                     f"{100 * sum(gain) / len(gain):+.1f} % |" if shares and gain else f"| {s} | {ex} | - | - | - |")
+        share = f"{100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} %" if shares else "- | -"
+        lines.append(f"| {s} | {ex} | {share} | " + (f"{100 * sum(gain) / len(gain):+.1f} % |" if gain else "- |"))
     if scale_rows:
         lines += ["", f"Large instances, lorr-greedy + {args.scale_executor}, first {args.scale_steps} steps:", "",
                   "| instance | robots | tasks | tasks / step | step p50 ms | step p99 ms | step max ms | errors | "

@@ -1,14 +1,13 @@
 """EPIBT: PIBT over multi-action operations for the action model with turning (MAPF_T), compiled.
 
-Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; no R next to C, no three equal turns),
-of which only the first is executed before the next call re-plans (the 2024 League of Robot Runners
-winner's core; arXiv 2511.09193).  Operations are ranked by the cost-to-go where they end, then by the
-actions that do not move, then by a seeded tie.  Each robot's *inherited* operation (last call's rest,
-then W) is reserved first, so every robot has a conflict-free fallback; robots in priority order then take
-the first operation that collides with no one or with one lower robot, which is pushed (PIBT's
-inheritance, at most ``revisits`` choices per robot and call); large-neighbourhood search (:func:`_lns`)
-re-chooses small groups while their summed (optionally rank-weighted) costs-to-go fall.  Fields: goal
-fields or the guide paths of :class:`~planners.mapf.flow.FlowGuide`.  See docs/design/lifelong_turning.md.
+Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; no R next to C, no three equal turns), of
+which only the first runs before the next call re-plans (the 2024 League of Robot Runners winner's core; arXiv
+2511.09193).  Operations rank by the cost-to-go where they end, then the actions that do not move, then a
+seeded tie.  Each robot's *inherited* operation (last call's rest, then W) is reserved first, so every robot
+has a conflict-free fallback; robots in priority order then take the first operation that collides with no
+one or with one lower robot, which is pushed (at most ``revisits`` choices per robot and call); then a
+large-neighbourhood search (:func:`_lns`) re-chooses small groups while their summed (optionally weighted)
+costs-to-go fall.  Fields: goal fields or FlowGuide's guide paths (docs/design/lifelong_turning.md).
 """
 
 from __future__ import annotations
@@ -433,7 +432,7 @@ class EPIBT(TurningPIBT):
         self.lns_option = None if lns is None else int_in("lns (search iterations per call)", lns, 0, big)
         self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
-        self.auto_op_len = isinstance(op_len, str) and op_len == "auto"
+        self.auto_op_len = op_len == "auto"
         self.flow = bool(flow)
         n = len(self.cell_of)
         self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else op_len)
@@ -452,9 +451,10 @@ class EPIBT(TurningPIBT):
 
     def _heuristic(self, pc, gc, order):
         rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
-        if self.guide is not None:
-            self.guide.update(pc, gc, self.fields.fields, rows)
-        return (self.fields.fields, rows) if self.guide is None else (self.guide.fields, np.arange(len(pc)))
+        if self.guide is None:
+            return self.fields.fields, rows
+        self.guide.update(pc, gc, self.fields.fields, rows)
+        return self.guide.fields, np.arange(len(pc), dtype=np.int64)
 
     def actions(self, pos, orient, goals) -> np.ndarray:
         """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the

@@ -3,7 +3,8 @@
 ``np.add.reduce`` over a contiguous float64 run is a *pairwise* sum (blocks of 8 partial
 sums up to 128 elements, halving beyond).  :func:`pairwise_sum` reproduces it exactly, so a
 kernel that sums like ``a.sum()`` / ``M.sum(axis=1)`` returns the same bits as the numpy
-code it replaces (checked on random arrays in the tests).
+code it replaces (checked on random arrays in the tests).  :func:`ising_of_qubo` is the one
+compiled QUBO-to-Ising step, with :func:`~ising_backend.models.ising_from_qubo`'s arithmetic.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["pairwise_sum"]
+__all__ = ["pairwise_sum", "ising_of_qubo"]
 
 
 @numba.njit(cache=True)
@@ -92,3 +93,22 @@ def pairwise_sum(a, lo, n):
             val = f_left[sp] + val
             sp -= 1
     return val
+
+
+@numba.njit(cache=True)
+def ising_of_qubo(q, Q, offset):
+    """``(h, J, offset)`` of the QUBO ``q.x + x.Q.x + offset`` (``Q`` strictly upper) with
+    :func:`~ising_backend.models.ising_from_qubo`'s arithmetic (numpy's summation order), so the
+    same bits as the host's conversion."""
+    n = q.shape[0]
+    h = np.empty(n)
+    J = np.empty((n, n))
+    row = np.empty(n)
+    flat = np.empty(n * n)
+    for i in range(n):
+        for j in range(n):
+            row[j] = Q[i, j] + Q[j, i]
+            J[i, j] = Q[i, j] / 4.0
+            flat[i * n + j] = Q[i, j]
+        h[i] = q[i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
+    return h, J, offset + pairwise_sum(q, 0, n) / 2.0 + pairwise_sum(flat, 0, n * n) / 4.0

@@ -18,7 +18,7 @@ import numpy as np
 
 from ._quantize_kernel import quantize_rules
 from .blocks import fill_packs, pack_layout
-from .numeric import pairwise_sum
+from .numeric import ising_of_qubo
 from .programs import programs_fit
 
 __all__ = ["pack_qubo_stack", "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT"]
@@ -40,14 +40,7 @@ def pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity):
     qJ = np.zeros((P * k, f, f))
     for p in range(P):
         n = sizes[p]
-        h = np.empty(n)
-        J = np.zeros((n, n))
-        row = np.empty(n)
-        for i in range(n):
-            for j in range(n):
-                row[j] = Q[p, i, j] + Q[p, j, i]
-                J[i, j] = Q[p, i, j] / 4.0
-            h[i] = q[p, i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
+        h, J, _offset = ising_of_qubo(q[p, :n], Q[p, :n, :n], 0.0)
         st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
         for r in range(k):
             bad = bad or st[r] != 0

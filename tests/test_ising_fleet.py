@@ -6,7 +6,8 @@ import pytest
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env import generate_world
 from planners.ising.fleet import FleetConfig, IsingFleetSharing
-from planners.ising.fleet.moves import apply_move, candidate_moves, conflicts, route_cost, walk
+from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
+from planners.ising.moves.selection import conflicts
 from planners.ising.fleet.recreate import ruin_recreate
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ising_backend import CallLedger, QuboModel, branch
-from ising_backend.numeric import pairwise_sum
+from ising_backend.numeric import ising_of_qubo, pairwise_sum
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from path_reference import build_patch_qubo_reference, component_of, cut_loops
@@ -101,6 +101,23 @@ def patch_case(seed, density):
 def test_pairwise_sum_is_numpys_sum(values):
     a = np.array(values, dtype=np.float64)
     assert pairwise_sum(a, 0, len(a)) == a.sum()
+
+
+@SETTINGS
+@given(st.integers(0, 10**6), st.integers(1, 40), st.integers(0, 8))
+def test_compiled_qubo_to_ising_is_the_hosts_bit_for_bit(seed, n, pad):
+    """``ising_of_qubo`` gives ``ising_from_qubo``'s bits, also on a padded stack's sliced views."""
+    from ising_backend import ising_from_qubo
+
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=n) * 10 ** rng.uniform(-3, 3)
+    Q = np.triu(rng.normal(size=(n, n)) * 10 ** rng.uniform(-3, 3), k=1)
+    ref = ising_from_qubo(q, Q, 1.5)
+    stack_q, stack_Q = np.zeros((2, n + pad)), np.zeros((2, n + pad, n + pad))
+    stack_q[1, :n], stack_Q[1, :n, :n] = q, Q
+    for args in ((q, Q), (stack_q[1, :n], stack_Q[1, :n, :n])):
+        h, J, offset = ising_of_qubo(*args, 1.5)
+        assert np.array_equal(h, ref.h) and np.array_equal(J, ref.J) and offset == ref.offset
 
 
 # ----------------------------------------------------------------------------- path

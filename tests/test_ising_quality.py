@@ -17,7 +17,8 @@ from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
 from sharing_search_reference import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
-from planners.ising.tour.moves import apply_moves, candidate_moves, pick_candidates, selection_gain, selection_qubo
+from planners.ising.moves.selection import conflicts, pick_candidates, read_gain, selection_qubo
+from planners.ising.tour.moves import apply_moves, candidate_moves
 from planners.ising.tour.selection import double_bridge
 from tour_reference import nearest_neighbour_route
 from planners.pipeline import make_pipeline
@@ -27,6 +28,19 @@ from planners.tours_classical import BruteTour, exact_route_cost
 
 def _cost(d, r):
     return float(d[r[:-1], r[1:]].sum())
+
+
+def _overlaps(spans, a, b) -> bool:
+    """Two tour moves (spans on route 0) rewrite a common edge."""
+    return spans[a, 1] <= spans[b, 2] and spans[b, 1] <= spans[a, 2]
+
+
+def _qubo_reference(spans, gains):
+    """The selection QUBO in numpy: ``-g`` and ``min(g, g') + 1`` over overlapping pairs, upper."""
+    lo, hi = spans[:, 1], spans[:, 2]
+    overlap = (lo[:, None] <= hi[None, :]) & (lo[None, :] <= hi[:, None])
+    P = np.minimum(gains[:, None], gains[None, :]) + 1.0
+    return -gains, np.triu(np.where(overlap, P, 0.0), k=1)
 
 
 @st.composite
@@ -43,28 +57,28 @@ def _routes(draw):
 @given(_routes(), st.integers(1, 3))
 def test_every_candidate_gain_is_the_route_cost_change(case, seg):
     d, r = case
-    moves, gains = candidate_moves(d, r, seg)
-    assert (gains > 0).all()
+    moves, spans, gains = candidate_moves(d, r, seg)
+    assert (gains > 0).all() and (spans[:, 0] == 0).all() and (spans[:, 3] == -1).all()
     for m in range(len(gains)):
         new = apply_moves(r, moves, [m])
         assert new[0] == 0 and sorted(new.tolist()) == sorted(r.tolist())
         assert _cost(d, r) - _cost(d, new) == pytest.approx(gains[m])
-        assert moves[m, 4] <= moves[m, 5]
+        assert spans[m, 1] <= spans[m, 2]
         changed = np.flatnonzero(new != r)  # only positions inside the span move
-        assert changed.size == 0 or (changed.min() > moves[m, 4] and changed.max() <= moves[m, 5])
+        assert changed.size == 0 or (changed.min() > spans[m, 1] and changed.max() <= spans[m, 2])
 
 
 @settings(max_examples=100, deadline=None)
 @given(_routes(), st.randoms(use_true_random=False))
 def test_disjoint_moves_add_and_overlapping_reads_are_invalid(case, rnd):
     d, r = case
-    moves, gains = candidate_moves(d, r, 3)
+    moves, spans, gains = candidate_moves(d, r, 3)
     if len(gains) == 0:
         return
     chosen = np.array([rnd.random() < 0.4 for _ in gains])
-    taken, total = selection_gain(chosen, moves, gains)
+    taken, total = read_gain(chosen, conflicts(spans, np.arange(len(gains))), gains)
     idx = np.flatnonzero(chosen)
-    overlap = any(moves[a, 4] <= moves[b, 5] and moves[b, 4] <= moves[a, 5] for a, b in itertools.combinations(idx, 2))
+    overlap = any(_overlaps(spans, a, b) for a, b in itertools.combinations(idx, 2))
     if overlap:
         assert taken is None
     else:
@@ -76,12 +90,12 @@ def test_disjoint_moves_add_and_overlapping_reads_are_invalid(case, rnd):
 @given(_routes(), st.integers(1, 12), st.integers(0, 4))
 def test_picked_candidates_respect_the_overlap_cap(case, k, cap):
     d, r = case
-    moves, gains = candidate_moves(d, r, 3)
-    picked = pick_candidates(moves, gains, k, cap)
+    _moves, spans, gains = candidate_moves(d, r, 3)
+    picked = pick_candidates(spans, gains, k, cap)
     assert len(picked) <= k and len(set(picked.tolist())) == len(picked)
     assert all(gains[a] >= gains[b] for a, b in zip(picked[:-1], picked[1:]))
     for i, m in enumerate(picked):
-        hits = sum(moves[m, 4] <= moves[o, 5] and moves[o, 4] <= moves[m, 5] for o in picked[:i])
+        hits = sum(_overlaps(spans, m, o) for o in picked[:i])
         assert hits <= cap
     if len(gains):
         assert picked[0] == np.argsort(-gains, kind="mergesort")[0]  # the best move is always offered
@@ -89,27 +103,27 @@ def test_picked_candidates_respect_the_overlap_cap(case, k, cap):
 
 def test_no_candidates_at_a_local_optimum_and_none_for_one_target():
     d = np.array([[0.0, 1.0], [1.0, 0.0]])
-    moves, gains = candidate_moves(d, np.array([0, 1]), 3)
-    assert moves.shape == (0, 6) and gains.shape == (0,)
+    moves, spans, gains = candidate_moves(d, np.array([0, 1]), 3)
+    assert moves.shape == (0, 4) and spans.shape == (0, 6) and gains.shape == (0,)
     dist = generate_world(3, n_robots=1, n_targets=8).distance_matrix
     best = BruteTour().solve(dist)
-    assert len(candidate_moves(dist, np.array((0,) + best.order), 3)[1]) == 0
+    assert len(candidate_moves(dist, np.array((0,) + best.order), 3)[2]) == 0
 
 
 def test_selection_qubo_ground_state_is_the_best_compatible_set():
     dist = generate_world(7, n_robots=1, n_targets=9).distance_matrix
     r = np.concatenate([[0], np.arange(9, 0, -1)])
-    moves, gains = candidate_moves(dist, r, 3)
+    _moves, spans, gains = candidate_moves(dist, r, 3)
     keep = np.argsort(-gains, kind="stable")[:12]
-    moves, gains = moves[keep], gains[keep]
-    q, Q = selection_qubo(moves, gains)
+    clashes, gains = conflicts(spans, keep), gains[keep]
+    q, Q = selection_qubo(gains, clashes, 1.0)
     X = np.array(list(itertools.product([0, 1], repeat=len(gains))), dtype=float)
     E = X @ q + np.einsum("si,ij,sj->s", X, Q, X)
     best = X[np.argmin(E)].astype(bool)
-    taken, total = selection_gain(best, moves, gains)
+    taken, total = read_gain(best, clashes, gains)
     assert taken is not None
-    feasible = [selection_gain(x.astype(bool), moves, gains)[1] for x in X
-                if selection_gain(x.astype(bool), moves, gains)[0] is not None]
+    feasible = [read_gain(x.astype(bool), clashes, gains)[1] for x in X
+                if read_gain(x.astype(bool), clashes, gains)[0] is not None]
     assert total == pytest.approx(max(feasible)) and -E.min() == pytest.approx(total)
 
 
@@ -142,19 +156,21 @@ def test_big_tours_kick_the_best_route_instead_of_restarting():
 @given(_routes(), st.randoms(use_true_random=False))
 def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import ising_from_qubo
-    from planners.ising.tour.move_engine import _apply, _selection_ising
+    from planners.ising.moves.selection import selection_ising
+    from planners.ising.tour.move_engine import _apply
 
     d, r = case
-    moves, gains = candidate_moves(d, r, 3)
+    moves, spans, gains = candidate_moves(d, r, 3)
     if len(gains) == 0:
         return
-    keep = pick_candidates(moves, gains, 8, 4)
-    moves, gains = moves[keep], gains[keep]
-    h, J = _selection_ising(moves, gains, 1.0)
-    ref = ising_from_qubo(*selection_qubo(moves, gains))
+    keep = pick_candidates(spans, gains, 8, 4)
+    moves, spans, gains = moves[keep], spans[keep], gains[keep]
+    clashes = conflicts(spans, np.arange(len(gains)))
+    h, J = selection_ising(gains, clashes, 1.0)
+    ref = ising_from_qubo(*_qubo_reference(spans, gains))
     assert np.array_equal(h, ref.h) and np.array_equal(J, ref.J)  # bit for bit
     chosen = np.array([rnd.random() < 0.4 for _ in gains])
-    taken, _total = selection_gain(chosen, moves, gains)
+    taken, _total = read_gain(chosen, clashes, gains)
     if taken is not None:
         route = r.copy()
         _apply(route, moves, taken)

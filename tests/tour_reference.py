@@ -15,7 +15,6 @@ import numpy as np
 
 from ising_backend import ising_from_qubo, quantize_stack
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.moves import pick_candidates, selection_qubo
 
 __all__ = ["nearest_neighbour_route", "reference_select_moves", "cluster_dist_reference"]
 
@@ -100,6 +99,28 @@ def score_reads(spins, moves, gains):
             if total > best + 1e-9:
                 best_k, best_r, best = a, r, total
     return clean, best_k, best_r, best
+
+
+def pick_candidates(moves, gains, k, max_overlap) -> np.ndarray:
+    """At most ``k`` moves by gain (ties: index), each overlapping at most ``max_overlap`` picked before it."""
+    picked: list[int] = []
+    for m in sorted(range(len(gains)), key=lambda i: (-gains[i], i)):
+        if len(picked) == k:
+            break
+        if sum(_overlap(moves[m], moves[o]) for o in picked) <= max_overlap:
+            picked.append(m)
+    return np.array(picked, dtype=np.int64)
+
+
+def selection_qubo(moves, gains) -> tuple[np.ndarray, np.ndarray]:
+    """``(q, Q)``: ``-sum g_m x_m + sum (min(g_m, g_m') + 1) x_m x_m'`` over overlapping pairs, ``Q`` upper."""
+    M = len(gains)
+    Q = np.zeros((M, M))
+    for i in range(M):
+        for j in range(i + 1, M):
+            if _overlap(moves[i], moves[j]):
+                Q[i, j] = min(gains[i], gains[j]) + 1.0
+    return -np.asarray(gains, dtype=np.float64), Q
 
 
 def apply_moves(route, moves, taken) -> np.ndarray:

@@ -18,7 +18,8 @@ kind  move             what changes                                    edges tou
 
 Two moves whose spans are disjoint in every route touch disjoint edges, so their gains add and
 applying them one after another by node (linked-list operations) gives the sum; two spans in the
-same route are merged into one (conservative).  Gains are exact for open routes.
+same route are merged into one (conservative).  Gains are exact for open routes.  The chip
+selects among them with :mod:`planners.ising.moves.selection`.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["walk", "candidate_moves", "conflicts", "pick_candidates", "score_reads", "apply_move", "route_cost",
+__all__ = ["walk", "candidate_moves", "apply_move", "route_cost",
            "unlink", "insert_after", "MOVE_KINDS"]
 
 MOVE_KINDS = ("relocate", "swap", "2-opt*", "2-opt")
@@ -144,83 +145,6 @@ def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
                         _add(out, m, 3, a, b, g, (ou, pos[a], pos[b]), (np.int64(-1), np.int64(0), np.int64(0)))
                         m += 1
     return moves[:m].copy(), spans[:m].copy(), gains[:m].copy()
-
-
-@numba.njit(cache=True, inline="always")
-def _clash(spans, i, j):
-    for x in range(2):
-        ri = spans[i, 3 * x]
-        if ri < 0:
-            continue
-        for y in range(2):
-            if spans[j, 3 * y] == ri and spans[i, 3 * x + 1] <= spans[j, 3 * y + 2] \
-                    and spans[j, 3 * y + 1] <= spans[i, 3 * x + 2]:
-                return True
-    return False
-
-
-@numba.njit(cache=True)
-def conflicts(spans, idx):
-    """``(K, K)`` bool: which of the moves ``idx`` touch a common edge."""
-    n = idx.shape[0]
-    out = np.zeros((n, n), dtype=np.bool_)
-    for a in range(n):
-        for b in range(a):
-            if _clash(spans, idx[a], idx[b]):
-                out[a, b] = True
-                out[b, a] = True
-    return out
-
-
-@numba.njit(cache=True)
-def pick_candidates(spans, gains, k, max_overlap):
-    """At most ``k`` moves by gain (ties: index), each clashing with at most ``max_overlap``
-    moves picked before it."""
-    order = np.argsort(-gains, kind="mergesort")
-    picked = np.empty(min(k, order.shape[0]), dtype=np.int64)
-    n = 0
-    for m in order:
-        if n == picked.shape[0]:
-            break
-        hits = 0
-        for t in range(n):
-            if _clash(spans, m, picked[t]):
-                hits += 1
-                if hits > max_overlap:
-                    break
-        if hits <= max_overlap:
-            picked[n] = m
-            n += 1
-    return picked[:n].copy()
-
-
-@numba.njit(cache=True)
-def score_reads(spins, clash, gains):
-    """Reads ``(programs, reads, K)`` of one selection round: ``(valid reads, program, read, gain)``
-    of the first valid read of largest total gain (program -1: none selects a move)."""
-    p_n, reads, k = spins.shape
-    valid = 0
-    best_p, best_r, best = -1, -1, 0.0
-    for p in range(p_n):
-        for rd in range(reads):
-            total = 0.0
-            ok = True
-            for a in range(k):
-                if spins[p, rd, a] <= 0:
-                    continue
-                total += gains[a]
-                for b in range(a):
-                    if spins[p, rd, b] > 0 and clash[a, b]:
-                        ok = False
-                        break
-                if not ok:
-                    break
-            if not ok:
-                continue
-            valid += 1
-            if total > best + _EPS:
-                best_p, best_r, best = p, rd, total
-    return valid, best_p, best_r, best
 
 
 @numba.njit(cache=True, inline="always")

@@ -34,9 +34,9 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
-from planners.ising.fleet.moves import (apply_move, candidate_moves, conflicts, pick_candidates, route_cost,
-                                        score_reads, walk)
+from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
 from planners.ising.fleet.recreate import ruin_recreate
+from planners.ising.moves.selection import conflicts, greedy_selection, pick_candidates, score_reads, selection_qubo
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
@@ -140,19 +140,14 @@ class _Search:
         """The chip's selection among the offered moves: indices into them, or None."""
         cfg = self.cfg
         if cfg.selection == "greedy":  # the ablation: the host decides (offered moves come by gain)
-            taken: list[int] = []
-            for i in range(len(gains)):
-                if not any(clash[i, j] for j in taken):
-                    taken.append(i)
-            return np.array(taken, dtype=np.int64)
-        P = np.minimum(gains[:, None], gains[None, :]) + 1.0
-        Q = np.triu(np.where(clash, P, 0.0), k=1)
-        h, J = quantize_stack(ising_from_qubo(-gains, Q), cfg.chip_rules, self.spec.h_range, self.spec.j_range)
+            return greedy_selection(clash)
+        h, J = quantize_stack(ising_from_qubo(*selection_qubo(gains, clash, 1.0)), cfg.chip_rules, self.spec.h_range,
+                              self.spec.j_range)
         seed = int(self.rng.integers(0, 2**63 - 1))
         spins, _ = self.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
-        valid, p, rd, _gain = score_reads(spins, clash, gains)
+        valid, _selecting, p, rd, _gain = score_reads(spins, clash, gains)
         self.stats["reads"] += spins.shape[0] * spins.shape[1]
-        self.stats["valid_reads"] += int(valid)
+        self.stats["valid_reads"] += int(valid.sum())
         if p < 0:
             return None
         return np.flatnonzero(spins[p, rd] > 0)

@@ -23,7 +23,7 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend import anneal_submit, fill_packs, merge_styles_flat, pack_layout
-from ising_backend.numeric import pairwise_sum
+from ising_backend.numeric import ising_of_qubo
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
@@ -85,23 +85,6 @@ class ProgramPool:
 
 
 @numba.njit(cache=True)
-def _ising_of_qubo(q, Q, offset):
-    """``ising_backend.ising_from_qubo``'s arithmetic (numpy's summation order)."""
-    n = q.shape[0]
-    h = np.empty(n)
-    J = np.empty((n, n))
-    row = np.empty(n)
-    flat = np.empty(n * n)
-    for i in range(n):
-        for j in range(n):
-            row[j] = Q[i, j] + Q[j, i]
-            J[i, j] = Q[i, j] / 4.0
-            flat[i * n + j] = Q[i, j]
-        h[i] = q[i] / 2.0 + pairwise_sum(row, 0, n) / 4.0
-    return h, J, offset + pairwise_sum(q, 0, n) / 2.0 + pairwise_sum(flat, 0, n * n) / 4.0
-
-
-@numba.njit(cache=True)
 def _key(comp, target):
     """The pool key of a problem: the free-cell mask and target themselves up to 7x7 patches, a
     hash beyond (checked against the slot's problem)."""
@@ -132,7 +115,7 @@ def _program(pool, comp, target, adj4, diag, degree, coef, scale, style_ids, Lh,
     var, qv, Qv, off = _patch_qubo_kernel(adj4, diag, comp, n // 2, target, degree, coef[0], coef[1], coef[2],
                                           coef[3], coef[4])
     m = var.shape[0]
-    h, J, o = _ising_of_qubo(qv, Qv, off)
+    h, J, o = ising_of_qubo(qv, Qv, off)
     if count[0] >= n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
         keys.clear()
         count[0] = 0

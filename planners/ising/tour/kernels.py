@@ -19,28 +19,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend.numeric import pairwise_sum
+from ising_backend.numeric import ising_of_qubo, pairwise_sum
 
 __all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances",
            "dist_flags", "route_cost"]
-
-
-@numba.njit(cache=True)
-def _to_ising(q, Q, offset):
-    n = q.shape[0]
-    h = np.empty(n)
-    J = np.empty((n, n))
-    tq = 0.0
-    tQ = 0.0
-    for i in range(n):
-        r = 0.0
-        for j in range(n):
-            r += Q[i, j] + Q[j, i]
-            J[i, j] = Q[i, j] / 4.0
-            tQ += Q[i, j]
-        h[i] = q[i] / 2.0 + r / 4.0
-        tq += q[i]
-    return h, J, offset + tq / 2.0 + tQ / 4.0
 
 
 @numba.njit(cache=True)
@@ -64,7 +46,7 @@ def onehot_ising(d, entry, exit_, A, B):
                 Q[a, b] = B * d[ia, ib]
             elif pa == pb + 1:
                 Q[a, b] = B * d[ib, ia]
-    return _to_ising(q, Q, 2.0 * s * A)
+    return ising_of_qubo(q, Q, 2.0 * s * A)
 
 
 @numba.njit(cache=True)
@@ -80,7 +62,7 @@ def maxcut_ising(w):
                 q[i] -= ws
                 if j > i:
                     Q[i, j] = 2.0 * ws
-    return _to_ising(q, Q, 0.0)
+    return ising_of_qubo(q, Q, 0.0)
 
 
 @numba.njit(cache=True)

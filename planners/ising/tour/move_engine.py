@@ -19,7 +19,8 @@ import numpy as np
 
 from ising_backend import anneal_submit, quantize_rules
 from ising_backend.numeric import pairwise_sum
-from planners.ising.tour.moves import candidate_moves, pick_candidates, score_reads
+from planners.ising.moves.selection import conflicts, pick_candidates, score_reads, selection_ising
+from planners.ising.tour.moves import candidate_moves
 
 __all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
            "REFUSED"]
@@ -53,27 +54,6 @@ def _apply(route, moves, taken):
 
 
 @numba.njit(cache=True)
-def _selection_ising(moves, gains, margin):
-    """The selection QUBO (:func:`.moves.selection_qubo`) in Ising form, with
-    :func:`ising_backend.ising_from_qubo`'s arithmetic: ``(h (M,), J (M, M))``."""
-    M = gains.shape[0]
-    Q = np.zeros((M, M))
-    for i in range(M):
-        for j in range(i + 1, M):
-            if moves[i, 4] <= moves[j, 5] and moves[j, 4] <= moves[i, 5]:
-                Q[i, j] = min(gains[i], gains[j]) + margin
-    h = np.empty(M)
-    J = np.zeros((M, M))
-    row = np.empty(M)
-    for i in range(M):
-        for j in range(M):
-            row[j] = Q[i, j] + Q[j, i]
-            J[i, j] = Q[i, j] / 4.0
-        h[i] = -gains[i] / 2.0 + pairwise_sum(row, 0, M) / 4.0
-    return h, J
-
-
-@numba.njit(cache=True)
 def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine):
     """One start of the move-selection search (module docstring); ``program`` = ``(rules, Lh, Lj,
     num_reads)``: the quantization rules' ids, the coefficient limits and the reads per program.
@@ -95,13 +75,14 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
     rounds = 0
     status = LOCAL_OPTIMUM
     while rounds < max_rounds:
-        moves, gains = candidate_moves(dist, route, max_segment)
+        moves, spans, gains = candidate_moves(dist, route, max_segment)
         if gains.shape[0] == 0:
             break
-        keep = pick_candidates(moves, gains, max(1, capacity >> failures), max_overlap)
+        keep = pick_candidates(spans, gains, max(1, capacity >> failures), max_overlap)
+        clashes = conflicts(spans, keep)
         moves = moves[keep]
         gains = gains[keep]
-        h, J = _selection_ising(moves, gains, 1.0)
+        h, J = selection_ising(gains, clashes, 1.0)
         st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
         for r in range(k):
             if st[r] != 0:
@@ -115,7 +96,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         emu[rounds] = anneal_submit(hq, Jq, num_reads, np.uint64(seed), machine, spins, energies)
         calls[rounds] = k * num_reads
         rounds += 1
-        clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
+        _valid, clean, best_k, best_r, _gain = score_reads(spins, clashes, gains)
         for r in range(k):
             clean_all[r] += clean[r]
             stats[4] += clean[r] > 0

@@ -65,11 +65,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._clock import clock_ns
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 
-__all__ = ["anneal_kernel", "anneal_kernel_timed", "anneal_kernel_cores", "beta_range_auto"]
+__all__ = ["anneal_kernel", "anneal_kernel_cores", "beta_range_auto", "NO_CORES", "NO_CLAMP"]
 
 _U53 = 1.0 / 9007199254740992.0
 
@@ -167,8 +166,9 @@ def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, beta
             betas_b[k] = hot + (cold - hot) * (k / (sweeps - 1))
 
 
-_NO_CORES = np.zeros(0, dtype=np.int64)
-_NO_CLAMP = np.zeros((0, 0), dtype=np.int8)
+#: ``anneal_kernel_cores``'s ``faults`` for a chip without faults: reads on cores in turn, no stuck spin.
+NO_CORES = np.zeros(0, dtype=np.int64)
+NO_CLAMP = np.zeros((0, 0), dtype=np.int8)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -184,7 +184,7 @@ def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
     on core ``k % n_cores``.
     """
     anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                        (_NO_CORES, _NO_CLAMP), (out_spins, out_energy))
+                        (NO_CORES, NO_CLAMP), (out_spins, out_energy))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -345,15 +345,3 @@ def beta_range_auto(h: np.ndarray, J: np.ndarray) -> tuple[float, float]:
     h = np.asarray(h, dtype=np.float64)
     J = np.asarray(J, dtype=np.float64)
     return _auto_range(h, J + J.T, h.size)
-
-
-@numba.njit(cache=True)
-def anneal_kernel_timed(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                        out_spins, out_energy):
-    """:func:`anneal_kernel` for compiled planner loops, returning its wall seconds (a monotonic
-    clock read around the kernel, :func:`._clock.clock_ns`): the emulation time those loops charge
-    to the chip."""
-    t0 = clock_ns()
-    anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                  out_spins, out_energy)
-    return (clock_ns() - t0) * 1e-9

@@ -18,9 +18,9 @@ from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfi
 from sharing_search_reference import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
 from planners.ising.moves.selection import conflicts, pick_candidates, read_gain, selection_qubo
-from planners.ising.tour.moves import apply_moves, candidate_moves
+from planners.ising.tour.moves import candidate_moves
 from planners.ising.tour.selection import double_bridge
-from tour_reference import nearest_neighbour_route
+from tour_reference import apply_moves, nearest_neighbour_route
 from planners.pipeline import make_pipeline
 from planners.plan import validate_plan
 from planners.tours_classical import BruteTour, exact_route_cost
@@ -157,7 +157,7 @@ def test_big_tours_kick_the_best_route_instead_of_restarting():
 def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import ising_from_qubo
     from planners.ising.moves.selection import selection_ising
-    from planners.ising.tour.move_engine import _apply
+    from planners.ising.tour.moves import apply_moves as compiled_apply
 
     d, r = case
     moves, spans, gains = candidate_moves(d, r, 3)
@@ -173,7 +173,7 @@ def test_compiled_move_kernels_match_the_reference(case, rnd):
     taken, _total = read_gain(chosen, clashes, gains)
     if taken is not None:
         route = r.copy()
-        _apply(route, moves, taken)
+        compiled_apply(route, moves, taken)
         assert np.array_equal(route, apply_moves(r, moves, taken))
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from ising_backend import anneal_submit, quantize_rules
 from ising_backend.numeric import pairwise_sum
 from planners.ising.moves.selection import conflicts, pick_candidates, score_reads, selection_ising
-from planners.ising.tour.moves import candidate_moves
+from planners.ising.tour.moves import apply_moves, candidate_moves
 
 __all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
            "REFUSED"]
@@ -29,28 +29,6 @@ LOCAL_OPTIMUM = 0  # no improving move left (or max_rounds reached)
 STALLED = 1  # the chip selected nothing valid max_retries + 1 times in a row, after some progress
 NO_PROGRESS = 2  # ... before any move was applied: the start fails
 REFUSED = 3  # a program the quantizer could not map (a non-finite coefficient): the start fails
-
-
-@numba.njit(cache=True)
-def _apply(route, moves, taken):
-    """:func:`.moves.apply_moves` in place (``taken``: pairwise disjoint move indices)."""
-    for m in taken:
-        kind, p, q, c = moves[m, 0], moves[m, 1], moves[m, 2], moves[m, 3]
-        if kind == 0:
-            route[p + 1:q + 1] = route[p + 1:q + 1][::-1].copy()
-            continue
-        seg = route[p:q + 1].copy()
-        if kind == 2:
-            seg = seg[::-1].copy()
-        L = seg.shape[0]
-        if c < p:
-            rest = route[c + 1:p].copy()
-            route[c + 1:c + 1 + L] = seg
-            route[c + 1 + L:q + 1] = rest
-        else:
-            rest = route[q + 1:c + 1].copy()
-            route[p:p + rest.shape[0]] = rest
-            route[p + rest.shape[0]:c + 1] = seg
 
 
 @numba.njit(cache=True)
@@ -112,7 +90,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         failures = 0
         taken = np.flatnonzero(spins[best_k, best_r] > 0)
         applied += taken.shape[0]
-        _apply(route, moves, taken)
+        apply_moves(route, moves, taken)
     stats[0] = rounds
     stats[2] = applied
     return route, status, stats, clean_all, wins, calls[:rounds], emu[:rounds]

@@ -81,23 +81,23 @@ def candidate_moves(d, r, max_segment):
     return moves[:m].copy(), spans[:m].copy(), gains[:m].copy()
 
 
-def apply_moves(r, moves: np.ndarray, taken) -> np.ndarray:
-    """Route ``r`` with the (pairwise disjoint) moves ``taken`` applied."""
-    r = np.array(r, dtype=np.int64)
+@numba.njit(cache=True)
+def apply_moves(route, moves, taken):
+    """Route ``route`` with the (pairwise disjoint) moves ``taken`` applied, in place."""
     for m in taken:
-        kind, p, q, c = (int(v) for v in moves[m, :4])
+        kind, p, q, c = moves[m, 0], moves[m, 1], moves[m, 2], moves[m, 3]
         if kind == 0:
-            r[p + 1:q + 1] = r[p + 1:q + 1][::-1].copy()
+            route[p + 1:q + 1] = route[p + 1:q + 1][::-1].copy()
             continue
-        seg = r[p:q + 1].copy()
+        seg = route[p:q + 1].copy()
         if kind == 2:
-            seg = seg[::-1]
+            seg = seg[::-1].copy()
+        L = seg.shape[0]
         if c < p:
-            rest = r[c + 1:p].copy()
-            r[c + 1:c + 1 + len(seg)] = seg
-            r[c + 1 + len(seg):q + 1] = rest
+            rest = route[c + 1:p].copy()
+            route[c + 1:c + 1 + L] = seg
+            route[c + 1 + L:q + 1] = rest
         else:
-            rest = r[q + 1:c + 1].copy()
-            r[p:p + len(rest)] = rest
-            r[p + len(rest):c + 1] = seg
-    return r
+            rest = route[q + 1:c + 1].copy()
+            route[p:p + rest.shape[0]] = rest
+            route[p + rest.shape[0]:c + 1] = seg

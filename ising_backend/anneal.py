@@ -36,7 +36,7 @@ anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
   their dependency chains); that grouping changes no result.  Zero-padding a
   program to a larger ``n`` does change its random stream;
 * optional static coupling mismatch: read ``k = b * reads + r`` of the call runs
-  on core ``k % n_cores`` (or the core :func:`anneal_kernel_cores` is given) whose
+  on core ``k % n_cores`` (or the core it is given) whose
   fixed factor matrix multiplies the couplings while annealing; optional stuck
   spins per core (clamped through the anneal); optional readout bit flips after
   the anneal;
@@ -68,7 +68,7 @@ import numpy as np
 from ._rng import GOLDEN as _GOLDEN
 from ._rng import splitmix as _splitmix
 
-__all__ = ["anneal_kernel", "anneal_kernel_cores", "beta_range_auto", "NO_CORES", "NO_CLAMP"]
+__all__ = ["anneal_kernel", "beta_range_auto", "NO_CORES", "NO_CLAMP"]
 
 _U53 = 1.0 / 9007199254740992.0
 
@@ -166,32 +166,20 @@ def _program_setup(h_b, J_b, n, sweeps, geometric, beta_hot, beta_cold, Jb, beta
             betas_b[k] = hot + (cold - hot) * (k / (sweeps - 1))
 
 
-#: ``anneal_kernel_cores``'s ``faults`` for a chip without faults: reads on cores in turn, no stuck spin.
+#: :func:`anneal_kernel`'s ``faults`` for a chip without faults: reads on cores in turn, no stuck spin.
 NO_CORES = np.zeros(0, dtype=np.int64)
 NO_CLAMP = np.zeros((0, 0), dtype=np.int8)
 
 
 @numba.njit(cache=True, nogil=True)
-def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
-                  mismatch, flip_prob, out_spins, out_energy):
-    """Anneal ``B`` programs x ``num_reads`` reads in place into ``out_spins`` / ``out_energy``.
+def anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob, faults, out):
+    """Anneal ``B`` programs x ``num_reads`` reads in place into ``out = (out_spins, out_energy)``.
 
     ``h`` / ``J`` are int16, int64 or float64 (compiled once per dtype; same samples): a
-    compiled planner hands its integer chip programs over as they are.
-
-    ``beta_hot <= 0`` selects the automatic per-program range.  ``mismatch`` is
-    ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)`` for none); read ``k`` runs
-    on core ``k % n_cores``.
-    """
-    anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                        (NO_CORES, NO_CLAMP), (out_spins, out_energy))
-
-
-@numba.njit(cache=True, nogil=True)
-def anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold,
-                        mismatch, flip_prob, faults, out):
-    """:func:`anneal_kernel` with each read's core given, ``faults`` = ``(cores, clamp)`` and ``out`` =
-    ``(out_spins, out_energy)``: read ``k`` runs on core ``cores[k]`` (``cores`` empty: ``k % n_cores``),
+    compiled planner hands its integer chip programs over as they are.  ``beta_hot <= 0`` selects the
+    automatic per-program range.  ``mismatch`` is ``(n_cores, N, N)`` with ``N >= n`` (or ``(0, 0, 0)``
+    for none).  ``faults`` = ``(cores, clamp)`` (:data:`NO_CORES`, :data:`NO_CLAMP` for a chip
+    without faults): read ``k`` runs on core ``cores[k]`` (``cores`` empty: ``k % n_cores``),
     whose factor matrix ``mismatch[core]`` (if any) and stuck spins ``clamp[core]`` (``(n_cores, N)``
     int8: 0 free, +-1 stuck at that value; or ``(0, 0)`` for none) it anneals with.  A stuck spin
     starts at its value and never flips; the readout flips after the anneal apply to it like to any spin.

@@ -29,7 +29,7 @@ from __future__ import annotations
 import time
 import numpy as np
 
-from .anneal import anneal_kernel, anneal_kernel_cores
+from .anneal import NO_CLAMP, NO_CORES, anneal_kernel
 from .base import MachineBase
 from .faults import FaultMap
 from .health import HealthMonitor, dispatch
@@ -113,7 +113,8 @@ class EmulatedChip(MachineBase):
         if B:
             hot, cold = (-1.0, -1.0) if self.spec.beta_range is None else self.spec.beta_range
             anneal_kernel(hf, Jf, num_reads, np.uint64(seed), self.spec.sweeps, self.spec.schedule == "geometric",
-                          hot, cold, self._mismatch, float(self.spec.readout_flip_prob), spins, energies)
+                          hot, cold, self._mismatch, float(self.spec.readout_flip_prob), (NO_CORES, NO_CLAMP),
+                          (spins, energies))
         return spins, energies, False
 
     @property
@@ -158,10 +159,9 @@ class EmulatedChip(MachineBase):
         hot, cold = (-1.0, -1.0) if self.spec.beta_range is None else self.spec.beta_range
         clamp = self._clamp if raw or not self._clamp.size else self.health.clamp
         mismatch = self._mismatch if raw else self.health.mismatch
-        anneal_kernel_cores(np.ascontiguousarray(h), np.ascontiguousarray(J), reads, np.uint64(seed), self.spec.sweeps,
-                            self.spec.schedule == "geometric", hot, cold, mismatch,
-                            float(self.spec.readout_flip_prob), (np.asarray(cores, dtype=np.int64), clamp),
-                            (spins, energies))
+        anneal_kernel(np.ascontiguousarray(h), np.ascontiguousarray(J), reads, np.uint64(seed), self.spec.sweeps,
+                      self.spec.schedule == "geometric", hot, cold, mismatch, float(self.spec.readout_flip_prob),
+                      (np.asarray(cores, dtype=np.int64), clamp), (spins, energies))
         return spins, energies
 
     def _charge_probe(self, calls, seconds, retries, probe):

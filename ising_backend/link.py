@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from ._clock import clock_ns
-from .anneal import NO_CLAMP, NO_CORES, anneal_kernel_cores
+from .anneal import NO_CLAMP, NO_CORES, anneal_kernel
 from .audit import active_audit
 from .host_rule import host_answer, host_rule_classes
 from .ledger import CallLedger
@@ -155,8 +155,8 @@ def anneal_submit(h, J, num_reads, seed, machine, spins, energies):
     handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = machine
     if handle < 0:
         t0 = clock_ns()  # the emulator's own kernel: its wall seconds are what the caller charges
-        anneal_kernel_cores(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                            (NO_CORES, NO_CLAMP), (spins, energies))
+        anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
+                      (NO_CORES, NO_CLAMP), (spins, energies))
         return (clock_ns() - t0) * 1e-9
     with numba.objmode(t="float64"):
         t = _callback(handle, h, J, num_reads, seed, spins, energies)

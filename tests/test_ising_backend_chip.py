@@ -112,7 +112,7 @@ def test_shapes_dtypes_energies_and_determinism():
 def test_kernel_gives_the_same_samples_for_every_coefficient_dtype(mismatch):
     """Integer programs handed to the kernel as int16 (the compiled path planner), int64 or
     float64 anneal to the same spins and energies."""
-    from ising_backend.anneal import anneal_kernel
+    from ising_backend.anneal import NO_CLAMP, NO_CORES, anneal_kernel
 
     rng = np.random.default_rng(11)
     B, n, R = 5, 17, 2
@@ -125,7 +125,7 @@ def test_kernel_gives_the_same_samples_for_every_coefficient_dtype(mismatch):
         spins = np.empty((B, R, n), dtype=np.int8)
         energies = np.empty((B, R))
         anneal_kernel(h.astype(dtype), J.astype(dtype), R, np.uint64(9), sweeps, geometric, hot, cold, mm, flip,
-                      spins, energies)
+                      (NO_CORES, NO_CLAMP), (spins, energies))
         out.append((spins, energies))
     for spins, energies in out[1:]:
         assert np.array_equal(spins, out[0][0]) and np.array_equal(energies, out[0][1])

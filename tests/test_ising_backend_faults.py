@@ -12,7 +12,7 @@ from ising_backend import (
     CallLedger, ChipSpec, ChipUnavailableError, EmulatedChip, FaultMap, IsingModel, LogicalIsingSolver,
     MeteredSolver,
 )
-from ising_backend.anneal import anneal_kernel, anneal_kernel_cores
+from ising_backend.anneal import NO_CLAMP, NO_CORES, anneal_kernel
 from ising_backend.health import PROBE_READS
 
 CLEAN = ChipSpec().noise_free()
@@ -77,12 +77,12 @@ def test_fault_free_chip_has_no_health_and_same_samples():
     # the kernel with each read's core given as k % n_cores is the plain kernel
     spec = chip.spec
     out = np.empty_like(spins), np.empty_like(energies)
-    anneal_kernel_cores(h.astype(np.int64), J.astype(np.int64), 5, np.uint64(7), spec.sweeps, True, -1.0, -1.0,
+    anneal_kernel(h.astype(np.int64), J.astype(np.int64), 5, np.uint64(7), spec.sweeps, True, -1.0, -1.0,
                         chip._mismatch, 0.0, (np.arange(15) % 8, np.zeros((0, 0), dtype=np.int8)), out)
     assert np.array_equal(out[0], spins) and np.array_equal(out[1], energies)
     plain = np.empty_like(spins), np.empty_like(energies)
     anneal_kernel(h.astype(np.int64), J.astype(np.int64), 5, np.uint64(7), spec.sweeps, True, -1.0, -1.0,
-                  chip._mismatch, 0.0, *plain)
+                  chip._mismatch, 0.0, (NO_CORES, NO_CLAMP), plain)
     assert np.array_equal(plain[0], spins)
 
 

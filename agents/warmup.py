@@ -30,10 +30,11 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 
 #: Rough cold compile seconds of each part, each measured alone with an empty cache on a 2-core AMD EPYC
 #: (2026-11-26; the LoRR parts re-measured with the lane-guidance kernels: 17 s / 22 s, were 6 s / 9 s; then
-#: lorr:pibt 15 s and lorr:pibt-flow 20 s with the turning kernel's records; lorr:epibt 27 s;
+#: lorr:pibt 15 s and lorr:pibt-flow 20 s with the turning kernel's records; lorr:epibt 27 s; the Ising parts
+#: re-measured 2026-11-26 after the annealing kernel lost two wrapper levels: 120 / 116 / 61 / 37 s;
 #: docs/design/cold_start.md).  Parts compiled side by side share the anneal and quantization kernels, so the
 #: sum over two workers is an upper estimate.
-PART_SECONDS = {"ising:sharing": 140, "ising-paper:tour+path": 130, "ising:tour+path": 77, "ising-fleet": 36,
+PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 116, "ising:tour+path": 61, "ising-fleet": 37,
                 "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 15, "lorr:pibt-flow": 20,
                 "lorr:epibt": 27,
                 "lorr:windowed": 22}

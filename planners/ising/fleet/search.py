@@ -18,8 +18,9 @@ Classical logic orchestrates, the chip decides which moves are made:
 
 The layer is a sharing layer that orders its groups (``orders_routes``: tour layer ``keep``);
 preset ``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).
-Every chip call is metered (:class:`ising_backend.MeteredSolver`) into the layer's report; the
-emulator's run time is ``emulation_s``.  Measured in docs/design/ising_fleet.md.
+Each local search is one compiled call (:mod:`.local_search`) on one machine session, which charges
+every chip call to the layer's report; the emulator's run time is ``emulation_s``.  Measured in
+docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations
@@ -28,15 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import (ChipUnavailableError, MeteredSolver, as_machine, ising_from_qubo,
-                           quantize_stack)
+from ising_backend import QUANTIZE_RULE_IDS, CallLedger, ChipUnavailableError, as_machine
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
-from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
+from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, local_search_loop
+from planners.ising.fleet.moves import route_cost
 from planners.ising.fleet.recreate import ruin_recreate
-from planners.ising.moves.selection import conflicts, greedy_selection, pick_candidates, score_reads, selection_qubo
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
@@ -100,57 +100,33 @@ class FleetConfig(IsingConfig):
         check_choice("selection", self.selection, ("chip", "greedy"))
 
 
+_REFUSED = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
+            "to add)")
+
+
 class _Search:
-    """One planning call: the routes as linked lists, the metered chip, the statistics."""
+    """One planning call: the distances, the machine and its ledger for this call, the statistics."""
 
     def __init__(self, d, r, neigh, config, chip, rng):
         self.d, self.r, self.neigh, self.cfg, self.rng = d, r, neigh, config, rng
         self.chip = chip
-        self.spec = chip.spec
-        self.capacity = min(int(chip.usable_spins), config.max_moves)
-        self.stats = {"rounds": 0, "offered": 0, "contested_rounds": 0, "moves_applied": 0, "valid_reads": 0,
-                      "reads": 0, "kicks_accepted": 0, "local_optima": 0, "chip_gave_up": 0}
+        self.charged = CallLedger()
+        rules = np.array([QUANTIZE_RULE_IDS[x] for x in config.chip_rules], dtype=np.int64)
+        self.program = (rules, *(float(v) for v in chip.spec.coefficient_limits), config.num_reads)
+        capacity = min(int(chip.usable_spins), config.max_moves)
+        self.search = (capacity, config.max_overlap, config.max_retries, config.selection == "chip")
+        self.stats = dict.fromkeys(STAT_FIELDS + ("kicks_accepted",), 0)
 
     def local_search(self, nxt, prv) -> None:
-        cfg, failures = self.cfg, 0
-        while True:
-            owner, pos, length = walk(nxt, self.r)
-            moves, spans, gains = candidate_moves(self.d, nxt, prv, owner, pos, length, self.neigh, self.r)
-            if len(gains) == 0:
-                self.stats["local_optima"] += 1
-                return
-            keep = pick_candidates(spans, gains, max(1, self.capacity >> failures), cfg.max_overlap)
-            clash = conflicts(spans, keep)
-            taken = self._chip_round(gains[keep], clash)
-            self.stats["rounds"] += 1
-            self.stats["offered"] += len(keep)
-            self.stats["contested_rounds"] += bool(clash.any())  # a real choice: not every move fits
-            if taken is None:
-                failures += 1
-                if failures > cfg.max_retries:
-                    self.stats["chip_gave_up"] += 1
-                    return
-                continue
-            failures = 0
-            for i in keep[taken]:
-                apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2])
-            self.stats["moves_applied"] += len(taken)
-
-    def _chip_round(self, gains, clash):
-        """The chip's selection among the offered moves: indices into them, or None."""
-        cfg = self.cfg
-        if cfg.selection == "greedy":  # the ablation: the host decides (offered moves come by gain)
-            return greedy_selection(clash)
-        h, J = quantize_stack(ising_from_qubo(*selection_qubo(gains, clash, 1.0)), cfg.chip_rules, self.spec.h_range,
-                              self.spec.j_range)
-        seed = int(self.rng.integers(0, 2**63 - 1))
-        spins, _ = self.chip.anneal_batch(h, J, num_reads=cfg.num_reads, seed=seed)
-        valid, _selecting, p, rd, _gain = score_reads(spins, clash, gains)
-        self.stats["reads"] += spins.shape[0] * spins.shape[1]
-        self.stats["valid_reads"] += int(valid.sum())
-        if p < 0:
-            return None
-        return np.flatnonzero(spins[p, rd] > 0)
+        """``nxt`` / ``prv`` improved in place (:func:`~.local_search.local_search_loop`), charged per call."""
+        with self.chip.session(self.charged, decision="fleet_moves") as link:
+            status, st, calls, emu = local_search_loop(self.rng, self.d, nxt, prv, self.r, self.neigh, self.search,
+                                                       self.program, link.args)
+            link.settle(calls, emu)
+        for name, v in zip(STAT_FIELDS, st.tolist()):
+            self.stats[name] += v
+        if status == REFUSED:
+            raise ValueError(_REFUSED)
 
 
 class IsingFleetSharing:
@@ -184,8 +160,7 @@ class IsingFleetSharing:
         order = np.argsort(d[r:], axis=1, kind="stable")  # nearest nodes of each target (itself first)
         neigh = np.ascontiguousarray(order[:, 1:k + 1])
         neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
-        metered = MeteredSolver(self.chip, decision="fleet_moves")
-        search = _Search(d, r, neigh, self.config, metered, rng)
+        search = _Search(d, r, neigh, self.config, self.chip, rng)
         best = {"nxt": nxt.copy(), "cost": route_cost(d, nxt, r)}  # the cheapest routes so far (always valid)
         stats: dict = {}
         failure = None
@@ -206,7 +181,7 @@ class IsingFleetSharing:
             groups.append(tuple(g))
         stats["fleet"] = {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)),
                           "cost": float(best["cost"])}
-        compute = ComputeReport.from_ledger(metered.charged)
+        compute = ComputeReport.from_ledger(search.charged)
         if "fallback" in stats:
             compute = counted(compute)
         if failure:

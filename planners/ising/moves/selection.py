@@ -8,7 +8,8 @@ disjoint edges, so their gains add.  The selection QUBO over ``M`` offered moves
 its ground states are the compatible sets of largest total gain and every coefficient is of the
 size of a gain (no one-hot penalty dwarfs the costs).  A read selecting two clashing moves is
 invalid.  The host rule in the chip's place takes the offered moves by gain, each that clashes
-with none taken (:func:`greedy_selection`).
+with none taken (:func:`greedy_selection`).  :func:`select_round` is one round of either search:
+offer, map by every quantization rule, one submission, score.
 """
 
 from __future__ import annotations
@@ -16,13 +17,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ising_backend import anneal_submit, quantize_rules
 from ising_backend.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo", "selection_ising",
-           "read_gain", "score_reads", "greedy_selection"]
+           "read_gain", "score_reads", "greedy_selection", "select_round", "ROUND_OK", "ROUND_REFUSED"]
 
 #: Columns of a spans row.
 SPAN_FIELDS = ("route", "lo", "hi", "route2", "lo2", "hi2")
+#: :func:`select_round`'s status: the round ran; a program the quantizer could not map (a non-finite
+#: coefficient: gains of distances too large to add), nothing annealed.
+ROUND_OK, ROUND_REFUSED = 0, 1
 _EPS = 1e-9
 
 
@@ -134,10 +139,48 @@ def score_reads(spins, clashes, gains):
     return valid, selecting, best_p, best_r, best
 
 
-def greedy_selection(clashes: np.ndarray) -> np.ndarray:
+@numba.njit(cache=True)
+def greedy_selection(clashes):
     """The host rule: moves in offered order (by gain), each that clashes with none taken."""
-    taken: list[int] = []
-    for i in range(clashes.shape[0]):
-        if not any(clashes[i, j] for j in taken):
-            taken.append(i)
-    return np.array(taken, dtype=np.int64)
+    n = clashes.shape[0]
+    taken = np.empty(n, dtype=np.int64)
+    t = 0
+    for i in range(n):
+        free = True
+        for j in range(t):
+            if clashes[i, taken[j]]:
+                free = False
+                break
+        if free:
+            taken[t] = i
+            t += 1
+    return taken[:t].copy()
+
+
+@numba.njit(cache=True)
+def select_round(rng, spans, gains, k, max_overlap, program, machine):
+    """One selection round: at most ``k`` moves offered (:func:`pick_candidates`), their QUBO mapped by
+    every rule of ``program`` = ``(rules, Lh, Lj, num_reads)`` (``keep_sign``, percentile 95), one
+    submission on ``machine`` (an :func:`ising_backend.anneal_submit` record) with a seed drawn from
+    ``rng``, the reads scored.  Returns ``(status, keep, clashes, taken, valid (R,), selecting (R,),
+    best, emulation_s)``: the offered moves (indices into ``gains``) and their clash matrix, the best
+    read's moves (indices into ``keep``; empty when no valid read selects one), per rule its valid
+    reads and those selecting a move, the best read's rule (-1: none) and the kernel's seconds."""
+    rules, Lh, Lj, num_reads = program
+    R = rules.shape[0]
+    keep = pick_candidates(spans, gains, k, max_overlap)
+    clashes = conflicts(spans, keep)
+    offered = gains[keep]
+    none = np.zeros(0, dtype=np.int64)
+    h, J = selection_ising(offered, clashes, 1.0)
+    st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+    for r in range(R):
+        if st[r] != 0:
+            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
+    seed = rng.integers(0, 9223372036854775807)
+    spins = np.empty((R, num_reads, keep.shape[0]), dtype=np.int8)
+    energies = np.empty((R, num_reads))
+    emu = anneal_submit(hq, Jq, num_reads, np.uint64(seed), machine, spins, energies)
+    valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
+    taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
+    return ROUND_OK, keep, clashes, taken, valid, selecting, best, emu

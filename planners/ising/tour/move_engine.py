@@ -1,11 +1,10 @@
 """Compiled move-selection search of the chip tour: one start in one call.
 
 Contract: :func:`select_moves_loop` runs one start of the chip tour's move selection (the one
-implementation; ``tests/tour_reference.py`` is its oracle) -- candidate moves and their pick, the selection QUBO, its
-Ising form (:func:`ising_backend.ising_from_qubo`'s arithmetic), quantization by every rule of
-the portfolio (:func:`ising_backend.quantize_rules`), a chip seed drawn from the construction's
-``numpy.random.Generator``, the chip's own annealing kernel, scoring of the reads and the
-applied moves -- and returns the statistics and, per submission, the calls and measured
+implementation; ``tests/tour_reference.py`` is its oracle) -- candidate moves, then per round
+:func:`planners.ising.moves.selection.select_round` (the pick, the selection QUBO mapped by every
+rule of the portfolio, a chip seed drawn from the construction's ``numpy.random.Generator``, the
+machine's anneal, the reads scored) and the applied moves -- and returns the statistics and, per submission, the calls and measured
 emulation seconds (a monotonic clock around the kernel) for the caller to charge to the chip
 as ``anneal_batch`` would.  A program the quantizer cannot map (a non-finite coefficient: gains
 of distances too large to add) ends the start with :data:`REFUSED`, nothing annealed for it.
@@ -17,9 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import anneal_submit, quantize_rules
 from ising_backend.numeric import pairwise_sum
-from planners.ising.moves.selection import conflicts, pick_candidates, score_reads, selection_ising
+from planners.ising.moves.selection import ROUND_REFUSED, select_round
 from planners.ising.tour.moves import apply_moves, candidate_moves
 
 __all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
@@ -56,41 +54,30 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         moves, spans, gains = candidate_moves(dist, route, max_segment)
         if gains.shape[0] == 0:
             break
-        keep = pick_candidates(spans, gains, max(1, capacity >> failures), max_overlap)
-        clashes = conflicts(spans, keep)
-        moves = moves[keep]
-        gains = gains[keep]
-        h, J = selection_ising(gains, clashes, 1.0)
-        st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
-        for r in range(k):
-            if st[r] != 0:
-                stats[0] = rounds
-                stats[2] = applied
-                return route, REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
-        seed = rng.integers(0, 9223372036854775807)
-        M = gains.shape[0]
-        spins = np.empty((k, num_reads, M), dtype=np.int8)
-        energies = np.empty((k, num_reads))
-        emu[rounds] = anneal_submit(hq, Jq, num_reads, np.uint64(seed), machine, spins, energies)
+        st, keep, _clashes, taken, _valid, clean, best, seconds = select_round(
+            rng, spans, gains, max(1, capacity >> failures), max_overlap, program, machine)
+        if st == ROUND_REFUSED:
+            stats[0] = rounds
+            stats[2] = applied
+            return route, REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
+        emu[rounds] = seconds
         calls[rounds] = k * num_reads
         rounds += 1
-        _valid, clean, best_k, best_r, _gain = score_reads(spins, clashes, gains)
         for r in range(k):
             clean_all[r] += clean[r]
             stats[4] += clean[r] > 0
-        if best_k < 0:
+        if best < 0:
             failures += 1
             stats[1] += 1
             if failures > max_retries:
                 status = STALLED if applied else NO_PROGRESS
                 break
             continue
-        wins[best_k] += 1
+        wins[best] += 1
         stats[3] += 1
         failures = 0
-        taken = np.flatnonzero(spins[best_k, best_r] > 0)
         applied += taken.shape[0]
-        apply_moves(route, moves, taken)
+        apply_moves(route, moves[keep], taken)
     stats[0] = rounds
     stats[2] = applied
     return route, status, stats, clean_all, wins, calls[:rounds], emu[:rounds]

@@ -1,4 +1,4 @@
-"""The fleet search's local search in one compiled call: chip-selected move sets until no move improves.
+"""The fleet search in one compiled call: local search by chip-selected move sets, then the kicks.
 
 Contract: :func:`local_search_loop` improves the routes ``nxt`` / ``prv`` (linked lists,
 :mod:`.moves`) in place: each round lists the improving granular moves, offers at most
@@ -6,8 +6,12 @@ Contract: :func:`local_search_loop` improves the routes ``nxt`` / ``prv`` (linke
 (:func:`planners.ising.moves.selection.select_round`) or, with ``chip=False``, the host's greedy set
 (:func:`~planners.ising.moves.selection.greedy_selection`, no chip call).  A round whose reads select
 nothing valid is re-issued with half the moves; ``max_retries + 1`` such rounds in a row end the
-search (the chip gave up).  Returns the statistics and, per submission, the calls and the kernel's
-seconds for the caller to settle on its machine session.
+search (the chip gave up).  :func:`iterated_search` runs it, then ``kicks`` times ruins and recreates a
+copy of the current routes (:func:`~.recreate.ruin_recreate`: 2..``ruin`` targets around a random one)
+and searches again, keeping the result when it costs at most the best times ``1 + slack``
+(record-to-record travel); the cheapest routes so far are kept in place in ``best_nxt`` (also when a
+machine's error ends the call).  Both return the statistics and, per submission, the calls and the
+kernel's seconds for the caller to settle on its machine session.
 """
 
 from __future__ import annotations
@@ -15,14 +19,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.fleet.moves import apply_move, candidate_moves, walk
+from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
+from planners.ising.fleet.recreate import ruin_recreate
 from planners.ising.moves.selection import ROUND_REFUSED, conflicts, greedy_selection, pick_candidates, select_round
 
-__all__ = ["local_search_loop", "STAT_FIELDS", "LOCAL_OPTIMUM", "GAVE_UP", "REFUSED"]
+__all__ = ["local_search_loop", "iterated_search", "STAT_FIELDS", "LOCAL_OPTIMUM", "GAVE_UP", "REFUSED"]
 
-#: The statistics array's fields, in order.
+#: The statistics array's fields, in order (``kicks_accepted``: :func:`iterated_search` only).
 STAT_FIELDS = ("rounds", "offered", "contested_rounds", "moves_applied", "valid_reads", "reads", "local_optima",
-               "chip_gave_up")
+               "chip_gave_up", "kicks_accepted")
 #: How a search ended: no improving move left; the chip selected nothing valid ``max_retries + 1`` times in
 #: a row; a program the quantizer could not map (a non-finite coefficient), nothing annealed for it.
 LOCAL_OPTIMUM, GAVE_UP, REFUSED = 0, 1, 2
@@ -32,11 +37,11 @@ LOCAL_OPTIMUM, GAVE_UP, REFUSED = 0, 1, 2
 def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine):
     """The local search (module docstring); ``search`` = ``(capacity, max_overlap, max_retries, chip)``,
     ``program`` = ``(rules, Lh, Lj, num_reads)``, ``machine`` an anneal record.  Returns ``(status,
-    stats (8,) as STAT_FIELDS, calls (S,), emulation_s (S,))``."""
+    stats as STAT_FIELDS, calls (S,), emulation_s (S,))``."""
     capacity, max_overlap, max_retries, chip = search
     R = program[0].shape[0]
     reads = R * program[3]
-    stats = np.zeros(8, dtype=np.int64)
+    stats = np.zeros(9, dtype=np.int64)
     calls = np.zeros(16, dtype=np.int64)
     emu = np.zeros(16)
     subs = 0
@@ -79,3 +84,53 @@ def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine):
         for i in keep[taken]:
             apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2])
         stats[3] += taken.shape[0]
+
+
+@numba.njit(cache=True)
+def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, machine, best):
+    """The iterated local search (module docstring) from ``nxt`` / ``prv``; ``order[t]`` the nodes nearest
+    target ``r + t`` (itself first), ``kick`` = ``(kicks, ruin, slack)``; ``best`` = ``(best_nxt, best_cost
+    (1,), stats)``, updated in place as the search goes: the cheapest routes so far and the statistics as
+    :data:`STAT_FIELDS`.  Returns ``(status, calls, emulation_s)``."""
+    kicks, ruin, slack = kick
+    best_nxt, best_cost, stats = best
+    n = d.shape[0] - r
+    status, st, c, e = local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine)
+    stats += st
+    parts_c = [c]
+    parts_e = [e]
+    if status != REFUSED:
+        cost = route_cost(d, nxt, r)
+        if cost < best_cost[0] - 1e-9:
+            best_nxt[:] = nxt
+            best_cost[0] = cost
+        for _ in range(kicks):
+            cand_nxt, cand_prv = nxt.copy(), prv.copy()
+            seed_target = r + rng.integers(0, n)
+            q = min(rng.integers(2, ruin + 1), n)
+            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
+            status, st, c, e = local_search_loop(rng, d, cand_nxt, cand_prv, r, neigh, search, program, machine)
+            stats += st
+            parts_c.append(c)
+            parts_e.append(e)
+            if status == REFUSED:
+                break
+            new = route_cost(d, cand_nxt, r)
+            if new <= best_cost[0] * (1.0 + slack) + 1e-9:  # record-to-record travel around the best
+                nxt, prv = cand_nxt, cand_prv
+                stats[8] += 1
+                if new < best_cost[0] - 1e-9:
+                    best_nxt[:] = cand_nxt
+                    best_cost[0] = new
+    total = 0
+    for c in parts_c:
+        total += c.shape[0]
+    calls = np.empty(total, dtype=np.int64)
+    emu = np.empty(total)
+    at = 0
+    for i in range(len(parts_c)):
+        m = parts_c[i].shape[0]
+        calls[at:at + m] = parts_c[i]
+        emu[at:at + m] = parts_e[i]
+        at += m
+    return status, calls, emu

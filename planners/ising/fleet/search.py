@@ -34,9 +34,8 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
-from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, local_search_loop
+from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, iterated_search
 from planners.ising.fleet.moves import route_cost
-from planners.ising.fleet.recreate import ruin_recreate
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
@@ -104,29 +103,10 @@ _REFUSED = ("the chip refused a move-selection program: a coefficient is not fin
             "to add)")
 
 
-class _Search:
-    """One planning call: the distances, the machine and its ledger for this call, the statistics."""
-
-    def __init__(self, d, r, neigh, config, chip, rng):
-        self.d, self.r, self.neigh, self.cfg, self.rng = d, r, neigh, config, rng
-        self.chip = chip
-        self.charged = CallLedger()
-        rules = np.array([QUANTIZE_RULE_IDS[x] for x in config.chip_rules], dtype=np.int64)
-        self.program = (rules, *(float(v) for v in chip.spec.coefficient_limits), config.num_reads)
-        capacity = min(int(chip.usable_spins), config.max_moves)
-        self.search = (capacity, config.max_overlap, config.max_retries, config.selection == "chip")
-        self.stats = dict.fromkeys(STAT_FIELDS + ("kicks_accepted",), 0)
-
-    def local_search(self, nxt, prv) -> None:
-        """``nxt`` / ``prv`` improved in place (:func:`~.local_search.local_search_loop`), charged per call."""
-        with self.chip.session(self.charged, decision="fleet_moves") as link:
-            status, st, calls, emu = local_search_loop(self.rng, self.d, nxt, prv, self.r, self.neigh, self.search,
-                                                       self.program, link.args)
-            link.settle(calls, emu)
-        for name, v in zip(STAT_FIELDS, st.tolist()):
-            self.stats[name] += v
-        if status == REFUSED:
-            raise ValueError(_REFUSED)
+def _program(config, chip) -> tuple:
+    """The compiled search's ``program`` record: rule ids, coefficient limits, reads per program."""
+    rules = np.array([QUANTIZE_RULE_IDS[x] for x in config.chip_rules], dtype=np.int64)
+    return (rules, *(float(v) for v in chip.spec.coefficient_limits), config.num_reads)
 
 
 class IsingFleetSharing:
@@ -160,57 +140,46 @@ class IsingFleetSharing:
         order = np.argsort(d[r:], axis=1, kind="stable")  # nearest nodes of each target (itself first)
         neigh = np.ascontiguousarray(order[:, 1:k + 1])
         neigh = np.vstack([np.full((r, neigh.shape[1]), -1, dtype=np.int64), neigh])
-        search = _Search(d, r, neigh, self.config, self.chip, rng)
-        best = {"nxt": nxt.copy(), "cost": route_cost(d, nxt, r)}  # the cheapest routes so far (always valid)
+        cfg = self.config
+        ruin = max(2, cfg.ruin or max(5, 2 * n // r))
+        per_target = cfg.kicks_per_target * n
+        kicks = max(per_target, min(cfg.min_kicks, 3 * per_target)) if cfg.kicks is None else cfg.kicks
+        search = (min(int(self.chip.usable_spins), cfg.max_moves), cfg.max_overlap, cfg.max_retries,
+                  cfg.selection == "chip")
+        charged = CallLedger()
+        best_nxt, best_cost = nxt.copy(), np.array([route_cost(d, nxt, r)])  # the cheapest routes so far
         stats: dict = {}
         failure = None
+        counts = np.zeros(len(STAT_FIELDS), dtype=np.int64)  # as the search goes, also up to a machine's error
         try:
-            self._improve(search, nxt, prv, order, best)
+            with self.chip.session(charged, decision="fleet_moves") as link:
+                status, calls, emu = iterated_search(
+                    rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)),
+                    _program(cfg, self.chip), link.args, (best_nxt, best_cost, counts))
+                link.settle(calls, emu)
+            if status == REFUSED:
+                failure = _REFUSED
         except ChipUnavailableError as exc:  # the routes so far stand: SSA's, with the moves the chip made
             reason = unavailable_message(exc)
-            if self.config.fallback == "never":
+            if cfg.fallback == "never":
                 failure = reason
             else:
                 flag(stats, "sharing", reason + "; the routes found before are kept")
         groups = []
         for k_ in range(r):
-            g, x = [], best["nxt"][k_]
+            g, x = [], best_nxt[k_]
             while x >= 0:
                 g.append(int(x) - r)
-                x = best["nxt"][x]
+                x = best_nxt[x]
             groups.append(tuple(g))
-        stats["fleet"] = {**search.stats, "ssa_cost": float(route_cost_of(d, base.assignment, r)),
-                          "cost": float(best["cost"])}
-        compute = ComputeReport.from_ledger(search.charged)
+        stats["fleet"] = {**dict(zip(STAT_FIELDS, counts.tolist())),
+                          "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": float(best_cost[0])}
+        compute = ComputeReport.from_ledger(charged)
         if "fallback" in stats:
             compute = counted(compute)
         if failure:
             return SharingResult(assignment=tuple(() for _ in range(r)), compute=compute, stats=stats, failure=failure)
         return SharingResult(assignment=tuple(groups), compute=compute, stats=stats)
-
-    def _improve(self, search: _Search, nxt, prv, order, best: dict) -> None:
-        """Local search, then the kicks (module docstring); ``best`` follows the cheapest routes."""
-        d, r, rng, cfg = search.d, search.r, search.rng, self.config
-        n = d.shape[0] - r
-        search.local_search(nxt, prv)
-        cost = route_cost(d, nxt, r)
-        if cost < best["cost"] - 1e-9:
-            best["nxt"], best["cost"] = nxt.copy(), cost
-        ruin = max(2, cfg.ruin or max(5, 2 * n // r))
-        per_target = cfg.kicks_per_target * n
-        kicks = max(per_target, min(cfg.min_kicks, 3 * per_target)) if cfg.kicks is None else cfg.kicks
-        for _ in range(kicks):
-            cand_nxt, cand_prv = nxt.copy(), prv.copy()
-            seed_target = r + int(rng.integers(n))
-            q = min(int(rng.integers(2, ruin + 1)), n)
-            ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
-            search.local_search(cand_nxt, cand_prv)
-            new = route_cost(d, cand_nxt, r)
-            if new <= best["cost"] * (1.0 + cfg.slack) + 1e-9:  # record-to-record travel around the best
-                nxt, prv, cost = cand_nxt, cand_prv, new
-                search.stats["kicks_accepted"] += 1
-                if new < best["cost"] - 1e-9:
-                    best["nxt"], best["cost"] = cand_nxt.copy(), new
 
     def __repr__(self) -> str:
         return f"IsingFleetSharing(config={self.config!r})"

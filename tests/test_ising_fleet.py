@@ -211,3 +211,20 @@ def test_the_search_returns_the_cheapest_routes_it_visited():
         ssa_gain += trace[0] < ssa_cost - 1e-9
         kick_gain += trace[-1] < trace[0] - 1e-9
     assert ssa_gain >= 1 and kick_gain >= 1  # the local search and the kicks both found better routes
+
+
+@pytest.mark.parametrize("seed,selection_rules", [(0, ("linear", "rank")), (1, ("linear",)), (2, ("rank", "sqrt"))])
+def test_the_compiled_search_makes_the_python_references_decisions(seed, selection_rules):
+    """The compiled iterated search against the plain Python loop of tests/fleet_reference.py: the same routes,
+    the same chip calls and rounds (its own candidate listing, pick, QUBO and scoring; the same draws)."""
+    from fleet_reference import reference_fleet
+
+    world = generate_world(seed, height=14, width=14, n_robots=3, n_targets=18)
+    d = world.distance_matrix
+    cfg = FleetConfig(kicks=12, chip_rules=selection_rules, neighbours=6)
+    chip, ref_chip = EmulatedChip(ChipSpec()), EmulatedChip(ChipSpec())
+    got = IsingFleetSharing(chip, cfg).assign(d, 3, rng=np.random.default_rng(seed))
+    want, stats = reference_fleet(d, 3, cfg, ref_chip, np.random.default_rng(seed))
+    assert list(got.assignment) == want
+    assert got.stats["fleet"]["rounds"] == stats["rounds"] > 0
+    assert chip.ledger.physical_calls == ref_chip.ledger.physical_calls == got.compute.chip_calls > 0

@@ -38,10 +38,10 @@ from .ledger import CallLedger
 from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
 from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
 from .faults import FaultMap
-from .health import ChipUnavailableError, HealthMonitor
+from .health import ChipUnavailableError, HealthMonitor, SolverOutputError
 from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, programs_fit, stack_programs
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
-from .meter import MeteredSolver, SolverOutputError
+from .meter import MeteredSolver
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
 from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping

@@ -20,10 +20,9 @@ from typing import Protocol, runtime_checkable
 import dimod
 import numpy as np
 
-from .health import program_energy
+from .health import SolverOutputError, program_energy
 from .ledger import CallLedger
 from .link import MachineSession
-from .meter import SolverOutputError
 from .programs import check_call_seed, check_num_reads, check_program, sample_bqm, seeded_rng, stack_programs
 from .spec import ChipSpec
 

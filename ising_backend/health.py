@@ -32,7 +32,7 @@ import numpy as np
 from .faults import FaultMap, garbage_spins, mix, write_failures
 from .spec import ChipSpec
 
-__all__ = ["ChipUnavailableError", "HealthMonitor", "dispatch", "emulate", "program_energy",
+__all__ = ["ChipUnavailableError", "SolverOutputError", "HealthMonitor", "dispatch", "emulate", "program_energy",
            "PROBE_READS"]
 
 #: Reads of each probe program (one per polarity) on every core.
@@ -44,6 +44,10 @@ DEAD_ERROR_RATE = 0.25
 class ChipUnavailableError(RuntimeError):
     """The chip could not answer a call: every core is quarantined, or reads kept failing
     (write errors, timeouts) after ``spec.max_retries`` re-dispatch rounds."""
+
+
+class SolverOutputError(RuntimeError):
+    """A solver's answer is not a (programs, reads, spins) array of +-1."""
 
 
 def emulate(spec: ChipSpec, faults: FaultMap, cores: np.ndarray, seed: int, attempt: int,

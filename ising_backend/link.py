@@ -27,7 +27,7 @@ from .audit import active_audit
 from .host_rule import host_answer, host_rule_classes
 from .ledger import CallLedger
 from .tabu import mix_seed, tabu_kernel
-from .meter import SolverOutputError
+from .health import SolverOutputError
 
 __all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback", "ANNEAL_IDLE", "SOLVE_IDLE"]
 

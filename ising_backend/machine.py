@@ -25,7 +25,7 @@ from .ledger import CallLedger
 from .link import MachineSession
 from .logical import LogicalIsingSolver
 from .models import IsingModel
-from .meter import SolverOutputError
+from .health import SolverOutputError
 from .sampler_options import RESERVED, check_value, parameter_types, parse_value
 from .spec import ChipSpec
 

@@ -23,14 +23,10 @@ import numpy as np
 
 from .audit import active_audit
 from .host_rule import host_answer, host_rule_classes
-from .health import ChipUnavailableError
+from .health import ChipUnavailableError, SolverOutputError
 from .ledger import CallLedger
 
 __all__ = ["MeteredSolver", "SolverOutputError"]
-
-
-class SolverOutputError(RuntimeError):
-    """A solver's answer is not a (programs, reads, spins) array of +-1."""
 
 
 class MeteredSolver:

@@ -48,7 +48,7 @@ from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, m
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
 from .branching import Branch, BranchError, branch, freeze_order, reduce_model
 from .blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
-from .stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack
+from .stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack, submit_packs
 from .portfolio import (
     BranchMapping,
     IdentityMapping,
@@ -90,8 +90,8 @@ __all__ = [
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",
     "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
-    "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks", "pack_qubo_stack", "STACK_OK",
-    "STACK_NONFINITE", "STACK_UNFIT",
+    "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks", "pack_qubo_stack", "submit_packs",
+    "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT",
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",

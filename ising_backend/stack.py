@@ -7,8 +7,9 @@ rule of the portfolio (:func:`~ising_backend._quantize_kernel.quantize_rules`, `
 percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint blocks
 (:func:`~ising_backend.blocks.pack_layout`, :func:`~ising_backend.blocks.fill_packs`) and checked
 against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
-``p * k + r`` is QUBO ``p`` under rule ``r``.  The caller anneals them through its machine session
-and decodes the reads at ``where``.
+``p * k + r`` is QUBO ``p`` under rule ``r``.  :func:`submit_packs` anneals them through the caller's
+machine session record; the caller decodes the reads at ``where``.  Every layer that maps QUBOs by
+quantization (the sharing stages, the tour's and the fleet's move selection) goes through these two.
 """
 
 from __future__ import annotations
@@ -18,10 +19,11 @@ import numpy as np
 
 from ._quantize_kernel import quantize_rules
 from .blocks import fill_packs, pack_layout
+from .link import anneal_submit
 from .numeric import ising_of_qubo
 from .programs import programs_fit
 
-__all__ = ["pack_qubo_stack", "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT"]
+__all__ = ["pack_qubo_stack", "submit_packs", "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT"]
 
 #: :func:`pack_qubo_stack`'s status: programs ready; a quantized coefficient not finite; a program
 #: outside the chip's symmetric coefficient limits (the chip's own check would refuse it).
@@ -54,3 +56,17 @@ def pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity):
     h, J, where = fill_packs(qh, qJ, prog_sizes, order, pack_of, n_packs, width)
     status = STACK_NONFINITE if bad else (STACK_OK if programs_fit(h, J, -Lh, Lh, -Lj, Lj) else STACK_UNFIT)
     return status, h, J, where
+
+
+@numba.njit(cache=True)
+def submit_packs(h, J, reads, seed, machine):
+    """One submission of the packed programs ``h (packs, W)``, ``J (packs, W, W)``: ``reads`` reads each
+    (0: nothing is annealed) on the anneal record ``machine`` with ``seed``.  Returns ``(spins (packs,
+    reads, W), calls, emulation_s)``, the calls and seconds for the session to settle."""
+    n_packs, width = J.shape[0], J.shape[1]
+    spins = np.zeros((n_packs, reads, width), dtype=np.int8)
+    if reads == 0:
+        return spins, 0, 0.0
+    energies = np.empty((n_packs, reads))
+    emu = anneal_submit(h, J, reads, seed, machine, spins, energies)
+    return spins, n_packs * reads if width > 0 else 0, emu

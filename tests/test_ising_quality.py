@@ -156,7 +156,8 @@ def test_big_tours_kick_the_best_route_instead_of_restarting():
 @given(_routes(), st.randoms(use_true_random=False))
 def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import ising_from_qubo
-    from planners.ising.moves.selection import selection_ising
+    from ising_backend import STACK_OK, pack_qubo_stack, quantize_stack
+    from ising_backend.numeric import ising_of_qubo
     from planners.ising.tour.moves import apply_moves as compiled_apply
 
     d, r = case
@@ -166,9 +167,17 @@ def test_compiled_move_kernels_match_the_reference(case, rnd):
     keep = pick_candidates(spans, gains, 8, 4)
     moves, spans, gains = moves[keep], spans[keep], gains[keep]
     clashes = conflicts(spans, np.arange(len(gains)))
-    h, J = selection_ising(gains, clashes, 1.0)
+    q, Q = selection_qubo(gains, clashes, 1.0)
+    h, J, _offset = ising_of_qubo(q, Q, 0.0)
     ref = ising_from_qubo(*_qubo_reference(spans, gains))
     assert np.array_equal(h, ref.h) and np.array_equal(J, ref.J)  # bit for bit
+    # one pack per rule at capacity M, in rule order: the programs quantize_stack gives
+    M = len(gains)
+    rules = np.array([0, 2], dtype=np.int64)  # linear, rank
+    st, hp, Jp, where = pack_qubo_stack(q.reshape(1, M), Q.reshape(1, M, M), np.full(1, M), rules, 7.0, 7.0, M)
+    hq, Jq = quantize_stack(ref, ("linear", "rank"), (-7, 7), (-7, 7))
+    assert st == STACK_OK and where.tolist() == [[0, 0], [1, 0]]
+    assert np.array_equal(hp, hq) and np.array_equal(Jp, Jq)
     chosen = np.array([rnd.random() < 0.4 for _ in gains])
     taken, _total = read_gain(chosen, clashes, gains)
     if taken is not None:

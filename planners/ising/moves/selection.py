@@ -17,10 +17,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import anneal_submit, quantize_rules
-from ising_backend.numeric import ising_of_qubo
+from ising_backend import STACK_OK, pack_qubo_stack, submit_packs
 
-__all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo", "selection_ising",
+__all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
            "read_gain", "score_reads", "greedy_selection", "select_round", "ROUND_OK", "ROUND_REFUSED"]
 
 #: Columns of a spans row.
@@ -95,14 +94,6 @@ def selection_qubo(gains, clashes, margin):
 
 
 @numba.njit(cache=True)
-def selection_ising(gains, clashes, margin):
-    """The selection QUBO in Ising form: ``(h (M,), J (M, M))``."""
-    q, Q = selection_qubo(gains, clashes, margin)
-    h, J, _offset = ising_of_qubo(q, Q, 0.0)
-    return h, J
-
-
-@numba.njit(cache=True)
 def read_gain(chosen, clashes, gains):
     """``(taken, total gain)`` of one read (``chosen`` bool per move), or ``(None, 0.0)`` when two
     chosen moves clash (an invalid read)."""
@@ -171,16 +162,15 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     keep = pick_candidates(spans, gains, k, max_overlap)
     clashes = conflicts(spans, keep)
     offered = gains[keep]
+    M = offered.shape[0]
     none = np.zeros(0, dtype=np.int64)
-    h, J = selection_ising(offered, clashes, 1.0)
-    st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
-    for r in range(R):
-        if st[r] != 0:
-            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
+    q, Q = selection_qubo(offered, clashes, 1.0)
+    # one program per rule, each its own pack (capacity M): pack r is rule r's program
+    st, h, J, _where = pack_qubo_stack(q.reshape((1, M)), Q.reshape((1, M, M)), np.full(1, M), rules, Lh, Lj, M)
+    if st != STACK_OK:
+        return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
     seed = rng.integers(0, 9223372036854775807)
-    spins = np.empty((R, num_reads, keep.shape[0]), dtype=np.int8)
-    energies = np.empty((R, num_reads))
-    emu = anneal_submit(hq, Jq, num_reads, np.uint64(seed), machine, spins, energies)
+    spins, _calls, emu = submit_packs(h, J, num_reads, np.uint64(seed), machine)
     valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
     taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
     return ROUND_OK, keep, clashes, taken, valid, selecting, best, emu

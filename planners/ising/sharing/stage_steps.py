@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import STACK_OK, anneal_submit, pack_qubo_stack, via_callback
+from ising_backend import STACK_OK, pack_qubo_stack, submit_packs, via_callback
 from planners.ising.sharing.kernels import add_balance, branch_problems, candidate_sides, score_stage, split_model
 from planners.ising.sharing.node_sets import intern, nodes_of, robots_in, size
 
@@ -245,14 +245,8 @@ def submit_stage(problems, program, seed, machine, dist, n_robots):
     if via_callback(machine):  # a machine behind the callback: packs up to its usable spins, as the checked path
         capacity = max(capacity, sizes.max())
     status, h, J, where = pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity)
-    n_packs, width = J.shape[0], J.shape[1]
-    reads = num_reads if status == STACK_OK else 0  # a refused stage: nothing annealed, no read to score
-    spins = np.zeros((n_packs, reads, width), dtype=np.int8)
-    emu = 0.0
-    if status == STACK_OK:
-        energies = np.empty((n_packs, reads))
-        emu = anneal_submit(h, J, reads, seed, machine, spins, energies)
-    calls = n_packs * reads if width > 0 else 0
+    # a refused stage: nothing annealed, no read to score
+    spins, calls, emu = submit_packs(h, J, num_reads if status == STACK_OK else 0, seed, machine)
     n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject,
                                                         nfix, fixed)
     s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes + nfix, anchors)

@@ -9,7 +9,8 @@ percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint b
 against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
 ``p * k + r`` is QUBO ``p`` under rule ``r``.  :func:`submit_packs` anneals them through the caller's
 machine session record; the caller decodes the reads at ``where``.  Every layer that maps QUBOs by
-quantization (the sharing stages, the tour's and the fleet's move selection) goes through these two.
+quantization (the sharing stages, the tour's and the fleet's move selection) goes through both; the
+path engine's merged programs are submitted through :func:`submit_packs` too.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Contract: :func:`run_query` runs one query: the ranking, patch programs, chip se
 from the query's ``numpy.random.Generator``), the submission (one per step: the programs of
 the ``targets_per_call`` best-ranked local targets x every merge style that fits, block-packed
 into shared chip programs with ``pack``), decoding, scoring, win draws and bookkeeping.  The
-chip is reached through :func:`ising_backend.anneal_submit` (any machine, see
+chip is reached through :func:`ising_backend.submit_packs` (any machine, see
 :class:`ising_backend.MachineSession`); each submission's calls and emulation seconds are
 returned, so the caller charges the machine exactly as ``anneal_batch`` would.
 
@@ -22,7 +22,7 @@ import numpy as np
 from numba import types
 from numba.typed import Dict
 
-from ising_backend import anneal_submit, fill_packs, merge_styles_flat, pack_layout
+from ising_backend import fill_packs, merge_styles_flat, pack_layout, submit_packs
 from ising_backend.numeric import ising_of_qubo
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
@@ -294,20 +294,15 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
         whole = nb == 1 and fits[0] == k and not pack
         if on_chip:
             seed = rng.integers(0, 9223372036854775807)
+            # float64 programs: the one anneal specialization every layer shares (the same samples)
             if whole:
                 w = width[slots[0]]
-                spins = np.empty((k, num_reads, w), dtype=np.int8)
-                energies = np.empty((k, num_reads))
-                # float64 programs: the one anneal specialization every layer shares (the same samples)
-                sub_emu[nsub] = anneal_submit(ph[slots[0], : k * w].reshape((k, w)).astype(np.float64),
-                                              pJ[slots[0], : k * w * w].reshape((k, w, w)).astype(np.float64),
-                                              num_reads, np.uint64(seed), machine, spins, energies)
+                hf = ph[slots[0], : k * w].reshape((k, w)).astype(np.float64)
+                Jf = pJ[slots[0], : k * w * w].reshape((k, w, w)).astype(np.float64)
             else:
                 h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
-                spins = np.empty((h.shape[0], num_reads, h.shape[1]), dtype=np.int8)
-                energies = np.empty((h.shape[0], num_reads))
-                sub_emu[nsub] = anneal_submit(h.astype(np.float64), J.astype(np.float64), num_reads, np.uint64(seed),
-                                              machine, spins, energies)
+                hf, Jf = h.astype(np.float64), J.astype(np.float64)
+            spins, _calls, sub_emu[nsub] = submit_packs(hf, Jf, num_reads, np.uint64(seed), machine)
             sub_calls[nsub] = spins.shape[0] * num_reads
             used += spins.shape[0] * num_reads
             nsub += 1

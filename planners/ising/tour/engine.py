@@ -5,7 +5,7 @@ refinement patch): the penalty, the one-hot Ising model, spin-budget branching o
 the budget (the strongest spins frozen, ``2^k`` programs, as :func:`ising_backend.branch`), per
 attempt a seed drawn from the construction's ``numpy.random.Generator``, the programs on the
 logical solver (:func:`ising_backend.solve_submit`) or, quantized by one rule, on the physical chip
-(:func:`ising_backend.anneal_submit`), decode, the cheapest valid order and the statistics.  Each
+(:func:`ising_backend.submit_packs`), decode, the cheapest valid order and the statistics.  Each
 attempt's calls and emulation seconds are returned so the caller charges the machine as its own
 call would.  ``tests/tour_reference.py`` holds the Python loop it is tested against.
 """
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import anneal_submit, quantize_rules, solve_submit
+from ising_backend import quantize_rules, solve_submit, submit_packs
 from ising_backend.numeric import pairwise_sum
 from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
 
@@ -94,12 +94,11 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
             Js[b] = qJ[0]
     for attempt in range(max_retries + 1):
         seed = rng.integers(0, 9223372036854775807)
-        spins = np.empty((B, num_reads, nf), dtype=np.int8)
-        energies = np.zeros((B, num_reads))
         if physical:
-            emu[attempt] = anneal_submit(hb, Js, num_reads, np.uint64(seed), machine, spins, energies)
+            spins, _sub, emu[attempt] = submit_packs(hb, Js, num_reads, np.uint64(seed), machine)
         else:
-            emu[attempt] = solve_submit(hb, Js, num_reads, seed, solver, spins, energies)
+            spins = np.empty((B, num_reads, nf), dtype=np.int8)
+            emu[attempt] = solve_submit(hb, Js, num_reads, seed, solver, spins, np.zeros((B, num_reads)))
         calls[attempt] = B * num_reads
         if k:
             bits = expand_branches(spins, free, frozen, n)

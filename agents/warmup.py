@@ -31,10 +31,11 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 #: Rough cold compile seconds of each part, each measured alone with an empty cache on a 2-core AMD EPYC
 #: (2026-11-26; the LoRR parts re-measured with the lane-guidance kernels: 17 s / 22 s, were 6 s / 9 s; then
 #: lorr:pibt 15 s and lorr:pibt-flow 20 s with the turning kernel's records; lorr:epibt 27 s; the Ising parts
-#: re-measured 2026-11-26 after the annealing kernel lost two wrapper levels: 120 / 116 / 61 / 37 s;
+#: re-measured 2026-11-26 after the annealing kernel lost two wrapper levels: 120 / 116 / 61 / 37 s, then
+#: with the fleet search compiled whole: 120 / 118 / 67 / 64 s;
 #: docs/design/cold_start.md).  Parts compiled side by side share the anneal and quantization kernels, so the
 #: sum over two workers is an upper estimate.
-PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 116, "ising:tour+path": 61, "ising-fleet": 37,
+PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 118, "ising:tour+path": 67, "ising-fleet": 64,
                 "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 15, "lorr:pibt-flow": 20,
                 "lorr:epibt": 27,
                 "lorr:windowed": 22}
@@ -69,16 +70,20 @@ def _layer_triple(name: str, side: str) -> tuple[str, str, str]:
     return _PRESETS[name] if name in _PRESETS else tuple(name.split("+"))
 
 
-def parts_for(controllers) -> list[str]:
+def parts_for(controllers, max_targets: int | None = None) -> list[str]:
     """The warm-up parts of controller specs (presets and layer triples; learned models have none),
     longest first.  An Ising preset is two parts: the Ising sharing (one part for both presets, whose
     sharing layers run the same kernels) and its tour and path layers; ``ising`` also the fleet search
-    it runs above 20 targets."""
+    it runs above :data:`~planners.pipeline.FLEET_ABOVE` targets, unless the worlds are known to have
+    at most ``max_targets`` <= that many (then the fleet search never runs)."""
+    from planners.pipeline import FLEET_ABOVE
+
+    fleet = max_targets is None or max_targets > FLEET_ABOVE
     parts: list[str] = []
     for spec in controllers:
         spec = spec.strip()
         if spec in _ISING:
-            new = ["ising:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" else [])
+            new = ["ising:sharing", f"{spec}:tour+path"] + (["ising-fleet"] if spec == "ising" and fleet else [])
         elif spec in _PRESETS:
             new = [spec]
         elif spec.startswith("lorr:"):  # a LoRR executor with the start kit's scheduler (mrmt lorr run)
@@ -147,10 +152,11 @@ def _write_stamp(parts) -> None:
         pass
 
 
-def cold_parts(controllers) -> list[str]:
-    """The parts of ``controllers`` not yet compiled for this install (as far as the stamp knows)."""
+def cold_parts(controllers, max_targets: int | None = None) -> list[str]:
+    """The parts of ``controllers`` (:func:`parts_for`) not yet compiled for this install (as far as the
+    stamp knows)."""
     done = _read_stamp()
-    return [p for p in parts_for(controllers) if p not in done]
+    return [p for p in parts_for(controllers, max_targets) if p not in done]
 
 
 def _warm_part(part: str, world_kwargs: dict) -> str:
@@ -176,7 +182,9 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     take at least ``minimum_s`` seconds; returns the parts compiled."""
     from agents.runner import RunConfig, run_tasks
 
-    todo = parts_for(controllers) if force else cold_parts(controllers)
+    targets = (world_kwargs or {}).get("n_targets")  # worlds of known size: no part they never run
+    targets = targets if isinstance(targets, int) and not isinstance(targets, bool) else None
+    todo = parts_for(controllers, targets) if force else cold_parts(controllers, targets)
     if not todo or (not force and sum(PART_SECONDS.get(p, 5) for p in todo) < minimum_s):
         return []  # nothing cold, or a few seconds: compiled on first use, in the process, silently
     stream = sys.stderr if stream is None else stream

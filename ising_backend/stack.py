@@ -8,9 +8,12 @@ percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint b
 (:func:`~ising_backend.blocks.pack_layout`, :func:`~ising_backend.blocks.fill_packs`) and checked
 against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
 ``p * k + r`` is QUBO ``p`` under rule ``r``.  :func:`submit_packs` anneals them through the caller's
-machine session record; the caller decodes the reads at ``where``.  Every layer that maps QUBOs by
-quantization (the sharing stages, the tour's and the fleet's move selection) goes through both; the
-path engine's merged programs are submitted through :func:`submit_packs` too.
+machine session record (inlined where it is called, so it adds no compiled level above the anneal);
+the caller decodes the reads at ``where``.  Every layer's chip submission goes through
+:func:`submit_packs`: the sharing stages after :func:`pack_qubo_stack`, the tour's and the fleet's move
+selection after the same quantization of their one QUBO (one program per rule: what
+:func:`pack_qubo_stack` gives at capacity ``M``, without its copies), the path engine's merged programs
+and the one-hot tour's branch programs.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ def pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity):
     return status, h, J, where
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")  # inlined: no link level of its own above the anneal (compile time)
 def submit_packs(h, J, reads, seed, machine):
     """One submission of the packed programs ``h (packs, W)``, ``J (packs, W, W)``: ``reads`` reads each
     (0: nothing is annealed) on the anneal record ``machine`` with ``seed``.  Returns ``(spins (packs,

@@ -21,6 +21,12 @@ def test_parts_split_the_ising_layers_and_put_the_longest_first():
     assert parts_for(["ssa+ising+ising"]) == ["ising:tour+path"]  # the preset's part: compiled once
     assert sorted(parts_for(["ising-paper"])) == ["ising-paper:tour+path", "ising:sharing"]
     assert parts_for(["ppo:model.zip"]) == []
+    # worlds known to stay at or below the fleet crossover never run the fleet search: no part for it
+    from planners.pipeline import FLEET_ABOVE
+
+    assert "ising-fleet" not in parts_for(["ising"], max_targets=FLEET_ABOVE)
+    assert "ising-fleet" in parts_for(["ising"], max_targets=FLEET_ABOVE + 1)
+    assert "ising-fleet" in parts_for(["ising-fleet"], max_targets=10)  # asked for by name: always
 
 
 def test_warmup_says_once_what_it_compiles_then_is_warm(capsys):

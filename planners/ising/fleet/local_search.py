@@ -33,7 +33,7 @@ STAT_FIELDS = ("rounds", "offered", "contested_rounds", "moves_applied", "valid_
 LOCAL_OPTIMUM, GAVE_UP, REFUSED = 0, 1, 2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")  # one call site in iterated_search: no link level of its own
 def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine):
     """The local search (module docstring); ``search`` = ``(capacity, max_overlap, max_retries, chip)``,
     ``program`` = ``(rules, Lh, Lj, num_reads)``, ``machine`` an anneal record.  Returns ``(status,
@@ -95,33 +95,30 @@ def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, ma
     kicks, ruin, slack = kick
     best_nxt, best_cost, stats = best
     n = d.shape[0] - r
-    status, st, c, e = local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine)
-    stats += st
-    parts_c = [c]
-    parts_e = [e]
-    if status != REFUSED:
-        cost = route_cost(d, nxt, r)
-        if cost < best_cost[0] - 1e-9:
-            best_nxt[:] = nxt
-            best_cost[0] = cost
-        for _ in range(kicks):
+    parts_c = [np.zeros(0, dtype=np.int64)]
+    parts_e = [np.zeros(0)]
+    status = LOCAL_OPTIMUM
+    for it in range(kicks + 1):  # the local search from the start, then one per kick
+        if it == 0:
+            cand_nxt, cand_prv = nxt, prv
+        else:
             cand_nxt, cand_prv = nxt.copy(), prv.copy()
             seed_target = r + rng.integers(0, n)
             q = min(rng.integers(2, ruin + 1), n)
             ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
-            status, st, c, e = local_search_loop(rng, d, cand_nxt, cand_prv, r, neigh, search, program, machine)
-            stats += st
-            parts_c.append(c)
-            parts_e.append(e)
-            if status == REFUSED:
-                break
-            new = route_cost(d, cand_nxt, r)
-            if new <= best_cost[0] * (1.0 + slack) + 1e-9:  # record-to-record travel around the best
-                nxt, prv = cand_nxt, cand_prv
-                stats[8] += 1
-                if new < best_cost[0] - 1e-9:
-                    best_nxt[:] = cand_nxt
-                    best_cost[0] = new
+        status, st, c, e = local_search_loop(rng, d, cand_nxt, cand_prv, r, neigh, search, program, machine)
+        stats += st
+        parts_c.append(c)
+        parts_e.append(e)
+        if status == REFUSED:
+            break
+        new = route_cost(d, cand_nxt, r)
+        if it == 0 or new <= best_cost[0] * (1.0 + slack) + 1e-9:  # record-to-record travel around the best
+            nxt, prv = cand_nxt, cand_prv
+            stats[8] += it > 0
+            if new < best_cost[0] - 1e-9:
+                best_nxt[:] = cand_nxt
+                best_cost[0] = new
     total = 0
     for c in parts_c:
         total += c.shape[0]

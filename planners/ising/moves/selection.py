@@ -17,7 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import STACK_OK, pack_qubo_stack, submit_packs
+from ising_backend import quantize_rules, submit_packs
+from ising_backend.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
            "read_gain", "score_reads", "greedy_selection", "select_round", "ROUND_OK", "ROUND_REFUSED"]
@@ -148,7 +149,7 @@ def greedy_selection(clashes):
     return taken[:t].copy()
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")  # inlined into both searches' loops: no link level of its own
 def select_round(rng, spans, gains, k, max_overlap, program, machine):
     """One selection round: at most ``k`` moves offered (:func:`pick_candidates`), their QUBO mapped by
     every rule of ``program`` = ``(rules, Lh, Lj, num_reads)`` (``keep_sign``, percentile 95), one
@@ -162,15 +163,16 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     keep = pick_candidates(spans, gains, k, max_overlap)
     clashes = conflicts(spans, keep)
     offered = gains[keep]
-    M = offered.shape[0]
     none = np.zeros(0, dtype=np.int64)
     q, Q = selection_qubo(offered, clashes, 1.0)
-    # one program per rule, each its own pack (capacity M): pack r is rule r's program
-    st, h, J, _where = pack_qubo_stack(q.reshape((1, M)), Q.reshape((1, M, M)), np.full(1, M), rules, Lh, Lj, M)
-    if st != STACK_OK:
-        return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
+    h, J, _offset = ising_of_qubo(q, Q, 0.0)
+    # one program per rule (as pack_qubo_stack packs them at capacity M: each its own pack, in rule order)
+    st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+    for r in range(R):
+        if st[r] != 0:
+            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
     seed = rng.integers(0, 9223372036854775807)
-    spins, _calls, emu = submit_packs(h, J, num_reads, np.uint64(seed), machine)
+    spins, _calls, emu = submit_packs(hq, Jq, num_reads, np.uint64(seed), machine)
     valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
     taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
     return ROUND_OK, keep, clashes, taken, valid, selecting, best, emu

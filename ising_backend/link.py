@@ -148,6 +148,16 @@ def _all_spins(spins) -> bool:
 
 
 @numba.njit(cache=True)
+def _answered(handle, h, J, num_reads, seed, spins, energies):
+    """A machine behind the callback answers (object mode); its spins checked for +-1 in compiled code."""
+    with numba.objmode(t="float64"):
+        t = _callback(handle, h, J, num_reads, seed, spins, energies)
+    if not _all_spins(spins):
+        raise SolverOutputError("the machine returned spins other than -1 and +1")
+    return t
+
+
+@numba.njit(cache=True)
 def anneal_submit(h, J, num_reads, seed, machine, spins, energies):
     """Anneal ``h (B, n)``, ``J (B, n, n)`` into ``spins`` / ``energies`` on the session's machine
     (``machine`` = :attr:`MachineSession.args`); returns the emulation seconds to charge (the
@@ -158,11 +168,7 @@ def anneal_submit(h, J, num_reads, seed, machine, spins, energies):
         anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
                       (NO_CORES, NO_CLAMP), (spins, energies))
         return (clock_ns() - t0) * 1e-9
-    with numba.objmode(t="float64"):
-        t = _callback(handle, h, J, num_reads, seed, spins, energies)
-    if not _all_spins(spins):
-        raise SolverOutputError("the machine returned spins other than -1 and +1")
-    return t
+    return _answered(handle, h, J, num_reads, seed, spins, energies)
 
 
 @numba.njit(cache=True)
@@ -175,8 +181,4 @@ def solve_submit(h, J, num_reads, seed, solver, spins, energies):
         t0 = clock_ns()
         tabu_kernel(h, J, num_reads, mix_seed(seed, h.shape[1]), restarts, iterations, tenure, spins, energies)
         return (clock_ns() - t0) * 1e-9
-    with numba.objmode(t="float64"):
-        t = _callback(handle, h, J, num_reads, seed, spins, energies)
-    if not _all_spins(spins):
-        raise SolverOutputError("the machine returned spins other than -1 and +1")
-    return t
+    return _answered(handle, h, J, num_reads, seed, spins, energies)

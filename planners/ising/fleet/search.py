@@ -29,13 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULE_IDS, CallLedger, ChipUnavailableError, as_machine
+from ising_backend import CallLedger, ChipUnavailableError, as_machine
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
 from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, iterated_search
 from planners.ising.fleet.moves import route_cost
+from planners.ising.moves.selection import program_record
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
@@ -103,12 +104,6 @@ _REFUSED = ("the chip refused a move-selection program: a coefficient is not fin
             "to add)")
 
 
-def _program(config, chip) -> tuple:
-    """The compiled search's ``program`` record: rule ids, coefficient limits, reads per program."""
-    rules = np.array([QUANTIZE_RULE_IDS[x] for x in config.chip_rules], dtype=np.int64)
-    return (rules, *(float(v) for v in chip.spec.coefficient_limits), config.num_reads)
-
-
 class IsingFleetSharing:
     """Sharing layer ``ising-fleet``: SSA routes improved by chip-selected moves between robots."""
 
@@ -155,7 +150,7 @@ class IsingFleetSharing:
             with self.chip.session(charged, decision="fleet_moves") as link:
                 status, calls, emu = iterated_search(
                     rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)),
-                    _program(cfg, self.chip), link.args, (best_nxt, best_cost, counts))
+                    program_record(cfg.chip_rules, self.chip.spec, cfg.num_reads), link.args, (best_nxt, best_cost, counts))
                 link.settle(calls, emu)
             if status == REFUSED:
                 failure = _REFUSED

@@ -17,11 +17,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend import quantize_rules, submit_packs
+from ising_backend import QUANTIZE_RULE_IDS, quantize_rules, submit_packs
 from ising_backend.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
-           "read_gain", "score_reads", "greedy_selection", "select_round", "ROUND_OK", "ROUND_REFUSED"]
+           "read_gain", "score_reads", "greedy_selection", "select_round", "program_record", "ROUND_OK",
+           "ROUND_REFUSED"]
 
 #: Columns of a spans row.
 SPAN_FIELDS = ("route", "lo", "hi", "route2", "lo2", "hi2")
@@ -176,3 +177,10 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
     taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
     return ROUND_OK, keep, clashes, taken, valid, selecting, best, emu
+
+
+def program_record(chip_rules, spec, num_reads: int) -> tuple:
+    """:func:`select_round`'s ``program`` record: the rules' ids, the chip's coefficient limits, the reads per
+    program (the machine's record comes from each call's session)."""
+    rules = np.array([QUANTIZE_RULE_IDS[r] for r in chip_rules], dtype=np.int64)
+    return (rules, *(float(v) for v in spec.coefficient_limits), int(num_reads))

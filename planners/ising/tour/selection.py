@@ -28,7 +28,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ising_backend import QUANTIZE_RULE_IDS
+from planners.ising.moves.selection import program_record
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import (
     NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
@@ -62,10 +62,8 @@ class MoveSearch:
 
     @cached_property
     def _move_args(self) -> tuple:
-        """The compiled loop's ``program`` record: rule ids, coefficient limits, reads (the machine's record
-        comes from each call's session)."""
-        rule_ids = np.array([QUANTIZE_RULE_IDS[r] for r in self.config.chip_rules], dtype=np.int64)
-        return (rule_ids, *(float(v) for v in self.spec.coefficient_limits), self.config.num_reads)
+        """The compiled loop's ``program`` record (:func:`~planners.ising.moves.selection.program_record`)."""
+        return program_record(self.config.chip_rules, self.spec, self.config.num_reads)
 
     @property
     def _capacity(self) -> int:

@@ -10,8 +10,8 @@ search (the chip gave up).  :func:`iterated_search` runs it, then ``kicks`` time
 copy of the current routes (:func:`~.recreate.ruin_recreate`: 2..``ruin`` targets around a random one)
 and searches again, keeping the result when it costs at most the best times ``1 + slack``
 (record-to-record travel); the cheapest routes so far are kept in place in ``best_nxt`` (also when a
-machine's error ends the call).  Both return the statistics and, per submission, the calls and the
-kernel's seconds for the caller to settle on its machine session.
+machine's error ends the call).  Both count the statistics in place and log, per submission, the calls
+and the kernel's seconds for the caller to settle on its machine session.
 """
 
 from __future__ import annotations
@@ -34,33 +34,30 @@ LOCAL_OPTIMUM, GAVE_UP, REFUSED = 0, 1, 2
 
 
 @numba.njit(cache=True, inline="always")  # one call site in iterated_search: no link level of its own
-def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine):
+def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine, stats, log):
     """The local search (module docstring); ``search`` = ``(capacity, max_overlap, max_retries, chip)``,
-    ``program`` = ``(rules, Lh, Lj, num_reads)``, ``machine`` an anneal record.  Returns ``(status,
-    stats as STAT_FIELDS, calls (S,), emulation_s (S,))``."""
+    ``program`` = ``(rules, Lh, Lj, num_reads)``, ``machine`` an anneal record; ``stats`` (as
+    :data:`STAT_FIELDS`) counted in place, each submission's calls and kernel seconds appended to ``log``
+    = ``(calls, emulation_s, used)`` (grown when full).  Returns ``(status, calls, emulation_s, used)``."""
     capacity, max_overlap, max_retries, chip = search
-    R = program[0].shape[0]
-    reads = R * program[3]
-    stats = np.zeros(9, dtype=np.int64)
-    calls = np.zeros(16, dtype=np.int64)
-    emu = np.zeros(16)
-    subs = 0
+    calls, emu, subs = log
+    reads = program[0].shape[0] * program[3]
     failures = 0
     while True:
         owner, pos, length = walk(nxt, r)
         moves, spans, gains = candidate_moves(d, nxt, prv, owner, pos, length, neigh, r)
         if gains.shape[0] == 0:
             stats[6] += 1
-            return LOCAL_OPTIMUM, stats, calls[:subs], emu[:subs]
+            return LOCAL_OPTIMUM, calls, emu, subs
         k = max(1, capacity >> failures)
         if chip:
             st, keep, clashes, taken, valid, _selecting, best, seconds = select_round(
                 rng, spans, gains, k, max_overlap, program, machine)
             if st == ROUND_REFUSED:
-                return REFUSED, stats, calls[:subs], emu[:subs]
+                return REFUSED, calls, emu, subs
             if subs == calls.shape[0]:
-                calls = np.concatenate((calls, np.zeros(subs, dtype=np.int64)))
-                emu = np.concatenate((emu, np.zeros(subs)))
+                calls = np.concatenate((calls, np.zeros(max(subs, 16), dtype=np.int64)))
+                emu = np.concatenate((emu, np.zeros(max(subs, 16))))
             calls[subs] = reads
             emu[subs] = seconds
             subs += 1
@@ -78,7 +75,7 @@ def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine):
             failures += 1
             if failures > max_retries:
                 stats[7] += 1
-                return GAVE_UP, stats, calls[:subs], emu[:subs]
+                return GAVE_UP, calls, emu, subs
             continue
         failures = 0
         for i in keep[taken]:
@@ -95,8 +92,7 @@ def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, ma
     kicks, ruin, slack = kick
     best_nxt, best_cost, stats = best
     n = d.shape[0] - r
-    parts_c = [np.zeros(0, dtype=np.int64)]
-    parts_e = [np.zeros(0)]
+    calls, emu, subs = np.zeros(0, dtype=np.int64), np.zeros(0), 0
     status = LOCAL_OPTIMUM
     for it in range(kicks + 1):  # the local search from the start, then one per kick
         if it == 0:
@@ -106,10 +102,8 @@ def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, ma
             seed_target = r + rng.integers(0, n)
             q = min(rng.integers(2, ruin + 1), n)
             ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
-        status, st, c, e = local_search_loop(rng, d, cand_nxt, cand_prv, r, neigh, search, program, machine)
-        stats += st
-        parts_c.append(c)
-        parts_e.append(e)
+        status, calls, emu, subs = local_search_loop(rng, d, cand_nxt, cand_prv, r, neigh, search, program, machine,
+                                                     stats, (calls, emu, subs))
         if status == REFUSED:
             break
         new = route_cost(d, cand_nxt, r)
@@ -119,15 +113,4 @@ def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, ma
             if new < best_cost[0] - 1e-9:
                 best_nxt[:] = cand_nxt
                 best_cost[0] = new
-    total = 0
-    for c in parts_c:
-        total += c.shape[0]
-    calls = np.empty(total, dtype=np.int64)
-    emu = np.empty(total)
-    at = 0
-    for i in range(len(parts_c)):
-        m = parts_c[i].shape[0]
-        calls[at:at + m] = parts_c[i]
-        emu[at:at + m] = parts_e[i]
-        at += m
-    return status, calls, emu
+    return status, calls[:subs], emu[:subs]

@@ -36,7 +36,7 @@ from planners.ising.config import IsingConfig, check_choice, check_int, check_re
 from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
 from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, iterated_search
 from planners.ising.fleet.moves import route_cost
-from planners.ising.moves.selection import program_record
+from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
@@ -100,10 +100,6 @@ class FleetConfig(IsingConfig):
         check_choice("selection", self.selection, ("chip", "greedy"))
 
 
-_REFUSED = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
-            "to add)")
-
-
 class IsingFleetSharing:
     """Sharing layer ``ising-fleet``: SSA routes improved by chip-selected moves between robots."""
 
@@ -148,12 +144,13 @@ class IsingFleetSharing:
         counts = np.zeros(len(STAT_FIELDS), dtype=np.int64)  # as the search goes, also up to a machine's error
         try:
             with self.chip.session(charged, decision="fleet_moves") as link:
+                program = program_record(cfg.chip_rules, self.chip.spec, cfg.num_reads)
                 status, calls, emu = iterated_search(
-                    rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)),
-                    program_record(cfg.chip_rules, self.chip.spec, cfg.num_reads), link.args, (best_nxt, best_cost, counts))
+                    rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)), program,
+                    link.args, (best_nxt, best_cost, counts))
                 link.settle(calls, emu)
             if status == REFUSED:
-                failure = _REFUSED
+                failure = REFUSED_MESSAGE
         except ChipUnavailableError as exc:  # the routes so far stand: SSA's, with the moves the chip made
             reason = unavailable_message(exc)
             if cfg.fallback == "never":

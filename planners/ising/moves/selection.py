@@ -22,13 +22,16 @@ from ising_backend.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
            "read_gain", "score_reads", "greedy_selection", "select_round", "program_record", "ROUND_OK",
-           "ROUND_REFUSED"]
+           "ROUND_REFUSED", "REFUSED_MESSAGE"]
 
 #: Columns of a spans row.
 SPAN_FIELDS = ("route", "lo", "hi", "route2", "lo2", "hi2")
 #: :func:`select_round`'s status: the round ran; a program the quantizer could not map (a non-finite
 #: coefficient: gains of distances too large to add), nothing annealed.
 ROUND_OK, ROUND_REFUSED = 0, 1
+#: What a search that met :data:`ROUND_REFUSED` reports.
+REFUSED_MESSAGE = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
+                   "to add)")
 _EPS = 1e-9
 
 

@@ -28,7 +28,7 @@ from functools import cached_property
 
 import numpy as np
 
-from planners.ising.moves.selection import program_record
+from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import (
     NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
@@ -36,8 +36,6 @@ from planners.ising.tour.move_engine import (
 
 __all__ = ["MoveSearch", "double_bridge", "KICK_ABOVE"]
 
-_REFUSED = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
-            "to add)")
 
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
@@ -114,7 +112,7 @@ class MoveSearch:
             link.settle(calls, emu)
         self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
         if status == REFUSED:
-            raise TourFailure(_REFUSED)
+            raise TourFailure(REFUSED_MESSAGE)
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
         return new
@@ -165,7 +163,7 @@ class MoveSearch:
             link.settle(calls, emu)
         self._count_starts(run, st, clean, wins, status.tolist())
         if not ok:
-            raise TourFailure(_REFUSED)
+            raise TourFailure(REFUSED_MESSAGE)
         for s, code in enumerate(status.tolist()):
             if code == NO_PROGRESS:
                 run.stats["failed_starts"] += 1

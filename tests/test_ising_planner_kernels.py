@@ -690,6 +690,11 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
 
     fast = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
     ref = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
+
+    def select(dist, route, run):  # one start on its own session, as MoveSearch.starts opens one
+        with fast.chip.session(run.charged, decision="tour_moves") as link:
+            return fast.moves.select(np.ascontiguousarray(dist, dtype=np.float64), route, run, link)
+
     moved = 0
     for s in range(10):
         dist = generate_world(s, n_robots=1, n_targets=4 + 2 * s).distance_matrix
@@ -697,7 +702,7 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
             [[0], 1 + np.random.default_rng(s).permutation(len(dist) - 1)]).astype(np.int64)
         runs = [_Run(np.random.default_rng(s), t._empty_stats(), t) for t in (fast, ref)]
         out = []
-        for tour, run, step in ((fast, runs[0], fast.moves.select), (ref, runs[1], None)):
+        for tour, run, step in ((fast, runs[0], select), (ref, runs[1], None)):
             try:
                 got = step(dist, start, run) if step else reference_select_moves(tour, dist, start, run)
                 out.append(got.tolist())

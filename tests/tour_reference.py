@@ -132,7 +132,7 @@ def apply_moves(route, moves, taken) -> np.ndarray:
 
 
 def reference_select_moves(tour, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-    """``tour.moves.select(dist, route, run)`` through the Python loop."""
+    """``tour.moves.select(dist, route, run, link)`` (one start) through the Python loop."""
     cfg = tour.config
     capacity = min(int(getattr(tour.chip, "usable_spins", tour.spec.n_spins)), cfg.max_moves)
     failures = rounds = applied = 0

@@ -16,11 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend.numeric import pairwise_sum
 from planners.ising.moves.selection import ROUND_REFUSED, select_round
 from planners.ising.tour.moves import apply_moves, candidate_moves
 
-__all__ = ["select_moves_loop", "move_starts_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
+__all__ = ["select_moves_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
            "REFUSED"]
 
 LOCAL_OPTIMUM = 0  # no improving move left (or max_rounds reached)
@@ -100,51 +99,3 @@ def nearest_neighbour_kernel(dist):
         route[t] = best
         seen[best] = True
     return route
-
-
-@numba.njit(cache=True)
-def move_starts_loop(rng, dist, starts, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine):
-    """``MoveSearch.starts`` with random restarts in one call: the nearest-neighbour route,
-    then ``starts - 1`` random orders (``rng.permutation``), each improved by
-    :func:`select_moves_loop` (the same ``program`` record).  Returns ``(ok, best (n + 1,) or empty, costs (starts,), status
-    (starts,), stats (5,), clean (k,), wins (starts, k), calls, emulation_s)``, the statistics summed
-    over the starts; ``ok`` is False (the search stops, what was annealed is returned to be charged) at
-    a program the quantizer could not map."""
-    n = dist.shape[0] - 1
-    k = program[0].shape[0]  # the quantization rules
-    best = np.zeros(0, dtype=np.int64)
-    best_cost = np.inf
-    costs = np.full(starts, np.nan)
-    status = np.zeros(starts, dtype=np.int64)
-    stats = np.zeros(5, dtype=np.int64)
-    clean = np.zeros(k, dtype=np.int64)
-    wins = np.zeros((starts, k), dtype=np.int64)
-    calls = np.zeros(0, dtype=np.int64)
-    emu = np.zeros(0)
-    hops = np.empty(n)
-    for s in range(starts):
-        if s == 0:
-            route = nearest_neighbour_kernel(dist)
-        else:
-            route = np.empty(n + 1, dtype=np.int64)
-            route[0] = 0
-            route[1:] = 1 + rng.permutation(n)
-        route, st, sst, sclean, swins, scalls, semu = select_moves_loop(
-            rng, dist, route, max_segment, capacity, max_overlap, max_retries, max_rounds, program, machine)
-        calls = np.concatenate((calls, scalls))
-        emu = np.concatenate((emu, semu))
-        status[s] = st
-        stats += sst
-        clean += sclean
-        wins[s] = swins
-        if st == REFUSED:
-            return False, best, costs, status, stats, clean, wins, calls, emu
-        if st == NO_PROGRESS:  # this start gave up
-            continue
-        for i in range(n):
-            hops[i] = dist[route[i], route[i + 1]]
-        cost = pairwise_sum(hops, 0, n)  # float(dist[route[:-1], route[1:]].sum())
-        costs[s] = cost
-        if cost < best_cost - 1e-9:
-            best, best_cost = route, cost
-    return True, best, costs, status, stats, clean, wins, calls, emu

@@ -31,11 +31,15 @@ import numpy as np
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.ising.tour.cluster import TourFailure
 from planners.ising.tour.move_engine import (
-    NO_PROGRESS, REFUSED, STALLED, move_starts_loop, nearest_neighbour_kernel, select_moves_loop,
+    NO_PROGRESS, REFUSED, STALLED, nearest_neighbour_kernel, select_moves_loop,
 )
 
 __all__ = ["MoveSearch", "double_bridge", "KICK_ABOVE"]
 
+
+
+class ProgramRefused(TourFailure):
+    """A selection program the quantizer cannot map (a non-finite coefficient): the search ends."""
 
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
@@ -69,50 +73,51 @@ class MoveSearch:
         return min(int(self.chip.usable_spins), self.config.max_moves)
 
     def starts(self, dist: np.ndarray, run) -> list[int]:
-        """The cheapest route over ``n_starts`` move-selection searches (module docstring)."""
+        """The cheapest route over ``n_starts`` move-selection searches (module docstring); a program the
+        quantizer cannot map ends the search (every later start would meet it too)."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
-        if not kicks:
-            return self._move_starts_compiled(dist, run, starts)
+        dist = np.ascontiguousarray(dist, dtype=np.float64)
         best, best_cost, failure = None, math.inf, None
-        for s in range(starts):
-            if s == 0:
-                route = nearest_neighbour_kernel(np.ascontiguousarray(dist, dtype=np.float64))
-            elif best is not None and n >= 4 and (self.config.chip_restart == "kick" or (
-                    self.config.chip_restart == "auto" and n > KICK_ABOVE)):
-                route = double_bridge(best, run.rng)
-            else:
-                route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
-            try:
-                route = self.select(dist, route, run)
-            except TourFailure as exc:  # this start gave up; other starts may still succeed
-                failure = exc
-                run.stats["failed_starts"] += 1
-                continue
-            cost = float(dist[route[:-1], route[1:]].sum())
-            run.stats["start_costs"].append(cost)
-            if cost < best_cost - 1e-9:
-                best, best_cost = route, cost
+        with self.chip.session(run.charged, decision="tour_moves") as link:  # one session for every start
+            for s in range(starts):
+                if s == 0:
+                    route = nearest_neighbour_kernel(dist)
+                elif kicks and best is not None and n >= 4:
+                    route = double_bridge(best, run.rng)
+                else:
+                    route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+                try:
+                    route = self.select(dist, route, run, link)
+                except TourFailure as exc:  # this start gave up; other starts may still succeed
+                    if isinstance(exc, ProgramRefused):
+                        raise
+                    failure = exc
+                    run.stats["failed_starts"] += 1
+                    continue
+                cost = float(dist[route[:-1], route[1:]].sum())
+                run.stats["start_costs"].append(cost)
+                if cost < best_cost - 1e-9:
+                    best, best_cost = route, cost
         if best is None:
             raise failure
         return [int(t) for t in best[1:]]
 
-    def select(self, dist: np.ndarray, route: np.ndarray, run) -> np.ndarray:
-        """One start, ``route`` improved by chip-selected moves until no move improves it (or the chip
-        selects nothing valid ``max_retries + 1`` times in a row), in one compiled call
-        (:func:`.move_engine.select_moves_loop`), charged to the chip per submission.  A chip that
+    def select(self, dist: np.ndarray, route: np.ndarray, run, link) -> np.ndarray:
+        """One start on the session ``link``: ``route`` (float64 ``dist``) improved by chip-selected moves
+        until no move improves it (or the chip selects nothing valid ``max_retries + 1`` times in a row), in
+        one compiled call (:func:`.move_engine.select_moves_loop`), charged per submission.  A chip that
         never selects a valid improving set for a route that has improving moves fails the start
         (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
-        with self.chip.session(run.charged, decision="tour_moves") as link:
-            new, status, st, clean, wins, calls, emu = select_moves_loop(
-                run.rng, np.ascontiguousarray(dist, dtype=np.float64), route, cfg.max_segment, self._capacity,
-                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._move_args, link.args)
-            link.settle(calls, emu)
-        self._count_starts(run, st, clean, wins.reshape(1, -1), [status])
+        new, status, st, clean, wins, calls, emu = select_moves_loop(
+            run.rng, dist, route, cfg.max_segment, self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds,
+            self._move_args, link.args)
+        link.settle(calls, emu)
+        self._count_start(run, st, clean, wins, status)
         if status == REFUSED:
-            raise TourFailure(REFUSED_MESSAGE)
+            raise ProgramRefused(REFUSED_MESSAGE)
         if status == NO_PROGRESS:
             raise TourFailure(self._no_progress)
         return new
@@ -123,10 +128,9 @@ class MoveSearch:
         return (f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
                 f"submissions of {len(cfg.chip_rules)} programs")
 
-    def _count_starts(self, run, st, clean, wins, statuses) -> None:
-        """The statistics of compiled starts: ``st`` (rounds, retries, moves applied, rounds and
-        programs with a valid read) and ``clean`` (valid reads per rule) summed over the starts,
-        ``wins`` (best reads per rule) and the status of each start."""
+    def _count_start(self, run, st, clean, wins, status) -> None:
+        """The statistics of one start: ``st`` (rounds, retries, moves applied, rounds and programs with a
+        valid read), ``clean`` (valid reads per rule), ``wins`` (best reads per rule), its status."""
         cfg = self.config
         rounds, retries, applied, valid_rounds, valid_programs = st.tolist()
         k = len(cfg.chip_rules)
@@ -139,36 +143,13 @@ class MoveSearch:
         m["physical_programs"] += rounds * k
         m["subproblems"] += rounds
         m["valid_subproblems"] += valid_rounds
-        for row in wins.tolist():  # start by start
-            if any(row):
-                won = m.setdefault("wins", {})
-                for rule, w in zip(cfg.chip_rules, row):
-                    if w:
-                        won[rule] = won.get(rule, 0) + w
+        if wins.any():
+            won = m.setdefault("wins", {})
+            for rule, w in zip(cfg.chip_rules, wins.tolist()):
+                if w:
+                    won[rule] = won.get(rule, 0) + w
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds
-        for status in statuses:
-            if status in (STALLED, NO_PROGRESS):
-                run.stats["unsolved"]["moves"] += 1
-
-    def _move_starts_compiled(self, dist, run, starts: int):
-        """:meth:`starts` with random restarts in one compiled call (:func:`.move_engine.move_starts_loop`),
-        charged and counted as the per-start calls."""
-        cfg = self.config
-        with self.chip.session(run.charged, decision="tour_moves") as link:
-            ok, best, costs, status, st, clean, wins, calls, emu = move_starts_loop(
-                run.rng, np.ascontiguousarray(dist, dtype=np.float64), starts, cfg.max_segment, self._capacity,
-                cfg.max_overlap, cfg.max_retries, cfg.max_rounds, self._move_args, link.args)
-            link.settle(calls, emu)
-        self._count_starts(run, st, clean, wins, status.tolist())
-        if not ok:
-            raise TourFailure(REFUSED_MESSAGE)
-        for s, code in enumerate(status.tolist()):
-            if code == NO_PROGRESS:
-                run.stats["failed_starts"] += 1
-            else:
-                run.stats["start_costs"].append(float(costs[s]))
-        if not len(best):
-            raise TourFailure(self._no_progress)
-        return [int(t) for t in best[1:]]
+        if status in (STALLED, NO_PROGRESS):
+            run.stats["unsolved"]["moves"] += 1

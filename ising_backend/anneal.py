@@ -1,63 +1,19 @@
 """The compiled annealing kernel of the emulated chip.
 
-One numba function (``cache=True``, single thread, no Python objects per problem)
-anneals a whole stack of programs: ``h (B, n)``, ``J (B, n, n)`` upper triangular.
-For each program and read it runs a fixed-schedule Metropolis single-spin-flip
-anneal (sequential sweeps over the spins, the order dwave-samplers uses too):
+Contract: one numba function (``cache=True``, one thread, no Python objects per problem) anneals a
+stack of programs ``h (B, n)``, ``J (B, n, n)`` upper triangular, each read a fixed-schedule Metropolis
+single-spin-flip anneal (sequential sweeps over the spins, as dwave-samplers).  The same seed gives the
+same samples; a read's samples depend only on its program's coefficients and index in the stack, the
+read index and the seed, never on the other programs of the batch (nor on int64 / float64 input);
+zero-padding a program to a larger ``n`` does change them.  Optional: static coupling mismatch and
+stuck spins per core (read ``k = b * reads + r`` runs on core ``k % n_cores`` or the core it is given),
+read-out bit flips after the anneal.  The returned energy is that of the *programmed* coefficients
+(recomputed in float64, exact for integer programs).
 
-* local fields ``f_i = h_i + sum_j J_ij s_j`` are kept incrementally in float32
-  (exact for the chip's integer coefficients; an accepted flip of spin ``i`` costs
-  one row update), the flip energy is ``dE = -2 s_i f_i``;
-* every spin visit draws one uniform ``u`` in (0, 1) and accepts iff
-  ``u < exp(-beta dE)`` and ``beta dE < 20`` (``exp(-20)`` ~ 2e-9), evaluated as
-  ``s_i f_i > max(log u, -20) / (2 beta)``: the thresholds of a whole sweep are
-  drawn before it (a vectorised float32 polynomial ``log``, error < 1e-7), so the serial
-  part of a visit is one compare and, on acceptance, the row update; downhill
-  flips (``dE <= 0``) are always accepted;
-* the inverse-temperature schedule is geometric (or linear) from ``beta_hot`` to
-  ``beta_cold`` over ``sweeps`` sweeps, precomputed once per program.  The
-  automatic range: cold end exactly dwave-samplers' default (the smallest
-  non-zero coefficient excites with probability 1 % summed over the spins that
-  have it); hot end: a flip against the largest *root-mean-square* local field
-  ``sqrt(h_i^2 + sum_j J_ij^2)`` is accepted with probability 1/2.  dwave-samplers
-  uses the worst-case field ``|h_i| + sum_j |J_ij|`` there, which on dense
-  programs spends the first third of a 50-sweep anneal at random; the RMS rule
-  measured a higher ground-state hit rate at 50 sweeps and fewer wasted flips;
-* each read has its own random stream: splitmix64 in counter form, draw ``t``
-  of read ``r`` of program ``b`` being ``splitmix64(K + t * golden)`` with the
-  key ``K = splitmix64(seed ^ splitmix64(b * golden + r))``; draws ``0 .. n-1``
-  give the random start, ``n (k + 1) + i`` the threshold of spin ``i`` in sweep
-  ``k``, and the readout flips come after the last sweep.  Draws without a serial
-  chain vectorise.  The same seed gives the same samples, and a read's samples
-  depend only on its program's coefficients, the program's index in the stack,
-  the read index and the seed, never on the other programs of the batch (nor on
-  whether the coefficients arrive as int64 or float64).  Reads are annealed
-  ``_LANES`` at a time side by side (interleaved in one loop so the core overlaps
-  their dependency chains); that grouping changes no result.  Zero-padding a
-  program to a larger ``n`` does change its random stream;
-* optional static coupling mismatch: read ``k = b * reads + r`` of the call runs
-  on core ``k % n_cores`` (or the core it is given) whose
-  fixed factor matrix multiplies the couplings while annealing; optional stuck
-  spins per core (clamped through the anneal); optional readout bit flips after
-  the anneal;
-* the returned energy is that of the *programmed* coefficients (recomputed in
-  float64 from scratch, so it is exact for integer programs).
-
-Speed (``benchmarks/chip_speed.py``, results in ``benchmarks/RESULTS.md`` "Issue 3:
-emulated chip"): about 14 us of one thread per 45-spin, 50-sweep call at one read
-per program and 11.5 us at 10 reads, through ``EmulatedChip.anneal_batch`` on the
-2-vCPU development VM (AMD EPYC, AVX-512); the previous kernel (xorshift stream,
-``exp`` on the serial chain of each visit) took 27 and 21 us.  Of the ~11 us at 10
-reads, about 7 us is the sweep loop itself (~22 % of visits accept: a mispredicted
-branch and one row update each), ~3.4 us the thresholds, ~0.9 us the set-up and
-energy.  Quality is unchanged within noise: on the benchmark's 200 programs x 100-200 reads
-(two seeds) the ground-state hit rate was 0.274 / 0.273 (noise-free) and
-0.246 / 0.245 (5 % mismatch) against 0.273 / 0.272 and 0.250 / 0.250 for the
-previous kernel; on three further sets of 200 programs with mismatch 0.251 vs
-0.253.  Measured no faster: float32 fields alone, a tabulated exp, a branch-free
-always-update acceptance (the row update then costs every visit), libm ``log``
-for the thresholds, and a 16-lane SIMD layout across reads (numba's vectoriser
-re-checks aliasing on every short inner loop).
+Choices: a geometric (or linear) inverse-temperature schedule over ``sweeps`` sweeps; automatic range:
+cold end dwave-samplers' default (the smallest non-zero coefficient excites with probability 1 %), hot
+end a flip against the largest root-mean-square local field accepted with probability 1/2; one
+counter-based splitmix64 stream per read.  Design notes: docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations

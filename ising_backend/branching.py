@@ -5,17 +5,13 @@ models by freezing ``k = n - budget`` spins and enumerating their values
 (49 variables, budget 45 -> 4 frozen spins -> 16 branches).  Each branch is an
 ordinary model of ``budget`` spins whose fields absorb the frozen couplings and
 whose offset absorbs the frozen energy, so a branch's energy of its free spins
-equals the full model's energy of the completed assignment.  Solving all
-branches and keeping the best decoded candidate covers every assignment; the
-exact optimum of the best branch is the exact optimum of the model.
+equals the full model's energy of the completed assignment; the exact optimum
+of the best branch is the exact optimum of the model.
 
-Which spins are frozen (the paper does not say): by default the ``k`` spins with
-the largest total interaction strength ``|h_i| + sum_j |J_ij|`` (ties: lowest
-index).  Freezing the most strongly coupled spins removes the most
-interactions from the reduced programs and fixes the variables whose value
-matters most, so each branch is a cleaner sub-problem.  Pass ``frozen=`` to
-choose yourself.  Branch ``m`` sets frozen spin ``frozen[t]`` to ``+1`` if bit
-``t`` of ``m`` is set, else ``-1``.
+Frozen spins (the paper does not say): by default the ``k`` of largest total interaction strength
+``|h_i| + sum_j |J_ij|`` (ties: lowest index); ``frozen=`` chooses.  Branch ``m`` sets frozen spin
+``frozen[t]`` to ``+1`` if bit ``t`` of ``m`` is set, else ``-1``.
+Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,35 +1,27 @@
 """A dimod composite that maps any binary quadratic model onto an integer-range Ising chip.
 
-:class:`QuantizeComposite` plays the role of D-Wave's ``ScaleComposite`` /
-``auto_scale`` for the emulated chip, with the paper's quantization rules
-(:mod:`ising_backend.quantize`) instead of a plain rescale.  The child
-(:class:`~ising_backend.chip.EmulatedChip`, or any dimod sampler whose
-``properties`` hold integer ``h_range`` / ``j_range`` pairs and ``num_spins``) stays
-strict; this layer makes the program fit:
-
-1. the BQM is converted exactly to SPIN (``x = (1 + s) / 2`` for BINARY);
-2. its Ising coefficients are mapped to integers in the child's ranges by a rule:
-   one of :data:`~ising_backend.quantize.QUANTIZE_RULES` (``quantize``; with
-   ``keep_sign`` a non-zero coefficient never becomes 0) or ``"saturate"``
-   (``saturate(model, scale)``: a fixed ``scale``, rounded, clipped at the limits);
-3. the integer program (variables relabelled ``0 .. n-1`` in the BQM's variable
-   order, offset 0) is sampled on the child;
-4. the child's spins are mapped back to the BQM's labels and vartype, and the
-   returned energies are the **original** BQM's energies of those samples (the
-   child's energies, in chip units, are kept in the ``program_energy`` field).
+:class:`QuantizeComposite` keeps the child strict (:class:`~ising_backend.chip.EmulatedChip`, or any
+dimod sampler whose ``properties`` hold integer ``h_range`` / ``j_range`` pairs and ``num_spins``) and
+makes the program fit: the BQM is converted exactly to SPIN (``x = (1 + s) / 2`` for BINARY), its Ising
+coefficients are mapped to integers in the child's ranges by a rule (one of
+:data:`~ising_backend.quantize.QUANTIZE_RULES`, or ``"saturate"``: a fixed ``scale``, rounded, clipped
+at the limits), the integer program (variables relabelled ``0 .. n-1`` in the BQM's variable order,
+offset 0) is sampled on the child, and the spins are mapped back to the BQM's labels and vartype.
 
 Contract and choices:
 
-* A BQM with more variables than the child's ``num_spins`` raises ``ValueError``
-  naming both numbers: nothing is truncated, merged or branched here (the mapping
-  toolkit's merge / branching rules do that with their own decoders).
-* An empty BQM (no variables; any offset) returns an empty SampleSet (0 rows,
-  like ``dimod.ExactSolver``) without calling the child, so no chip call is
-  charged; its ``info["ledger"]`` is a zero :class:`~ising_backend.ledger.CallLedger`.
-* ``info`` holds the child's info (the chip's ``ledger`` and ``spec``) plus
-  ``rule``, ``keep_sign`` and ``scale`` (``None`` unless ``rule="saturate"``).
-* Quantization is deterministic; the sampling randomness is the child's (same
-  ``seed``, same samples).
+* the returned energies are the **original** BQM's energies of the samples (the child's energies,
+  in chip units, are kept in the ``program_energy`` field);
+* a BQM with more variables than the child's ``num_spins`` raises ``ValueError`` naming both
+  numbers: nothing is truncated, merged or branched here;
+* an empty BQM (no variables; any offset) returns an empty SampleSet (0 rows) without calling the
+  child, so no chip call is charged; its ``info["ledger"]`` is a zero
+  :class:`~ising_backend.ledger.CallLedger`;
+* ``info`` holds the child's info (the chip's ``ledger`` and ``spec``) plus ``rule``, ``keep_sign``
+  and ``scale`` (``None`` unless ``rule="saturate"``);
+* quantization is deterministic; the sampling randomness is the child's (same ``seed``, same samples).
+
+Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

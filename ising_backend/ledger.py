@@ -7,22 +7,16 @@ Accounting (paper section 6.1; ARCHITECTURE.md "Chip call accounting"):
 * ``chip_time_s += calls * solve_time_s`` (calls run one after another: the
   paper's figure), ``chip_time_parallel_s += batches * solve_time_s`` (parallel
   dispatch over the cores), ``energy_j += calls * energy_per_call_j``;
-* a logical Ising call (coefficient range not enforced) is *projected* as one
-  chip call: it adds to ``logical_calls`` (never to ``physical_calls``) and to
-  time and energy with the same numbers; a group of ``k`` logical calls issued
-  together counts ``ceil(k / n_cores)`` ``logical_batches`` for the parallel
-  time.
+* a logical Ising call (coefficient range not enforced) is *projected* as one chip call:
+  ``logical_calls`` (never ``physical_calls``), time and energy with the same numbers; ``k``
+  logical calls issued together count ``ceil(k / n_cores)`` ``logical_batches``;
+* with a fault model on (:mod:`ising_backend.health`), a detectably failed call (write error,
+  timeout) is charged like any call and its re-dispatch counts ``retries``; batches count the
+  cores not quarantined; the bring-up probe's calls count ``probe_calls`` and ``physical_calls``;
+* ``emulation_s``: host wall time spent *emulating* the accelerator (the chip's program check and
+  annealing kernel, the logical solver's search), reported apart from the host's own work.
 
-With a fault model on (:mod:`ising_backend.health`), a call that failed detectably
-(write error, timeout) is charged like any call and its re-dispatch counts
-``retries``; batches are counted over the cores not quarantined; the bring-up
-health probe's calls count ``probe_calls`` as well as ``physical_calls``.
-
-``emulation_s`` is the host wall time spent *emulating* the accelerator (the
-chip's program check and annealing kernel, the logical solver's search).  On
-real hardware that work is done by the chip, so planners report it apart from
-the host's own glue work instead of charging it twice (as host CPU energy and
-as chip energy).
+Design notes: docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations

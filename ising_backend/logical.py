@@ -7,36 +7,18 @@ program solve (one read) is one *projected* chip call: it is charged to the
 ledger's ``logical_calls`` (never ``physical_calls``) with the chip spec's time
 and energy numbers (see :mod:`ising_backend.ledger`).
 
-Two methods:
+Methods: ``"tabu"`` (default), a compiled (numba) single-flip tabu search of ours: per read
+``restarts`` runs of ``iterations`` steps (default ``50 * n``), best non-tabu flip with aspiration,
+tenure ``max(1, min(max_tenure, 2n // 3))`` (``max_tenure=10``), later runs from the best state so
+far with ``n // 4`` random spins flipped; ties on the lowest index; a seeded xorshift64*, so the
+same seed gives the same answer.  ``"dwave-tabu"``: :class:`dwave.samplers.TabuSampler` with
+``timeout`` ms per read (default 5 ms).
 
-* ``"tabu"`` (default): a compiled (numba) single-flip tabu search of ours,
-  about a millisecond per 45-spin call.  Per read: ``restarts`` runs of
-  ``iterations`` steps (default ``50 * n``); each step flips the non-tabu spin
-  with the best energy change (a tabu spin is allowed if it gives a new best:
-  aspiration); a flipped spin stays tabu for ``tenure = max(1, min(10, 2n // 3))``
-  steps.  dwave-samplers uses ``min(20, n // 4)``; on problems under ~30 spins
-  that short tenure let our search cycle and miss the optimum on 11 % of 200
-  random problems of 3-17 spins (``2n // 3``: none).  The cap of 10 (not 20)
-  matters on one-hot permutation QUBOs (the tour layer): a permutation move
-  flips four spins and a long tenure blocks them; measured on 30 random
-  6-city one-hot TSP QUBOs (36 spins): optimum found on 29/30 with cap 10,
-  23/30 with cap 20 (TabuSampler at 20 ms: 30/30), and no loss on dense
-  random 45-spin programs.  The first run starts at random, later runs
-  start from the best state so far with ``n // 4`` random spins flipped.  Ties
-  break on the lowest index; the randomness is a seeded xorshift64*, so the same
-  seed gives the same answer.  The tour planner makes ~10^4 logical calls per
-  experiment, which is why speed matters here.
-* ``"dwave-tabu"``: :class:`dwave.samplers.TabuSampler` with ``timeout`` ms per
-  read (default 5 ms: on 45 spins TabuSampler's answers stop improving well
-  before that; its own default of 20 ms would cost minutes per experiment).
-  The tests check that ``"tabu"`` matches its quality on small problems.
-
-Faults.  Projected calls run on the chip's cores: given the chip's
-:class:`~ising_backend.health.HealthMonitor` (``health=``, as the tour layer passes
-it), every call goes through the same fault-tolerant dispatch (healthy cores,
-write errors and timeouts re-dispatched within ``spec.max_retries``).  A logical
-spin placed on a stuck spin is held at its value through the search, as the chip's
-anneal holds it; programs within the usable spins never meet one.
+Faults: given the chip's :class:`~ising_backend.health.HealthMonitor` (``health=``, as the tour
+layer passes it), every call goes through the same fault-tolerant dispatch (healthy cores, write
+errors and timeouts re-dispatched within ``spec.max_retries``).  A logical spin placed on a stuck
+spin is held at its value through the search, as the chip's anneal holds it; programs within the
+usable spins never meet one.  Design notes: docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations
@@ -90,12 +72,8 @@ class LogicalIsingSolver(dimod.Sampler):
         method: ``"tabu"`` (compiled, default) or ``"dwave-tabu"``.
         restarts, iterations: ``"tabu"`` effort per read (``iterations=None``: ``50 * n``).
         tenure: ``"tabu"`` tenure (``None``: ``max(1, min(max_tenure, 2n // 3))``).
-        max_tenure: cap of the default tenure (default 10).  One-hot
-            permutation models (the tour layer) search better with a cap near
-            10-12: a permutation move flips four spins, and a tenure of 20 on
-            36-45 spins blocks most of them (measured: optimum
-            of random 6-target patch QUBOs found on 150/150 with cap 10 vs
-            45/60 with 20).
+        max_tenure: cap of the default tenure (default 10: one-hot permutation models, the
+            tour layer's, search better with a cap near 10-12; docs/design/emulated_chip.md).
         timeout_ms: ``"dwave-tabu"`` timeout per read.
         seed: seed of the generator that seeds calls made without their own seed.
         ledger: the :class:`CallLedger` to charge (default a new one; a pipeline passes its

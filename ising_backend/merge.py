@@ -6,51 +6,23 @@ ferromagnetically, and splits the large fields/couplings between the copies so
 every coefficient fits.  The styles give different hardware views of the same
 logical model and are solved as a portfolio.
 
-Procedure (common to all styles; the paper is silent on the details):
+Contract: coefficients are multiplied by ``scale`` (default 1) and rounded, never rescaled to fit;
+a style adds copies until every field fits (``|H_i| <= L_h * a_i`` with ``a_i`` copies) and every
+coupling (``|C_ij| <= L_j * a_i * a_j``), else :class:`MergeError` names the coefficient that still
+does not fit and the spin budget.  Copies are tied with ``-tie`` (default ``L_j``) and
+``tie x pairs`` goes to the offset, so aligned copies have exactly the rounded logical energy;
+integer totals are split exactly; ties between candidates break on the lowest index.
 
-1. **Fixed-scale rounding.**  Coefficients are multiplied by ``scale`` (default
-   1: the model is already in chip units) and rounded to integers.  Nothing is
-   rescaled to fit: merging exists precisely to avoid crushing small terms.
-2. **Duplication loop.**  With ``a_i`` copies of logical spin ``i``, field
-   ``H_i`` fits if ``|H_i| <= L_h * a_i`` and coupling ``C_ij`` fits if
-   ``|C_ij| <= L_j * a_i * a_j`` (it can be spread over all copy pairs).  While
-   something does not fit, the style picks one spin and adds a copy; if the
-   chip's ``n_spins`` are used up first, :class:`MergeError` names the coefficient
-   that still does not fit and the spin budget.
-3. **Ties.**  Every pair of copies of one spin gets coupling ``-tie`` (default
-   the range limit ``L_j``: the strongest ferromagnetic bond), and
-   ``tie x pairs`` is added to the offset, so a configuration with all copies
-   aligned has exactly the rounded logical energy.
-4. **Splitting** a field over the copies, or a coupling over the copy pairs
-   (original copies first, then in creation order), either ``"spill"`` (fill the
-   first slot up to the limit, the rest to the next: the original copy keeps the
-   structure, duplicates take only the excess) or ``"even"`` (integer split as even
-   as possible: every copy carries a share).  Integer totals are split exactly.
-
-Styles (which spin to duplicate, how to split):
-
-``overload``     the spin with the largest total excess ``sum(|c| - capacity)``
-                 over its non-fitting terms; ``spill``.
-``max_coeff``    an endpoint of the single worst term (largest ``|c| / capacity``;
-                 of a coupling, the endpoint with fewer copies, then the larger
-                 total ``|coupling|``); ``even``.
-``high_degree``  among spins in non-fitting terms, the one with most non-zero
-                 couplings (it spreads load over most neighbours); ``spill``.
-``balanced``     among spins in non-fitting terms, the one with fewest copies so
-                 far (ties: largest excess); ``even``.
-
-Ties between candidates break on the lowest index.  Decoding
-(:meth:`MergedModel.decode`) takes the majority of each spin's copies (a tie goes
-to the original copy) or, with ``method="first"``, the original copy, and reports
-the number of broken ties (logical spins whose copies disagree) per sample.
-
-:func:`saturate_mapping` is the authors' baseline (fixed scale, round, clip at
-the range) wrapped in the same :class:`MergedModel` interface with no copies.
-
-The duplication loop, the layout and the decoding run in compiled kernels
-(:mod:`._merge_kernel`; :func:`~._merge_kernel.merge_styles` maps one model with
-several styles in one call); the pure-Python original is kept as the reference
-in ``tests/mapping_reference.py`` and the tests hold the two bit-identical.
+Styles (which spin gets the next copy; the split: ``spill`` fills the first copy up to the limit,
+``even`` shares as evenly as possible): ``overload`` (largest total excess; ``spill``), ``max_coeff``
+(an endpoint of the worst term; ``even``), ``high_degree`` (most couplings; ``spill``), ``balanced``
+(fewest copies; ``even``).
+:meth:`MergedModel.decode` takes the majority of each spin's copies (a tie goes to the original
+copy) or, with ``method="first"``, the original copy, and reports the number of broken ties
+(logical spins whose copies disagree) per sample.  :func:`saturate_mapping` is the authors' baseline
+(fixed scale, round, clip) in the same :class:`MergedModel` interface with no copies.  The work runs
+in compiled kernels (:mod:`._merge_kernel`), held bit-identical to ``tests/mapping_reference.py``.
+Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,38 +1,26 @@
 """The portfolio runner: multi-mapping dispatch, decode, filter, score (paper 4.2-4.3, Table 5).
 
-Hardware mapping is treated as a portfolio: one logical model is turned into
-several chip-compatible programs (spin-merging styles, quantization rules,
-spin-budget branches, ...), all programs are dispatched together (one
-``anneal_batch`` call: the chip's cores run them in parallel batches), every
-returned spin vector is decoded back to the logical spins and then to a
-candidate by the caller's decoder, invalid candidates are rejected, and the rest
-are scored on the **original unquantized objective**.  The best candidate wins.
+One logical model becomes several chip-compatible programs (spin-merging styles, quantization rules,
+spin-budget branches, ...), all dispatched together (one ``anneal_batch`` call); every returned spin
+vector is decoded back to the logical spins and then to a candidate by the caller's decoder, invalid
+candidates are rejected, and the rest are scored on the **original unquantized objective**.  The best
+candidate wins.
 
-A :class:`Mapping` turns a logical model into one or more
-:class:`MappedProgram` s (a program plus its way back to logical spins).
-Ready-made mappings: :class:`QuantizeMapping` (one per rule),
-:class:`MergeMapping` (one per merge style), :class:`SaturateMapping` (the
-authors' fixed-scale baseline), :class:`BranchMapping` (spin-budget branches,
-for the logical solver) and :class:`IdentityMapping` (a model that already
-fits).  :func:`quantize_portfolio` / :func:`merge_portfolio` build the paper's
-four-way portfolios.
+A :class:`Mapping` turns a logical model into one or more :class:`MappedProgram` s (a program plus its
+way back to logical spins): :class:`QuantizeMapping` (one per rule), :class:`MergeMapping` (one per
+merge style), :class:`SaturateMapping` (the authors' fixed-scale baseline), :class:`BranchMapping`
+(spin-budget branches, for the logical solver), :class:`IdentityMapping` (a model that already fits);
+:func:`quantize_portfolio` / :func:`merge_portfolio` build the paper's four-way portfolios.
+:func:`run_portfolio_batch` sends many models x several mappings in **one** solver call (optionally
+block-packed) to an :class:`~ising_backend.chip.EmulatedChip` or a
+:class:`~ising_backend.logical.LogicalIsingSolver`, charged to its ledger.
 
-:func:`run_portfolio_batch` is the batched path for planners with thousands of
-small problems: many models x several mappings go out in **one** solver call
-(optionally block-packed so several small programs share one chip program).
-The solver is an :class:`~ising_backend.chip.EmulatedChip` or a
-:class:`~ising_backend.logical.LogicalIsingSolver`; the call is charged to its
-ledger.
-
-Statistics (choices where the paper is silent):
-
-* *valid rate* of a mapping: valid reads / reads of that mapping;
-* *candidate share*: the mapping's valid reads / all valid reads of the problem;
-* *win share*: per problem, the mappings whose best valid score equals the best
-  score (``abs`` tolerance ``1e-9 * max(1, |best|)``) split one win equally;
-* a mapping that cannot map a model (e.g. a :class:`~ising_backend.merge.MergeError`)
-  is recorded as failed for that problem, with the error message, and the
-  rest of the portfolio still runs.
+Statistics (choices where the paper is silent): *valid rate* = valid reads / reads of that mapping;
+*candidate share* = the mapping's valid reads / all valid reads of the problem; *win share*: per
+problem, the mappings whose best valid score equals the best score (``abs`` tolerance
+``1e-9 * max(1, |best|)``) split one win equally.  A mapping that cannot map a model (e.g. a
+:class:`~ising_backend.merge.MergeError`) is recorded as failed for that problem, with the error
+message, and the rest of the portfolio still runs.  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

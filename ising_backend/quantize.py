@@ -1,42 +1,24 @@
 """Coefficient quantization to the chip's integer range (paper section 4.2).
 
-Distance-based objectives give real-valued Ising coefficients; the chip takes
-integers in ``h_range`` / ``j_range``.  The paper generates several quantized
-mappings and keeps the best decoded candidate (a portfolio), so each rule
-preserves a different view of the coefficient structure:
+Real-valued Ising coefficients become integers in ``h_range`` / ``j_range``; each rule keeps a
+different view of them (the paper's portfolio keeps the best decoded candidate):
 
-``linear``
-    one common factor so the largest coefficient (relative to its range) lands
-    on the range limit; then round.  Keeps ratios, crushes small terms.
-``clip95``
-    like ``linear`` but the factor puts the 95th percentile of the non-zero
-    relative magnitudes on the limit; the top 5 % saturate at the limit.
-    Keeps resolution for the bulk, sacrifices the outliers.
-``rank``
-    magnitudes replaced by their rank among the distinct non-zero magnitudes,
-    spread evenly over ``1 .. limit`` (ties share a level).  Keeps only order.
-``sqrt``
-    ``linear`` applied to ``sign(c) * sqrt(|c|)``: compresses large values,
-    spreads small ones.
+* ``linear``: one common factor puts the largest coefficient (relative to its range) on the limit;
+* ``clip95``: the factor puts the 95th percentile of the non-zero relative magnitudes on the
+  limit; the top 5 % saturate;
+* ``rank``: magnitudes replaced by their rank among the distinct non-zero magnitudes, spread
+  evenly over ``1 .. limit`` (ties share a level);
+* ``sqrt``: ``linear`` applied to ``sign(c) * sqrt(|c|)``.
 
-Common rules (the paper is silent; our choices):
-
-* ``h`` and ``J`` are scaled *together* (one factor, each relative to its own
-  range limit), since a field and a coupling of the same size must stay the
-  same size; the symmetric limit of a range ``(lo, hi)`` is ``min(-lo, hi)``.
-* zeros stay zero; signs are kept; with ``keep_sign=True`` (default) a non-zero
-  coefficient that would round to 0 becomes +-1 (so the coupling graph and every
-  sign survive); results are integers inside the range.
-* the returned model's offset is 0 (quantized energies are in chip units and
-  only rank candidates; candidates are re-scored on the original objective).
-
-:func:`saturate` is the authors' baseline rule (COBI host code): a *fixed* scale
-factor, round, and saturate at the range limits.  It clips by design, so it is
-an explicit, separately named rule.
-
-Both run in compiled kernels (:mod:`._quantize_kernel`; :func:`quantize_stack`
-gives several rules of one model in one call); the numpy original is kept as the
-reference in ``tests/mapping_reference.py`` and the tests hold the two bit-identical.
+Contract (the paper is silent; our choices): ``h`` and ``J`` share one factor (each relative to
+its own range limit; the symmetric limit of ``(lo, hi)`` is ``min(-lo, hi)``); then round; zeros stay
+zero, signs are kept, and with ``keep_sign=True`` (default) a non-zero coefficient that would round
+to 0 becomes +-1; results are integers inside the range; the offset is 0 (quantized energies only
+rank candidates, re-scored on the original objective).  :func:`saturate` is the authors' baseline
+(COBI host code): a *fixed* scale factor, round, saturate at the limits.  Both run in compiled
+kernels (:mod:`._quantize_kernel`; :func:`quantize_stack` gives several rules of one model in one
+call), held bit-identical to the numpy reference in ``tests/mapping_reference.py``.
+Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -6,53 +6,29 @@ cores, 50 us per solve, 9 mW (so 0.45 uJ per call).  Every field can be changed
 for "what if" studies, e.g. ``ChipSpec(n_spins=100, h_range=(-15, 15),
 j_range=(-15, 15))``.
 
-Emulation knobs (the paper is silent; choices and reasons):
+Emulation knobs (the paper is silent; our choices):
 
-* ``sweeps=50``: a short fixed anneal.  50 Metropolis sweeps of all spins is
-  about what a ring-oscillator chip's 50 us settle buys, and it keeps the
-  emulator a *probabilistic* annealer (ground state on small programs most of
-  the time, not always) as the paper's decode-validity numbers require.
-* ``schedule="geometric"`` in inverse temperature from ``beta_range``; with
-  ``beta_range=None`` the range is chosen per program (cold end: dwave-samplers'
-  default rule, the smallest non-zero coefficient excites with probability 1 %;
-  hot end: a flip against the largest root-mean-square local field is accepted
-  with probability 1/2; see :mod:`ising_backend.anneal`).  ``"linear"`` is
-  available too.
-* ``coupling_mismatch=0.05``: static per-core analog mismatch.  Each of the
-  ``n_cores`` cores gets a fixed symmetric matrix of multiplicative factors
-  ``1 + 0.05 * N(0, 1)`` (drawn once from ``seed``) applied to the programmed
-  couplings while annealing: a few percent device mismatch is typical of 65 nm
-  coupling cells, and at 5 % a coefficient of 7 moves by about 0.35, less than
-  half an integer step, so the program keeps its meaning.  Energies reported
-  back are always those of the *programmed* (noise-free) coefficients.
-* ``readout_flip_prob=0.0``: probability that each spin's read-out bit flips
-  after the anneal.  The COBI chip samples oscillator phases digitally and the
-  paper reports no readout errors, so the default is off; raise it to study
-  decode robustness.
-* ``seed=0``: the seed of the static hardware (the mismatch pattern and the
-  faults below), i.e. which physical chip you hold.  The sampling randomness is
-  seeded per call.
+* ``sweeps=50``: a short fixed anneal, so the emulator stays a *probabilistic* annealer;
+* ``schedule="geometric"`` (or ``"linear"``) in inverse temperature over ``beta_range``
+  (``None``: chosen per program, see :mod:`ising_backend.anneal`);
+* ``coupling_mismatch=0.05``: per core a fixed symmetric matrix of factors ``1 + 0.05 * N(0, 1)``
+  (drawn once from ``seed``) on the couplings while annealing; reported energies are always
+  those of the *programmed* (noise-free) coefficients;
+* ``readout_flip_prob=0.0``: probability that each read-out bit flips after the anneal;
+* ``seed=0``: the static hardware (mismatch pattern and faults), i.e. which physical chip you
+  hold; the sampling randomness is seeded per call.
 
-Fault model (all off by default; deterministic under ``seed``; design notes in
-docs/design/faults.md):
-
-* ``dead_cores=0``: cores (chosen from ``seed``) that never solve.  With
-  ``dead_core_mode="garbage"`` they answer random spins; with ``"timeout"`` they
-  never answer and the driver charges the call and re-dispatches its work.
-* ``stuck_spins=0``: per core, this many physical spins (positions and values
-  from ``seed``) stuck at +1 or -1 through the anneal.
-* ``program_error_prob=0.0``: per physical call, the probability that writing
-  the program fails; the chip flags it, the call is charged and re-dispatched.
-* ``max_retries=3``: re-dispatch rounds per ``anneal_batch`` for calls that
-  failed detectably (write error, timeout) before the chip reports
-  :class:`~ising_backend.health.ChipUnavailableError`.
-
-With any fault on (:attr:`ChipSpec.faulty`) the chip probes its cores at
-bring-up, quarantines dead ones and maps programs around stuck spins
+Fault model (all off by default; deterministic under ``seed``): ``dead_cores=0`` (answering
+random spins, ``dead_core_mode="garbage"``, or never, ``"timeout"``), ``stuck_spins=0`` per core,
+``program_error_prob=0.0`` per physical call (flagged, charged, re-dispatched), ``max_retries=3``
+re-dispatch rounds per ``anneal_batch`` before
+:class:`~ising_backend.health.ChipUnavailableError`.  With any fault on (:attr:`ChipSpec.faulty`)
+the chip probes its cores at bring-up, quarantines dead ones and maps programs around stuck spins
 (:mod:`ising_backend.health`).
 
 ``ChipSpec.noise_free()`` returns the same spec with both noise knobs at zero;
 ``ChipSpec.fault_free()`` the same spec with the fault model off.
+Design notes: docs/design/emulated_chip.md (knobs), docs/design/faults.md (fault model).
 """
 
 from __future__ import annotations

@@ -8,12 +8,8 @@ percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint b
 (:func:`~ising_backend.blocks.pack_layout`, :func:`~ising_backend.blocks.fill_packs`) and checked
 against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
 ``p * k + r`` is QUBO ``p`` under rule ``r``.  :func:`submit_packs` anneals them through the caller's
-machine session record (inlined where it is called, so it adds no compiled level above the anneal);
-the caller decodes the reads at ``where``.  Every layer's chip submission goes through
-:func:`submit_packs`: the sharing stages after :func:`pack_qubo_stack`, the tour's and the fleet's move
-selection after the same quantization of their one QUBO (one program per rule: what
-:func:`pack_qubo_stack` gives at capacity ``M``, without its copies), the path engine's merged programs
-and the one-hot tour's branch programs.
+machine session record; the caller decodes the reads at ``where``.  Every layer's chip submission
+goes through :func:`submit_packs`.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

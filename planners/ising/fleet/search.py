@@ -1,26 +1,25 @@
-"""Fleet routing with chip-selected moves between robots: an iterated local search (issue 24, part 2).
+"""Fleet routing with chip-selected moves between robots: an iterated local search.
 
 Classical logic orchestrates, the chip decides which moves are made:
 
 1. construction (host): the sequential single-item auction's insertion routes (SSA, the
    ``strong`` pipeline's sharing), one open route per robot;
 2. local search: per round the host lists every improving granular move between and within
-   routes (:mod:`.moves`: relocate, swap, 2-opt*, 2-opt over the ``neighbours`` nearest nodes),
-   offers the chip up to ``max_moves`` of them (by gain, each clashing with at most
-   ``max_overlap`` better ones), and the chip selects a compatible set in one submission: the
-   selection QUBO ``-sum g_m x_m + sum (min(g_m, g_m') + 1) x_m x_m'`` over clashing pairs,
-   quantized by every rule of ``chip_rules``; the valid read of largest gain is applied, a read
-   selecting clashing moves is dropped, never repaired.  No improving move left: a local optimum;
-   ``max_retries`` rounds in a row without a valid read also end it;
-3. iterated local search (host): ``kicks`` times, ruin the ``ruin`` targets nearest to a random
-   target and re-insert them one by one at their cheapest place, then local search (2); the
-   result replaces the current routes when it is cheaper.
+   routes (:mod:`.moves`), offers the chip up to ``max_moves`` of them (by gain, each clashing
+   with at most ``max_overlap`` better ones), and the chip selects a compatible set in one
+   submission (the selection QUBO quantized by every rule of ``chip_rules``); the valid read of
+   largest gain is applied, a read selecting clashing moves is dropped, never repaired.  No
+   improving move left: a local optimum; ``max_retries`` rounds in a row without a valid read
+   also end it;
+3. iterated local search (host): ``kicks`` times, ruin 2..``ruin`` targets nearest a random target
+   and re-insert them one by one at their cheapest place, then local search (2); the result is
+   kept when it costs at most the best times ``1 + slack`` (record-to-record travel).
 
-The layer is a sharing layer that orders its groups (``orders_routes``: tour layer ``keep``);
-preset ``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).
-Each local search is one compiled call (:mod:`.local_search`) on one machine session, which charges
-every chip call to the layer's report; the emulator's run time is ``emulation_s``.  Measured in
-docs/design/ising_fleet.md.
+A sharing layer that orders its groups (``orders_routes``: tour layer ``keep``); preset
+``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).  Each
+local search is one compiled call (:mod:`.local_search`) on one machine session, which charges
+every chip call to the layer's report; the emulator's run time is ``emulation_s``.
+Design notes and measurements: docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations
@@ -57,10 +56,9 @@ class FleetConfig(IsingConfig):
             ``None``: ``kicks_per_target x N``, but at least ``min_kicks`` and at most three times
             that, so the search grows with the fleet's work and small fleets are not under-searched).
         kicks_per_target: kicks per target when ``kicks`` is None.
-        min_kicks: the floor of that budget (docs/design/ising_fleet.md: at 100 targets 500 kicks left
-            the routes 0.5-1.5 % above PyVRP's, 1,500 0.2-0.5 %).
+        min_kicks: the floor of that budget (measured in docs/design/ising_fleet.md).
         ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: two routes' worth,
-            ``max(5, 2 N // R)``; 2-target ruins left the search stuck below 50 targets).
+            ``max(5, 2 N // R)``; docs/design/ising_fleet.md).
         slack: a kicked solution replaces the current one when it costs at most the best one
             times ``1 + slack`` (record-to-record travel; 0: equal or better).
         fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the

@@ -5,13 +5,12 @@ the splits of a list of groups solved on the chip (:func:`solve_splits`: their s
 (:func:`problems_of`), the one-partition splits, the submissions with their retries (map and pack by
 :func:`ising_backend.pack_qubo_stack`, anneal through the session record, decode and score) and the
 reads merged into each split's candidates (:func:`keep_candidates`)), the groups a stage splits
-(:func:`todo_groups`) and the states it leaves (:func:`expand_states`).  A stage is one call rather
-than one per step: Python's cost per compiled call (microseconds each) is what a paper world's whole
-sharing costs, so the loops stay together where they run once per stage.
+(:func:`todo_groups`) and the states it leaves (:func:`expand_states`).
 
 Candidates live in a *store* ``(cut (rows, C), side0 (rows, C), side1 (rows, C), count (rows,))``:
 row ``i`` holds problem ``i``'s distinct valid partitions (set ids of :mod:`.node_sets`), best cut
 first.  Sums and ties follow ``tests/sharing_search_reference.py``, their oracle.
+Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

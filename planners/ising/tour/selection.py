@@ -1,24 +1,17 @@
 """The tour on the physical chip: move-selection local search (``TourConfig.backend="chip"``).
 
-Why not the paper's model: the position-indexed one-hot QUBO needs a penalty above every
-distance, and its fields carry that penalty times the row and column sizes; scaled into the
-chip's ``[-7, 7]`` the distances fall below one level and the quantized ground state itself is
-invalid (docs/design/ising_tour.md).  Here the chip chooses among improving 2-opt and or-opt
-moves (:mod:`.moves`): coefficients are of the size of the gains, and a read is valid when the
-moves it selects do not overlap; applied, they always give a valid route.
-
-Per round the host lists the improving moves of the route and offers the chip up to
-``max_moves`` of them (by gain, each overlapping at most ``max_overlap`` better ones; at most the
-chip's spins; halved on every re-issue of the round), the selection QUBO goes through the mapping portfolio
-(``chip_rules``, one program per rule, one ``anneal_batch``), each read is decoded and the
-valid read of largest total gain is applied.  A read selecting overlapping moves is invalid
-and dropped, never repaired (a gain-greedy repair would do the chip's work: with random reads
-it finds the same tours).  A round whose reads select nothing valid is re-issued up to
-``max_retries`` times; a route without an improving move is a local optimum and ends the
-start.  Start 0 is the nearest-neighbour route; later starts are random orders
-(``chip_restart="random"``) or double-bridge kicks of the best route so far (``"kick"``,
-iterated local search); ``"auto"`` kicks above :data:`KICK_ABOVE` targets, where local search
-from a random order ends far above the nearest-neighbour start.  The cheapest route wins.
+Not the paper's one-hot model (its quantized ground state is invalid in the chip's ``[-7, 7]``): the
+chip chooses among improving 2-opt and or-opt moves (:mod:`.moves`), coefficients are of the size of
+the gains, a read is valid when the moves it selects do not overlap, and applied they always give a
+valid route.  Per round the host offers the chip up to ``max_moves`` improving moves (by gain, each
+overlapping at most ``max_overlap`` better ones; at most the chip's spins; halved on every re-issue of
+the round); the selection QUBO goes through the mapping portfolio (``chip_rules``, one program per
+rule, one ``anneal_batch``) and the valid read of largest total gain is applied.  A read selecting
+overlapping moves is invalid and dropped, never repaired.  A round whose reads select nothing valid
+is re-issued up to ``max_retries`` times; a route without an improving move ends the start.  Start 0
+is the nearest-neighbour route; later starts are random orders (``chip_restart="random"``) or
+double-bridge kicks of the best route so far (``"kick"``); ``"auto"`` kicks above :data:`KICK_ABOVE`
+targets.  The cheapest route wins.  Design notes and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

@@ -691,9 +691,15 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
     fast = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
     ref = IsingTour(EmulatedChip(ChipSpec(**spec)), backend="chip", **options)
 
-    def select(dist, route, run):  # one start on its own session, as MoveSearch.starts opens one
+    def select(dist, route, run):  # one start on its own session, charged as MoveSearch.starts charges
+        from planners.ising.tour.selection import settle
+
+        charges = []
         with fast.chip.session(run.charged, decision="tour_moves") as link:
-            return fast.moves.select(np.ascontiguousarray(dist, dtype=np.float64), route, run, link)
+            try:
+                return fast.moves.select(np.ascontiguousarray(dist, dtype=np.float64), route, run, link, charges)
+            finally:
+                settle(link, charges)
 
     moved = 0
     for s in range(10):

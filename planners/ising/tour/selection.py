@@ -27,7 +27,7 @@ from planners.ising.tour.move_engine import (
     NO_PROGRESS, REFUSED, STALLED, nearest_neighbour_kernel, select_moves_loop,
 )
 
-__all__ = ["MoveSearch", "double_bridge", "KICK_ABOVE"]
+__all__ = ["MoveSearch", "double_bridge", "settle", "KICK_ABOVE", "ProgramRefused"]
 
 
 
@@ -37,6 +37,12 @@ class ProgramRefused(TourFailure):
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
 KICK_ABOVE = 16
+
+
+def settle(link, charges: list) -> None:
+    """Charge the starts' submissions ``charges`` (``(calls, emulation_s)`` per start, in order) on ``link``."""
+    if charges:
+        link.settle(np.concatenate([c for c, _ in charges]), np.concatenate([e for _, e in charges]))
 
 
 def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -73,41 +79,46 @@ class MoveSearch:
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
         dist = np.ascontiguousarray(dist, dtype=np.float64)
         best, best_cost, failure = None, math.inf, None
+        charges: list = []
         with self.chip.session(run.charged, decision="tour_moves") as link:  # one session for every start
-            for s in range(starts):
-                if s == 0:
-                    route = nearest_neighbour_kernel(dist)
-                elif kicks and best is not None and n >= 4:
-                    route = double_bridge(best, run.rng)
-                else:
-                    route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
-                try:
-                    route = self.select(dist, route, run, link)
-                except TourFailure as exc:  # this start gave up; other starts may still succeed
-                    if isinstance(exc, ProgramRefused):
-                        raise
-                    failure = exc
-                    run.stats["failed_starts"] += 1
-                    continue
-                cost = float(dist[route[:-1], route[1:]].sum())
-                run.stats["start_costs"].append(cost)
-                if cost < best_cost - 1e-9:
-                    best, best_cost = route, cost
+            try:
+                for s in range(starts):
+                    if s == 0:
+                        route = nearest_neighbour_kernel(dist)
+                    elif kicks and best is not None and n >= 4:
+                        route = double_bridge(best, run.rng)
+                    else:
+                        route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+                    try:
+                        route = self.select(dist, route, run, link, charges)
+                    except TourFailure as exc:  # this start gave up; other starts may still succeed
+                        if isinstance(exc, ProgramRefused):
+                            raise
+                        failure = exc
+                        run.stats["failed_starts"] += 1
+                        continue
+                    cost = float(dist[route[:-1], route[1:]].sum())
+                    run.stats["start_costs"].append(cost)
+                    if cost < best_cost - 1e-9:
+                        best, best_cost = route, cost
+            finally:  # what ran is charged once, in order, also when a start ends the search
+                settle(link, charges)
         if best is None:
             raise failure
         return [int(t) for t in best[1:]]
 
-    def select(self, dist: np.ndarray, route: np.ndarray, run, link) -> np.ndarray:
+    def select(self, dist: np.ndarray, route: np.ndarray, run, link, charges: list) -> np.ndarray:
         """One start on the session ``link``: ``route`` (float64 ``dist``) improved by chip-selected moves
         until no move improves it (or the chip selects nothing valid ``max_retries + 1`` times in a row), in
-        one compiled call (:func:`.move_engine.select_moves_loop`), charged per submission.  A chip that
-        never selects a valid improving set for a route that has improving moves fails the start
-        (:class:`TourFailure`): the route would be the host's, not the chip's."""
+        one compiled call (:func:`.move_engine.select_moves_loop`); its submissions' calls and emulation
+        seconds are appended to ``charges`` for :func:`settle`.  A chip that never selects a valid improving
+        set for a route that has improving moves fails the start (:class:`TourFailure`): the route would be
+        the host's, not the chip's."""
         cfg = self.config
         new, status, st, clean, wins, calls, emu = select_moves_loop(
             run.rng, dist, route, cfg.max_segment, self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds,
             self._move_args, link.args)
-        link.settle(calls, emu)
+        charges.append((calls, emu))
         self._count_start(run, st, clean, wins, status)
         if status == REFUSED:
             raise ProgramRefused(REFUSED_MESSAGE)

@@ -54,7 +54,7 @@ def test_plan_prints_the_notice_only_when_cold(tmp_path, capsys):
     assert capsys.readouterr().err == ""  # a few seconds of compiling: not announced
     assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
     err = capsys.readouterr().err
-    assert err.startswith("mrmt: compiling the numba kernels of ising:sharing, ising:tour+path, ising-fleet (first run")
+    assert err.startswith("mrmt: compiling the numba kernels of ising:sharing, ising-fleet, ising:tour+path (first run")  # longest first
     assert len(err.strip().splitlines()) == 1
     assert main(["plan", str(src), "--pipeline", "ising", "--no-progress"]) == 0
     assert capsys.readouterr().err == ""

@@ -17,7 +17,7 @@ Design notes: docs/design/faults.md.
 
 from __future__ import annotations
 
-__all__ = ["FALLBACK_MODES", "flag", "counted", "wants_fallback", "path_fallback", "unavailable_message"]
+__all__ = ["FALLBACK_MODES", "flag", "counted", "wants_fallback", "fallen", "path_fallback", "unavailable_message"]
 
 FALLBACK_MODES = ("never", "unavailable", "failure")
 
@@ -45,15 +45,21 @@ def counted(compute, classical=None):
     return out if classical is None else out + classical
 
 
+def fallen(layer: str, classical, stats: dict, compute, reason: str):
+    """The classical layer's result ``classical`` as ``layer``'s fallback: ``stats`` flagged (in place) with
+    ``reason``, ``compute`` (what the Ising layer spent) counted plus the classical layer's own report."""
+    from dataclasses import replace
+
+    return replace(classical, stats=flag(stats, layer, reason), compute=counted(compute, classical.compute))
+
+
 def path_fallback(mode: str, world, start, goal, rng, result):
     """The Ising path ``result`` or, when ``mode`` wants it, A*'s path flagged as a fallback."""
     if result.failure is None or not wants_fallback(mode, bool(result.stats.get("chip_unavailable"))):
         return result
-    from planners.base import PathResult
     from planners.paths_classical import AStarPath
 
     classical = AStarPath().find_path(world, start, goal, rng)
     if classical.path is None:  # the classical layer fails too (e.g. an unreachable goal)
         return result
-    stats = flag(dict(result.stats), "path", result.failure)
-    return PathResult(classical.path, compute=counted(result.compute, classical.compute), stats=stats)
+    return fallen("path", classical, dict(result.stats), result.compute, result.failure)

@@ -25,7 +25,7 @@ from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver,
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
-from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
+from planners.ising.fallback import fallen, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
@@ -116,9 +116,7 @@ class IsingSharing:
         if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
             from planners.sharing_classical import SSASharing
 
-            res = SSASharing().assign(dist, R, tour, rng)
-            return SharingResult(assignment=res.assignment, compute=counted(compute, res.compute),
-                                 stats=flag(stats, "sharing", reason))
+            return fallen("sharing", SSASharing().assign(dist, R, tour, rng), stats, compute, reason)
         return SharingResult(assignment=tuple(() for _ in range(R)), compute=compute, stats=stats, failure=reason)
 
     def _assign_search(self, dist, R, rng, stats, pricer) -> SharingResult:

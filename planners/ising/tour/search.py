@@ -23,7 +23,7 @@ from ising_backend import ChipUnavailableError, SolverOutputError
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
-from planners.ising.fallback import counted, flag, unavailable_message, wants_fallback
+from planners.ising.fallback import fallen, unavailable_message, wants_fallback
 from planners.ising.tour.cluster import Clusters, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.kernels import dist_flags, route_cost
@@ -146,9 +146,8 @@ class IsingTour:
         """3-opt's tour (the strong pipeline's tour layer), flagged and counted as a fallback."""
         from planners.tours_classical import ThreeOptTour
 
-        res = ThreeOptTour().solve(dist, run.rng)
-        return TourResult(order=res.order, cost=res.cost, stats=flag(run.stats, "tour", reason),
-                          compute=counted(ComputeReport.from_ledger(run.charged), res.compute))
+        return fallen("tour", ThreeOptTour().solve(dist, run.rng), run.stats, ComputeReport.from_ledger(run.charged),
+                      reason)
 
 
     # ------------------------------------------------------------------ 3. local TSPs

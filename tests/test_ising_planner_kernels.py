@@ -723,15 +723,18 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
     assert moved > 0
 
 
-def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it():
+@pytest.mark.parametrize("restart", ["random", "kick"])
+def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it(restart):
     """Distances so large that move gains overflow give a non-finite selection program: the chip
-    tour fails naming it, nothing annealed (no second code path runs)."""
+    tour fails naming it at the first start, nothing annealed (no second code path runs), with random
+    restarts and with kicks alike."""
     from planners.ising.tour import IsingTour
 
     pts = np.random.default_rng(0).random((8, 2))
     dist = np.abs(pts[:, None] - pts[None]).sum(-1) * 1e308
     assert np.isfinite(dist).all()
-    res = IsingTour(backend="chip", fallback="never").solve(dist, np.random.default_rng(0))
+    res = IsingTour(backend="chip", fallback="never", chip_restart=restart).solve(dist, np.random.default_rng(0))
+    assert res.stats["failed_starts"] == 0  # the refusal ends the search: no later start runs
     assert res.order is None or not len(res.order)
     assert "refused a move-selection program: a coefficient is not finite" in res.failure
     assert res.compute.chip_calls == 0

@@ -91,9 +91,9 @@ class MoveSearch:
                         route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
                     try:
                         route = self.select(dist, route, run, link, charges)
+                    except ProgramRefused:
+                        raise
                     except TourFailure as exc:  # this start gave up; other starts may still succeed
-                        if isinstance(exc, ProgramRefused):
-                            raise
                         failure = exc
                         run.stats["failed_starts"] += 1
                         continue

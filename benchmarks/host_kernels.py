@@ -48,7 +48,7 @@ from mapping_reference import decode_ref, merge_spins_ref, quantize_ref  # noqa:
 from ising_backend.quantize import quantize_stack  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.ising.path.qubo import build_patch_qubo, patch_frame  # noqa: E402
-from planners.ising.sharing.kernels import split_model  # noqa: E402
+from planners.ising.sharing.split_problem import split_model  # noqa: E402
 
 SECTION = "## Issue 9: compiled mapping kernels"
 SCALE = 16.0

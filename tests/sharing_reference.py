@@ -6,7 +6,7 @@ with separate calls: map every split by every rule, pack first-fit decreasing, a
 metered chip, score, name refused programs.  The mapping (``ising_backend``'s public
 ``ising_from_qubo`` and ``quantize_stack``, one split at a time), the decoding, the validity rule and
 the scoring of the reads are written here, independently of the compiled steps
-(``ising_backend.pack_qubo_stack``, ``planners.ising.sharing.kernels``' ``score_stage`` and
+(``ising_backend.pack_qubo_stack``, ``planners.ising.sharing.split_problem``' ``score_stage`` and
 ``candidate_sides``).  Test code only: the package never imports it.
 """
 

@@ -19,7 +19,7 @@ from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver,
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
-from planners.ising.sharing.kernels import branch_problems, split_model
+from planners.ising.sharing.split_problem import branch_problems, split_model
 from ising_backend import STACK_OK
 from planners.ising.sharing.stage_steps import submit_stage
 from planners.ising.sharing.submission import StageSolver, stage_refusal

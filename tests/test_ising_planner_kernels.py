@@ -19,7 +19,7 @@ from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from path_reference import build_patch_qubo_reference, component_of, cut_loops
 from planners.ising.path.qubo import build_patch_qubo, patch_frame
-from planners.ising.sharing.kernels import score_split_reads, split_model
+from planners.ising.sharing.split_problem import score_split_reads, split_model
 from sharing_search_reference import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 from planners.ising.tour.kernels import (
     best_onehot, branch_stack, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
-from planners.ising.sharing.kernels import pair_mean
+from planners.ising.sharing.split_problem import pair_mean
 from planners.tours_classical import ThreeOptTour
 from sharing_search_reference import reference_assign
 
@@ -189,7 +189,7 @@ def test_spin_budget_branches_keep_the_split_energy_up_to_a_constant_per_branch(
     """Each branch of :func:`branch_problems` is the split QUBO with its frozen nodes fixed: over the
     branch's free nodes its energy differs from the whole split's by one constant, the frozen nodes
     are the strongest, and the branches enumerate every sign pattern of them."""
-    from planners.ising.sharing.kernels import branch_problems
+    from planners.ising.sharing.split_problem import branch_problems
 
     rng = np.random.default_rng(seed)
     k = min(k, n)

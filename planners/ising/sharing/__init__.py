@@ -10,7 +10,7 @@ solver), ``config`` (options).
 
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.config import BUNDLE_ORDERS, SharingConfig
-from planners.ising.sharing.kernels import add_balance, split_model
+from planners.ising.sharing.split_problem import add_balance, split_model
 from planners.ising.sharing.search import IsingSharing, PaperIsingSharing
 
 __all__ = ["IsingSharing", "PaperIsingSharing", "SharingConfig", "BUNDLE_ORDERS", "split_model", "add_balance",

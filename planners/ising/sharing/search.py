@@ -29,7 +29,7 @@ from planners.ising.fallback import fallen, unavailable_message, wants_fallback
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
-from planners.ising.sharing.kernels import pair_mean
+from planners.ising.sharing.split_problem import pair_mean
 from planners.ising.sharing.node_sets import new_pool
 from planners.ising.sharing.placement import ORDER_IDS, PRICERS, flat_sets, new_memo, place_states
 from planners.ising.sharing.refine import refine_boundaries

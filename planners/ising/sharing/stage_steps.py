@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 from ising_backend import STACK_OK, pack_qubo_stack, submit_packs, via_callback
-from planners.ising.sharing.kernels import add_balance, branch_problems, candidate_sides, score_stage, split_model
+from planners.ising.sharing.split_problem import add_balance, branch_problems, candidate_sides, score_stage, split_model
 from planners.ising.sharing.node_sets import intern, nodes_of, robots_in, size
 
 __all__ = ["solve_splits", "submit_stage", "problems_of", "keep_candidates", "todo_groups", "expand_states", "set_sizes",
@@ -53,7 +53,7 @@ def set_nodes(pool, s):
 
 @numba.njit(cache=True)
 def problems_of(w, groups, R, balance, pool):
-    """:func:`.kernels.split_model` of every group (set ids), with the balance term (:func:`.kernels.add_balance`)
+    """:func:`.split_problem.split_model` of every group (set ids), with the balance term (:func:`.split_problem.add_balance`)
     when ``balance``: ``(q (P, f), Q (P, f, f), free (P, f), sizes, anchors (P, 2))``, zero-padded to the
     largest split."""
     P = groups.shape[0]
@@ -236,7 +236,7 @@ def submit_stage(problems, program, seed, machine, dist, n_robots):
     split x rule mapped and packed (:func:`ising_backend.pack_qubo_stack`), annealed with ``seed`` on the
     session record ``machine``, every read decoded, checked and scored on ``dist``.  Returns ``(status,
     calls, emulation_s, (n_valid, best, c_split, c_cut, side0, n0, side1, n1))`` (as
-    :func:`.kernels.score_stage` and :func:`.kernels.candidate_sides`); nothing is annealed unless
+    :func:`.split_problem.score_stage` and :func:`.split_problem.candidate_sides`); nothing is annealed unless
     ``status`` is ``STACK_OK``."""
     q, Q, free, sizes, anchors, reject, nfix, fixed = problems
     rules, Lh, Lj, capacity, num_reads = program[0], program[1], program[2], program[3], program[4]

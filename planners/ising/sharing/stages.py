@@ -7,7 +7,7 @@ stage submissions (:func:`.stage_steps.solve_splits`), seeds and win draws from 
 (:mod:`.node_sets`) and the loops over nodes and reads are small compiled steps
 (:mod:`.stage_steps`, :mod:`.clusters`); this module only decides what to split, submits and
 keeps.  A split a few spins beyond the chip goes into its stage's submission as its spin-budget
-branches (:func:`.kernels.branch_problems`); a group beyond that is split on target clusters first
+branches (:func:`.split_problem.branch_problems`); a group beyond that is split on target clusters first
 (:meth:`SplitStages.coarse_split`).  Where the search cannot go on it raises :class:`SharingStop`
 naming why (a split with no valid candidate after the retries, a stage program the chip would
 refuse, robots that cannot be coarsened onto the chip).

@@ -4,7 +4,7 @@ Every split of a stage x every quantization rule of the portfolio goes into one 
 (:func:`.stage_steps.submit_stage`): mapped and block-packed first-fit decreasing into shared chip
 programs (:func:`ising_backend.pack_qubo_stack`), annealed through the sharing call's machine session,
 every read decoded, checked and scored on the unquantized cut; splits beyond the chip go in as their
-spin-budget branches (:func:`.kernels.branch_problems`).  :class:`StageSolver` holds the portfolio's
+spin-budget branches (:func:`.split_problem.branch_problems`).  :class:`StageSolver` holds the portfolio's
 rule ids, the chip's coefficient limits and spins, the machine and the running call's meter (whose
 ledger the call's session charges).
 """

@@ -1,4 +1,4 @@
-"""Compiled host kernels of Ising target sharing (paper 5.3): split models and candidate scoring.
+"""The split problem of Ising target sharing (paper 5.3), compiled: its QUBO, its branches, its reads scored.
 
 * :func:`split_model` -- the anchors (``choose_anchors`` of ``tests/sharing_search_reference.py``)
   and the reduced ``-cut`` QUBO (``build_split_qubo`` there,

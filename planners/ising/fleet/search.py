@@ -16,9 +16,9 @@ Classical logic orchestrates, the chip decides which moves are made:
    kept when it costs at most the best times ``1 + slack`` (record-to-record travel).
 
 A sharing layer that orders its groups (``orders_routes``: tour layer ``keep``); preset
-``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).  Each
-local search is one compiled call (:mod:`.local_search`) on one machine session, which charges
-every chip call to the layer's report; the emulator's run time is ``emulation_s``.
+``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).  The whole
+search (2 and 3) is one compiled call (:func:`.local_search.iterated_search`) on one machine session,
+which charges every chip call to the layer's report; the emulator's run time is ``emulation_s``.
 Design notes and measurements: docs/design/ising_fleet.md.
 """
 

@@ -41,7 +41,6 @@ def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine, stat
     = ``(calls, emulation_s, used)`` (grown when full).  Returns ``(status, calls, emulation_s, used)``."""
     capacity, max_overlap, max_retries, chip = search
     calls, emu, subs = log
-    reads = program[0].shape[0] * program[3]
     failures = 0
     while True:
         owner, pos, length = walk(nxt, r)
@@ -51,17 +50,17 @@ def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine, stat
             return LOCAL_OPTIMUM, calls, emu, subs
         k = max(1, capacity >> failures)
         if chip:
-            st, keep, clashes, taken, valid, _selecting, best, seconds = select_round(
+            st, keep, clashes, taken, valid, _selecting, best, n_calls, seconds = select_round(
                 rng, spans, gains, k, max_overlap, program, machine)
             if st == ROUND_REFUSED:
                 return REFUSED, calls, emu, subs
             if subs == calls.shape[0]:
                 calls = np.concatenate((calls, np.zeros(max(subs, 16), dtype=np.int64)))
                 emu = np.concatenate((emu, np.zeros(max(subs, 16))))
-            calls[subs] = reads
+            calls[subs] = n_calls
             emu[subs] = seconds
             subs += 1
-            stats[5] += reads
+            stats[5] += n_calls  # one read of one program is one chip call
             stats[4] += valid.sum()
         else:  # the ablation: the host decides (offered moves come by gain)
             keep = pick_candidates(spans, gains, k, max_overlap)

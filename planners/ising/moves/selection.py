@@ -159,9 +159,10 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     every rule of ``program`` = ``(rules, Lh, Lj, num_reads)`` (``keep_sign``, percentile 95), one
     submission on ``machine`` (an :func:`ising_backend.anneal_submit` record) with a seed drawn from
     ``rng``, the reads scored.  Returns ``(status, keep, clashes, taken, valid (R,), selecting (R,),
-    best, emulation_s)``: the offered moves (indices into ``gains``) and their clash matrix, the best
-    read's moves (indices into ``keep``; empty when no valid read selects one), per rule its valid
-    reads and those selecting a move, the best read's rule (-1: none) and the kernel's seconds."""
+    best, calls, emulation_s)``: the offered moves (indices into ``gains``) and their clash matrix, the
+    best read's moves (indices into ``keep``; empty when no valid read selects one), per rule its valid
+    reads and those selecting a move, the best read's rule (-1: none), the submission's chip calls and
+    the kernel's seconds."""
     rules, Lh, Lj, num_reads = program
     R = rules.shape[0]
     keep = pick_candidates(spans, gains, k, max_overlap)
@@ -174,12 +175,12 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
     for r in range(R):
         if st[r] != 0:
-            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0.0
+            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0, 0.0
     seed = rng.integers(0, 9223372036854775807)
-    spins, _calls, emu = submit_packs(hq, Jq, num_reads, np.uint64(seed), machine)
+    spins, calls, emu = submit_packs(hq, Jq, num_reads, np.uint64(seed), machine)
     valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
     taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
-    return ROUND_OK, keep, clashes, taken, valid, selecting, best, emu
+    return ROUND_OK, keep, clashes, taken, valid, selecting, best, calls, emu
 
 
 def program_record(chip_rules, spec, num_reads: int) -> tuple:

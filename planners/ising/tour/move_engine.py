@@ -37,9 +37,8 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
     stats = rounds, retries, moves applied, rounds with a valid read, programs with a valid read;
     ``clean`` / ``wins`` per rule: valid reads that select a move, best reads.
     """
-    rules, Lh, Lj, num_reads = program
     route = route.copy()
-    k = rules.shape[0]
+    k = program[0].shape[0]  # the quantization rules
     stats = np.zeros(5, dtype=np.int64)
     clean_all = np.zeros(k, dtype=np.int64)
     wins = np.zeros(k, dtype=np.int64)
@@ -53,14 +52,14 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         moves, spans, gains = candidate_moves(dist, route, max_segment)
         if gains.shape[0] == 0:
             break
-        st, keep, _clashes, taken, _valid, clean, best, seconds = select_round(
+        st, keep, _clashes, taken, _valid, clean, best, n_calls, seconds = select_round(
             rng, spans, gains, max(1, capacity >> failures), max_overlap, program, machine)
         if st == ROUND_REFUSED:
             stats[0] = rounds
             stats[2] = applied
             return route, REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
         emu[rounds] = seconds
-        calls[rounds] = k * num_reads
+        calls[rounds] = n_calls
         rounds += 1
         for r in range(k):
             clean_all[r] += clean[r]

@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _common import cpu_name, finish  # noqa: E402
 
-from ising_backend.host_rule import HOST_RULE_CLASSES, HostRule  # noqa: E402
+from ising_backend.host_rule import GENERIC_CLASSES, HostRule  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.pipeline import make_pipeline  # noqa: E402
 
@@ -58,7 +58,7 @@ def main(argv=None) -> None:
              "| chip calls left |", "|---|---|---|---|---|---|---|---|"]
     for preset, kind, worlds in suites:
         chip = _plans(preset, worlds)
-        for cls in (*HOST_RULE_CLASSES, "all"):
+        for cls in (*GENERIC_CLASSES, "all"):
             host = _plans(preset, worlds, cls)
             both = (chip[:, 0] == 1) & (host[:, 0] == 1)
             if not both.any():

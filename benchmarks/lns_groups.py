@@ -76,14 +76,18 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool):
     sched = make_scheduler("lorr-greedy", seed=0)
     sched.reset(sim)
     ex = make_turning_executor(executor, inst.grid, seed=0, **options)
-    gaps = []  # per decision: host cost, chip cost, optimum
+    gaps = []  # per decision: host cost, chip cost, optimum, the group's plan now
     fill = [0]
+    judged = [0.0]  # seconds spent judging (exact solve, plan cost): not the executor's, taken off its times
     if exact:  # wrap the decoder: each decision's host rule, chip and exact costs on the same problem
         greedy, decode = E.greedy_choice, E.decode_choice
 
         def greedy_rec(state, members, a, b, ostart, opt, stamp, choice):
             c = greedy(state, members, a, b, ostart, opt, stamp, choice)
-            gaps.append([c, None, exact_cost(state, members, a, b, ostart, opt)])
+            t0 = time.perf_counter()
+            gaps.append([c, None, exact_cost(state, members, a, b, ostart, opt),
+                         sum(int(_cost(state, q, state[5][q])) for q in members[a:b])])
+            judged[0] += time.perf_counter() - t0
             return c
 
         def decode_rec(state, members, a, b, ostart, opt, spins, choice):
@@ -97,17 +101,55 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool):
     try:
         for t in range(steps):
             proposal = sched.schedule(sim)
-            t0 = time.perf_counter()
+            t0, j0 = time.perf_counter(), judged[0]
             act = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal))
-            emul = float(ex.last_compute.emulation_s)
+            emul = float(ex.last_compute.emulation_s) + judged[0] - j0
             step_s[t] = time.perf_counter() - t0 - emul + ex.last_compute.chip_time_parallel_s
             sim.step(act, proposal)
     finally:
         if exact:
             E.greedy_choice, E.decode_choice = greedy, decode
-    stats = getattr(ex, "stats", {})
+    stats = dict(getattr(ex, "stats", {}))
+    if "host_s" in stats:
+        stats["host_s"] -= judged[0]
     return {"tasks": sim.finished, "errors": len(sim.errors), "p99": float(np.percentile(step_s, 99)),
             "stats": stats, "gaps": gaps}
+
+
+def per_decision_ms(stats: dict) -> float:
+    return 1e3 * stats["host_s"] / max(stats["decisions"], 1)
+
+
+def decision_tables(g: np.ndarray) -> list[str]:
+    """The per-decision tables of ``g`` (rows: host rule cost, chip cost, optimum, the group's plan now; -1: no
+    answer), read two ways: the answers themselves, and what each decider leaves (its answer where it has one
+    cheaper than the plan now, else the plan now: the decision as the executor applies it)."""
+    host, chip, best, now = g[:, 0], g[:, 1], g[:, 2], g[:, 3]
+    ok_h, ok_c = host >= 0, chip >= 0
+    denom = np.maximum(np.abs(best), 1)
+    better = ok_c & (~ok_h | (chip < host))
+    worse = ok_h & (~ok_c | (chip > host))
+    hg = np.where(ok_h, (host - best) / denom, np.nan)
+    cg = np.where(ok_c, (chip - best) / denom, np.nan)
+    left_h = np.where(ok_h & (host < now), host, now)
+    left_c = np.where(ok_c & (chip < now), chip, now)
+    lh, lc = (left_h - best) / denom, (left_c - best) / denom
+    hard = lh >= 0.05
+    return ["Per decision, the answers (chip arm's own trajectory; cost = the group's summed cost-to-go; gaps as "
+            "fractions of the optimum over the decisions with an answer; a host rule or chip without a collision-free "
+            "answer keeps the plan and counts as no answer):", "",
+            "| decisions | chip better | chip worse | host rule no answer | chip no answer | host gap | chip gap | "
+            "chip optimal |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
+            f"| {len(g):,} | {100 * better.mean():.1f} % | {100 * worse.mean():.1f} % | {100 * (~ok_h).mean():.1f} % | "
+            f"{100 * (~ok_c).mean():.1f} % | {100 * np.nanmean(hg):.2f} % | {100 * np.nanmean(cg):.2f} % | "
+            f"{100 * (ok_c & (chip == best)).mean():.1f} % |", "",
+            "Per decision, what each decider leaves (its answer where it is cheaper than the group's plan now, else "
+            "the plan now; every decision counted; gaps to the optimum, which is never above the plan now):", "",
+            "| decisions | left better by the chip | left worse by the chip | host gap | chip gap | decisions where the "
+            "host rule leaves >= 5 % | chip gap there | host gap there |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
+            f"| {len(g):,} | {100 * (left_c < left_h).mean():.1f} % | {100 * (left_c > left_h).mean():.1f} % | "
+            f"{100 * lh.mean():.2f} % | {100 * lc.mean():.2f} % | {100 * hard.mean():.1f} % | "
+            f"{100 * lc[hard].mean() if hard.any() else 0:.2f} % | {100 * lh[hard].mean() if hard.any() else 0:.2f} % |"]
 
 
 def main(argv=None) -> None:
@@ -117,6 +159,7 @@ def main(argv=None) -> None:
     ap.add_argument("--groups", type=int, default=64)
     ap.add_argument("--lns", type=int, default=0, help="search iterations of both arms (-1: the executor's default)")
     ap.add_argument("--write", action="store_true")
+    ap.add_argument("--save", help="write the per-decision costs (host, chip, optimum, plan now) as a .npy file")
     args = ap.parse_args(argv)
     rows, decisions = [], []
     for i in [int(x) for x in args.instances.split(",") if x]:
@@ -125,41 +168,31 @@ def main(argv=None) -> None:
         lns = {} if args.lns < 0 else {"lns": args.lns}
         arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns},
                        d == "chip") for d in ("host", "chip")}
-        g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 3)
+        g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 4)
         decisions.append(g)
         st = arms["chip"]["stats"]
         row = (f"| {name} | {base['tasks']} | {arms['host']['tasks']} | {arms['chip']['tasks']} | "
                f"{100 * (arms['chip']['tasks'] / max(arms['host']['tasks'], 1) - 1):+.1f} % | "
                f"{st['decisions']:,} | {st['applied']:,} / {arms['host']['stats']['applied']:,} | "
                f"{1e3 * arms['host']['p99']:.0f} / {1e3 * arms['chip']['p99']:.0f} | "
+               f"{per_decision_ms(arms['host']['stats']):.3f} / {per_decision_ms(st):.3f} | "
                f"{arms['host']['errors'] + arms['chip']['errors'] + base['errors']} |")
         rows.append(row)
         print(row, flush=True)
     g = np.concatenate(decisions)
-    host, chip, best = g[:, 0], g[:, 1], g[:, 2]
-    ok_h, ok_c = host >= 0, chip >= 0
-    better = ok_c & (~ok_h | (chip < host))
-    worse = ok_h & (~ok_c | (chip > host))
-    denom = np.maximum(np.abs(best), 1)
-    hg = np.where(ok_h, (host - best) / denom, np.nan)
-    cg = np.where(ok_c, (chip - best) / denom, np.nan)
+    if args.save:
+        np.save(args.save, g)
     lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns} "
              f"--write` on {cpu_name()}: start kit greedy scheduler, seed 0, {args.steps} steps per instance; "
              f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations; 64 reads, penalty 2: "
              "the defaults) and "
              f"{args.lns} search iterations, the chip deciding or the host rule (the search's greedy) in its place; "
              "`epibt` = EPIBT with its own search (default), the best host configuration.  Step p99: executor host "
-             "seconds (emulation excluded) + chip seconds at 50 us a call, parallel dispatch.", "",
-             "| instance | epibt tasks | host rule tasks | chip tasks | chip vs host rule | decisions | applied chip / "
-             "host | step p99 ms host / chip | errors |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|", *rows, "",
-             "Per decision (chip arm's own trajectory; cost = the group's summed cost-to-go; gaps as fractions of "
-             "the optimum; a host rule or chip without a collision-free answer keeps the plan and counts as no "
-             "answer):", "",
-             "| decisions | chip better | chip worse | host rule no answer | chip no answer | host gap | chip gap | "
-             "chip optimal |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
-             f"| {len(g):,} | {100 * better.mean():.1f} % | {100 * worse.mean():.1f} % | {100 * (~ok_h).mean():.1f} % | "
-             f"{100 * (~ok_c).mean():.1f} % | {100 * np.nanmean(hg):.2f} % | {100 * np.nanmean(cg):.2f} % | "
-             f"{100 * (ok_c & (chip == best)).mean():.1f} % |"]
+             "seconds (emulation excluded) + chip seconds at 50 us a call, parallel dispatch; host ms per decision: "
+             "each arm's executor host seconds in the groups (program build, greedy, decode, apply) over its decisions.",
+             "", "| instance | epibt tasks | host rule tasks | chip tasks | chip vs host rule | decisions | applied chip / "
+             "host | step p99 ms host / chip | host ms per decision host / chip | errors |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|", *rows, "", *decision_tables(g)]
     finish(SECTION, lines, args.write)
 
 

@@ -7,18 +7,20 @@ construction then steepest single-flip descent (:func:`ising_backend.audit_judge
 same answer for every read, on the host, charged nothing to the machine (its seconds are host
 seconds of the planner that asked).  So one flag puts the host rule where the chip decided and the
 plan says what the chip was worth there.  Closed, nothing changes.  ``joint_moves`` and ``lns_groups``
-have host rules of their own (PIBT: ``accept="host"``; the search's greedy: ``decider="host"``) and are not
-taken here.
+have host rules of their own, which their executors take while the class is named (PIBT's answer, no chip
+call; the search's greedy, as ``decider="host"``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["HostRule", "host_rule_classes", "host_answer", "HOST_RULE_CLASSES"]
+__all__ = ["HostRule", "host_rule_classes", "host_answer", "HOST_RULE_CLASSES", "GENERIC_CLASSES"]
 
-#: The decision classes whose programs the generic host rule can answer.
-HOST_RULE_CLASSES = ("path_query", "sharing_split", "tour_split", "tour_order", "tour_moves", "fleet_moves")
+#: The decision classes whose programs the generic host rule answers.
+GENERIC_CLASSES = ("path_query", "sharing_split", "tour_split", "tour_order", "tour_moves", "fleet_moves")
+#: Every class a host rule can take: the generic ones, then the executors' classes with host rules of their own.
+HOST_RULE_CLASSES = GENERIC_CLASSES + ("joint_moves", "lns_groups")
 _ACTIVE: list[frozenset] = []
 
 
@@ -37,8 +39,7 @@ def parse_classes(spec) -> frozenset:
     unknown = [n for n in names if n not in HOST_RULE_CLASSES]
     if unknown or not names:
         raise ValueError(f"unknown host-rule class(es) {unknown or names}; known: {', '.join(HOST_RULE_CLASSES)} "
-                         "or all (joint_moves and lns_groups have their own: the executors' accept='host' and "
-                         "decider='host')")
+                         "or all")
     return frozenset(names)
 
 

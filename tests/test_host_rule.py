@@ -37,8 +37,9 @@ def test_host_answer_is_greedy_descent_on_every_program_and_read():
 def test_classes_parse_and_nest():
     assert parse_classes("all") == frozenset(HOST_RULE_CLASSES)
     assert parse_classes("sharing_split, path_query") == {"sharing_split", "path_query"}
-    with pytest.raises(ValueError, match=r"unknown host-rule class\(es\) \['joint_moves'\]; known: path_query"):
-        parse_classes("joint_moves")
+    assert parse_classes("joint_moves,lns_groups") == {"joint_moves", "lns_groups"}
+    with pytest.raises(ValueError, match=r"unknown host-rule class\(es\) \['joint'\]; known: path_query.*lns_groups or all"):
+        parse_classes("joint")
     assert host_rule_classes() == frozenset()
     with HostRule("tour_moves"):
         with HostRule(["path_query"]):

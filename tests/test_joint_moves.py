@@ -177,3 +177,21 @@ def test_deterministic_and_charged():
 def test_bad_options_named(kw, word):
     with pytest.raises(ValueError, match=word):
         JointMovesPIBT(np.zeros((4, 4), dtype=bool), **kw)
+
+
+def test_host_rule_flag_keeps_pibts_answer_without_a_chip_call():
+    from ising_backend.host_rule import HostRule
+
+    grid, pos, orient, goals = crowd(6, fill=0.7)
+    host = JointMovesPIBT(grid, seed=2, accept="host")  # the chip runs, PIBT's answer is kept
+    flagged = JointMovesPIBT(grid, seed=2)
+    p2, o2 = pos.copy(), orient.copy()
+    for _ in range(12):
+        a1 = host.actions(pos, orient, goals)
+        with HostRule("joint_moves"):
+            a2 = flagged.actions(p2, o2, goals)
+        assert np.array_equal(a1, a2)
+        pos, orient = check_valid(grid, pos, orient, a1)
+        p2, o2 = check_valid(grid, p2, o2, a2)
+    assert host.ledger.physical_calls > 0 and host.decisions > 0
+    assert flagged.machine.ledger.physical_calls == flagged.ledger.physical_calls == flagged.decisions == 0

@@ -222,3 +222,24 @@ def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
     assert sum(r["calls"] for r in records) == runs[1][2]  # charges summed = the ledger
     rows = judge(records)
     assert len(rows) == len(records) and all(r["host_rule"] == "greedy" for r in rows)
+
+
+def test_host_rule_flag_takes_the_searchs_greedy_without_a_chip_call():
+    from ising_backend.host_rule import HostRule
+
+    rng = np.random.default_rng(8)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    host = EPIBTIsing(grid, seed=2, decider="host", lns=0, groups=8)
+    chip = EmulatedChip(seed=3)
+    flagged = EPIBTIsing(grid, seed=2, machine=chip, lns=0, groups=8)
+    for _ in range(15):
+        a1 = host.actions(pos, orient, goals)
+        with HostRule("all"):
+            a2 = flagged.actions(pos, orient, goals)
+        assert np.array_equal(a1, a2)
+        pos, orient, err = apply(grid, pos, orient, a1)
+        assert err is None
+        goals = retarget(rng, free, pos, goals)
+    assert flagged.stats["decisions"] == host.stats["decisions"] > 0
+    assert flagged.stats["applied"] == host.stats["applied"] > 0
+    assert chip.ledger.physical_calls == flagged.ledger.physical_calls == 0

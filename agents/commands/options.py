@@ -143,8 +143,9 @@ def add_decision_arguments(parser, where: str) -> None:
     parser.add_argument("--audit", default=None, metavar="DIR",
                         help=f"record every chip decision in DIR (mrmt audit DIR judges it; {where}); plans are unchanged")
     parser.add_argument("--host-rule", default=None, metavar="CLASSES",
-                        help="ablation: the host rule (greedy + descent) answers these decision classes where the chip "
-                             f"decided ({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")
+                        help="ablation: the host rule answers these decision classes where the chip decided (greedy + "
+                             "descent; joint_moves: PIBT's answer; lns_groups: the search's greedy) "
+                             f"({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")
 
 
 def host_rule_from_args(args):

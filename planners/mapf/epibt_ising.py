@@ -6,8 +6,9 @@ to ``max_robots``; robots of one group in no other), each with its operation now
 others that collide with no robot outside the group (up to ``max_options``; at most the machine's usable
 spins in all).  The program: one-hot spins per robot, the options' costs-to-go above the robot's least as
 linear terms, a penalty on each pair of options of two robots that collide (vertex or swap at any time).
-The host rule in the chip's place (``decider="host"``, no machine call): the robots in a seeded order, each
-its cheapest option that collides with no one placed before (the search's own greedy).  A group takes the
+The host rule in the chip's place (``decider="host"``, or the class named by an open
+:class:`ising_backend.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
+option that collides with no one placed before (the search's own greedy).  A group takes the
 decided choice when it is one-hot, collides with no one and costs less than the group's plan now;
 groups apply in turn, each checked against the plan as the ones before it left it.
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from ising_backend import CallLedger
 from ising_backend.audit import active_audit
+from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT, _blockers, _conflict, _reserve
@@ -322,7 +324,7 @@ class EPIBTIsing(EPIBT):
                                          (self.seed, self.t, g), host[gstart[g]:])
         host_s = time.perf_counter() - th
         choice, cost, call = host, host_cost, None
-        if self.decider == "chip":
+        if self.decider == "chip" and "lns_groups" not in host_rule_classes():
             _, q, H, J = program_batch(ng, gstart, ostart)
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)

@@ -6,7 +6,9 @@ program of one ``machine.anneal_batch`` (any :class:`ising_backend.IsingMachine`
 with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
 answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
 rule's (the host scores both; the default), ``"chip"`` always the chip's, ``"host"`` always the host
-rule's (the chip still runs: for audits on the host rule's own trajectory).
+rule's (the chip still runs: for audits on the host rule's own trajectory).  While an open
+:class:`ising_backend.host_rule.HostRule` names ``joint_moves``, no group is posed: PIBT's answer stands and
+no chip call is made (the ablation flag ``--host-rule joint_moves``).
 
 Charges: :attr:`ledger` (this executor's calls) and :attr:`last_compute`, a
 :class:`~planners.compute.ComputeReport` of the latest step (chip calls, chip time with parallel
@@ -28,6 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ising_backend import CallLedger
+from ising_backend.host_rule import host_rule_classes
 from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
@@ -119,6 +122,8 @@ class JointMovesPIBT(TurningPIBT):
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         t0 = time.perf_counter()
         self.last_compute = ComputeReport()
+        if "joint_moves" in host_rule_classes():  # the ablation: PIBT's answer stands
+            return
         ng, gstart, members, ostart, opt, host = self.groups(pc, orient, gc, rows, order, nxt, act)
         if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
             for g in range(ng):

@@ -24,7 +24,7 @@ from sharing_search_reference import SplitProblem, build_split_qubo, choose_anch
 from planners.ising.tour.kernels import (
     best_onehot, branch_stack, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,
 )
-from planners.ising.tour.qubo import decode_onehot_batch, maxcut_qubo, onehot_penalty, open_path_qubo
+from tour_qubo_reference import decode_onehot_batch, maxcut_qubo, onehot_penalty, open_path_qubo
 from planners.tours_classical import BruteTour, exact_route_cost
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -12,8 +12,8 @@ from ising_backend import ChipSpec, EmulatedChip, LogicalIsingSolver
 from mrmt_env.generation import generate_world
 from planners.base import TourResult, TourSolver
 from planners.ising.tour import IsingTour, PaperIsingTour
-from planners.ising.tour.qubo import (
-    cut_value,
+from planners.ising.tour.cluster import cut_value
+from tour_qubo_reference import (
     decode_onehot,
     decode_onehot_batch,
     maxcut_qubo,

@@ -214,7 +214,7 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
 
     from ising_backend import IsingModel, LogicalIsingSolver, freeze_order, quantize
     from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
-    from planners.ising.tour.qubo import onehot_penalty
+    from tour_qubo_reference import onehot_penalty
 
     cfg = tour.config
     s = d.shape[0]

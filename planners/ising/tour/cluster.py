@@ -14,9 +14,19 @@ import numpy as np
 from ising_backend import CallLedger, MeteredSolver
 
 from planners.ising.tour.kernels import cluster_distances, maxcut_ising
-from planners.ising.tour.qubo import cut_value
 
 __all__ = ["TourFailure", "Clusters"]
+
+
+def cut_value(w: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``cut(x)`` of eq. (7), vectorised over leading axes of ``x``."""
+    w = np.asarray(w, dtype=np.float64)
+    ws = 0.5 * (w + w.T)
+    np.fill_diagonal(ws, 0.0)
+    x = np.asarray(x, dtype=np.float64)
+    # sum_{i<j} w_ij [x_i != x_j] = 1/2 sum_{i,j} w_ij (x_i + x_j - 2 x_i x_j)
+    deg = ws.sum(axis=1)
+    return x @ deg - np.einsum("...i,ij,...j->...", x, ws, x)
 
 
 class _Run:

@@ -1,8 +1,8 @@
 """Compiled host kernels of the clustered Ising tour (paper 5.2): model builders and decoders.
 
-* :func:`onehot_ising` / :func:`maxcut_ising` -- the Ising form (``x = (1 + s) / 2``) of
-  :func:`~planners.ising.tour.qubo.open_path_qubo` / :func:`~planners.ising.tour.qubo.maxcut_qubo`,
-  built directly (same terms, so the same coefficients on the integer BFS distances).
+* :func:`onehot_ising` / :func:`maxcut_ising` -- the Ising form (``x = (1 + s) / 2``) of the one-hot
+  open-path QUBO (eq. 1) and the max-cut split (eq. 7), built directly (docs/design/ising_tour_qubo.md; the
+  numpy QUBOs they are tested against: ``tests/tour_qubo_reference.py``).
 * :func:`branch_stack` -- spin-budget branching (:func:`ising_backend.branch`) of one model
   into ``2^k`` reduced programs as stacked arrays; :func:`expand_branches` puts the frozen
   spins back into every read.

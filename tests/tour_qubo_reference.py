@@ -1,4 +1,7 @@
-"""QUBO builders, decoders and scorers of the clustered Ising tour (paper 5.2, eqs. 1 and 7) -- pure numpy.
+"""Test oracle: the QUBOs of the clustered Ising tour (paper 5.2, eqs. 1 and 7) in plain numpy.
+
+The compiled kernels of ``planners/ising/tour/kernels.py`` (``maxcut_ising``, ``onehot_ising``) and the
+engine's penalty are the definition; these builders, decoders and scorers check them.
 
 ``(q, Q, offset)``: ``E(x) = x @ Q @ x + q @ x + offset``, ``Q`` strictly upper triangular.
 :func:`maxcut_qubo` (eq. 7 split, energy ``-cut``) and :func:`open_path_qubo` (one-hot
@@ -12,7 +15,6 @@ import numpy as np
 
 __all__ = [
     "maxcut_qubo",
-    "cut_value",
     "open_path_qubo",
     "onehot_penalty",
     "decode_onehot",
@@ -47,17 +49,6 @@ def maxcut_qubo(w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     q = -ws.sum(axis=1)
     Q = np.triu(2.0 * ws, k=1)
     return q, Q, 0.0
-
-
-def cut_value(w: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``cut(x)`` of eq. (7), vectorised over leading axes of ``x``."""
-    w = np.asarray(w, dtype=np.float64)
-    ws = 0.5 * (w + w.T)
-    np.fill_diagonal(ws, 0.0)
-    x = np.asarray(x, dtype=np.float64)
-    # sum_{i<j} w_ij [x_i != x_j] = 1/2 sum_{i,j} w_ij (x_i + x_j - 2 x_i x_j)
-    deg = ws.sum(axis=1)
-    return x @ deg - np.einsum("...i,ij,...j->...", x, ws, x)
 
 
 # --------------------------------------------------------------------------- one-hot open path

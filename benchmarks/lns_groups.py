@@ -135,6 +135,7 @@ def decision_tables(g: np.ndarray) -> list[str]:
     left_c = np.where(ok_c & (chip < now), chip, now)
     lh, lc = (left_h - best) / denom, (left_c - best) / denom
     hard = lh >= 0.05
+    room = best < now  # decisions where the plan now is not the optimum: something to decide
     return ["Per decision, the answers (chip arm's own trajectory; cost = the group's summed cost-to-go; gaps as "
             "fractions of the optimum over the decisions with an answer; a host rule or chip without a collision-free "
             "answer keeps the plan and counts as no answer):", "",
@@ -149,7 +150,13 @@ def decision_tables(g: np.ndarray) -> list[str]:
             "host rule leaves >= 5 % | chip gap there | host gap there |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
             f"| {len(g):,} | {100 * (left_c < left_h).mean():.1f} % | {100 * (left_c > left_h).mean():.1f} % | "
             f"{100 * lh.mean():.2f} % | {100 * lc.mean():.2f} % | {100 * hard.mean():.1f} % | "
-            f"{100 * lc[hard].mean() if hard.any() else 0:.2f} % | {100 * lh[hard].mean() if hard.any() else 0:.2f} % |"]
+            f"{100 * lc[hard].mean() if hard.any() else 0:.2f} % | {100 * lh[hard].mean() if hard.any() else 0:.2f} % |",
+            "", "The same on the decisions where the plan now is not the optimum (something to decide):", "",
+            "| decisions | share of all | left better by the chip | left worse by the chip | host leaves the optimum | "
+            "chip leaves the optimum | host gap | chip gap |", "|---:|---:|---:|---:|---:|---:|---:|---:|",
+            f"| {int(room.sum()):,} | {100 * room.mean():.1f} % | {100 * (left_c < left_h)[room].mean():.1f} % | "
+            f"{100 * (left_c > left_h)[room].mean():.1f} % | {100 * (left_h == best)[room].mean():.1f} % | "
+            f"{100 * (left_c == best)[room].mean():.1f} % | {100 * lh[room].mean():.2f} % | {100 * lc[room].mean():.2f} % |"]
 
 
 def main(argv=None) -> None:

@@ -139,18 +139,26 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
                 total += cost(state, q_, opt[x])
             choice = np.zeros(b - a, np.int64)
             assert greedy_choice(state, members, a, b, ostart, opt, (seed, t, g), choice) == total
-            # decoding: the cheapest one-hot, collision-free read
+            # decoding: the cheapest collision-free read, a robot whose spins are not one-hot on its plan now
             rng = np.random.default_rng(g)
             spins = np.where(rng.random((6, n)) < 0.3, 1, -1).astype(np.int8)
             x0 = np.full(n, -1, np.int8)
             x0[ostart[a:b] - ostart[a]] = 1  # the plan now: always a valid read
             spins[0] = x0
-            want = min(costs.get(tuple(int(np.argmax(s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0))
-                                       for i in range(a, b)), 1 << 62)
-                       for s in spins if all((s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0).sum() == 1
-                                             for i in range(a, b)))
-            got = decode_choice(state, members, a, b, ostart, opt, spins, np.zeros(b - a, np.int64))
-            assert got == want
+
+            def read_choice(s):
+                out = []
+                for i in range(a, b):
+                    up = np.flatnonzero(s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0)
+                    out.append(int(up[0]) if len(up) == 1 else 0)
+                return tuple(out)
+
+            reads = [read_choice(s) for s in spins]
+            want = min(costs.get(r, 1 << 62) for r in reads)
+            chosen = np.zeros(b - a, np.int64)
+            got = decode_choice(state, members, a, b, ostart, opt, spins, chosen)
+            assert got == want and costs[tuple(chosen.tolist())] == want
+            assert read_choice(np.full(n, -1, np.int8)) == (0,) * (b - a)  # no spin up: the plan now
             checked += 1
     assert checked > 0
 

@@ -8,9 +8,10 @@ spins in all).  The program: one-hot spins per robot, the options' costs-to-go a
 linear terms, a penalty on each pair of options of two robots that collide (vertex or swap at any time).
 The host rule in the chip's place (``decider="host"``, or the class named by an open
 :class:`ising_backend.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
-option that collides with no one placed before (the search's own greedy).  A group takes the
-decided choice when it is one-hot, collides with no one and costs less than the group's plan now;
-groups apply in turn, each checked against the plan as the ones before it left it.
+option that collides with no one placed before (the search's own greedy).  The chip's answer is its
+cheapest collision-free read, where a robot whose spins are not one-hot keeps its operation now.  A group
+takes the decided choice when it collides with no one and costs less than the group's plan now; groups
+apply in turn, each checked against the plan as the ones before it left it.
 
 Charges as :class:`~planners.mapf.joint_executor.JointMovesPIBT` (:attr:`ledger`, :attr:`last_compute`); an
 open decision audit records every program with the host rule's answer as spins of the same program.
@@ -194,25 +195,22 @@ def greedy_choice(state, members, a, b, ostart, opt, stamp, choice) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
-    """The chip's answer: the cheapest read that is one-hot per robot and collision-free, into ``choice``;
-    its cost (-1 when no read is)."""
+    """The chip's answer: the cheapest collision-free read, into ``choice``; a robot whose spins in a read are
+    not one-hot keeps its operation now (option 0) in that read.  Its cost (-1 when no read is collision-free)."""
     size = b - a
     base = ostart[a]
     cur = np.empty(size, dtype=np.int64)
     best = -1
     for rd in range(spins.shape[0]):
-        ok = True
         for i in range(size):
             cnt = 0
+            cur[i] = 0
             for x in range(ostart[a + i], ostart[a + i + 1]):
                 if spins[rd, x - base] > 0:
                     cnt += 1
-                    cur[i] = x - ostart[a + i]
-            if cnt != 1:
-                ok = False
-                break
-        if not ok:
-            continue
+                    pick = x - ostart[a + i]
+            if cnt == 1:
+                cur[i] = pick
         e = _feasible_cost(state, members, a, b, ostart, opt, cur)
         if e >= 0 and (best < 0 or e < best):
             best = e

@@ -63,7 +63,7 @@ def exact_cost(state, members, a, b, ostart, opt) -> int:
     return best
 
 
-def run(instance: str, steps: int, executor: str, options: dict, exact: bool):
+def run(instance: str, steps: int, executor: str, options: dict, exact: bool, seed: int = 0):
     from agents.lorr.run import proposal_goals
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import read_instance
@@ -73,9 +73,9 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool):
 
     inst = read_instance(ROOT / f"{instance}.json")
     sim = LoRRSimulator(inst, record=False)
-    sched = make_scheduler("lorr-greedy", seed=0)
+    sched = make_scheduler("lorr-greedy", seed=seed)
     sched.reset(sim)
-    ex = make_turning_executor(executor, inst.grid, seed=0, **options)
+    ex = make_turning_executor(executor, inst.grid, seed=seed, **options)
     gaps = []  # per decision: host cost, chip cost, optimum, the group's plan now
     fill = [0]
     judged = [0.0]  # seconds spent judging (exact solve, plan cost): not the executor's, taken off its times
@@ -165,16 +165,17 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--groups", type=int, default=64)
     ap.add_argument("--lns", type=int, default=0, help="search iterations of both arms (-1: the executor's default)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the scheduler and the executors (default 0)")
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--save", help="write the per-decision costs (host, chip, optimum, plan now) as a .npy file")
     args = ap.parse_args(argv)
     rows, decisions = [], []
     for i in [int(x) for x in args.instances.split(",") if x]:
         name = f"RANDOM-0{i}"
-        base = run(name, args.steps, "epibt", {}, False)
+        base = run(name, args.steps, "epibt", {}, False, args.seed)
         lns = {} if args.lns < 0 else {"lns": args.lns}
         arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns},
-                       d == "chip") for d in ("host", "chip")}
+                       d == "chip", args.seed) for d in ("host", "chip")}
         g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 4)
         decisions.append(g)
         st = arms["chip"]["stats"]
@@ -190,7 +191,7 @@ def main(argv=None) -> None:
     if args.save:
         np.save(args.save, g)
     lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns} "
-             f"--write` on {cpu_name()}: start kit greedy scheduler, seed 0, {args.steps} steps per instance; "
+             f"--write` on {cpu_name()}: start kit greedy scheduler, seed {args.seed}, {args.steps} steps per instance; "
              f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations; 64 reads, penalty 2: "
              "the defaults) and "
              f"{args.lns} search iterations, the chip deciding or the host rule (the search's greedy) in its place; "

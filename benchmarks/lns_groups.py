@@ -122,8 +122,9 @@ def per_decision_ms(stats: dict) -> float:
 
 def decision_tables(g: np.ndarray) -> list[str]:
     """The per-decision tables of ``g`` (rows: host rule cost, chip cost, optimum, the group's plan now; -1: no
-    answer), read two ways: the answers themselves, and what each decider leaves (its answer where it has one
-    cheaper than the plan now, else the plan now: the decision as the executor applies it)."""
+    answer), read three ways: the answers themselves; what each decider leaves (its answer where it has one
+    cheaper than the plan now, else the plan now: the decision as the executor applies it); the same on the
+    decisions whose plan now is not the optimum."""
     host, chip, best, now = g[:, 0], g[:, 1], g[:, 2], g[:, 3]
     ok_h, ok_c = host >= 0, chip >= 0
     denom = np.maximum(np.abs(best), 1)

@@ -175,3 +175,21 @@ def test_joint_moves_decisions_are_audited_against_pibt_and_charged_to_the_run(t
     for r, j in zip(rows, judge(rows)):
         assert j["host_energy"] == r["host_energy"] >= j["optimum"] - 1e-9
         assert j["chip_energy"] >= j["optimum"] - 1e-9
+
+
+def test_lorr_run_host_rule_flag_reaches_the_executors_decision_class(tmp_path):
+    from mrmt_env.lorr.instance import example_instance_path
+
+    base = ["lorr", "run", str(example_instance_path()), "--scheduler", "lorr-greedy", "--executor", "epibt-ising",
+            "--steps", "20", "--json", "--no-progress"]
+    rows = {}
+    for name, extra in (("chip", []), ("flag", ["--host-rule", "lns_groups", "--audit", str(tmp_path / "f")]),
+                        ("option", ["--executor-option", "decider=host"])):
+        r = _mrmt(*base, *extra)
+        assert r.returncode == 0, r.stderr
+        rows[name] = json.loads(r.stdout.splitlines()[-1])
+    assert rows["chip"]["chip_calls"] > 0
+    assert rows["flag"]["chip_calls"] == rows["option"]["chip_calls"] == 0
+    keep = ("tasks_finished", "errands", "errors", "schedule_errors")
+    assert {k: rows["flag"][k] for k in keep} == {k: rows["option"][k] for k in keep}
+    assert [r for r in read_records(tmp_path / "f") if r["class"] == "lns_groups"] == []

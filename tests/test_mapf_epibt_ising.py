@@ -158,7 +158,10 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
             chosen = np.zeros(b - a, np.int64)
             got = decode_choice(state, members, a, b, ostart, opt, spins, chosen)
             assert got == want and costs[tuple(chosen.tolist())] == want
-            assert read_choice(np.full(n, -1, np.int8)) == (0,) * (b - a)  # no spin up: the plan now
+            none_up = np.zeros(b - a, np.int64) - 1  # a read with no spin up decodes to the plan now
+            plan_now = sum(cost(state, members[i], opt[ostart[i]]) for i in range(a, b))
+            assert decode_choice(state, members, a, b, ostart, opt, np.full((1, n), -1, np.int8), none_up) == plan_now
+            assert (none_up == 0).all()
             checked += 1
     assert checked > 0
 

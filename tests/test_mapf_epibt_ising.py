@@ -67,7 +67,7 @@ def test_groups_are_disjoint_and_their_options_collide_with_no_outsider(seed):
         assert len(set(inside.tolist())) == len(inside)
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
-            assert 2 <= b - a <= 6 and ostart[b] - ostart[a] <= 45
+            assert 2 <= b - a <= 6 and ostart[b] - ostart[a] - (b - a) <= 45  # a spin per option besides option 0
             group = set(members[a:b].tolist())
             assert src[members[a]] != 0  # the seed robot is not on its best operation
             for i in range(a, b):
@@ -99,29 +99,37 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
         ng, members, gstart, ostart, opt = groups_of(state, res, seed, t, limits=(4, 4, 3, 45))
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
-            n = ostart[b] - ostart[a]
+            n = ostart[b] - ostart[a] - (b - a)  # a spin per option besides the operation now
             if n > 12:
                 continue
             weight = 1 + (g % 2)
             q = np.empty((n, n), np.int64)
             assert group_qubo(state, members, a, b, ostart, opt, q, weight) == n
-            # every one-hot assignment: energy = its cost + a constant + a penalty per colliding pair (the penalty
-            # is 1 + the widest cost range of one robot: kept small for the chip's 15 levels; the decoder rejects
+            # every choice with at most one spin up per robot (option 0, the operation now: none up): energy = its
+            # cost above the plan now + a penalty per colliding pair (half the at-most-one penalty, which is
+            # weight x (1 + the widest gap of one option's cost to its robot's operation now); the decoder rejects
             # colliding reads, so the ranking need only hold among collision-free ones)
-            base = [min(cost(state, members[i], opt[x]) for x in range(ostart[i], ostart[i + 1])) for i in range(a, b)]
-            pen = weight * (1 + max(cost(state, members[i], opt[x]) - base[i - a] for i in range(a, b)
-                                    for x in range(ostart[i], ostart[i + 1])))
+            now = [cost(state, members[i], opt[ostart[i]]) for i in range(a, b)]
+            amo = weight * (1 + max(abs(cost(state, members[i], opt[x]) - now[i - a]) for i in range(a, b)
+                                    for x in range(ostart[i] + 1, ostart[i + 1])))
+            pen = (amo + 1) // 2
             costs = {}
+            first = [ostart[i] - ostart[a] - (i - a) for i in range(a, b)]  # robot slot's first spin
             for choice in itertools.product(*[range(ostart[i + 1] - ostart[i]) for i in range(a, b)]):
                 x = np.zeros(n, np.int64)
                 for i, c in zip(range(a, b), choice):
-                    x[ostart[i] - ostart[a] + c] = 1
+                    if c:
+                        x[first[i - a] + c - 1] = 1
                 paths = [path(state, members[i], opt[ostart[i] + c]) for i, c in zip(range(a, b), choice)]
                 clashes = sum(collide(p, r) for p, r in itertools.combinations(paths, 2))
                 total = sum(cost(state, members[i], opt[ostart[i] + c]) for i, c in zip(range(a, b), choice))
-                assert int(x @ np.triu(q) @ x) == total - sum(base) - pen * (b - a) + pen * clashes
+                assert int(x @ np.triu(q) @ x) == total - sum(now) + pen * clashes
                 if not clashes:
                     costs[choice] = total
+                # two spins of one robot up costs the at-most-one penalty on top (their pair's coupling)
+                for i, c in zip(range(a, b), choice):
+                    if c and c + 1 < ostart[i + 1] - ostart[i]:
+                        assert q[first[i - a] + c - 1, first[i - a] + c] == amo
             assert min(costs.values()) == brute(state, members, a, b, ostart, opt)
             # the host rule: a seeded order, each robot its cheapest option colliding with none placed before
             order = sorted(range(b - a), key=lambda i: int(mix(seed, t, g, members[a + i])))
@@ -139,18 +147,16 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
                 total += cost(state, q_, opt[x])
             choice = np.zeros(b - a, np.int64)
             assert greedy_choice(state, members, a, b, ostart, opt, (seed, t, g), choice) == total
-            # decoding: the cheapest collision-free read, a robot whose spins are not one-hot on its plan now
+            # decoding: the cheapest collision-free read, a robot with no spin up or more than one on its plan now
             rng = np.random.default_rng(g)
             spins = np.where(rng.random((6, n)) < 0.3, 1, -1).astype(np.int8)
-            x0 = np.full(n, -1, np.int8)
-            x0[ostart[a:b] - ostart[a]] = 1  # the plan now: always a valid read
-            spins[0] = x0
+            spins[0] = -1  # the plan now: always a valid read
 
             def read_choice(s):
                 out = []
                 for i in range(a, b):
-                    up = np.flatnonzero(s[ostart[i] - ostart[a]:ostart[i + 1] - ostart[a]] > 0)
-                    out.append(int(up[0]) if len(up) == 1 else 0)
+                    up = np.flatnonzero(s[first[i - a]:first[i - a] + ostart[i + 1] - ostart[i] - 1] > 0)
+                    out.append(int(up[0]) + 1 if len(up) == 1 else 0)
                 return tuple(out)
 
             reads = [read_choice(s) for s in spins]

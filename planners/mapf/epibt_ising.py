@@ -3,13 +3,15 @@
 After :class:`~planners.mapf.epibt.EPIBT`'s plan and search, each call poses up to ``groups`` decisions of
 class ``lns_groups``: a robot not on its best operation and the robots in the way of its better ones (up
 to ``max_robots``; robots of one group in no other), each with its operation now (option 0) and its best
-others that collide with no robot outside the group (up to ``max_options``; at most the machine's usable
-spins in all).  The program: one-hot spins per robot, the options' costs-to-go above the robot's least as
-linear terms, a penalty on each pair of options of two robots that collide (vertex or swap at any time).
+others that collide with no robot outside the group (up to ``max_options``; a spin per option besides the
+operation now, at most the machine's usable spins in all).  The program (:func:`group_qubo`): a robot's
+operation now is all its spins down, another option one spin up; the options' costs-to-go above the
+operation now as linear terms; penalties for two spins of one robot up and for each pair of options of two
+robots that collide (vertex or swap at any time).
 The host rule in the chip's place (``decider="host"``, or the class named by an open
 :class:`ising_backend.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
 option that collides with no one placed before (the search's own greedy).  The chip's answer is its
-cheapest collision-free read, where a robot whose spins are not one-hot keeps its operation now.  A group
+cheapest collision-free read, where a robot with more than one spin up keeps its operation now.  A group
 takes the decided choice when it collides with no one and costs less than the group's plan now; groups
 apply in turn, each checked against the plan as the ones before it left it.
 
@@ -32,7 +34,7 @@ from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT, _blockers, _conflict, _reserve
-from planners.mapf.joint_moves import program_batch, qubo_to_ising
+from planners.mapf.joint_moves import qubo_to_ising
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
@@ -80,7 +82,7 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
         if size < 2:  # nothing in the way to choose with
             m = a
             continue
-        per = min(max_options, max_spins // size)
+        per = min(max_options, max_spins // size + 1)  # a robot's operation now takes no spin
         for i in range(a, m):
             _reserve(res, cur[members[i]], members[i], -1)
         for i in range(a, m):
@@ -115,36 +117,56 @@ def _cost(state, q, c) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def group_qubo(state, members, a, b, ostart, opt, q, penalty=1) -> int:
-    """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]`` (``n`` its options,
-    returned): costs above each robot's least; one-hot and collision penalties of ``penalty x (1 +`` the largest
-    such cost) (small, for the chip's few levels: among one-hot, collision-free choices the energy ranks as the
-    cost; a read that is not one of them is rejected by :func:`decode_choice`)."""
+def _spin(ostart, a, i, x) -> int:
+    """Spin of option ``x`` (not option 0) of robot slot ``i`` in the program of the group starting at slot ``a``."""
+    return x - ostart[a] - (i - a) - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
+    """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]``; ``n``, returned, is its options
+    less one per robot: a robot's operation now (option 0) is all its spins down, option ``j >= 1`` spin
+    :func:`_spin` up.  Linear terms: each option's cost above the robot's operation now.  With ``s = 1 +`` the
+    widest such gap of one robot: ``penalty x s`` on each pair of spins of one robot (at most one up), and half
+    that, ``P``, on each collision: between two options with spins, ``P`` on their pair; between an option ``x``
+    and another robot's operation now, ``P`` on ``x`` and ``-P`` between ``x`` and each of that robot's spins
+    (so the collision costs ``P`` exactly when that robot stays).  Among reads with at most one spin up per
+    robot the energy is the cost above the plan now plus ``P`` per colliding pair; the chip's few levels go to
+    the costs, not to a one-hot constraint's fields."""
     base = ostart[a]
-    n = ostart[b] - base
+    n = ostart[b] - base - (b - a)
     q[:n, :n] = 0
     spread = 0
     for i in range(a, b):
-        lo = _BIG
-        for x in range(ostart[i], ostart[i + 1]):
-            lo = min(lo, _cost(state, members[i], opt[x]))
-        for x in range(ostart[i], ostart[i + 1]):
-            spread = max(spread, _cost(state, members[i], opt[x]) - lo)
-    pen = penalty * (spread + 1)
+        c0 = _cost(state, members[i], opt[ostart[i]])
+        for x in range(ostart[i] + 1, ostart[i + 1]):
+            spread = max(spread, abs(_cost(state, members[i], opt[x]) - c0))
+    amo = penalty * (spread + 1)
+    pen = (amo + 1) // 2
     for i in range(a, b):
-        lo = _BIG
-        for x in range(ostart[i], ostart[i + 1]):
-            lo = min(lo, _cost(state, members[i], opt[x]))
-        for x in range(ostart[i], ostart[i + 1]):
-            xi = x - base
-            q[xi, xi] += _cost(state, members[i], opt[x]) - lo - pen
+        c0 = _cost(state, members[i], opt[ostart[i]])
+        for x in range(ostart[i] + 1, ostart[i + 1]):
+            xi = _spin(ostart, a, i, x)
+            q[xi, xi] += _cost(state, members[i], opt[x]) - c0
             for y in range(x + 1, ostart[i + 1]):
-                q[xi, y - base] += 2 * pen
+                q[xi, _spin(ostart, a, i, y)] += amo
+    for i in range(a, b):
+        for x in range(ostart[i], ostart[i + 1]):
             px = _path(state, members[i], opt[x])
             for i2 in range(i + 1, b):
                 for y in range(ostart[i2], ostart[i2 + 1]):
-                    if _collide(px, _path(state, members[i2], opt[y])):
-                        q[xi, y - base] += pen
+                    if not _collide(px, _path(state, members[i2], opt[y])):
+                        continue
+                    if x > ostart[i] and y > ostart[i2]:
+                        q[_spin(ostart, a, i, x), _spin(ostart, a, i2, y)] += pen
+                        continue
+                    # one of the two is its robot's operation now (two operations now never collide)
+                    k, z, kz = (i2, y, i) if x == ostart[i] else (i, x, i2)
+                    zs = _spin(ostart, a, k, z)
+                    q[zs, zs] += pen
+                    for w in range(ostart[kz] + 1, ostart[kz + 1]):
+                        ws = _spin(ostart, a, kz, w)
+                        q[min(ws, zs), max(ws, zs)] -= pen
     return n
 
 
@@ -195,18 +217,18 @@ def greedy_choice(state, members, a, b, ostart, opt, stamp, choice) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
-    """The chip's answer: the cheapest collision-free read, into ``choice``; a robot whose spins in a read are
-    not one-hot keeps its operation now (option 0) in that read.  Its cost (-1 when no read is collision-free)."""
+    """The chip's answer (spins as :func:`group_qubo`): the cheapest collision-free read, into ``choice``; a robot
+    with no spin up, or more than one, keeps its operation now (option 0) in that read.  Its cost (-1 when no
+    read is collision-free)."""
     size = b - a
-    base = ostart[a]
     cur = np.empty(size, dtype=np.int64)
     best = -1
     for rd in range(spins.shape[0]):
         for i in range(size):
             cnt = 0
             cur[i] = 0
-            for x in range(ostart[a + i], ostart[a + i + 1]):
-                if spins[rd, x - base] > 0:
+            for x in range(ostart[a + i] + 1, ostart[a + i + 1]):
+                if spins[rd, _spin(ostart, a, a + i, x)] > 0:
                     cnt += 1
                     pick = x - ostart[a + i]
             if cnt == 1:
@@ -269,8 +291,9 @@ class EPIBTIsing(EPIBT):
         groups: decisions per call (default 32).
         max_robots, max_options: robots per group (2..22, default 11) and options per robot (2..8, default 4).
         num_reads: reads per program (1..64, default 64).
-        penalty: the one-hot and collision penalties in units of ``1 +`` the widest cost range of one robot
-            (1..64, default 2; reads and penalty chosen on RANDOM-03: docs/design/lifelong_turning.md).
+        penalty: the at-most-one penalty in units of ``1 +`` the widest gap of one option's cost to its robot's
+            operation now; collisions half that (1..64, default 2; chosen on RANDOM-03 and -05:
+            docs/design/lifelong_turning.md).
     """
 
     name = "epibt-ising"
@@ -293,8 +316,8 @@ class EPIBTIsing(EPIBT):
         self.num_reads = int_in("num_reads", num_reads, 1, 64)
         self.penalty = int_in("penalty", penalty, 1, 64)
         self.max_spins = spins
-        if self.max_spins < 2 * self.max_robots:
-            raise ValueError(f"max_robots = {max_robots} needs {2 * max_robots} spins; the machine has {spins}")
+        if self.max_spins < self.max_robots:
+            raise ValueError(f"max_robots = {max_robots} needs {max_robots} spins; the machine has {spins}")
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
         #: decisions so far; taken (the decided choice applied); the chip's cost below / above the host rule's
@@ -323,14 +346,18 @@ class EPIBTIsing(EPIBT):
         host_s = time.perf_counter() - th
         choice, cost, call = host, host_cost, None
         if self.decider == "chip" and "lns_groups" not in host_rule_classes():
-            _, q, H, J = program_batch(ng, gstart, ostart)
+            n = int((ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]] - np.diff(gstart[:ng + 1])).max())
+            q, H, J = np.empty((n, n), np.int64), np.zeros((ng, n), np.int64), np.zeros((ng, n, n), np.int64)
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)
                 qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
             seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
-            spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
-            call = self.machine.last_call
-            self.ledger = self.ledger + call
+            if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
+                spins, energies = np.zeros((ng, 1, 0), np.int8), None
+            else:
+                spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
+                call = self.machine.last_call
+                self.ledger = self.ledger + call
             choice = np.zeros(m, dtype=np.int64)
             cost = np.empty(ng, dtype=np.int64)
             for g in range(ng):
@@ -340,7 +367,7 @@ class EPIBTIsing(EPIBT):
             worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
             self.stats["chip_better"] += int(better.sum())
             self.stats["chip_worse"] += int(worse.sum())
-            if active_audit() is not None:
+            if active_audit() is not None and call is not None:
                 self._audit(H, J, spins, energies, call, (ng, gstart, ostart, host, host_cost), host_s)
         self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost)
         self.stats["decisions"] += ng
@@ -359,7 +386,9 @@ class EPIBTIsing(EPIBT):
         hs = -np.ones(H.shape, dtype=np.int8)
         for g in range(ng):
             for i in range(gstart[g], gstart[g + 1]):
-                hs[g, ostart[i] - ostart[gstart[g]] + (host[i] if host_cost[g] >= 0 else 0)] = 1
+                c = host[i] if host_cost[g] >= 0 else 0
+                if c > 0:
+                    hs[g, ostart[i] - ostart[gstart[g]] - (i - gstart[g]) + c - 1] = 1
         e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)
         active_audit().record("lns_groups", H, J, spins, energies, call, host=(e_host, host_s / ng, "greedy"),
                               spec=self.machine.spec)

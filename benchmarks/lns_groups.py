@@ -5,7 +5,8 @@ chip deciding (``decider="chip"``) and with the host rule in its place (``decide
 groups per step), beside plain ``epibt`` (its own search, the best host configuration).  ``--lns`` sets the
 search iterations of both ``epibt-ising`` arms (default 0: the groups are the only search).  In the chip arm each
 decision is also solved exactly (depth-first over the group's options), so the chip's and the host rule's costs
-are compared with the optimum of the same problem.
+are compared with the optimum of the same problem.  ``--levels L`` gives the chip arm a chip whose fields and
+couplings take ``-L .. L`` (the paper's chip: 7), ``--chip-only`` runs that arm alone (its decision tables).
 
     flock /tmp/mrmt-bench.lock python benchmarks/lns_groups.py --steps 300 --write
 """
@@ -75,6 +76,11 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
     sim = LoRRSimulator(inst, record=False)
     sched = make_scheduler("lorr-greedy", seed=seed)
     sched.reset(sim)
+    if "levels" in options:  # a chip of wider (or narrower) coefficient ranges: a what-if for chip makers
+        from ising_backend import ChipSpec, EmulatedChip
+
+        lv = options.pop("levels")
+        options["machine"] = EmulatedChip(spec=ChipSpec(h_range=(-lv, lv), j_range=(-lv, lv)), seed=seed)
     ex = make_turning_executor(executor, inst.grid, seed=seed, **options)
     gaps = []  # per decision: host cost, chip cost, optimum, the group's plan now
     fill = [0]
@@ -170,13 +176,25 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0, help="seed of the scheduler and the executors (default 0)")
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--save", help="write the per-decision costs (host, chip, optimum, plan now) as a .npy file")
+    ap.add_argument("--levels", type=int, default=7, help="the chip arm's coefficient range -L..L (default 7)")
+    ap.add_argument("--chip-only", action="store_true", help="run the chip arm alone and print its decision tables")
     args = ap.parse_args(argv)
     rows, decisions = [], []
+    lv = {} if args.levels == 7 else {"levels": args.levels}
+    if args.chip_only:
+        lns = {} if args.lns < 0 else {"lns": args.lns}
+        g = np.concatenate([np.array(run(f"RANDOM-0{i}", args.steps, "epibt-ising", {
+            "decider": "chip", "groups": args.groups, **lns, **lv}, True, args.seed)["gaps"],
+            dtype=np.float64).reshape(-1, 4) for i in [int(x) for x in args.instances.split(",") if x]])
+        print(f"chip of -{args.levels}..{args.levels}, instances {args.instances}, {args.steps} steps", *decision_tables(g),
+              sep="\n")
+        return
     for i in [int(x) for x in args.instances.split(",") if x]:
         name = f"RANDOM-0{i}"
         base = run(name, args.steps, "epibt", {}, False, args.seed)
         lns = {} if args.lns < 0 else {"lns": args.lns}
-        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns},
+        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns,
+                                                         **(lv if d == "chip" else {})},
                        d == "chip", args.seed) for d in ("host", "chip")}
         g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 4)
         decisions.append(g)

@@ -196,6 +196,33 @@ def test_plans_stay_conflict_free_and_charges_equal_the_ledger(decider):
         assert ex.machine is None and ex.ledger == CallLedger()
 
 
+@pytest.mark.parametrize("name", ["epibt-ising", "pibt-ising"])
+@pytest.mark.parametrize("limit", [3, 15])
+def test_programs_take_the_machines_own_coefficient_range(name, limit):
+    """The mapping scales each program to the machine's ``spec.coefficient_limits`` (a chip of 3 levels is not
+    sent the paper chip's 7; a chip of 15 gets its 15)."""
+    from ising_backend import ChipSpec
+
+    tops = []
+
+    class Recording(EmulatedChip):
+        def anneal_batch(self, h, J, num_reads=1, seed=None):
+            tops.append((int(np.abs(h).max()), int(np.abs(J).max())))
+            return super().anneal_batch(h, J, num_reads=num_reads, seed=seed)
+
+    rng = np.random.default_rng(5)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    chip = Recording(spec=ChipSpec(h_range=(-limit, limit), j_range=(-limit, limit)), seed=3)
+    opts = {"lns": 0, "groups": 8} if name == "epibt-ising" else {}
+    ex = TURNING_EXECUTORS[name](grid, seed=2, machine=chip, **opts)
+    for _ in range(15):
+        act = ex.actions(pos, orient, goals)
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None
+        goals = retarget(rng, free, pos, goals)
+    assert tops and all(max(t) == limit for t in tops)
+
+
 def test_same_seed_same_plans_and_bad_options():
     rng = np.random.default_rng(9)
     grid, free, pos, orient, goals = random_instance(rng, 8, 8, 0.1, 0.6)

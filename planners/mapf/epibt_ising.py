@@ -348,9 +348,10 @@ class EPIBTIsing(EPIBT):
         if self.decider == "chip" and "lns_groups" not in host_rule_classes():
             n = int((ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]] - np.diff(gstart[:ng + 1])).max())
             q, H, J = np.empty((n, n), np.int64), np.zeros((ng, n), np.int64), np.zeros((ng, n, n), np.int64)
+            limits = self.machine.spec.coefficient_limits
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)
-                qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+                qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], limits)
             seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
             if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
                 spins, energies = np.zeros((ng, 1, 0), np.int8), None

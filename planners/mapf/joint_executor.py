@@ -139,7 +139,7 @@ class JointMovesPIBT(TurningPIBT):
             a, b = gstart[g], gstart[g + 1]
             pen = 1 + group_spread(a, b, ostart, opt) if self.penalty is None else self.penalty
             k = build_qubo(pc, members, a, b, ostart, opt, pen, pen, q)
-            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
         seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
         spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)

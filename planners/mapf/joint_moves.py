@@ -281,20 +281,22 @@ def program_batch(ng: int, gstart: np.ndarray, ostart: np.ndarray):
 
 
 @numba.njit(cache=True, nogil=True)
-def qubo_to_ising(q, n, h, J):
-    """The mapping rule: Ising of ``q[:n, :n]`` times 4 (integers), scaled so max ``|h|, |J|`` = 7, rounded
-    half away from zero into ``h[:n]``, ``J[:n, :n]`` (rest zero); returns the scale."""
+def qubo_to_ising(q, n, h, J, limits=(7, 7)):
+    """The mapping rule: Ising of ``q[:n, :n]`` times 4 (integers), scaled so max ``|h|`` reaches ``limits[0]`` or
+    max ``|J|`` ``limits[1]`` (a machine's ``spec.coefficient_limits``; the paper chip's 7), rounded half away
+    from zero into ``h[:n]``, ``J[:n, :n]`` (rest zero); returns the scale."""
     h4 = np.zeros(n, dtype=np.int64)
-    top = 1
+    top_j = 1
     for i in range(n):
         h4[i] += 2 * q[i, i]
         for j in range(i + 1, n):
             h4[i] += q[i, j]
             h4[j] += q[i, j]
-            top = max(top, abs(q[i, j]))
+            top_j = max(top_j, abs(q[i, j]))
+    top_h = 1
     for i in range(n):
-        top = max(top, abs(h4[i]))
-    s = 7.0 / top
+        top_h = max(top_h, abs(h4[i]))
+    s = min(limits[0] / top_h, limits[1] / top_j)
     h[:] = 0
     J[:, :] = 0
     for i in range(n):

@@ -178,13 +178,15 @@ def main(argv=None) -> None:
     ap.add_argument("--save", help="write the per-decision costs (host, chip, optimum, plan now) as a .npy file")
     ap.add_argument("--levels", type=int, default=7, help="the chip arm's coefficient range -L..L (default 7)")
     ap.add_argument("--chip-only", action="store_true", help="run the chip arm alone and print its decision tables")
+    ap.add_argument("--min-gain", type=int, default=1, help="both arms' min_gain (default 1: any gain is applied)")
     args = ap.parse_args(argv)
     rows, decisions = [], []
     lv = {} if args.levels == 7 else {"levels": args.levels}
+    mg = {} if args.min_gain == 1 else {"min_gain": args.min_gain}
     if args.chip_only:
         lns = {} if args.lns < 0 else {"lns": args.lns}
         g = np.concatenate([np.array(run(f"RANDOM-0{i}", args.steps, "epibt-ising", {
-            "decider": "chip", "groups": args.groups, **lns, **lv}, True, args.seed)["gaps"],
+            "decider": "chip", "groups": args.groups, **lns, **lv, **mg}, True, args.seed)["gaps"],
             dtype=np.float64).reshape(-1, 4) for i in [int(x) for x in args.instances.split(",") if x]])
         print(f"chip of -{args.levels}..{args.levels}, instances {args.instances}, {args.steps} steps", *decision_tables(g),
               sep="\n")
@@ -193,7 +195,7 @@ def main(argv=None) -> None:
         name = f"RANDOM-0{i}"
         base = run(name, args.steps, "epibt", {}, False, args.seed)
         lns = {} if args.lns < 0 else {"lns": args.lns}
-        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns,
+        arms = {d: run(name, args.steps, "epibt-ising", {"decider": d, "groups": args.groups, **lns, **mg,
                                                          **(lv if d == "chip" else {})},
                        d == "chip", args.seed) for d in ("host", "chip")}
         g = np.array(arms["chip"]["gaps"], dtype=np.float64).reshape(-1, 4)
@@ -210,7 +212,8 @@ def main(argv=None) -> None:
     g = np.concatenate(decisions)
     if args.save:
         np.save(args.save, g)
-    lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns} "
+    gain = "" if args.min_gain == 1 else f" --min-gain {args.min_gain}"
+    lines = [SECTION, "", f"`python benchmarks/lns_groups.py --steps {args.steps} --groups {args.groups} --lns {args.lns}{gain} "
              f"--write` on {cpu_name()}: start kit greedy scheduler, seed {args.seed}, {args.steps} steps per instance; "
              f"`epibt-ising` with {args.groups} groups per step (up to 11 robots x 4 operations; 64 reads, penalty 2: "
              "the defaults) and "

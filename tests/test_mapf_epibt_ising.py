@@ -223,6 +223,25 @@ def test_programs_take_the_machines_own_coefficient_range(name, limit):
     assert tops and all(max(t) == limit for t in tops)
 
 
+@pytest.mark.parametrize("decider", ["chip", "host"])
+def test_min_gain_holds_back_small_gains(decider):
+    """A group takes its choice only when it saves at least ``min_gain``: with a gain no group reaches the plans are
+    EPIBT's own; with the default some groups apply and every applied one saved at least 1."""
+    rng = np.random.default_rng(5)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    plain = EPIBT(grid, seed=2, lns=0)
+    held = EPIBTIsing(grid, seed=2, lns=0, decider=decider, groups=8, min_gain=1000)
+    free_ = EPIBTIsing(grid, seed=2, lns=0, decider=decider, groups=8)
+    for _ in range(20):
+        act = plain.actions(pos, orient, goals)
+        assert np.array_equal(held.actions(pos, orient, goals), act)
+        free_.actions(pos, orient, goals)
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None
+        goals = retarget(rng, free, pos, goals)
+    assert held.stats["decisions"] > 0 and held.stats["applied"] == 0 and free_.stats["applied"] > 0
+
+
 def test_same_seed_same_plans_and_bad_options():
     rng = np.random.default_rng(9)
     grid, free, pos, orient, goals = random_instance(rng, 8, 8, 0.1, 0.6)
@@ -230,7 +249,7 @@ def test_same_seed_same_plans_and_bad_options():
     assert runs[0] == runs[1]
     for opts, word in (({"decider": "gpu"}, "decider"), ({"max_robots": 1}, "max_robots"),
                        ({"max_options": 9}, "max_options"), ({"num_reads": 0}, "num_reads"), ({"groups": -1}, "groups"),
-                       ({"penalty": 0}, "penalty")):
+                       ({"penalty": 0}, "penalty"), ({"min_gain": 0}, "min_gain")):
         with pytest.raises(ValueError, match=word):
             EPIBTIsing(grid, **opts)
 

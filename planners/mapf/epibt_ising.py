@@ -241,10 +241,10 @@ def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def apply_choices(state, res, groups, choices, costs_now) -> int:
+def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
     """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
-    when it costs less than their plan now and collides with nothing left in the plan; returns how many did.
-    ``groups = (ng, members, gstart, ostart, opt)``."""
+    when it costs at least ``min_gain`` less than their plan now and collides with nothing left in the plan;
+    returns how many did.  ``groups = (ng, members, gstart, ostart, opt)``."""
     cells, which, costs, ncand, cur, src, inh, inh_cost = state
     ng, members, gstart, ostart, opt = groups
     applied = 0
@@ -255,7 +255,7 @@ def apply_choices(state, res, groups, choices, costs_now) -> int:
         before = 0
         for i in range(a, b):
             before += _cost(state, members[i], src[members[i]])
-        if costs_now[g] >= before:
+        if costs_now[g] > before - min_gain:
             continue
         for i in range(a, b):
             _reserve(res, cur[members[i]], members[i], -1)
@@ -294,13 +294,15 @@ class EPIBTIsing(EPIBT):
         penalty: the at-most-one penalty in units of ``1 +`` the widest gap of one option's cost to its robot's
             operation now; collisions half that (1..64, default 2; chosen on RANDOM-03 and -05:
             docs/design/lifelong_turning.md).
+        min_gain: a group takes the decided choice when it lowers the group's cost-to-go by at least this much
+            (1..1000, default 1: any gain).
     """
 
     name = "epibt-ising"
 
     def __init__(self, grid, seed: int = 0, machine=None, *, decider: str = "chip", groups: int = 32,
                  max_robots: int = 11, max_options: int = 4, num_reads: int = 64, penalty: int = 2,
-                 **options) -> None:
+                 min_gain: int = 1, **options) -> None:
         super().__init__(grid, seed=seed, **options)
         if decider not in DECIDERS:
             raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
@@ -315,6 +317,7 @@ class EPIBTIsing(EPIBT):
         self.max_options = int_in("max_options", max_options, 2, 8)
         self.num_reads = int_in("num_reads", num_reads, 1, 64)
         self.penalty = int_in("penalty", penalty, 1, 64)
+        self.min_gain = int_in("min_gain", min_gain, 1, 1000)
         self.max_spins = spins
         if self.max_spins < self.max_robots:
             raise ValueError(f"max_robots = {max_robots} needs {max_robots} spins; the machine has {spins}")
@@ -370,7 +373,8 @@ class EPIBTIsing(EPIBT):
             self.stats["chip_worse"] += int(worse.sum())
             if active_audit() is not None and call is not None:
                 self._audit(H, J, spins, energies, call, (ng, gstart, ostart, host, host_cost), host_s)
-        self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost)
+        self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost,
+                                                self.min_gain)
         self.stats["decisions"] += ng
         total = time.perf_counter() - t0
         emul = 0.0 if call is None else float(call.emulation_s)

@@ -12,8 +12,8 @@ The host rule in the chip's place (``decider="host"``, or the class named by an 
 :class:`ising_backend.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
 option that collides with no one placed before (the search's own greedy).  The chip's answer is its
 cheapest collision-free read, where a robot with more than one spin up keeps its operation now.  A group
-takes the decided choice when it collides with no one and costs less than the group's plan now; groups
-apply in turn, each checked against the plan as the ones before it left it.
+takes the decided choice when it collides with no one and costs at least ``min_gain`` less than the group's
+plan now; groups apply in turn, each checked against the plan as the ones before it left it.
 
 Charges as :class:`~planners.mapf.joint_executor.JointMovesPIBT` (:attr:`ledger`, :attr:`last_compute`); an
 open decision audit records every program with the host rule's answer as spins of the same program.
@@ -40,7 +40,6 @@ __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode
            "DECIDERS"]
 
 DECIDERS = ("chip", "host")
-_BIG = 1 << 60
 
 
 @numba.njit(cache=True, nogil=True)

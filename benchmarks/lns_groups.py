@@ -6,7 +6,8 @@ groups per step), beside plain ``epibt`` (its own search, the best host configur
 search iterations of both ``epibt-ising`` arms (default 0: the groups are the only search).  In the chip arm each
 decision is also solved exactly (depth-first over the group's options), so the chip's and the host rule's costs
 are compared with the optimum of the same problem.  ``--levels L`` gives the chip arm a chip whose fields and
-couplings take ``-L .. L`` (the paper's chip: 7), ``--chip-only`` runs that arm alone (its decision tables).
+couplings take ``-L .. L`` (the paper's chip: 7), ``--chip-only`` runs that arm alone (its decision tables);
+``--min-gain G`` applies a group's choice in both arms only when it saves at least ``G``.
 
     flock /tmp/mrmt-bench.lock python benchmarks/lns_groups.py --steps 300 --write
 """

@@ -32,6 +32,7 @@ from ising_backend import CallLedger
 from ising_backend.audit import active_audit
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
+from planners.mapf.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT, _blockers, _conflict, _reserve
 from planners.mapf.joint_moves import qubo_to_ising
@@ -116,25 +117,16 @@ def _cost(state, q, c) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _spin(ostart, a, i, x) -> int:
-    """Spin of option ``x`` (not option 0) of robot slot ``i`` in the program of the group starting at slot ``a``."""
-    return x - ostart[a] - (i - a) - 1
-
-
-@numba.njit(cache=True, nogil=True)
 def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
     """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]``; ``n``, returned, is its options
-    less one per robot: a robot's operation now (option 0) is all its spins down, option ``j >= 1`` spin
-    :func:`_spin` up.  Linear terms: each option's cost above the robot's operation now.  With ``s = 1 +`` the
-    widest such gap of one robot: ``penalty x s`` on each pair of spins of one robot (at most one up), and half
-    that, ``P``, on each collision: between two options with spins, ``P`` on their pair; between an option ``x``
-    and another robot's operation now, ``P`` on ``x`` and ``-P`` between ``x`` and each of that robot's spins
-    (so the collision costs ``P`` exactly when that robot stays).  Among reads with at most one spin up per
-    robot the energy is the cost above the plan now plus ``P`` per colliding pair; the chip's few levels go to
-    the costs, not to a one-hot constraint's fields."""
+    less one per robot: a robot's operation now (option 0) is all its spins down, another option one spin up
+    (:func:`planners.mapf.choice_qubo.reduce_to_reference`).  The objective: each option's cost-to-go, ``P`` on
+    each pair of colliding options; with ``s = 1 +`` the widest gap of one option's cost to its robot's operation
+    now, ``penalty x s`` on each pair of spins of one robot and ``P`` half that.  Among reads with at most one spin
+    up per robot the energy is the cost above the plan now plus ``P`` per colliding pair; the chip's few levels
+    go to the costs, not to a one-hot constraint's fields."""
     base = ostart[a]
-    n = ostart[b] - base - (b - a)
-    q[:n, :n] = 0
+    n = ostart[b] - base
     spread = 0
     for i in range(a, b):
         c0 = _cost(state, members[i], opt[ostart[i]])
@@ -142,31 +134,16 @@ def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
             spread = max(spread, abs(_cost(state, members[i], opt[x]) - c0))
     amo = penalty * (spread + 1)
     pen = (amo + 1) // 2
-    for i in range(a, b):
-        c0 = _cost(state, members[i], opt[ostart[i]])
-        for x in range(ostart[i] + 1, ostart[i + 1]):
-            xi = _spin(ostart, a, i, x)
-            q[xi, xi] += _cost(state, members[i], opt[x]) - c0
-            for y in range(x + 1, ostart[i + 1]):
-                q[xi, _spin(ostart, a, i, y)] += amo
+    full = np.zeros((n, n), dtype=np.int64)
     for i in range(a, b):
         for x in range(ostart[i], ostart[i + 1]):
+            full[x - base, x - base] = _cost(state, members[i], opt[x])
             px = _path(state, members[i], opt[x])
             for i2 in range(i + 1, b):
                 for y in range(ostart[i2], ostart[i2 + 1]):
-                    if not _collide(px, _path(state, members[i2], opt[y])):
-                        continue
-                    if x > ostart[i] and y > ostart[i2]:
-                        q[_spin(ostart, a, i, x), _spin(ostart, a, i2, y)] += pen
-                        continue
-                    # one of the two is its robot's operation now (two operations now never collide)
-                    k, z, kz = (i2, y, i) if x == ostart[i] else (i, x, i2)
-                    zs = _spin(ostart, a, k, z)
-                    q[zs, zs] += pen
-                    for w in range(ostart[kz] + 1, ostart[kz + 1]):
-                        ws = _spin(ostart, a, kz, w)
-                        q[min(ws, zs), max(ws, zs)] -= pen
-    return n
+                    if _collide(px, _path(state, members[i2], opt[y])):
+                        full[x - base, y - base] = pen
+    return reduce_to_reference(full, ostart[a:b + 1] - base, np.zeros(b - a, dtype=np.int64), amo, q)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -220,18 +197,13 @@ def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
     with no spin up, or more than one, keeps its operation now (option 0) in that read.  Its cost (-1 when no
     read is collision-free)."""
     size = b - a
+    starts = ostart[a:b + 1] - ostart[a]
+    ref = np.zeros(size, dtype=np.int64)
     cur = np.empty(size, dtype=np.int64)
     best = -1
     for rd in range(spins.shape[0]):
         for i in range(size):
-            cnt = 0
-            cur[i] = 0
-            for x in range(ostart[a + i] + 1, ostart[a + i + 1]):
-                if spins[rd, _spin(ostart, a, a + i, x)] > 0:
-                    cnt += 1
-                    pick = x - ostart[a + i]
-            if cnt == 1:
-                cur[i] = pick
+            cur[i] = max(0, read_option(spins[rd], starts, ref, i))
         e = _feasible_cost(state, members, a, b, ostart, opt, cur)
         if e >= 0 and (best < 0 or e < best):
             best = e

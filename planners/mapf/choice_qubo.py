@@ -28,6 +28,15 @@ def reduced_index(starts, ref, t, x) -> int:
     return x - t - (1 if x > r else 0)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _coef(starts, ref, t, x, w) -> int:
+    """Option ``x`` of robot ``t`` as a sum over the reduced spins: the coefficient of option ``w``'s spin
+    (``x`` itself for an option with a spin; ``1 - `` the robot's other options for its reference)."""
+    if starts[t] + ref[t] != x:
+        return 1 if w == x else 0
+    return 0 if w == x else -1
+
+
 @numba.njit(cache=True, nogil=True)
 def reduce_to_reference(q, starts, ref, amo, out) -> int:
     """``out[:m, :m]`` (upper triangular, ``m`` returned: the options less one per robot) from the one-hot
@@ -35,60 +44,47 @@ def reduce_to_reference(q, starts, ref, amo, out) -> int:
     ``starts[t]:starts[t + 1]``, its reference option ``starts[t] + ref[t]`` as all its spins down, ``amo`` on
     each pair of one robot's spins.  On a one-hot assignment ``x`` (reduced: ``y``) ``y out y`` equals
     ``x q x`` minus the objective of the all-reference assignment; pairs of one robot's options in ``q`` (a
-    one-hot assignment never sets two) are left out."""
+    one-hot assignment never sets two) are left out.  Each option is written as a sum over the spins
+    (:func:`_coef`: constant 1 for a reference) and every term of ``q`` expanded; constants are dropped."""
     size = starts.shape[0] - 1
     n = starts[size]
     m = n - size
     out[:m, :m] = 0
-    rob = 0
+    t = 0
     for x in range(n):
-        while x >= starts[rob + 1]:
-            rob += 1
-        sx = reduced_index(starts, ref, rob, x)
-        # linear term of option x: on its spin, or (x the reference) minus it on each other option's spin
-        if sx >= 0:
-            out[sx, sx] += q[x, x]
-        else:
-            for w in range(starts[rob], starts[rob + 1]):
-                sw = reduced_index(starts, ref, rob, w)
-                if sw >= 0:
-                    out[sw, sw] -= q[x, x]
-        rob2 = rob
+        while x >= starts[t + 1]:
+            t += 1
+        cx = 1 if starts[t] + ref[t] == x else 0
+        for w in range(starts[t], starts[t + 1]):  # the linear term
+            a = _coef(starts, ref, t, x, w)
+            if a != 0:
+                sw = reduced_index(starts, ref, t, w)
+                out[sw, sw] += a * q[x, x]
+        t2 = t
         for y in range(x + 1, n):
-            while y >= starts[rob2 + 1]:
-                rob2 += 1
+            while y >= starts[t2 + 1]:
+                t2 += 1
             v = q[x, y]
-            if v == 0 or rob2 == rob:
+            if v == 0 or t2 == t:
                 continue
-            sy = reduced_index(starts, ref, rob2, y)
-            if sx >= 0 and sy >= 0:
-                out[min(sx, sy), max(sx, sy)] += v
-                continue
-            # one or both references: x_ref = 1 - sum of the robot's other options
-            fx_lo, fx_hi = (starts[rob], starts[rob + 1]) if sx < 0 else (x, x + 1)
-            fy_lo, fy_hi = (starts[rob2], starts[rob2 + 1]) if sy < 0 else (y, y + 1)
-            if sx < 0 and sy < 0:  # v (1 - X)(1 - Y): -v X - v Y + v X Y
-                for w in range(fx_lo, fx_hi):
-                    sw = reduced_index(starts, ref, rob, w)
-                    if sw >= 0:
-                        out[sw, sw] -= v
-                for w in range(fy_lo, fy_hi):
-                    sw = reduced_index(starts, ref, rob2, w)
-                    if sw >= 0:
-                        out[sw, sw] -= v
-                sign = 1
-            else:  # v (1 - X) y: v y - v X y
-                keep = sy if sx < 0 else sx
-                out[keep, keep] += v
-                sign = -1
-            for w in range(fx_lo, fx_hi):
-                sw = reduced_index(starts, ref, rob, w) if sx < 0 else sx
-                if sw < 0:
+            cy = 1 if starts[t2] + ref[t2] == y else 0
+            for w in range(starts[t], starts[t + 1]):  # v (cx + sum a_w) (cy + sum b_u)
+                a = _coef(starts, ref, t, x, w)
+                if a == 0:
                     continue
-                for u in range(fy_lo, fy_hi):
-                    su = reduced_index(starts, ref, rob2, u) if sy < 0 else sy
-                    if su >= 0:
-                        out[min(sw, su), max(sw, su)] += sign * v
+                sw = reduced_index(starts, ref, t, w)
+                out[sw, sw] += v * a * cy
+                for u in range(starts[t2], starts[t2 + 1]):
+                    b = _coef(starts, ref, t2, y, u)
+                    if b != 0:
+                        su = reduced_index(starts, ref, t2, u)
+                        out[min(sw, su), max(sw, su)] += v * a * b
+            if cx:
+                for u in range(starts[t2], starts[t2 + 1]):
+                    b = _coef(starts, ref, t2, y, u)
+                    if b != 0:
+                        su = reduced_index(starts, ref, t2, u)
+                        out[su, su] += v * b
     for t in range(size):
         for x in range(starts[t], starts[t + 1]):
             sx = reduced_index(starts, ref, t, x)

@@ -69,7 +69,9 @@ never yields an invalid plan: the plan gets ``success=False`` and
 ``failure="robot k leg j: ..."`` (or ``"sharing: ..."``, ``"robot k tour:
 ..."``; several are joined with ``"; "``), and each robot's route keeps the
 legs planned before its failure, listing only the targets it reaches.  The
-other robots are still planned.  Exceptions a layer raises (for example
+other robots are still planned.  Before that, a layer with a ``fallback`` mode in its config (the
+Ising layers) gets its classical fallback: its failed call goes to the ``strong`` pipeline's layer,
+flagged and counted (:mod:`planners.fallback`).  Exceptions a layer raises (for example
 ``brute`` refusing 14 targets) propagate: they are configuration errors.
 
 Randomness: ``plan(world, seed)`` builds one ``np.random.default_rng(seed)``
@@ -100,6 +102,7 @@ from mrmt_env.world import World
 from planners import registry
 from planners.base import PathResult, SharingResult, TourResult
 from planners.compute import ComputeReport, stopwatch
+from planners.fallback import answer, fall_back
 from planners.plan import Plan, PlanError, RobotRoute, path_problem, validate_plan
 
 __all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
@@ -323,7 +326,7 @@ class Pipeline:
             assignment: tuple = (tuple(range(n)),)
             if r > 1 or getattr(self.sharing, "orders_routes", False):
                 t0 = _clock()
-                res: SharingResult = self.sharing.assign(dist, r, self.tour, rng)
+                res: SharingResult = answer("sharing", self.sharing, dist, r, self.tour, rng)
                 acc["sharing"].add(res.compute, _clock() - t0)
                 merge_stats(stats, res.stats)
                 problem = res.failure
@@ -344,7 +347,7 @@ class Pipeline:
                     idx = np.concatenate([[k], r + np.asarray(group, dtype=np.int64)])
                     local = dist[np.ix_(idx, idx)]
                     t0 = _clock()
-                    tres: TourResult = self.tour.solve(local, rng)
+                    tres: TourResult = answer("tour", self.tour, local, rng)
                     acc["tour"].add(tres.compute, _clock() - t0)
                     if tres.stats:
                         merge_stats(stats, tres.stats)
@@ -377,9 +380,9 @@ class Pipeline:
                     else:
                         t0 = _clock()
                         if j == len(batched) and batch is not None and batch.failed is not None:
-                            pres: PathResult = batch.failed  # the leg the batch stopped at (timed with it)
+                            pres: PathResult = fall_back("path", self.path, (world, a, b, rng), batch.failed)
                         else:
-                            pres = self.path.find_path(world, a, b, rng)
+                            pres = answer("path", self.path, world, a, b, rng)
                         acc["path"].add(pres.compute, _clock() - t0)
                         if pres.stats:
                             merge_stats(stats, pres.stats)

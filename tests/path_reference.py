@@ -16,7 +16,7 @@ from ising_backend import (
     ChipUnavailableError, MeteredSolver, SolverOutputError, ising_from_qubo, merge_error_message, merge_styles,
     plan_packs,
 )
-from planners.ising.fallback import path_fallback, unavailable_message
+from planners.fallback import unavailable_message
 from planners.ising.path.decode import decode_paths
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import PatchFrame, PatchQubo, _resolve, build_patch_qubo
@@ -81,7 +81,7 @@ def reference_find_path(planner, world, start, goal, rng):
         if grid[r, c]:
             return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
     field = planner.fields.goal(world, g)
-    return path_fallback(planner.config.fallback, world, s, g, rng, _search(planner, grid, s, g, rng, field))
+    return _search(planner, grid, s, g, rng, field)
 
 
 def _search(planner, grid, s, g, rng, field):

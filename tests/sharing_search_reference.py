@@ -19,6 +19,7 @@ from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver,
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
+from planners.ising.sharing.search import failed
 from planners.ising.sharing.split_problem import branch_problems, split_model
 from ising_backend import STACK_OK
 from planners.ising.sharing.stage_steps import submit_stage
@@ -625,6 +626,6 @@ def reference_assign(sharing, dist, R: int, tour, rng, solve_packed=None) -> Sha
         splits.memo = {}
     except (SharingFailure, ChipUnavailableError) as exc:
         compute = ComputeReport.from_ledger(meter.charged)
-        return self.failed(exc, compute if pricer is None else compute + pricer.compute, dist, R, tour, rng, stats)
+        return failed(exc, compute if pricer is None else compute + pricer.compute, R, stats)
     compute = ComputeReport.from_ledger(meter.charged) + pricer.compute
     return SharingResult(assignment=assignment, compute=compute, stats=stats)

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners import registry
+from planners.fallback import answer
 from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
 from sharing_search_reference import neighbour_pairs
@@ -286,8 +287,10 @@ def test_a_chip_that_selects_nothing_is_a_failure_not_the_host_route():
     r = IsingTour(chip=chip).solve(dist, np.random.default_rng(0))
     assert not r.success and r.order == () and "no valid improving move set" in r.failure
     assert r.compute.chip_calls == chip.ledger.physical_calls > 0
-    r = IsingTour(chip=_StuckChip(), fallback="failure").solve(dist, np.random.default_rng(0))
-    assert r.success and r.stats["fallback"]["tour"] and r.compute.fallbacks == 1
+    layer = IsingTour(chip=_StuckChip(), fallback="failure")
+    assert not layer.solve(dist, np.random.default_rng(0)).success  # a layer alone never falls back
+    r = answer("tour", layer, dist, np.random.default_rng(0))  # as the pipeline calls it
+    assert r.success and r.stats["fallback"] == {"tour": 1} and r.compute.fallbacks == 1
 
 
 def test_the_annealed_reads_do_the_work():

@@ -10,6 +10,7 @@ from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from mrmt_env.io import write_worlds
 from planners.compute import RECORD_KEYS
+from planners.fallback import answer
 from planners.ising.path import IsingPath
 from planners.ising.sharing import IsingSharing
 from planners.ising.tour import IsingTour
@@ -130,7 +131,10 @@ def test_fallback_on_failure_mode(mode, falls_back):
     world = _world(0)
     chip = EmulatedChip(ChipSpec())
     start, goal = world.robots[0], world.targets[int(np.argmax(world.distance_matrix[0, 3:]))]
-    res = IsingPath(chip, max_attempts=1, fallback=mode).find_path(world, start, goal, np.random.default_rng(0))
+    layer = IsingPath(chip, max_attempts=1, fallback=mode)
+    alone = layer.find_path(world, start, goal, np.random.default_rng(0))
+    assert alone.path is None and "budget spent" in alone.failure  # a layer alone never falls back
+    res = answer("path", layer, world, start, goal, np.random.default_rng(0))  # as the pipeline calls it
     assert (res.path is not None) == falls_back
     if falls_back:
         assert res.stats["fallback"] == {"path": 1} and res.compute.fallbacks == 1 and res.compute.chip_calls > 0
@@ -139,15 +143,36 @@ def test_fallback_on_failure_mode(mode, falls_back):
         assert "budget spent" in res.failure and res.compute.fallbacks == 0
 
 
-def test_layers_fall_back_alone():
+def test_each_layer_falls_back_through_the_one_rule():
+    """Alone, an Ising layer on a dead chip fails and says the chip could not answer; called as the
+    pipeline calls it (:func:`planners.fallback.answer`), it gives the strong layer's answer, flagged
+    and counted, with what it spent before charged."""
+    from planners.sharing_classical import SSASharing
+    from planners.tours_classical import ThreeOptTour
+
     dead = EmulatedChip(ChipSpec(dead_cores=8))
-    dist = _world(5).distance_matrix
-    tour = IsingTour(dead).solve(dist[np.ix_([0, 3, 4, 5, 6], [0, 3, 4, 5, 6])], np.random.default_rng(0))
-    assert tour.success and sorted(tour.order) == [1, 2, 3, 4] and tour.compute.fallbacks == 1
-    assert tour.stats["fallback"] == {"tour": 1}
-    share = IsingSharing(dead).assign(dist, 3, IsingTour(dead), np.random.default_rng(0))
-    assert share.success and share.compute.fallbacks == 1 and share.stats["fallback"] == {"sharing": 1}
-    assert sorted(t for g in share.assignment for t in g) == list(range(10))
+    world = _world(5)
+    dist = world.distance_matrix
+    local = dist[np.ix_([0, 3, 4, 5, 6], [0, 3, 4, 5, 6])]
+    cases = [("tour", IsingTour(dead), (local,), ThreeOptTour().solve(local, np.random.default_rng(0))),
+             ("sharing", IsingSharing(dead), (dist, 3, ThreeOptTour()),
+              SSASharing().assign(dist, 3, ThreeOptTour(), np.random.default_rng(0)))]
+    start, goal = world.robots[0], world.targets[3]
+    cases.append(("path", IsingPath(dead), (world, start, goal), None))
+    for layer, obj, args, strong in cases:
+        alone = getattr(obj, {"tour": "solve", "sharing": "assign", "path": "find_path"}[layer])(
+            *args, np.random.default_rng(0))
+        assert alone.failure.startswith("the chip could not answer") and alone.stats["chip_unavailable"] == 1
+        assert alone.compute.fallbacks == 0 and "fallback" not in alone.stats
+        res = answer(layer, obj, *args, np.random.default_rng(0))
+        assert res.failure is None and res.compute.fallbacks == 1 and res.stats["fallback"] == {layer: 1}
+        assert res.stats["fallback_reasons"] == [f"{layer}: {alone.failure}"]
+        assert res.compute.chip_calls == alone.compute.chip_calls  # the spent calls stay charged
+        if strong is not None:
+            assert getattr(res, "order", None) == getattr(strong, "order", None)
+            assert getattr(res, "assignment", None) == getattr(strong, "assignment", None)
+    never = answer("tour", IsingTour(dead, fallback="never"), local, np.random.default_rng(0))
+    assert never.failure.startswith("the chip could not answer") and never.compute.fallbacks == 0
     with pytest.raises(ValueError, match="fallback"):
         IsingPath(dead, fallback="sometimes")
 

@@ -32,7 +32,7 @@ from ising_backend import CallLedger, ChipUnavailableError, as_machine
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
-from planners.ising.fallback import FALLBACK_MODES, counted, flag, unavailable_message
+from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
 from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, iterated_search
 from planners.ising.fleet.moves import route_cost
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
@@ -61,9 +61,9 @@ class FleetConfig(IsingConfig):
             ``max(5, 2 N // R)``; docs/design/ising_fleet.md).
         slack: a kicked solution replaces the current one when it costs at most the best one
             times ``1 + slack`` (record-to-record travel; 0: equal or better).
-        fallback: a chip that cannot answer (:mod:`planners.ising.fallback`): ``"never"`` fails the
+        fallback: a chip that cannot answer (:mod:`planners.fallback`): ``"never"`` fails the
             call; otherwise the routes found so far (SSA's, with the moves the chip made) are kept,
-            flagged as a fallback.
+            flagged as a fallback; with ``"failure"`` the pipeline also hands a refused search to SSA.
         selection: who picks the compatible set among the offered moves: ``"chip"`` (the method), or
             ``"greedy"`` (the host, by gain, skipping clashes; no chip call), the ablation that
             measures what the chip's decisions are worth (docs/design/ising_fleet.md).
@@ -138,7 +138,7 @@ class IsingFleetSharing:
         charged = CallLedger()
         best_nxt, best_cost = nxt.copy(), np.array([route_cost(d, nxt, r)])  # the cheapest routes so far
         stats: dict = {}
-        failure = None
+        failure = kept = None
         counts = np.zeros(len(STAT_FIELDS), dtype=np.int64)  # as the search goes, also up to a machine's error
         try:
             with self.chip.session(charged, decision="fleet_moves") as link:
@@ -150,11 +150,11 @@ class IsingFleetSharing:
             if status == REFUSED:
                 failure = REFUSED_MESSAGE
         except ChipUnavailableError as exc:  # the routes so far stand: SSA's, with the moves the chip made
-            reason = unavailable_message(exc)
+            stats["chip_unavailable"] = 1
             if cfg.fallback == "never":
-                failure = reason
+                failure = unavailable_message(exc)
             else:
-                flag(stats, "sharing", reason + "; the routes found before are kept")
+                kept = unavailable_message(exc) + "; the routes found before are kept"
         groups = []
         for k_ in range(r):
             g, x = [], best_nxt[k_]
@@ -165,11 +165,10 @@ class IsingFleetSharing:
         stats["fleet"] = {**dict(zip(STAT_FIELDS, counts.tolist())),
                           "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": float(best_cost[0])}
         compute = ComputeReport.from_ledger(charged)
-        if "fallback" in stats:
-            compute = counted(compute)
         if failure:
             return SharingResult(assignment=tuple(() for _ in range(r)), compute=compute, stats=stats, failure=failure)
-        return SharingResult(assignment=tuple(groups), compute=compute, stats=stats)
+        result = SharingResult(assignment=tuple(groups), compute=compute, stats=stats)
+        return result if kept is None else flagged("sharing", result, kept)
 
     def __repr__(self) -> str:
         return f"IsingFleetSharing(config={self.config!r})"

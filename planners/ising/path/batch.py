@@ -6,7 +6,7 @@ random stream, same paths), but in one compiled call (:func:`run_legs`: every le
 loops cut and its path checked) with one compute report and one statistics dict for all of
 them (equal to the merge of the per-leg ones) instead of a result per leg.  It stops at the
 first leg the compiled loop does not reach the goal of: ``LegBatch.paths`` holds the legs done
-and ``LegBatch.failed`` that leg's own result (failure, statistics, charge and fallback, as
+and ``LegBatch.failed`` that leg's own result (failure, statistics and charge, as
 ``find_path`` gives it); the caller plans any legs after it with ``find_path``.  Legs into a cell
 off the grid or on an obstacle are not batched (``find_path`` names the cell).
 """
@@ -20,7 +20,6 @@ import numpy as np
 
 from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
 from planners.compute import ComputeReport
-from planners.ising.fallback import path_fallback
 from planners.ising.path.engine import REACHED, run_query
 from planners.ising.path.kernels import cut_walk
 
@@ -122,14 +121,13 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
                 rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
                 runner.loop_args(grid), link.args, grid, cfg.cut_loops)
     except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
-        return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one, each with its fallback
+        return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one
     failed = None
     if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
         leg = CallLedger()
         link.settle(calls[n_sub:], emu[n_sub:], into=leg)
         a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
-        res = runner.result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
-        failed = path_fallback(cfg.fallback, world, a, b, rng, res)
+        failed = runner.result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
     batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
     if not done:
         return batch

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
-from planners.ising.fallback import FALLBACK_MODES
+from planners.fallback import FALLBACK_MODES
 
 __all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "TARGET_KEYS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
 
@@ -49,7 +49,7 @@ class PathConfig(IsingConfig):
         scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
             ``[form]``; the value used: :attr:`chip_scale`).
         pack: block-pack the portfolio's programs into shared chip programs.
-        fallback: when a query falls back to A* (:data:`~planners.ising.fallback.FALLBACK_MODES`):
+        fallback: when the pipeline hands a query to A* (:data:`~planners.fallback.FALLBACK_MODES`):
             ``"unavailable"`` (the chip cannot answer), ``"failure"`` (also a failed search), ``"never"``.
     """
 

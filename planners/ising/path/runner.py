@@ -16,7 +16,7 @@ from ising_backend import (
     MERGE_STYLE_IDS, CallLedger, ChipUnavailableError, SolverOutputError, ising_from_qubo,
     merge_error_message, merge_styles,
 )
-from planners.ising.fallback import unavailable_message
+from planners.fallback import unavailable_message
 from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, QUERY_OPTIONS, ProgramPool, run_query
 from planners.ising.path.kernels import cut_walk, neighbour_table
 from planners.ising.path.qubo import build_patch_qubo

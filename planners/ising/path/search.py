@@ -2,8 +2,8 @@
 
 Contract: ``IsingPath(chip, config).find_path(world, start, goal, rng) -> PathResult``;
 never raises for a failed query (``result.failure`` says why); every chip call
-is metered into ``result.compute``.  A chip that cannot answer hands the query to A*
-(flagged; :mod:`planners.ising.fallback`).  The chip generates every local segment; the
+is metered into ``result.compute``.  A chip that cannot answer is a failure with
+``stats["chip_unavailable"]``; the pipeline hands such a query to A* (:mod:`planners.fallback`).  The chip generates every local segment; the
 host places patches, ranks local targets (by BFS distance to the goal; the paper's
 Manhattan distance in ``ising-paper``), decodes, validates, scores and stitches, all in
 one compiled loop (:mod:`.engine`) on any machine.
@@ -15,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 
 from planners.ising.config import resolve_config
-from planners.ising.fallback import path_fallback
 from planners.ising.path.batch import LegBatch, plan_legs
 from planners.ising.path.config import PathConfig
 from planners.ising.path.qubo import patch_frame
@@ -76,8 +75,7 @@ class IsingPath:
             if grid[r, c]:
                 return PathResult(None, failure=f"{name} cell [{r}, {c}] is an obstacle")
         rng = np.random.default_rng() if rng is None else rng
-        result = self.runner.run(grid, s, g, rng, self.fields.goal(world, g))
-        return path_fallback(self.config.fallback, world, s, g, rng, result)
+        return self.runner.run(grid, s, g, rng, self.fields.goal(world, g))
 
     def find_paths(self, world, cells, rng: np.random.Generator) -> LegBatch:
         """The legs ``cells[j] -> cells[j + 1]`` in one compiled call (:func:`.batch.plan_legs`)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
-from planners.ising.fallback import FALLBACK_MODES
+from planners.fallback import FALLBACK_MODES
 
 __all__ = ["SharingConfig", "BUNDLE_ORDERS"]
 
@@ -39,7 +39,7 @@ class SharingConfig(IsingConfig):
             targets, priced exactly); 0 = none (the paper).
         pair_neighbours: each robot's nearest robots whose boundaries are refined.
         pair_shifts: weight shifts of the re-split programs (one program per shift and rule).
-        fallback: when sharing falls back to SSA (:data:`~planners.ising.fallback.FALLBACK_MODES`).
+        fallback: when the pipeline hands a sharing call to SSA (:data:`~planners.fallback.FALLBACK_MODES`).
     """
 
     rules: tuple = _QUANTIZE_RULES

@@ -10,7 +10,8 @@ splits x quantization rules go block-packed into one chip submission (:mod:`.sub
 groups beyond the chip split on clusters (:mod:`.clusters`) or spin-budget branches.  Then,
 beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between
 neighbouring robots are re-split on the chip (:mod:`.refine`).  Chip calls are metered (:class:`ising_backend.MeteredSolver`); a chip
-that cannot answer hands the call to SSA (flagged; :mod:`planners.ising.fallback`).  The Python
+that cannot answer is a failure with ``stats["chip_unavailable"]``, which the pipeline hands to
+SSA (:mod:`planners.fallback`).  The Python
 search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
 docs/design/ising_sharing.md.
 """
@@ -25,7 +26,7 @@ from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver,
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
-from planners.ising.fallback import fallen, unavailable_message, wants_fallback
+from planners.fallback import unavailable_message
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.components import assign_components
 from planners.ising.sharing.config import SharingConfig
@@ -40,6 +41,17 @@ from planners.ising.sharing.submission import StageSolver
 __all__ = ["IsingSharing", "PaperIsingSharing"]
 
 _PRICING_HANDLES = itertools.count()
+
+
+def failed(exc, compute, R, stats) -> SharingResult:
+    """The failure result of a sharing call that stopped with ``exc`` (a :class:`SharingFailure` or
+    :class:`ising_backend.ChipUnavailableError`) after spending ``compute``."""
+    if isinstance(exc, ChipUnavailableError):
+        stats["chip_unavailable"] = 1
+        reason = unavailable_message(exc)
+    else:
+        reason = str(exc)
+    return SharingResult(assignment=tuple(() for _ in range(R)), compute=compute, stats=stats, failure=reason)
 
 
 class IsingSharing:
@@ -105,19 +117,7 @@ class IsingSharing:
             return self._assign_search(dist, R, rng, stats, pricer)
         except (SharingFailure, ChipUnavailableError) as exc:
             compute = ComputeReport.from_ledger(meter.charged)
-            return self.failed(exc, compute if pricer is None else compute + pricer.compute, dist, R, tour, rng, stats)
-
-    def failed(self, exc, compute, dist, R, tour, rng, stats) -> SharingResult:
-        """The result of a sharing call that stopped with ``exc`` (a :class:`SharingFailure` or
-        :class:`ising_backend.ChipUnavailableError`) after spending ``compute``: SSA's sharing
-        (flagged) where ``fallback`` asks for it, else a failure result naming why."""
-        unavailable = isinstance(exc, ChipUnavailableError)
-        reason = unavailable_message(exc) if unavailable else str(exc)
-        if wants_fallback(self.config.fallback, unavailable):  # SSA, the strong pipeline's sharing
-            from planners.sharing_classical import SSASharing
-
-            return fallen("sharing", SSASharing().assign(dist, R, tour, rng), stats, compute, reason)
-        return SharingResult(assignment=tuple(() for _ in range(R)), compute=compute, stats=stats, failure=reason)
+            return failed(exc, compute if pricer is None else compute + pricer.compute, R, stats)
 
     def _assign_search(self, dist, R, rng, stats, pricer) -> SharingResult:
         """The search (module docstring) on one chip session, charged and counted; where it stops (a

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real
-from planners.ising.fallback import FALLBACK_MODES
+from planners.fallback import FALLBACK_MODES
 
 __all__ = ["TourConfig", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS", "DEFAULT_SOLVER_OPTIONS"]
 
@@ -55,7 +55,7 @@ class TourConfig(IsingConfig):
         accept_equal: also accept equal-cost patch reorders (not the paper's rule).
         share_clusters: reuse the first start's clustering in later starts.
         solver_options: keyword options of the default logical solver.
-        fallback: when a solve falls back to 3-opt (:data:`~planners.ising.fallback.FALLBACK_MODES`).
+        fallback: when the pipeline hands a solve to 3-opt (:data:`~planners.fallback.FALLBACK_MODES`).
     """
 
     backend: str = "chip"

@@ -9,8 +9,8 @@ valid is a failure result (``result.failure``), never a repaired tour.
 Ising patch refinement with patience, several independent starts on the logical solver
 (spin budget, no coefficient range); ``backend="chip-onehot"`` quantizes those one-hot
 QUBOs for the physical chip (the paper's negative result).  Every call is metered
-(:class:`ising_backend.MeteredSolver`); a chip that cannot answer hands the solve to
-3-opt (flagged; :mod:`planners.ising.fallback`).  Choices and measurements: docs/design/ising_tour.md.
+(:class:`ising_backend.MeteredSolver`); a chip that cannot answer is a failure with
+``stats["chip_unavailable"]``, which the pipeline hands to 3-opt (:mod:`planners.fallback`).  Choices and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from ising_backend import ChipUnavailableError, SolverOutputError
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
-from planners.ising.fallback import fallen, unavailable_message, wants_fallback
+from planners.fallback import unavailable_message
 from planners.ising.tour.cluster import Clusters, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
 from planners.ising.tour.kernels import dist_flags, route_cost
@@ -98,12 +98,8 @@ class IsingTour:
             except SolverOutputError as exc:
                 return self._result(run, None, dist, f"the chip returned malformed samples: {exc}")
             except ChipUnavailableError as exc:
-                if self.config.fallback == "never":
-                    return self._result(run, None, dist, unavailable_message(exc))
-                return self._fallback(run, dist, unavailable_message(exc))
+                return self._unavailable(run, dist, exc)
             except TourFailure as exc:
-                if wants_fallback(self.config.fallback, False):
-                    return self._fallback(run, dist, str(exc))
                 return self._result(run, None, dist, str(exc))
         best, best_cost, failure = None, math.inf, None
         clusters = None
@@ -120,10 +116,8 @@ class IsingTour:
                 tour = self._refine(dist, tour, run)
             except SolverOutputError as exc:  # a broken solver: no start can succeed
                 return self._result(run, None, dist, f"the solver returned malformed samples: {exc}")
-            except ChipUnavailableError as exc:  # no core can answer: the classical fallback, or a failure
-                if self.config.fallback == "never":
-                    return self._result(run, None, dist, unavailable_message(exc))
-                return self._fallback(run, dist, unavailable_message(exc))
+            except ChipUnavailableError as exc:  # no core can answer
+                return self._unavailable(run, dist, exc)
             except TourFailure as exc:  # this start gave up; other starts may still succeed
                 failure = str(exc)
                 run.stats["failed_starts"] += 1
@@ -137,17 +131,12 @@ class IsingTour:
             else:
                 stale += 1
         if best is None:
-            if wants_fallback(self.config.fallback, False):
-                return self._fallback(run, dist, failure)
             return self._result(run, None, dist, failure)
         return self._result(run, tuple(int(t) for t in best), dist)
 
-    def _fallback(self, run: _Run, dist, reason: str) -> TourResult:
-        """3-opt's tour (the strong pipeline's tour layer), flagged and counted as a fallback."""
-        from planners.tours_classical import ThreeOptTour
-
-        return fallen("tour", ThreeOptTour().solve(dist, run.rng), run.stats, ComputeReport.from_ledger(run.charged),
-                      reason)
+    def _unavailable(self, run: _Run, dist, exc) -> TourResult:
+        run.stats["chip_unavailable"] = 1
+        return self._result(run, None, dist, unavailable_message(exc))
 
 
     # ------------------------------------------------------------------ 3. local TSPs

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import os
 import sys
 
 __all__ = ["main", "SUBCOMMANDS"]
@@ -76,7 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # reported by the subcommand's parser, with its usage (argparse would show the top-level one)
         args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
-    return int(args._run(args) or 0)
+    try:
+        return int(args._run(args) or 0)
+    except BrokenPipeError:  # the reader went away (``mrmt plan ... | head``): stop quietly, as Unix tools do
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so the interpreter's final flush does not raise again
+        return 141  # 128 + SIGPIPE, what a shell reports for a tool a closed pipe stopped
 
 
 if __name__ == "__main__":  # pragma: no cover

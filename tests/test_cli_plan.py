@@ -168,6 +168,21 @@ def test_console_script_subprocess(tmp_path, worlds):
     validate_plan(worlds[1], _as_plan(json.loads(lines[1])))
 
 
+def test_a_reader_that_goes_away_stops_the_command_quietly(tmp_path, worlds):
+    """``mrmt plan ... | head``: the pipe closes before the first line; the command stops with 141
+    (128 + SIGPIPE, as a shell reports it) and no traceback."""
+    src = tmp_path / "w.jsonl"
+    write_worlds(worlds[:2], src)
+    script = Path(sys.executable).parent / "mrmt"
+    cmd = [str(script)] if script.exists() else [sys.executable, "-m", "agents.cli"]
+    proc = subprocess.Popen([*cmd, "plan", str(src), "--pipeline", "fast", "--no-progress"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the command plans anything: its first write meets a closed pipe
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
 def test_a_failed_plan_is_written_and_exits_1(tmp_path, capsys):
     src = tmp_path / "w.json"
     write_world(generate_world(0, n_robots=3, n_targets=10), src)

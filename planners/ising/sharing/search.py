@@ -9,10 +9,10 @@ whose bundles are placed and which are compared by route cost (:mod:`.placement`
 splits x quantization rules go block-packed into one chip submission (:mod:`.submission`);
 groups beyond the chip split on clusters (:mod:`.clusters`) or spin-budget branches.  Then,
 beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between
-neighbouring robots are re-split on the chip (:mod:`.refine`).  Chip calls are metered (:class:`ising_backend.MeteredSolver`); a chip
-that cannot answer is a failure with ``stats["chip_unavailable"]``, which the pipeline hands to
-SSA (:mod:`planners.fallback`).  The Python
-search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
+neighbouring robots are re-split on the chip (:mod:`.refine`).  Chip calls are metered
+(:class:`ising_backend.MeteredSolver`); a chip that cannot answer is a failure with
+``stats["chip_unavailable"]``, which the pipeline hands to SSA (:mod:`planners.fallback`).  The
+Python search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
 docs/design/ising_sharing.md.
 """
 

@@ -10,7 +10,8 @@ Ising patch refinement with patience, several independent starts on the logical 
 (spin budget, no coefficient range); ``backend="chip-onehot"`` quantizes those one-hot
 QUBOs for the physical chip (the paper's negative result).  Every call is metered
 (:class:`ising_backend.MeteredSolver`); a chip that cannot answer is a failure with
-``stats["chip_unavailable"]``, which the pipeline hands to 3-opt (:mod:`planners.fallback`).  Choices and measurements: docs/design/ising_tour.md.
+``stats["chip_unavailable"]``, which the pipeline hands to 3-opt (:mod:`planners.fallback`).
+Choices and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

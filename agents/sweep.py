@@ -181,18 +181,27 @@ def _sweep_task(spec_id: int, labels: dict, chip, controller: str, seed: int, wo
     return {**head, **row}
 
 
-def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = True) -> SweepResult:
-    """Run the sweep on the task runner ``run`` (a :class:`agents.runner.RunConfig`)."""
-    from agents.evaluation import resolve_max_steps, uses_chip
-    from agents.runner import RunConfig, run_tasks
-    from ising_backend import ChipSpec
+def checked_grid(config: SweepConfig, base_chip=None) -> tuple[list, list]:
+    """The sweep's chip grid (:func:`chip_grid`) and its controllers that run on a chip, or a ``ValueError``
+    naming a bad axis value or a sweep without a chip controller (checked before anything compiles)."""
+    from agents.evaluation import uses_chip
 
-    run = run or RunConfig(progress=progress)
     grid = chip_grid(config.axes, base_chip)
     chipped = [c for c in config.controllers if uses_chip(c)]
     if not chipped:
         raise ValueError(f"none of the controllers {list(config.controllers)} runs on a chip; "
                          "add ising or a layer triple with an ising layer")
+    return grid, chipped
+
+
+def run_sweep(config: SweepConfig, run=None, base_chip=None, progress: bool = True) -> SweepResult:
+    """Run the sweep on the task runner ``run`` (a :class:`agents.runner.RunConfig`)."""
+    from agents.evaluation import resolve_max_steps
+    from agents.runner import RunConfig, run_tasks
+    from ising_backend import ChipSpec
+
+    run = run or RunConfig(progress=progress)
+    grid, chipped = checked_grid(config, base_chip)
     env_kwargs = dict(config.env_kwargs)
     max_steps = resolve_max_steps(config.env_id, env_kwargs, config.max_steps)
     worlds = [int(config.world_seed) + i for i in range(int(config.n_worlds))]

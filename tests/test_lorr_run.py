@@ -114,7 +114,10 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
 
 @pytest.mark.parametrize("args, needle", [
     (["run", "no/such.json"], "no/such.json: no such instance file"),
-    (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'"),
+    (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'; known: lorr-greedy, strong, "
+                                                       "ising, fast, ising-paper, a sharing+tour pair or ppo:MODEL.zip"),
+    (["run", str(EXAMPLE), "--scheduler", "ssa+telepathy"], "a sharing+tour pair or ppo:MODEL.zip (unknown tour "
+                                                           "planner 'telepathy'"),
     (["run", str(EXAMPLE), "--executor", "teleport"], "unknown executor 'teleport'"),
     (["run", str(EXAMPLE), "--steps", "0"], "--steps must be >= 1, got 0"),
     (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "

@@ -150,6 +150,18 @@ def test_sweep_cli_bad_input_is_one_line_and_exit_2(argv, match, tmp_path, capsy
     assert code == 2 and len(err.splitlines()) == 1 and match in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("axis", ["n_spins=abc", "sweeps=-1", "nspins=3"])
+def test_a_bad_axis_value_is_named_before_anything_compiles(axis, tmp_path, capsys, monkeypatch):
+    import agents.warmup
+
+    compiled = []
+    monkeypatch.setattr(agents.warmup, "warm", lambda *a, **k: compiled.append(a) or [])
+    code = main(["sweep", "--chip", axis, "--worlds", "1", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and axis.split("=")[0] in err
+    assert compiled == []  # no compile notice or progress bar before the error
+
+
 def test_step_limit_scales_with_the_world_and_is_an_option():
     from agents.evaluation import evaluate, step_limit
 

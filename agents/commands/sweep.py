@@ -58,7 +58,7 @@ def run(args) -> int:
 
     import mrmt_env  # noqa: F401  (registers the ids)
     from agents.errors import ControllerError
-    from agents.sweep import SweepConfig, parse_axes, run_sweep
+    from agents.sweep import SweepConfig, checked_grid, parse_axes, run_sweep
     from agents.sweep_report import write_report
 
     if args.env_id not in gym.registry:
@@ -80,6 +80,7 @@ def run(args) -> int:
             reference = None
         if reference is not None and reference not in config.controllers:
             return fail(f"--reference {reference!r} is not among --controllers {args.controllers!r}")
+        checked_grid(config, base)  # a bad axis value is named before anything compiles
         if not args.address:  # compile once, in parallel, before the workers need it (agents/warmup.py)
             from agents.warmup import warm
 

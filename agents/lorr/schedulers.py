@@ -165,6 +165,7 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     try:
         assigner = PipelineAssigner(name, chip=chip, **options)
     except ValueError as exc:
+        why = f" ({exc})" if "+" in name else ""  # which half of a pair is unknown
         raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}, a sharing+tour pair "
-                         f"or ppo:MODEL.zip ({exc})") from None
+                         f"or ppo:MODEL.zip{why}") from None
     return AssignerScheduler(assigner, seed=seed, **own)

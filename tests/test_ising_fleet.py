@@ -6,7 +6,9 @@ import pytest
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env import generate_world
 from planners.ising.fleet import FleetConfig, IsingFleetSharing
-from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
+from planners.ising.fleet.moves import candidate_moves
+from planners.ising.moves.kinds import MOVE_KINDS, apply_move
+from planners.ising.moves.routes import route_cost, walk
 from planners.ising.moves.selection import conflicts
 from planners.ising.fleet.recreate import ruin_recreate
 from planners.pipeline import make_pipeline
@@ -56,7 +58,10 @@ def test_every_gain_is_the_exact_cost_change_and_disjoint_moves_add(seed):
     d, r, nxt, prv, neigh = _state(seed)
     owner, pos, length = walk(nxt, r)
     moves, spans, gains = candidate_moves(d, nxt, prv, owner, pos, length, neigh, r)
-    assert len(gains) > 20 and set(moves[:, 0].tolist()) == {0, 1, 2, 3}  # all four kinds occur
+    kinds = {MOVE_KINDS[k] for k in moves[:, 0].tolist()}
+    assert len(gains) > 20 and kinds == {"or-opt", "swap", "2-opt*", "2-opt"}  # the fleet's four kinds occur
+    relocations = moves[moves[:, 0] == MOVE_KINDS.index("or-opt")]
+    assert np.array_equal(relocations[:, 1], relocations[:, 2])  # a one-node or-opt
     before = _cost_reference(d, _routes(nxt, r), r)
     for i in range(len(gains)):
         a, b = nxt.copy(), prv.copy()

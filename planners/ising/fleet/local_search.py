@@ -1,7 +1,7 @@
 """The fleet search in one compiled call: local search by chip-selected move sets, then the kicks.
 
 Contract: :func:`local_search_loop` improves the routes ``nxt`` / ``prv`` (linked lists,
-:mod:`.moves`) in place: each round lists the improving granular moves, offers at most
+:mod:`planners.ising.moves.routes`) in place: each round lists the improving granular moves, offers at most
 ``capacity >> failures`` of them and applies the compatible set the chip selects
 (:func:`planners.ising.moves.selection.select_round`) or, with ``chip=False``, the host's greedy set
 (:func:`~planners.ising.moves.selection.greedy_selection`, no chip call).  A round whose reads select
@@ -19,7 +19,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.fleet.moves import apply_move, candidate_moves, route_cost, walk
+from planners.ising.fleet.moves import candidate_moves
+from planners.ising.moves.kinds import apply_move
+from planners.ising.moves.routes import route_cost, walk
 from planners.ising.fleet.recreate import ruin_recreate
 from planners.ising.moves.selection import ROUND_REFUSED, conflicts, greedy_selection, pick_candidates, select_round
 
@@ -78,7 +80,7 @@ def local_search_loop(rng, d, nxt, prv, r, neigh, search, program, machine, stat
             continue
         failures = 0
         for i in keep[taken]:
-            apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2])
+            apply_move(nxt, prv, moves[i, 0], moves[i, 1], moves[i, 2], moves[i, 3])
         stats[3] += taken.shape[0]
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.fleet.moves import insert_after, unlink
+from planners.ising.moves.routes import insert_after, unlink
 
 __all__ = ["ruin_recreate"]
 

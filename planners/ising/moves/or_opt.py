@@ -1,0 +1,43 @@
+"""Move kind or-opt: the segment ``a .. b`` of a route (one node when ``a == b``: a relocation), reversed
+or not, moved to right after node ``c`` (on its route or another); ``c`` is outside the segment and
+not the node before it."""
+
+from __future__ import annotations
+
+import numba
+
+from planners.ising.moves.routes import edge
+
+__all__ = ["gain", "apply"]
+
+
+@numba.njit(cache=True, inline="always")
+def gain(d, pa, a, b, nb, c, cn, rev):
+    """Route cost saved, ``pa = prv[a]``, ``nb = nxt[b]``, ``cn = nxt[c]`` (-1: the open end)."""
+    first, last = (b, a) if rev else (a, b)
+    return d[pa, a] + edge(d, b, nb) - edge(d, pa, nb) + edge(d, c, cn) - d[c, first] - edge(d, last, cn)
+
+
+@numba.njit(cache=True)
+def apply(nxt, prv, a, b, c, rev):
+    pa, nb = prv[a], nxt[b]
+    nxt[pa] = nb  # the segment out
+    if nb >= 0:
+        prv[nb] = pa
+    first, last = a, b
+    if rev:  # its own links turned around
+        x = a
+        while True:
+            nx = nxt[x]
+            nxt[x] = prv[x]
+            prv[x] = nx
+            if x == b:
+                break
+            x = nx
+        first, last = b, a
+    cn = nxt[c]  # and in after c
+    nxt[c] = first
+    prv[first] = c
+    nxt[last] = cn
+    if cn >= 0:
+        prv[cn] = last

@@ -159,6 +159,7 @@ def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import ising_from_qubo
     from ising_backend import STACK_OK, pack_qubo_stack, quantize_stack
     from ising_backend.numeric import ising_of_qubo
+    from planners.ising.moves.routes import linked, route_of
     from planners.ising.tour.moves import apply_moves as compiled_apply
 
     d, r = case
@@ -182,9 +183,10 @@ def test_compiled_move_kernels_match_the_reference(case, rnd):
     chosen = np.array([rnd.random() < 0.4 for _ in gains])
     taken, _total = read_gain(chosen, clashes, gains)
     if taken is not None:
-        route = r.copy()
-        compiled_apply(route, moves, taken)
-        assert np.array_equal(route, apply_moves(r, moves, taken))
+        nxt, prv = linked(r)
+        compiled_apply(nxt, prv, r, moves, taken)  # by node, on the route's linked list
+        assert np.array_equal(route_of(nxt), apply_moves(r, moves, taken))
+        assert all(prv[y] == x for x in range(len(r)) for y in [nxt[x]] if y >= 0)  # the links agree
 
 
 class _PlainChip(EmulatedChip):

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from planners.ising.moves.selection import ROUND_REFUSED, select_round
+from planners.ising.moves.routes import linked, route_of
 from planners.ising.tour.moves import apply_moves, candidate_moves
 
 __all__ = ["select_moves_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",
@@ -37,7 +38,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
     stats = rounds, retries, moves applied, rounds with a valid read, programs with a valid read;
     ``clean`` / ``wins`` per rule: valid reads that select a move, best reads.
     """
-    route = route.copy()
+    nxt, prv = linked(route)  # the route form of every move search (planners.ising.moves.routes)
     k = program[0].shape[0]  # the quantization rules
     stats = np.zeros(5, dtype=np.int64)
     clean_all = np.zeros(k, dtype=np.int64)
@@ -49,6 +50,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
     rounds = 0
     status = LOCAL_OPTIMUM
     while rounds < max_rounds:
+        route = route_of(nxt)
         moves, spans, gains = candidate_moves(dist, route, max_segment)
         if gains.shape[0] == 0:
             break
@@ -57,7 +59,7 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         if st == ROUND_REFUSED:
             stats[0] = rounds
             stats[2] = applied
-            return route, REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
+            return route_of(nxt), REFUSED, stats, clean_all, wins, calls[:rounds], emu[:rounds]
         emu[rounds] = seconds
         calls[rounds] = n_calls
         rounds += 1
@@ -75,10 +77,10 @@ def select_moves_loop(rng, dist, route, max_segment, capacity, max_overlap, max_
         stats[3] += 1
         failures = 0
         applied += taken.shape[0]
-        apply_moves(route, moves[keep], taken)
+        apply_moves(nxt, prv, route, moves[keep], taken)
     stats[0] = rounds
     stats[2] = applied
-    return route, status, stats, clean_all, wins, calls[:rounds], emu[:rounds]
+    return route_of(nxt), status, stats, clean_all, wins, calls[:rounds], emu[:rounds]
 
 
 @numba.njit(cache=True)

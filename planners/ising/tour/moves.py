@@ -1,15 +1,17 @@
-"""Move-selection formulation of the chip tour (beyond paper 5.2): the candidate moves of one route.
+"""The chip tour's neighbourhood (beyond paper 5.2): every improving 2-opt and or-opt move of one route.
 
-A route is ``r = [0, t_1, ..., t_n]`` (node 0 the robot, open end).  A *move* rewrites the
-route inside its span of edges ``[lo, hi]`` (edge ``e`` joins positions ``e`` and ``e + 1``):
+A route is ``r = [0, t_1, ..., t_n]`` (node 0 the robot, open end), read off the tour's linked list
+(:func:`planners.ising.moves.routes.route_of`).  A move rewrites the route inside its span of edges
+``[lo, hi]`` (edge ``e`` joins positions ``e`` and ``e + 1``):
 
 * 2-opt ``(i, j)``: reverse positions ``i+1..j`` (span ``[i, j]``);
 * or-opt ``(a, b, c)``: move the segment at positions ``a..b`` (1-3 targets), reversed or not,
   to between positions ``c`` and ``c + 1`` (span ``[c, b]`` or ``[a-1, c]``).
 
-Moves whose spans are disjoint touch disjoint edges and positions, so their gains add; the
-chip selects among them as in the fleet search (:mod:`planners.ising.moves.selection`, spans on
-route 0).
+Rows are positions; :func:`apply_moves` applies them by node through each kind's file
+(:mod:`planners.ising.moves.kinds`).  Moves whose spans are disjoint touch disjoint edges and
+positions, so their gains add; the chip selects among them as in the fleet search
+(:mod:`planners.ising.moves.selection`, spans on route 0).
 """
 
 from __future__ import annotations
@@ -17,15 +19,20 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from planners.ising.moves import or_opt, two_opt
+from planners.ising.moves.kinds import OR_OPT, TWO_OPT, apply_move
+
 __all__ = ["candidate_moves", "apply_moves", "MOVE_FIELDS"]
 
-#: Columns of a move row: kind (0 = 2-opt, 1 = or-opt, 2 = or-opt reversed), i/a, j/b, c.
+#: Columns of a move row: kind (:data:`~planners.ising.moves.kinds.MOVE_KINDS`: 2-opt, or-opt, or-opt
+#: reversed), positions i/a, j/b, c.
 MOVE_FIELDS = ("kind", "p", "q", "c")
 
 
 @numba.njit(cache=True, inline="always")  # called per candidate: no call (and no array reference counting)
-def _edge(d, r, p, n):
-    return d[r[p], r[p + 1]] if p < n else 0.0
+def _at(r, p, n):
+    """The node at position ``p``, -1 past the open end."""
+    return r[p] if p <= n else -1
 
 
 @numba.njit(cache=True)
@@ -44,11 +51,9 @@ def candidate_moves(d, r, max_segment):
     m = 0
     for i in range(n - 1):  # 2-opt: reverse i+1..j
         for j in range(i + 2, n + 1):
-            g = d[r[i], r[i + 1]] - d[r[i], r[j]]
-            if j < n:
-                g += d[r[j], r[j + 1]] - d[r[i + 1], r[j + 1]]
+            g = two_opt.gain(d, r[i], r[i + 1], r[j], _at(r, j + 1, n))
             if g > 1e-9:
-                moves[m, 0] = 0
+                moves[m, 0] = TWO_OPT
                 moves[m, 1] = i
                 moves[m, 2] = j
                 moves[m, 3] = -1
@@ -58,19 +63,13 @@ def candidate_moves(d, r, max_segment):
                 m += 1
     for a in range(1, n + 1):  # or-opt: segment a..b to between c and c + 1
         for b in range(a, min(n, a + max_segment - 1) + 1):
-            out = d[r[a - 1], r[a]] + _edge(d, r, b, n)
-            close = d[r[a - 1], r[b + 1]] if b < n else 0.0
             for rev in range(2 if b > a else 1):
-                first = r[b] if rev else r[a]
-                last = r[a] if rev else r[b]
                 for c in range(n + 1):
                     if a - 1 <= c <= b:
                         continue
-                    g = out + _edge(d, r, c, n) - close - d[r[c], first]
-                    if c < n:
-                        g -= d[last, r[c + 1]]
+                    g = or_opt.gain(d, r[a - 1], r[a], r[b], _at(r, b + 1, n), r[c], _at(r, c + 1, n), rev == 1)
                     if g > 1e-9:
-                        moves[m, 0] = 1 + rev
+                        moves[m, 0] = OR_OPT + rev
                         moves[m, 1] = a
                         moves[m, 2] = b
                         moves[m, 3] = c
@@ -82,22 +81,9 @@ def candidate_moves(d, r, max_segment):
 
 
 @numba.njit(cache=True)
-def apply_moves(route, moves, taken):
-    """Route ``route`` with the (pairwise disjoint) moves ``taken`` applied, in place."""
+def apply_moves(nxt, prv, r, moves, taken):
+    """The (pairwise disjoint) moves ``taken`` of ``moves`` (rows on route ``r``'s positions) applied to
+    its linked list ``nxt`` / ``prv`` by node, in place."""
     for m in taken:
         kind, p, q, c = moves[m, 0], moves[m, 1], moves[m, 2], moves[m, 3]
-        if kind == 0:
-            route[p + 1:q + 1] = route[p + 1:q + 1][::-1].copy()
-            continue
-        seg = route[p:q + 1].copy()
-        if kind == 2:
-            seg = seg[::-1].copy()
-        L = seg.shape[0]
-        if c < p:
-            rest = route[c + 1:p].copy()
-            route[c + 1:c + 1 + L] = seg
-            route[c + 1 + L:q + 1] = rest
-        else:
-            rest = route[q + 1:c + 1].copy()
-            route[p:p + rest.shape[0]] = rest
-            route[p + rest.shape[0]:c + 1] = seg
+        apply_move(nxt, prv, kind, r[p], r[q], r[c] if kind != TWO_OPT else -1)

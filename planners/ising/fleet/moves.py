@@ -4,17 +4,11 @@ The routes are linked lists over the world's nodes (:mod:`planners.ising.moves.r
 moves (``v`` among the ``k`` nearest nodes of target ``u``), each priced and applied by its kind's
 file (:mod:`planners.ising.moves.kinds`):
 
-============================ =============================================== =====================
-move (row ``kind, a, b, c``) what changes                                    edges touched (spans)
-============================ =============================================== =====================
-or-opt ``u, u, w``           ``u`` leaves its place, goes right after ``w``   ``[pos u - 1, pos u]`` and ``[pos w]``
-                             (``w = v`` or the node before ``v``)
-swap ``u, v``                ``u`` and ``v`` (other robots) trade places     ``[pos u - 1, pos u]``, ``[pos v - 1, pos v]``
-2-opt* ``u, b``              tails after ``u`` and after ``b = prv v``       ``[pos u, end]``, ``[pos b, end]``
-                             (other robots) swap
-2-opt ``a, b``               the segment ``nxt a .. b`` of one route          ``[pos a, pos b]``
-                             reversed
-============================ =============================================== =====================
+* or-opt ``u, u, w``: ``u`` goes right after ``w = v`` or the node before ``v`` (a relocation);
+  spans ``[pos u - 1, pos u]`` and ``[pos w]``;
+* swap ``u, v`` (other robots): spans ``[pos u - 1, pos u]``, ``[pos v - 1, pos v]``;
+* 2-opt* ``u, b = prv v`` (other robots): spans ``[pos u, end]``, ``[pos b, end]``;
+* 2-opt ``a, b`` (one route, ``{a, b} = {u, v}``): span ``[pos a, pos b]``.
 
 Two moves whose spans are disjoint in every route touch disjoint edges, so their gains add and
 applying them one after another by node gives the sum; two spans in the same route are merged into

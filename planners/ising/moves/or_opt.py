@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numba
 
-from planners.ising.moves.routes import edge
+from planners.ising.moves.routes import edge, turn
 
 __all__ = ["gain", "apply"]
 
@@ -25,15 +25,8 @@ def apply(nxt, prv, a, b, c, rev):
     if nb >= 0:
         prv[nb] = pa
     first, last = a, b
-    if rev:  # its own links turned around
-        x = a
-        while True:
-            nx = nxt[x]
-            nxt[x] = prv[x]
-            prv[x] = nx
-            if x == b:
-                break
-            x = nx
+    if rev:
+        turn(nxt, prv, a, b)
         first, last = b, a
     cn = nxt[c]  # and in after c
     nxt[c] = first

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["walk", "route_cost", "edge", "unlink", "insert_after", "linked", "route_of"]
+__all__ = ["walk", "route_cost", "edge", "unlink", "insert_after", "turn", "linked", "route_of"]
 
 
 @numba.njit(cache=True)
@@ -68,6 +68,19 @@ def insert_after(nxt, prv, u, x):
     nxt[u] = w
     if w >= 0:
         prv[w] = u
+
+
+@numba.njit(cache=True, inline="always")
+def turn(nxt, prv, a, b):
+    """Turn the links of the segment ``a .. b`` around (its ends' outer links are left to the caller)."""
+    x = a
+    while True:
+        nx = nxt[x]
+        nxt[x] = prv[x]
+        prv[x] = nx
+        if x == b:
+            break
+        x = nx
 
 
 @numba.njit(cache=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numba
 
-from planners.ising.moves.routes import edge
+from planners.ising.moves.routes import edge, turn
 
 __all__ = ["gain", "apply"]
 
@@ -19,14 +19,7 @@ def gain(d, a, an, b, bn):
 @numba.njit(cache=True)
 def apply(nxt, prv, a, b):
     an, bn = nxt[a], nxt[b]
-    x = an
-    while True:
-        nx = nxt[x]
-        nxt[x] = prv[x]
-        prv[x] = nx
-        if x == b:
-            break
-        x = nx
+    turn(nxt, prv, an, b)
     nxt[a] = b
     prv[b] = a
     nxt[an] = bn

@@ -1,1 +1,3 @@
-"""Moves of the tour and the fleet search and the chip's selection among them."""
+"""The move engine of the tour and the fleet search: one route form (:mod:`.routes`), one file per
+move kind (:mod:`.kinds`: :mod:`.two_opt`, :mod:`.or_opt`, :mod:`.swap`, :mod:`.two_opt_star`) and the
+chip's selection among the offered moves (:mod:`.selection`)."""

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.ising.moves.selection import ROUND_REFUSED, select_round
 from planners.ising.moves.routes import linked, route_of
+from planners.ising.moves.selection import ROUND_REFUSED, select_round
 from planners.ising.tour.moves import apply_moves, candidate_moves
 
 __all__ = ["select_moves_loop", "nearest_neighbour_kernel", "LOCAL_OPTIMUM", "STALLED", "NO_PROGRESS",

@@ -6,7 +6,7 @@ QUBO quantized by every rule, one ``anneal_batch`` per round through a metered s
 applied), then the kicks (``ruin_recreate``, the same draws) with record-to-record acceptance.  Routes are
 lists of nodes here; gains are route costs before minus after (exact, and so the kernel's bits, on the
 integer BFS distances the tests use); spans, clashes, the pick, the QUBO and the scoring are computed here,
-independently of ``planners.ising.fleet.moves`` and ``planners.ising.moves.selection``.  Test code only.
+independently of ``planners.ising.moves`` (kinds, granular neighbourhood, search) and ``planners.ising.moves.selection``.  Test code only.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ import pytest
 from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env import generate_world
 from planners.ising.fleet import FleetConfig, IsingFleetSharing
-from planners.ising.fleet.moves import candidate_moves
+from planners.ising.moves.granular import granular_moves as candidate_moves
 from planners.ising.moves.kinds import MOVE_KINDS, apply_move
 from planners.ising.moves.routes import route_cost, walk
 from planners.ising.moves.selection import conflicts

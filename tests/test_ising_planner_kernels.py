@@ -679,7 +679,7 @@ def test_dist_flags_is_the_numpy_checks(n, seed, p_nan, p_neg, p_inf):
     ({}, {"readout_flip_prob": 0.05, "stuck_spins": 2}),  # a faulty chip: the same loop through its anneal_batch
 ])
 def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
-    """planners.ising.tour.move_engine.select_moves_loop (one start of the chip tour) against the
+    """planners.ising.moves.search.move_search (one start of the chip tour) against the
     Python loop of tests/tour_reference.py: the same routes, failures, statistics, charges and rng
     state from nearest-neighbour and random starts."""
     from ising_backend import ChipSpec, EmulatedChip

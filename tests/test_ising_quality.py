@@ -19,7 +19,7 @@ from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfi
 from sharing_search_reference import neighbour_pairs
 from planners.ising.tour import IsingTour, PaperIsingTour, TourConfig
 from planners.ising.moves.selection import conflicts, pick_candidates, read_gain, selection_qubo
-from planners.ising.tour.moves import candidate_moves
+from planners.ising.moves.route_moves import route_moves as candidate_moves
 from planners.ising.tour.selection import double_bridge
 from tour_reference import apply_moves, nearest_neighbour_route
 from planners.pipeline import make_pipeline
@@ -160,7 +160,7 @@ def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import STACK_OK, pack_qubo_stack, quantize_stack
     from ising_backend.numeric import ising_of_qubo
     from planners.ising.moves.routes import linked, route_of
-    from planners.ising.tour.moves import apply_moves as compiled_apply
+    from planners.ising.moves.route_moves import apply_route_moves as compiled_apply
 
     d, r = case
     moves, spans, gains = candidate_moves(d, r, 3)
@@ -216,7 +216,7 @@ def test_compiled_chip_tour_makes_the_reference_decisions(n, restart):
 @given(st.integers(0, 2**31), st.integers(1, 14), st.integers(1, 6))
 def test_compiled_nearest_neighbour_route_is_the_reference(seed, n, spread):
     """Small integer distances: many ties, which go to the lowest index in both."""
-    from planners.ising.tour.move_engine import nearest_neighbour_kernel
+    from planners.ising.tour.selection import nearest_neighbour_kernel
 
     d = np.random.default_rng(seed).integers(0, spread, size=(n + 1, n + 1)).astype(float)
     assert nearest_neighbour_kernel(d).tolist() == nearest_neighbour_route(d).tolist()

@@ -1,11 +1,11 @@
 """The chip tour's move selection (one start) as a plain Python loop: the oracle of the compiled loop.
 
 ``reference_select_moves(tour, dist, route, run)`` makes the decisions the package's compiled
-``planners.ising.tour.move_engine.select_moves_loop`` must make: list and pick the candidate
+``planners.ising.moves.search.move_search`` must make on the tour's neighbourhood: list and pick the candidate
 moves, build the selection QUBO and its Ising form, quantize it by every rule, one
 ``anneal_batch`` per round, score the reads, apply the best valid read.  The candidate moves, their
 gains, the scoring of the reads and the moves themselves are computed here, independently of
-``planners.ising.tour.moves`` (gains as route cost before minus after: exact, and so the kernel's
+``planners.ising.moves.route_moves`` (gains as route cost before minus after: exact, and so the kernel's
 bits, on the integer BFS distances the tests use).  Test code only: the package never imports it.
 """
 

@@ -33,7 +33,8 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
-from planners.ising.fleet.local_search import REFUSED, STAT_FIELDS, iterated_search
+from planners.ising.fleet.local_search import iterated_search
+from planners.ising.moves.search import FLEET_FIELDS, REFUSED, STAT_FIELDS
 from planners.ising.moves.routes import route_cost
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.sharing_classical import SSASharing
@@ -162,7 +163,7 @@ class IsingFleetSharing:
                 g.append(int(x) - r)
                 x = best_nxt[x]
             groups.append(tuple(g))
-        stats["fleet"] = {**dict(zip(STAT_FIELDS, counts.tolist())),
+        stats["fleet"] = {**dict(zip(FLEET_FIELDS, counts.tolist())),
                           "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": float(best_cost[0])}
         compute = ComputeReport.from_ledger(charged)
         if failure:

@@ -4,7 +4,7 @@ A move row is ``kind, a, b, c`` (nodes): 2-opt ``a, b`` (:mod:`.two_opt`), or-op
 its reversed form (:mod:`.or_opt`; the fleet's relocation is a one-node or-opt), swap ``a, b``
 (:mod:`.swap`), 2-opt* ``a, b`` (:mod:`.two_opt_star`); ``c`` is -1 where unused.  A new kind is a
 file with ``gain`` and ``apply``, an id here, and a place in the neighbourhoods that offer it
-(:mod:`planners.ising.tour.moves`, :mod:`planners.ising.fleet.moves`).
+(:mod:`.route_moves`, :mod:`.granular`).
 """
 
 from __future__ import annotations

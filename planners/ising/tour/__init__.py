@@ -1,9 +1,8 @@
 """Ising tour construction: move selection on the physical chip, and the clustered construction
 of paper section 5.2 (Algorithm 2).
 
-``config`` (options), ``moves`` (the route's 2-opt / or-opt neighbourhood; the kinds and the
-selection in :mod:`planners.ising.moves`),
-``selection`` and ``move_engine`` (the chip backend's search, compiled), ``engine`` (the
+``config`` (options), ``selection`` (the chip backend: starts over the move engine of
+:mod:`planners.ising.moves`), ``engine`` (the
 one-hot subproblem solve, compiled), ``qubo``
 (eq. 7 max-cut and one-hot open-path model builders, decoders, scorers), ``cluster``
 (clustering and cluster ordering), ``search`` (``IsingTour``: local TSPs, patch refinement,

@@ -19,15 +19,15 @@ from __future__ import annotations
 import math
 from functools import cached_property
 
+import numba
 import numpy as np
 
+from planners.ising.moves.routes import linked, route_of
+from planners.ising.moves.search import GAVE_UP, REFUSED, STAT_FIELDS, move_search
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.ising.tour.cluster import TourFailure
-from planners.ising.tour.move_engine import (
-    NO_PROGRESS, REFUSED, STALLED, nearest_neighbour_kernel, select_moves_loop,
-)
 
-__all__ = ["MoveSearch", "double_bridge", "settle", "KICK_ABOVE", "ProgramRefused"]
+__all__ = ["MoveSearch", "double_bridge", "settle", "nearest_neighbour_kernel", "KICK_ABOVE", "ProgramRefused"]
 
 
 
@@ -43,6 +43,25 @@ def settle(link, charges: list) -> None:
     """Charge the starts' submissions ``charges`` (``(calls, emulation_s)`` per start, in order) on ``link``."""
     if charges:
         link.settle(np.concatenate([c for c, _ in charges]), np.concatenate([e for _, e in charges]))
+
+
+@numba.njit(cache=True)
+def nearest_neighbour_kernel(dist):
+    """The nearest-neighbour route: from node 0 always to the nearest unvisited node (ties: the
+    lowest index)."""
+    n = dist.shape[0] - 1
+    route = np.zeros(n + 1, dtype=np.int64)
+    seen = np.zeros(n + 1, dtype=np.bool_)
+    seen[0] = True
+    for t in range(1, n + 1):
+        last = route[t - 1]
+        best = -1
+        for v in range(1, n + 1):
+            if not seen[v] and (best < 0 or dist[last, v] < dist[last, best]):
+                best = v
+        route[t] = best
+        seen[best] = True
+    return route
 
 
 def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -110,21 +129,27 @@ class MoveSearch:
     def select(self, dist: np.ndarray, route: np.ndarray, run, link, charges: list) -> np.ndarray:
         """One start on the session ``link``: ``route`` (float64 ``dist``) improved by chip-selected moves
         until no move improves it (or the chip selects nothing valid ``max_retries + 1`` times in a row), in
-        one compiled call (:func:`.move_engine.select_moves_loop`); its submissions' calls and emulation
-        seconds are appended to ``charges`` for :func:`settle`.  A chip that never selects a valid improving
-        set for a route that has improving moves fails the start (:class:`TourFailure`): the route would be
-        the host's, not the chip's."""
+        one compiled call (:func:`planners.ising.moves.search.move_search` on the route's 2-opt / or-opt
+        neighbourhood); its submissions' calls and emulation seconds are appended to ``charges`` for
+        :func:`settle`.  A chip that never selects a valid improving set for a route that has improving moves
+        fails the start (:class:`TourFailure`): the route would be the host's, not the chip's."""
         cfg = self.config
-        new, status, st, clean, wins, calls, emu = select_moves_loop(
-            run.rng, dist, route, cfg.max_segment, self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds,
-            self._move_args, link.args)
-        charges.append((calls, emu))
-        self._count_start(run, st, clean, wins, status)
+        k = len(cfg.chip_rules)
+        stats = np.zeros(len(STAT_FIELDS), dtype=np.int64)
+        clean, wins = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
+        nxt, prv = linked(route)
+        status, calls, emu, used = move_search(
+            run.rng, dist, nxt, prv, 1, cfg.max_segment, None,
+            (self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds, True), self._move_args, link.args,
+            stats, (clean, wins), (np.zeros(cfg.max_rounds, dtype=np.int64), np.zeros(cfg.max_rounds), 0))
+        charges.append((calls[:used], emu[:used]))
+        no_progress = status == GAVE_UP and not stats[STAT_FIELDS.index("moves_applied")]
+        self._count_start(run, dict(zip(STAT_FIELDS, stats.tolist())), clean, wins, status == GAVE_UP)
         if status == REFUSED:
             raise ProgramRefused(REFUSED_MESSAGE)
-        if status == NO_PROGRESS:
+        if no_progress:
             raise TourFailure(self._no_progress)
-        return new
+        return route_of(nxt)
 
     @property
     def _no_progress(self) -> str:
@@ -132,11 +157,12 @@ class MoveSearch:
         return (f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
                 f"submissions of {len(cfg.chip_rules)} programs")
 
-    def _count_start(self, run, st, clean, wins, status) -> None:
-        """The statistics of one start: ``st`` (rounds, retries, moves applied, rounds and programs with a
-        valid read), ``clean`` (valid reads per rule), ``wins`` (best reads per rule), its status."""
+    def _count_start(self, run, st: dict, clean, wins, gave_up: bool) -> None:
+        """The statistics of one start: ``st`` (the search's, by :data:`~planners.ising.moves.search.STAT_FIELDS`),
+        ``clean`` (valid reads per rule), ``wins`` (best reads per rule), whether the chip gave up."""
         cfg = self.config
-        rounds, retries, applied, valid_rounds, valid_programs = st.tolist()
+        rounds, retries, applied = st["rounds"], st["retries"], st["moves_applied"]
+        valid_rounds, valid_programs = st["valid_rounds"], st["valid_programs"]
         k = len(cfg.chip_rules)
         m = run.stats["mapping"]["tour"]
         m["reads"] += rounds * k * cfg.num_reads
@@ -155,5 +181,5 @@ class MoveSearch:
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds
-        if status in (STALLED, NO_PROGRESS):
+        if gave_up:
             run.stats["unsolved"]["moves"] += 1

@@ -1,4 +1,4 @@
-"""The chip tour's neighbourhood (beyond paper 5.2): every improving 2-opt and or-opt move of one route.
+"""The tour's neighbourhood (beyond paper 5.2): every improving 2-opt and or-opt move of one route.
 
 A route is ``r = [0, t_1, ..., t_n]`` (node 0 the robot, open end), read off the tour's linked list
 (:func:`planners.ising.moves.routes.route_of`).  A move rewrites the route inside its span of edges
@@ -8,7 +8,7 @@ A route is ``r = [0, t_1, ..., t_n]`` (node 0 the robot, open end), read off the
 * or-opt ``(a, b, c)``: move the segment at positions ``a..b`` (1-3 targets), reversed or not,
   to between positions ``c`` and ``c + 1`` (span ``[c, b]`` or ``[a-1, c]``).
 
-Rows are positions; :func:`apply_moves` applies them by node through each kind's file
+Rows are positions; :func:`apply_route_moves` applies them by node through each kind's file
 (:mod:`planners.ising.moves.kinds`).  Moves whose spans are disjoint touch disjoint edges and
 positions, so their gains add; the chip selects among them as in the fleet search
 (:mod:`planners.ising.moves.selection`, spans on route 0).
@@ -22,7 +22,7 @@ import numpy as np
 from planners.ising.moves import or_opt, two_opt
 from planners.ising.moves.kinds import OR_OPT, TWO_OPT, apply_move
 
-__all__ = ["candidate_moves", "apply_moves", "MOVE_FIELDS"]
+__all__ = ["route_moves", "apply_route_moves", "MOVE_FIELDS"]
 
 #: Columns of a move row: kind (:data:`~planners.ising.moves.kinds.MOVE_KINDS`: 2-opt, or-opt, or-opt
 #: reversed), positions i/a, j/b, c.
@@ -36,7 +36,7 @@ def _at(r, p, n):
 
 
 @numba.njit(cache=True)
-def candidate_moves(d, r, max_segment):
+def route_moves(d, r, max_segment):
     """Every improving 2-opt and or-opt move of route ``r`` under ``d``.
 
     Returns ``(moves (M, 4) int64, spans (M, 6) int64, gains (M,))``, gains > 0, unsorted; a
@@ -81,7 +81,7 @@ def candidate_moves(d, r, max_segment):
 
 
 @numba.njit(cache=True)
-def apply_moves(nxt, prv, r, moves, taken):
+def apply_route_moves(nxt, prv, r, moves, taken):
     """The (pairwise disjoint) moves ``taken`` of ``moves`` (rows on route ``r``'s positions) applied to
     its linked list ``nxt`` / ``prv`` by node, in place."""
     for m in taken:

@@ -24,7 +24,7 @@ import numpy as np
 from planners.ising.moves import or_opt, swap, two_opt, two_opt_star
 from planners.ising.moves.kinds import OR_OPT, SWAP, TWO_OPT, TWO_OPT_STAR
 
-__all__ = ["candidate_moves"]
+__all__ = ["granular_moves"]
 
 _EPS = 1e-9
 
@@ -53,7 +53,7 @@ def _add(out, m, kind, a, b, c, g, span1, span2):
 
 
 @numba.njit(cache=True)
-def candidate_moves(d, nxt, prv, owner, pos, length, neigh, r):
+def granular_moves(d, nxt, prv, owner, pos, length, neigh, r):
     """Every improving granular move (module docstring).  Returns ``(moves (M, 4): kind, a, b, c;
     spans (M, 6): route, lo, hi, route, lo, hi (second route -1 when one); gains (M,))``."""
     m_nodes = nxt.shape[0]

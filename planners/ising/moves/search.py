@@ -40,7 +40,7 @@ _RETRIES, _VALID_ROUNDS, _VALID_PROGRAMS = 9, 10, 11
 LOCAL_OPTIMUM, GAVE_UP, REFUSED = 0, 1, 2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")  # the fleet calls it from its kick loop: no link level of its own
 def move_search(rng, d, nxt, prv, r, max_segment, neigh, search, program, machine, stats, per_rule, log):
     """The search (module docstring); ``search = (capacity, max_overlap, max_retries, max_rounds, chip)``,
     ``program = (rules, Lh, Lj, num_reads)``, ``machine`` an anneal record; ``per_rule = (clean, wins)``:

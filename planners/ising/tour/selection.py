@@ -37,6 +37,8 @@ class ProgramRefused(TourFailure):
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
 KICK_ABOVE = 16
+_AT = {name: i for i, name in enumerate(STAT_FIELDS)}  # the search's statistics by name
+_NO_LOG = (np.zeros(0, dtype=np.int64), np.zeros(0), 0)  # an empty submission log (grown, never written)
 
 
 def settle(link, charges: list) -> None:
@@ -84,6 +86,12 @@ class MoveSearch:
     def _move_args(self) -> tuple:
         """The compiled loop's ``program`` record (:func:`~planners.ising.moves.selection.program_record`)."""
         return program_record(self.config.chip_rules, self.spec, self.config.num_reads)
+
+    @cached_property
+    def _limits(self) -> tuple:
+        """The search's ``(capacity, max_overlap, max_retries, max_rounds, chip)``."""
+        cfg = self.config
+        return self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds, True
 
     @property
     def _capacity(self) -> int:
@@ -133,18 +141,15 @@ class MoveSearch:
         neighbourhood); its submissions' calls and emulation seconds are appended to ``charges`` for
         :func:`settle`.  A chip that never selects a valid improving set for a route that has improving moves
         fails the start (:class:`TourFailure`): the route would be the host's, not the chip's."""
-        cfg = self.config
-        k = len(cfg.chip_rules)
+        k = len(self.config.chip_rules)
         stats = np.zeros(len(STAT_FIELDS), dtype=np.int64)
         clean, wins = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
         nxt, prv = linked(route)
-        status, calls, emu, used = move_search(
-            run.rng, dist, nxt, prv, 1, cfg.max_segment, None,
-            (self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds, True), self._move_args, link.args,
-            stats, (clean, wins), (np.zeros(cfg.max_rounds, dtype=np.int64), np.zeros(cfg.max_rounds), 0))
+        status, calls, emu, used = move_search(run.rng, dist, nxt, prv, 1, self.config.max_segment, None, self._limits,
+                                               self._move_args, link.args, stats, (clean, wins), _NO_LOG)
         charges.append((calls[:used], emu[:used]))
-        no_progress = status == GAVE_UP and not stats[STAT_FIELDS.index("moves_applied")]
-        self._count_start(run, dict(zip(STAT_FIELDS, stats.tolist())), clean, wins, status == GAVE_UP)
+        no_progress = status == GAVE_UP and not stats[_AT["moves_applied"]]
+        self._count_start(run, stats, clean, wins, status == GAVE_UP)
         if status == REFUSED:
             raise ProgramRefused(REFUSED_MESSAGE)
         if no_progress:
@@ -157,12 +162,12 @@ class MoveSearch:
         return (f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
                 f"submissions of {len(cfg.chip_rules)} programs")
 
-    def _count_start(self, run, st: dict, clean, wins, gave_up: bool) -> None:
-        """The statistics of one start: ``st`` (the search's, by :data:`~planners.ising.moves.search.STAT_FIELDS`),
+    def _count_start(self, run, st, clean, wins, gave_up: bool) -> None:
+        """The statistics of one start: ``st`` (the search's, as :data:`~planners.ising.moves.search.STAT_FIELDS`),
         ``clean`` (valid reads per rule), ``wins`` (best reads per rule), whether the chip gave up."""
         cfg = self.config
-        rounds, retries, applied = st["rounds"], st["retries"], st["moves_applied"]
-        valid_rounds, valid_programs = st["valid_rounds"], st["valid_programs"]
+        rounds, retries, applied = int(st[_AT["rounds"]]), int(st[_AT["retries"]]), int(st[_AT["moves_applied"]])
+        valid_rounds, valid_programs = int(st[_AT["valid_rounds"]]), int(st[_AT["valid_programs"]])
         k = len(cfg.chip_rules)
         m = run.stats["mapping"]["tour"]
         m["reads"] += rounds * k * cfg.num_reads

@@ -34,8 +34,8 @@ from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
 from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
 from planners.ising.fleet.local_search import iterated_search
-from planners.ising.moves.search import FLEET_FIELDS, REFUSED, STAT_FIELDS
 from planners.ising.moves.routes import route_cost
+from planners.ising.moves.search import FLEET_FIELDS, REFUSED, STAT_FIELDS
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.sharing_classical import SSASharing
 

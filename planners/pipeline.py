@@ -102,7 +102,7 @@ from mrmt_env.world import World
 from planners import registry
 from planners.base import PathResult, SharingResult, TourResult
 from planners.compute import ComputeReport, stopwatch
-from planners.fallback import answer, fall_back
+from planners.fallback import METHODS, answer, fall_back
 from planners.plan import Plan, PlanError, RobotRoute, path_problem, validate_plan
 
 __all__ = ["Pipeline", "make_pipeline", "PRESETS", "merge_stats"]
@@ -123,7 +123,6 @@ PRESETS: dict[str, tuple[str, str, str]] = {
 #: without layer options): measured crossover, docs/design/ising_fleet.md.
 FLEET_ABOVE = 20
 
-_METHOD = {"sharing": "assign", "tour": "solve", "path": "find_path"}
 
 _ZERO = ComputeReport()
 
@@ -264,8 +263,8 @@ class Pipeline:
     def __post_init__(self) -> None:
         for layer in ("sharing", "tour", "path"):
             obj = getattr(self, layer)
-            if not callable(getattr(obj, _METHOD[layer], None)):
-                raise TypeError(f"{layer} layer {obj!r} has no {_METHOD[layer]}() method")
+            if not callable(getattr(obj, METHODS[layer], None)):
+                raise TypeError(f"{layer} layer {obj!r} has no {METHODS[layer]}() method")
         if self.name is None:
             self.name = "+".join(getattr(getattr(self, layer), "name", type(getattr(self, layer)).__name__)
                                  for layer in ("sharing", "tour", "path"))

@@ -34,7 +34,7 @@ def ruin_recreate(d, nxt, prv, r, seed, near, q, order):
     placed = np.ones(m, dtype=np.bool_)
     for i in range(q):  # take them out
         u = out[i]
-        unlink(nxt, prv, u)
+        unlink(nxt, prv, u, u)
         nxt[u] = -1
         prv[u] = -1
         placed[u] = False
@@ -50,5 +50,5 @@ def ruin_recreate(d, nxt, prv, r, seed, near, q, order):
             g = d[x, u] + (d[u, w] - d[x, w] if w >= 0 else 0.0)
             if g < best:
                 best, best_x = g, x
-        insert_after(nxt, prv, u, best_x)
+        insert_after(nxt, prv, u, u, best_x)
         placed[u] = True

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numba
 
-from planners.ising.moves.routes import edge, turn
+from planners.ising.moves.routes import edge, insert_after, turn, unlink
 
 __all__ = ["gain", "apply"]
 
@@ -20,17 +20,9 @@ def gain(d, pa, a, b, nb, c, cn, rev):
 
 @numba.njit(cache=True)
 def apply(nxt, prv, a, b, c, rev):
-    pa, nb = prv[a], nxt[b]
-    nxt[pa] = nb  # the segment out
-    if nb >= 0:
-        prv[nb] = pa
-    first, last = a, b
+    unlink(nxt, prv, a, b)
     if rev:
         turn(nxt, prv, a, b)
-        first, last = b, a
-    cn = nxt[c]  # and in after c
-    nxt[c] = first
-    prv[first] = c
-    nxt[last] = cn
-    if cn >= 0:
-        prv[cn] = last
+        insert_after(nxt, prv, b, a, c)
+    else:
+        insert_after(nxt, prv, a, b, c)

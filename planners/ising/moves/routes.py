@@ -51,23 +51,24 @@ def route_cost(d, nxt, r):
 
 
 @numba.njit(cache=True, inline="always")
-def unlink(nxt, prv, u):
-    """Take node ``u`` out of its route (``u``'s own links are left as they were)."""
-    p, n = prv[u], nxt[u]
+def unlink(nxt, prv, a, b):
+    """Take the segment ``a .. b`` (one node when ``a == b``) out of its route (its own links are left as
+    they were)."""
+    p, n = prv[a], nxt[b]
     nxt[p] = n
     if n >= 0:
         prv[n] = p
 
 
 @numba.njit(cache=True, inline="always")
-def insert_after(nxt, prv, u, x):
-    """Put node ``u`` right after node ``x``."""
+def insert_after(nxt, prv, a, b, x):
+    """Put the segment ``a .. b`` (linked from ``a`` to ``b``; one node when ``a == b``) right after node ``x``."""
     w = nxt[x]
-    nxt[x] = u
-    prv[u] = x
-    nxt[u] = w
+    nxt[x] = a
+    prv[a] = x
+    nxt[b] = w
     if w >= 0:
-        prv[w] = u
+        prv[w] = b
 
 
 @numba.njit(cache=True, inline="always")

@@ -66,7 +66,7 @@ from .portfolio import (
     run_portfolio_batch,
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
-from .link import ANNEAL_IDLE, SOLVE_IDLE, MachineSession, anneal_submit, solve_submit, via_callback
+from .link import MachineSession, anneal_submit, solve_submit, via_callback
 from .machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       sampler_names)
 
@@ -75,7 +75,7 @@ __all__ = [
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # Ising machines
     "IsingMachine", "MachineBase", "SamplerChip", "DriverMachine", "LogicalDriver", "as_logical_solver", "MachineSpec", "SAMPLERS", "as_machine", "build_machine",
-    "sampler_names", "MachineSession", "anneal_submit", "solve_submit", "via_callback", "ANNEAL_IDLE", "SOLVE_IDLE",
+    "sampler_names", "MachineSession", "anneal_submit", "solve_submit", "via_callback",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit",
     # faults

@@ -28,15 +28,11 @@ from .ledger import CallLedger
 from .tabu import mix_seed, tabu_kernel
 from .health import SolverOutputError
 
-__all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback", "ANNEAL_IDLE", "SOLVE_IDLE"]
+__all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback"]
 
 _SESSIONS: dict[int, "MachineSession"] = {}
 _IDS = itertools.count()
 _NO_MISMATCH = np.zeros((0, 0, 0))
-#: A record for the anneal argument of a compiled call that does not anneal (its other machine decides).
-ANNEAL_IDLE = (-1, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
-#: A record for the logical-solver argument of a compiled call that does not use one.
-SOLVE_IDLE = (-1, 1, 1, 1)
 
 
 class MachineSession:

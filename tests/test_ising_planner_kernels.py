@@ -470,6 +470,24 @@ def test_compiled_tour_subproblems_make_the_reference_decisions(options, spec):
     assert solved > 0
 
 
+def test_the_subproblem_backend_is_chosen_at_compile_time():
+    """The one-hot solve gets the unused machine record as None, so the logical solve is compiled without
+    the chip's submission (and the chip's without the logical solver): numba could not type either call
+    with None, so a None in the signature means that branch was pruned before typing (cold start)."""
+    from numba import types
+
+    from mrmt_env.generation import generate_world
+    from planners.ising.tour import PaperIsingTour
+    from planners.ising.tour.engine import solve_order
+
+    dist = generate_world(3, n_robots=1, n_targets=6).distance_matrix
+    for options in ({}, {"backend": "chip-onehot", "local_limit": 4, "patch_size": 4}):
+        c = PaperIsingTour(**options).solve(dist, np.random.default_rng(0)).compute
+        assert c.logical_calls + c.chip_calls > 0  # the compiled solve ran (a quantized one may find no order)
+    none_at = {tuple(i for i, t in enumerate(sig) if isinstance(t, types.NoneType)) for sig in solve_order.signatures}
+    assert {(5,), (6,)} <= none_at  # (rng, d, entry, ex, options, solver, machine): one None each
+
+
 def test_a_user_solver_with_solve_many_runs_the_compiled_subproblem_solve():
     """A logical solver that only offers ``solve_many`` (no kernel, no ``solve_stack``) is reached
     through the machine link's callback: the same tours as the built-in solver it wraps."""

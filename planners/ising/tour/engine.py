@@ -42,16 +42,17 @@ def frozen_spins(h, J, k):
 def solve_order(rng, d, entry, ex, options, solver, machine):
     """Best valid order of one one-hot open-path subproblem (module docstring).
 
-    ``options`` = ``(margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj)``;
-    ``solver`` = the logical solver's session record (:meth:`~ising_backend.MachineSession.args_for`),
-    ``machine`` = the chip's (:attr:`~ising_backend.MachineSession.args`), used when ``physical``
-    (programs quantized by ``rule`` within ``Lh`` / ``Lj``).  Returns ``(status, order (s,) or (0,), stats (8,), calls
+    ``options`` = ``(margin_factor, max_retries, num_reads, budget, max_bits, rule, Lh, Lj)``;
+    ``solver`` = the logical solver's session record (:meth:`~ising_backend.MachineSession.args_for`) and
+    ``machine`` None, or ``solver`` None and ``machine`` the chip's (:attr:`~ising_backend.MachineSession.args`):
+    programs quantized by ``rule`` within ``Lh`` / ``Lj``.  The unused record is None, so numba prunes
+    its branch before typing: a logical solve does not compile the chip's submission (cold start).  Returns ``(status, order (s,) or (0,), stats (8,), calls
     (attempts,), emulation_s (attempts,))`` with stats = programs, reads, valid_reads, valid
     programs, retries, unsolved (0/1), subproblems, valid subproblems; status :data:`SOLVED`,
     :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats[0]`` holds the
     bits needed) or :data:`UNQUANTIZABLE` (a non-finite coefficient).
     """
-    margin_factor, max_retries, num_reads, budget, max_bits, physical, rule, Lh, Lj = options
+    margin_factor, max_retries, num_reads, budget, max_bits, rule, Lh, Lj = options
     s = d.shape[0]
     n = s * s
     w_max = 0.0
@@ -84,7 +85,7 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
         Jb = J
         Js = J.reshape(1, n, n).copy()
         B, nf = 1, n
-    if physical:  # every branch program quantized by the rule, as the chip takes it
+    if machine is not None:  # every branch program quantized by the rule, as the chip takes it
         rules = np.full(1, rule, dtype=np.int64)
         for b in range(B):
             st, qh, qJ = quantize_rules(hb[b], Jb, rules, Lh, Lj, True, 95.0)
@@ -94,11 +95,12 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
             Js[b] = qJ[0]
     for attempt in range(max_retries + 1):
         seed = rng.integers(0, 9223372036854775807)
-        if physical:
-            spins, _sub, emu[attempt] = submit_packs(hb, Js, num_reads, np.uint64(seed), machine)
-        else:
+        # one branch each, pruned where its record is None (numba prunes only on a None argument)
+        if solver is not None:
             spins = np.empty((B, num_reads, nf), dtype=np.int8)
             emu[attempt] = solve_submit(hb, Js, num_reads, seed, solver, spins, np.zeros((B, num_reads)))
+        if machine is not None:
+            spins, _sub, emu[attempt] = submit_packs(hb, Js, num_reads, np.uint64(seed), machine)
         calls[attempt] = B * num_reads
         if k:
             bits = expand_branches(spins, free, frozen, n)

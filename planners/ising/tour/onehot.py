@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    ANNEAL_IDLE, QUANTIZE_RULE_IDS, SOLVE_IDLE, IsingModel, LogicalIsingSolver, as_logical_solver, quantize,
+    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, as_logical_solver, quantize,
 )
 from planners.ising.tour.cluster import TourFailure, _Run
 from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, frozen_spins, solve_order
@@ -74,9 +74,9 @@ class OneHotSolver:
             status, order, st, calls, emu = solve_order(
                 run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
                 np.ascontiguousarray(ex, dtype=np.float64),
-                (cfg.penalty_factor, cfg.max_retries, cfg.num_reads, self.budget, cfg.max_branch_bits, physical,
+                (cfg.penalty_factor, cfg.max_retries, cfg.num_reads, self.budget, cfg.max_branch_bits,
                  QUANTIZE_RULE_IDS[cfg.chip_quantize], *(float(v) for v in self.spec.coefficient_limits)),
-                SOLVE_IDLE if physical else link.args_for(width), link.args if physical else ANNEAL_IDLE)
+                None if physical else link.args_for(width), link.args if physical else None)
             link.settle(calls, emu)
         if status == TOO_MANY_BITS:
             raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "

@@ -33,10 +33,11 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 #: lorr:pibt 15 s and lorr:pibt-flow 20 s with the turning kernel's records; lorr:epibt 27 s; the Ising parts
 #: re-measured 2026-11-26 after the annealing kernel lost two wrapper levels: 120 / 116 / 61 / 37 s, then
 #: with the fleet search compiled whole: 120 / 118 / 67 / 64 s; ising:tour+path 52 s once the chip tour's starts
-#: loop became the Python one, 2026-11-27;
+#: loop became the Python one, 2026-11-27; ising-paper:tour+path 104 s once the logical one-hot tour compiled no
+#: chip submission, same day;
 #: docs/design/cold_start.md).  Parts compiled side by side share the anneal and quantization kernels, so the
 #: sum over two workers is an upper estimate.
-PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 118, "ising:tour+path": 52, "ising-fleet": 64,
+PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 104, "ising:tour+path": 52, "ising-fleet": 64,
                 "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 15, "lorr:pibt-flow": 20,
                 "lorr:epibt": 27,
                 "lorr:windowed": 22}

@@ -6,9 +6,10 @@ cross-block couplings zero, so one chip call solves them all; the returned
 spin vector is cut back into blocks.  The packed offset is the sum of the
 offsets, so the packed energy is the sum of the block energies.
 
-:func:`plan_packs` groups program sizes into as few programs of ``capacity``
-spins as first-fit decreasing finds (a deterministic, documented heuristic);
-:func:`pack_layout` is the same grouping compiled, for compiled planner loops.
+:func:`pack_layout` groups program sizes into as few programs of ``capacity`` spins as
+first-fit decreasing finds (a deterministic, documented heuristic; compiled, the one
+implementation: ``tests/mapping_reference.py`` holds the Python loop it is tested against);
+:func:`plan_packs` gives its grouping as lists, :func:`fill_packs` places the programs.
 """
 
 from __future__ import annotations
@@ -52,36 +53,30 @@ def unpack_blocks(spins, slices: Sequence[slice]) -> list[np.ndarray]:
 
 
 def plan_packs(sizes: Sequence[int], capacity: int) -> list[list[int]]:
-    """Group indices of ``sizes`` into packs of total <= ``capacity`` (first-fit decreasing)."""
+    """Group indices of ``sizes`` into packs of total <= ``capacity`` (first-fit decreasing,
+    :func:`pack_layout`): one list per pack, ascending."""
     sizes = [int(v) for v in sizes]
     for k, v in enumerate(sizes):
         if v > capacity:
             raise ValueError(f"program {k} has {v} spins > capacity {capacity}")
-    order = sorted(range(len(sizes)), key=lambda k: (-sizes[k], k))
-    packs: list[list[int]] = []
-    room: list[int] = []
-    for k in order:
-        for p in range(len(packs)):
-            if room[p] >= sizes[k]:
-                packs[p].append(k)
-                room[p] -= sizes[k]
-                break
-        else:
-            packs.append([k])
-            room.append(capacity - sizes[k])
-    return [sorted(p) for p in packs]
+    pack_of, order, n_packs, _width = pack_layout(np.array(sizes, dtype=np.int64), int(capacity))
+    packs: list[list[int]] = [[] for _ in range(n_packs)]
+    for j in order.tolist():
+        packs[int(pack_of[j])].append(j)
+    return packs
 
 
 @numba.njit(cache=True)
 def pack_layout(sizes, capacity):
-    """:func:`plan_packs` compiled, as arrays: ``(pack_of (P,), order (P,), n_packs, width)``.
+    """First-fit decreasing of program ``sizes`` into packs of ``capacity`` spins, as arrays: ``(pack_of (P,),
+    order (P,), n_packs, width)``.
 
-    ``pack_of[j]`` is program ``j``'s pack (packs numbered as :func:`plan_packs` lists them),
+    ``pack_of[j]`` is program ``j``'s pack (packs numbered in the order they are opened),
     ``order`` lists the programs pack by pack, ascending within a pack (the placement order),
     ``width`` is the fullest pack's total.  Sizes above ``capacity`` are the caller's to refuse.
     """
     P = sizes.shape[0]
-    order = np.argsort(-sizes, kind="mergesort")  # stable: ties by index, as plan_packs
+    order = np.argsort(-sizes, kind="mergesort")  # stable: ties by index
     room = np.empty(P, dtype=np.int64)
     pack_of = np.empty(P, dtype=np.int64)
     n_packs = 0

@@ -30,7 +30,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .blocks import plan_packs
+from .blocks import fill_packs, pack_layout
 from .branching import BranchError, branch
 from .chip import ChipProgramError, stack_programs
 from .logical import LogicalIsingSolver
@@ -354,22 +354,14 @@ def _dispatch(solver, programs: list[IsingModel], num_reads: int, seed, pack: bo
         return []
     if isinstance(solver, LogicalIsingSolver):
         return [r.spins for r in solver.solve_many(programs, num_reads=num_reads, seed=seed)]
-    if pack:
-        cap = solver.spec.n_spins
-        packs = plan_packs([p.n for p in programs], cap)
-        h = np.zeros((len(packs), max(sum(programs[k].n for k in pk) for pk in packs)))
-        J = np.zeros((h.shape[0], h.shape[1], h.shape[1]))
-        where = [None] * len(programs)
-        for b, pk in enumerate(packs):
-            start = 0
-            for k in pk:
-                n = programs[k].n
-                h[b, start:start + n] = programs[k].h
-                J[b, start:start + n, start:start + n] = programs[k].J
-                where[k] = (b, start, n)
-                start += n
-        spins, _ = solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
-        return [spins[b, :, s0:s0 + n] for (b, s0, n) in where]
     h, J = stack_programs(programs)
+    if pack:  # first-fit decreasing onto the chip's spins (ising_backend.blocks)
+        sizes = np.array([p.n for p in programs], dtype=np.int64)
+        if sizes.max() > solver.spec.n_spins:
+            raise ValueError(f"a program has {sizes.max()} spins > capacity {solver.spec.n_spins}")
+        pack_of, order, n_packs, width = pack_layout(sizes, solver.spec.n_spins)
+        h, J, where = fill_packs(h, J, sizes, order, pack_of, n_packs, width)
+    else:
+        where = np.stack([np.arange(len(programs)), np.zeros(len(programs), dtype=np.int64)], axis=1)
     spins, _ = solver.anneal_batch(h, J, num_reads=num_reads, seed=seed)
-    return [spins[b, :, : p.n] for b, p in enumerate(programs)]
+    return [spins[b, :, s0:s0 + p.n] for (b, s0), p in zip(where.tolist(), programs)]

@@ -16,7 +16,7 @@ from ising_backend.quantize import _limit as _q_limit
 from ising_backend.quantize import _pair
 from ising_backend.spec import ChipSpec
 
-__all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref"]
+__all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref", "plan_packs_ref"]
 
 _SPLIT = {"overload": "spill", "max_coeff": "even", "high_degree": "spill", "balanced": "even"}
 _MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")
@@ -205,3 +205,22 @@ def saturate_ref(model: IsingModel, scale: float, h_range=(-7, 7), j_range=(-7, 
     h = np.clip(np.rint(model.h * scale), h_range[0], h_range[1])
     J = np.clip(np.rint(model.J * scale), j_range[0], j_range[1])
     return IsingModel(h, J, model.offset * scale, model.labels)
+
+
+def plan_packs_ref(sizes, capacity: int) -> list[list[int]]:
+    """First-fit decreasing of ``sizes`` into packs of ``capacity`` (the oracle of ``ising_backend.pack_layout``):
+    programs by decreasing size, ties by index, each into the first pack with room; packs ascending."""
+    sizes = [int(v) for v in sizes]
+    order = sorted(range(len(sizes)), key=lambda k: (-sizes[k], k))
+    packs: list[list[int]] = []
+    room: list[int] = []
+    for k in order:
+        for p in range(len(packs)):
+            if room[p] >= sizes[k]:
+                packs[p].append(k)
+                room[p] -= sizes[k]
+                break
+        else:
+            packs.append([k])
+            room.append(capacity - sizes[k])
+    return [sorted(p) for p in packs]

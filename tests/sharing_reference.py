@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    ChipProgramError, ModelError, QuantizeError, SolverOutputError, fill_packs, ising_from_qubo, plan_packs,
-    quantize_stack,
+    ChipProgramError, ModelError, QuantizeError, SolverOutputError, fill_packs, ising_from_qubo, quantize_stack,
 )
+from mapping_reference import plan_packs_ref as plan_packs
 from planners.ising.sharing.bundles import SharingFailure
 from sharing_search_reference import cut_value, decode_split, keep_candidates
 

@@ -516,7 +516,8 @@ def test_a_user_solver_with_solve_many_runs_the_compiled_subproblem_solve():
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.integers(1, 12), min_size=1, max_size=12), st.integers(12, 45), st.integers(0, 2**31))
 def test_fill_packs_places_programs_as_the_python_loop(sizes, capacity, seed):
-    from ising_backend import fill_packs, plan_packs
+    from ising_backend import fill_packs
+    from mapping_reference import plan_packs_ref as plan_packs
 
     rng = np.random.default_rng(seed)
     sizes = np.array(sizes, dtype=np.int64)
@@ -546,11 +547,13 @@ def test_fill_packs_places_programs_as_the_python_loop(sizes, capacity, seed):
 @settings(max_examples=80, deadline=None)
 @given(st.lists(st.integers(0, 45), min_size=1, max_size=24), st.integers(45, 90))
 def test_pack_layout_is_plan_packs(sizes, capacity):
-    """The compiled first-fit-decreasing layout against ising_backend.plan_packs (empty programs,
-    one program, programs that fill a pack exactly)."""
+    """The compiled first-fit-decreasing layout against the Python loop of tests/mapping_reference.py (empty
+    programs, one program, programs that fill a pack exactly), and ising_backend.plan_packs's lists of it."""
     from ising_backend import pack_layout, plan_packs
+    from mapping_reference import plan_packs_ref
 
-    packs = plan_packs(sizes, capacity)
+    packs = plan_packs_ref(sizes, capacity)
+    assert plan_packs(sizes, capacity) == packs
     pack_of, order, n_packs, width = pack_layout(np.array(sizes, dtype=np.int64), capacity)
     assert n_packs == len(packs)
     assert order.tolist() == [j for pk in packs for j in pk]

@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from .models import IsingModel
+from .programs import stack_programs
 
 __all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "pack_layout", "fill_packs"]
 
@@ -29,21 +30,14 @@ def pack_blocks(models: Sequence[IsingModel], n_spins: int | None = None) -> tup
 
     Raises ``ValueError`` if the total exceeds ``n_spins`` (when given).
     """
-    sizes = [m.n for m in models]
-    total = int(sum(sizes))
+    sizes = np.array([m.n for m in models], dtype=np.int64)
+    total = int(sizes.sum())
     if n_spins is not None and total > n_spins:
-        raise ValueError(f"blocks need {total} spins ({sizes}); the program holds {n_spins}")
-    h = np.zeros(total)
-    J = np.zeros((total, total))
-    slices = []
-    start = 0
-    for m in models:
-        sl = slice(start, start + m.n)
-        h[sl] = m.h
-        J[sl, sl] = m.J
-        slices.append(sl)
-        start += m.n
-    return IsingModel(h, J, float(sum(m.offset for m in models))), slices
+        raise ValueError(f"blocks need {total} spins ({sizes.tolist()}); the program holds {n_spins}")
+    h, J = stack_programs(models)
+    h, J, where = fill_packs(h, J, sizes, np.arange(len(sizes)), np.zeros(len(sizes), dtype=np.int64), 1, total)
+    slices = [slice(int(s0), int(s0) + int(n)) for s0, n in zip(where[:, 1], sizes)]
+    return IsingModel(h[0], J[0], float(sum(m.offset for m in models))), slices
 
 
 def unpack_blocks(spins, slices: Sequence[slice]) -> list[np.ndarray]:

@@ -10,7 +10,9 @@ of the best branch is the exact optimum of the model.
 
 Frozen spins (the paper does not say): by default the ``k`` of largest total interaction strength
 ``|h_i| + sum_j |J_ij|`` (ties: lowest index); ``frozen=`` chooses.  Branch ``m`` sets frozen spin
-``frozen[t]`` to ``+1`` if bit ``t`` of ``m`` is set, else ``-1``.
+``frozen[t]`` to ``+1`` if bit ``t`` of ``m`` is set, else ``-1``.  The compiled :func:`frozen_spins`
+and :func:`branch_stack` are the one implementation (the planners' compiled loops call them too);
+``tests/mapping_reference.py`` holds the numpy version they are tested against.
 Design notes: docs/design/mapping_kernels.md.
 """
 
@@ -18,11 +20,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .models import IsingModel
+from .numeric import pairwise_sum
 
-__all__ = ["Branch", "branch", "freeze_order", "BranchError"]
+__all__ = ["Branch", "branch", "freeze_order", "BranchError", "frozen_spins", "branch_stack", "freeze_strength"]
 
 
 class BranchError(ValueError):
@@ -50,10 +54,74 @@ class Branch:
         return out
 
 
+@numba.njit(cache=True)
+def freeze_strength(h, J):
+    """Each spin's ``|h_i| + sum_j |J_ij + J_ji|`` (numpy's summation order)."""
+    n = h.shape[0]
+    strength = np.empty(n)
+    row = np.empty(n)
+    for i in range(n):
+        for j in range(n):
+            row[j] = abs(J[i, j] + J[j, i])
+        strength[i] = abs(h[i]) + pairwise_sum(row, 0, n)
+    return strength
+
+
+@numba.njit(cache=True)
+def frozen_spins(h, J, k):
+    """The ``k`` spins to freeze, sorted: by decreasing :func:`freeze_strength`, lowest index first on ties."""
+    return np.sort(np.argsort(-freeze_strength(h, J), kind="mergesort")[:k])
+
+
+@numba.njit(cache=True)
+def branch_stack(h, J, offset, frozen):
+    """Freeze spins ``frozen`` (sorted) at every sign pattern: branch ``m`` sets ``frozen[t]`` to
+    ``+1`` if bit ``t`` of ``m`` is set.  Returns ``(free, hb (2^k, nf), Jb (nf, nf), offsets (2^k,))``;
+    the reduced couplings are the same for every branch."""
+    n = h.shape[0]
+    k = frozen.shape[0]
+    is_frozen = np.zeros(n, dtype=np.bool_)
+    for t in range(k):
+        is_frozen[frozen[t]] = True
+    nf = n - k
+    free = np.empty(nf, dtype=np.int64)
+    c = 0
+    for i in range(n):
+        if not is_frozen[i]:
+            free[c] = i
+            c += 1
+    Jb = np.empty((nf, nf))
+    for a in range(nf):
+        for b in range(nf):
+            Jb[a, b] = J[free[a], free[b]]
+    nb = 1 << k
+    hb = np.empty((nb, nf))
+    offs = np.empty(nb)
+    z = np.empty(k)
+    for m in range(nb):
+        for t in range(k):
+            z[t] = 1.0 if (m >> t) & 1 else -1.0
+        for a in range(nf):
+            i = free[a]
+            v = 0.0
+            for t in range(k):
+                f = frozen[t]
+                v += (J[i, f] + J[f, i]) * z[t]
+            hb[m, a] = h[i] + v
+        e = 0.0
+        for t in range(k):
+            e += h[frozen[t]] * z[t]
+        e2 = 0.0
+        for t in range(k):
+            for u in range(k):
+                e2 += z[t] * J[frozen[t], frozen[u]] * z[u]
+        offs[m] = offset + e + e2
+    return free, hb, Jb, offs
+
+
 def freeze_order(model: IsingModel) -> np.ndarray:
     """Spins by decreasing ``|h_i| + sum_j |J_ij|`` (stable: lowest index first on ties)."""
-    strength = np.abs(model.h) + np.abs(model.J_sym).sum(axis=1)
-    return np.argsort(-strength, kind="stable")
+    return np.argsort(-freeze_strength(model.h, model.J), kind="stable")
 
 
 def reduce_model(model: IsingModel, frozen, values) -> tuple[IsingModel, np.ndarray]:
@@ -81,7 +149,7 @@ def branch(model: IsingModel, budget: int, frozen=None, max_frozen: int = 10) ->
         raise BranchError(f"budget = {budget} must be >= 0")
     k = max(0, model.n - budget)
     if frozen is None:
-        frozen = np.sort(freeze_order(model)[:k])
+        frozen = frozen_spins(model.h, model.J, k)
     else:
         frozen = np.asarray(frozen, dtype=np.int64).reshape(-1)
         if np.unique(frozen).size != frozen.size or (frozen.size and (frozen.min() < 0 or frozen.max() >= model.n)):
@@ -90,9 +158,10 @@ def branch(model: IsingModel, budget: int, frozen=None, max_frozen: int = 10) ->
             raise BranchError(f"{frozen.size} frozen spins leave {model.n - frozen.size} > budget {budget}")
     if frozen.size > max_frozen:
         raise BranchError(f"{frozen.size} frozen spins would make 2^{frozen.size} branches (max_frozen = {max_frozen})")
+    free, hb, Jb, offs = branch_stack(model.h, model.J, float(model.offset), frozen.astype(np.int64))
+    labels = None if model.labels is None else tuple(model.labels[i] for i in free)
     out = []
     for m in range(2 ** frozen.size):
         values = np.array([1 if (m >> t) & 1 else -1 for t in range(frozen.size)], dtype=np.int8)
-        reduced, free = reduce_model(model, frozen, values)
-        out.append(Branch(reduced, free, frozen.copy(), values, model.n))
+        out.append(Branch(IsingModel(hb[m], Jb, float(offs[m]), labels), free, frozen.copy(), values, model.n))
     return out

@@ -16,7 +16,7 @@ from ising_backend.quantize import _limit as _q_limit
 from ising_backend.quantize import _pair
 from ising_backend.spec import ChipSpec
 
-__all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref", "plan_packs_ref"]
+__all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref", "plan_packs_ref", "freeze_order_ref", "branch_ref"]
 
 _SPLIT = {"overload": "spill", "max_coeff": "even", "high_degree": "spill", "balanced": "even"}
 _MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")
@@ -224,3 +224,25 @@ def plan_packs_ref(sizes, capacity: int) -> list[list[int]]:
             packs.append([k])
             room.append(capacity - sizes[k])
     return [sorted(p) for p in packs]
+
+
+def freeze_order_ref(model: IsingModel) -> np.ndarray:
+    """Spins by decreasing ``|h_i| + sum_j |J_ij|``, lowest index first on ties (the oracle of
+    ``ising_backend.branching.freeze_strength`` / ``frozen_spins``)."""
+    strength = np.abs(model.h) + np.abs(model.J_sym).sum(axis=1)
+    return np.argsort(-strength, kind="stable")
+
+
+def branch_ref(model: IsingModel, budget: int) -> list[tuple[IsingModel, np.ndarray, np.ndarray, np.ndarray]]:
+    """``ising_backend.branch`` in numpy: ``(reduced model, free, frozen, values)`` per branch, the ``k = n - budget``
+    strongest spins frozen (sorted), branch ``m`` setting ``frozen[t]`` to +1 when bit ``t`` of ``m`` is set."""
+    k = max(0, model.n - budget)
+    frozen = np.sort(freeze_order_ref(model)[:k])
+    free = np.setdiff1d(np.arange(model.n), frozen)
+    out = []
+    for m in range(2 ** k):
+        z = np.array([1.0 if (m >> t) & 1 else -1.0 for t in range(k)])
+        h = model.h[free] + model.J_sym[np.ix_(free, frozen)] @ z
+        off = model.offset + float(model.h[frozen] @ z) + float(z @ model.J[np.ix_(frozen, frozen)] @ z)
+        out.append((IsingModel(h, model.J[np.ix_(free, free)], off), free, frozen, z.astype(np.int8)))
+    return out

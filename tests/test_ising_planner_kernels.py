@@ -14,7 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ising_backend import CallLedger, QuboModel, branch
+from ising_backend.branching import branch_stack
 from ising_backend.numeric import ising_of_qubo, pairwise_sum
+from mapping_reference import branch_ref
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
 from path_reference import build_patch_qubo_reference, component_of, cut_loops
@@ -22,7 +24,7 @@ from planners.ising.path.qubo import build_patch_qubo, patch_frame
 from planners.ising.sharing.split_problem import score_split_reads, split_model
 from sharing_search_reference import SplitProblem, build_split_qubo, choose_anchors, cut_value, decode_split
 from planners.ising.tour.kernels import (
-    best_onehot, branch_stack, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,
+    best_onehot, dist_flags, expand_branches, maxcut_ising, onehot_ising, route_cost,
 )
 from tour_qubo_reference import decode_onehot_batch, maxcut_qubo, onehot_penalty, open_path_qubo
 from planners.tours_classical import BruteTour, exact_route_cost
@@ -250,17 +252,21 @@ def test_branch_stack_is_ising_backend_branch(seed, s, k):
     h, J, o = onehot_ising(d, entry, entry[::-1].copy(), onehot_penalty(d, entry, entry), 1.0)
     model = _ising_of(*open_path_qubo(d, entry, entry[::-1].copy())[:3])
     budget = s * s - k
-    branches = branch(model, budget, max_frozen=4)
-    frozen = branches[0].frozen
+    branches = branch_ref(model, budget)  # numpy, tests/mapping_reference.py
+    frozen = branches[0][2]
     free, hb, Jb, offs = branch_stack(h, J, o, np.asarray(frozen, dtype=np.int64))
     assert len(branches) == len(hb) == 2 ** len(frozen)
-    for m, br in enumerate(branches):
-        assert np.array_equal(free, br.free)
-        assert np.allclose(hb[m], br.model.h) and np.array_equal(Jb, br.model.J)
-        assert offs[m] == pytest.approx(br.model.offset)
+    for m, (ref_model, ref_free, _frozen, _values) in enumerate(branches):
+        assert np.array_equal(free, ref_free)
+        assert np.allclose(hb[m], ref_model.h) and np.array_equal(Jb, ref_model.J)
+        assert offs[m] == pytest.approx(ref_model.offset)
+    pub = branch(model, budget, max_frozen=4)  # the public branching: the same kernels
+    assert [b.frozen.tolist() for b in pub] == [frozen.tolist()] * len(pub)
+    assert all(np.allclose(b.model.h, r[0].h) and b.model.offset == pytest.approx(r[0].offset)
+               for b, r in zip(pub, branches))
     spins = rng.choice(np.array([-1, 1], dtype=np.int8), size=(len(hb), 2, len(free)))
     bits = expand_branches(spins, free, np.asarray(frozen, dtype=np.int64), s * s)
-    ref = np.concatenate([(br.decode(spins[m]).astype(np.int64) + 1) // 2 for m, br in enumerate(branches)])
+    ref = np.concatenate([(br.decode(spins[m]).astype(np.int64) + 1) // 2 for m, br in enumerate(pub)])
     assert np.array_equal(bits, ref)
 
 
@@ -764,14 +770,16 @@ def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it
 @SETTINGS
 @given(st.integers(0, 10**6), st.integers(2, 30), st.integers(0, 8))
 def test_frozen_spins_is_freeze_order(seed, n, k):
-    """The tour's compiled freezing order (every spin-budget branching of the tour) against
-    ising_backend.freeze_order, ties included (integer coefficients)."""
+    """The compiled freezing order (every spin-budget branching) against the numpy one of
+    tests/mapping_reference.py, ties included (integer coefficients)."""
     from ising_backend import IsingModel, freeze_order
-    from planners.ising.tour.engine import frozen_spins
+    from ising_backend.branching import frozen_spins
+    from mapping_reference import freeze_order_ref
 
     rng = np.random.default_rng(seed)
     k = min(k, n)
     h = rng.integers(-3, 4, n).astype(float)
     J = np.triu(rng.integers(-3, 4, (n, n)), k=1).astype(float)
-    ref = np.sort(freeze_order(IsingModel.trusted(h, J, 0.0))[:k])
+    ref = np.sort(freeze_order_ref(IsingModel.trusted(h, J, 0.0))[:k])
     assert frozen_spins(h, J, k).tolist() == ref.tolist()
+    assert np.sort(freeze_order(IsingModel.trusted(h, J, 0.0))[:k]).tolist() == ref.tolist()

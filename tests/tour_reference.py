@@ -212,8 +212,10 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
     spin-budget branching, logical solver or quantized chip programs, decode) through Python calls."""
     import math
 
-    from ising_backend import IsingModel, LogicalIsingSolver, freeze_order, quantize
-    from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
+    from ising_backend import IsingModel, LogicalIsingSolver, quantize
+    from ising_backend.branching import branch_stack
+    from mapping_reference import freeze_order_ref as freeze_order
+    from planners.ising.tour.kernels import best_onehot, expand_branches, onehot_ising
     from tour_qubo_reference import onehot_penalty
 
     cfg = tour.config

@@ -16,26 +16,12 @@ import numba
 import numpy as np
 
 from ising_backend import quantize_rules, solve_submit, submit_packs
-from ising_backend.numeric import pairwise_sum
-from planners.ising.tour.kernels import best_onehot, branch_stack, expand_branches, onehot_ising
+from ising_backend.branching import branch_stack, frozen_spins
+from planners.ising.tour.kernels import best_onehot, expand_branches, onehot_ising
 
-__all__ = ["solve_order", "frozen_spins", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
+__all__ = ["solve_order", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
 
 SOLVED, UNSOLVED, TOO_MANY_BITS, UNQUANTIZABLE = 0, 1, 2, 3
-
-
-@numba.njit(cache=True)
-def frozen_spins(h, J, k):
-    """The ``k`` spins to freeze, sorted: by decreasing ``|h_i| + sum_j |J_ij + J_ji|`` (numpy's
-    summation), lowest index first on ties (:func:`ising_backend.branching.freeze_order`)."""
-    n = h.shape[0]
-    strength = np.empty(n)
-    row = np.empty(n)
-    for i in range(n):
-        for j in range(n):
-            row[j] = abs(J[i, j] + J[j, i])
-        strength[i] = abs(h[i]) + pairwise_sum(row, 0, n)
-    return np.sort(np.argsort(-strength, kind="mergesort")[:k])
 
 
 @numba.njit(cache=True)

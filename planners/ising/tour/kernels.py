@@ -3,15 +3,13 @@
 * :func:`onehot_ising` / :func:`maxcut_ising` -- the Ising form (``x = (1 + s) / 2``) of the one-hot
   open-path QUBO (eq. 1) and the max-cut split (eq. 7), built directly (docs/design/ising_tour_qubo.md; the
   numpy QUBOs they are tested against: ``tests/tour_qubo_reference.py``).
-* :func:`branch_stack` -- spin-budget branching (:func:`ising_backend.branch`) of one model
-  into ``2^k`` reduced programs as stacked arrays; :func:`expand_branches` puts the frozen
-  spins back into every read.
+* :func:`expand_branches` -- the frozen spins of a spin-budget branching
+  (:func:`ising_backend.branching.branch_stack`) put back into every read.
 * :func:`best_onehot` -- one-hot decode of every read and the cheapest valid order.
 * :func:`dist_flags` / :func:`route_cost` -- the solve's input check and the cost of its route
   (numpy's summation order).
 
-The numpy functions of :mod:`.qubo` and :mod:`ising_backend.branching` are the references
-the tests compare these against.
+The numpy functions of :mod:`.qubo` are the references the tests compare these against.
 """
 
 from __future__ import annotations
@@ -21,7 +19,7 @@ import numpy as np
 
 from ising_backend.numeric import ising_of_qubo, pairwise_sum
 
-__all__ = ["onehot_ising", "maxcut_ising", "branch_stack", "expand_branches", "best_onehot", "cluster_distances",
+__all__ = ["onehot_ising", "maxcut_ising", "expand_branches", "best_onehot", "cluster_distances",
            "dist_flags", "route_cost"]
 
 
@@ -66,55 +64,9 @@ def maxcut_ising(w):
 
 
 @numba.njit(cache=True)
-def branch_stack(h, J, offset, frozen):
-    """Freeze spins ``frozen`` (sorted) at every sign pattern: branch ``m`` sets ``frozen[t]`` to
-    ``+1`` if bit ``t`` of ``m`` is set.  Returns ``(free, hb (2^k, nf), Jb (nf, nf), offsets (2^k,))``;
-    the reduced couplings are the same for every branch."""
-    n = h.shape[0]
-    k = frozen.shape[0]
-    is_frozen = np.zeros(n, dtype=np.bool_)
-    for t in range(k):
-        is_frozen[frozen[t]] = True
-    nf = n - k
-    free = np.empty(nf, dtype=np.int64)
-    c = 0
-    for i in range(n):
-        if not is_frozen[i]:
-            free[c] = i
-            c += 1
-    Jb = np.empty((nf, nf))
-    for a in range(nf):
-        for b in range(nf):
-            Jb[a, b] = J[free[a], free[b]]
-    nb = 1 << k
-    hb = np.empty((nb, nf))
-    offs = np.empty(nb)
-    z = np.empty(k)
-    for m in range(nb):
-        for t in range(k):
-            z[t] = 1.0 if (m >> t) & 1 else -1.0
-        for a in range(nf):
-            i = free[a]
-            v = 0.0
-            for t in range(k):
-                f = frozen[t]
-                v += (J[i, f] + J[f, i]) * z[t]
-            hb[m, a] = h[i] + v
-        e = 0.0
-        for t in range(k):
-            e += h[frozen[t]] * z[t]
-        e2 = 0.0
-        for t in range(k):
-            for u in range(k):
-                e2 += z[t] * J[frozen[t], frozen[u]] * z[u]
-        offs[m] = offset + e + e2
-    return free, hb, Jb, offs
-
-
-@numba.njit(cache=True)
 def expand_branches(spins, free, frozen, n):
     """Bits ``(B * R, n)`` uint8 (``x = (1 + s) / 2``) of the reads ``spins (B, R, >= nf)`` of the
-    branches of :func:`branch_stack` (program-major, frozen spins set per branch)."""
+    branches of :func:`ising_backend.branching.branch_stack` (program-major, frozen spins set per branch)."""
     B, R = spins.shape[0], spins.shape[1]
     k = frozen.shape[0]
     out = np.empty((B * R, n), dtype=np.uint8)

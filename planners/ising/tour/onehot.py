@@ -14,9 +14,10 @@ import numpy as np
 from ising_backend import (
     QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, as_logical_solver, quantize,
 )
+from ising_backend.branching import branch_stack, frozen_spins
 from planners.ising.tour.cluster import TourFailure, _Run
-from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, frozen_spins, solve_order
-from planners.ising.tour.kernels import branch_stack, expand_branches
+from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
+from planners.ising.tour.kernels import expand_branches
 
 __all__ = ["OneHotSolver"]
 

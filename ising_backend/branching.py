@@ -75,8 +75,8 @@ def frozen_spins(h, J, k):
 
 @numba.njit(cache=True)
 def branch_stack(h, J, offset, frozen):
-    """Freeze spins ``frozen`` (sorted) at every sign pattern: branch ``m`` sets ``frozen[t]`` to
-    ``+1`` if bit ``t`` of ``m`` is set.  Returns ``(free, hb (2^k, nf), Jb (nf, nf), offsets (2^k,))``;
+    """Freeze spins ``frozen`` (distinct, in any order) at every sign pattern: branch ``m`` sets ``frozen[t]``
+    to ``+1`` if bit ``t`` of ``m`` is set.  Returns ``(free, hb (2^k, nf), Jb (nf, nf), offsets (2^k,))``;
     the reduced couplings are the same for every branch."""
     n = h.shape[0]
     k = frozen.shape[0]
@@ -119,9 +119,14 @@ def branch_stack(h, J, offset, frozen):
     return free, hb, Jb, offs
 
 
+def _writable(model: IsingModel) -> tuple[np.ndarray, np.ndarray]:
+    """The model's (read-only) arrays as writable copies: the kernels' one specialization, the planners'."""
+    return model.h.copy(), model.J.copy()
+
+
 def freeze_order(model: IsingModel) -> np.ndarray:
     """Spins by decreasing ``|h_i| + sum_j |J_ij|`` (stable: lowest index first on ties)."""
-    return np.argsort(-freeze_strength(model.h, model.J), kind="stable")
+    return np.argsort(-freeze_strength(*_writable(model)), kind="stable")
 
 
 def reduce_model(model: IsingModel, frozen, values) -> tuple[IsingModel, np.ndarray]:
@@ -149,7 +154,7 @@ def branch(model: IsingModel, budget: int, frozen=None, max_frozen: int = 10) ->
         raise BranchError(f"budget = {budget} must be >= 0")
     k = max(0, model.n - budget)
     if frozen is None:
-        frozen = frozen_spins(model.h, model.J, k)
+        frozen = frozen_spins(*_writable(model), k)
     else:
         frozen = np.asarray(frozen, dtype=np.int64).reshape(-1)
         if np.unique(frozen).size != frozen.size or (frozen.size and (frozen.min() < 0 or frozen.max() >= model.n)):
@@ -158,7 +163,7 @@ def branch(model: IsingModel, budget: int, frozen=None, max_frozen: int = 10) ->
             raise BranchError(f"{frozen.size} frozen spins leave {model.n - frozen.size} > budget {budget}")
     if frozen.size > max_frozen:
         raise BranchError(f"{frozen.size} frozen spins would make 2^{frozen.size} branches (max_frozen = {max_frozen})")
-    free, hb, Jb, offs = branch_stack(model.h, model.J, float(model.offset), frozen.astype(np.int64))
+    free, hb, Jb, offs = branch_stack(*_writable(model), float(model.offset), frozen.astype(np.int64))
     labels = None if model.labels is None else tuple(model.labels[i] for i in free)
     out = []
     for m in range(2 ** frozen.size):

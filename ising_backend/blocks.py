@@ -22,7 +22,7 @@ import numpy as np
 from .models import IsingModel
 from .programs import stack_programs
 
-__all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "pack_layout", "fill_packs"]
+__all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "checked_layout", "pack_layout", "fill_packs"]
 
 
 def pack_blocks(models: Sequence[IsingModel], n_spins: int | None = None) -> tuple[IsingModel, list[slice]]:
@@ -49,15 +49,19 @@ def unpack_blocks(spins, slices: Sequence[slice]) -> list[np.ndarray]:
 def plan_packs(sizes: Sequence[int], capacity: int) -> list[list[int]]:
     """Group indices of ``sizes`` into packs of total <= ``capacity`` (first-fit decreasing,
     :func:`pack_layout`): one list per pack, ascending."""
-    sizes = [int(v) for v in sizes]
-    for k, v in enumerate(sizes):
-        if v > capacity:
-            raise ValueError(f"program {k} has {v} spins > capacity {capacity}")
-    pack_of, order, n_packs, _width = pack_layout(np.array(sizes, dtype=np.int64), int(capacity))
+    pack_of, order, n_packs, _width = checked_layout(np.array([int(v) for v in sizes], dtype=np.int64), capacity)
     packs: list[list[int]] = [[] for _ in range(n_packs)]
     for j in order.tolist():
         packs[int(pack_of[j])].append(j)
     return packs
+
+
+def checked_layout(sizes: np.ndarray, capacity: int):
+    """:func:`pack_layout` of int64 ``sizes``, after a ``ValueError`` naming the first program above ``capacity``."""
+    for k, v in enumerate(sizes.tolist()):
+        if v > capacity:
+            raise ValueError(f"program {k} has {v} spins > capacity {capacity}")
+    return pack_layout(sizes, int(capacity))
 
 
 @numba.njit(cache=True)

@@ -30,7 +30,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .blocks import fill_packs, pack_layout
+from .blocks import checked_layout, fill_packs
 from .branching import BranchError, branch
 from .chip import ChipProgramError, stack_programs
 from .logical import LogicalIsingSolver
@@ -357,9 +357,7 @@ def _dispatch(solver, programs: list[IsingModel], num_reads: int, seed, pack: bo
     h, J = stack_programs(programs)
     if pack:  # first-fit decreasing onto the chip's spins (ising_backend.blocks)
         sizes = np.array([p.n for p in programs], dtype=np.int64)
-        if sizes.max() > solver.spec.n_spins:
-            raise ValueError(f"a program has {sizes.max()} spins > capacity {solver.spec.n_spins}")
-        pack_of, order, n_packs, width = pack_layout(sizes, solver.spec.n_spins)
+        pack_of, order, n_packs, width = checked_layout(sizes, solver.spec.n_spins)
         h, J, where = fill_packs(h, J, sizes, order, pack_of, n_packs, width)
     else:
         where = np.stack([np.arange(len(programs)), np.zeros(len(programs), dtype=np.int64)], axis=1)

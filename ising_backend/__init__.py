@@ -46,7 +46,7 @@ from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, s
 from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
-from .branching import Branch, BranchError, branch, freeze_order, reduce_model
+from .branching import Branch, BranchError, branch, freeze_order
 from .blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
 from .stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack, submit_packs
 from .portfolio import (
@@ -89,7 +89,7 @@ __all__ = [
     "QUANTIZE_RULE_IDS",
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",
-    "Branch", "BranchError", "branch", "freeze_order", "reduce_model",
+    "Branch", "BranchError", "branch", "freeze_order",
     "fill_packs", "pack_blocks", "pack_layout", "plan_packs", "unpack_blocks", "pack_qubo_stack", "submit_packs",
     "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT",
     # portfolio

@@ -129,19 +129,6 @@ def freeze_order(model: IsingModel) -> np.ndarray:
     return np.argsort(-freeze_strength(*_writable(model)), kind="stable")
 
 
-def reduce_model(model: IsingModel, frozen, values) -> tuple[IsingModel, np.ndarray]:
-    """Fix spins ``frozen`` to ``values``; returns ``(reduced model over the free spins, free)``."""
-    frozen = np.asarray(frozen, dtype=np.int64)
-    z = np.asarray(values, dtype=np.float64)
-    free = np.setdiff1d(np.arange(model.n), frozen)
-    Js = model.J_sym
-    h = model.h[free] + Js[np.ix_(free, frozen)] @ z
-    J = model.J[np.ix_(free, free)]
-    off = model.offset + float(model.h[frozen] @ z) + float(z @ model.J[np.ix_(frozen, frozen)] @ z)
-    labels = None if model.labels is None else tuple(model.labels[i] for i in free)
-    return IsingModel(h, J, off, labels), free
-
-
 def branch(model: IsingModel, budget: int, frozen=None, max_frozen: int = 10) -> list[Branch]:
     """Split ``model`` into ``2^k`` branches of at most ``budget`` spins (``k = n - budget``).
 

@@ -30,6 +30,17 @@ ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 RANDOM = [f"RANDOM-0{i}" for i in range(1, 6)]
 SCALE = ["CITY-01", "CITY-02", "GAME", "WAREHOUSE", "SORTATION"]
 ORDER = ["pibt", "pibt-flow", "epibt", "windowed", "pibt-ising"]  # executors in the table
+LEADERBOARD = Path(__file__).resolve().parent / "data" / "lorr2024_main_round.json"
+
+
+def place(instance: str, tasks: int, board: dict) -> tuple[int, int] | None:
+    """``(place, teams)``: 1 + the 2024 main round's teams that finished more than ``tasks`` on ``instance``
+    (their Combined entries, ``board`` as :data:`LEADERBOARD`), and how many teams there were."""
+    if instance not in board["columns"]:
+        return None
+    k = board["columns"].index(instance)
+    scores = [row[k] for row in board["teams"].values()]
+    return 1 + sum(s > tasks for s in scores), len(scores)
 
 
 def _path(name: str) -> Path:
@@ -144,6 +155,16 @@ def main(argv=None) -> None:
         gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
         share = f"{100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} %" if shares else "- | -"
         lines.append(f"| {s} | {ex} | {share} | " + (f"{100 * sum(gain) / len(gain):+.1f} % |" if gain else "- |"))
+    board = json.loads(LEADERBOARD.read_text())
+    ranked = [(key, {r["instance"]: place(r["instance"], r["tasks_finished"], board) for r in rs})
+              for key, rs in by.items()]
+    cols = [c for c in board["columns"] if any(c in p for _, p in ranked)]
+    if cols:
+        lines += ["", f"Place among the {len(board['teams'])} teams of the 2024 main round at the tasks finished above "
+                  "(1 + the teams whose Combined entry finished more; `benchmarks/data/lorr2024_main_round.json`):",
+                  "", "| scheduler | executor | " + " | ".join(cols) + " |", "|---|---|" + "---|" * len(cols)]
+        for (s, ex), p in ranked:
+            lines.append(f"| {s} | {ex} | " + " | ".join(str(p[c][0]) if p.get(c) else "-" for c in cols) + " |")
     if scale_rows:
         lines += ["", f"Large instances, lorr-greedy + {args.scale_executor}, first {args.scale_steps} steps:", "",
                   "| instance | robots | tasks | tasks / step | step p50 ms | step p99 ms | step max ms | errors | "

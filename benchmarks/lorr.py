@@ -7,7 +7,10 @@ SORTATION 10,000) with ``lorr-greedy`` + PIBT for ``--scale-steps`` steps (defau
 tasks per step and peak memory (``ru_maxrss`` of the run's own process).  Step time = the
 decision's host seconds (scheduler + executor, chip emulation excluded) + the chip's parallel
 time, p50 / p99 over steps, one core.  The best-known is the archive's record over the full
-simulation time.  Writes the RESULTS.md section (``--write``).
+simulation time.  ``--seeds 0,1,2`` runs each RANDOM row once per seed (single runs differ by up to ~4 %
+at 700 robots); the summary and the place among the 2024 main round's teams
+(:data:`LEADERBOARD`) take each instance's mean over its seeds.  Writes the RESULTS.md section
+(``--write``).
 
     flock /tmp/mrmt-bench.lock python benchmarks/lorr.py --write
 """
@@ -57,13 +60,13 @@ def _executor_spec(spec: str, name: str) -> tuple[str, dict]:
     return executor, (executor_options(executor, items, read_instance(_path(name)).grid) if items else {})
 
 
-def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict) -> dict:
-    """One run in a fresh process (peak memory is the run's own); the row's executor is ``spec``."""
+def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict, seed: int = 0) -> dict:
+    """One run with ``seed`` in a fresh process (peak memory is the run's own); the row's executor is ``spec``."""
     executor, own = _executor_spec(spec, name)
     if own:
         options = {**options, "executor_options": own}
     code = ("import json, resource, sys; from agents.lorr.run import run_lorr; "
-            f"r, sim, s = run_lorr({str(_path(name))!r}, {scheduler!r}, {executor!r}, steps={steps!r}, "
+            f"r, sim, s = run_lorr({str(_path(name))!r}, {scheduler!r}, {executor!r}, steps={steps!r}, seed={seed!r}, "
             f"options={options!r}); r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; "
             "print(json.dumps(r))")
     t0 = time.perf_counter()
@@ -73,8 +76,25 @@ def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict)
         raise RuntimeError(f"{name} {scheduler}: {proc.stderr.strip().splitlines()[-1:]}")
     row = json.loads(proc.stdout.strip().splitlines()[-1])
     row["executor"] = spec
+    row["seed"] = seed
     row["wall_s"] = time.perf_counter() - t0
     return row
+
+
+def _key(r: dict) -> tuple:
+    return r["instance"], r["scheduler"], r["executor"], r.get("seed", 0)
+
+
+def summary(rows: list[dict]) -> dict:
+    """Per (scheduler, executor): each instance's mean share of the best-known and mean tasks over its seeds."""
+    out: dict = {}
+    for r in rows:
+        if r["share_of_best"] is None:
+            continue
+        cell = out.setdefault((r["scheduler"], r["executor"]), {}).setdefault(r["instance"], [])
+        cell.append((r["share_of_best"], r["tasks_finished"]))
+    return {k: {i: (sum(x for x, _ in v) / len(v), sum(t for _, t in v) / len(v), len(v)) for i, v in d.items()}
+            for k, d in out.items()}
 
 
 def _rank(spec: str) -> tuple:
@@ -84,7 +104,7 @@ def _rank(spec: str) -> tuple:
 
 def _fmt_row(r: dict) -> str:
     share = "-" if r["share_of_best"] is None else f"{100 * r['share_of_best']:.1f} %"
-    return (f"| {r['instance']} | {r['robots']} | {r['scheduler']} | {r['executor']} | {r['steps']} | "
+    return (f"| {r['instance']} | {r['robots']} | {r['scheduler']} | {r['executor']} | {r.get('seed', 0)} | {r['steps']} | "
             f"{r['tasks_finished']} | {r['best_known']} | {share} | {1e3 * r['step_p50_s']:.1f} | "
             f"{1e3 * r['step_p99_s']:.1f} | {r['errors']} | {1e3 * r['paper_energy_per_task_j']:.3g} | "
             f"{1e3 * r['total_energy_per_task_j']:.3g} | {r['peak_rss_mb']:.0f} |")
@@ -101,6 +121,8 @@ def main(argv=None) -> None:
     parser.add_argument("--scale-steps", type=int, default=500)
     parser.add_argument("--scale-executor", default="pibt", help="the executor of the large instances")
     parser.add_argument("--steps", type=int, default=None, help="steps of the RANDOM runs (default: in full)")
+    parser.add_argument("--seeds", default="0", help="seeds of the RANDOM runs, comma separated: each row runs once per seed; "
+                        "the summary takes each instance's mean over them")
     parser.add_argument("--replan", action="store_true", help="pipeline schedulers with replan=True as well")
     parser.add_argument("--replan-only", action="store_true", help="pipeline schedulers with replan=True only")
     parser.add_argument("--write", action="store_true")
@@ -109,10 +131,11 @@ def main(argv=None) -> None:
                         help="records of an earlier run (its --json) kept for the runs this one does not repeat")
     args = parser.parse_args(argv)
     schedulers = [s for s in args.schedulers.split(",") if s]
+    seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
     rows = []
-    head = ("| instance | robots | scheduler | executor | steps | tasks | best-known | share | step p50 ms | "
+    head = ("| instance | robots | scheduler | executor | seed | steps | tasks | best-known | share | step p50 ms | "
             "step p99 ms | errors | paper mJ/task | total mJ/task | peak MB |")
-    sep = "|" + "---|" * 14
+    sep = "|" + "---|" * 15
     executors = [e for e in args.executors.split(",") if e]
     for name in [n for n in args.instances.split(",") if n]:
         for ex in executors:
@@ -121,11 +144,12 @@ def main(argv=None) -> None:
                 if args.replan_only:
                     variants = [{"replan": True}] if s != "lorr-greedy" else []
                 for options in variants:
-                    r = _one(name, s, ex, args.steps, options)
-                    if options:
-                        r["scheduler"] += "+replan"
-                    rows.append(r)
-                    print(_fmt_row(r), flush=True)
+                    for seed in seeds:
+                        r = _one(name, s, ex, args.steps, options, seed)
+                        if options:
+                            r["scheduler"] += "+replan"
+                        rows.append(r)
+                        print(_fmt_row(r), flush=True)
     scale_rows = []
     for name in [n for n in args.scale.split(",") if n]:
         r = _one(name, "lorr-greedy", args.scale_executor, args.scale_steps, {})
@@ -134,34 +158,33 @@ def main(argv=None) -> None:
         print(_fmt_row(r), f"tasks/step {r['tasks_per_step']:.2f}", flush=True)
     if args.merge_json:  # an earlier run's records, where this run did not repeat them
         old = json.loads(Path(args.merge_json).read_text())
-        done = {(r["instance"], r["scheduler"], r["executor"]) for r in rows + scale_rows}
-        keep = [r for r in old if (r["instance"], r["scheduler"], r["executor"]) not in done]
+        done = {_key(r) for r in rows + scale_rows}
+        keep = [r for r in old if _key(r) not in done]
         rows = [r for r in keep if "tasks_per_step" not in r] + rows
         scale_rows = [r for r in keep if "tasks_per_step" in r] + scale_rows
-        rows.sort(key=lambda r: (r["instance"], _rank(r["executor"])))
+        rows.sort(key=lambda r: (r["instance"], _rank(r["executor"]), r.get("seed", 0)))
     lines = [SECTION, "", f"`python benchmarks/lorr.py --write` on {cpu_name()} (one core per run, runs in turn). "
              "Step = scheduler + executor host seconds (chip emulation excluded) + chip parallel seconds; "
              "best-known: the archive's record over the instance's full simulation time.", "", head, sep]
     lines += [_fmt_row(r) for r in rows]
-    by = {}
-    for r in rows:
-        by.setdefault((r["scheduler"], r["executor"]), []).append(r)
-    first = "pibt" if ("lorr-greedy", "pibt") in by else (executors[0] if executors else "")
-    lines += ["", "| scheduler | executor | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy + "
-              f"{first} |", "|---|---|---|---|---|"]
-    base = {r["instance"]: r["tasks_finished"] for r in by.get(("lorr-greedy", first), [])}
-    for (s, ex), rs in by.items():
-        shares = [r["share_of_best"] for r in rs if r["share_of_best"] is not None]
-        gain = [r["tasks_finished"] / base[r["instance"]] - 1 for r in rs if base.get(r["instance"])]
-        share = f"{100 * sum(shares) / len(shares):.1f} % | {100 * min(shares):.1f} %" if shares else "- | -"
-        lines.append(f"| {s} | {ex} | {share} | " + (f"{100 * sum(gain) / len(gain):+.1f} % |" if gain else "- |"))
+    means = summary(rows)
+    first = "pibt" if ("lorr-greedy", "pibt") in means else (executors[0] if executors else "")
+    lines += ["", "Each instance's mean over its seeds, then over the instances:", "",
+              "| scheduler | executor | seeds | mean share of best-known (RANDOM) | min share | tasks vs lorr-greedy + "
+              f"{first} |", "|---|---|---|---|---|---|"]
+    base = {i: m[1] for i, m in means.get(("lorr-greedy", first), {}).items()}
+    for (s, ex), per in means.items():
+        shares = [m[0] for m in per.values()]
+        gain = [m[1] / base[i] - 1 for i, m in per.items() if base.get(i)]
+        n = sorted({m[2] for m in per.values()})
+        lines.append(f"| {s} | {ex} | {'/'.join(map(str, n))} | {100 * sum(shares) / len(shares):.1f} % | "
+                     f"{100 * min(shares):.1f} % | " + (f"{100 * sum(gain) / len(gain):+.1f} % |" if gain else "- |"))
     board = json.loads(LEADERBOARD.read_text())
-    ranked = [(key, {r["instance"]: place(r["instance"], r["tasks_finished"], board) for r in rs})
-              for key, rs in by.items()]
+    ranked = [(key, {i: place(i, round(m[1]), board) for i, m in per.items()}) for key, per in means.items()]
     cols = [c for c in board["columns"] if any(c in p for _, p in ranked)]
     if cols:
-        lines += ["", f"Place among the {len(board['teams'])} teams of the 2024 main round at the tasks finished above "
-                  "(1 + the teams whose Combined entry finished more; `benchmarks/data/lorr2024_main_round.json`):",
+        lines += ["", f"Place among the {len(board['teams'])} teams of the 2024 main round at the mean tasks finished "
+                  "above (1 + the teams whose Combined entry finished more; `benchmarks/data/lorr2024_main_round.json`):",
                   "", "| scheduler | executor | " + " | ".join(cols) + " |", "|---|---|" + "---|" * len(cols)]
         for (s, ex), p in ranked:
             lines.append(f"| {s} | {ex} | " + " | ".join(str(p[c][0]) if p.get(c) else "-" for c in cols) + " |")

@@ -32,7 +32,7 @@ import dimod
 import numpy as np
 
 from .link import MachineSession
-from .tabu import _mix_py, mix_seed, tabu_kernel  # noqa: F401  (mix_seed: the compiled loops' sub-seed)
+from .tabu import mix_seed, tabu_kernel
 from .programs import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
 from .health import dispatch, program_energy
 from .ledger import CallLedger
@@ -264,7 +264,7 @@ class LogicalIsingSolver(dimod.Sampler):
             for size in sizes:
                 idx = [k for k, m in enumerate(models) if m.n == size]
                 h, J = stack_programs([models[k] for k in idx], size)
-                spins, energies = self._run(h, J, num_reads, int(_mix_py(seed, size)))
+                spins, energies = self._run(h, J, num_reads, int(mix_seed(np.uint64(seed), size)))
                 for row, k in enumerate(idx):
                     out[k] = LogicalResult(spins[row], energies[row] + models[k].offset)
         if self.health is None:
@@ -340,7 +340,7 @@ class LogicalIsingSolver(dimod.Sampler):
         seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         t0 = time.perf_counter()
         with self._metering():
-            spins, _ = self._run(h, J, num_reads, int(_mix_py(seed, n)))
+            spins, _ = self._run(h, J, num_reads, int(mix_seed(np.uint64(seed), n)))
         if self.health is None:
             self.last_call = self.ledger.record_logical(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         return spins

@@ -1,8 +1,8 @@
 """The logical solver's tabu search, compiled: one kernel for the solver and for compiled planner loops.
 
-:func:`tabu_kernel` runs ``B`` programs x ``num_reads`` reads; :func:`mix_seed` / :func:`_mix_py` derive the
-sub-seed of a size group (the same in compiled and Python code), so a compiled loop calling the kernel draws what
-:meth:`~ising_backend.logical.LogicalIsingSolver.solve_stack` draws.
+:func:`tabu_kernel` runs ``B`` programs x ``num_reads`` reads; :func:`mix_seed` derives the sub-seed of a size
+group (splitmix64; called from Python by the solver and from compiled loops), so a compiled loop calling the kernel
+draws what :meth:`~ising_backend.logical.LogicalIsingSolver.solve_stack` draws.
 """
 
 from __future__ import annotations
@@ -98,13 +98,5 @@ def tabu_kernel(h, J, num_reads, seed, restarts, iterations, tenure, out_spins, 
 
 @numba.njit(cache=True)
 def mix_seed(seed, k):
-    """:func:`_mix_py` in compiled code (the sub-seed of a size group of :meth:`LogicalIsingSolver.solve_many`)."""
+    """The sub-seed of size group ``k`` (splitmix64 of ``seed + golden x k``; :meth:`LogicalIsingSolver.solve_many`)."""
     return _splitmix(np.uint64(seed) + _GOLDEN * np.uint64(k))
-
-
-def _mix_py(seed: int, k: int) -> int:
-    """Derive a sub-seed (splitmix64) so each size group gets its own stream."""
-    z = (seed + 0x9E3779B97F4A7C15 * (k + 1)) & 0xFFFFFFFFFFFFFFFF
-    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
-    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
-    return z ^ (z >> 31)

@@ -107,3 +107,30 @@ def test_fast_tabu_solves_onehot_tsp_like_dwave_tabu():
     hits_ours = sum(abs(r.best_energy - o) < 1e-9 for r, o in zip(ours, optima))
     hits_theirs = sum(abs(r.best_energy - o) < 1e-9 for r, o in zip(theirs, optima))
     assert hits_ours >= hits_theirs and hits_ours >= 7
+
+
+def _splitmix_sub_seed(seed: int, k: int) -> int:
+    """The oracle of ``mix_seed``: splitmix64 of ``seed + golden x (k + 1)`` in Python integers."""
+    m = 0xFFFFFFFFFFFFFFFF
+    z = (seed + 0x9E3779B97F4A7C15 * (k + 1)) & m
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & m
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & m
+    return z ^ (z >> 31)
+
+
+def test_the_size_groups_sub_seed_is_splitmix64_over_every_call_seed():
+    from ising_backend.tabu import mix_seed
+
+    rng = np.random.default_rng(7)
+    seeds = [0, 1, 2**63 - 1, 2**63, 2**64 - 1] + [int(x) for x in rng.integers(0, 2**64 - 1, 200, dtype=np.uint64)]
+    for seed in seeds:
+        for k in (0, 1, 45, 1000):
+            assert int(mix_seed(np.uint64(seed), k)) == _splitmix_sub_seed(seed, k), (seed, k)
+
+
+def test_a_call_seed_above_2_63_solves():
+    sol = LogicalIsingSolver(seed=0)
+    m = IsingModel(np.array([1.0, -2.0, 0.5]), np.triu(np.ones((3, 3)), 1))
+    a = sol.solve_many([m], num_reads=4, seed=2**64 - 1)
+    b = sol.solve_many([m], num_reads=4, seed=2**64 - 1)
+    assert np.array_equal(a[0].spins, b[0].spins)

@@ -4,6 +4,8 @@
   multiply-xorshift rounds); the annealing kernel uses it in counter form and
   both kernels derive a read's key as
   ``splitmix(seed ^ splitmix(b * GOLDEN + r))``;
+* :func:`splitmix_array` - :func:`splitmix` as a numpy ufunc on uint64 arrays, and :func:`chain_key` -
+  ``splitmix(key ^ part)`` over a uint64 vector of parts from 0 (the fault model's keys);
 * :func:`xorshift_star` - one xorshift64* step: returns ``(new_state, output)``
   (used by the logical tabu kernel).
 
@@ -30,6 +32,19 @@ def splitmix(x):
     z = (z ^ (z >> np.uint64(30))) * _M1
     z = (z ^ (z >> np.uint64(27))) * _M2
     return z ^ (z >> np.uint64(31))
+
+
+@numba.vectorize(cache=True)
+def splitmix_array(x):
+    return splitmix(x)
+
+
+@numba.njit(cache=True)
+def chain_key(parts):
+    key = np.uint64(0)
+    for p in parts:
+        key = splitmix(key ^ p)
+    return key
 
 
 @numba.njit(cache=True, inline="always")

@@ -22,52 +22,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._rng import chain_key, splitmix_array
 from .spec import ChipSpec
 
 __all__ = ["FaultMap", "write_failures", "garbage_spins", "mix"]
 
 _FAULT_STREAM = 0x5EED_FA17
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
 _TAG_WRITE = 1
 _TAG_GARBAGE = 2
-
-
-def _splitmix(x: np.ndarray) -> np.ndarray:
-    """splitmix64 (as :func:`ising_backend._rng.splitmix`) on a uint64 array."""
-    with np.errstate(over="ignore"):
-        z = x + _GOLDEN
-        z = (z ^ (z >> np.uint64(30))) * _M1
-        z = (z ^ (z >> np.uint64(27))) * _M2
-        return z ^ (z >> np.uint64(31))
 
 
 _MASK = (1 << 64) - 1
 
 
-def _splitmix_int(x: int) -> int:
-    """:func:`_splitmix` of one Python integer (the same bits)."""
-    z = (x + 0x9E3779B97F4A7C15) & _MASK
-    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
-    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
-    return z ^ (z >> 31)
-
-
 def mix(*parts) -> np.ndarray:
     """A uint64 hash of integers / integer arrays (broadcast), one splitmix64 round per part."""
-    if all(isinstance(p, (int, np.integer)) for p in parts):  # scalars (every dispatch): plain integers
-        key = 0
-        for p in parts:
-            key = _splitmix_int(key ^ (int(p) & _MASK))
-        return np.uint64(key)
+    if all(isinstance(p, (int, np.integer)) for p in parts):  # scalars (every dispatch)
+        return np.uint64(chain_key(np.array([int(p) & _MASK for p in parts], dtype=np.uint64)))
     key = np.zeros(np.broadcast(*[np.asarray(p) for p in parts]).shape, dtype=np.uint64)
     for p in parts:
         arr = np.asarray(p)
         if arr.dtype != np.uint64:
             arr = (arr.astype(object) % (1 << 64)).astype(np.uint64) if arr.dtype == object else \
                 arr.astype(np.int64).astype(np.uint64)
-        key = _splitmix(key ^ arr)
+        key = splitmix_array(key ^ arr)
     return key
 
 

@@ -283,3 +283,33 @@ def test_mix_of_scalars_is_the_array_hash(parts):
 
     arrays = [np.array([p], dtype=np.uint64 if p >= 2**63 else np.int64) for p in parts]
     assert int(mix(*parts)) == int(mix(*arrays)[0])
+
+
+def _splitmix_oracle(x: int) -> int:
+    m = (1 << 64) - 1
+    z = (x + 0x9E3779B97F4A7C15) & m
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & m
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & m
+    return z ^ (z >> 31)
+
+
+def _mix_oracle(*parts: int) -> int:
+    key = 0
+    for p in parts:
+        key = _splitmix_oracle(key ^ (p & ((1 << 64) - 1)))
+    return key
+
+
+def test_fault_keys_are_one_splitmix64_round_per_part_for_scalars_and_arrays():
+    from ising_backend.faults import mix
+
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        parts = [int(rng.integers(0, 2**62)), int(rng.integers(-5, 5)), 2**64 - 1, int(rng.integers(0, 2**63))]
+        assert int(mix(*parts)) == _mix_oracle(*parts)
+    cores, reads = np.arange(4)[:, None], np.arange(3)[None, :]
+    got = mix(2, 9, cores, np.uint64(2**63 + 5), reads)
+    assert got.shape == (4, 3) and got.dtype == np.uint64
+    for c in range(4):
+        for r in range(3):
+            assert int(got[c, r]) == _mix_oracle(2, 9, c, 2**63 + 5, r)

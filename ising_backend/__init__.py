@@ -22,6 +22,7 @@ Modules:
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks`, :mod:`.stack` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
 * :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
+* :func:`splitmix` -- the one compiled splitmix64 step (:mod:`._rng`), for the planners' seeded kernels too;
 
 Example::
 
@@ -34,6 +35,7 @@ Example::
     (-23.0, 16)
 """
 
+from ._rng import splitmix
 from .ledger import CallLedger
 from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
 from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
@@ -98,4 +100,6 @@ __all__ = [
     "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
     # dimod composite
     "QuantizeComposite", "COMPOSITE_RULES",
+    # the compiled splitmix64 step every seeded kernel of the package hashes with
+    "splitmix",
 ]

@@ -3,7 +3,8 @@
 * :func:`splitmix` - one splitmix64 finaliser step (``x + golden`` then the two
   multiply-xorshift rounds); the annealing kernel uses it in counter form and
   both kernels derive a read's key as
-  ``splitmix(seed ^ splitmix(b * GOLDEN + r))``;
+  ``splitmix(seed ^ splitmix(b * GOLDEN + r))``; exported as ``ising_backend.splitmix``, it is
+  also the planners' tie-break hash and the sharing's node-set hash;
 * :func:`splitmix_array` - :func:`splitmix` as a numpy ufunc on uint64 arrays, and :func:`chain_key` -
   ``splitmix(key ^ part)`` over a uint64 vector of parts from 0 (the fault model's keys);
 * :func:`xorshift_star` - one xorshift64* step: returns ``(new_state, output)``

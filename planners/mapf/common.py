@@ -13,6 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ising_backend import splitmix
 from mrmt_env.distances import bfs_flat
 
 __all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid", "sort_options",
@@ -21,26 +22,13 @@ __all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_
 _DR = (0, 1, 0, -1)  # east, south, west, north
 _DC = (1, 0, -1, 0)
 
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-
-
-@numba.njit(cache=True, nogil=True)
-def _splitmix(z):
-    z = z + _GOLDEN
-    z = (z ^ (z >> np.uint64(30))) * _M1
-    z = (z ^ (z >> np.uint64(27))) * _M2
-    return z ^ (z >> np.uint64(31))
-
-
 @numba.njit(cache=True, nogil=True)
 def mix(seed, a, b, c):
     """A 64-bit hash of ``(seed, a, b, c)`` (non-negative ints), chained SplitMix64."""
-    z = _splitmix(np.uint64(seed))
-    z = _splitmix(z ^ np.uint64(a))
-    z = _splitmix(z ^ np.uint64(b))
-    return _splitmix(z ^ np.uint64(c))
+    z = splitmix(np.uint64(seed))
+    z = splitmix(z ^ np.uint64(a))
+    z = splitmix(z ^ np.uint64(b))
+    return splitmix(z ^ np.uint64(c))
 
 
 @numba.njit(cache=True, nogil=True)

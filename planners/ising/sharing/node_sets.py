@@ -19,20 +19,14 @@ import numpy as np
 from numba import types
 from numba.typed import List
 
+from ising_backend import splitmix
+
 __all__ = ["EMPTY", "new_pool", "intern", "nodes_of", "size", "union", "robots_in", "targets_of", "contains"]
 
 EMPTY = 0
 _ARENA, _TABLE, _COUNT, _HKEY, _HVAL, _UA, _UB, _UVAL = range(8)  # the pool's arrays
 _START, _SIZE, _ROBOTS, _TARGETS = range(4)  # columns of the table, 4 entries per id
 _SETS, _USED, _R, _HN, _UN = range(5)  # counts: ids, arena entries used, robots, hash entries, unions
-
-
-@numba.njit(cache=True, inline="always")
-def _mix(x):
-    z = x + np.uint64(0x9E3779B97F4A7C15)
-    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return z ^ (z >> np.uint64(31))
 
 
 @numba.njit(cache=True)
@@ -92,7 +86,7 @@ def intern(pool, nodes):
     """The id of the sorted, distinct ``nodes`` (a new id, the nodes copied in, when first met)."""
     h = np.uint64(0)
     for v in nodes:
-        h ^= _mix(np.uint64(v))
+        h ^= splitmix(np.uint64(v))
     key = np.int64(h >> np.uint64(1))  # 63 bits: a non-negative int64 key
     found, slot = _find(pool, nodes, key)
     if found >= 0:
@@ -163,7 +157,7 @@ def _union_slot(pool, a, b):
     """The slot of the union of ids ``a < b`` in the union table, found or empty."""
     ua, ub, uv = pool[_UA], pool[_UB], pool[_UVAL]
     mask = ua.shape[0] - 1
-    i = np.int64(_mix(np.uint64(a) * np.uint64(0x100000001B3) ^ np.uint64(b)) >> np.uint64(1)) & mask
+    i = np.int64(splitmix(np.uint64(a) * np.uint64(0x100000001B3) ^ np.uint64(b)) >> np.uint64(1)) & mask
     while uv[i] >= 0 and (ua[i] != a or ub[i] != b):
         i = (i + 1) & mask
     return i

@@ -162,6 +162,18 @@ def test_ray_backend_gives_the_inline_runs():
     assert rows[0] == rows[1]
 
 
+def test_a_portfolio_on_threads_runs_as_on_one_and_is_charged_its_cpu_seconds():
+    """``epibt`` with ``portfolio=3``: the same run on one thread and on two (the plans do not depend on the
+    threads); the host energy is charged on the CPU seconds of every thread, at least the wall seconds."""
+    runs = [run_lorr(EXAMPLE, "lorr-greedy", "epibt", steps=40, seed=2,
+                     options={"executor_options": {"portfolio": 3, "threads": k}}) for k in (1, 2)]
+    assert [x.tolist() for x in runs[0][1].actual] == [x.tolist() for x in runs[1][1].actual]
+    for record, sim, _ in runs:
+        assert record["errors"] == 0 and record["host_cpu_s"] >= record["host_s"] > 0
+        done = max(sim.finished, 1)
+        assert record["total_energy_per_task_j"] == pytest.approx(record["host_cpu_s"] * 15.0 / done)
+
+
 def test_ising_scheduler_charges_the_chip_per_step():
     record, sim, _ = run_lorr(EXAMPLE, "ising", "pibt", steps=40, seed=0)
     assert record["errors"] == 0 and record["chip_calls"] > 0 and record["chip_s"] > 0

@@ -64,9 +64,9 @@ def oracle_operations(length):
 class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
-    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0):
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0, portfolio=1):
         self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
-        self.lns, self.group, self.weight_power = lns, group, weight_power
+        self.lns, self.group, self.weight_power, self.portfolio = lns, group, weight_power, portfolio
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
         self.tie = np.random.default_rng(seed).random(n).tolist()
@@ -93,7 +93,7 @@ class Oracle:
         from lanes_reference import lane_cost
         return lane_cost(self.grid, c, d, self.guidance)
 
-    def options(self, k, p, o, goal, dist):
+    def options(self, k, p, o, goal, dist, s):
         n = len(self.ops[0])
         ranked = []
         for i, op in enumerate(self.ops):
@@ -102,7 +102,7 @@ class Oracle:
                 continue
             cells, end = got
             idle = sum(2 * (n - s) + (a == W) for s, a in enumerate(op) if a != F)
-            ranked.append(((self.to_go(dist, goal, cells[-1], end), idle, int(mix(self.seed, self.t, k, i)) & 0xFFFF, i),
+            ranked.append(((self.to_go(dist, goal, cells[-1], end), idle, int(mix(s, self.t, k, i)) & 0xFFFF, i),
                            tuple(cells), op))
         ranked.sort()
         out, seen = [], set()
@@ -118,12 +118,39 @@ class Oracle:
         if self.expect != (pos, orient):
             self.inherited = [(W,) * len(self.ops[0])] * r
         dist = {g: guided(self.grid, g, self.guidance) if self.guidance else bfs(self.grid, g) for g in set(goals)}
-        opts = [self.options(k, pos[k], orient[k], goals[k], dist[goals[k]]) for k in range(r)]
         inh = []
         for k in range(r):
             cells, end = walk(self.grid, pos[k], orient[k], self.inherited[k])
             inh.append((tuple(cells), self.inherited[k], self.to_go(dist[goals[k]], goals[k], cells[-1], end), -1))
         prio = [e + t for e, t in zip(self.elapsed, self.tie)]
+        order = sorted(range(r), key=lambda k: (-self.elapsed[k], -self.tie[k]))
+        weight = [0] * r
+        for rank, k in enumerate(order):
+            weight[k] = (r + 1 - rank) ** self.weight_power
+        best = None
+        for j in range(self.portfolio):  # plan j from its own seed; the least weighted cost kept, the first on ties
+            s = self.seed if j == 0 else int(mix(self.seed, j, 0x70F7, 0)) & ((1 << 62) - 1)
+            opts = [self.options(k, pos[k], orient[k], goals[k], dist[goals[k]], s) for k in range(r)]
+            plan = self.one_plan(opts, inh, prio, order, weight, s)
+            cost = sum(weight[k] * plan[k][2] for k in range(r))
+            if best is None or cost < best[0]:
+                best = (cost, plan)
+        plan = best[1]
+        ops = [plan[k][1] for k in range(r)]
+        act = [op[0] for op in ops]
+        nxt = [plan[k][0][1] for k in range(r)]
+        nor = [(o + (a == R) - (a == C)) % 4 for o, a in zip(orient, act)]
+        self.inherited = [tuple(op[1:]) + (W,) for op in ops]
+        self.expect = (nxt, nor)
+        for k in range(r):
+            bonus = 10 if nxt[k] in self.dead else 0
+            self.elapsed[k] = 0 if nxt[k] == goals[k] else self.elapsed[k] + 1 + bonus
+        self.t += 1
+        return act, ops
+
+    def one_plan(self, opts, inh, prio, order, weight, s):
+        """One joint plan: the construction with pushes, then the search, on the tie bits of seed ``s``."""
+        r = len(inh)
         plan = list(inh)
         visit, hit = [0] * r, [False] * r
 
@@ -166,35 +193,20 @@ class Oracle:
             hit[a] = False
             return False
 
-        order = sorted(range(r), key=lambda k: (-self.elapsed[k], -self.tie[k]))
         for k in order:
             if visit[k]:
                 continue
             plan[k] = None
             if not choose(k, prio[k]):
                 plan[k] = inh[k]
-        weight = [0] * r
-        for rank, k in enumerate(order):
-            weight[k] = (r + 1 - rank) ** self.weight_power
-        self.search(plan, opts, inh, collide, weight)
-        ops = [plan[k][1] for k in range(r)]
-        act = [op[0] for op in ops]
-        nxt = [plan[k][0][1] for k in range(r)]
-        nor = [(o + (a == R) - (a == C)) % 4 for o, a in zip(orient, act)]
-        self.inherited = [tuple(op[1:]) + (W,) for op in ops]
-        self.expect = (nxt, nor)
-        for k in range(r):
-            bonus = 10 if nxt[k] in self.dead else 0
-            self.elapsed[k] = 0 if nxt[k] == goals[k] else self.elapsed[k] + 1 + bonus
-        self.t += 1
-        return act, ops
+        self.search(plan, opts, inh, collide, weight, s)
+        return plan
 
-
-    def search(self, plan, opts, inh, collide, weight):
+    def search(self, plan, opts, inh, collide, weight, seed):
         """Large-neighbourhood search as the module docstring states it (plan entries: cells, op, cost, index;
         costs weighted by ``weight``)."""
         r = len(plan)
-        start = int(mix(self.seed, self.t, r, 0)) % r
+        start = int(mix(seed, self.t, r, 0)) % r
         for it in range(self.lns):
             k = (start + it) % r
             now = plan[k][3]
@@ -214,7 +226,7 @@ class Oracle:
             for i in members:
                 plan[i] = None
             after, ok = 0, True
-            for i in sorted(members, key=lambda i: int(mix(self.seed, self.t, it, i))):
+            for i in sorted(members, key=lambda i: int(mix(seed, self.t, it, i))):
                 pick = next((o for o in opts[i] if not collide(i, o[0])), None)
                 if pick is None and not collide(i, inh[i][0]):
                     pick = inh[i]
@@ -232,13 +244,15 @@ class Oracle:
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 7), w=st.integers(3, 7),
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
        op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]),
-       weight_power=st.sampled_from([0, 1, 2]))
-def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power):
+       weight_power=st.sampled_from([0, 1, 2]), portfolio=st.sampled_from([1, 1, 2, 3]), threads=st.sampled_from([1, 2]))
+def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power,
+                                        portfolio, threads):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
-               weight_power=weight_power)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power)
+               weight_power=weight_power, portfolio=portfolio, threads=threads)
+    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
+                    portfolio=portfolio)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
@@ -308,7 +322,9 @@ def test_registered_and_bad_options_name_the_value():
     for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"), ({"op_len": "fast"}, "'auto'.*'fast'"),
                        ({"revisits": 0}, "revisits"),
                        ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans"), ({"lns": -1}, r"lns .* -1 .*\[0, "),
-                       ({"group": 1}, r"group .* 1 .*\[2, 4096\]"), ({"weight_power": 3}, r"weight_power .* 3 .*\[0, 2\]")):
+                       ({"group": 1}, r"group .* 1 .*\[2, 4096\]"), ({"weight_power": 3}, r"weight_power .* 3 .*\[0, 2\]"),
+                       ({"portfolio": 0}, r"portfolio .* 0 .*\[1, 64\]"), ({"portfolio": 65}, r"portfolio .* 65 "),
+                       ({"threads": 0}, r"threads .* 0 .*\[1, 64\]")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a path"):
@@ -327,6 +343,30 @@ def test_auto_op_len_follows_the_teams_share_of_free_cells(robots, op_len):
     assert auto.ops.shape[1] == DEFAULT_OP_LEN  # chosen on the first call, from its team
     assert auto.actions(pos, orient, goals).tolist() == fixed.actions(pos, orient, goals).tolist()
     assert auto.ops.shape[1] == op_len and np.array_equal(auto.plans, fixed.plans)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_portfolio_keeps_its_cheapest_plan_on_any_number_of_threads(seed):
+    rng = np.random.default_rng(900 + seed)
+    grid, free, pos, orient, goals = random_instance(rng, 14, 14, 0.15, 0.7)
+    runs = []
+    for threads in (1, 2, 4):
+        ex = EPIBT(grid, seed=seed, portfolio=4, threads=threads, weight_power=2, lns=50)
+
+        def check(step, pos, orient, act, ex=ex):
+            costs = ex.portfolio_costs
+            assert costs.shape == (4,) and int(np.argmin(costs)) == ex.kept
+            assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
+
+        acts = []
+        drive(ex, grid, free, (pos, orient, goals), np.random.default_rng(seed),
+              25, lambda step, p, o, a, check=check: (check(step, p, o, a), acts.append(a.tolist())))
+        runs.append(acts)
+    assert runs[0] == runs[1] == runs[2]
+    single, four = EPIBT(grid, seed=seed, weight_power=2, lns=50), EPIBT(grid, seed=seed, portfolio=4, weight_power=2, lns=50)
+    single.actions(pos, orient, goals)
+    four.actions(pos, orient, goals)  # the same first call: plan 0 is the single plan, the kept one costs no more
+    assert four.portfolio_costs[0] == single.portfolio_costs[0] >= four.portfolio_costs.min()
 
 
 def test_no_robots_no_actions():

@@ -6,25 +6,31 @@ which only the first runs before the next call re-plans (the 2024 League of Robo
 seeded tie.  Each robot's *inherited* operation (last call's rest, then W) is reserved first, so every robot
 has a conflict-free fallback; robots in priority order then take the first operation that collides with no
 one or with one lower robot, which is pushed (at most ``revisits`` choices per robot and call); then a
-large-neighbourhood search (:func:`_lns`) re-chooses small groups while their summed (optionally weighted)
-costs-to-go fall.  Fields: goal fields or FlowGuide's guide paths (docs/design/lifelong_turning.md).
+large-neighbourhood search (:mod:`planners.mapf.epibt_search`) re-chooses small groups while their summed
+(optionally weighted) costs-to-go fall.  A *portfolio* of ``K`` such plans from seeds apart runs side by side
+on threads (the kernels release the GIL), the one of least weighted cost-to-go kept.  Fields: goal fields or
+FlowGuide's guide paths (docs/design/lifelong_turning.md).
 """
 
 from __future__ import annotations
 
 import itertools
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 
 from planners.mapf.common import int_in, mix
+from planners.mapf.epibt_search import conflict, lns_search, reserve
 from planners.mapf.flow import FlowGuide, FlowPIBT
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL",
-           "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER"]
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "plan_cost", "portfolio_seed",
+           "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
+           "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
 DEFAULT_OP_LEN = 3
 MAX_OP_LEN = 5
@@ -40,6 +46,9 @@ DEFAULT_LNS_MAX = 1 << 15
 DEFAULT_GROUP = 16
 #: The search's weights ``(R + 1 - rank) ** p``: p = 0 did best over full RANDOM runs (design note).
 DEFAULT_WEIGHT_POWER = 0
+#: Joint plans per call at most (option ``portfolio``).
+MAX_PORTFOLIO = 64
+_PORTFOLIO_SALT = 0x70F7  # the portfolio's seeds: mix(seed, k, salt, 0), k >= 1
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
 
@@ -147,32 +156,6 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _reserve(res, path, a, who) -> None:
-    """Put robot ``a`` (``who`` = a) on ``path`` in the table, or take it off (``who`` = -1)."""
-    for t in range(path.shape[0]):
-        if who >= 0:
-            res[t, path[t]] = a
-        elif res[t, path[t]] == a:
-            res[t, path[t]] = -1
-
-
-@numba.njit(cache=True, nogil=True)
-def _conflict(res, path, a) -> int:
-    """The one robot ``path`` collides with (vertex or swap, times 1..), -1 none, -2 more than one."""
-    found = -1
-    for t in range(1, path.shape[0]):
-        v, u = path[t], path[t - 1]
-        for b in (res[t, v], res[t - 1, v] if u != v and res[t, u] == res[t - 1, v] else -1):
-            if b < 0 or b == a:
-                continue
-            if found == -1:
-                found = b
-            elif found != b:
-                return -2
-    return found
-
-
-@numba.njit(cache=True, nogil=True)
 def _choose(root, prio, cand, plans, tables, revisits) -> bool:
     """Robot ``root``'s choice with pushes, on an explicit stack (module docstring); ``cand = (cells, ncand)``, ``plans = (cur, src, inh)``: each robot's cells now, the candidate they are (-1 inherited)
     and its inherited cells; ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its
@@ -198,17 +181,17 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
                 returned = True
                 continue
             lo = st_l[top]  # the pushed robot found nothing: take back a's try, give lo its cells back
-            _reserve(res, cur[a], a, -1)
+            reserve(res, cur[a], a, -1)
             cur[lo] = saved[top]
             src[lo] = st_src[top]
-            _reserve(res, cur[lo], lo, lo)
+            reserve(res, cur[lo], lo, lo)
             st_l[top] = -1
         state = 0  # 0 nothing left, 1 chosen, 2 pushed
         while st_i[top] < ncand[a]:
             c = st_i[top]
             st_i[top] += 1
             path = cells[a, c]
-            lo = _conflict(res, path, a)
+            lo = conflict(res, path, a)
             if lo == -2:
                 continue
             if lo >= 0 and (hit[lo] == 1 or visit[lo] >= revisits or prio[lo] >= p):
@@ -216,10 +199,10 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
             if lo >= 0:
                 saved[top] = cur[lo]
                 st_src[top] = src[lo]
-                _reserve(res, cur[lo], lo, -1)
+                reserve(res, cur[lo], lo, -1)
             cur[a] = path
             src[a] = c
-            _reserve(res, path, a, a)
+            reserve(res, path, a, a)
             if lo < 0:
                 state = 1
                 break
@@ -242,89 +225,6 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
     return result
 
 
-@numba.njit(cache=True, nogil=True)
-def _blockers(k, cells, top, res, size, members, mark) -> int:
-    """``members[:n]``: robot ``k``, then the robots in the way of its first ``top`` operations (at most
-    ``size`` in all); ``mark`` set for them."""
-    members[0] = k
-    mark[k] = 1
-    n = 1
-    for c in range(top):
-        path = cells[k, c]
-        for s in range(1, path.shape[0]):
-            v, u = path[s], path[s - 1]
-            for b in (res[s, v], res[s - 1, v] if u != v and res[s, u] == res[s - 1, v] else -1):
-                if b >= 0 and mark[b] == 0 and n < size:
-                    members[n] = b
-                    mark[b] = 1
-                    n += 1
-    return n
-
-
-@numba.njit(cache=True, nogil=True)
-def _lns(cand, plans, res, stamp) -> None:
-    """Large-neighbourhood search: ``iters`` times, a robot not on its best operation and the robots in the way
-    of its better ones (at most ``group``) choose again in a seeded order, each its best operation colliding
-    with no one (or its inherited one); kept when their summed ``costs`` fall.  ``cand = (cells, costs, ncand)``,
-    ``plans = (cur, src, inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
-    cells, costs, ncand = cand
-    cur, src, inh, inh_cost = plans
-    seed, t, iters, group = stamp
-    r = cur.shape[0]
-    if r == 0:
-        return
-    members = np.empty(group, dtype=np.int64)
-    mark = np.zeros(r, dtype=np.int8)
-    keys = np.empty(group, dtype=np.uint64)
-    old_src = np.empty(group, dtype=np.int64)
-    old_cur = np.empty((group, cur.shape[1]), dtype=np.int64)
-    start = np.int64(mix(seed, t, r, 0) % np.uint64(max(r, 1)))
-    for it in range(iters):
-        k = (start + it) % r
-        if src[k] == 0 or ncand[k] == 0:
-            continue
-        top = src[k] if src[k] > 0 else ncand[k]
-        n = _blockers(k, cells, top, res, group, members, mark)
-        before = 0
-        for j in range(n):
-            i = members[j]
-            mark[i] = 0
-            before += costs[i, src[i]] if src[i] >= 0 else inh_cost[i]
-            old_src[j] = src[i]
-            old_cur[j] = cur[i]
-            _reserve(res, cur[i], i, -1)
-            keys[j] = mix(seed, t, it, i)
-        idx = np.argsort(keys[:n])
-        after = 0
-        placed = 0
-        for j in idx:
-            i = members[j]
-            pick = -2
-            for c in range(ncand[i]):
-                if _conflict(res, cells[i, c], i) == -1:
-                    pick = c
-                    break
-            if pick == -2 and _conflict(res, inh[i], i) == -1:
-                pick = -1
-            if pick == -2 or after >= before:
-                after = before
-                break
-            cur[i] = cells[i, pick] if pick >= 0 else inh[i]
-            src[i] = pick
-            _reserve(res, cur[i], i, i)
-            after += costs[i, pick] if pick >= 0 else inh_cost[i]
-            placed += 1
-        if placed == n and after < before:
-            continue
-        for j in idx[:placed]:
-            _reserve(res, cur[members[j]], members[j], -1)
-        for j in range(n):
-            i = members[j]
-            src[i] = old_src[j]
-            cur[i] = old_cur[j]
-            _reserve(res, cur[i], i, i)
-
-
 def new_state(r: int, ops: np.ndarray):
     """Arrays of one call's plan, filled by :func:`epibt_kernel`: ``(cells, which, costs, ncand, cur, src, inh,
     inh_cost)`` -- each robot's ranked operations (cells, operation, cost-to-go; how many), its cells now, the
@@ -341,7 +241,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
     on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient,
     goals, rows, prio, inherited, weight)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1
     Manhattan; ``inherited[k]`` its fallback operation, jointly conflict-free; ``weight[k]`` multiplies its
-    costs); ``heuristic = (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (:func:`_lns`'s)."""
+    costs); ``heuristic = (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (the search's)."""
     nbr = grid[0]
     pos, orient, goals, rows, prio, inherited, weight = robots
     seed, t, revisits, lns, group = stamp
@@ -366,7 +266,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
             costs[k, c] *= weight[k]
         cur[k] = inh[k]
         src[k] = -1
-        _reserve(res, inh[k], k, k)
+        reserve(res, inh[k], k, k)
     visit = np.zeros(r, dtype=np.int64)
     hit = np.zeros(r, dtype=np.int8)
     stack = (np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
@@ -375,11 +275,11 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         k = order[idx]
         if visit[k] != 0:
             continue
-        _reserve(res, cur[k], k, -1)
+        reserve(res, cur[k], k, -1)
         if not _choose(k, prio, (cells, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
-            _reserve(res, cur[k], k, k)
+            reserve(res, cur[k], k, k)
     if lns > 0:
-        _lns((cells, costs, ncand), (cur, src, inh, inh_cost), res, (seed, t, lns, group))
+        lns_search((cells, costs, ncand), (cur, src, inh, inh_cost), res, (seed, t, lns, group))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -393,7 +293,20 @@ def epibt_finish(ops, inherited, state, out, res) -> None:
         else:
             chosen[k] = inherited[k]
         act[k] = chosen[k, 0]
-        _reserve(res, cur[k], k, -1)
+        reserve(res, cur[k], k, -1)
+
+
+def plan_cost(state) -> int:
+    """A joint plan's weighted cost-to-go (:func:`new_state`'s arrays): each robot's chosen operation's, or its
+    inherited one's."""
+    costs, src, inh_cost = state[2], state[5], state[7]
+    r = src.shape[0]
+    return int(np.where(src >= 0, costs[np.arange(r), np.maximum(src, 0)], inh_cost).sum())
+
+
+def portfolio_seed(seed: int, k: int) -> int:
+    """Plan ``k``'s seed in a portfolio: the call's own seed for ``k = 0``, else a splitmix of it (62 bits)."""
+    return int(seed) if k == 0 else int(mix(np.uint64(seed), k, _PORTFOLIO_SALT, 0)) & ((1 << 62) - 1)
 
 
 class EPIBT(TurningPIBT):
@@ -413,6 +326,11 @@ class EPIBT(TurningPIBT):
             the first in priority order (default 0, unweighted).
         replans: guide paths re-planned per call beyond new goals (``flow`` only; as
             :class:`~planners.mapf.flow.FlowPIBT`).
+        portfolio: joint plans per call (1..64, default 1), each a construction and search of its own from
+            seeds apart (:func:`portfolio_seed`; the first is the single plan's); the one of least weighted
+            cost-to-go is kept (ties: the first), as the 2024 winner's threads do up to the deadline.
+        threads: threads the portfolio's plans run on (default: one per plan, at most the machine's cores);
+            the plans and the choice do not depend on it.
         field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
     """
 
@@ -420,8 +338,8 @@ class EPIBT(TurningPIBT):
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int | str = DEFAULT_OP_LEN,
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
-                 replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER,
-                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+                 replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER, portfolio: int = 1,
+                 threads: int | None = None, field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
@@ -432,6 +350,12 @@ class EPIBT(TurningPIBT):
         self.lns_option = None if lns is None else int_in("lns (search iterations per call)", lns, 0, big)
         self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
+        self.portfolio = int_in("portfolio (joint plans per call)", portfolio, 1, MAX_PORTFOLIO)
+        cores = os.cpu_count() or 1
+        self.threads = (min(self.portfolio, cores) if threads is None
+                        else int_in("threads (the portfolio's threads)", threads, 1, MAX_PORTFOLIO))
+        self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
+        self.kept = 0  # and the one kept
         self.auto_op_len = op_len == "auto"
         self.flow = bool(flow)
         n = len(self.cell_of)
@@ -478,10 +402,8 @@ class EPIBT(TurningPIBT):
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else self.lns_option
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
-        state = new_state(r, self.ops)
         t0 = time.perf_counter()
-        epibt_kernel(grid, (pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order,
-                     (self.seed, self.t, self.revisits, self.lns, self.group), self.ops, state, self._res)
+        state = self._plans(grid, (pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order)
         self.kernel_s = time.perf_counter() - t0
         self._improve(state)
         epibt_finish(self.ops, self.inherited, state, (chosen, act), self._res)
@@ -494,6 +416,28 @@ class EPIBT(TurningPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         return act
+
+    def _plans(self, grid, robots, heuristic, order):
+        """The portfolio's joint plans (one by default), the kept one's state returned and left reserved in
+        :attr:`_res`; :attr:`portfolio_costs` holds each plan's weighted cost-to-go."""
+        r, k_plans = robots[0].shape[0], self.portfolio
+        states = [new_state(r, self.ops) for _ in range(k_plans)]
+        tables = [self._res] + [np.full_like(self._res, -1) for _ in range(k_plans - 1)]
+
+        def run(k):
+            stamp = (portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group)
+            epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, states[k], tables[k])
+
+        if k_plans == 1 or self.threads == 1:
+            for k in range(k_plans):
+                run(k)
+        else:  # the kernel releases the GIL: the plans run side by side
+            with ThreadPoolExecutor(min(self.threads, k_plans)) as pool:
+                list(pool.map(run, range(k_plans)))
+        self.portfolio_costs = np.array([plan_cost(st) for st in states], dtype=np.int64)
+        self.kept = int(np.argmin(self.portfolio_costs))  # the first of least cost
+        self._res = tables[self.kept]  # the others are dropped with their reservations
+        return states[self.kept]
 
     def _improve(self, state) -> None:
         """Hook for subclasses: may change the plan ``state`` (kept conflict-free in :attr:`_res`) before its

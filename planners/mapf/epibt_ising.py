@@ -34,7 +34,8 @@ from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import int_in, machine_for, mix
-from planners.mapf.epibt import EPIBT, _blockers, _conflict, _reserve
+from planners.mapf.epibt import EPIBT
+from planners.mapf.epibt_search import blockers, conflict, reserve
 from planners.mapf.joint_moves import qubo_to_ising
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
@@ -77,14 +78,14 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
         if src[k] == 0 or ncand[k] == 0 or taken[k]:
             continue
         a = m
-        size = _blockers(k, cells, src[k] if src[k] > 0 else ncand[k], res, max_robots, members[a:], taken)
+        size = blockers(k, cells, src[k] if src[k] > 0 else ncand[k], res, max_robots, members[a:], taken)
         m = a + size
         if size < 2:  # nothing in the way to choose with
             m = a
             continue
         per = min(max_options, max_spins // size + 1)  # a robot's operation now takes no spin
         for i in range(a, m):
-            _reserve(res, cur[members[i]], members[i], -1)
+            reserve(res, cur[members[i]], members[i], -1)
         for i in range(a, m):
             q = members[i]
             x = ostart[i]
@@ -93,12 +94,12 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
             for c in range(ncand[q]):
                 if x - ostart[i] >= per:
                     break
-                if c != src[q] and _conflict(res, cells[q, c], q) == -1:
+                if c != src[q] and conflict(res, cells[q, c], q) == -1:
                     opt[x] = c
                     x += 1
             ostart[i + 1] = x
         for i in range(a, m):
-            _reserve(res, cur[members[i]], members[i], members[i])
+            reserve(res, cur[members[i]], members[i], members[i])
         ng += 1
         gstart[ng] = m
     return ng
@@ -229,16 +230,16 @@ def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
         if costs_now[g] > before - min_gain:
             continue
         for i in range(a, b):
-            _reserve(res, cur[members[i]], members[i], -1)
+            reserve(res, cur[members[i]], members[i], -1)
         ok = True
         for i in range(a, b):
-            if _conflict(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i]) != -1:
+            if conflict(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i]) != -1:
                 ok = False
                 break
-            _reserve(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i], members[i])
+            reserve(res, _path(state, members[i], opt[ostart[i] + choices[i]]), members[i], members[i])
         for i in range(a, b):
             q = members[i]
-            _reserve(res, _path(state, q, opt[ostart[i] + choices[i]]), q, -1)
+            reserve(res, _path(state, q, opt[ostart[i] + choices[i]]), q, -1)
         if ok:
             for i in range(a, b):
                 q = members[i]
@@ -246,7 +247,7 @@ def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
                 cur[q] = _path(state, q, src[q])
             applied += 1
         for i in range(a, b):
-            _reserve(res, cur[members[i]], members[i], members[i])
+            reserve(res, cur[members[i]], members[i], members[i])
     return applied
 
 

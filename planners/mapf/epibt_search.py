@@ -1,0 +1,125 @@
+"""EPIBT's reservation table and large-neighbourhood search over a joint plan (compiled).
+
+The table ``res[t, cell]`` holds the robot on ``cell`` at time ``t`` of the operations (-1 free).
+:func:`lns_search`: ``iters`` times, a robot not on its best operation and the robots in the way of its
+better ones (:func:`blockers`) choose again in a seeded order, each its best operation colliding with no one
+(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from planners.mapf.common import mix
+
+__all__ = ["reserve", "conflict", "blockers", "lns_search"]
+
+
+@numba.njit(cache=True, nogil=True)
+def reserve(res, path, a, who) -> None:
+    """Put robot ``a`` (``who`` = a) on ``path`` in the table, or take it off (``who`` = -1)."""
+    for t in range(path.shape[0]):
+        if who >= 0:
+            res[t, path[t]] = a
+        elif res[t, path[t]] == a:
+            res[t, path[t]] = -1
+
+
+@numba.njit(cache=True, nogil=True)
+def conflict(res, path, a) -> int:
+    """The one robot ``path`` collides with (vertex or swap, times 1..), -1 none, -2 more than one."""
+    found = -1
+    for t in range(1, path.shape[0]):
+        v, u = path[t], path[t - 1]
+        for b in (res[t, v], res[t - 1, v] if u != v and res[t, u] == res[t - 1, v] else -1):
+            if b < 0 or b == a:
+                continue
+            if found == -1:
+                found = b
+            elif found != b:
+                return -2
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def blockers(k, cells, top, res, size, members, mark) -> int:
+    """``members[:n]``: robot ``k``, then the robots in the way of its first ``top`` operations (at most
+    ``size`` in all); ``mark`` set for them."""
+    members[0] = k
+    mark[k] = 1
+    n = 1
+    for c in range(top):
+        path = cells[k, c]
+        for s in range(1, path.shape[0]):
+            v, u = path[s], path[s - 1]
+            for b in (res[s, v], res[s - 1, v] if u != v and res[s, u] == res[s - 1, v] else -1):
+                if b >= 0 and mark[b] == 0 and n < size:
+                    members[n] = b
+                    mark[b] = 1
+                    n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
+def lns_search(cand, plans, res, stamp) -> None:
+    """Large-neighbourhood search: ``iters`` times, a robot not on its best operation and the robots in the way
+    of its better ones (at most ``group``) choose again in a seeded order, each its best operation colliding
+    with no one (or its inherited one); kept when their summed ``costs`` fall.  ``cand = (cells, costs, ncand)``,
+    ``plans = (cur, src, inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
+    cells, costs, ncand = cand
+    cur, src, inh, inh_cost = plans
+    seed, t, iters, group = stamp
+    r = cur.shape[0]
+    if r == 0:
+        return
+    members = np.empty(group, dtype=np.int64)
+    mark = np.zeros(r, dtype=np.int8)
+    keys = np.empty(group, dtype=np.uint64)
+    old_src = np.empty(group, dtype=np.int64)
+    old_cur = np.empty((group, cur.shape[1]), dtype=np.int64)
+    start = np.int64(mix(seed, t, r, 0) % np.uint64(max(r, 1)))
+    for it in range(iters):
+        k = (start + it) % r
+        if src[k] == 0 or ncand[k] == 0:
+            continue
+        top = src[k] if src[k] > 0 else ncand[k]
+        n = blockers(k, cells, top, res, group, members, mark)
+        before = 0
+        for j in range(n):
+            i = members[j]
+            mark[i] = 0
+            before += costs[i, src[i]] if src[i] >= 0 else inh_cost[i]
+            old_src[j] = src[i]
+            old_cur[j] = cur[i]
+            reserve(res, cur[i], i, -1)
+            keys[j] = mix(seed, t, it, i)
+        idx = np.argsort(keys[:n])
+        after = 0
+        placed = 0
+        for j in idx:
+            i = members[j]
+            pick = -2
+            for c in range(ncand[i]):
+                if conflict(res, cells[i, c], i) == -1:
+                    pick = c
+                    break
+            if pick == -2 and conflict(res, inh[i], i) == -1:
+                pick = -1
+            if pick == -2 or after >= before:
+                after = before
+                break
+            cur[i] = cells[i, pick] if pick >= 0 else inh[i]
+            src[i] = pick
+            reserve(res, cur[i], i, i)
+            after += costs[i, pick] if pick >= 0 else inh_cost[i]
+            placed += 1
+        if placed == n and after < before:
+            continue
+        for j in idx[:placed]:
+            reserve(res, cur[members[j]], members[j], -1)
+        for j in range(n):
+            i = members[j]
+            src[i] = old_src[j]
+            cur[i] = old_cur[j]
+            reserve(res, cur[i], i, i)

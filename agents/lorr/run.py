@@ -5,7 +5,9 @@ errands into a joint MAPF_T move, the simulator moves and applies the proposal. 
 the decision's latency as the start kit would see it: host seconds of scheduler + executor (wall
 seconds minus the time spent emulating the chip) plus the chip's own time (8-core parallel
 dispatch).  Energies per finished task in both conventions (paper section 6.1): the paper's
-(accelerator only for a scheduler with Ising layers, else host x 15 W) and the total.
+(accelerator only for a scheduler with Ising layers, else host x 15 W) and the total; the host's seconds
+for energy are CPU seconds of every thread (``host_cpu_s``: an executor's portfolio on several threads), at
+least the wall seconds (``host_s``).
 Kernels are compiled before the first timed step, on the shipped example instance.
 """
 

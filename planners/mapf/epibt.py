@@ -329,8 +329,8 @@ class EPIBT(TurningPIBT):
         portfolio: joint plans per call (1..64, default 1), each a construction and search of its own from
             seeds apart (:func:`portfolio_seed`; the first is the single plan's); the one of least weighted
             cost-to-go is kept (ties: the first), as the 2024 winner's threads do up to the deadline.
-        threads: threads the portfolio's plans run on (default: one per plan, at most the machine's cores);
-            the plans and the choice do not depend on it.
+        threads: threads the portfolio's plans run on (default: one per plan, at most the cores this process
+            may use); the plans and the choice do not depend on it.
         field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
     """
 
@@ -351,7 +351,7 @@ class EPIBT(TurningPIBT):
         self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
         self.portfolio = int_in("portfolio (joint plans per call)", portfolio, 1, MAX_PORTFOLIO)
-        cores = os.cpu_count() or 1
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         self.threads = (min(self.portfolio, cores) if threads is None
                         else int_in("threads (the portfolio's threads)", threads, 1, MAX_PORTFOLIO))
         self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs

@@ -63,9 +63,8 @@ def chip_rates(n_worlds: int, n_targets: int) -> dict:
         for seed in range(n_worlds):
             dist = generate_world(seed, n_robots=1, n_targets=n_targets).distance_matrix
             res = solver.solve(dist, np.random.default_rng(seed))
-            m = res.stats["mapping"]["tour"]
-            prog += m["physical_programs"]
-            valid += m["valid_physical"]
+            prog += sum(v["programs"] for v in res.stats["mapping"]["tour"].values())
+            valid += res.stats["valid_programs"]
             ok += res.success
         out[rule] = (prog, valid, ok)
     return out

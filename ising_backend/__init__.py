@@ -22,6 +22,7 @@ Modules:
 * :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks`, :mod:`.stack` -- the mapping toolkit;
 * :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
 * :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
+* :mod:`.mapping_stats` -- :func:`mapping_record`: the one per-choice mapping statistics record of every layer;
 * :func:`splitmix` -- the one compiled splitmix64 step (:mod:`._rng`), for the planners' seeded kernels too;
 
 Example::
@@ -68,6 +69,7 @@ from .portfolio import (
     run_portfolio_batch,
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
+from .mapping_stats import MAPPING_FIELDS, mapping_record
 from .link import MachineSession, anneal_submit, solve_submit, via_callback
 from .machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       sampler_names)
@@ -97,7 +99,7 @@ __all__ = [
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",
-    "quantize_portfolio", "run_portfolio", "run_portfolio_batch",
+    "quantize_portfolio", "run_portfolio", "run_portfolio_batch", "MAPPING_FIELDS", "mapping_record",
     # dimod composite
     "QuantizeComposite", "COMPOSITE_RULES",
     # the compiled splitmix64 step every seeded kernel of the package hashes with

@@ -92,7 +92,7 @@ def _search(planner, grid, s, g, rng, field):
     padded = planner.runner.padded(grid)
     solver = MeteredSolver(planner.chip)
     styles = cfg.styles
-    mapping = {st: {"programs": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in styles}
+    mapping = {st: {"programs": 0, "reads": 0, "valid": 0, "wins": 0, "map_errors": 0} for st in styles}
     counts = {"patch_solves": 0, "anneal_calls": 0, "segments": 0, "backtracks": 0, "direct_moves": 0}
     max_attempts, per_target, max_calls = planner.runner.budgets(grid)
     pos, walk = s, [s]
@@ -169,7 +169,8 @@ def _search(planner, grid, s, g, rng, field):
             n_valid, best, energy, logical = score_patch_samples(sp, ptr, idx, pr.n, pr.cells, pr.start, pr.goal,
                                                                  planner.runner.nbr, model.h, model.J, model.offset)
             for q, k in enumerate(ok):
-                mapping[styles[k]]["programs"] += cfg.num_reads
+                mapping[styles[k]]["programs"] += 1
+                mapping[styles[k]]["reads"] += cfg.num_reads
                 mapping[styles[k]]["valid"] += int(n_valid[q])
             if chosen is None and np.isfinite(energy).any():
                 top = float(energy.min())

@@ -34,7 +34,8 @@ def reference_solve_packed(self, w, R, problems, rng, stats) -> None:
     n_valid, best, cands = _submit_checked(self, w, R, problems, seed)
     mapping = stats["mapping"]["sharing"]
     for rule, v in zip(rules, n_valid.sum(axis=0).tolist()):
-        mapping[rule]["candidates"] += cfg.reads * P
+        mapping[rule]["programs"] += P
+        mapping[rule]["reads"] += cfg.reads * P
         mapping[rule]["valid"] += v
     keep_candidates(problems, rules, best.tolist(), cands, rng, mapping)
 

@@ -579,7 +579,8 @@ class ReferenceStages(StageSolver):
         for m, (k, cut, a, b) in enumerate(zip(parent[c_split].tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):
             cands[k].append((cut, s0[m, :a], s1[m, :b], None))
         for rule, v in zip(rules, b_valid.sum(axis=0).tolist()):
-            mapping[rule]["candidates"] += cfg.reads * len(parent)
+            mapping[rule]["programs"] += len(parent)
+            mapping[rule]["reads"] += cfg.reads * len(parent)
             mapping[rule]["valid"] += v
         best = np.full((P, len(rules)), np.inf)
         np.minimum.at(best, parent, b_best)
@@ -593,7 +594,7 @@ def reference_assign(sharing, dist, R: int, tour, rng, solve_packed=None) -> Sha
     problems, rng, stats)`` replaces the stage submission (``tests/sharing_reference.py``'s)."""
     self = sharing
     dist = np.asarray(dist, dtype=float)
-    mapping = {r: {"candidates": 0, "valid": 0, "wins": 0} for r in self.config.rules}
+    mapping = {r: {"programs": 0, "reads": 0, "valid": 0, "wins": 0, "map_errors": 0} for r in self.config.rules}
     stats: dict = {"mapping": {"sharing": mapping}, "stages": 0, "splits": 0, "trivial_splits": 0, "bundles": 0,
                    "tour_solves": 0, "states": 0}
     stages = ReferenceStages(self.config, self.chip)

@@ -235,7 +235,8 @@ def test_chip_tour_is_valid_near_optimal_and_runs_on_the_physical_chip():
         assert r.cost == pytest.approx(_cost(dist, np.array((0,) + r.order)))
         assert r.compute.chip_calls > 0 and r.compute.logical_calls == 0
         m = r.stats["mapping"]["tour"]
-        assert m["physical_programs"] == m["programs"] > 0 and 0 < m["valid_reads"] <= m["reads"]
+        assert all(v["programs"] > 0 and 0 < v["valid"] <= v["reads"] == v["programs"] * tour.config.num_reads
+                   for v in m.values())
         gaps.append(r.cost / BruteTour().solve(dist).cost - 1)
         calls += r.compute.chip_calls
     assert np.mean(gaps) <= 0.03
@@ -365,6 +366,8 @@ def test_bad_pair_options_are_refused():
         SharingConfig(pair_shifts=(0.5, float("nan")))
     with pytest.raises(ValueError, match="chip_rules entry"):
         TourConfig(chip_rules=("linear", "cubic"))
+    with pytest.raises(ValueError, match=r"chip_rules = \('rank', 'rank'\) names a rule twice"):
+        TourConfig(chip_rules=("rank", "rank"))
     with pytest.raises(ValueError, match="max_moves"):
         TourConfig(max_moves=0)
 

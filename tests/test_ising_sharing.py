@@ -128,7 +128,7 @@ def test_valid_assignment_on_random_worlds(seed, placement):
     assert set(m) == {"linear", "clip95", "rank", "sqrt"}
     assert sum(v["wins"] for v in m.values()) == res.stats["splits"] - res.stats.get("trivial_splits", 0)
     for v in m.values():
-        assert v["valid"] <= v["candidates"]
+        assert v["valid"] <= v["reads"] == v["programs"] * sharing.config.reads and v["map_errors"] == 0
 
 
 @pytest.mark.parametrize("shape", [(2, 5), (4, 12), (5, 20), (1, 6), (3, 1), (3, 0)])

@@ -155,10 +155,13 @@ def test_compute_report_and_branching():
     assert c.chip_time_s == pytest.approx(c.logical_calls * spec.solve_time_s)
     assert c.accelerator_energy_j == pytest.approx(c.logical_calls * spec.energy_per_call_j)
     assert c.chip_time_parallel_s < c.chip_time_s  # branches dispatched together
-    m = r.stats["mapping"]["tour"]
-    assert m["programs"] > m["subproblems"] > 0  # branches are programs of one subproblem
-    assert 0 < m["valid"] <= m["programs"] and m["valid_subproblems"] == m["subproblems"]
-    assert m["physical_programs"] == 0 and m["valid_physical"] == 0
+    st = r.stats
+    m = st["mapping"]["tour"]["logical"]  # the logical solver maps nothing: one choice
+    assert set(st["mapping"]["tour"]) == {"logical"}
+    assert m["programs"] > st["subproblems"] > 0  # branches are programs of one subproblem
+    assert m["reads"] == m["programs"] * PaperIsingTour().config.num_reads and m["map_errors"] == 0
+    assert 0 < st["valid_programs"] <= m["programs"] and st["valid_subproblems"] == st["subproblems"]
+    assert m["wins"] == st["valid_subproblems"] and 0 < m["valid"] <= m["reads"]
 
 
 def test_deterministic_under_seed():
@@ -231,9 +234,10 @@ def test_onehot_chip_backend_reports_physical_validity():
     chip = EmulatedChip(ChipSpec(), seed=0)
     dist = generate_world(2, n_robots=1, n_targets=5).distance_matrix
     r = IsingTour(chip=chip, backend="chip-onehot").solve(dist, np.random.default_rng(0))
-    m = r.stats["mapping"]["tour"]
-    assert m["physical_programs"] == m["programs"] > 0
-    assert 0 <= m["valid_physical"] <= m["physical_programs"]
+    m = r.stats["mapping"]["tour"]["linear"]  # the one-hot programs' quantization rule (chip_quantize)
+    assert set(r.stats["mapping"]["tour"]) == {"linear"}
+    assert m["programs"] > 0 and 0 <= r.stats["valid_programs"] <= m["programs"]
+    assert m["reads"] == m["programs"] * IsingTour().config.num_reads
     assert r.compute.chip_calls > 0 and r.compute.chip_calls == chip.ledger.physical_calls
     if r.success:
         assert _is_perm(r.order, 5)
@@ -248,8 +252,8 @@ def test_onehot_chip_backend_solves_small_tours_on_the_chip():
         dist = generate_world(seed, n_robots=1, n_targets=4).distance_matrix
         r = IsingTour(chip=chip, backend="chip-onehot").solve(dist, np.random.default_rng(seed))
         assert r.success and _is_perm(r.order, 4) and r.cost == pytest.approx(route_cost(dist, r.order))
-        m = r.stats["mapping"]["tour"]
-        assert 0 < m["valid_physical"] <= m["physical_programs"] and r.compute.chip_calls == chip.ledger.physical_calls
+        m = r.stats["mapping"]["tour"]["linear"]
+        assert 0 < r.stats["valid_programs"] <= m["programs"] and r.compute.chip_calls == chip.ledger.physical_calls
 
 
 class _GarbageChip:
@@ -299,4 +303,6 @@ def test_in_the_pipeline(name):
         assert plan.compute.chip_calls > 0 and plan.compute.logical_calls == 0
     else:
         assert plan.compute.logical_calls > 0 and plan.compute.chip_calls == 0
-    assert plan.stats["mapping"]["tour"]["programs"] > 0
+    tour = plan.stats["mapping"]["tour"]
+    assert set(tour) == ({"linear", "rank"} if name == "ising" else {"logical"})
+    assert all(m["programs"] > 0 and m["reads"] == m["programs"] for m in tour.values())  # one read a program

@@ -176,17 +176,15 @@ def _chip_round(tour, moves, gains, run):
     # overlapping moves make a read invalid: dropped, never repaired
     clean, best_k, best_r, _gain = score_reads(spins, moves, gains)
     best = np.flatnonzero(spins[best_k, best_r] > 0) if best_k >= 0 else None
-    m["reads"] += cfg.num_reads * len(cfg.chip_rules)
-    m["valid_reads"] += int(clean.sum())
-    m["valid"] += int((clean > 0).sum())
-    m["valid_physical"] += int((clean > 0).sum())
-    m["programs"] += len(cfg.chip_rules)
-    m["physical_programs"] += len(cfg.chip_rules)
-    m["subproblems"] += 1
-    m["valid_subproblems"] += best is not None
+    for rule, valid in zip(cfg.chip_rules, clean.tolist()):
+        m[rule]["programs"] += 1
+        m[rule]["reads"] += cfg.num_reads
+        m[rule]["valid"] += int(valid)
+    run.stats["valid_programs"] += int((clean > 0).sum())
+    run.stats["subproblems"] += 1
+    run.stats["valid_subproblems"] += best is not None
     if best is not None:
-        won = m.setdefault("wins", {})
-        won[cfg.chip_rules[best_k]] = won.get(cfg.chip_rules[best_k], 0) + 1
+        m[cfg.chip_rules[best_k]]["wins"] += 1
     return best
 
 
@@ -229,7 +227,7 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
     frozen = np.sort(freeze_order(IsingModel.trusted(h, J, float(off)))[:k]) if k else np.zeros(0, dtype=np.int64)
     free, hb, Jb, offs = branch_stack(h, J, float(off), frozen)
     physical = cfg.backend != "logical"
-    m = run.stats["mapping"]["tour"]
+    m = run.stats["mapping"]["tour"][cfg.chip_quantize if physical else "logical"]
     for _attempt in range(cfg.max_retries + 1):
         seed = int(run.rng.integers(0, 2**63 - 1))
         programs = [IsingModel.trusted(hb[b], Jb.copy(), float(offs[b])) for b in range(len(hb))]
@@ -246,13 +244,11 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
         per_program = valid.reshape(len(hb), -1)
         m["programs"] += len(hb)
         m["reads"] += int(valid.size)
-        m["valid_reads"] += int(valid.sum())
-        m["valid"] += int(per_program.any(axis=1).sum())
-        if physical:
-            m["physical_programs"] += len(hb)
-            m["valid_physical"] += int(per_program.any(axis=1).sum())
-        m["subproblems"] += 1
-        m["valid_subproblems"] += int(valid.any())
+        m["valid"] += int(valid.sum())
+        m["wins"] += int(valid.any())
+        run.stats["valid_programs"] += int(per_program.any(axis=1).sum())
+        run.stats["subproblems"] += 1
+        run.stats["valid_subproblems"] += int(valid.any())
         if best >= 0:
             return [int(i) for i in orders[best]]
         run.stats["retries"] += 1

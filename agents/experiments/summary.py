@@ -9,30 +9,22 @@ from pathlib import Path
 import numpy as np
 
 from agents.experiments.paper import PAPER
+from ising_backend import MAPPING_FIELDS
 from agents.experiments.records import ExperimentResult
 
 def _merge_counts(acc: dict, mapping: dict | None, layer: str) -> None:
-    if not mapping:
-        return
-    part = mapping.get(layer, mapping)
-    for choice, counts in part.items():
-        if not isinstance(counts, dict):
-            continue
-        slot = acc.setdefault(choice, {})
-        for k, v in counts.items():
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
-                slot[k] = slot.get(k, 0) + v
+    """Add one row's ``stats["mapping"][layer]`` (:func:`ising_backend.mapping_record`) into ``acc``."""
+    for choice, counts in ((mapping or {}).get(layer) or {}).items():
+        slot = acc.setdefault(choice, dict.fromkeys(MAPPING_FIELDS, 0))
+        for k in MAPPING_FIELDS:
+            slot[k] += counts[k]
 
 
 def mapping_table(path: ExperimentResult | None, sharing: ExperimentResult | None) -> list[dict]:
-    """Paper Table 5 from the Ising rows' mapping statistics.
-
-    Pathfinding (per spin-merging style): valid-decode rate = valid /
-    decoded reads (``programs`` in the path layer's counts); win share =
-    wins / all wins.  Sharing (per quantization
-    rule): candidate share = candidates / all candidates; win share = wins /
-    all wins.  Counts are summed over every instance.
-    """
+    """Paper Table 5 from the Ising rows' mapping statistics (one record per layer and choice, summed over
+    every instance): per choice its decoded reads (``candidates``), valid reads and wins; valid rate =
+    valid / reads (the pathfinding column), candidate share = reads / all reads (the sharing column), win
+    share = wins / all wins."""
     rows = []
     for layer, result in (("path", path), ("sharing", sharing)):
         if result is None:
@@ -40,12 +32,10 @@ def mapping_table(path: ExperimentResult | None, sharing: ExperimentResult | Non
         acc: dict = {}
         for r in result.method_rows("ising"):
             _merge_counts(acc, r.get("mapping"), layer)
-        total_w = sum(v.get("wins", 0) for v in acc.values())
-        for v in acc.values():  # the path layer counts decoded reads as "programs"
-            v.setdefault("candidates", v.get("programs", 0))
-        total_c = sum(v.get("candidates", 0) for v in acc.values())
+        total_w = sum(v["wins"] for v in acc.values())
+        total_c = sum(v["reads"] for v in acc.values())
         for choice, v in acc.items():
-            c, ok, w = v.get("candidates", 0), v.get("valid", 0), v.get("wins", 0)
+            c, ok, w = v["reads"], v["valid"], v["wins"]
             paper = PAPER["mapping"].get((layer, choice), (None, None))
             rows.append(
                 {

@@ -22,6 +22,7 @@ from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
 from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 from planners.ising.path.kernels import cut_walk
+from planners.ising.path.runner import path_mapping
 
 __all__ = ["LegBatch", "plan_legs", "run_legs"]
 
@@ -139,8 +140,7 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
         "chip_batches": int(charged.batches),
         **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
         "walk_length": int(walked),
-        "mapping": {"path": {st: {"programs": r[0], "valid": r[1], "wins": r[2], "map_errors": r[3]}
-                             for st, r in zip(cfg.styles, mapping.tolist())}},
+        "mapping": {"path": path_mapping(cfg.styles, mapping, cfg.num_reads)},
         "path_length": int(ends[done] - done),
     }
     return batch

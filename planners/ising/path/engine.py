@@ -196,7 +196,7 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
 
     Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
     err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
-    direct_moves; mapping rows per style = programs, valid, wins, map_errors; per chip submission
+    direct_moves; mapping rows per style = reads, valid reads, wins, map_errors; per chip submission
     its calls and emulation seconds; ``err`` = (row, col, local target, style) of the first program
     a style could not map (``-1`` if none) and ``err_comp`` its free-cell mask.
     """

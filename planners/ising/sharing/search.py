@@ -22,7 +22,7 @@ import itertools
 
 import numpy as np
 
-from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError
+from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError, mapping_record
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -90,9 +90,8 @@ class IsingSharing:
         if rng is None:
             rng = np.random.default_rng()
         N = dist.shape[0] - R
-        mapping = {r: {"candidates": 0, "valid": 0, "wins": 0} for r in self.config.rules}
         stats: dict = {
-            "mapping": {"sharing": mapping},
+            "mapping": {"sharing": mapping_record(self.config.rules)},
             "stages": 0,
             "splits": 0,
             "trivial_splits": 0,
@@ -157,8 +156,8 @@ class IsingSharing:
                 del counts[key]
         for key, value in counts.items():
             stats[key] = stats.get(key, 0) + value
-        for rule, (cands, valid, wins) in zip(cfg.rules, mapping.tolist()):
-            stats["mapping"]["sharing"][rule] = {"candidates": cands, "valid": valid, "wins": wins}
+        stats["mapping"]["sharing"] = mapping_record(  # every program is read cfg.reads times, none fails to map
+            cfg.rules, [(reads // cfg.reads, reads, valid, wins, 0) for reads, valid, wins in mapping.tolist()])
         if stop is not None:
             raise SharingFailure(str(stop))
         flat, sizes = flat_sets(sets, stages.pool)

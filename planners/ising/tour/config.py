@@ -98,6 +98,8 @@ class TourConfig(IsingConfig):
             raise ValueError("chip_rules must name at least one quantization rule")
         for r in rules:
             check_choice("chip_rules entry", r, _QUANTIZE_RULES)
+        if len(set(rules)) != len(rules):
+            raise ValueError(f"chip_rules = {rules} names a rule twice (each rule is one program of every round)")
         object.__setattr__(self, "chip_rules", rules)
         for nm, lo in (("local_limit", 1), ("max_clusters", 1), ("patch_size", 1), ("num_reads", 1),
                        ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1),
@@ -115,6 +117,14 @@ class TourConfig(IsingConfig):
             object.__setattr__(self, nm, float(getattr(self, nm)))
         for nm in ("accept_equal", "share_clusters"):
             object.__setattr__(self, nm, bool(getattr(self, nm)))
+
+    @property
+    def choices(self) -> tuple:
+        """The mapping choices the statistics count (:func:`ising_backend.mapping_record`): the move-selection
+        portfolio, the one-hot programs' quantization rule, or ``"logical"`` (programs not mapped)."""
+        if self.backend == "chip":
+            return self.chip_rules
+        return (self.chip_quantize,) if self.backend == "chip-onehot" else ("logical",)
 
     @classmethod
     def paper(cls, **options) -> "TourConfig":

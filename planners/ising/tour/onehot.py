@@ -84,17 +84,15 @@ class OneHotSolver:
                               f"{cfg.max_branch_bits}")
         if status == UNQUANTIZABLE:
             raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
-        m = run.stats["mapping"]["tour"]
         programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
-        m["programs"] += programs
-        m["reads"] += reads
-        m["valid_reads"] += valid_reads
-        m["valid"] += valid
-        if physical:
-            m["physical_programs"] += programs
-            m["valid_physical"] += valid
-        m["subproblems"] += subproblems
-        m["valid_subproblems"] += valid_sub
+        counts = run.stats["mapping"]["tour"][cfg.choices[0]]  # the one choice: each solved model is its win
+        counts["programs"] += programs
+        counts["reads"] += reads
+        counts["valid"] += valid_reads
+        counts["wins"] += valid_sub
+        run.stats["valid_programs"] += valid
+        run.stats["subproblems"] += subproblems
+        run.stats["valid_subproblems"] += valid_sub
         run.stats["retries"] += retries
         if unsolved:
             run.stats["unsolved"][kind] += 1

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from ising_backend import ChipUnavailableError, SolverOutputError
+from ising_backend import ChipUnavailableError, SolverOutputError, mapping_record
 from planners.base import TourResult
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -221,8 +221,10 @@ class IsingTour:
             "moves_applied": 0,
             "move_rounds": 0,
             "unsolved": {"ordering": 0, "local": 0, "patch": 0, "moves": 0},
-            "mapping": {"tour": {"programs": 0, "valid": 0, "physical_programs": 0, "valid_physical": 0,
-                                 "reads": 0, "valid_reads": 0, "subproblems": 0, "valid_subproblems": 0}},
+            "subproblems": 0,  # move-selection rounds or one-hot models sent to the machine
+            "valid_subproblems": 0,  # ... with at least one valid read
+            "valid_programs": 0,  # programs with at least one valid read
+            "mapping": {"tour": mapping_record(self.config.choices)},
         }
 
     def _result(self, run: _Run, order, dist, failure: str | None = None) -> TourResult:

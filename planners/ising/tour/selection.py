@@ -168,21 +168,16 @@ class MoveSearch:
         cfg = self.config
         rounds, retries, applied = int(st[_AT["rounds"]]), int(st[_AT["retries"]]), int(st[_AT["moves_applied"]])
         valid_rounds, valid_programs = int(st[_AT["valid_rounds"]]), int(st[_AT["valid_programs"]])
-        k = len(cfg.chip_rules)
-        m = run.stats["mapping"]["tour"]
-        m["reads"] += rounds * k * cfg.num_reads
-        m["valid_reads"] += sum(clean.tolist())
-        m["valid"] += valid_programs
-        m["valid_physical"] += valid_programs
-        m["programs"] += rounds * k
-        m["physical_programs"] += rounds * k
-        m["subproblems"] += rounds
-        m["valid_subproblems"] += valid_rounds
-        if wins.any():
-            won = m.setdefault("wins", {})
-            for rule, w in zip(cfg.chip_rules, wins.tolist()):
-                if w:
-                    won[rule] = won.get(rule, 0) + w
+        m = run.stats["mapping"]["tour"]  # each round sends one program per rule
+        for rule, valid, won in zip(cfg.chip_rules, clean.tolist(), wins.tolist()):
+            counts = m[rule]
+            counts["programs"] += rounds
+            counts["reads"] += rounds * cfg.num_reads
+            counts["valid"] += valid
+            counts["wins"] += won
+        run.stats["valid_programs"] += valid_programs
+        run.stats["subproblems"] += rounds
+        run.stats["valid_subproblems"] += valid_rounds
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds

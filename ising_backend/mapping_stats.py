@@ -1,0 +1,35 @@
+"""One record of mapping statistics for every Ising layer (paper Table 5).
+
+Each layer keeps, per mapping choice (the sharing's and the chip tour's quantization rules, the path's
+merge styles, ``"logical"`` for the logical solver's unmapped programs), the same counts in
+``stats["mapping"][layer][choice]``, :data:`MAPPING_FIELDS`:
+
+* ``programs`` -- programs of this choice sent to the machine;
+* ``reads`` -- reads decoded from them (``programs x num_reads``);
+* ``valid`` -- reads that decoded to a valid answer;
+* ``wins`` -- decisions whose kept answer came from this choice (a tie between choices: the layer's tie
+  rule picks one, so the wins of a layer sum to the decisions it took on the machine);
+* ``map_errors`` -- programs this choice could not map (the other choices may have).
+
+Plain ints in plain dicts, so the pipeline's ``merge_stats`` sums them over layers' calls and plans and
+they serialize as they are.
+"""
+
+from __future__ import annotations
+
+__all__ = ["MAPPING_FIELDS", "mapping_record"]
+
+MAPPING_FIELDS = ("programs", "reads", "valid", "wins", "map_errors")
+
+
+def mapping_record(choices, rows=None) -> dict[str, dict[str, int]]:
+    """``{choice: {field: count}}`` over ``choices`` in order: zeros, or ``rows`` (one per choice, its
+    counts in :data:`MAPPING_FIELDS` order)."""
+    choices = list(choices)
+    if rows is None:
+        return {c: dict.fromkeys(MAPPING_FIELDS, 0) for c in choices}
+    rows = [list(r) for r in rows]
+    if len(rows) != len(choices) or any(len(r) != len(MAPPING_FIELDS) for r in rows):
+        raise ValueError(f"mapping rows must be {len(choices)} x {len(MAPPING_FIELDS)} ({MAPPING_FIELDS}), "
+                         f"got {[len(r) for r in rows]}")
+    return {c: {f: int(v) for f, v in zip(MAPPING_FIELDS, r)} for c, r in zip(choices, rows)}

@@ -7,6 +7,7 @@ from agents.experiments.records import ExperimentResult
 from agents.experiments.summary import mapping_table
 from ising_backend import MAPPING_FIELDS, mapping_record
 from mrmt_env.generation import generate_world
+from planners.ising.fleet.search import FleetConfig, IsingFleetSharing
 from planners.ising.path.search import IsingPath
 from planners.ising.sharing.search import IsingSharing
 from planners.pipeline import make_pipeline
@@ -57,6 +58,26 @@ def test_the_sharing_counts_one_win_per_split_it_solved_on_the_chip():
     m, st = res.stats["mapping"]["sharing"], res.stats
     assert sum(v["wins"] for v in m.values()) == st["splits"] - st["trivial_splits"]
     assert all(v["reads"] == v["programs"] * sharing.config.reads for v in m.values())
+
+
+@pytest.mark.parametrize("selection", ["chip", "greedy"])
+def test_the_fleet_keeps_the_record_per_selection_rule(selection):
+    world = generate_world(6, n_robots=4, n_targets=40)
+    sharing = IsingFleetSharing(selection=selection, kicks=3)
+    res = sharing.assign(world.distance_matrix, 4, None, np.random.default_rng(0))
+    assert res.failure is None
+    m, fleet = res.stats["mapping"]["fleet"], res.stats["fleet"]
+    assert tuple(m) == sharing.config.chip_rules
+    if selection == "chip":  # every chip read of the search is one rule's: the counts add up to the search's
+        assert sum(v["reads"] for v in m.values()) == fleet["reads"] == res.compute.chip_calls > 0
+        assert all(v["programs"] == fleet["rounds"] for v in m.values())
+    else:  # the host rule selects: no program, no read, no win
+        assert all(not any(v.values()) for v in m.values())
+
+
+def test_a_rule_named_twice_is_refused():
+    with pytest.raises(ValueError, match=r"chip_rules = \('rank', 'rank'\) names a rule twice"):
+        FleetConfig(chip_rules=("rank", "rank"))
 
 
 def test_table_5_reads_the_record():

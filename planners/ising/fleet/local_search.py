@@ -27,17 +27,16 @@ _NO_LIMIT = 1 << 62  # the fleet's local search runs to a local optimum
 def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, machine, best):
     """The iterated local search (module docstring) from ``nxt`` / ``prv``; ``order[t]`` the nodes nearest
     target ``r + t`` (itself first), ``kick`` = ``(kicks, ruin, slack)``; ``best`` = ``(best_nxt, best_cost
-    (1,), stats)``, updated in place as the search goes: the cheapest routes so far and the statistics as
-    :data:`~planners.ising.moves.search.STAT_FIELDS`; ``search = (capacity, max_overlap, max_retries, chip)``.
+    (1,), stats, per_rule)``, updated in place as the search goes: the cheapest routes so far, the statistics
+    as :data:`~planners.ising.moves.search.STAT_FIELDS` and per quantization rule its valid reads and best
+    reads (``move_search``'s ``per_rule``); ``search = (capacity, max_overlap, max_retries, chip)``.
     Returns ``(status, calls, emulation_s)``."""
     kicks, ruin, slack = kick
-    best_nxt, best_cost, stats = best
+    best_nxt, best_cost, stats, per_rule = best
     n = d.shape[0] - r
     calls, emu, subs = np.zeros(0, dtype=np.int64), np.zeros(0), 0
     capacity, max_overlap, max_retries, chip = search
     limits = (capacity, max_overlap, max_retries, _NO_LIMIT, chip)
-    k = program[0].shape[0]
-    per_rule = (np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64))
     status = LOCAL_OPTIMUM
     for it in range(kicks + 1):  # the local search from the start, then one per kick
         if it == 0:

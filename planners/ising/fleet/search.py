@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import CallLedger, ChipUnavailableError, as_machine
+from ising_backend import CallLedger, ChipUnavailableError, as_machine, mapping_record
 from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
@@ -88,6 +88,8 @@ class FleetConfig(IsingConfig):
         rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
         if not rules:
             raise ValueError("chip_rules must name at least one quantization rule")
+        if len(set(rules)) != len(rules):
+            raise ValueError(f"chip_rules = {rules} names a rule twice (each rule is one program of every round)")
         object.__setattr__(self, "chip_rules", rules)
         for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
                          ("max_retries", 0), ("kicks_per_target", 0), ("min_kicks", 0)):
@@ -141,12 +143,13 @@ class IsingFleetSharing:
         stats: dict = {}
         failure = kept = None
         counts = np.zeros(len(STAT_FIELDS), dtype=np.int64)  # as the search goes, also up to a machine's error
+        clean, wins = np.zeros(len(cfg.chip_rules), dtype=np.int64), np.zeros(len(cfg.chip_rules), dtype=np.int64)
         try:
             with self.chip.session(charged, decision="fleet_moves") as link:
                 program = program_record(cfg.chip_rules, self.chip.spec, cfg.num_reads)
                 status, calls, emu = iterated_search(
                     rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)), program,
-                    link.args, (best_nxt, best_cost, counts))
+                    link.args, (best_nxt, best_cost, counts, (clean, wins)))
                 link.settle(calls, emu)
             if status == REFUSED:
                 failure = REFUSED_MESSAGE
@@ -163,6 +166,9 @@ class IsingFleetSharing:
                 g.append(int(x) - r)
                 x = best_nxt[x]
             groups.append(tuple(g))
+        programs = int(counts[0]) if search[3] else 0  # each chip round sends one program per rule
+        stats["mapping"] = {"fleet": mapping_record(cfg.chip_rules, [
+            (programs, programs * cfg.num_reads, valid, won, 0) for valid, won in zip(clean.tolist(), wins.tolist())])}
         stats["fleet"] = {**dict(zip(FLEET_FIELDS, counts.tolist())),
                           "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": float(best_cost[0])}
         compute = ComputeReport.from_ledger(charged)

@@ -222,11 +222,8 @@ class QuboModel:
 
     def to_ising(self) -> IsingModel:
         """Exact Ising model with ``x = (1 + s) / 2`` (same energy for every configuration)."""
-        Qs = self.Q + self.Q.T
-        J = self.Q / 4.0
-        h = self.q / 2.0 + Qs.sum(axis=1) / 4.0
-        offset = self.offset + self.q.sum() / 2.0 + self.Q.sum() / 4.0
-        return IsingModel(h, J, offset, self.labels)
+        m = ising_from_qubo(self.q, self.Q, self.offset)
+        return IsingModel(m.h, m.J, m.offset, self.labels)
 
     def to_qubo(self) -> "QuboModel":
         return self

@@ -9,7 +9,8 @@ charges ``B * num_reads`` physical calls, ``anneal_models`` (the same on models)
 ``session(ledger)``: a :class:`~ising_backend.link.MachineSession` for compiled loops.
 
 :class:`MachineBase` does everything but the anneal: a driver implements ``_sample`` (or, as the
-emulator does, ``_anneal``).  Planners use these members and no others.
+emulator and the logical solver do, ``_anneal``; the logical solver also its own program check and
+logical charge).  Planners use these members and no others.
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ class MachineBase(dimod.Sampler):
     health = None  # no fault-tolerant dispatch: a device reports its own failures by raising
     _native = False  # programs handed to _anneal as float64 (True: int64 when integral, as the emulator's kernel)
     _emulates_faults = False  # a spec with a fault model is refused (only the emulator emulates one)
+    _logical = False  # calls charged as physical (True: projected logical calls, the logical solver's)
 
     def __init__(self, spec: ChipSpec | None = None, seed: int | None = None):
         self.spec = ChipSpec() if spec is None else spec
@@ -114,6 +116,10 @@ class MachineBase(dimod.Sampler):
         """Validate a program or stack against this machine's spec (:func:`~ising_backend.check_program`)."""
         return check_program(h, J, self.spec)
 
+    def _checked(self, h, J) -> tuple[np.ndarray, np.ndarray]:
+        """The stack :meth:`_anneal` receives (``h (B, n)``, ``J (B, n, n)``), or a ChipProgramError."""
+        return check_program(h, J, self.spec, native=self._native)
+
     def _draw_seed(self, seed) -> int:
         return int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
 
@@ -134,13 +140,13 @@ class MachineBase(dimod.Sampler):
         t0 = time.perf_counter()
         single = np.ndim(h) == 1
         num_reads = check_num_reads(num_reads)
-        hf, Jf = check_program(h, J, self.spec, native=self._native)
+        hf, Jf = self._checked(h, J)
         seed = self._draw_seed(seed)
         B, n = hf.shape
         spins, energies, charged = self._anneal(hf, Jf, num_reads, seed, t0)
         if not charged:
-            self.last_call = self.ledger.record_physical(B * num_reads if n else 0, self.spec,
-                                                         time.perf_counter() - t0)
+            record = self.ledger.record_logical if self._logical else self.ledger.record_physical
+            self.last_call = record(B * num_reads if n else 0, self.spec, time.perf_counter() - t0)
         if single:
             return spins[0], energies[0]
         return spins, energies

@@ -31,6 +31,7 @@ from typing import Sequence
 import dimod
 import numpy as np
 
+from .base import MachineBase
 from .link import MachineSession
 from .tabu import mix_seed, tabu_kernel
 from .programs import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
@@ -63,8 +64,9 @@ class LogicalResult:
         return float(self.energies[self.best_index])
 
 
-class LogicalIsingSolver(dimod.Sampler):
-    """Spin-budget-limited Ising solver whose calls are projected as chip calls.
+class LogicalIsingSolver(MachineBase):
+    """Spin-budget-limited Ising solver whose calls are projected as chip calls: a :class:`MachineBase` whose
+    programs keep the spin budget, not the coefficient range, and whose reads are charged as logical calls.
 
     Args:
         budget: spin budget (default: ``spec.n_spins``, 45).
@@ -82,10 +84,13 @@ class LogicalIsingSolver(dimod.Sampler):
             the projected calls then run on its healthy cores (module docstring).
     """
 
+    _logical = True
+    _emulates_faults = True  # runs on a faulty chip's healthy cores (``health``)
+
     def __init__(self, budget: int | None = None, spec: ChipSpec | None = None, method: str = "tabu",
                  restarts: int = 4, iterations: int | None = None, tenure: int | None = None, timeout_ms: int = 5, seed: int | None = None,
                  max_tenure: int = 10, ledger: CallLedger | None = None, health=None):
-        self.spec = ChipSpec() if spec is None else spec
+        super().__init__(spec, seed)
         self.budget = self.spec.n_spins if budget is None else int(budget)
         if self.budget < 1:
             raise ValueError(f"budget = {budget!r} must be >= 1")
@@ -105,17 +110,12 @@ class LogicalIsingSolver(dimod.Sampler):
         if int(max_tenure) != max_tenure or max_tenure < 1:
             raise ValueError(f"max_tenure = {max_tenure!r} must be an integer >= 1")
         self.max_tenure = int(max_tenure)
-        self._rng = seeded_rng(seed, "LogicalIsingSolver")
+        self._rng = seeded_rng(seed, "LogicalIsingSolver")  # a subclass draws the same seeds
         self.ledger = CallLedger() if ledger is None else ledger
-        self.last_call = CallLedger()
         self.health = health
         self._rounds = CallLedger()  # a faulty chip's dispatch rounds of the running call, added up in order
 
     # ----------------------------------------------------------------- dimod
-    @property
-    def parameters(self) -> dict:
-        return {"num_reads": [], "seed": []}
-
     @property
     def properties(self) -> dict:
         return {"num_spins": self.budget, "h_range": [-np.inf, np.inf], "j_range": [-np.inf, np.inf],
@@ -124,15 +124,17 @@ class LogicalIsingSolver(dimod.Sampler):
 
     def sample(self, bqm: dimod.BinaryQuadraticModel, num_reads: int = 1, seed: int | None = None,
                **kwargs) -> dimod.SampleSet:
+        """Sample a BQM within the spin budget (any real coefficients; exact conversion to SPIN)."""
         self.remove_unknown_kwargs(**kwargs)
         return sample_bqm(self, bqm, num_reads, seed)
 
     # ------------------------------------------------------------------ core
-    def _check(self, h, J):
+    def check_program(self, h, J) -> tuple[np.ndarray, np.ndarray]:
+        """The stack (``h (B, n)``, ``J (B, n, n)`` float64) within the spin budget with finite coefficients,
+        or a :class:`ChipProgramError` naming the program, the coefficient or the budget."""
         h = np.asarray(h, dtype=np.float64)
         J = np.asarray(J, dtype=np.float64)
-        single = h.ndim == 1
-        if single:
+        if h.ndim == 1:
             h, J = h[None], J[None]
         if h.ndim != 2 or J.shape != (h.shape[0], h.shape[1], h.shape[1]):
             raise ChipProgramError(f"h must be (B, n) and J (B, n, n); got {h.shape} and {J.shape}")
@@ -145,27 +147,17 @@ class LogicalIsingSolver(dimod.Sampler):
             if bad.any():
                 idx = tuple(int(v) for v in np.argwhere(bad)[0])
                 raise ChipProgramError(f"{name}{list(idx[1:])} = {arr[idx]} in program {idx[0]} is not finite")
-        return np.ascontiguousarray(h), np.ascontiguousarray(J), single
+        return np.ascontiguousarray(h), np.ascontiguousarray(J)
 
-    def anneal_batch(self, h, J, num_reads: int = 1, seed: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Same signature and shapes as :meth:`EmulatedChip.anneal_batch` (real coefficients allowed).
+    _checked = check_program
 
-        Charges ``B * num_reads`` logical calls.  Energies exclude any offset.
-        """
-        if int(num_reads) != num_reads or num_reads < 1:
-            raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
-        num_reads = int(num_reads)
-        t0 = time.perf_counter()
-        h, J, single = self._check(h, J)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
+    def _anneal(self, h, J, num_reads, seed, t0):
+        """The base's :meth:`~MachineBase.anneal_batch` (real coefficients allowed; ``B * num_reads`` logical
+        calls; energies without offsets) runs this: tabu or dwave-tabu reads, a faulty chip's dispatch
+        rounds charged as they run (then the call is charged already)."""
         with self._metering(t0):
             spins, energies = self._run(h, J, num_reads, seed)
-        if self.health is None:
-            calls = h.shape[0] * num_reads if h.shape[1] else 0  # a program without spins is not solved
-            self.last_call = self.ledger.record_logical(calls, self.spec, time.perf_counter() - t0)
-        if single:
-            return spins[0], energies[0]
-        return spins, energies
+        return spins, energies, self.health is not None
 
     @contextmanager
     def _metering(self, t0: float | None = None):
@@ -288,12 +280,6 @@ class LogicalIsingSolver(dimod.Sampler):
     def usable_spins(self) -> int:
         """Spins a program may use: the spin budget (the healthy spins of a faulty chip's cores, if fewer)."""
         return self.budget if self.health is None else min(self.budget, self.health.usable_spins)
-
-    def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
-        """Models in one batch as an annealer answers: ``[(spins (reads, n_b), energies + offset)]``."""
-        h, J = stack_programs(models)
-        spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)
-        return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
 
     def session(self, ledger: CallLedger, decision: str = "unlabelled"):
         """A logical :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run the

@@ -17,7 +17,7 @@ they serialize as they are.
 
 from __future__ import annotations
 
-__all__ = ["MAPPING_FIELDS", "mapping_record"]
+__all__ = ["MAPPING_FIELDS", "mapping_record", "add_counts"]
 
 MAPPING_FIELDS = ("programs", "reads", "valid", "wins", "map_errors")
 
@@ -33,3 +33,10 @@ def mapping_record(choices, rows=None) -> dict[str, dict[str, int]]:
         raise ValueError(f"mapping rows must be {len(choices)} x {len(MAPPING_FIELDS)} ({MAPPING_FIELDS}), "
                          f"got {[len(r) for r in rows]}")
     return {c: {f: int(v) for f, v in zip(MAPPING_FIELDS, r)} for c, r in zip(choices, rows)}
+
+
+def add_counts(into: dict, **counts) -> None:
+    """Add ``counts`` to the counters of ``into`` (a choice's record, a layer's statistics) that exist
+    already: a misspelt name is a KeyError, not a new counter."""
+    for name, value in counts.items():
+        into[name] += int(value)

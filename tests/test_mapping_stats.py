@@ -5,7 +5,7 @@ import pytest
 
 from agents.experiments.records import ExperimentResult
 from agents.experiments.summary import mapping_table
-from ising_backend import MAPPING_FIELDS, mapping_record
+from ising_backend import MAPPING_FIELDS, add_counts, mapping_record
 from mrmt_env.generation import generate_world
 from planners.ising.fleet.search import FleetConfig, IsingFleetSharing
 from planners.ising.path.search import IsingPath
@@ -26,6 +26,15 @@ def test_rows_of_the_wrong_shape_are_refused_with_the_sizes():
         mapping_record(["a"], [[1, 2, 3, 4]])
     with pytest.raises(ValueError, match=r"2 x 5 .* got \[5\]"):
         mapping_record(["a", "b"], [[1, 2, 3, 4, 5]])
+
+
+def test_counts_add_into_existing_counters_only():
+    rec = mapping_record(["a"])
+    add_counts(rec["a"], programs=2, reads=np.int64(4))
+    add_counts(rec["a"], programs=1)
+    assert rec["a"]["programs"] == 3 and rec["a"]["reads"] == 4 and type(rec["a"]["reads"]) is int
+    with pytest.raises(KeyError, match="read"):
+        add_counts(rec["a"], read=1)  # a misspelt counter is not created
 
 
 @pytest.mark.parametrize("preset", ["ising", "ising-paper"])

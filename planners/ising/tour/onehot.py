@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import (
-    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, as_logical_solver, quantize,
+    QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, add_counts, as_logical_solver, quantize,
 )
 from ising_backend.branching import branch_stack, frozen_spins
 from planners.ising.tour.cluster import TourFailure, _Run
@@ -85,14 +85,10 @@ class OneHotSolver:
         if status == UNQUANTIZABLE:
             raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
         programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
-        counts = run.stats["mapping"]["tour"][cfg.choices[0]]  # the one choice: each solved model is its win
-        counts["programs"] += programs
-        counts["reads"] += reads
-        counts["valid"] += valid_reads
-        counts["wins"] += valid_sub
-        run.stats["valid_programs"] += valid
-        run.stats["subproblems"] += subproblems
-        run.stats["valid_subproblems"] += valid_sub
+        # the one choice: each solved model is its win
+        add_counts(run.stats["mapping"]["tour"][cfg.choices[0]], programs=programs, reads=reads, valid=valid_reads,
+                   wins=valid_sub)
+        add_counts(run.stats, valid_programs=valid, subproblems=subproblems, valid_subproblems=valid_sub)
         run.stats["retries"] += retries
         if unsolved:
             run.stats["unsolved"][kind] += 1

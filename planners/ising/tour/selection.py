@@ -22,6 +22,7 @@ from functools import cached_property
 import numba
 import numpy as np
 
+from ising_backend import add_counts
 from planners.ising.moves.routes import linked, route_of
 from planners.ising.moves.search import GAVE_UP, REFUSED, STAT_FIELDS, move_search
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
@@ -170,14 +171,8 @@ class MoveSearch:
         valid_rounds, valid_programs = int(st[_AT["valid_rounds"]]), int(st[_AT["valid_programs"]])
         m = run.stats["mapping"]["tour"]  # each round sends one program per rule
         for rule, valid, won in zip(cfg.chip_rules, clean.tolist(), wins.tolist()):
-            counts = m[rule]
-            counts["programs"] += rounds
-            counts["reads"] += rounds * cfg.num_reads
-            counts["valid"] += valid
-            counts["wins"] += won
-        run.stats["valid_programs"] += valid_programs
-        run.stats["subproblems"] += rounds
-        run.stats["valid_subproblems"] += valid_rounds
+            add_counts(m[rule], programs=rounds, reads=rounds * cfg.num_reads, valid=valid, wins=won)
+        add_counts(run.stats, valid_programs=valid_programs, subproblems=rounds, valid_subproblems=valid_rounds)
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds

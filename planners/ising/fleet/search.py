@@ -166,7 +166,7 @@ class IsingFleetSharing:
                 g.append(int(x) - r)
                 x = best_nxt[x]
             groups.append(tuple(g))
-        programs = int(counts[0]) if search[3] else 0  # each chip round sends one program per rule
+        programs = int(counts[0]) if cfg.selection == "chip" else 0  # each chip round: one program per rule
         stats["mapping"] = {"fleet": mapping_record(cfg.chip_rules, [
             (programs, programs * cfg.num_reads, valid, won, 0) for valid, won in zip(clean.tolist(), wins.tolist())])}
         stats["fleet"] = {**dict(zip(FLEET_FIELDS, counts.tolist())),

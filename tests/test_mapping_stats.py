@@ -49,6 +49,8 @@ def test_every_layer_keeps_the_same_record(preset):
             assert 0 <= counts["valid"] <= counts["reads"] and counts["programs"] <= counts["reads"]
     # the tour's decisions on the machine: a move-selection round or a one-hot model with a valid read
     assert sum(v["wins"] for v in mapping["tour"].values()) == plan.stats["valid_subproblems"] > 0
+    # the plan's counters are the layers' own: the sharing's splits are not summed with the tour's
+    assert sum(v["wins"] for v in mapping["sharing"].values()) == plan.stats["splits"] - plan.stats["trivial_splits"]
 
 
 def test_the_path_counts_one_win_per_segment_the_chip_chose():

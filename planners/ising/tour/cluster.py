@@ -98,7 +98,7 @@ class Clusters:
 
     def split(self, dist: np.ndarray, members: list[int], run: _Run) -> list[list[int]]:
         """Max-cut split (eq. 7) of ``members`` by the Ising solver."""
-        run.stats["splits"] += 1
+        run.stats["cluster_splits"] += 1
         s = len(members)
         if s == 2:  # the only non-degenerate cut: no decision to make
             return [[members[0]], [members[1]]]

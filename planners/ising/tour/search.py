@@ -211,7 +211,7 @@ class IsingTour:
             "clusters": [],
             "start_costs": [],
             "failed_starts": 0,
-            "splits": 0,
+            "cluster_splits": 0,  # max-cut splits of the clustered construction (not the sharing's "splits")
             "refinement_splits": 0,
             "ordering_splits": 0,
             "patches": 0,

@@ -44,6 +44,12 @@ __all__ = ["LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS", "tabu_kerne
 
 LOGICAL_METHODS = ("tabu", "dwave-tabu")
 
+
+def _writable(a) -> np.ndarray:
+    """``a`` as a C-contiguous, writable float64 array (a copy only when it is not one): the tabu kernel is
+    compiled for one array type, and a read-only array would be another specialization."""
+    return np.require(a, dtype=np.float64, requirements=("C", "W"))
+
 @dataclass(frozen=True)
 class LogicalResult:
     """Reads of one logical program: ``spins (reads, n) int8``, ``energies (reads,)`` (offset included)."""
@@ -147,7 +153,7 @@ class LogicalIsingSolver(MachineBase):
             if bad.any():
                 idx = tuple(int(v) for v in np.argwhere(bad)[0])
                 raise ChipProgramError(f"{name}{list(idx[1:])} = {arr[idx]} in program {idx[0]} is not finite")
-        return np.ascontiguousarray(h), np.ascontiguousarray(J)
+        return _writable(h), _writable(J)
 
     _checked = check_program
 
@@ -309,7 +315,7 @@ class LogicalIsingSolver(MachineBase):
 
         Returns ``spins (B, num_reads, n)`` int8.
         """
-        h = np.ascontiguousarray(h, dtype=np.float64)
+        h = _writable(h)
         B, n = h.shape
         if n > self.budget:
             raise ChipProgramError(f"programs have {n} spins; the logical solver's spin budget is "
@@ -322,7 +328,7 @@ class LogicalIsingSolver(MachineBase):
         J = np.asarray(J, dtype=np.float64)
         if J.ndim == 2:
             J = np.broadcast_to(J, (B, n, n))
-        J = np.ascontiguousarray(J)
+        J = _writable(J)  # a broadcast of one program is read-only
         seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
         t0 = time.perf_counter()
         with self._metering():

@@ -287,10 +287,17 @@ def _three_opt_open(d, full):
 
 
 @numba.njit(cache=True, nogil=True)
+def three_opt_route(d):
+    """:func:`_three_opt_open` with the default moves (``moves="4"``): one compiled specialization for the
+    tour layer and the sharing's pricing (a constant flag from compiled code is its own argument type)."""
+    return _three_opt_open(d, False)
+
+
+@numba.njit(cache=True, nogil=True)
 def three_opt_cost(d):
     """Cost of :class:`ThreeOptTour`'s open route (``moves="4"``) over a finite ``d`` of 3 or more
     nodes: the sharing's compiled placement prices bundles of more than 13 targets with it."""
-    route, _ = _three_opt_open(d, False)
+    route, _ = three_opt_route(d)
     return _route_cost(d, route)
 
 
@@ -387,7 +394,7 @@ class ThreeOptTour:
         done = _trivial(d) or _infeasible(d)
         if done is not None:
             return done
-        route, passes = _three_opt_open(d, self.moves == "7")
+        route, passes = three_opt_route(d) if self.moves == "4" else _three_opt_open(d, True)
         if route[0] != 0:  # pragma: no cover - guaranteed by the choice of M
             raise RuntimeError("3-opt dummy end node left the route end")
         return _result(d, route, passes=int(passes))

@@ -50,6 +50,7 @@ def _writable(a) -> np.ndarray:
     compiled for one array type, and a read-only array would be another specialization."""
     return np.require(a, dtype=np.float64, requirements=("C", "W"))
 
+
 @dataclass(frozen=True)
 class LogicalResult:
     """Reads of one logical program: ``spins (reads, n) int8``, ``energies (reads,)`` (offset included)."""

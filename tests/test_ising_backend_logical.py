@@ -9,12 +9,31 @@ import dimod.testing
 import numpy as np
 import pytest
 
-from ising_backend import ChipProgramError, IsingModel, LogicalIsingSolver
+from ising_backend import ChipProgramError, IsingModel, LogicalIsingSolver, MachineBase
 
 
 @dimod.testing.load_sampler_bqm_tests(lambda: LogicalIsingSolver(seed=0))
 class TestLogicalDimodBQMs(unittest.TestCase):
     """dimod's own sampler tests (all sizes: the logical solver has no coefficient range)."""
+
+
+def test_the_logical_solver_is_a_machine_charging_logical_calls():
+    sol = LogicalIsingSolver(seed=0)
+    assert isinstance(sol, MachineBase)
+    h, J = np.zeros((3, 4)), np.zeros((3, 4, 4))
+    J[:, 0, 1] = 40.0  # beyond the chip's range: the logical solver keeps only the spin budget
+    spins, energies = sol.anneal_batch(h, J, num_reads=2, seed=1)
+    assert spins.shape == (3, 2, 4) and energies.shape == (3, 2)
+    assert (sol.ledger.logical_calls, sol.ledger.physical_calls) == (6, 0) == (sol.last_call.logical_calls, 0)
+    assert np.allclose(energies, 40.0 * spins[..., 0] * spins[..., 1])  # the programmed energies
+    single, _ = sol.anneal_batch(h[0], J[0], num_reads=2, seed=1)  # one program: leading axis dropped
+    assert np.array_equal(single, spins[0])
+    with pytest.raises(ValueError, match="num_reads"):
+        sol.anneal_batch(h, J, num_reads=0)
+    # a read-only stack (a broadcast of one program) is solved as a writable copy: the same spins
+    ro = np.broadcast_to(J[:1], (1, 4, 4))
+    assert np.array_equal(sol.solve_stack(h[:1], ro, num_reads=2, seed=3), sol.solve_stack(h[:1], J[:1].copy(),
+                                                                                            num_reads=2, seed=3))
 
 
 def _ground(m):

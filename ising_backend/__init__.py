@@ -69,7 +69,7 @@ from .portfolio import (
     run_portfolio_batch,
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
-from .mapping_stats import MAPPING_FIELDS, add_counts, mapping_record
+from .mapping_stats import MAPPING_FIELDS, add_counts, mapping_record, record_of_reads
 from .link import MachineSession, anneal_submit, solve_submit, via_callback
 from .machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       sampler_names)
@@ -99,7 +99,7 @@ __all__ = [
     # portfolio
     "BranchMapping", "IdentityMapping", "MappedProgram", "Mapping", "MappingOutcome", "MergeMapping",
     "PortfolioResult", "PortfolioStats", "QuantizeMapping", "SaturateMapping", "merge_portfolio",
-    "quantize_portfolio", "run_portfolio", "run_portfolio_batch", "MAPPING_FIELDS", "mapping_record", "add_counts",
+    "quantize_portfolio", "run_portfolio", "run_portfolio_batch", "MAPPING_FIELDS", "mapping_record", "record_of_reads", "add_counts",
     # dimod composite
     "QuantizeComposite", "COMPOSITE_RULES",
     # the compiled splitmix64 step every seeded kernel of the package hashes with

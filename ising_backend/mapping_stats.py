@@ -17,7 +17,9 @@ they serialize as they are.
 
 from __future__ import annotations
 
-__all__ = ["MAPPING_FIELDS", "mapping_record", "add_counts"]
+import numpy as np
+
+__all__ = ["MAPPING_FIELDS", "mapping_record", "record_of_reads", "add_counts"]
 
 MAPPING_FIELDS = ("programs", "reads", "valid", "wins", "map_errors")
 
@@ -33,6 +35,12 @@ def mapping_record(choices, rows=None) -> dict[str, dict[str, int]]:
         raise ValueError(f"mapping rows must be {len(choices)} x {len(MAPPING_FIELDS)} ({MAPPING_FIELDS}), "
                          f"got {[len(r) for r in rows]}")
     return {c: {f: int(v) for f, v in zip(MAPPING_FIELDS, r)} for c, r in zip(choices, rows)}
+
+
+def record_of_reads(choices, rows, num_reads: int) -> dict[str, dict[str, int]]:
+    """:func:`mapping_record` from a kernel's per-choice rows ``(reads, valid, wins, map_errors)``: every
+    program that was sent is read ``num_reads`` times."""
+    return mapping_record(choices, [(r // num_reads, r, v, w, e) for r, v, w, e in np.asarray(rows).tolist()])
 
 
 def add_counts(into: dict, **counts) -> None:

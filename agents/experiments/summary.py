@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from agents.experiments.paper import PAPER
-from ising_backend import MAPPING_FIELDS
 from agents.experiments.records import ExperimentResult
+from ising_backend import MAPPING_FIELDS
 
 def _merge_counts(acc: dict, mapping: dict | None, layer: str) -> None:
     """Add one row's ``stats["mapping"][layer]`` (:func:`ising_backend.mapping_record`) into ``acc``."""

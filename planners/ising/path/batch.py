@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError
+from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, record_of_reads
 from planners.compute import ComputeReport
 from planners.ising.path.engine import REACHED, run_query
 from planners.ising.path.kernels import cut_walk
-from planners.ising.path.runner import path_mapping
 
 __all__ = ["LegBatch", "plan_legs", "run_legs"]
 
@@ -140,7 +139,7 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
         "chip_batches": int(charged.batches),
         **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
         "walk_length": int(walked),
-        "mapping": {"path": path_mapping(cfg.styles, mapping, cfg.num_reads)},
+        "mapping": {"path": record_of_reads(cfg.styles, mapping, cfg.num_reads)},
         "path_length": int(ends[done] - done),
     }
     return batch

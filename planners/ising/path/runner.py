@@ -14,20 +14,14 @@ import numpy as np
 
 from ising_backend import (
     MERGE_STYLE_IDS, CallLedger, ChipUnavailableError, SolverOutputError, ising_from_qubo,
-    mapping_record, merge_error_message, merge_styles,
+    mapping_record, merge_error_message, merge_styles, record_of_reads,
 )
 from planners.fallback import unavailable_message
 from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, QUERY_OPTIONS, ProgramPool, run_query
 from planners.ising.path.kernels import cut_walk, neighbour_table
 from planners.ising.path.qubo import build_patch_qubo
 
-__all__ = ["QueryRunner", "path_mapping"]
-
-
-def path_mapping(styles, rows, num_reads: int) -> dict:
-    """The kernel's per-style rows (reads, valid reads, wins, map errors) as the layers' one mapping record
-    (:func:`ising_backend.mapping_record`): every program that fits is read ``num_reads`` times."""
-    return mapping_record(styles, [(r // num_reads, r, v, w, e) for r, v, w, e in np.asarray(rows).tolist()])
+__all__ = ["QueryRunner"]
 
 
 class QueryRunner:
@@ -116,7 +110,7 @@ class QueryRunner:
         status, pr, pc, walk, counts, mp, _calls, _emu, err, err_comp = out
         max_attempts, _per_target, max_calls = self.budgets(grid)
         counts = dict(zip(COUNT_NAMES, (int(v) for v in counts)))
-        mapping = path_mapping(cfg.styles, mp, cfg.num_reads)
+        mapping = record_of_reads(cfg.styles, mp, cfg.num_reads)
         failure = None
         if status == BUDGET_SPENT:
             failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "

@@ -22,7 +22,7 @@ import itertools
 
 import numpy as np
 
-from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError, mapping_record
+from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError, mapping_record, record_of_reads
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
 from planners.ising.config import resolve_config
@@ -156,8 +156,8 @@ class IsingSharing:
                 del counts[key]
         for key, value in counts.items():
             stats[key] = stats.get(key, 0) + value
-        stats["mapping"]["sharing"] = mapping_record(  # every program is read cfg.reads times, none fails to map
-            cfg.rules, [(reads // cfg.reads, reads, valid, wins, 0) for reads, valid, wins in mapping.tolist()])
+        stats["mapping"]["sharing"] = record_of_reads(  # none fails to map: a program beyond the chip raises
+            cfg.rules, [(reads, valid, wins, 0) for reads, valid, wins in mapping.tolist()], cfg.reads)
         if stop is not None:
             raise SharingFailure(str(stop))
         flat, sizes = flat_sets(sets, stages.pool)

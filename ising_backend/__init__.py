@@ -1,33 +1,10 @@
 """The emulated CMOS Ising chip, the logical Ising solver and the mapping toolkit.
 
-Knows Ising models and hardware, not robots: imports no other project package.
+Knows Ising models and hardware, not robots: imports no other project package.  Energy convention
+everywhere (paper eq. 2): ``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``, ``J`` strictly
+upper triangular.  Module map: ARCHITECTURE.md, "ising_backend: the chip and its toolkit"; design
+notes: docs/design/emulated_chip.md and the notes it links.  Example::
 
-Energy convention everywhere (paper eq. 2):
-``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``, ``J`` strictly upper triangular.
-
-Modules:
-
-* :mod:`.models` -- :class:`IsingModel`, :class:`QuboModel`, exact conversions, dimod BQMs;
-* :mod:`.spec` -- :class:`ChipSpec` (limits, accounting numbers, emulation knobs);
-* :mod:`.ledger` -- :class:`CallLedger` (physical / logical calls, time, energy);
-* :mod:`.anneal` / :mod:`.chip` -- :class:`EmulatedChip` (a ``dimod.Sampler`` with the
-  batched :meth:`EmulatedChip.anneal_batch`; refuses programs that do not fit);
-* :mod:`.faults` / :mod:`.health` -- the fault model (:class:`FaultMap`: dead cores, stuck
-  spins, write errors) and graceful degradation (:class:`HealthMonitor`: probe, quarantine,
-  placement around stuck spins, re-dispatch; :class:`ChipUnavailableError`);
-* :mod:`.logical` -- :class:`LogicalIsingSolver` (spin budget only; projected calls);
-* :mod:`.machine` -- :class:`IsingMachine` (the interface every planner drives), :class:`MachineBase`
-  (a device driver implements one method), :class:`SamplerChip` (any ``dimod.Sampler``), :class:`MachineSpec`;
-* :mod:`.meter` -- :class:`MeteredSolver` (one planning call's checked, exactly charged view of a solver);
-* :mod:`.quantize`, :mod:`.merge`, :mod:`.branching`, :mod:`.blocks`, :mod:`.stack` -- the mapping toolkit;
-* :mod:`.portfolio` -- multi-mapping dispatch, decode, filter, score and Table-5 statistics;
-* :mod:`.composite` -- :class:`QuantizeComposite` (any BQM onto the chip through a quantization rule);
-* :mod:`.mapping_stats` -- :func:`mapping_record`: the one per-choice mapping statistics record of every layer;
-* :func:`splitmix` -- the one compiled splitmix64 step (:mod:`._rng`), for the planners' seeded kernels too;
-
-Example::
-
-    >>> import numpy as np
     >>> from ising_backend import EmulatedChip, IsingModel, merge_portfolio, run_portfolio
     >>> model = IsingModel([12.0, -3.0, 1.0], [[0, -9.0, 2.0], [0, 0, 4.0], [0, 0, 0]])
     >>> chip = EmulatedChip(seed=0)

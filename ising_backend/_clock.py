@@ -1,14 +1,9 @@
 """A monotonic clock for compiled code: :func:`clock_ns` (numba, ``cache=True``).
 
-The compiled planning loops time each chip kernel to charge its emulation seconds.  An
-``objmode`` block around ``time.perf_counter`` costs ~0.35 us of host time per reading (GIL,
-Python call, unboxing) on each side of the kernel, tens of microseconds per plan.  On Linux and
-macOS :func:`clock_ns` calls the C library's ``clock_gettime(CLOCK_MONOTONIC)`` directly (~20 ns;
-the clock ``time.perf_counter`` reads on Linux); elsewhere it falls back to the ``objmode``
-block.  Only differences of its readings mean anything.
-
-Like :mod:`._rng`, callers' on-disk caches do not track this file: after editing it, clear the
-numba caches.
+Contract: on Linux and macOS :func:`clock_ns` reads the C library's ``clock_gettime(CLOCK_MONOTONIC)``
+from compiled code, elsewhere ``time.perf_counter`` in an ``objmode`` block; only differences of its
+readings mean anything.  Callers' numba caches do not track this file: after editing it, clear them.
+Design notes: docs/design/host_path.md ("A compiled clock"; numba's cache).
 """
 
 from __future__ import annotations

@@ -1,22 +1,10 @@
 """Compiled spin merging and copy decoding (the kernels behind :mod:`.merge`).
 
-Contract (see :func:`.merge.merge_spins` for the algorithm; design notes in
-``docs/design/mapping_kernels.md``):
-
-* :func:`merge_styles` maps one logical model, given as rounded integer fields
-  ``H (n,)`` and upper-triangular couplings ``C (n, n)`` (int64), with several
-  merge styles in one call; :func:`merge_batch` maps several (zero-padded) models.  It reproduces :func:`.merge.merge_spins` exactly:
-  the same duplication choices (same float keys, ties on the lowest index), the
-  same physical layout (originals ``0..n-1``, then the extra copies grouped by
-  spin) and the same splits, so ``h`` / ``J`` are bit-identical;
-  :func:`merge_styles_flat` writes the same mappings into a caller's buffers.
-* :func:`decode_copies` decodes physical spins of many (program, read) samples
-  back to logical spins through a flat copy layout (``ptr`` / ``idx``, CSR style:
-  the copies of logical spin ``i`` are ``idx[ptr[i]:ptr[i + 1]]``, original first).
-
-Both are plain ``@njit(cache=True)`` functions over arrays: callable from Python
-and from other numba code.  They allocate their outputs and build no Python
-objects.
+Contract: :func:`merge_styles` (one model, several styles), :func:`merge_batch` (several zero-padded
+models) and :func:`merge_styles_flat` (into a caller's buffers) reproduce :func:`.merge.merge_spins`
+bit for bit; :func:`decode_copies` decodes physical spins of many (program, read) samples through a
+flat copy layout (``ptr`` / ``idx``).  Plain ``@njit(cache=True)`` functions, callable from numba code.
+Oracle: ``tests/mapping_reference.py``.  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,13 +1,9 @@
 """Compiled coefficient quantization (the kernels behind :mod:`.quantize`).
 
-Contract: :func:`quantize_rules` computes :func:`.quantize.quantize` of one model
-under several rules in one call, bit-identical to the numpy original (kept in
-``tests/mapping_reference.py``): the same flat coefficient order (``h`` then the upper
-triangle of ``J`` row by row), the same float operations in the same order,
-``np.sign`` / ``np.clip`` / ``np.rint`` semantics including signed zeros, ``rank``
-levels by sorted distinct magnitudes (as ``np.unique``), and ``clip95``'s factor
-by numpy's default (``"linear"``) percentile.  :func:`saturate_arrays` is
-:func:`.quantize.saturate` elementwise.  Design notes: ``docs/design/mapping_kernels.md``.
+Contract: :func:`quantize_rules` computes :func:`.quantize.quantize` of one model under several rules in
+one call and :func:`saturate_arrays` is :func:`.quantize.saturate` elementwise, both bit-identical to
+the numpy oracle in ``tests/mapping_reference.py``.
+Design notes (how bit-identity is kept): docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

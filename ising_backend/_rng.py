@@ -1,19 +1,10 @@
 """Counter-based random helpers shared by the compiled kernels (numba, ``cache=True``).
 
-* :func:`splitmix` - one splitmix64 finaliser step (``x + golden`` then the two
-  multiply-xorshift rounds); the annealing kernel uses it in counter form and
-  both kernels derive a read's key as
-  ``splitmix(seed ^ splitmix(b * GOLDEN + r))``; exported as ``ising_backend.splitmix``, it is
-  also the planners' tie-break hash and the sharing's node-set hash;
-* :func:`splitmix_array` - :func:`splitmix` as a numpy ufunc on uint64 arrays, and :func:`chain_key` -
-  ``splitmix(key ^ part)`` over a uint64 vector of parts from 0 (the fault model's keys);
-* :func:`xorshift_star` - one xorshift64* step: returns ``(new_state, output)``
-  (used by the logical tabu kernel).
-
-numba's on-disk cache tracks only the source file of the function it compiles,
-not the files it inlines from: after editing this module, clear the
-``__pycache__`` of ``anneal.py`` / ``logical.py`` (or touch them) so their
-kernels recompile.
+Contract: :func:`splitmix` is one splitmix64 finaliser step (exported as ``ising_backend.splitmix``),
+:func:`splitmix_array` the same as a ufunc on uint64 arrays, :func:`chain_key` ``splitmix(key ^ part)``
+over a vector of parts, :func:`xorshift_star` one xorshift64* step ``-> (new_state, output)``.  After
+editing this file, clear the numba caches of the kernels that inline it.
+Design notes: docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations

@@ -1,19 +1,10 @@
 """The compiled annealing kernel of the emulated chip.
 
-Contract: one numba function (``cache=True``, one thread, no Python objects per problem) anneals a
-stack of programs ``h (B, n)``, ``J (B, n, n)`` upper triangular, each read a fixed-schedule Metropolis
-single-spin-flip anneal (sequential sweeps over the spins, as dwave-samplers).  The same seed gives the
-same samples; a read's samples depend only on its program's coefficients and index in the stack, the
-read index and the seed, never on the other programs of the batch (nor on int64 / float64 input);
-zero-padding a program to a larger ``n`` does change them.  Optional: static coupling mismatch and
-stuck spins per core (read ``k = b * reads + r`` runs on core ``k % n_cores`` or the core it is given),
-read-out bit flips after the anneal.  The returned energy is that of the *programmed* coefficients
-(recomputed in float64, exact for integer programs).
-
-Choices: a geometric (or linear) inverse-temperature schedule over ``sweeps`` sweeps; automatic range:
-cold end dwave-samplers' default (the smallest non-zero coefficient excites with probability 1 %), hot
-end a flip against the largest root-mean-square local field accepted with probability 1/2; one
-counter-based splitmix64 stream per read.  Design notes: docs/design/emulated_chip.md.
+Contract: :func:`anneal_kernel` anneals a stack of programs ``h (B, n)``, ``J (B, n, n)`` (upper
+triangular), each read a fixed-schedule Metropolis single-spin-flip anneal.  The same seed gives the
+same samples, and a read's samples never depend on the other programs of the batch; the returned
+energies are those of the *programmed* coefficients.
+Design notes (schedule, random streams, speed): docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
 """Decision audit: every program a labelled decision puts on a machine, for judging what the chip is worth.
 
-``with Audit(directory):`` records, while open, each program of every submission made through a
-session (``machine.session(ledger, decision=CLASS)``) or a metered solver (``MeteredSolver(...,
-decision=CLASS)``): the class, the program as the machine took it (``h``, ``J``), the machine's best
-energy over its reads and the charge.  While an audit is open every session goes through the
-callback (the machine's own ``anneal_batch`` / ``solve_stack``, the same kernel and seeds), so plans
-are the same with and without it; closed, nothing is recorded and nothing changes.  A decision class
-with a host rule of its own records the host rule's energy and seconds beside the chip's
-(:meth:`Audit.record`, ``host=``); the others are judged afterwards (:mod:`ising_backend.audit_judge`)
-against the generic host rule, greedy construction then steepest descent.
+Contract: while ``with Audit(directory):`` is open, each program of every submission made with a decision
+class (``machine.session(ledger, decision=CLASS)``, ``MeteredSolver(..., decision=CLASS)``) is recorded
+with its class, the program as the machine took it, the machine's best energy and the charge.  Plans are
+the same with and without it; closed, it records and changes nothing.  Judged by
+:mod:`ising_backend.audit_judge`.  Usage: docs/audit.md; design: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

@@ -1,13 +1,10 @@
 """Judging an audit: each recorded program's optimum, the host rule's answer, one row per decision class.
 
-Optimum: exact (Gray-code enumeration of the program's active spins, those with a field or a
-coupling) up to ``exact_max`` active spins; above, the best of a long tabu run (16 restarts x 8
-reads of the compiled tabu kernel), labelled ``"tabu"``.  Either is lowered to the chip's or the host
-rule's energy if one of them is lower (then it is a best-known).  Host rule, for classes that did not
-record their own: greedy construction (spins fixed in order of their total coefficient weight, each to
-its lower energy given those fixed) then steepest single-flip descent, compiled; its seconds are
-measured here.  Gaps are relative to ``max(|optimum|, 1)`` (energies of the programs as the machine
-took them, offsets apart).  Ties within ``1e-9`` are neither better nor worse.
+Contract: :func:`judge` gives each record its optimum (exact up to ``exact_max`` active spins, else a long
+tabu run labelled ``"tabu"``; lowered to a lower chip or host energy, a best-known) and the host rule's
+answer (:func:`greedy_descent`, unless the class recorded its own); :func:`table` gives one row per
+class, gaps relative to ``max(|optimum|, 1)``.  :func:`export` writes the QUBO benchmark.
+Usage: docs/audit.md; design: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

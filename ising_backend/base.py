@@ -1,16 +1,10 @@
 """The Ising-machine interface: the protocol every planner relies on and the base class of drivers.
 
-Contract (docs/ising_machines.md): a machine has a :class:`~ising_backend.spec.ChipSpec` (``spec``),
-a :class:`~ising_backend.ledger.CallLedger` (``ledger``) with the charge of its latest call in
-``last_call``, ``health`` (a faulty chip's monitor, else ``None``), ``usable_spins``, one submission
-primitive ``anneal_batch(h (B, n), J (B, n, n), num_reads, seed) -> (spins int8 (B, reads, n),
-energies (B, reads))`` that refuses programs outside the spec (never clips), anneals, times and
-charges ``B * num_reads`` physical calls, ``anneal_models`` (the same on models) and
-``session(ledger)``: a :class:`~ising_backend.link.MachineSession` for compiled loops.
-
-:class:`MachineBase` does everything but the anneal: a driver implements ``_sample`` (or, as the
-emulator and the logical solver do, ``_anneal``; the logical solver also its own program check and
-logical charge).  Planners use these members and no others.
+Contract (docs/ising_machines.md): :class:`IsingMachine` has ``spec``, ``ledger``, ``last_call``,
+``health``, ``usable_spins``, ``anneal_batch(h, J, num_reads, seed)`` (refuses programs outside the spec,
+never clips; anneals, times and charges ``B * num_reads`` physical calls), ``anneal_models`` and
+``session(ledger)``; planners use these members and no others.  :class:`MachineBase` does everything but
+the anneal (a driver implements ``_sample`` or ``_anneal``).  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

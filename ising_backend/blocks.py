@@ -1,15 +1,10 @@
 """Block batching (paper section 4.3): several independent programs in one chip program.
 
-Independent small programs (for example target-sharing splits at the same
-recursion stage) are placed on disjoint spin blocks of one program with all
-cross-block couplings zero, so one chip call solves them all; the returned
-spin vector is cut back into blocks.  The packed offset is the sum of the
-offsets, so the packed energy is the sum of the block energies.
-
-:func:`pack_layout` groups program sizes into as few programs of ``capacity`` spins as
-first-fit decreasing finds (a deterministic, documented heuristic; compiled, the one
-implementation: ``tests/mapping_reference.py`` holds the Python loop it is tested against);
-:func:`plan_packs` gives its grouping as lists, :func:`fill_packs` places the programs.
+Contract: :func:`pack_blocks` places programs on disjoint spin blocks with zero cross-block couplings
+(the packed energy is the sum of the block energies) and :func:`unpack_blocks` cuts the spins back;
+:func:`pack_layout` (compiled, the one implementation) groups program sizes first-fit decreasing into
+programs of ``capacity`` spins, :func:`plan_packs` gives its grouping as lists, :func:`fill_packs`
+places the programs.  Oracle: ``tests/mapping_reference.py``.  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

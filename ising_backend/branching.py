@@ -1,19 +1,10 @@
 """Spin-budget branching (paper section 4.2, used by tour construction in 5.2).
 
-A model slightly larger than the spin budget is split into ``2^k`` reduced
-models by freezing ``k = n - budget`` spins and enumerating their values
-(49 variables, budget 45 -> 4 frozen spins -> 16 branches).  Each branch is an
-ordinary model of ``budget`` spins whose fields absorb the frozen couplings and
-whose offset absorbs the frozen energy, so a branch's energy of its free spins
-equals the full model's energy of the completed assignment; the exact optimum
-of the best branch is the exact optimum of the model.
-
-Frozen spins (the paper does not say): by default the ``k`` of largest total interaction strength
-``|h_i| + sum_j |J_ij|`` (ties: lowest index); ``frozen=`` chooses.  Branch ``m`` sets frozen spin
-``frozen[t]`` to ``+1`` if bit ``t`` of ``m`` is set, else ``-1``.  The compiled :func:`frozen_spins`
-and :func:`branch_stack` are the one implementation (the planners' compiled loops call them too);
-``tests/mapping_reference.py`` holds the numpy version they are tested against.
-Design notes: docs/design/mapping_kernels.md.
+Contract: :func:`branch` splits a model above the spin budget into ``2^k`` models of ``budget`` spins by
+freezing ``k = n - budget`` spins (by default those of largest ``|h_i| + sum_j |J_ij|``) to every sign
+pattern; a branch's energy is the full model's energy of the completed assignment, so the best branch's
+optimum is the model's.  The compiled :func:`frozen_spins` and :func:`branch_stack` are the one
+implementation (oracle: ``tests/mapping_reference.py``).  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,22 +1,10 @@
 """The emulated CMOS Ising chip (paper sections 2.2, 3 and 6.1).
 
-:class:`EmulatedChip` is a :class:`~ising_backend.base.MachineBase` and so a :class:`dimod.Sampler`
-(``sample``, ``sample_ising``, ``sample_qubo``; ``parameters``; ``properties`` with ``h_range`` /
-``j_range`` like D-Wave samplers) with a vectorised entry point, :meth:`EmulatedChip.anneal_batch`.
-
-It **refuses** any program that does not fit its :class:`~ising_backend.spec.ChipSpec` (too many
-spins, a non-integer, out-of-range, NaN or infinite coefficient) with a :class:`ChipProgramError`
-naming the spin or coupling, its value and the limit.  It never clips or rescales: that is a mapping
-rule's job (:mod:`ising_backend.quantize`, :mod:`ising_backend.merge`).  Every call is charged to
-:attr:`EmulatedChip.ledger` (a :class:`~ising_backend.ledger.CallLedger`); a ``SampleSet``'s
-``info["ledger"]`` holds the charge of that call.
-
-With a fault model in the spec (:attr:`ChipSpec.faulty`: dead cores, stuck spins, program write
-errors) the chip probes its cores at bring-up and every call goes through the fault-tolerant
-dispatch of :mod:`ising_backend.health` (quarantine, placement around stuck spins, re-dispatch within
-``spec.max_retries``, else :class:`~ising_backend.health.ChipUnavailableError`);
-:attr:`EmulatedChip.health` holds what it found.  Without faults nothing of this runs.
-Design notes: docs/design/emulated_chip.md, docs/design/faults.md.
+Contract: :class:`EmulatedChip` is a :class:`~ising_backend.base.MachineBase` (so a ``dimod.Sampler``)
+with :meth:`EmulatedChip.anneal_batch`.  It refuses a program that does not fit its ``spec`` with a
+:class:`ChipProgramError` naming the coefficient, its value and the limit (never clips or rescales) and
+charges every call to its ``ledger``; with a fault model it probes its cores at bring-up and dispatches
+through :mod:`ising_backend.health`.  Design notes: docs/design/emulated_chip.md, docs/design/faults.md.
 """
 
 from __future__ import annotations

@@ -1,27 +1,10 @@
 """A dimod composite that maps any binary quadratic model onto an integer-range Ising chip.
 
-:class:`QuantizeComposite` keeps the child strict (:class:`~ising_backend.chip.EmulatedChip`, or any
-dimod sampler whose ``properties`` hold integer ``h_range`` / ``j_range`` pairs and ``num_spins``) and
-makes the program fit: the BQM is converted exactly to SPIN (``x = (1 + s) / 2`` for BINARY), its Ising
-coefficients are mapped to integers in the child's ranges by a rule (one of
-:data:`~ising_backend.quantize.QUANTIZE_RULES`, or ``"saturate"``: a fixed ``scale``, rounded, clipped
-at the limits), the integer program (variables relabelled ``0 .. n-1`` in the BQM's variable order,
-offset 0) is sampled on the child, and the spins are mapped back to the BQM's labels and vartype.
-
-Contract and choices:
-
-* the returned energies are the **original** BQM's energies of the samples (the child's energies,
-  in chip units, are kept in the ``program_energy`` field);
-* a BQM with more variables than the child's ``num_spins`` raises ``ValueError`` naming both
-  numbers: nothing is truncated, merged or branched here;
-* an empty BQM (no variables; any offset) returns an empty SampleSet (0 rows) without calling the
-  child, so no chip call is charged; its ``info["ledger"]`` is a zero
-  :class:`~ising_backend.ledger.CallLedger`;
-* ``info`` holds the child's info (the chip's ``ledger`` and ``spec``) plus ``rule``, ``keep_sign``
-  and ``scale`` (``None`` unless ``rule="saturate"``);
-* quantization is deterministic; the sampling randomness is the child's (same ``seed``, same samples).
-
-Design notes: docs/design/mapping_kernels.md.
+Contract: :class:`QuantizeComposite` samples a BQM on a strict child (the chip, or any sampler with
+integer ``h_range`` / ``j_range`` and ``num_spins`` properties) through a quantization rule (one of
+:data:`~ising_backend.quantize.QUANTIZE_RULES`, or ``"saturate"``).  Returned energies are the original
+BQM's; a BQM larger than the child raises ``ValueError`` (nothing is truncated, merged or branched); an
+empty BQM returns 0 rows without a chip call.  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,18 +1,9 @@
 """The emulated chip's hardware faults (a :class:`~ising_backend.spec.ChipSpec` fault model).
 
-Contract: every fault is a pure function of the spec (``seed`` and the fault fields), the
-core index and the call's seed, so the same spec and seeds give the same faults.
-
-* :class:`FaultMap` -- the static faults of one chip: which cores are dead
-  (``dead_cores`` of them, drawn from ``seed``) and, per core, which physical spins
-  are stuck at which value (``stuck_spins`` per core).  Drawn from its own stream
-  (``default_rng([seed, 0x5EED_FA17])``), so the mismatch pattern is unchanged.
-* :func:`write_failures` -- per call (one read of one program), whether writing the
-  program failed (``program_error_prob``), keyed by (seed, core, call seed, read,
-  attempt).
-* :func:`garbage_spins` -- what a dead core in ``"garbage"`` mode answers: uniform
-  random spins keyed by (seed, core, call seed, read), whatever the program.
-
+Contract: every fault is a pure function of the spec (``seed`` and the fault fields), the core index and
+the call's seed.  :class:`FaultMap` holds one chip's dead cores and stuck spins (drawn from a stream of
+their own, so the mismatch pattern is unchanged); :func:`write_failures` says which reads' program writes
+failed; :func:`garbage_spins` is what a dead core in ``"garbage"`` mode answers.
 Design notes: docs/design/faults.md.
 """
 

@@ -1,21 +1,10 @@
 """Graceful degradation of a faulty chip: health probe, quarantine, spin remapping, retries.
 
-Contract: with a fault model on (:attr:`ChipSpec.faulty`), every call of
-:class:`~ising_backend.EmulatedChip` (and of a :class:`~ising_backend.LogicalIsingSolver`
-sharing its monitor) goes through :func:`dispatch`:
-
-* reads go round-robin to the cores the :class:`HealthMonitor` has not quarantined, starting at a
-  core drawn from the call's seed (a function of the seed, never of the call history);
-* the hardware step (:func:`emulate`) applies the faults; the driver sees only what real hardware
-  would report: a write error flag or a timeout (garbage from a dead core is not visible);
-* failed reads are charged (one call each) and re-dispatched to healthy cores with a derived seed,
-  at most ``spec.max_retries`` rounds per call; a timed-out core is quarantined at once.  Out of
-  rounds or out of cores: :class:`ChipUnavailableError` (the calls made are charged first).
-
-:meth:`HealthMonitor.probe` is the bring-up known-answer test: it finds dead cores (answers far from
-the known ground state, or no answer) and stuck spins; logical spins are then placed on each core's
-good physical spins, so programs of up to :attr:`HealthMonitor.usable_spins` spins never touch a
-known stuck spin.  Design notes: docs/design/faults.md.
+Contract: with a fault model on, every chip call goes through :func:`dispatch`: reads round-robin over
+the cores not quarantined, failed reads (write error, timeout) charged and re-dispatched within
+``spec.max_retries`` rounds, else :class:`ChipUnavailableError` (after charging).
+:meth:`HealthMonitor.probe` finds dead cores and stuck spins at bring-up; programs of up to
+:attr:`HealthMonitor.usable_spins` spins never meet a known stuck spin.  Design notes: docs/design/faults.md.
 """
 
 from __future__ import annotations

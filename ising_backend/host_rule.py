@@ -1,14 +1,9 @@
 """Host-rule ablation: a decision class's programs answered by the host rule instead of the machine.
 
-``with HostRule({"sharing_split"}):`` (or ``HostRule("all")``) makes every submission of the named
-decision classes -- through a session (``machine.session(ledger, decision=CLASS)``) or a metered
-solver (``MeteredSolver(..., decision=CLASS)``) -- take the generic host rule's answer: greedy
-construction then steepest single-flip descent (:func:`ising_backend.audit_judge.greedy_descent`), the
-same answer for every read, on the host, charged nothing to the machine (its seconds are host
-seconds of the planner that asked).  So one flag puts the host rule where the chip decided and the
-plan says what the chip was worth there.  Closed, nothing changes.  ``joint_moves`` and ``lns_groups``
-have host rules of their own, which their executors take while the class is named (PIBT's answer, no chip
-call; the search's greedy, as ``decider="host"``).
+Contract: inside ``with HostRule({"sharing_split"}):`` (or ``HostRule("all")``) every submission of a named
+decision class takes :func:`ising_backend.audit_judge.greedy_descent`'s answer on the host, the same for
+every read and charged nothing to the machine; ``joint_moves`` and ``lns_groups`` take their executors'
+own host rules.  Closed, nothing changes.  Usage: docs/audit.md; design: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

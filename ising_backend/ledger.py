@@ -1,22 +1,10 @@
-"""Call ledger: physical chip calls, logical (projected) calls, time and energy.
+"""Call ledger: physical chip calls, logical (projected) calls, time and energy (paper section 6.1).
 
-Accounting (paper section 6.1; ARCHITECTURE.md "Chip call accounting"):
-
-* one ``anneal_batch`` of ``B`` programs x ``r`` reads is ``B * r`` physical
-  calls dispatched in ``ceil(B * r / n_cores)`` batches;
-* ``chip_time_s += calls * solve_time_s`` (calls run one after another: the
-  paper's figure), ``chip_time_parallel_s += batches * solve_time_s`` (parallel
-  dispatch over the cores), ``energy_j += calls * energy_per_call_j``;
-* a logical Ising call (coefficient range not enforced) is *projected* as one chip call:
-  ``logical_calls`` (never ``physical_calls``), time and energy with the same numbers; ``k``
-  logical calls issued together count ``ceil(k / n_cores)`` ``logical_batches``;
-* with a fault model on (:mod:`ising_backend.health`), a detectably failed call (write error,
-  timeout) is charged like any call and its re-dispatch counts ``retries``; batches count the
-  cores not quarantined; the bring-up probe's calls count ``probe_calls`` and ``physical_calls``;
-* ``emulation_s``: host wall time spent *emulating* the accelerator (the chip's program check and
-  annealing kernel, the logical solver's search), reported apart from the host's own work.
-
-Design notes: docs/design/emulated_chip.md.
+Contract: :class:`CallLedger` counts an ``anneal_batch`` of ``B`` programs x ``r`` reads as ``B * r``
+physical calls in ``ceil(B * r / n_cores)`` batches, each charged the spec's solve time and energy; a
+logical call is projected as one chip call (``logical_calls``); a faulty chip's retries and probe calls
+are counted, and ``emulation_s`` (host time spent emulating the accelerator) is reported apart.
+Accounting: ARCHITECTURE.md ("Chip call accounting"); design notes: docs/design/emulated_chip.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,10 @@
 """How the planners' compiled search loops reach an Ising machine: one session per compiled call.
 
-``with machine.session(ledger) as link:`` opens a :class:`MachineSession`; compiled code takes
-``link.args`` (one opaque record: planners never look inside it) and anneals through
-:func:`anneal_submit` (an annealer) or :func:`solve_submit` (a logical solver, with
-``link.args_for(n)``).  The healthy emulator and the logical solver's tabu method run their own
-kernel in the loop, and the caller charges what it returned with :meth:`MachineSession.settle` (bit
-for bit what ``anneal_batch`` would charge).  Any other machine (a faulty emulator, a dimod sampler, a
-device driver) is called back (``machine.anneal_batch`` / ``solve_stack``, numba's object mode), and
-refuses, anneals, times and charges as it always does; the session adds each call's charge to its
-ledger as it runs and ``settle`` then charges nothing.  Every machine runs the same compiled search:
-only the anneal step differs.  A machine's exception (``ChipUnavailableError``, ``ChipProgramError``)
-propagates out of the compiled loop unchanged.  Design notes: docs/design/machine_link.md.
+Contract: ``with machine.session(ledger) as link:`` opens a :class:`MachineSession`; compiled code anneals
+through :func:`anneal_submit` (or :func:`solve_submit`, a logical solver) with ``link.args``, an opaque
+record.  The healthy emulator and the logical solver's tabu method run their kernel in the loop and
+:meth:`MachineSession.settle` charges what they returned; any other machine is called back and charges as
+it always does.  A machine's exception propagates unchanged.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

@@ -1,24 +1,10 @@
 """The logical Ising backend (paper section 5.2, "Execution: logical Ising").
 
-For layers whose coefficients do not fit the chip (the paper's tour
-construction: one-hot penalties need a wider range than [-7, 7]), a solver that
-obeys the chip's **spin budget** (45) but not its coefficient range.  Each
-program solve (one read) is one *projected* chip call: it is charged to the
-ledger's ``logical_calls`` (never ``physical_calls``) with the chip spec's time
-and energy numbers (see :mod:`ising_backend.ledger`).
-
-Methods: ``"tabu"`` (default), a compiled (numba) single-flip tabu search of ours: per read
-``restarts`` runs of ``iterations`` steps (default ``50 * n``), best non-tabu flip with aspiration,
-tenure ``max(1, min(max_tenure, 2n // 3))`` (``max_tenure=10``), later runs from the best state so
-far with ``n // 4`` random spins flipped; ties on the lowest index; a seeded xorshift64*, so the
-same seed gives the same answer.  ``"dwave-tabu"``: :class:`dwave.samplers.TabuSampler` with
-``timeout`` ms per read (default 5 ms).
-
-Faults: given the chip's :class:`~ising_backend.health.HealthMonitor` (``health=``, as the tour
-layer passes it), every call goes through the same fault-tolerant dispatch (healthy cores, write
-errors and timeouts re-dispatched within ``spec.max_retries``).  A logical spin placed on a stuck
-spin is held at its value through the search, as the chip's anneal holds it; programs within the
-usable spins never meet one.  Design notes: docs/design/emulated_chip.md.
+Contract: :class:`LogicalIsingSolver` obeys the chip's **spin budget** but not its coefficient range (for
+layers whose coefficients do not fit, such as the paper's one-hot tour); each program solve (one read) is
+one *projected* chip call (``logical_calls``).  Methods ``"tabu"`` (default: a compiled tabu search,
+deterministic under the seed) and ``"dwave-tabu"``; with ``health=`` every call goes through the chip's
+fault-tolerant dispatch.  Design notes: docs/design/emulated_chip.md (tabu), docs/design/faults.md.
 """
 
 from __future__ import annotations

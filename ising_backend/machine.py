@@ -1,12 +1,10 @@
 """Any Ising machine behind the planners: dimod adapters, driver adapters, recipes.
 
-The interface is :class:`~ising_backend.base.IsingMachine` (re-exported here with
-:class:`~ising_backend.base.MachineBase`, the base of every machine, the emulator included).
-:class:`SamplerChip` wraps any ``dimod.Sampler`` (dwave-samplers, neal, OpenJij, a QPU
-sampler) as such a machine; :func:`as_machine` turns a bare sampler into one with the paper's
-spec, so ``make_pipeline("ising", chip=neal.SimulatedAnnealingSampler())`` works; an object with
-only ``spec``, ``ledger`` and ``anneal_batch`` (a minimal driver) goes behind a :class:`DriverMachine`.
-:class:`MachineSpec` is a picklable recipe (spec + sampler name) for worker processes.
+Contract: :class:`SamplerChip` wraps any ``dimod.Sampler`` as an :class:`~ising_backend.base.IsingMachine`
+(re-exported here with :class:`~ising_backend.base.MachineBase`); :func:`as_machine` gives a bare sampler
+the paper's spec and puts a minimal driver (``spec``, ``ledger``, ``anneal_batch``) behind a
+:class:`DriverMachine`; :class:`MachineSpec` is a picklable recipe (spec + sampler name) for workers.
+Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

@@ -1,18 +1,10 @@
 """One record of mapping statistics for every Ising layer (paper Table 5).
 
-Each layer keeps, per mapping choice (the sharing's and the chip tour's quantization rules, the path's
-merge styles, ``"logical"`` for the logical solver's unmapped programs), the same counts in
-``stats["mapping"][layer][choice]``, :data:`MAPPING_FIELDS`:
-
-* ``programs`` -- programs of this choice sent to the machine;
-* ``reads`` -- reads decoded from them (``programs x num_reads``);
-* ``valid`` -- reads that decoded to a valid answer;
-* ``wins`` -- decisions whose kept answer came from this choice (a tie between choices: the layer's tie
-  rule picks one, so the wins of a layer sum to the decisions it took on the machine);
-* ``map_errors`` -- programs this choice could not map (the other choices may have).
-
-Plain ints in plain dicts, so the pipeline's ``merge_stats`` sums them over layers' calls and plans and
-they serialize as they are.
+Contract: each layer keeps, per mapping choice (a quantization rule, a merge style, ``"logical"``), the
+counts :data:`MAPPING_FIELDS` (``programs``, ``reads``, ``valid``, ``wins``, ``map_errors``) in
+``stats["mapping"][layer][choice]``, plain ints in plain dicts, so the pipeline's ``merge_stats`` sums
+them over calls and plans and they serialize as they are.
+Design notes (the fields): docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

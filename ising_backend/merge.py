@@ -1,28 +1,10 @@
 """Spin merging: make an out-of-range model fit the chip with spare spins (paper section 4.2).
 
-When a coefficient exceeds the hardware range, *spin merging* duplicates an
-overloaded logical spin onto a spare physical spin, ties the copies together
-ferromagnetically, and splits the large fields/couplings between the copies so
-every coefficient fits.  The styles give different hardware views of the same
-logical model and are solved as a portfolio.
-
-Contract: coefficients are multiplied by ``scale`` (default 1) and rounded, never rescaled to fit;
-a style adds copies until every field fits (``|H_i| <= L_h * a_i`` with ``a_i`` copies) and every
-coupling (``|C_ij| <= L_j * a_i * a_j``), else :class:`MergeError` names the coefficient that still
-does not fit and the spin budget.  Copies are tied with ``-tie`` (default ``L_j``) and
-``tie x pairs`` goes to the offset, so aligned copies have exactly the rounded logical energy;
-integer totals are split exactly; ties between candidates break on the lowest index.
-
-Styles (which spin gets the next copy; the split: ``spill`` fills the first copy up to the limit,
-``even`` shares as evenly as possible): ``overload`` (largest total excess; ``spill``), ``max_coeff``
-(an endpoint of the worst term; ``even``), ``high_degree`` (most couplings; ``spill``), ``balanced``
-(fewest copies; ``even``).
-:meth:`MergedModel.decode` takes the majority of each spin's copies (a tie goes to the original
-copy) or, with ``method="first"``, the original copy, and reports the number of broken ties
-(logical spins whose copies disagree) per sample.  :func:`saturate_mapping` is the authors' baseline
-(fixed scale, round, clip) in the same :class:`MergedModel` interface with no copies.  The work runs
-in compiled kernels (:mod:`._merge_kernel`), held bit-identical to ``tests/mapping_reference.py``.
-Design notes: docs/design/mapping_kernels.md.
+Contract: :func:`merge_spins` rounds ``scale x`` the coefficients (never rescales to fit) and, by one of
+:data:`MERGE_STYLES`, duplicates overloaded spins onto spare spins tied ferromagnetically until every
+coefficient fits, else raises :class:`MergeError` naming the coefficient and the spin budget; aligned
+copies have exactly the rounded logical energy, and :meth:`MergedModel.decode` takes each spin's
+majority copy.  Oracle: ``tests/mapping_reference.py``; design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

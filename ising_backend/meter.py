@@ -1,18 +1,10 @@
 """Metering: the one way a planner charges a solver call to its own compute report.
 
-:class:`MeteredSolver` wraps an :class:`~ising_backend.EmulatedChip` or a
-:class:`~ising_backend.LogicalIsingSolver` (anything with ``spec``, ``ledger``
-and ``anneal_batch``) for the duration of one planning call.  It forwards the
-calls, checks that every answer is a ``(programs, reads, spins)`` array of
-+-1 (a broken or foreign solver raises :class:`SolverOutputError` instead of
-being decoded), and adds exactly what each call charged (``solver.last_call``)
-to :attr:`MeteredSolver.charged`.  Several wrappers may share one ``charged``
-ledger (e.g. a tour layer that uses the logical solver and the chip).
-
-The wrapped solver's own ledger keeps the running totals of everything it ran
-(one ledger per pipeline when the layers share one chip).  A call the chip could
-not answer (:class:`~ising_backend.health.ChipUnavailableError`) is charged what it
-spent before the error propagates.
+Contract: :class:`MeteredSolver` wraps a solver (anything with ``spec``, ``ledger`` and ``anneal_batch``)
+for one planning call, forwards the calls, checks that every answer is a ``(programs, reads, spins)``
+array of +-1 (else :class:`SolverOutputError`) and adds exactly what each call charged to
+:attr:`MeteredSolver.charged`, also what a call spent before a
+:class:`~ising_backend.health.ChipUnavailableError`.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

@@ -1,20 +1,10 @@
 """Ising and QUBO models with exact conversions (paper section 2.1, eqs. 1-2).
 
-Conventions (used everywhere in :mod:`ising_backend`):
-
-* Ising energy (paper eq. 2): ``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``
-  with ``s_i in {-1, +1}``.  ``J`` is stored as a dense ``(n, n)`` strictly upper
-  triangular array (``J[i, j]`` for ``i < j``).
-* QUBO energy (paper eq. 1): ``E(x) = sum_i q_i x_i + sum_{i<j} Q_ij x_i x_j + offset``
-  with ``x_i in {0, 1}``; ``Q`` strictly upper triangular as well.
-* The two are related by ``x = (1 + s) / 2``; conversions keep the offset, so a
-  configuration has the *same* energy in both forms.  With dyadic (for example
-  integer) coefficients the conversion is exact to the last bit.
-
-A square matrix with entries below the diagonal is accepted and folded onto the
-upper triangle (``J[i, j] + J[j, i]``), which is the same energy; a non-zero
-diagonal is refused (``s_i s_i`` is a constant for spins, ``x_i x_i = x_i`` for
-bits: say which you mean by putting it in the offset or the linear term).
+Contract: :class:`IsingModel` has energy ``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``
+(``s_i in {-1, +1}``), :class:`QuboModel` ``E(x) = sum_i q_i x_i + sum_{i<j} Q_ij x_i x_j + offset``
+(``x_i in {0, 1}``), both with strictly upper triangular matrices; conversions (``x = (1 + s) / 2``) keep
+the offset, so a configuration has the same energy in both forms.  Entries below the diagonal are folded
+onto the upper triangle, a non-zero diagonal is refused.  Design notes: docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

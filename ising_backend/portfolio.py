@@ -1,26 +1,10 @@
 """The portfolio runner: multi-mapping dispatch, decode, filter, score (paper 4.2-4.3, Table 5).
 
-One logical model becomes several chip-compatible programs (spin-merging styles, quantization rules,
-spin-budget branches, ...), all dispatched together (one ``anneal_batch`` call); every returned spin
-vector is decoded back to the logical spins and then to a candidate by the caller's decoder, invalid
-candidates are rejected, and the rest are scored on the **original unquantized objective**.  The best
-candidate wins.
-
-A :class:`Mapping` turns a logical model into one or more :class:`MappedProgram` s (a program plus its
-way back to logical spins): :class:`QuantizeMapping` (one per rule), :class:`MergeMapping` (one per
-merge style), :class:`SaturateMapping` (the authors' fixed-scale baseline), :class:`BranchMapping`
-(spin-budget branches, for the logical solver), :class:`IdentityMapping` (a model that already fits);
-:func:`quantize_portfolio` / :func:`merge_portfolio` build the paper's four-way portfolios.
-:func:`run_portfolio_batch` sends many models x several mappings in **one** solver call (optionally
-block-packed) to an :class:`~ising_backend.chip.EmulatedChip` or a
-:class:`~ising_backend.logical.LogicalIsingSolver`, charged to its ledger.
-
-Statistics (choices where the paper is silent): *valid rate* = valid reads / reads of that mapping;
-*candidate share* = the mapping's valid reads / all valid reads of the problem; *win share*: per
-problem, the mappings whose best valid score equals the best score (``abs`` tolerance
-``1e-9 * max(1, |best|)``) split one win equally.  A mapping that cannot map a model (e.g. a
-:class:`~ising_backend.merge.MergeError`) is recorded as failed for that problem, with the error
-message, and the rest of the portfolio still runs.  Design notes: docs/design/mapping_kernels.md.
+Contract: :func:`run_portfolio` / :func:`run_portfolio_batch` turn each logical model into programs by
+several :class:`Mapping` s (quantization rules, merge styles, branches, ...), dispatch them in one solver
+call (optionally block-packed), decode every read, reject invalid candidates and score the rest on the
+**original unquantized objective**: the best wins.  A mapping that cannot map a model is recorded as
+failed and the rest still runs.  Design notes (statistics): docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,24 +1,10 @@
 """Coefficient quantization to the chip's integer range (paper section 4.2).
 
-Real-valued Ising coefficients become integers in ``h_range`` / ``j_range``; each rule keeps a
-different view of them (the paper's portfolio keeps the best decoded candidate):
-
-* ``linear``: one common factor puts the largest coefficient (relative to its range) on the limit;
-* ``clip95``: the factor puts the 95th percentile of the non-zero relative magnitudes on the
-  limit; the top 5 % saturate;
-* ``rank``: magnitudes replaced by their rank among the distinct non-zero magnitudes, spread
-  evenly over ``1 .. limit`` (ties share a level);
-* ``sqrt``: ``linear`` applied to ``sign(c) * sqrt(|c|)``.
-
-Contract (the paper is silent; our choices): ``h`` and ``J`` share one factor (each relative to
-its own range limit; the symmetric limit of ``(lo, hi)`` is ``min(-lo, hi)``); then round; zeros stay
-zero, signs are kept, and with ``keep_sign=True`` (default) a non-zero coefficient that would round
-to 0 becomes +-1; results are integers inside the range; the offset is 0 (quantized energies only
-rank candidates, re-scored on the original objective).  :func:`saturate` is the authors' baseline
-(COBI host code): a *fixed* scale factor, round, saturate at the limits.  Both run in compiled
-kernels (:mod:`._quantize_kernel`; :func:`quantize_stack` gives several rules of one model in one
-call), held bit-identical to the numpy reference in ``tests/mapping_reference.py``.
-Design notes: docs/design/mapping_kernels.md.
+Contract: :func:`quantize` maps a model's coefficients to integers in ``h_range`` / ``j_range`` by one of
+:data:`QUANTIZE_RULES` (``linear``, ``clip95``, ``rank``, ``sqrt``): ``h`` and ``J`` share one factor,
+zeros stay zero, signs are kept (with ``keep_sign`` a non-zero never rounds to 0), the offset is 0.
+:func:`saturate` is the authors' fixed-scale baseline; :func:`quantize_stack` gives several rules at once.
+Oracle: ``tests/mapping_reference.py``.  Design notes (what each rule keeps): docs/design/mapping_kernels.md.
 """
 
 from __future__ import annotations

@@ -1,12 +1,9 @@
 """A ``dimod.Sampler``'s parameters and their types, read from the sampler itself.
 
-:func:`sampler_parameters` is what a sampler takes (``sampler.parameters`` and the named keywords
-of its ``sample``); :func:`parameter_types` the type of each, from the annotations of ``sample``
-(evaluated when a package writes them as strings) or, without one, the type of its default
-(``None`` when neither says: any value is passed on).  :func:`check_value` holds a Python value
-to such a type and :func:`parse_value` reads a command-line text as one (JSON, else a Python
-literal, else the text itself, whichever first fits): both raise ``ValueError`` naming the
-parameter, the value and the expected type (``num_sweeps='abc': expected an integer``).
+Contract: :func:`sampler_parameters` is what a sampler takes, :func:`parameter_types` the type of each
+(``None``: any value); :func:`check_value` holds a Python value to such a type and :func:`parse_value`
+reads a command-line text as one; both raise ``ValueError`` naming the parameter, the value and the
+expected type.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

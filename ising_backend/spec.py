@@ -1,33 +1,9 @@
-"""The chip specification: hardware limits, accounting numbers and emulation knobs.
+"""The chip specification: hardware limits, accounting numbers, emulation knobs and the fault model.
 
-Defaults are the paper's (sections 3 and 6.1): 45 all-to-all spins per core,
-integer ``h_i`` and ``J_ij`` in ``[-7, +7]``, 4 chips x 2 cores = 8 parallel
-cores, 50 us per solve, 9 mW (so 0.45 uJ per call).  Every field can be changed
-for "what if" studies, e.g. ``ChipSpec(n_spins=100, h_range=(-15, 15),
-j_range=(-15, 15))``.
-
-Emulation knobs (the paper is silent; our choices):
-
-* ``sweeps=50``: a short fixed anneal, so the emulator stays a *probabilistic* annealer;
-* ``schedule="geometric"`` (or ``"linear"``) in inverse temperature over ``beta_range``
-  (``None``: chosen per program, see :mod:`ising_backend.anneal`);
-* ``coupling_mismatch=0.05``: per core a fixed symmetric matrix of factors ``1 + 0.05 * N(0, 1)``
-  (drawn once from ``seed``) on the couplings while annealing; reported energies are always
-  those of the *programmed* (noise-free) coefficients;
-* ``readout_flip_prob=0.0``: probability that each read-out bit flips after the anneal;
-* ``seed=0``: the static hardware (mismatch pattern and faults), i.e. which physical chip you
-  hold; the sampling randomness is seeded per call.
-
-Fault model (all off by default; deterministic under ``seed``): ``dead_cores=0`` (answering
-random spins, ``dead_core_mode="garbage"``, or never, ``"timeout"``), ``stuck_spins=0`` per core,
-``program_error_prob=0.0`` per physical call (flagged, charged, re-dispatched), ``max_retries=3``
-re-dispatch rounds per ``anneal_batch`` before
-:class:`~ising_backend.health.ChipUnavailableError`.  With any fault on (:attr:`ChipSpec.faulty`)
-the chip probes its cores at bring-up, quarantines dead ones and maps programs around stuck spins
-(:mod:`ising_backend.health`).
-
-``ChipSpec.noise_free()`` returns the same spec with both noise knobs at zero;
-``ChipSpec.fault_free()`` the same spec with the fault model off.
+Contract: :class:`ChipSpec` defaults are the paper's (sections 3 and 6.1: 45 all-to-all spins per core,
+integer ``h`` and ``J`` in ``[-7, +7]``, 8 cores, 50 us and 0.45 uJ per solve); every field can be
+changed for "what if" studies.  The emulation knobs are our choices; the fault fields are off by
+default.  ``noise_free()`` and ``fault_free()`` switch the noise knobs and the fault model off.
 Design notes: docs/design/emulated_chip.md (knobs), docs/design/faults.md (fault model).
 """
 

@@ -1,15 +1,10 @@
 """A stack of QUBOs to packed chip programs in one compiled step: map by every rule, pack, check.
 
-Contract: :func:`pack_qubo_stack` takes ``P`` reduced QUBOs ``E(x) = q.x + x.Q.x`` (``Q`` strictly
-upper, zero-padded to ``f``) and returns the chip programs of one submission: each QUBO converted
-to Ising form with :func:`~ising_backend.models.ising_from_qubo`'s arithmetic, quantized by every
-rule of the portfolio (:func:`~ising_backend._quantize_kernel.quantize_rules`, ``keep_sign``,
-percentile 95), the ``P x k`` programs packed first-fit decreasing on disjoint blocks
-(:func:`~ising_backend.blocks.pack_layout`, :func:`~ising_backend.blocks.fill_packs`) and checked
-against the chip's coefficient limits (:func:`~ising_backend.programs.programs_fit`).  Program
-``p * k + r`` is QUBO ``p`` under rule ``r``.  :func:`submit_packs` anneals them through the caller's
-machine session record; the caller decodes the reads at ``where``.  Every layer's chip submission
-goes through :func:`submit_packs`.  Design notes: docs/design/machine_link.md.
+Contract: :func:`pack_qubo_stack` converts ``P`` zero-padded QUBOs to Ising form, quantizes each by every
+rule of the portfolio, packs the ``P x k`` programs (program ``p * k + r``: QUBO ``p`` under rule ``r``)
+first-fit decreasing on disjoint blocks and checks them against the chip's limits; :func:`submit_packs`
+anneals them through the caller's machine session record.  Every layer's chip submission goes through
+:func:`submit_packs`.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations

@@ -4,8 +4,7 @@
 * :mod:`planners.ising.tour` -- clustered tour construction (section 5.2, Algorithm 2);
 * :mod:`planners.ising.sharing` -- recursive target sharing (section 5.3, Algorithm 3).
 
-Each planner takes ``chip=`` (a pipeline passes one chip, and so one ledger, to all
-three) and ``config=`` (a frozen, validated dataclass) or the same options as keywords.
+Each takes ``chip=`` and ``config=`` (or the options as keywords).  Design notes: docs/design/host_path.md.
 """
 
 from planners.ising.path import IsingPath, PathConfig

@@ -1,12 +1,10 @@
 """The fleet search in one compiled call: the one local search of the move engine, then the kicks.
 
-Contract: :func:`iterated_search` runs the local search (:func:`planners.ising.moves.search.move_search`
-on the granular neighbourhood: chip-selected move sets, or the host's greedy set with ``chip`` False),
-then ``kicks`` times ruins and recreates a copy of the current routes (:func:`~.recreate.ruin_recreate`:
-2..``ruin`` targets around a random one) and searches again, keeping the result when it costs at most the
-best times ``1 + slack`` (record-to-record travel); the cheapest routes so far are kept in place in
-``best_nxt`` (also when a machine's error ends the call).  It counts the statistics in place and logs,
-per submission, the calls and the kernel's seconds for the caller to settle on its machine session.
+Contract: :func:`iterated_search` runs :func:`planners.ising.moves.search.move_search` on the granular
+neighbourhood (chip-selected move sets, or the host's greedy set with ``chip`` False), then ``kicks``
+times ruins and recreates a copy of the routes (:func:`~.recreate.ruin_recreate`) and searches again,
+keeping it within ``1 + slack`` of the best; the cheapest routes stay in ``best_nxt`` (also when a
+machine's error ends the call).  Design notes: docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations

@@ -1,25 +1,10 @@
 """Fleet routing with chip-selected moves between robots: an iterated local search.
 
-Classical logic orchestrates, the chip decides which moves are made:
-
-1. construction (host): the sequential single-item auction's insertion routes (SSA, the
-   ``strong`` pipeline's sharing), one open route per robot;
-2. local search: per round the host lists every improving granular move between and within
-   routes (:mod:`.moves`), offers the chip up to ``max_moves`` of them (by gain, each clashing
-   with at most ``max_overlap`` better ones), and the chip selects a compatible set in one
-   submission (the selection QUBO quantized by every rule of ``chip_rules``); the valid read of
-   largest gain is applied, a read selecting clashing moves is dropped, never repaired.  No
-   improving move left: a local optimum; ``max_retries`` rounds in a row without a valid read
-   also end it;
-3. iterated local search (host): ``kicks`` times, ruin 2..``ruin`` targets nearest a random target
-   and re-insert them one by one at their cheapest place, then local search (2); the result is
-   kept when it costs at most the best times ``1 + slack`` (record-to-record travel).
-
-A sharing layer that orders its groups (``orders_routes``: tour layer ``keep``); preset
-``ising-fleet`` = ``ising-fleet + keep + field``.  Deterministic under the seed (no clock).  The whole
-search (2 and 3) is one compiled call (:func:`.local_search.iterated_search`) on one machine session,
-which charges every chip call to the layer's report; the emulator's run time is ``emulation_s``.
-Design notes and measurements: docs/design/ising_fleet.md.
+Contract: :class:`IsingFleetSharing` builds SSA's insertion routes on the host, then runs one compiled
+call (:func:`.local_search.iterated_search`) on one machine session: a local search in which the chip
+selects a compatible set of improving granular moves per round (a read selecting clashing moves is
+dropped, never repaired), and ruin-and-recreate kicks.  Deterministic under the seed; every chip call is
+charged to the layer's report.  Design notes and measurements: docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations

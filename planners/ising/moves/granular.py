@@ -1,19 +1,10 @@
 """The fleet search's neighbourhood: the improving granular moves within and between robots' routes.
 
-The routes are linked lists over the world's nodes (:mod:`planners.ising.moves.routes`).  Candidate
-moves (``v`` among the ``k`` nearest nodes of target ``u``), each priced and applied by its kind's
-file (:mod:`planners.ising.moves.kinds`):
-
-* or-opt ``u, u, w``: ``u`` goes right after ``w = v`` or the node before ``v`` (a relocation);
-  spans ``[pos u - 1, pos u]`` and ``[pos w]``;
-* swap ``u, v`` (other robots): spans ``[pos u - 1, pos u]``, ``[pos v - 1, pos v]``;
-* 2-opt* ``u, b = prv v`` (other robots): spans ``[pos u, end]``, ``[pos b, end]``;
-* 2-opt ``a, b`` (one route, ``{a, b} = {u, v}``): span ``[pos a, pos b]``.
-
-Two moves whose spans are disjoint in every route touch disjoint edges, so their gains add and
-applying them one after another by node gives the sum; two spans in the same route are merged into
-one (conservative).  Gains are exact for open routes.  The chip selects among them with
-:mod:`planners.ising.moves.selection`.
+Contract: :func:`granular_moves` lists, over the routes' linked lists (:mod:`.routes`) and each target's
+``k`` nearest nodes, every improving or-opt (relocation), swap, 2-opt* and 2-opt move with its exact gain
+(open routes) and its edge spans, each kind priced and applied by its file (:mod:`.kinds`).  Moves whose
+spans are disjoint in every route have additive gains; the chip selects among them (:mod:`.selection`).
+Design notes (the spans): docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations

@@ -1,17 +1,10 @@
 """The tour's neighbourhood (beyond paper 5.2): every improving 2-opt and or-opt move of one route.
 
-A route is ``r = [0, t_1, ..., t_n]`` (node 0 the robot, open end), read off the tour's linked list
-(:func:`planners.ising.moves.routes.route_of`).  A move rewrites the route inside its span of edges
-``[lo, hi]`` (edge ``e`` joins positions ``e`` and ``e + 1``):
-
-* 2-opt ``(i, j)``: reverse positions ``i+1..j`` (span ``[i, j]``);
-* or-opt ``(a, b, c)``: move the segment at positions ``a..b`` (1-3 targets), reversed or not,
-  to between positions ``c`` and ``c + 1`` (span ``[c, b]`` or ``[a-1, c]``).
-
-Rows are positions; :func:`apply_route_moves` applies them by node through each kind's file
-(:mod:`planners.ising.moves.kinds`).  Moves whose spans are disjoint touch disjoint edges and
-positions, so their gains add; the chip selects among them as in the fleet search
-(:mod:`planners.ising.moves.selection`, spans on route 0).
+Contract: :func:`route_moves` lists every improving 2-opt and or-opt (1-3 targets, reversed or not) of the
+route read off the tour's linked list, each with its exact gain and its span of edges;
+:func:`apply_route_moves` applies them by node (:mod:`.kinds`).  Moves with disjoint spans have additive
+gains; the chip selects among them (:mod:`.selection`, spans on route 0).
+Design notes (the spans): docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

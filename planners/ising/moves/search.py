@@ -1,18 +1,10 @@
 """The one local search of the tour and the fleet search (compiled): offer, select, apply.
 
-Contract: :func:`move_search` improves the routes ``nxt`` / ``prv`` (:mod:`.routes`) in place.  Each
-round lists the improving moves of one neighbourhood -- every 2-opt / or-opt of robot 0's route
-(:func:`.route_moves.route_moves`, the tour: ``max_segment`` given, ``neigh`` None) or the granular
-moves within and between routes (:func:`.granular.granular_moves`, the fleet: ``neigh`` the nearest-node
-table, ``max_segment`` None) -- offers at most ``capacity >> failures`` of them and applies the
-compatible set the chip selects (:func:`.selection.select_round`) or, with ``chip`` False, the host's
-greedy set (:func:`.selection.greedy_selection`, no chip call).  A round whose reads select nothing valid
-is re-issued with half the moves; ``max_retries + 1`` such rounds in a row end the search
-(:data:`GAVE_UP`); no improving move, or ``max_rounds`` rounds, end it at :data:`LOCAL_OPTIMUM`; a program
-the quantizer cannot map ends it at :data:`REFUSED`, nothing annealed for it.  The neighbourhood argument
-that is None is known when the function compiles (numba prunes a branch on an argument that is None), so
-each search compiles only its own neighbourhood.  Statistics are counted in place (:data:`STAT_FIELDS`),
-each submission's calls and kernel seconds appended to the log for the caller to settle on its session.
+Contract: :func:`move_search` improves the routes ``nxt`` / ``prv`` in place on one neighbourhood (the
+tour's :func:`.route_moves.route_moves` or the fleet's :func:`.granular.granular_moves`): per round it
+applies the compatible set of offered moves the chip selects (or the host's greedy set with ``chip``
+False), halving the offer after a round without a valid read, and ends at :data:`LOCAL_OPTIMUM`,
+:data:`GAVE_UP` or :data:`REFUSED`.  Design notes (rounds, retries, compiling): docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations

@@ -1,15 +1,10 @@
 """The chip's move selection, shared by the tour and the fleet search (compiled).
 
-A candidate move rewrites the edges of at most two routes: its *spans* row is ``route, lo, hi,
-route2, lo2, hi2`` (edges ``lo..hi`` of ``route``; ``route2 = -1`` when it touches one route).
-Two moves *clash* when they touch a common edge; moves that clash with none of the others touch
-disjoint edges, so their gains add.  The selection QUBO over ``M`` offered moves is
-``-sum g_m x_m + sum P_mm' x_m x_m'`` over clashing pairs with ``P_mm' = min(g_m, g_m') + margin``:
-its ground states are the compatible sets of largest total gain and every coefficient is of the
-size of a gain (no one-hot penalty dwarfs the costs).  A read selecting two clashing moves is
-invalid.  The host rule in the chip's place takes the offered moves by gain, each that clashes
-with none taken (:func:`greedy_selection`).  :func:`select_round` is one round of either search:
-offer, map by every quantization rule, one submission, score.
+Contract: :func:`select_round` is one round of either search: offer candidate moves, build the QUBO
+``-sum g_m x_m + sum (min(g_m, g_m') + margin) x_m x_m'`` over clashing pairs (moves touching a common
+edge; its ground states are the compatible sets of largest gain), map it by every quantization rule,
+one submission, score the reads (a read selecting two clashing moves is invalid).
+:func:`greedy_selection` is the host rule in the chip's place.  Design notes: docs/design/ising_fleet.md.
 """
 
 from __future__ import annotations

@@ -1,14 +1,10 @@
 """The legs of one robot's route in one call of the Ising path layer (paper 5.1, batched).
 
-Contract: ``plan_legs(runner, fields, world, cells, rng) -> LegBatch`` (``IsingPath.find_paths``) plans the legs ``cells[j] ->
-cells[j + 1]`` one after another exactly as ``find_path`` would (same compiled query loop, same
-random stream, same paths), but in one compiled call (:func:`run_legs`: every leg's query, its
-loops cut and its path checked) with one compute report and one statistics dict for all of
-them (equal to the merge of the per-leg ones) instead of a result per leg.  It stops at the
-first leg the compiled loop does not reach the goal of: ``LegBatch.paths`` holds the legs done
-and ``LegBatch.failed`` that leg's own result (failure, statistics and charge, as
-``find_path`` gives it); the caller plans any legs after it with ``find_path``.  Legs into a cell
-off the grid or on an obstacle are not batched (``find_path`` names the cell).
+Contract: ``plan_legs(runner, fields, world, cells, rng) -> LegBatch`` plans the legs ``cells[j] ->
+cells[j + 1]`` exactly as ``find_path`` would (same compiled loop, random stream and paths) in one
+compiled call (:func:`run_legs`) with one compute report and one statistics dict.  It stops at the first
+leg that fails: ``LegBatch.paths`` holds the legs done, ``LegBatch.failed`` that leg's own result; the
+caller plans the rest with ``find_path``.  Design notes: docs/design/ising_path.md.
 """
 
 from __future__ import annotations

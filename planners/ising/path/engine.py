@@ -1,17 +1,10 @@
 """Compiled search loop of Ising pathfinding (paper 5.1, Algorithm 1): the one implementation.
 
-Contract: :func:`run_query` runs one query: the ranking, patch programs, chip seeds (drawn
-from the query's ``numpy.random.Generator``), the submission (one per step: the programs of
-the ``targets_per_call`` best-ranked local targets x every merge style that fits, block-packed
-into shared chip programs with ``pack``), decoding, scoring, win draws and bookkeeping.  The
-chip is reached through :func:`ising_backend.submit_packs` (any machine, see
-:class:`ising_backend.MachineSession`); each submission's calls and emulation seconds are
-returned, so the caller charges the machine exactly as ``anneal_batch`` would.
-
-Patch programs are memoised in a :class:`ProgramPool` (compiled arrays keyed by free-cell
-mask and local target).  A merge style that does not fit a program is skipped for it and
-counted (``map_errors``); the first such program is returned so the caller names the error.
-The Python loop in ``tests/path_reference.py`` is the oracle the tests hold it to.
+Contract: :func:`run_query` runs one query (ranking, patch programs memoised in a :class:`ProgramPool`,
+chip seeds from the query's ``numpy.random.Generator``, one submission per step through
+:func:`ising_backend.submit_packs`, decoding, scoring, win draws) and returns each submission's calls
+and emulation seconds for the caller to charge; a merge style that does not fit a program is skipped and
+counted.  Oracle: ``tests/path_reference.py``; design notes: docs/design/ising_path.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,10 @@
 """Compiled host kernels of Ising pathfinding (paper 5.1): patch ranking and sample scoring.
 
-* :func:`rank_local_targets` -- the free cells 4-connected to the robot inside the
-  patch and the local targets ranked as :meth:`IsingPath` ranks them (goal, boundary
-  by Manhattan distance to the goal, interior; ties by moves from the robot, then
-  row-major), skipping excluded cells.  One call per robot position.
-* :func:`score_patch_samples` -- physical spins of every (program, read) of one
-  submission -> majority-decoded logical spins -> the strict simple-path check of
-  :func:`~planners.ising.path.decode.decode_paths` -> the original (unmerged) Ising
-  energy.  One call per chip submission.
-
-Reference implementations (the slower numpy/Python ones in :mod:`.qubo` / :mod:`.decode`
-and ``IsingPath``) are what the tests compare these against.
+Contract: :func:`rank_local_targets` gives the patch cells 4-connected to the robot and the local targets
+ranked as :class:`IsingPath` ranks them (one call per robot position); :func:`score_patch_samples` decodes
+every read of one submission, applies the strict simple-path check of
+:func:`~planners.ising.path.decode.decode_paths` and scores the original (unmerged) Ising energy.
+Oracles: :mod:`.qubo`, :mod:`.decode` and ``IsingPath``.  Design notes: docs/design/ising_path.md.
 """
 
 from __future__ import annotations

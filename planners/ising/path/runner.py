@@ -1,11 +1,9 @@
 """One Ising path query on the compiled loop (paper 5.1): the path planner's query component.
 
-Contract: ``QueryRunner(config, frame, chip)`` owns what the compiled loop
-(:func:`.engine.run_query`) needs -- the machine link, the program pool, the mapping limits and
-the per-grid arguments (padded grid, budgets, free cells) -- and turns one query's arrays into a
-:class:`~planners.base.PathResult`: charged to the machine per submission, the failure named
-(budget spent, exhausted, programs no merge style could map), the walk's loops cut and the path
-checked (never an invalid path handed out).
+Contract: ``QueryRunner(config, frame, chip)`` owns what :func:`.engine.run_query` needs (the machine
+link, the program pool, the mapping limits, the per-grid arguments) and turns one query's arrays into a
+:class:`~planners.base.PathResult`: charged per submission, the failure named, the walk's loops cut and
+the path checked (never an invalid path handed out).  Design notes: docs/design/ising_path.md.
 """
 
 from __future__ import annotations

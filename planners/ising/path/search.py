@@ -1,13 +1,10 @@
 """Patch-sliding Ising pathfinding: the search of paper 5.1 (Algorithm 1).
 
-Contract: ``IsingPath(chip, config).find_path(world, start, goal, rng) -> PathResult``;
-never raises for a failed query (``result.failure`` says why); every chip call
-is metered into ``result.compute``.  A chip that cannot answer is a failure with
-``stats["chip_unavailable"]``; the pipeline hands such a query to A* (:mod:`planners.fallback`).
-The chip generates every local segment; the host places patches, ranks local targets (by
-BFS distance to the goal; the paper's Manhattan distance in ``ising-paper``), decodes,
-validates, scores and stitches, all in one compiled loop (:mod:`.engine`) on any machine.
-Termination rules, budgets and measurements: docs/design/ising_path.md.
+Contract: ``IsingPath(chip, config).find_path(world, start, goal, rng) -> PathResult`` never raises for a
+failed query (``result.failure`` says why; a chip that cannot answer sets ``stats["chip_unavailable"]``
+and the pipeline hands the query to A*); every chip call is metered into ``result.compute``.  The chip
+generates every local segment; the host ranks, decodes, validates, scores and stitches in one compiled
+loop (:mod:`.engine`).  Termination rules, budgets and measurements: docs/design/ising_path.md.
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """Recursive Ising target sharing (paper section 5.3, Algorithm 3).
 
-``search`` (``IsingSharing``: the search), ``stages`` (the split stages) over ``stage_steps`` (a
-stage's splits and chip submissions, compiled), ``submission`` (the chip side: program record,
-refusals), ``clusters`` (coarse splits of groups beyond the chip), ``placement`` (bundle placement
-and pricing), ``refine`` (pair re-splits), ``kernels`` (the anchored eq. 8 split QUBO, spin-budget
-branches, read scoring), ``node_sets`` (node sets as ids), ``bundles`` (pricing by any tour
-solver), ``config`` (options).
+``search`` (``IsingSharing``), ``stages`` over ``stage_steps`` (a stage's splits and chip submissions,
+compiled), ``submission`` (program record, refusals), ``split_problem`` (the anchored eq. 8 split QUBO,
+branches, read scoring), ``clusters`` (coarse splits), ``placement`` (bundle placement and pricing),
+``refine`` (pair re-splits), ``node_sets``, ``bundles``, ``components``, ``config``.
+Design notes: docs/design/ising_sharing.md.
 """
 
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure

@@ -1,12 +1,9 @@
 """Bundle pricing of Ising target sharing (paper 5.3, last step) -- host side.
 
-After the chip splits, each robot keeps its base set and every robotless bundle goes, one after
-another, to the robot whose route cost grows least (classically, as in the paper).  The
-compiled search prices sets with the pricing tour ``"auto"`` itself (exact Held-Karp up to 13
-targets, a host 3-opt tour beyond -- big worlds price thousands of sets, and the downstream
-Ising tour made that 25 s per 64x64 plan); :class:`BundlePricer` prices them with any other
-pricing tour (a callback of the compiled search), memoised per (robot, set), its compute reports
-summed so nothing is hidden.
+Contract: :class:`BundlePricer` prices robots' target sets with any pricing tour other than ``"auto"``
+(a callback of the compiled search, which prices ``"auto"`` itself: Held-Karp up to 13 targets, a host
+3-opt tour beyond), memoised per (robot, set), its compute reports summed so nothing is hidden.
+Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

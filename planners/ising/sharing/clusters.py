@@ -1,11 +1,10 @@
 """The clusters of a coarse split (big worlds; beyond paper 5.3): compiled steps.
 
 Contract: :meth:`.stages.SplitStages.coarse_split` splits a group too large for the chip even with
-spin-budget branching as ``coarse_split`` of ``tests/sharing_search_reference.py`` does (its
-oracle): the targets gathered into farthest-point clusters (:func:`coarsen`; robots single, or
-clustered when they alone would take more than half the chip), the split solved on the clusters'
-summed weights, every candidate expanded to the group's nodes and re-scored on the fine weights,
-best cut first (:func:`expand_candidates`).
+spin-budget branching as ``coarse_split`` of ``tests/sharing_search_reference.py`` (its oracle) does:
+targets in farthest-point clusters (:func:`coarsen`), the split solved on the clusters' summed weights,
+every candidate expanded and re-scored on the fine weights (:func:`expand_candidates`).
+Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

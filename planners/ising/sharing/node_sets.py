@@ -1,15 +1,9 @@
 """Node sets of the Ising target sharing: sorted node arrays interned in a pool, as integer ids.
 
-A set is an ``int64`` id into a pool of one world (``R`` robots): its sorted nodes are stored back to
-back in one arena, and a table holds per id the start in the arena, the size, the robot count (nodes
-``< R``) and the id of its targets (-1: not yet known).  Two open-addressing hash tables map a set's
-hash (XOR of a splitmix64 of each node) to the ids with that hash, and a pair of ids to the id of
-their union.  Equal sets get the same id, so ids compare, key memos and fill tables as the sets
-would, in worlds of any size.  Id :data:`EMPTY` is the empty set.  Arrays handed out are views of the
-arena: callers never write to them.
-
-The pool is one ``numba.typed.List`` of ``int64`` arrays (grown by replacing an entry), so Python code
-hands it to a compiled step in a few microseconds: a tuple of typed containers costs numba tens.
+Contract: a set is an ``int64`` id into a pool of one world; equal sets get the same id, so ids compare,
+key memos and fill tables as the sets would, in worlds of any size.  Id :data:`EMPTY` is the empty set;
+arrays handed out are views of the pool's arena, which callers never write to.
+Design notes (layout, hashing): docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

@@ -1,12 +1,10 @@
 """Boundary refinement of Ising target sharing (beyond paper 5.3): neighbouring robots re-split on the chip.
 
-Contract: :func:`refine_boundaries` does what ``refine_boundaries`` of
-``tests/sharing_search_reference.py`` does (its oracle): up to ``pair_rounds`` rounds; in each, every
-pair of neighbouring robots (each robot's ``pair_neighbours`` nearest, by the least distance between
-their nodes) not yet tried with the same sets is re-split -- its two robots and their targets as one
-group, once per weight shift of ``pair_shifts``, all pairs in one chip submission -- and the re-split
-that lowers the pair's route cost most is kept, largest gain first, each robot moved at most once a
-round.  The chip proposes the partitions; the route cost decides.
+Contract: :func:`refine_boundaries` does what ``refine_boundaries`` of ``tests/sharing_search_reference.py``
+(its oracle) does: up to ``pair_rounds`` rounds in which neighbouring robots' pairs are re-split on the
+chip (once per weight shift of ``pair_shifts``, all pairs in one submission) and the re-split that lowers
+a pair's route cost most is kept, largest gain first, each robot moved at most once a round.
+Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

@@ -1,19 +1,10 @@
 """Recursive Ising target sharing: the search of paper 5.3 (Algorithm 3).
 
-Contract: ``IsingSharing(chip, config).assign(dist, n_robots, tour, rng) -> SharingResult``;
-a split that never decodes valid, a group the chip cannot take or a refused program is a
-failure result (``result.failure``), never an invented split.  The search is Python over small
-compiled steps: stages split every group with several robots, then refine one-robot groups and
-bundles, a beam of distinct candidates carried to the complete assignments (:mod:`.stages`),
-whose bundles are placed and which are compared by route cost (:mod:`.placement`); each stage's
-splits x quantization rules go block-packed into one chip submission (:mod:`.submission`);
-groups beyond the chip split on clusters (:mod:`.clusters`) or spin-budget branches.  Then,
-beyond the paper (``pair_rounds``, 0 in ``PaperIsingSharing``), the boundaries between
-neighbouring robots are re-split on the chip (:mod:`.refine`).  Chip calls are metered
-(:class:`ising_backend.MeteredSolver`); a chip that cannot answer is a failure with
-``stats["chip_unavailable"]``, which the pipeline hands to SSA (:mod:`planners.fallback`).  The
-Python search in ``tests/sharing_search_reference.py`` is its oracle.  Choices and measurements:
-docs/design/ising_sharing.md.
+Contract: ``IsingSharing(chip, config).assign(dist, n_robots, tour, rng) -> SharingResult``; a split that
+never decodes valid, a group the chip cannot take or a refused program is a failure result, never an
+invented split (a chip that cannot answer: ``stats["chip_unavailable"]``, which the pipeline hands to
+SSA).  The search is Python over compiled steps (:mod:`.stages`, :mod:`.placement`, :mod:`.refine`); chip
+calls are metered.  Oracle: ``tests/sharing_search_reference.py``; design: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

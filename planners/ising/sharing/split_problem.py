@@ -1,14 +1,10 @@
 """The split problem of Ising target sharing (paper 5.3), compiled: its QUBO, its branches, its reads scored.
 
-* :func:`split_model` -- the anchors (``choose_anchors`` of ``tests/sharing_search_reference.py``)
-  and the reduced ``-cut`` QUBO (``build_split_qubo`` there,
-  without the balance term) of one group, in one call.
-* :func:`score_split_reads` -- every read of one split's programs: the partition it
-  encodes, the validity rule, the unquantized cut
-  (``cut_value`` there) and the first read with the same spins.
-
-Sums follow numpy's order (:func:`ising_backend.numeric.pairwise_sum`), so the results are
-the bits of the numpy functions, which the tests compare against.
+Contract: :func:`split_model` gives one group's anchors and reduced ``-cut`` QUBO (without the balance
+term), :func:`branch_problems` its spin-budget branches, :func:`score_split_reads` every read's
+partition, validity, unquantized cut and first read with the same spins.  Sums follow numpy's order, so
+the results are the bits of ``choose_anchors`` / ``build_split_qubo`` / ``cut_value`` of
+``tests/sharing_search_reference.py``.  Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

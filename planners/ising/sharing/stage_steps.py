@@ -1,16 +1,10 @@
 """The compiled steps of the split stages (paper 5.3, Algorithm 3) on node-set ids.
 
-Each step is one compiled call from :mod:`.stages` / :mod:`.refine` (the search itself is Python):
-the splits of a list of groups solved on the chip (:func:`solve_splits`: their split problems
-(:func:`problems_of`), the one-partition splits, the submissions with their retries (map and pack by
-:func:`ising_backend.pack_qubo_stack`, anneal through the session record, decode and score) and the
-reads merged into each split's candidates (:func:`keep_candidates`)), the groups a stage splits
-(:func:`todo_groups`) and the states it leaves (:func:`expand_states`).
-
-Candidates live in a *store* ``(cut (rows, C), side0 (rows, C), side1 (rows, C), count (rows,))``:
-row ``i`` holds problem ``i``'s distinct valid partitions (set ids of :mod:`.node_sets`), best cut
-first.  Sums and ties follow ``tests/sharing_search_reference.py``, their oracle.
-Design notes: docs/design/ising_sharing.md.
+Contract: each step is one compiled call from :mod:`.stages` / :mod:`.refine`: :func:`solve_splits` solves
+a list of groups' splits on the chip (split problems, submissions with retries through
+:func:`ising_backend.pack_qubo_stack` and the session record, reads scored and kept as each split's
+candidates), :func:`todo_groups` gives the groups a stage splits, :func:`expand_states` the states it
+leaves.  Oracle: ``tests/sharing_search_reference.py``; design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,10 @@
 """The split stages of Ising target sharing (paper 5.3, Algorithm 3): the search, in Python.
 
 Contract: :meth:`SplitStages.split_all` makes the decisions of ``SplitSearch.split_all`` in
-``tests/sharing_search_reference.py`` (its oracle; the tests compare both): the same groups, memo,
-stage submissions (:func:`.stage_steps.solve_splits`), seeds and win draws from the caller's
-``numpy.random.Generator``, retries, candidate order and beam.  Groups are ids of a node-set pool
-(:mod:`.node_sets`) and the loops over nodes and reads are small compiled steps
-(:mod:`.stage_steps`, :mod:`.clusters`); this module only decides what to split, submits and
-keeps.  A split a few spins beyond the chip goes into its stage's submission as its spin-budget
-branches (:func:`.split_problem.branch_problems`); a group beyond that is split on target clusters first
-(:meth:`SplitStages.coarse_split`).  Where the search cannot go on it raises :class:`SharingStop`
-naming why (a split with no valid candidate after the retries, a stage program the chip would
-refuse, robots that cannot be coarsened onto the chip).
+``tests/sharing_search_reference.py`` (its oracle): the same groups, memo, stage submissions, seeds and
+win draws, retries, candidate order and beam; the loops over nodes and reads are compiled steps
+(:mod:`.stage_steps`, :mod:`.clusters`).  Where the search cannot go on it raises :class:`SharingStop`
+naming why.  Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

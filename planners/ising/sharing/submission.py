@@ -1,12 +1,10 @@
 """The chip side of Ising target sharing (paper 5.3): a stage's program record and its refusals.
 
-Every split of a stage x every quantization rule of the portfolio goes into one chip submission
-(:func:`.stage_steps.submit_stage`): mapped and block-packed first-fit decreasing into shared chip
-programs (:func:`ising_backend.pack_qubo_stack`), annealed through the sharing call's machine session,
-every read decoded, checked and scored on the unquantized cut; splits beyond the chip go in as their
-spin-budget branches (:func:`.split_problem.branch_problems`).  :class:`StageSolver` holds the portfolio's
-rule ids, the chip's coefficient limits and spins, the machine and the running call's meter (whose
-ledger the call's session charges).
+Contract: :class:`StageSolver` holds what a stage's one chip submission (:func:`.stage_steps.submit_stage`:
+every split x rule mapped, block-packed, annealed, decoded and scored) needs: the portfolio's rule ids,
+the chip's coefficient limits and spins, the machine and the running call's meter (whose ledger the
+call's session charges); :func:`stage_refusal` names a refused stage program.
+Design notes: docs/design/ising_sharing.md.
 """
 
 from __future__ import annotations

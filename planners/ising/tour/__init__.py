@@ -1,12 +1,10 @@
 """Ising tour construction: move selection on the physical chip, and the clustered construction
 of paper section 5.2 (Algorithm 2).
 
-``config`` (options), ``selection`` (the chip backend: starts over the move engine of
-:mod:`planners.ising.moves`), ``engine`` (the
-one-hot subproblem solve, compiled), ``qubo``
-(eq. 7 max-cut and one-hot open-path model builders, decoders, scorers), ``cluster``
-(clustering and cluster ordering), ``search`` (``IsingTour``: local TSPs, patch refinement,
-starts; dispatch to the chip backend).
+``config`` (options), ``search`` (``IsingTour``), ``selection`` (the chip backend, over
+:mod:`planners.ising.moves`), ``cluster`` (clustering and cluster ordering), ``onehot`` (the one-hot and
+max-cut programs), ``engine`` (the one-hot subproblem solve) and ``kernels`` (model builders, decoders),
+compiled.  Design notes: docs/design/ising_tour.md.
 """
 
 from planners.ising.tour.cluster import TourFailure

@@ -1,13 +1,10 @@
 """Compiled one-hot subproblem solve of the clustered Ising tour (paper 5.2): the one implementation.
 
-Contract: :func:`solve_order` solves one open-path subproblem (cluster order, local TSP or
-refinement patch): the penalty, the one-hot Ising model, spin-budget branching of a model above
-the budget (the strongest spins frozen, ``2^k`` programs, as :func:`ising_backend.branch`), per
-attempt a seed drawn from the construction's ``numpy.random.Generator``, the programs on the
-logical solver (:func:`ising_backend.solve_submit`) or, quantized by one rule, on the physical chip
-(:func:`ising_backend.submit_packs`), decode, the cheapest valid order and the statistics.  Each
-attempt's calls and emulation seconds are returned so the caller charges the machine as its own
-call would.  ``tests/tour_reference.py`` holds the Python loop it is tested against.
+Contract: :func:`solve_order` solves one open-path subproblem (cluster order, local TSP or refinement
+patch): penalty, one-hot Ising model, spin-budget branching above the budget, per attempt a seed from the
+construction's ``numpy.random.Generator``, the programs on the logical solver or, quantized by one rule,
+on the chip, decode and the cheapest valid order; each attempt's calls and emulation seconds are
+returned for the caller to charge.  Oracle: ``tests/tour_reference.py``; design: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

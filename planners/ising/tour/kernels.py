@@ -1,15 +1,10 @@
 """Compiled host kernels of the clustered Ising tour (paper 5.2): model builders and decoders.
 
-* :func:`onehot_ising` / :func:`maxcut_ising` -- the Ising form (``x = (1 + s) / 2``) of the one-hot
-  open-path QUBO (eq. 1) and the max-cut split (eq. 7), built directly (docs/design/ising_tour_qubo.md; the
-  numpy QUBOs they are tested against: ``tests/tour_qubo_reference.py``).
-* :func:`expand_branches` -- the frozen spins of a spin-budget branching
-  (:func:`ising_backend.branching.branch_stack`) put back into every read.
-* :func:`best_onehot` -- one-hot decode of every read and the cheapest valid order.
-* :func:`dist_flags` / :func:`route_cost` -- the solve's input check and the cost of its route
-  (numpy's summation order).
-
-The numpy functions of :mod:`.qubo` are the references the tests compare these against.
+Contract: :func:`onehot_ising` / :func:`maxcut_ising` build the Ising form of the one-hot open-path QUBO
+(eq. 1) and of the max-cut split (eq. 7) directly; :func:`expand_branches` puts a branching's frozen spins
+back into every read; :func:`best_onehot` decodes every read and keeps the cheapest valid order;
+:func:`dist_flags` / :func:`route_cost` check the input and price the route.
+Oracle: ``tests/tour_qubo_reference.py``; design notes: docs/design/ising_tour_qubo.md.
 """
 
 from __future__ import annotations

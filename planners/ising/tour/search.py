@@ -1,17 +1,10 @@
-"""Ising tour construction: the move-selection search on the physical chip (default) and the
-clustered construction of paper 5.2 (Algorithm 2).
+"""Ising tour construction: chip move selection (default) and the clustered construction of paper 5.2.
 
-Contract: ``IsingTour(chip, config).solve(dist, rng) -> TourResult`` orders nodes
-``1..n`` of ``dist`` into an open route from node 0; a search that never decodes
-valid is a failure result (``result.failure``), never a repaired tour.
-``backend="chip"`` (default): :mod:`.selection`.  ``backend="logical"`` (the paper's,
-``PaperIsingTour``): clustering and ordering (:mod:`.cluster`), local one-hot TSPs,
-Ising patch refinement with patience, several independent starts on the logical solver
-(spin budget, no coefficient range); ``backend="chip-onehot"`` quantizes those one-hot
-QUBOs for the physical chip (the paper's negative result).  Every call is metered
-(:class:`ising_backend.MeteredSolver`); a chip that cannot answer is a failure with
-``stats["chip_unavailable"]``, which the pipeline hands to 3-opt (:mod:`planners.fallback`).
-Choices and measurements: docs/design/ising_tour.md.
+Contract: ``IsingTour(chip, config).solve(dist, rng) -> TourResult`` orders nodes ``1..n`` of ``dist`` into
+an open route from node 0; a search that never decodes valid is a failure result, never a repaired tour
+(a chip that cannot answer: ``stats["chip_unavailable"]``, which the pipeline hands to 3-opt).  Backends:
+``"chip"`` (:mod:`.selection`), ``"logical"`` (the paper's Algorithm 2, ``PaperIsingTour``) and
+``"chip-onehot"``.  Every call is metered.  Choices and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

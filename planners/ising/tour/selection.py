@@ -1,17 +1,10 @@
 """The tour on the physical chip: move-selection local search (``TourConfig.backend="chip"``).
 
-Not the paper's one-hot model (its quantized ground state is invalid in the chip's ``[-7, 7]``): the
-chip chooses among improving 2-opt and or-opt moves (:mod:`.moves`), coefficients are of the size of
-the gains, a read is valid when the moves it selects do not overlap, and applied they always give a
-valid route.  Per round the host offers the chip up to ``max_moves`` improving moves (by gain, each
-overlapping at most ``max_overlap`` better ones; at most the chip's spins; halved on every re-issue of
-the round); the selection QUBO goes through the mapping portfolio (``chip_rules``, one program per
-rule, one ``anneal_batch``) and the valid read of largest total gain is applied.  A read selecting
-overlapping moves is invalid and dropped, never repaired.  A round whose reads select nothing valid
-is re-issued up to ``max_retries`` times; a route without an improving move ends the start.  Start 0
-is the nearest-neighbour route; later starts are random orders (``chip_restart="random"``) or
-double-bridge kicks of the best route so far (``"kick"``); ``"auto"`` kicks above :data:`KICK_ABOVE`
-targets.  The cheapest route wins.  Design notes and measurements: docs/design/ising_tour.md.
+Contract: each start runs :func:`planners.ising.moves.search.move_search` on the route's 2-opt and or-opt
+moves: the chip selects a non-overlapping set (a read selecting overlapping moves is dropped, never
+repaired), so applied moves always give a valid route.  Start 0 is the nearest-neighbour route, later
+starts random orders or double-bridge kicks (``chip_restart``; ``"auto"`` kicks above :data:`KICK_ABOVE`
+targets); the cheapest route wins.  Design notes and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

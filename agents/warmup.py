@@ -28,19 +28,13 @@ from pathlib import Path
 
 __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
 
-#: Rough cold compile seconds of each part, each measured alone with an empty cache on a 2-core AMD EPYC
-#: (2026-11-26; the LoRR parts re-measured with the lane-guidance kernels: 17 s / 22 s, were 6 s / 9 s; then
-#: lorr:pibt 15 s and lorr:pibt-flow 20 s with the turning kernel's records; lorr:epibt 27 s; the Ising parts
-#: re-measured 2026-11-26 after the annealing kernel lost two wrapper levels: 120 / 116 / 61 / 37 s, then
-#: with the fleet search compiled whole: 120 / 118 / 67 / 64 s; ising:tour+path 52 s once the chip tour's starts
-#: loop became the Python one, 2026-11-27; ising-paper:tour+path 104 s once the logical one-hot tour compiled no
-#: chip submission, same day;
-#: docs/design/cold_start.md).  Parts compiled side by side share the anneal and quantization kernels, so the
-#: sum over two workers is an upper estimate.
-PART_SECONDS = {"ising:sharing": 120, "ising-paper:tour+path": 104, "ising:tour+path": 52, "ising-fleet": 64,
-                "strong": 22, "fast": 8, "exact": 7, "lorr:pibt": 15, "lorr:pibt-flow": 20,
-                "lorr:epibt": 27,
-                "lorr:windowed": 22}
+#: Cold compile seconds of each part on the reference machine, each alone in a fresh process with an empty
+#: cache (2 cores, AMD EPYC, 2026-11-27, load average below 1; how, and the history: docs/design/cold_start.md).
+#: Parts compiled side by side share the anneal and quantization kernels, so the sum over two workers is an
+#: upper estimate.
+PART_SECONDS = {"ising:sharing": 81, "ising-paper:tour+path": 75, "ising-fleet": 42, "ising:tour+path": 31,
+                "lorr:epibt": 18, "lorr:pibt-flow": 13, "strong": 12, "lorr:windowed": 11, "lorr:pibt": 8,
+                "exact": 7, "fast": 5}
 
 #: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,
 #: quantization and tour kernels they share compile once per worker (measured: one process compiling

@@ -45,7 +45,7 @@ def _priced_by(pricing, nodes):
     return c
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _price(dist, k, s, memo, counters, pricing, pool, R):
     """:meth:`~.bundles.BundlePricer.cost_mask`: with the pricing tour ``"auto"`` (``pricing < 0``)
     Held-Karp up to 13 targets, the host 3-opt tour beyond; else the pricer registered as

@@ -57,7 +57,7 @@ def pairwise_sum(a, lo, n):
     the recursion is unrolled onto an explicit stack (numba caches no recursive functions).
     """
     if n <= 128:
-        return _block_sum(a, lo, n)
+        return _block_sum(a, np.int64(lo), np.int64(n))  # int64, not a literal 0: one specialization
     f_lo = np.empty(64, dtype=np.int64)
     f_n = np.empty(64, dtype=np.int64)
     f_stage = np.zeros(64, dtype=np.int64)

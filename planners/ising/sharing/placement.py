@@ -1,12 +1,9 @@
 """Bundle placement and pair pricing of Ising target sharing (paper 5.3, last step): compiled steps.
 
-Contract: :func:`place_bundles` gives each robot its base set and every robotless bundle, one after
-another, to the robot whose route cost grows least (``assign_bundles`` of
-``tests/sharing_search_reference.py``, the oracle); :func:`pair_gains` prices the candidate re-splits
-of neighbouring robots' sets for the boundary refinement (:mod:`.refine`).  Sets are priced as
-:class:`~.bundles.BundlePricer` prices them, one memo per sharing call: with the pricing tour
-``"auto"`` by the Held-Karp kernel up to 13 targets and the host 3-opt tour's kernel beyond, with
-any other by a callback into the call's pricer (:func:`_price_callback`).
+Contract: :func:`place_bundles` is ``assign_bundles`` of ``tests/sharing_search_reference.py`` (the oracle)
+on set ids; :func:`pair_gains` prices the boundary refinement's candidate re-splits (:mod:`.refine`).  Sets
+are priced as :class:`~.bundles.BundlePricer` prices them, one memo per call.  Design:
+docs/design/ising_sharing.md, "Bundle placement and its pricing".
 """
 
 from __future__ import annotations

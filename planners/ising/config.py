@@ -12,12 +12,25 @@ from __future__ import annotations
 import dataclasses
 import math
 
-__all__ = ["IsingConfig", "check_choice", "check_int", "check_real", "resolve_config"]
+__all__ = ["IsingConfig", "check_choice", "check_int", "check_real", "check_rules", "resolve_config"]
 
 
 def check_choice(name: str, value, options) -> None:
     if value not in options:
         raise ValueError(f"{name} = {value!r} not in {tuple(options)}")
+
+
+def check_rules(name: str, value, options=None) -> tuple:
+    """``value`` (one rule or several) as a tuple of distinct rules, each in ``options`` when given: every
+    rule is one program of each round, so a rule named twice would merge its counts."""
+    rules = (value,) if isinstance(value, str) else tuple(value)
+    if not rules:
+        raise ValueError(f"{name} must name at least one quantization rule")
+    for r in rules if options is not None else ():
+        check_choice(f"{name} entry", r, options)
+    if len(set(rules)) != len(rules):
+        raise ValueError(f"{name} = {rules} names a rule twice (each rule is one program of every round)")
+    return rules
 
 
 def check_int(name: str, value, lo: int, *, none: bool = False, hi: int | None = None) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 from ising_backend import CallLedger, ChipUnavailableError, as_machine, mapping_record
 from planners.base import SharingResult
 from planners.compute import ComputeReport
-from planners.ising.config import IsingConfig, check_choice, check_int, check_real, resolve_config
+from planners.ising.config import IsingConfig, check_choice, check_int, check_real, check_rules, resolve_config
 from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
 from planners.ising.fleet.local_search import iterated_search
 from planners.ising.moves.routes import route_cost
@@ -70,12 +70,7 @@ class FleetConfig(IsingConfig):
     selection: str = "chip"
 
     def __post_init__(self) -> None:
-        rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
-        if not rules:
-            raise ValueError("chip_rules must name at least one quantization rule")
-        if len(set(rules)) != len(rules):
-            raise ValueError(f"chip_rules = {rules} names a rule twice (each rule is one program of every round)")
-        object.__setattr__(self, "chip_rules", rules)
+        object.__setattr__(self, "chip_rules", check_rules("chip_rules", self.chip_rules))
         for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
                          ("max_retries", 0), ("kicks_per_target", 0), ("min_kicks", 0)):
             check_int(name, getattr(self, name), lo)

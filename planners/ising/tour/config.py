@@ -6,7 +6,7 @@ import math
 
 from dataclasses import dataclass
 
-from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+from planners.ising.config import IsingConfig, check_choice, check_int, check_real, check_rules
 from planners.fallback import FALLBACK_MODES
 
 __all__ = ["TourConfig", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS", "DEFAULT_SOLVER_OPTIONS"]
@@ -93,14 +93,7 @@ class TourConfig(IsingConfig):
         check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)
         check_choice("exit_cost", self.exit_cost, EXIT_COSTS)
         check_choice("chip_restart", self.chip_restart, CHIP_RESTARTS)
-        rules = (self.chip_rules,) if isinstance(self.chip_rules, str) else tuple(self.chip_rules)
-        if not rules:
-            raise ValueError("chip_rules must name at least one quantization rule")
-        for r in rules:
-            check_choice("chip_rules entry", r, _QUANTIZE_RULES)
-        if len(set(rules)) != len(rules):
-            raise ValueError(f"chip_rules = {rules} names a rule twice (each rule is one program of every round)")
-        object.__setattr__(self, "chip_rules", rules)
+        object.__setattr__(self, "chip_rules", check_rules("chip_rules", self.chip_rules, _QUANTIZE_RULES))
         for nm, lo in (("local_limit", 1), ("max_clusters", 1), ("patch_size", 1), ("num_reads", 1),
                        ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1),
                        ("max_moves", 1), ("max_segment", 1), ("max_rounds", 1), ("max_overlap", 0)):

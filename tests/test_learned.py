@@ -29,6 +29,15 @@ def test_train_writes_model_and_sidecar(model_path):
     assert meta["env_id"] == SMALL_ENV_ID and meta["timesteps"] == 256
 
 
+def test_training_leaves_no_log_folder_and_prints_its_table_when_verbose(tmp_path, monkeypatch, capsys):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where SB3's default logger makes its folder
+    train_ppo(64, out=None, env_id=SMALL_ENV_ID, seed=0, verbose=1)
+    assert list(tmp_path.glob("SB3-*")) == []
+    assert "total_timesteps" in capsys.readouterr().out
+
+
 def test_ppo_evaluated_by_the_same_runner(model_path):
     res = evaluate([f"ppo:{model_path}", "strong"], n_worlds=2, env_id=SMALL_ENV_ID,
                    run=RunConfig.from_jobs(1, progress=False))

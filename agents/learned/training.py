@@ -195,6 +195,16 @@ class TrainOptions:
 _OPTION_NAMES = frozenset(f.name for f in fields(TrainOptions))
 
 
+def _logger(verbose: int):
+    """SB3's logger for a training run: its table on stdout when ``verbose``, and no files.  (Without one, SB3
+    makes a ``SB3-<date>`` folder in the system's temporary directory at every ``learn`` and leaves it.)"""
+    import sys
+
+    from stable_baselines3.common.logger import HumanOutputFormat, Logger
+
+    return Logger(folder=None, output_formats=[HumanOutputFormat(sys.stdout)] if verbose else [])
+
+
 def train(
     env_id: str = "mrmt_env/MRMT-v0",
     timesteps: int | None = None,
@@ -307,6 +317,7 @@ def train(
     else:
         from stable_baselines3 import PPO as Algo
     model = Algo(policy_obj, venv, seed=int(seed), device="cpu", verbose=verbose, **params)
+    model.set_logger(_logger(verbose))
     curve_cb = _curve_callback() if curve and out is not None else None
     callbacks = [c for c in (curve_cb, callback) if c is not None]
     t0 = time.perf_counter()

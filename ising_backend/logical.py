@@ -20,7 +20,7 @@ import numpy as np
 from .base import MachineBase
 from .link import MachineSession
 from .tabu import mix_seed, tabu_kernel
-from .programs import ChipProgramError, check_call_seed, sample_bqm, seeded_rng, stack_programs
+from .programs import ChipProgramError, sample_bqm, stack_programs
 from .health import dispatch, program_energy
 from .ledger import CallLedger
 from .models import IsingModel
@@ -103,7 +103,6 @@ class LogicalIsingSolver(MachineBase):
         if int(max_tenure) != max_tenure or max_tenure < 1:
             raise ValueError(f"max_tenure = {max_tenure!r} must be an integer >= 1")
         self.max_tenure = int(max_tenure)
-        self._rng = seeded_rng(seed, "LogicalIsingSolver")  # a subclass draws the same seeds
         self.ledger = CallLedger() if ledger is None else ledger
         self.health = health
         self._rounds = CallLedger()  # a faulty chip's dispatch rounds of the running call, added up in order
@@ -240,7 +239,7 @@ class LogicalIsingSolver(MachineBase):
         if int(num_reads) != num_reads or num_reads < 1:
             raise ValueError(f"num_reads = {num_reads!r} must be a positive integer")
         num_reads = int(num_reads)
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
+        seed = self._draw_seed(seed)
         t0 = time.perf_counter()
         out: list[LogicalResult | None] = [None] * len(models)
         # group by size (no padding: padded spins would waste tabu moves)
@@ -316,7 +315,7 @@ class LogicalIsingSolver(MachineBase):
         if J.ndim == 2:
             J = np.broadcast_to(J, (B, n, n))
         J = _writable(J)  # a broadcast of one program is read-only
-        seed = int(self._rng.integers(0, 2**63 - 1)) if seed is None else check_call_seed(seed)
+        seed = self._draw_seed(seed)
         t0 = time.perf_counter()
         with self._metering():
             spins, _ = self._run(h, J, num_reads, int(mix_seed(np.uint64(seed), n)))

@@ -80,7 +80,8 @@ def test_check_command_on_the_2023_record(tmp_path):
                  str(SHARED / "2023-main/best_solutions/MR23-I-04.json.zip"), "--json")
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == {"numTaskFinished": 1741, "errors": 0, "steps": 500, "errands": 1741,
-                                       "scheduleErrors": 0, "claimedTaskFinished": 1741}
+                                       "scheduleErrors": 0, "claimedTaskFinished": 1741,
+                                       "eventsAgree": None, "numEntryTimeouts": 0}
 
 
 def test_executor_options_reach_the_executor_and_the_record(tmp_path):

@@ -10,7 +10,8 @@ errands done]``, one per errand reached) and ``tasks`` (``[id, revealed, [row, c
 
 :func:`check_output` re-simulates any such file on its instance: the proposed actions
 (``plannerPaths``, else ``actualPaths``) through the rules, the accepted schedule
-(``actualSchedule``) through the task rules; 2023 instances assign by their rule.  A 2024 file
+(``actualSchedule``) through the task rules, a step of ``T`` only as a timeout; 2023 instances assign by
+their rule.  A 2024 file
 without a schedule cannot tell its tasks (``numTaskFinished`` is then ``None``).
 """
 
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mrmt_env.lorr.rules import ACTION_LETTERS, ORIENT_LETTERS, parse_actions
+from mrmt_env.lorr.rules import ACTION_LETTERS, ORIENT_LETTERS, TIMEOUT, WAIT, parse_actions
 from mrmt_env.lorr.sim import LoRRSimulator
 
 __all__ = ["write_output", "output_dict", "check_output", "read_output", "CheckResult", "OutputError"]
@@ -35,7 +36,7 @@ class OutputError(ValueError):
 def _paths(rows: list[np.ndarray], r: int) -> list[str]:
     if not rows:
         return [""] * r
-    letters = np.array(list(ACTION_LETTERS))[np.stack(rows, axis=1)]
+    letters = np.array(list(ACTION_LETTERS))[np.stack(rows, axis=1)]  # TIMEOUT (-1): the last letter, T
     return [",".join(row) for row in letters.tolist()]
 
 
@@ -58,7 +59,7 @@ def output_dict(sim: LoRRSimulator, planner_times=None) -> dict:
         "makespan": int(sim.makespan),
         "numPlannerErrors": len(sim.errors),
         "numScheduleErrors": len(tasks.schedule_errors),
-        "numEntryTimeouts": 0,
+        "numEntryTimeouts": int(sim.timeouts),
         "actualPaths": _paths(sim.actual, r),
         "plannerPaths": _paths(sim.planned, r),
         "plannerTimes": [float(x) for x in (planner_times if planner_times is not None else [])],
@@ -82,7 +83,8 @@ def write_output(sim: LoRRSimulator, path, planner_times=None) -> Path:
 @dataclass(frozen=True)
 class CheckResult:
     """What a re-simulation found: tasks finished (``None`` without a schedule), errands reached,
-    invalid joint actions, rejected schedules, steps, and whether the file's own counts agree."""
+    invalid joint actions, rejected schedules, steps, the file's own claim, and whether the file's ``events``
+    are the re-simulated ones (``None`` when it has none or no schedule)."""
 
     numTaskFinished: int | None
     errands: int | None
@@ -90,10 +92,13 @@ class CheckResult:
     scheduleErrors: int
     steps: int
     claimed: int | None
+    events_agree: bool | None = None
+    timeouts: int = 0
 
     def to_json(self) -> dict:
         return {"numTaskFinished": self.numTaskFinished, "errors": self.errors, "steps": self.steps,
-                "errands": self.errands, "scheduleErrors": self.scheduleErrors, "claimedTaskFinished": self.claimed}
+                "errands": self.errands, "scheduleErrors": self.scheduleErrors, "claimedTaskFinished": self.claimed,
+                "eventsAgree": self.events_agree, "numEntryTimeouts": self.timeouts}
 
 
 def read_output(path) -> dict:
@@ -179,10 +184,23 @@ def check_output(instance, data: dict, path="output") -> CheckResult:
                 proposal = sim.tasks.assigned.copy()
                 for a, k in changes:
                     proposal[a] = k
+        late = acts[t] == TIMEOUT
+        if late.all():  # the entry's decision was late: nobody moved, no task was updated
+            sim.time_out()
+            continue
+        if late.any():  # a short action vector: the start kit refuses it and everyone waits
+            sim.step(np.full(r, WAIT, dtype=np.int64), proposal)
+            sim.errors.append(("incorrect vector size", -1, -1, t + 1))
+            continue
         sim.step(acts[t], proposal)
     counted = schedule is not None
     claimed = data.get("numTaskFinished")
+    events = data.get("events")
+    agree = None
+    if counted and isinstance(events, list) and instance.strategy is None:
+        agree = [list(e) for e in events] == [list(e) for e in sim.tasks.events]
     return CheckResult(numTaskFinished=sim.finished if counted else None,
                        errands=sim.tasks.errands_done if counted else None, errors=len(sim.errors),
                        scheduleErrors=len(sim.tasks.schedule_errors), steps=steps,
-                       claimed=int(claimed) if isinstance(claimed, int) else None)
+                       claimed=int(claimed) if isinstance(claimed, int) else None, events_agree=agree,
+                       timeouts=sim.timeouts)

@@ -92,8 +92,9 @@ class LoRRInstance:
         return self.errands[self.offsets[i]:self.offsets[i + 1]]
 
     def open_target(self) -> int:
-        """2024: how many tasks are kept open (``ceil(reveal x teamSize)``, the start kit's float test)."""
-        return int(math.ceil(self.reveal * self.team_size - 1e-9))
+        """2024: how many tasks are kept open: ``reveal x teamSize`` as the start kit stores it (an ``int`` set from
+        the ``float`` product, so truncated: 1.3 x 8 keeps 10 open)."""
+        return int(np.float32(self.reveal) * np.float32(self.team_size))
 
 
 def example_instance_path() -> Path:
@@ -249,6 +250,9 @@ def read_instance(path) -> LoRRInstance:
     reveal = data.get("numTasksReveal", 1)
     if isinstance(reveal, bool) or not isinstance(reveal, (int, float)) or not reveal > 0 or not math.isfinite(reveal):
         raise LoRRFormatError(f"{path}: numTasksReveal must be a number > 0, got {reveal!r}")
+    if int(np.float32(reveal) * np.float32(team)) < 1:
+        raise LoRRFormatError(f"{path}: numTasksReveal {reveal!r} x teamSize {team} keeps no task open (the start kit "
+                              f"truncates the product; it must be at least 1)")
     strategy = data.get("taskAssignmentStrategy")
     if strategy is not None and strategy not in ASSIGNMENT_STRATEGIES:
         raise LoRRFormatError(f"{path}: taskAssignmentStrategy {strategy!r} is not supported; supported: "

@@ -12,16 +12,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "ACTION_LETTERS", "ORIENT_LETTERS", "N_ACTIONS",
+__all__ = ["FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "TIMEOUT", "ACTION_LETTERS", "ORIENT_LETTERS", "N_ACTIONS",
            "ACTION_MODELS", "n_actions", "next_states", "next_cells_four", "first_error", "parse_actions"]
 
 FORWARD, CLOCKWISE, COUNTER, WAIT = 0, 1, 2, 3
+#: A step the entry's decision was late for (start kit ``Action::NA``, written ``T``): the robot does not move.
+TIMEOUT = -1
 N_ACTIONS = 4
 #: ``MAPF_T`` (the rules) or ``MAPF`` (the package's four-direction model: 0 stay, 1 up, 2 down,
 #: 3 left, 4 right, orientation unused; the same conflicts).
 ACTION_MODELS = ("MAPF_T", "MAPF")
-#: Output letters of the actions (start kit ``actualPaths``); ``T`` (timeout) reads as a wait.
-ACTION_LETTERS = "FRCW"
+#: Output letters of the actions (start kit ``actualPaths``), :data:`TIMEOUT` last (``T``).
+ACTION_LETTERS = "FRCWT"
 #: Orientation letters of the output's ``start`` (0 east, 1 south, 2 west, 3 north).
 ORIENT_LETTERS = "ESWN"
 
@@ -92,11 +94,11 @@ def first_error(pos: np.ndarray, nxt: np.ndarray, blocked: np.ndarray):
 
 
 def parse_actions(text: str, where: str) -> np.ndarray:
-    """One robot's ``actualPaths`` string (``F,R,C,W,T``; ``T`` = timed out, a wait) as action codes."""
+    """One robot's ``actualPaths`` string (``F,R,C,W,T``) as action codes (``T``: :data:`TIMEOUT`)."""
     if not text:
         return np.zeros(0, dtype=np.int8)
     letters = text.split(",")
-    table = {"F": FORWARD, "R": CLOCKWISE, "C": COUNTER, "W": WAIT, "T": WAIT}
+    table = {"F": FORWARD, "R": CLOCKWISE, "C": COUNTER, "W": WAIT, "T": TIMEOUT}
     out = np.empty(len(letters), dtype=np.int8)
     for k, a in enumerate(letters):
         code = table.get(a.strip())

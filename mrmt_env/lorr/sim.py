@@ -4,7 +4,9 @@ Contract: ``LoRRSimulator(instance)``; :meth:`LoRRSimulator.step` ``(actions, pr
 finished``.  Per step (start kit ``BaseSystem::simulate``): the joint action is checked
 (:mod:`mrmt_env.lorr.rules`); an invalid one is replaced by every robot waiting and counted in
 :attr:`errors`; robots move; then the task rules (:mod:`mrmt_env.lorr.tasks`) take the proposed
-schedule (2024), mark errands reached and reveal tasks.  The record (proposed and executed actions,
+schedule (2024), mark errands reached and reveal tasks.  :meth:`LoRRSimulator.time_out` is a step the
+entry's decision was late for (start kit ``BaseSystem::simulate``): every robot's action is ``NA``
+(written ``T``), nobody moves, no task is updated, and it counts in :attr:`timeouts`.  The record (proposed and executed actions,
 events, schedules) is what :mod:`agents.lorr.output` writes; ``makespan`` is, as in the start
 kit, the most steps any robot spent holding a task.
 """
@@ -14,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from mrmt_env.lorr.instance import LoRRInstance
-from mrmt_env.lorr.rules import WAIT, first_error, n_actions, next_cells_four, next_states
+from mrmt_env.lorr.rules import TIMEOUT, WAIT, first_error, n_actions, next_cells_four, next_states
 from mrmt_env.lorr.tasks import make_tasks
 
 __all__ = ["LoRRSimulator"]
@@ -38,6 +40,7 @@ class LoRRSimulator:
         self.t = 0
         self.tasks = make_tasks(instance)
         self.errors: list[tuple[str, int, int, int]] = []
+        self.timeouts = 0
         self.record = bool(record)
         self.planned: list[np.ndarray] = []
         self.actual: list[np.ndarray] = []
@@ -73,6 +76,16 @@ class LoRRSimulator:
             names = "F, R, C, W" if self.action_model == "MAPF_T" else "stay, up, down, left, right"
             raise ValueError(f"robot {k}: action {a[k]} is not one of 0..{n - 1} ({names})")
         return a.astype(np.int64)
+
+    def time_out(self) -> None:
+        """One step without a decision (see the module docstring)."""
+        self.busy += self.tasks.goal >= 0
+        if self.record:
+            na = np.full(self.n_robots, TIMEOUT, dtype=np.int8)
+            self.planned.append(na)
+            self.actual.append(na)
+        self.timeouts += 1
+        self.t += 1
 
     def step(self, actions, proposal=None) -> int:
         """Move the robots (all wait on an invalid joint action), then update tasks with ``proposal``

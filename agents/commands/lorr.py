@@ -1,7 +1,9 @@
-"""``mrmt lorr``: League of Robot Runners instances -- run a scheduler and an executor, or check a file.
+"""``mrmt lorr``: League of Robot Runners instances -- run a scheduler and an executor, a whole round, or check a file.
 
     mrmt lorr run RANDOM-01.json --scheduler ising --executor pibt [--steps N] --out DIR
     mrmt lorr run A.json B.json --scheduler lorr-greedy,strong --seeds 2 --backend ray --out DIR
+    mrmt lorr run RANDOM-01.json --entry default [--step-limit rules] --out DIR
+    mrmt lorr round ROUND_DIR --entry default --out DIR [--steps N] [--resume]
     mrmt lorr check RANDOM-01.json OUTPUT.json [--json]
 
 ``run`` prints, per instance x scheduler x seed, the tasks finished, the best-known and the
@@ -9,7 +11,9 @@ share, step-time p50/p99 (scheduler + executor, host + chip) and errors; with ``
 writes ``DIR/output.json`` (one run; ``DIR/<instance>-<scheduler>-<seed>.json`` for several) in
 the start kit's output format and ``DIR/runs.json``.  Several runs go through the task runner
 (``--backend inline|process|ray``, results identical to inline).  ``check`` re-simulates an
-output file as the start kit's evaluation does.  Bad input: one line, exit 2.
+output file as the start kit's evaluation does.  ``--entry`` takes the scheduler, the planner and their options
+from an entry (:mod:`agents.lorr.entry`) and runs under the rules' clock unless ``--step-limit`` says otherwise;
+``round`` runs an entry on every instance of a round folder (:mod:`agents.lorr.round`).  Bad input: one line, exit 2.
 """
 
 from __future__ import annotations
@@ -25,13 +29,16 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 def add_arguments(parser) -> None:
     from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
-    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,check}")
-    run = sub.add_parser("run", help="run instances with a scheduler and an executor")
+    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check}")
+    run = sub.add_parser("run", help="run instances with a scheduler and an executor (or an entry)")
     run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
-    run.add_argument("--scheduler", default="lorr-greedy",
+    run.add_argument("--entry", default=None, metavar="NAME|FILE",
+                     help="an entry (default: the package's; or a .toml / .json file) chooses the scheduler, the planner "
+                          "and their options per instance; runs under the rules' clock unless --step-limit says otherwise")
+    run.add_argument("--scheduler", default=None,
                      help="comma-separated: lorr-greedy (the start kit's default), strong, ising, fast, "
                           "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
-    run.add_argument("--executor", default="pibt",
+    run.add_argument("--executor", default=None,
                      help="the one-step planner: pibt (PIBT with turning; default), pibt-flow (PIBT along traffic-flow "
                           "guide paths, the start kit's default planner), epibt (PIBT over 3-action operations with "
                           "large-neighbourhood search, the best on RANDOM), epibt-ising (epibt with the chip choosing "
@@ -50,37 +57,71 @@ def add_arguments(parser) -> None:
     run.add_argument("--no-keep", action="store_true",
                      help="with --replan: re-plan from scratch (by default a re-planned robot keeps its task unless "
                           "given one of smaller makespan or its task goes to another robot)")
+    _add_clock_arguments(run, "default: none (work-bounded, deterministic); with --entry: rules")
     run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
     run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
     add_decision_arguments(run, "inline backend only")
     add_runner_arguments(run)
     add_chip_argument(run, who="the ising scheduler")
+    rnd = sub.add_parser("round", help="run an entry on every instance of a round folder, scored as the League scores")
+    rnd.add_argument("folder", metavar="ROUND_DIR", help="a round folder of the archive (e.g. '2024 Competition/Main "
+                                                         "Round Evaluation Instances'): <domain>/<NAME>.json")
+    rnd.add_argument("--entry", default="default", metavar="NAME|FILE", help="the entry (default: the package's)")
+    rnd.add_argument("--out", required=True, help="directory: <NAME>/output.json and run.json, summary.json, summary.md")
+    rnd.add_argument("--steps", type=int, default=None,
+                     help="run the first N steps of each instance (a prefix: its share against the best-known pro rata)")
+    rnd.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    rnd.add_argument("--best-known", default=None, metavar="FILE",
+                     help="a best-known table ({round: {NAME: [agents, steps, tasks]}}); default: the package's table of "
+                          "the archive's published scores")
+    rnd.add_argument("--resume", action="store_true", help="keep instances already run by the same entry, steps, clock, seed")
+    _add_clock_arguments(rnd, "default: rules")
+    rnd.add_argument("--jobs", type=int, default=1,
+                     help="instances at once (default 1: under the clock each instance wants the cores to itself)")
+    rnd.add_argument("--backend", default="local", choices=("local", "ray"),
+                     help="local: each instance in a fresh process here (default); ray: Ray tasks (--address)")
+    rnd.add_argument("--address", default=None, help="a running Ray cluster's address (implies --backend ray)")
+    rnd.add_argument("--no-progress", action="store_true", help="print nothing while instances run")
     check = sub.add_parser("check", help="re-simulate an output file on its instance")
     check.add_argument("instance", metavar="INSTANCE.json")
     check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
     check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
 
 
+def _add_clock_arguments(parser, default: str) -> None:
+    parser.add_argument("--step-limit", default=None, metavar="S|rules|none",
+                        help=f"the start kit's clock: seconds per step for scheduler and planner together, rules (1 s), "
+                             f"or none; a late decision makes every robot wait, counted as timeouts ({default})")
+    parser.add_argument("--preprocess-limit", type=float, default=None, metavar="S",
+                        help="seconds for preprocessing under the clock (default 30, the start kit's)")
+
+
+def clock_from_args(args, default: str | None):
+    """The :class:`~mrmt_env.lorr.clock.StepLimit` of ``--step-limit`` / ``--preprocess-limit`` (``default`` when
+    ``--step-limit`` is not given), or ``None``; ``ValueError`` naming a bad value."""
+    from mrmt_env.lorr.clock import RULES_PREPROCESS_S, step_limit
+
+    text = args.step_limit if args.step_limit is not None else default
+    prep = RULES_PREPROCESS_S if args.preprocess_limit is None else args.preprocess_limit
+    if text is None or str(text).strip().lower() == "none":
+        if args.preprocess_limit is not None:
+            raise ValueError("--preprocess-limit acts under a clock: add --step-limit")
+        return None
+    try:
+        return step_limit(text, prep)
+    except ValueError as exc:
+        raise ValueError(f"--step-limit / --preprocess-limit: {exc}") from None
+
+
 def executor_options(executor: str, items: list[str], grid) -> dict:
     """``KEY=VALUE`` items as the executor's keyword options (integers, ``true`` / ``false``, else text),
-    checked by building the executor once on ``grid``; ``ValueError`` naming a malformed item, an option
-    the executor does not take (and those it takes) or a value it refuses."""
-    import inspect
-
-    from planners.mapf import TURNING_EXECUTORS
-
-    cls = TURNING_EXECUTORS[executor]
-    known = [n for n, p in inspect.signature(cls).parameters.items()
-             if n not in ("grid", "seed", "guidance") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    checked by :func:`check_executor_options`; ``ValueError`` naming a malformed item."""
     options: dict = {}
     for item in items:
         key, eq, text = item.partition("=")
         key = key.strip().replace("-", "_")
         if not eq or not key:
             raise ValueError(f"--executor-option {item!r}: expected KEY=VALUE")
-        if key not in known:
-            raise ValueError(f"--executor-option {item!r}: {executor} takes no option {key!r}; "
-                             f"its options: {', '.join(known)}")
         text = text.strip()
         low = text.lower()
         if low in ("true", "false"):
@@ -90,20 +131,63 @@ def executor_options(executor: str, items: list[str], grid) -> dict:
                 options[key] = int(text)
             except ValueError:
                 options[key] = text
+    return check_executor_options(executor, options, grid)
+
+
+def check_executor_options(executor: str, options: dict, grid) -> dict:
+    """``options`` when ``executor`` takes them all (checked by building it once on ``grid``); ``ValueError`` naming
+    an option the executor does not take (and those it takes) or a value it refuses."""
+    import inspect
+
+    from planners.mapf import TURNING_EXECUTORS
+
+    cls = TURNING_EXECUTORS[executor]
+    known = [n for n, p in inspect.signature(cls).parameters.items()
+             if n not in ("grid", "seed", "guidance") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    for key, value in options.items():
+        if key not in known:
+            raise ValueError(f"--executor-option {key}={value}: {executor} takes no option {key!r}; "
+                             f"its options: {', '.join(known)}")
     try:
         cls(grid, **options)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"--executor-option: {exc}") from None
-    return options
+    return dict(options)
+
+
+def check_entry(entry, chip=None) -> None:
+    """Every rule of ``entry`` buildable: its scheduler by name, its planner and options on the example map;
+    ``ValueError`` naming the entry's file and rule."""
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.instance import example_instance_path, read_instance
+    from planners.mapf import TURNING_EXECUTORS
+
+    grid = read_instance(example_instance_path()).grid
+    for rule in entry.rules:
+        c = rule.choice
+        where = f"{entry.source} rule {c.rule}"
+        try:
+            if c.planner not in TURNING_EXECUTORS:
+                raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
+            own = {k: v for k, v in c.options.items() if k in ("replan", "keep")}
+            make_scheduler(c.scheduler, chip=chip, **own)
+            if "guidance" in c.options:
+                from planners.mapf.guidance import check_guidance
+
+                check_guidance(c.options["guidance"])
+            check_executor_options(c.planner, c.options.get("executor_options", {}), grid)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
 
 
 def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, chip, options: dict, out: str | None,
-              out_name: str | None) -> dict:
+              out_name: str | None, limit=None) -> dict:
     """One run (module level, for the task runner); writes its output file when ``out`` is given."""
     from agents.lorr.output import write_output
     from agents.lorr.run import run_lorr
 
-    record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options)
+    record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options,
+                                   limit=limit)
     if out:
         write_output(sim, Path(out) / out_name, planner_times=step_s)
         record["output"] = str(Path(out) / out_name)
@@ -125,48 +209,73 @@ def _table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _plans(args, chip) -> tuple[list[tuple], object]:
+    """``[(instance, scheduler, executor, options)]`` the flags or the entry ask for, every name and option checked,
+    and the clock; ``ValueError`` naming what is wrong."""
+    from agents.lorr.schedulers import make_scheduler
+    from mrmt_env.lorr.instance import read_instance
+    from planners.mapf import TURNING_EXECUTORS
+
+    insts = {path: read_instance(path) for path in args.instances}
+    if args.entry is not None:
+        from agents.lorr.entry import load_entry
+
+        given = [f for f, v in (("--scheduler", args.scheduler), ("--executor", args.executor),
+                                ("--guidance", args.guidance), ("--executor-option", args.executor_option),
+                                ("--replan", args.replan), ("--no-keep", args.no_keep)) if v]
+        if given:
+            raise ValueError(f"--entry decides the scheduler, the planner and their options: drop {', '.join(given)}")
+        entry = load_entry(args.entry)
+        check_entry(entry, chip)
+        plans = [(path, c.scheduler, c.planner, dict(c.options)) for path, inst in insts.items()
+                 for c in [entry.choose(inst)]]
+        return plans, clock_from_args(args, "rules")
+    schedulers = [s.strip() for s in (args.scheduler or "lorr-greedy").split(",") if s.strip()]
+    if not schedulers:
+        raise ValueError("--scheduler names no scheduler")
+    executor = args.executor or "pibt"
+    if executor not in TURNING_EXECUTORS:
+        raise ValueError(f"unknown executor {executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
+    options = {"replan": True} if args.replan else {}
+    if args.no_keep:
+        if not args.replan:
+            raise ValueError("--no-keep acts on --replan: add --replan")
+        options["keep"] = False
+    for s in schedulers:  # names and model files checked before anything starts
+        make_scheduler(s, chip=chip, **options)
+    if args.guidance is not None:
+        from planners.mapf.guidance import check_guidance
+
+        options["guidance"] = check_guidance(args.guidance)
+    if args.executor_option:
+        grid = next(iter(insts.values())).grid
+        options["executor_options"] = executor_options(executor, args.executor_option, grid)
+    return [(path, s, executor, options) for path in insts for s in schedulers], clock_from_args(args, None)
+
+
 def _run(args) -> int:
     from agents.commands.options import chip_from_args, runner_from_args
-    from agents.lorr.schedulers import make_scheduler
     from agents.runner import run_tasks
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
     from planners.mapf import TURNING_EXECUTORS
 
-    schedulers = [s.strip() for s in args.scheduler.split(",") if s.strip()]
-    if not schedulers:
-        return _fail("--scheduler names no scheduler")
-    if args.executor not in TURNING_EXECUTORS:
-        return _fail(f"unknown executor {args.executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
     for name, value in (("--steps", args.steps), ("--seeds", args.seeds)):
         if value is not None and value < 1:
             return _fail(f"{name} must be >= 1, got {value}")
     if args.seed < 0:
         return _fail(f"--seed must be >= 0, got {args.seed}")
     try:
-        for path in args.instances:  # the instance, and whether the executor takes its team
-            inst = read_instance(path)
-            TURNING_EXECUTORS[args.executor].check_team(inst.grid, inst.team_size)
         chip = chip_from_args(args)
-        options = {"replan": True} if args.replan else {}
-        if args.no_keep:
-            if not args.replan:
-                raise ValueError("--no-keep acts on --replan: add --replan")
-            options["keep"] = False
-        for s in schedulers:  # names and model files checked before anything starts
-            make_scheduler(s, chip=chip, **options)
-        if args.guidance is not None:
-            from planners.mapf.guidance import check_guidance
-
-            options["guidance"] = check_guidance(args.guidance)
-        if args.executor_option:
-            options["executor_options"] = executor_options(args.executor, args.executor_option, inst.grid)
+        plans, limit = _plans(args, chip)
+        for path, _, executor, _ in plans:  # whether the executor takes the instance's team
+            inst = read_instance(path)
+            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size)
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return _fail(str(exc))
     if args.audit and Path(args.audit).exists() and not Path(args.audit).is_dir():
         return _fail(f"--audit {args.audit}: exists and is not a directory")
-    jobs = [(inst, s, seed) for inst in args.instances for s in schedulers
-            for seed in range(args.seed, args.seed + args.seeds)]
+    jobs = [(*plan, seed) for plan in plans for seed in range(args.seed, args.seed + args.seeds)]
     single = len(jobs) == 1
     here = run.backend == "inline" or (single and run.backend != "ray")  # the runs in this process
     for flag, given, what in (("--audit", args.audit, "records"), ("--host-rule", args.host_rule, "acts on")):
@@ -178,17 +287,13 @@ def _run(args) -> int:
         host_rule = host_rule_from_args(args)
     except ValueError as exc:
         return _fail(f"--host-rule: {exc}")
-    tasks = [(inst, s, args.executor, args.steps, seed, chip, options, args.out,
-              "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json")
-             for inst, s, seed in jobs]
+    tasks = [(inst, s, ex, args.steps, seed, chip, options, args.out,
+              "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json",
+              limit)
+             for inst, s, ex, options, seed in jobs]
     progress = not args.no_progress
     if not args.address:  # one notice and a parallel compile on a new install (agents/warmup.py)
-        import os
-
-        from agents.warmup import warm
-
-        pipelines = [s for s in schedulers if s != "lorr-greedy" and not s.startswith("ppo:")]
-        warm([f"lorr:{args.executor}", *pipelines], jobs=min(2, os.cpu_count() or 1), progress=progress)
+        _warm_parts([(s, ex) for _, s, ex, _ in plans], progress)
     from contextlib import nullcontext
 
     from ising_backend.audit import Audit
@@ -211,18 +316,68 @@ def _run(args) -> int:
     return 0
 
 
+def _warm_parts(pairs, progress: bool) -> None:
+    """Compile the kernels of ``(scheduler, executor)`` pairs now, on the cores, with one notice (agents/warmup.py)."""
+    import os
+
+    from agents.warmup import warm
+
+    parts = {f"lorr:{ex}" for _, ex in pairs} | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:")}
+    warm(sorted(parts), jobs=min(2, os.cpu_count() or 1), progress=progress)
+
+
 def _single(task: tuple, progress: bool) -> dict:
     """One run in this process, with a progress bar over its steps."""
     from agents.lorr.output import write_output
     from agents.lorr.run import run_lorr
 
-    inst, s, executor, steps, seed, chip, options, out, name = task
+    inst, s, executor, steps, seed, chip, options, out, name, limit = task
     record, sim, step_s = run_lorr(inst, s, executor, steps=steps, seed=seed, chip=chip, options=options,
-                                   progress=progress)
+                                   progress=progress, limit=limit)
     if out:
         write_output(sim, Path(out) / name, planner_times=step_s)
         record["output"] = str(Path(out) / name)
     return record
+
+
+def _round(args) -> int:
+    from agents.lorr.entry import load_entry
+    from agents.lorr.round import best_known_table, round_instances, run_round, summary_table
+    from mrmt_env.lorr.instance import LoRRFormatError, read_instance
+    from planners.mapf import TURNING_EXECUTORS
+
+    for name, value in (("--steps", args.steps), ("--jobs", args.jobs)):
+        if value is not None and value < 1:
+            return _fail(f"{name} must be >= 1, got {value}")
+    if args.seed < 0:
+        return _fail(f"--seed must be >= 0, got {args.seed}")
+    try:
+        entry = load_entry(args.entry)
+        check_entry(entry)
+        limit = clock_from_args(args, "rules")
+        best = best_known_table(args.best_known)
+        paths = round_instances(args.folder)
+        pairs = set()
+        for path in paths:  # every instance readable, and its planner able to take its team
+            inst = read_instance(path)
+            c = entry.choose(inst)
+            TURNING_EXECUTORS[c.planner].check_team(inst.grid, inst.team_size)
+            pairs.add((c.scheduler, c.planner))
+        backend = "ray" if args.address else args.backend
+        if backend == "ray":
+            from agents.runner import _ray
+
+            _ray(local=not args.address)
+    except (LoRRFormatError, ValueError, OSError) as exc:
+        return _fail(str(exc))
+    progress = not args.no_progress
+    if not args.address:
+        _warm_parts(sorted(pairs), progress)
+    summary = run_round(args.folder, entry, args.out, steps=args.steps, seed=args.seed, limit=limit, best=best,
+                        resume=args.resume, jobs=args.jobs, backend=backend, address=args.address, progress=progress)
+    print(summary_table(summary))
+    print(f"wrote {Path(args.out) / 'summary.json'}, summary.md and {summary.instances} output file(s)", file=sys.stderr)
+    return 0
 
 
 def _check(args) -> int:
@@ -239,7 +394,9 @@ def _check(args) -> int:
         return 0
     tasks = "unknown (the file holds no schedule)" if result.numTaskFinished is None else result.numTaskFinished
     print(f"{inst.name}: {result.steps} steps, tasks finished {tasks}, errors {result.errors}, "
-          f"schedule errors {result.scheduleErrors}")
+          f"schedule errors {result.scheduleErrors}, timeouts {result.timeouts}")
+    if result.events_agree is False:
+        print("the file's events are not the re-simulated ones (a step, robot, task or errand differs)")
     if result.claimed is not None and result.numTaskFinished is not None and result.claimed != result.numTaskFinished:
         print(f"the file claims {result.claimed} tasks finished; re-simulated: {result.numTaskFinished}")
     return 0
@@ -251,4 +408,4 @@ def _fail(message: str) -> int:
 
 
 def run(args) -> int:
-    return _run(args) if args.lorr_command == "run" else _check(args)
+    return {"run": _run, "round": _round, "check": _check}[args.lorr_command](args)

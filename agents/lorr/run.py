@@ -7,16 +7,18 @@ seconds minus the time spent emulating the chip) plus the chip's own time (8-cor
 dispatch).  Energies per finished task in both conventions (paper section 6.1): the paper's
 (accelerator only for a scheduler with Ising layers, else host x 15 W) and the total; the host's seconds
 for energy are CPU seconds of every thread (``host_cpu_s``: an executor's portfolio on several threads), at
-least the wall seconds (``host_s``).
-Kernels are compiled before the first timed step, on the shipped example instance.
+least the wall seconds (``host_s``).  Under a step limit (:mod:`mrmt_env.lorr.clock`) the scheduler and the
+executor get the step's deadline and a late decision costs its timeouts; without one a run is work-bounded
+and deterministic, and its record says which (``clock``).  Kernels are compiled before the first timed step,
+on the shipped example instance (the entry's build, not its preprocessing).
 """
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -25,31 +27,49 @@ from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_ins
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
 
-__all__ = ["run_lorr", "best_known", "proposal_goals", "RUN_KEYS"]
+__all__ = ["run_lorr", "best_known", "proposal_goals", "peak_rss_mb", "RUN_KEYS", "Loop"]
 
 RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "seed", "robots", "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "host_cpu_s", "chip_s", "paper_energy_per_task_j",
-            "total_energy_per_task_j")
+            "total_energy_per_task_j", "clock", "timeouts", "decisions", "preprocess_s", "preprocess_timeout",
+            "peak_rss_mb")
 _WARM: set = set()
+
+
+class Loop(NamedTuple):
+    """What a run's step loop leaves: the simulator, the scheduler and executor, per decision ``(scheduler host,
+    executor host, chip)`` seconds and CPU seconds beyond the wall, accelerator joules, chip calls, and the
+    preprocessing seconds (building the scheduler, the executor and the simulator)."""
+
+    sim: LoRRSimulator
+    sched: object
+    ex: object
+    seconds: np.ndarray
+    busy: np.ndarray
+    accel_j: float
+    calls: int
+    preprocess_s: float
 
 
 def best_known(instance: LoRRInstance) -> int | None:
     """The best-known tasks finished of ``instance`` from a ``best_known.json`` in its folder or up
-    to three above (``{"<year>": {"NAME": [agents, steps, tasks]}}``), else ``None``."""
+    to three above (``{"<year>": {"NAME": [agents, steps, tasks]}}``), else from the package's table of the
+    archive's published scores (:data:`agents.lorr.round.BEST_KNOWN_FILE`), else ``None``."""
+    from agents.lorr.round import best_known_table
+
     folder = instance.path.parent
     for d in [folder, *list(folder.parents)[:3]]:
         f = d / "best_known.json"
         if f.is_file():
             try:
-                table = json.loads(f.read_text())
-            except (OSError, ValueError):
-                return None
-            for section in table.values():
-                if isinstance(section, dict) and instance.name in section:
-                    row = section[instance.name]
-                    return int(row[-1]) if isinstance(row, list) and row else None
-    return None
+                row = best_known_table(f).get(instance.name)
+            except ValueError:
+                continue
+            if row is not None:
+                return row.tasks
+    row = best_known_table().get(instance.name)
+    return None if row is None else row.tasks
 
 
 def proposal_goals(sim: LoRRSimulator, proposal) -> np.ndarray:
@@ -75,7 +95,9 @@ def _warm(scheduler: str, executor: str, chip, options) -> None:
         _loop(read_instance(example_instance_path()), scheduler, executor, 3, 0, chip, dict(options), None)
 
 
-def _loop(inst, scheduler, executor, steps, seed, chip, options, bar):
+def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):
+    """The run: per decision, ``(scheduler host, executor host, chip)`` seconds and the CPU seconds beyond the wall;
+    under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first."""
     from agents.lorr.schedulers import make_scheduler
     from planners.mapf import make_turning_executor
 
@@ -83,40 +105,49 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar):
     ex_options = dict(options.pop("executor_options", None) or {})
     if "guidance" in options:
         ex_options["guidance"] = options.pop("guidance")
+    t0 = time.perf_counter()
     sched = make_scheduler(scheduler, seed=seed, chip=chip, **options)
     ex = make_turning_executor(executor, inst.grid, seed=seed, **ex_options)
     sim = LoRRSimulator(inst)
     sched.reset(sim)
-    n = np.zeros((steps, 3))  # scheduler host, executor host, chip seconds
-    busy = np.zeros(steps)  # CPU seconds beyond the wall (an executor's plans on several threads)
+    prep_s = time.perf_counter() - t0
+    n = []  # per decision: scheduler host, executor host, chip seconds
+    busy = []  # CPU seconds beyond the wall (an executor's plans on several threads)
     accel_j = 0.0
     calls = 0
-    for t in range(steps):
+    while sim.t < steps:
         t0 = time.perf_counter()
-        proposal = sched.schedule(sim) if inst.strategy is None else None
+        deadline = None if limit is None else t0 + limit.step_s
+        proposal = sched.schedule(sim, deadline=deadline) if inst.strategy is None else None
         t1 = time.perf_counter()
         c1 = time.process_time()
-        actions = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal))
+        actions = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal), deadline=deadline)
         t2 = time.perf_counter()
-        busy[t] = max(time.process_time() - c1 - (t2 - t1), 0.0)
+        busy.append(max(time.process_time() - c1 - (t2 - t1), 0.0))
         c, e = sched.last_compute, ex.last_compute  # an executor with a chip decision charges it too
-        n[t] = (max(t1 - t0 - c.emulation_s, 0.0), max(t2 - t1 - e.emulation_s, 0.0),
-                c.chip_time_parallel_s + e.chip_time_parallel_s)
+        n.append((max(t1 - t0 - c.emulation_s, 0.0), max(t2 - t1 - e.emulation_s, 0.0),
+                  c.chip_time_parallel_s + e.chip_time_parallel_s))
         accel_j += c.accelerator_energy_j + e.accelerator_energy_j
         calls += c.chip_calls + c.logical_calls + e.chip_calls
-        sim.step(actions, proposal)
+        late = 0 if limit is None else min(limit.timeouts(sum(n[-1])), steps - sim.t)
+        for _ in range(late):
+            sim.time_out()
+        if sim.t < steps:
+            sim.step(actions, proposal)
         if bar is not None:
-            bar.update(1)
-    return sim, sched, ex, n, busy, accel_j, calls
+            bar.update(late + 1)
+    return Loop(sim, sched, ex, np.array(n).reshape(-1, 3), np.array(busy), accel_j, calls, prep_s)
 
 
 def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", steps: int | None = None,
-             seed: int = 0, chip=None, progress: bool = False, options: dict | None = None):
+             seed: int = 0, chip=None, progress: bool = False, options: dict | None = None, limit=None):
     """Run ``instance`` (a path or :class:`LoRRInstance`) for ``steps`` (default: its simulation
-    time); returns ``(record, sim, step_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
+    time); returns ``(record, sim, decision_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
     the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), ``guidance`` for the executor
     (:mod:`planners.mapf.guidance`; default: the executor's own) and ``executor_options``, a dict of the
-    executor's own keyword options (e.g. ``{"weight_power": 2}`` for ``epibt``)."""
+    executor's own keyword options (e.g. ``{"weight_power": 2}`` for ``epibt``).  ``limit``: a
+    :class:`~mrmt_env.lorr.clock.StepLimit` runs under the start kit's clock (a late decision costs timeouts; the
+    record's ``clock`` says so); ``None`` (default) is work-bounded and deterministic."""
     inst = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
     steps = int(steps or inst.steps or DEFAULT_STEPS)
     options = dict(options or {})
@@ -127,29 +158,41 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
 
         bar = tqdm(total=steps, desc=f"{inst.name} {scheduler}+{executor}", file=sys.stderr, leave=False)
     try:
-        sim, sched, ex, n, busy, accel_j, calls = _loop(inst, scheduler, executor, steps, seed, chip, options, bar)
+        run = _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit)
     finally:
         if bar is not None:
             bar.close()
+    sim, n = run.sim, run.seconds
     step_s = n.sum(axis=1)
     done = max(sim.finished, 1)
     host_s, chip_s = float(n[:, :2].sum()), float(n[:, 2].sum())
-    host_cpu_s = host_s + float(busy.sum())
+    host_cpu_s = host_s + float(run.busy.sum())
     host_j = host_cpu_s * CPU_WATTS_PER_CORE  # each busy core's seconds: a portfolio's threads too
     best = best_known(inst)
     record = {
-        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": ex.guidance,
+        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": run.ex.guidance,
         "executor_options": dict(options.get("executor_options") or {}), "seed": int(seed),
         "robots": inst.team_size, "steps": steps, "tasks_finished": sim.finished, "best_known": best,
         # the best-known is over the instance's full simulation time: a share only for a full run
         "share_of_best": (sim.finished / best) if best and steps == inst.steps else None,
         "errands": sim.tasks.errands_done,
         "errors": len(sim.errors), "schedule_errors": len(sim.tasks.schedule_errors),
+        "clock": "work-bounded" if limit is None else limit.label(), "timeouts": sim.timeouts,
+        "decisions": len(step_s), "preprocess_s": run.preprocess_s,
+        "preprocess_timeout": limit is not None and run.preprocess_s > limit.preprocess_s,
         "step_p50_s": float(np.percentile(step_s, 50)), "step_p99_s": float(np.percentile(step_s, 99)),
         "step_max_s": float(step_s.max()), "scheduler_p99_s": float(np.percentile(n[:, 0] + n[:, 2], 99)),
-        "executor_p99_s": float(np.percentile(n[:, 1], 99)), "chip_calls": int(calls), "host_s": host_s,
+        "executor_p99_s": float(np.percentile(n[:, 1], 99)), "chip_calls": int(run.calls), "host_s": host_s,
         "host_cpu_s": host_cpu_s,
-        "chip_s": chip_s, "paper_energy_per_task_j": (accel_j if sched.accelerated else host_j) / done,
-        "total_energy_per_task_j": (host_j + accel_j) / done,
+        "chip_s": chip_s, "paper_energy_per_task_j": (run.accel_j if run.sched.accelerated else host_j) / done,
+        "total_energy_per_task_j": (host_j + run.accel_j) / done, "peak_rss_mb": peak_rss_mb(),
     }
     return record, sim, step_s
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory so far, MiB (a run in a fresh process: the run's own peak)."""
+    import resource
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return float(peak) / (1 << 20 if sys.platform == "darwin" else 1 << 10)

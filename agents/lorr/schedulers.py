@@ -68,7 +68,9 @@ class AssignerScheduler:
         self.lengths.reset(sim)
         self.last_compute = ComputeReport()
 
-    def schedule(self, sim) -> np.ndarray:
+    def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
+        """The proposal for this step (``deadline``: the step's ``time.perf_counter()`` deadline under a clock, or
+        ``None``; the decision here is bounded by its groups and shortlist, not by it)."""
         from agents.lifelong.controllers import Round
 
         tasks = sim.tasks

@@ -155,7 +155,9 @@ class GreedyScheduler:
                     self._length[ln] = int(FAR) if v < 0 or self._length[ln] >= FAR else self._length[ln] + v
         return np.array([self._length.get(ln, -1) for ln in lines], dtype=np.int64)
 
-    def schedule(self, sim) -> np.ndarray:
+    def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
+        """The start kit's greedy proposal; bounded by :attr:`work_budget` (deterministic) whatever the
+        ``deadline``."""
         if self._sim is not sim:
             self.reset(sim)
         tasks = sim.tasks

@@ -3,7 +3,7 @@
 
 Both keep, per robot, its current task and that task's next errand (:attr:`goal`, -1 without
 one) and, after every move, mark errands reached in order (``events``: ``(step, robot, task,
-errands done)``), finish tasks and reveal new ones.  2024: ``ceil(numTasksReveal x teamSize)``
+errands done)``), finish tasks and reveal new ones.  2024: ``numTasksReveal x teamSize`` (truncated)
 tasks are open; task ``k`` (revealed in order, ids from 0) is line ``k mod T`` of the file; a
 proposed schedule (task id or -1 per robot) is checked as the start kit checks it -- every id an
 open task, no id twice, a robot whose task is opened (first errand reached) keeps it -- and a

@@ -356,6 +356,7 @@ class EPIBT(TurningPIBT):
                         else int_in("threads (the portfolio's threads)", threads, 1, MAX_PORTFOLIO))
         self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
         self.kept = 0  # and the one kept
+        self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.auto_op_len = op_len == "auto"
         self.flow = bool(flow)
         n = len(self.cell_of)
@@ -380,9 +381,12 @@ class EPIBT(TurningPIBT):
         self.guide.update(pc, gc, self.fields.fields, rows)
         return self.guide.fields, np.arange(len(pc), dtype=np.int64)
 
-    def actions(self, pos, orient, goals) -> np.ndarray:
+    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
         """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the
-        last call's plans put it (another executor acted, a new episode) drops every inherited operation."""
+        last call's plans put it (another executor acted, a new episode) drops every inherited operation.  Under a
+        ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as the
+        last, ends before it (the first wave always runs)."""
+        self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
         if self.auto_op_len:
@@ -428,16 +432,31 @@ class EPIBT(TurningPIBT):
             stamp = (portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group)
             epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, states[k], tables[k])
 
-        if k_plans == 1 or self.threads == 1:
-            for k in range(k_plans):
-                run(k)
-        else:  # the kernel releases the GIL: the plans run side by side
-            with ThreadPoolExecutor(min(self.threads, k_plans)) as pool:
-                list(pool.map(run, range(k_plans)))
+        k_plans = self._waves(run, k_plans)
+        states = states[:k_plans]
         self.portfolio_costs = np.array([plan_cost(st) for st in states], dtype=np.int64)
         self.kept = int(np.argmin(self.portfolio_costs))  # the first of least cost
         self._res = tables[self.kept]  # the others are dropped with their reservations
         return states[self.kept]
+
+    def _waves(self, run, k_plans: int) -> int:
+        """Runs plans ``0..k-1`` in waves of :attr:`threads` (side by side: the kernel releases the GIL), all of
+        them without a deadline, else while the next wave should end before it; returns ``k``."""
+        width = min(self.threads, k_plans)
+        done = 0
+        pool = ThreadPoolExecutor(width) if width > 1 else None
+        try:
+            while done < k_plans:
+                t0 = time.perf_counter()
+                wave = range(done, min(done + width, k_plans))
+                list(pool.map(run, wave)) if pool is not None else [run(k) for k in wave]
+                done = wave.stop
+                if self.deadline is not None and time.perf_counter() + (time.perf_counter() - t0) > self.deadline:
+                    break
+        finally:
+            if pool is not None:
+                pool.shutdown()
+        return done
 
     def _improve(self, state) -> None:
         """Hook for subclasses: may change the plan ``state`` (kept conflict-free in :attr:`_res`) before its

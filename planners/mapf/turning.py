@@ -388,10 +388,11 @@ class TurningPIBT:
                 raise ValueError(f"robots {who[0]} and {who[1]} share cell {cell}")
         return pos, orient, goals
 
-    def actions(self, pos, orient, goals) -> np.ndarray:
+    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
         """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W) of robots at flat cells ``pos`` facing ``orient``
         heading to flat ``goals`` (a robot without a task takes its own cell); always a valid joint
-        action.  Advances the priorities, assuming the actions are executed."""
+        action.  Advances the priorities, assuming the actions are executed.  ``deadline``: the step's
+        ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it."""
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
         order = self.order(r)

@@ -334,7 +334,7 @@ class WindowedTurningPlanner(TurningPIBT):
             paths[:, i + 1] = pos * 4 + ori
         return paths
 
-    def actions(self, pos, orient, goals) -> np.ndarray:
+    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
         """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W), always a valid joint action; :attr:`paths` holds
         the planned windows as ``(R, w + 1)`` ``flat cell * 4 + orientation`` (``w`` from :meth:`effort`).
         Advances the priorities, assuming the actions are executed."""

@@ -1,0 +1,170 @@
+"""A League entry: one named configuration (scheduler, planner, their options) for every instance of a round.
+
+Contract: :func:`load_entry` ``(name or path) -> Entry``; :meth:`Entry.choose` ``(instance) -> Choice``.  An entry
+file (TOML, or JSON of the same shape) holds ``name``, an optional ``description`` and a list ``rule``; the
+first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
+preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_fill`` /
+``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions:
+``scheduler`` (as ``mrmt lorr run --scheduler``), ``planner`` (``--executor``), ``replan``, ``keep``,
+``guidance``, ``planner_options`` (``--executor-option``).  The last rule must have no condition, so every
+instance gets a choice.  ``--entry default`` is the package's own (``agents/lorr/entries/default.toml``).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
+
+#: Entries shipped with the package, by name (``<name>.toml``).
+ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
+_CONDITIONS = ("max_robots", "min_robots", "max_fill", "min_fill", "maps")
+_DECISIONS = ("scheduler", "planner", "replan", "keep", "guidance", "planner_options")
+
+
+class EntryError(ValueError):
+    """An entry that cannot be used (the message names the file, the rule and the key)."""
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What an entry runs on one instance: the scheduler, the planner and their options (``run_lorr``'s)."""
+
+    scheduler: str
+    planner: str
+    options: dict = field(default_factory=dict)
+    rule: int = 0
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One rule of an entry: conditions on the instance and the choice they lead to."""
+
+    conditions: dict
+    choice: Choice
+
+    def holds(self, robots: int, fill: float, map_name: str) -> bool:
+        c = self.conditions
+        return (robots <= c.get("max_robots", robots) and robots >= c.get("min_robots", robots)
+                and fill <= c.get("max_fill", fill) and fill >= c.get("min_fill", fill)
+                and ("maps" not in c or any(fnmatch.fnmatch(map_name, p) for p in c["maps"])))
+
+
+@dataclass(frozen=True)
+class Entry:
+    """A named list of rules (see the module docstring)."""
+
+    name: str
+    rules: tuple
+    description: str = ""
+    source: str = ""
+
+    def choose(self, instance) -> Choice:
+        """The first rule's choice that holds for ``instance`` (a :class:`~mrmt_env.lorr.instance.LoRRInstance`)."""
+        robots = instance.team_size
+        fill = robots / max(int((~instance.grid).sum()), 1)
+        for rule in self.rules:
+            if rule.holds(robots, fill, instance.map_name):
+                return rule.choice
+        raise EntryError(f"{self.source}: no rule holds for {instance.name}")  # unreachable: the last has none
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "description": self.description, "source": self.source,
+                "rules": [{**r.conditions, "scheduler": r.choice.scheduler, "planner": r.choice.planner,
+                           **r.choice.options} for r in self.rules]}
+
+
+def _read(path: Path) -> dict:
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".json":
+        try:
+            return json.loads(text)
+        except ValueError as exc:
+            raise EntryError(f"{path}: not JSON ({exc})") from None
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise EntryError(f"{path}: not TOML ({exc})") from None
+
+
+def _number(where: str, key: str, value, integer: bool):
+    ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok or value < 0:
+        raise EntryError(f"{where}: {key} = {value!r} must be a {'whole ' if integer else ''}number >= 0")
+    return value
+
+
+def _rule(where: str, raw, last: bool) -> Rule:
+    if not isinstance(raw, dict):
+        raise EntryError(f"{where}: a rule is a table of conditions and decisions, got {type(raw).__name__}")
+    unknown = sorted(set(raw) - set(_CONDITIONS) - set(_DECISIONS))
+    if unknown:
+        raise EntryError(f"{where}: unknown key {unknown[0]!r}; conditions: {', '.join(_CONDITIONS)}; decisions: "
+                         f"{', '.join(_DECISIONS)}")
+    conditions = {}
+    for key in ("max_robots", "min_robots"):
+        if key in raw:
+            conditions[key] = _number(where, key, raw[key], True)
+    for key in ("max_fill", "min_fill"):
+        if key in raw:
+            conditions[key] = _number(where, key, raw[key], False)
+    if "maps" in raw:
+        maps = raw["maps"]
+        if not isinstance(maps, list) or not maps or not all(isinstance(m, str) and m for m in maps):
+            raise EntryError(f"{where}: maps = {maps!r} must be a list of glob patterns (e.g. [\"random-*\"])")
+        conditions["maps"] = tuple(maps)
+    if last and conditions:
+        raise EntryError(f"{where}: the last rule must have no condition (it decides every other instance)")
+    for key in ("scheduler", "planner"):
+        if not isinstance(raw.get(key), str) or not raw[key]:
+            raise EntryError(f"{where}: {key} must name a {key} (as mrmt lorr run takes it), got {raw.get(key)!r}")
+    options: dict = {}
+    for key in ("replan", "keep"):
+        if key in raw:
+            if not isinstance(raw[key], bool):
+                raise EntryError(f"{where}: {key} = {raw[key]!r} must be true or false")
+            options[key] = raw[key]
+    if "guidance" in raw:
+        options["guidance"] = _number(where, "guidance", raw["guidance"], True)
+    planner_options = raw.get("planner_options", {})
+    if not isinstance(planner_options, dict):
+        raise EntryError(f"{where}: planner_options must be a table of the planner's options")
+    if planner_options:
+        options["executor_options"] = dict(planner_options)
+    return Rule(conditions, Choice(raw["scheduler"], raw["planner"], options))
+
+
+def load_entry(spec) -> Entry:
+    """An entry by name (shipped in :data:`ENTRIES_DIR`) or path (``.toml`` / ``.json``); :class:`EntryError`
+    naming the file, the rule and the key of anything wrong (schedulers and planners are checked where they
+    are built: :func:`check_entry`)."""
+    spec = str(spec)
+    path = Path(spec)
+    if not path.suffix:
+        path = ENTRIES_DIR / f"{spec}.toml"
+        if not path.is_file():
+            known = sorted(p.stem for p in ENTRIES_DIR.glob("*.toml"))
+            raise EntryError(f"no entry named {spec!r}; shipped: {', '.join(known)} (or give a .toml / .json file)")
+    elif not path.is_file():
+        raise EntryError(f"{path}: no such entry file")
+    data = _read(path)
+    if not isinstance(data, dict) or not isinstance(data.get("rule"), list) or not data["rule"]:
+        raise EntryError(f"{path}: an entry has a non-empty list of rules ([[rule]] tables)")
+    unknown = sorted(set(data) - {"name", "description", "rule"})
+    if unknown:
+        raise EntryError(f"{path}: unknown key {unknown[0]!r}; an entry has name, description and rule")
+    n = len(data["rule"])
+    rules = []
+    for i, raw in enumerate(data["rule"]):
+        rule = _rule(f"{path} rule {i + 1}", raw, i == n - 1)
+        rules.append(Rule(rule.conditions, Choice(rule.choice.scheduler, rule.choice.planner, rule.choice.options,
+                                                  rule=i + 1)))
+    return Entry(name=str(data.get("name", path.stem)), rules=tuple(rules),
+                 description=str(data.get("description", "")), source=str(path))

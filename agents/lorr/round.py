@@ -1,0 +1,214 @@
+"""A League round: every instance of a round folder run by one entry under the clock, scored as the competition scores.
+
+Contract: :func:`round_instances` ``(folder) -> [paths]`` (the 2023 and 2024 archive layouts: ``<domain>/<NAME>.json``
+or instance files at the top); :func:`best_known_table` ``(file=None) -> {name: BestKnown}`` (the package's table of
+the archive's published scores, or a file in its format); :func:`run_round` runs the instances one by one, each in
+a fresh process (so its peak memory is its own) or as Ray tasks, writes ``OUT/<NAME>/output.json`` (the start kit's
+file) and ``OUT/<NAME>/run.json``, and returns the :class:`RoundSummary` (also ``OUT/summary.json`` and
+``OUT/summary.md``).  The score is the sum over instances of tasks / best-known; a run of the first ``steps`` steps
+(a prefix) is scored against the best-known pro rata and marked so.  ``resume`` keeps an instance whose
+``run.json`` was made by the same entry, steps, clock and seed.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import mrmt_env
+
+__all__ = ["round_instances", "best_known_table", "run_round", "round_task", "RoundSummary", "BestKnown",
+           "BEST_KNOWN_FILE"]
+
+#: The archive's published best-known scores (2023 and 2024, main and test rounds).
+BEST_KNOWN_FILE = Path(mrmt_env.__file__).resolve().parent / "data" / "lorr_best_known.json"
+
+
+class BestKnown(NamedTuple):
+    """One instance's row of the archive's table."""
+
+    agents: int
+    steps: int
+    tasks: int
+
+
+def best_known_table(path=None) -> dict[str, BestKnown]:
+    """``{instance name: BestKnown}`` from ``path`` (``{"<round>": {"NAME": [agents, steps, tasks]}}``, the format of
+    the package's table) or the package's table; ``ValueError`` naming a malformed file or row."""
+    path = Path(path) if path is not None else BEST_KNOWN_FILE
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such best-known file") from None
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a JSON best-known table ({str(exc).splitlines()[0][:100]})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: a best-known table is a JSON object of rounds")
+    table: dict[str, BestKnown] = {}
+    for section, rows in data.items():
+        if not isinstance(rows, dict) or section in ("source", "columns"):
+            continue
+        for name, row in rows.items():
+            if not (isinstance(row, list) and len(row) == 3 and all(isinstance(x, int) and x > 0 for x in row)):
+                raise ValueError(f"{path}: {section}/{name} must be [agents, steps, tasks], whole numbers > 0, "
+                                 f"got {row!r}")
+            table[name] = BestKnown(*row)
+    return table
+
+
+def round_instances(folder) -> list[Path]:
+    """The instance files of a round folder (JSON files naming a ``mapFile``), sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ValueError(f"{folder}: no such round folder")
+    found = []
+    for path in sorted([*folder.glob("*.json"), *folder.glob("*/*.json")], key=lambda p: p.stem):
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and "mapFile" in data:
+            found.append(path)
+    if not found:
+        raise ValueError(f"{folder}: no LoRR instance file (a JSON naming mapFile) in it or its sub-folders")
+    return found
+
+
+@dataclass(frozen=True)
+class RoundSummary:
+    """The round's rows (one per instance), its score (sum of shares) and how many instances were scored."""
+
+    rows: list
+    score: float
+    scored: int
+    instances: int
+    entry: str
+    clock: str
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def _key(entry, steps, limit, seed) -> dict:
+    return {"entry": entry.source, "steps": steps, "clock": "work-bounded" if limit is None else limit.label(),
+            "seed": int(seed)}
+
+
+def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str, best: dict) -> dict:
+    """One instance of a round (module level, for the process pool and Ray): the entry's choice run, its files
+    written, its row returned."""
+    from agents.lorr.entry import load_entry
+    from agents.lorr.output import write_output
+    from agents.lorr.run import run_lorr
+    from mrmt_env.lorr.instance import read_instance
+
+    inst = read_instance(instance)
+    entry = load_entry(entry_spec)
+    choice = entry.choose(inst)
+    known = best.get(inst.name)
+    full = inst.steps or (known[1] if known else None)
+    if full is None and steps is None:
+        raise ValueError(f"{instance}: no simulation time (no simulation_time.json, no best-known row): give --steps")
+    n = int(steps) if steps is not None else int(full)
+    record, sim, step_s = run_lorr(inst, choice.scheduler, choice.planner, steps=n, seed=seed, options=choice.options,
+                                   limit=limit)
+    folder = Path(out) / inst.name
+    write_output(sim, folder / "output.json", planner_times=step_s)
+    prefix = full is None or n < full
+    target = None if known is None or full is None else known[2] * min(n, full) / full
+    row = {**record, **_key(entry, n, limit, seed), "rule": choice.rule, "full_steps": full, "prefix": prefix,
+           "best_known": known[2] if known else None, "best_known_pro_rata": target,
+           "share_of_best": (sim.finished / target) if target else None,
+           "scored_share": 0.0 if record["preprocess_timeout"] else ((sim.finished / target) if target else None),
+           "output": str(folder / "output.json")}
+    (folder / "run.json").write_text(json.dumps(row, indent=1))
+    return row
+
+
+def _kept(path: Path, key: dict) -> dict | None:
+    try:
+        row = json.loads((path / "run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if all(row.get(k) == v for k, v in key.items()) and (path / "output.json").is_file():
+        return row
+    return None
+
+
+def _fresh_processes(tasks: list[tuple], jobs: int, progress: bool) -> list[dict]:
+    """``round_task`` per task, each in a new process (spawned: its peak memory is its own), ``jobs`` at once."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    rows = []
+    with ctx.Pool(processes=jobs, maxtasksperchild=1) as pool:
+        for row in pool.starmap(round_task, tasks, chunksize=1):
+            rows.append(row)
+            if progress:
+                print(f"  {row['instance']}: {row['tasks_finished']} tasks, {row['timeouts']} timeouts",
+                      file=sys.stderr)
+    return rows
+
+
+def run_round(folder, entry, out, steps=None, seed: int = 0, limit=None, best=None, resume: bool = False,
+              jobs: int = 1, backend: str = "local", address: str | None = None,
+              progress: bool = True) -> RoundSummary:
+    """Run every instance of ``folder`` with ``entry`` (an :class:`~agents.lorr.entry.Entry`) under ``limit``; see
+    the module docstring.  ``best``: a best-known table (:func:`best_known_table`); ``backend``: ``local`` (fresh
+    processes, ``jobs`` at once) or ``ray`` (the task runner's Ray backend, ``address`` a cluster or a local one)."""
+    paths = round_instances(folder)
+    best = best_known_table() if best is None else best
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    kept, todo = {}, []
+    for path in paths:
+        key = _key(entry, steps, limit, seed)
+        row = _kept(out / path.stem, {k: v for k, v in key.items() if v is not None}) if resume else None
+        if row is not None and (steps is not None or not row["prefix"]):
+            kept[path.stem] = row
+        else:
+            todo.append((str(path), entry.source, steps, seed, limit, str(out), {k: tuple(v) for k, v in best.items()}))
+    if todo and backend == "ray":
+        from agents.runner import RunConfig, run_tasks
+
+        done = run_tasks(round_task, todo, RunConfig(backend="ray", jobs=jobs, address=address, chunk_size=1,
+                                                     progress=progress))
+    elif todo:
+        done = _fresh_processes(todo, jobs, progress)
+    else:
+        done = []
+    rows = {**kept, **{r["instance"]: r for r in done}}
+    ordered = [rows[p.stem] for p in paths]
+    scored = [r["scored_share"] for r in ordered if r["scored_share"] is not None]
+    summary = RoundSummary(rows=ordered, score=float(sum(scored)), scored=len(scored), instances=len(ordered),
+                           entry=entry.name, clock="work-bounded" if limit is None else limit.label())
+    (out / "summary.json").write_text(json.dumps(summary.to_json(), indent=1))
+    (out / "summary.md").write_text(summary_table(summary) + "\n")
+    return summary
+
+
+def summary_table(summary: RoundSummary) -> str:
+    """The round as a Markdown table: per instance tasks, best-known, share, timeouts, step p50 / p99, peak memory,
+    energy per task; then the score."""
+    def f(x, spec):
+        return "-" if x is None else format(x, spec)
+
+    lines = [f"entry `{summary.entry}`, {summary.clock}", "",
+             "| instance | robots | steps | planner | tasks | best-known | share | timeouts | step p50 s | step p99 s "
+             "| peak MiB | J / task (paper / total) |",
+             "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in summary.rows:
+        steps = f"{r['steps']}" + (f" of {r['full_steps']}" if r["prefix"] and r["full_steps"] else "")
+        share = f(r["share_of_best"], ".1%") + (" (pro rata)" if r["prefix"] and r["share_of_best"] else "")
+        if r["preprocess_timeout"]:
+            share += " (preprocessing late: 0)"
+        lines.append(f"| {r['instance']} | {r['robots']} | {steps} | {r['scheduler']} + {r['executor']} "
+                     f"| {r['tasks_finished']} | {f(r['best_known'], 'd')} | {share} | {r['timeouts']} "
+                     f"| {r['step_p50_s']:.3f} | {r['step_p99_s']:.3f} | {r['peak_rss_mb']:.0f} "
+                     f"| {r['paper_energy_per_task_j']:.3g} / {r['total_energy_per_task_j']:.3g} |")
+    lines += ["", f"score {summary.score:.3f} of {summary.scored} (sum of shares over the scored instances; "
+                  f"{summary.instances} in the round)"]
+    return "\n".join(lines)

@@ -1,0 +1,216 @@
+"""The League under its rules: the start kit's clock, an entry, a round scored as the competition scores it."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from lorr_reference import check_events
+
+from agents.lorr.entry import EntryError, load_entry
+from agents.lorr.output import check_output, output_dict
+from agents.lorr.round import best_known_table, round_instances
+from agents.lorr.run import run_lorr
+from mrmt_env.lorr.clock import StepLimit, step_limit
+from mrmt_env.lorr.instance import example_instance_path, read_instance
+
+EXAMPLE = example_instance_path()
+
+
+def _mrmt(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "agents.cli", *args], capture_output=True, text=True, timeout=timeout)
+
+
+# ---------------------------------------------------------------- the clock
+@pytest.mark.parametrize("decision, timeouts", [(0.0, 0), (0.4, 0), (1.0, 0), (1.0001, 1), (2.5, 2), (3.0, 2)])
+def test_a_decision_costs_a_timeout_per_limit_it_overruns(decision, timeouts):
+    """The start kit waits ``planTimeLimit`` at a time; each wait without the decision is one timeout."""
+    assert StepLimit(1.0).timeouts(decision) == timeouts
+    assert StepLimit(0.5).timeouts(decision / 2) == timeouts
+
+
+@pytest.mark.parametrize("text, needle", [("0", "step limit '0' must be"), ("soon", "'soon'"),
+                                          ("-1", "'-1'"), ("4000", "'4000'")])
+def test_bad_step_limits_are_named(text, needle):
+    with pytest.raises(ValueError, match=needle):
+        step_limit(text)
+    assert step_limit("rules") == StepLimit(1.0, 30.0) and step_limit("0.25").step_s == 0.25
+
+
+class _Slow:
+    """An executor wrapper that takes ``seconds`` over every decision (a planner late by construction)."""
+
+    def __init__(self, inner, seconds):
+        self.inner, self.seconds = inner, seconds
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def actions(self, pos, orient, goals, deadline=None):
+        time.sleep(self.seconds)
+        return self.inner.actions(pos, orient, goals, deadline=deadline)
+
+
+def test_a_late_decision_is_every_robot_waiting_counted_and_written(monkeypatch):
+    """A planner taking 0.23 s under a 0.1 s limit: each decision costs two timeouts (T for every robot, no task
+    update), then runs; the output's timeouts are exactly its all-T steps and re-check to the count."""
+    import planners.mapf as mapf
+
+    real = mapf.make_turning_executor
+    monkeypatch.setattr(mapf, "make_turning_executor", lambda *a, **k: _Slow(real(*a, **k), 0.23))
+    record, sim, step_s = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=20, seed=0, limit=StepLimit(0.1))
+    assert record["clock"] == "0.1 s per step" and len(step_s) == record["decisions"] == 7
+    assert record["timeouts"] == sim.timeouts == 14 and sim.t == 20  # 6 x (2 + 1) steps, then 2 timeouts end it
+    data = json.loads(json.dumps(output_dict(sim, step_s)))
+    all_t = [t for t in range(20) if all(p.split(",")[t] == "T" for p in data["actualPaths"])]
+    assert len(all_t) == data["numEntryTimeouts"] == 14 and all_t[:2] == [0, 1]
+    assert len(data["plannerTimes"]) == 7
+    result = check_output(read_instance(EXAMPLE), data)
+    assert (result.timeouts, result.numTaskFinished, result.events_agree) == (14, record["tasks_finished"], True)
+    assert check_events(data, sim.width) == record["tasks_finished"]
+
+
+def test_without_a_limit_a_run_is_work_bounded_and_says_so():
+    a, sim_a, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=40, seed=2)
+    b, sim_b, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=40, seed=2, limit=StepLimit(60.0))
+    assert a["clock"] == "work-bounded" and a["timeouts"] == 0 and b["timeouts"] == 0
+    # a generous clock changes nothing of a fast run's plans
+    assert [x.tolist() for x in sim_a.actual] == [x.tolist() for x in sim_b.actual]
+
+
+def test_epibt_cuts_its_portfolio_at_the_deadline_and_runs_all_of_it_without_one():
+    from planners.mapf import EPIBT
+
+    inst = read_instance(EXAMPLE)
+    goals = np.roll(inst.starts, 1)
+    orient = np.zeros(inst.team_size, dtype=np.int64)
+    full = EPIBT(inst.grid, seed=0, portfolio=6, threads=1)
+    full.actions(inst.starts, orient, goals)
+    assert len(full.portfolio_costs) == 6
+    cut = EPIBT(inst.grid, seed=0, portfolio=6, threads=1)
+    act = cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)  # already late
+    assert len(cut.portfolio_costs) == 1 and act.shape == (inst.team_size,)
+
+
+# ---------------------------------------------------------------- the entry
+def test_the_default_entry_chooses_by_team_and_map():
+    entry = load_entry("default")
+    inst = read_instance(EXAMPLE)
+    small = entry.choose(inst)
+    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 1)
+    assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
+    big = [r for r in entry.rules if not r.conditions][0].choice
+    assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
+    sortation = entry.rules[1]
+    assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nmax_robots = 5\n', "last rule must have no condition"),
+    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nspeed = 3\n', "unknown key 'speed'"),
+    ('[[rule]]\nplanner = "pibt"\n', "scheduler must name a scheduler"),
+    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nreplan = "yes"\n', "replan = 'yes' must be true or false"),
+    ('[[rule]]\nmax_robots = -3\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "s"\nplanner = "p"\n',
+     "max_robots = -3 must be a whole number >= 0"),
+    ('rule = 3\n', "non-empty list of rules"),
+    ('[[rule\n', "not TOML"),
+])
+def test_bad_entries_name_the_file_rule_and_key(tmp_path, text, needle):
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    with pytest.raises(EntryError, match=needle):
+        load_entry(path)
+    with pytest.raises(EntryError, match="no entry named 'nope'; shipped: default"):
+        load_entry("nope")
+
+
+@pytest.mark.parametrize("rule, needle", [
+    ('scheduler = "telepathy"\nplanner = "pibt"', "rule 1: unknown scheduler 'telepathy'"),
+    ('scheduler = "strong"\nplanner = "teleport"', "rule 1: unknown planner 'teleport'"),
+    ('scheduler = "strong"\nplanner = "epibt"\nplanner_options = { warp = 9 }', "epibt takes no option 'warp'"),
+    ('scheduler = "strong"\nplanner = "epibt"\nplanner_options = { op_len = 9 }', "op_len must be an integer 1..5"),
+])
+def test_an_entry_whose_names_or_options_do_not_build_is_refused_in_one_line(tmp_path, rule, needle):
+    path = tmp_path / "mine.toml"
+    path.write_text(f"[[rule]]\n{rule}\n")
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--steps", "5", "--no-progress")
+    assert proc.returncode == 2 and needle in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_an_entry_run_is_under_the_rules_clock_unless_told_and_refuses_its_own_flags(tmp_path):
+    path = tmp_path / "greedy.json"
+    path.write_text(json.dumps({"name": "greedy", "rule": [{"scheduler": "lorr-greedy", "planner": "pibt"}]}))
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--steps", "15", "--no-progress", "--json")
+    assert proc.returncode == 0, proc.stderr
+    row = json.loads(proc.stdout.splitlines()[0])
+    assert row["clock"] == "1 s per step" and (row["scheduler"], row["executor"]) == ("lorr-greedy", "pibt")
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--steps", "15", "--step-limit", "none",
+                 "--no-progress", "--json")
+    assert json.loads(proc.stdout.splitlines()[0])["clock"] == "work-bounded"
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--executor", "epibt", "--no-progress")
+    assert proc.returncode == 2 and "--entry decides the scheduler, the planner and their options: drop --executor" \
+        in proc.stderr
+
+
+# ---------------------------------------------------------------- the round
+def _round_folder(tmp_path):
+    """A round in the 2024 layout: two copies of the shipped instance, their steps in simulation_time.json."""
+    domain = tmp_path / "round" / "random.domain"
+    domain.mkdir(parents=True)
+    for f in EXAMPLE.parent.iterdir():
+        if f.name != "simulation_time.json":
+            shutil.copy(f, domain / f.name)
+    shutil.copy(domain / "EXAMPLE-01.json", domain / "EXAMPLE-02.json")
+    (tmp_path / "round" / "simulation_time.json").write_text('{"EXAMPLE-01": 40, "EXAMPLE-02": 60}')
+    best = tmp_path / "best.json"
+    best.write_text(json.dumps({"test": {"EXAMPLE-01": [8, 40, 20], "EXAMPLE-02": [8, 60, 100]}}))
+    entry = tmp_path / "greedy.toml"
+    entry.write_text('name = "greedy"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n')
+    return tmp_path / "round", best, entry
+
+
+def test_a_round_runs_every_instance_scores_the_sum_of_shares_and_resumes(tmp_path):
+    folder, best, entry = _round_folder(tmp_path)
+    out = tmp_path / "out"
+    args = ["lorr", "round", str(folder), "--entry", str(entry), "--out", str(out), "--best-known", str(best),
+            "--no-progress"]
+    proc = _mrmt(*args, "--steps", "30")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    rows = {r["instance"]: r for r in summary["rows"]}
+    assert set(rows) == {"EXAMPLE-01", "EXAMPLE-02"} and summary["clock"] == "1 s per step"
+    for name, full, best_tasks in (("EXAMPLE-01", 40, 20), ("EXAMPLE-02", 60, 100)):
+        r = rows[name]
+        data = json.loads((out / name / "output.json").read_text())
+        assert r["prefix"] and r["steps"] == 30 and r["full_steps"] == full
+        assert r["best_known_pro_rata"] == pytest.approx(best_tasks * 30 / full)
+        assert r["share_of_best"] == pytest.approx(data["numTaskFinished"] / (best_tasks * 30 / full))
+        assert check_output(read_instance(folder / "random.domain" / f"{name}.json"), data).numTaskFinished \
+            == r["tasks_finished"] == data["numTaskFinished"]
+        assert r["timeouts"] == data["numEntryTimeouts"] and r["peak_rss_mb"] > 50
+    assert summary["score"] == pytest.approx(sum(r["share_of_best"] for r in summary["rows"]))
+    assert "score" in (out / "summary.md").read_text() and "(pro rata)" in proc.stdout
+    # --resume keeps both (same entry, steps, clock, seed): the files are not rewritten
+    stamp = (out / "EXAMPLE-01" / "output.json").stat().st_mtime_ns
+    again = _mrmt(*args, "--steps", "30", "--resume")
+    assert again.returncode == 0, again.stderr
+    assert (out / "EXAMPLE-01" / "output.json").stat().st_mtime_ns == stamp
+    assert json.loads((out / "summary.json").read_text())["score"] == pytest.approx(summary["score"])
+
+
+def test_round_folders_and_best_known_tables(tmp_path):
+    folder, best, _ = _round_folder(tmp_path)
+    assert [p.stem for p in round_instances(folder)] == ["EXAMPLE-01", "EXAMPLE-02"]
+    table = best_known_table()
+    assert table["RANDOM-04"] == (700, 1000, 2585) and table["MR23-I-04"].tasks == 1741
+    assert len(table) == 30  # 2023 and 2024, main (10 each) and test (5 each) rounds
+    (tmp_path / "bad.json").write_text('{"r": {"X": [1, 2]}}')
+    with pytest.raises(ValueError, match="r/X must be \\[agents, steps, tasks\\]"):
+        best_known_table(tmp_path / "bad.json")
+    proc = _mrmt("lorr", "round", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "nowhere: no such round folder" in proc.stderr

@@ -214,3 +214,40 @@ def test_round_folders_and_best_known_tables(tmp_path):
         best_known_table(tmp_path / "bad.json")
     proc = _mrmt("lorr", "round", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
     assert proc.returncode == 2 and "nowhere: no such round folder" in proc.stderr
+
+
+def test_a_round_on_ray_gives_the_local_round(tmp_path):
+    """Work-bounded (``--step-limit none``): the same tasks, errands and output files on Ray as in local processes."""
+    pytest.importorskip("ray")
+    folder, best, entry = _round_folder(tmp_path)
+    base = ["lorr", "round", str(folder), "--entry", str(entry), "--best-known", str(best), "--steps", "25",
+            "--step-limit", "none", "--no-progress"]
+    local = _mrmt(*base, "--out", str(tmp_path / "local"))
+    ray = _mrmt(*base, "--out", str(tmp_path / "ray"), "--backend", "ray", "--jobs", "2")
+    assert local.returncode == 0 and ray.returncode == 0, local.stderr + ray.stderr
+    for name in ("EXAMPLE-01", "EXAMPLE-02"):
+        a, b = (json.loads((tmp_path / d / name / "output.json").read_text()) for d in ("local", "ray"))
+        assert a["actualPaths"] == b["actualPaths"] and a["events"] == b["events"]
+        assert json.loads((tmp_path / "ray" / name / "run.json").read_text())["clock"] == "work-bounded"
+
+
+def test_the_greedy_scheduler_under_a_clock_stops_where_the_start_kits_would():
+    """Without a deadline the greedy is bounded by its work budget (every free robot here); with one already
+    passed it still measures the first 64 task lines and assigns the first 16 robots, then stops."""
+    from pathlib import Path
+
+    from mrmt_env.lorr.greedy import GreedyScheduler
+    from mrmt_env.lorr.sim import LoRRSimulator
+
+    shared = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain" / "RANDOM-01.json"
+    if not shared.is_file():
+        pytest.skip("the LoRR instances (shared/lorr) are not beside the checkout")
+    inst = read_instance(shared)
+    free = GreedyScheduler().schedule(LoRRSimulator(inst))
+    assert (free >= 0).sum() == 100
+    late = GreedyScheduler().schedule(LoRRSimulator(inst), deadline=time.perf_counter() - 1.0)
+    assert 0 < (late >= 0).sum() <= 16 and set(np.flatnonzero(late >= 0).tolist()) <= set(range(16))
+    later = GreedyScheduler()
+    sim = LoRRSimulator(inst)
+    first = later.schedule(sim, deadline=time.perf_counter() + 60.0)  # time enough: the same as work-bounded
+    assert np.array_equal(first, free)

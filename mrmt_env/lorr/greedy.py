@@ -4,7 +4,8 @@ Each free robot (ascending index; the start kit walks a hash set) takes the free
 makespan -- the shortest way to its first errand, then through every errand in order (BFS, no
 turning) -- ties to the lowest task id; a robot with no free task left waits for the next step.  Like the
 start kit, which stops assigning when its time is up, a step's search work is bounded
-(:data:`DEFAULT_WORK_BUDGET` cells, deterministic); robots beyond it wait for the next step.
+(:data:`DEFAULT_WORK_BUDGET` cells, deterministic), or under a clock the time (half the step, as the start
+kit's); robots beyond it wait for the next step.
 Free robots and free tasks are remembered across steps as the start kit does.  Distances: one
 compiled BFS per free robot that stops once no unseen task can beat the best found (so a near
 task costs a small search), and each task's errand-to-errand length once per task line
@@ -12,6 +13,8 @@ task costs a small search), and each task's errand-to-errand length once per tas
 """
 
 from __future__ import annotations
+
+import time
 
 import numba
 import numpy as np
@@ -26,6 +29,8 @@ FAR = np.int64(1 << 40)
 #: a deterministic stand-in for the start kit's time limit, which stops assigning when time is up.
 #: Only fleets of thousands on large maps reach it (then the rest is assigned in the next steps).
 DEFAULT_WORK_BUDGET = 1 << 24
+#: Under a clock the greedy stops at half the time left less this (the start kit's scheduler tolerance).
+STOP_TOLERANCE_S = 0.01
 
 
 @numba.njit(cache=True, nogil=True)
@@ -130,15 +135,16 @@ class GreedyScheduler:
         self._seen_t = -1
         self.flat = np.ascontiguousarray(sim.inst.grid.reshape(-1))
 
-    def task_length(self, tasks, ids: np.ndarray, budget: int) -> np.ndarray:
+    def task_length(self, tasks, ids: np.ndarray, budget: int, stop: float | None = None) -> np.ndarray:
         """Errand-to-errand length of each task (cached per file line; FAR if an errand is cut off;
-        -1 while not computed: lines are measured in id order until ``budget`` cells were visited)."""
+        -1 while not computed: lines are measured in id order, 64 at a time, until ``budget`` cells were
+        visited or, after the first 64, ``time.perf_counter()`` passed ``stop``)."""
         inst = tasks.inst
         lines = [tasks.line[int(k)] for k in ids.tolist()]
         missing = [ln for ln in dict.fromkeys(lines) if ln not in self._length]
         work = 0
         for lo in range(0, len(missing), 64):
-            if work >= budget:
+            if work >= budget or (lo > 0 and stop is not None and time.perf_counter() > stop):
                 break
             a, b, owner = [], [], []
             for ln in missing[lo:lo + 64]:
@@ -156,8 +162,11 @@ class GreedyScheduler:
         return np.array([self._length.get(ln, -1) for ln in lines], dtype=np.int64)
 
     def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
-        """The start kit's greedy proposal; bounded by :attr:`work_budget` (deterministic) whatever the
-        ``deadline``."""
+        """The start kit's greedy proposal.  Without a ``deadline`` its work is bounded by :attr:`work_budget`
+        (deterministic); with one (``time.perf_counter()`` seconds), as the start kit's, by the clock: it stops
+        assigning at half the time left less 10 ms (the rest is the planner's), robots 16 at a time."""
+        now = time.perf_counter()
+        stop = None if deadline is None else now + (deadline - now) / 2 - STOP_TOLERANCE_S
         if self._sim is not sim:
             self.reset(sim)
         tasks = sim.tasks
@@ -173,7 +182,8 @@ class GreedyScheduler:
             return proposal
         ids = np.array(sorted(self.free_tasks), dtype=np.int64)
         first = np.array([tasks.remaining(int(k))[0] for k in ids.tolist()], dtype=np.int64)
-        length = self.task_length(tasks, ids, self.work_budget // 2)
+        budget = self.work_budget // 2 if stop is None else 1 << 62
+        length = self.task_length(tasks, ids, budget, stop)
         ok = (length >= 0) & (length < FAR)
         order = np.argsort(first, kind="stable")
         counts = np.bincount(first, minlength=self.flat.size)
@@ -182,8 +192,15 @@ class GreedyScheduler:
         free = ok.copy()
         min_len = int(length[ok].min()) if ok.any() else 0
         out = np.empty(len(robots), dtype=np.int64)
-        done = greedy_kernel(self.flat, sim.width, sim.pos[robots], cell_start, order.astype(np.int64), length, ids,
-                             free, min_len, self.work_budget // 2, out)
+        cells, order = sim.pos[robots], order.astype(np.int64)
+        done = 0
+        step = len(robots) if stop is None else 16
+        while done < len(robots) and (stop is None or done == 0 or time.perf_counter() <= stop):
+            n = greedy_kernel(self.flat, sim.width, cells[done:done + step], cell_start, order, length, ids, free,
+                              min_len, budget, out[done:done + step])
+            done += n
+            if stop is None:
+                break
         for a, j in zip(robots[:done], out[:done].tolist()):
             if j >= 0:
                 proposal[a] = ids[j]

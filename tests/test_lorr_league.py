@@ -95,6 +95,13 @@ def test_epibt_cuts_its_portfolio_at_the_deadline_and_runs_all_of_it_without_one
     cut = EPIBT(inst.grid, seed=0, portfolio=6, threads=1)
     act = cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)  # already late
     assert len(cut.portfolio_costs) == 1 and act.shape == (inst.team_size,)
+    # a call that ended past its deadline shrinks the next calls' search; one that left time enough grows it back
+    assert full.lns_scale == 1.0 and cut.lns_scale == pytest.approx(0.7)
+    assert full.lns == cut.lns == 8 * 50  # 50 iterations per robot
+    cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)
+    assert cut.lns == int(400 * 0.7) and cut.lns_scale == pytest.approx(0.49)
+    cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() + 60.0)
+    assert cut.lns == int(400 * 0.49) and cut.lns_scale == pytest.approx(0.539)
 
 
 # ---------------------------------------------------------------- the entry

@@ -138,16 +138,17 @@ class GreedyScheduler:
     def task_length(self, tasks, ids: np.ndarray, budget: int, stop: float | None = None) -> np.ndarray:
         """Errand-to-errand length of each task (cached per file line; FAR if an errand is cut off;
         -1 while not computed: lines are measured in id order, 64 at a time, until ``budget`` cells were
-        visited or, after the first 64, ``time.perf_counter()`` passed ``stop``)."""
+        visited; under a ``stop`` time, 8 at a time until, after the first 8, ``time.perf_counter()`` passed it)."""
         inst = tasks.inst
         lines = [tasks.line[int(k)] for k in ids.tolist()]
         missing = [ln for ln in dict.fromkeys(lines) if ln not in self._length]
         work = 0
-        for lo in range(0, len(missing), 64):
+        chunk = 64 if stop is None else 8
+        for lo in range(0, len(missing), chunk):
             if work >= budget or (lo > 0 and stop is not None and time.perf_counter() > stop):
                 break
             a, b, owner = [], [], []
-            for ln in missing[lo:lo + 64]:
+            for ln in missing[lo:lo + chunk]:
                 e = inst.task_errands(ln)
                 a.extend(e[:-1].tolist())
                 b.extend(e[1:].tolist())
@@ -164,7 +165,8 @@ class GreedyScheduler:
     def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
         """The start kit's greedy proposal.  Without a ``deadline`` its work is bounded by :attr:`work_budget`
         (deterministic); with one (``time.perf_counter()`` seconds), as the start kit's, by the clock: it stops
-        assigning at half the time left less 10 ms (the rest is the planner's), robots 16 at a time."""
+        assigning at half the time left less 10 ms (the rest is the planner's), the first half of that measuring
+        task lengths, the second choosing for robots 16 at a time."""
         now = time.perf_counter()
         stop = None if deadline is None else now + (deadline - now) / 2 - STOP_TOLERANCE_S
         if self._sim is not sim:
@@ -183,7 +185,8 @@ class GreedyScheduler:
         ids = np.array(sorted(self.free_tasks), dtype=np.int64)
         first = np.array([tasks.remaining(int(k))[0] for k in ids.tolist()], dtype=np.int64)
         budget = self.work_budget // 2 if stop is None else 1 << 62
-        length = self.task_length(tasks, ids, budget, stop)
+        # under a clock the task lengths take at most half the scheduler's time, the robots the rest
+        length = self.task_length(tasks, ids, budget, None if stop is None else (now + stop) / 2)
         ok = (length >= 0) & (length < FAR)
         order = np.argsort(first, kind="stable")
         counts = np.bincount(first, minlength=self.flat.size)

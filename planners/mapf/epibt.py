@@ -48,6 +48,8 @@ DEFAULT_GROUP = 16
 DEFAULT_WEIGHT_POWER = 0
 #: Joint plans per call at most (option ``portfolio``).
 MAX_PORTFOLIO = 64
+#: Under a clock, a call ending closer than this to its deadline shrinks the next calls' search.
+DEADLINE_MARGIN_S = 0.05
 _PORTFOLIO_SALT = 0x70F7  # the portfolio's seeds: mix(seed, k, salt, 0), k >= 1
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
 
@@ -357,6 +359,7 @@ class EPIBT(TurningPIBT):
         self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
         self.kept = 0  # and the one kept
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
+        self.lns_scale = 1.0  # under a clock: the share of the search's iterations the steps leave time for
         self.auto_op_len = op_len == "auto"
         self.flow = bool(flow)
         n = len(self.cell_of)
@@ -385,7 +388,9 @@ class EPIBT(TurningPIBT):
         """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the
         last call's plans put it (another executor acted, a new episode) drops every inherited operation.  Under a
         ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as the
-        last, ends before it (the first wave always runs)."""
+        last, ends before it (the first wave always runs), and the search's iterations are scaled by
+        :attr:`lns_scale`, which falls by 0.7 after a call that ends within :data:`DEADLINE_MARGIN_S` of its
+        deadline and grows by 1.1 (up to 1) after one that leaves a quarter of its time."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
@@ -404,6 +409,9 @@ class EPIBT(TurningPIBT):
         weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
         weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else self.lns_option
+        if deadline is not None:
+            self.lns = int(self.lns * self.lns_scale)
+            started = time.perf_counter()
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         t0 = time.perf_counter()
@@ -419,6 +427,12 @@ class EPIBT(TurningPIBT):
         self._expect = (nxt, (orient + turn) % 4)
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
+        if deadline is not None:  # the search's share of the next steps: less when this one ended late
+            slack = deadline - time.perf_counter()
+            if slack < DEADLINE_MARGIN_S:
+                self.lns_scale *= 0.7
+            elif slack > 0.25 * (deadline - started):
+                self.lns_scale = min(1.0, self.lns_scale * 1.1)
         return act
 
     def _plans(self, grid, robots, heuristic, order):
@@ -451,7 +465,8 @@ class EPIBT(TurningPIBT):
                 wave = range(done, min(done + width, k_plans))
                 list(pool.map(run, wave)) if pool is not None else [run(k) for k in wave]
                 done = wave.stop
-                if self.deadline is not None and time.perf_counter() + (time.perf_counter() - t0) > self.deadline:
+                now = time.perf_counter()
+                if self.deadline is not None and now + (now - t0) > self.deadline - DEADLINE_MARGIN_S:
                     break
         finally:
             if pool is not None:

@@ -101,7 +101,7 @@ def test_epibt_cuts_its_portfolio_at_the_deadline_and_runs_all_of_it_without_one
     cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)
     assert cut.lns == int(400 * 0.7) and cut.lns_scale == pytest.approx(0.49)
     cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() + 60.0)
-    assert cut.lns == int(400 * 0.49) and cut.lns_scale == pytest.approx(0.539)
+    assert cut.lns == int(400 * 0.7 * 0.7) and cut.lns_scale == pytest.approx(0.539)
 
 
 # ---------------------------------------------------------------- the entry

@@ -165,8 +165,9 @@ class GreedyScheduler:
     def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
         """The start kit's greedy proposal.  Without a ``deadline`` its work is bounded by :attr:`work_budget`
         (deterministic); with one (``time.perf_counter()`` seconds), as the start kit's, by the clock: it stops
-        assigning at half the time left less 10 ms (the rest is the planner's), the first half of that measuring
-        task lengths, the second choosing for robots 16 at a time."""
+        assigning at half the time left less 10 ms (the rest is the planner's): task lengths 8 lines at a time,
+        then robots 16 at a time, at least 8 lines and 16 robots a step.  (Giving the robots half of that time
+        assigned 2.5x the robots a step on CITY-02 but to tasks farther off: 3-5x fewer tasks in 200 steps.)"""
         now = time.perf_counter()
         stop = None if deadline is None else now + (deadline - now) / 2 - STOP_TOLERANCE_S
         if self._sim is not sim:
@@ -185,8 +186,7 @@ class GreedyScheduler:
         ids = np.array(sorted(self.free_tasks), dtype=np.int64)
         first = np.array([tasks.remaining(int(k))[0] for k in ids.tolist()], dtype=np.int64)
         budget = self.work_budget // 2 if stop is None else 1 << 62
-        # under a clock the task lengths take at most half the scheduler's time, the robots the rest
-        length = self.task_length(tasks, ids, budget, None if stop is None else (now + stop) / 2)
+        length = self.task_length(tasks, ids, budget, stop)
         ok = (length >= 0) & (length < FAR)
         order = np.argsort(first, kind="stable")
         counts = np.bincount(first, minlength=self.flat.size)

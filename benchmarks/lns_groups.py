@@ -92,7 +92,7 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
         def greedy_rec(state, members, a, b, ostart, opt, stamp, choice):
             c = greedy(state, members, a, b, ostart, opt, stamp, choice)
             t0 = time.perf_counter()
-            src = state[5]  # each robot's operation now (new_state's layout)
+            src = state.src  # each robot's operation now
             gaps.append([c, None, exact_cost(state, members, a, b, ostart, opt),
                          sum(int(_cost(state, q, src[q])) for q in members[a:b])])
             judged[0] += time.perf_counter() - t0

@@ -76,6 +76,33 @@ class MachineSession:
     def __exit__(self, *exc) -> None:
         _SESSIONS.pop(self.handle, None)
 
+    def anneal(self, h, J, num_reads: int, seed: int, host: tuple | None = None):
+        """One submission from Python (the MAPF planners' group programs): ``(spins, energies)`` of the machine's
+        ``anneal_batch``, or under the host-rule ablation of this session's decision class the host rule's answer
+        (no call, nothing charged); charged to the session's ledger (also when it fails) and recorded in an open
+        audit, beside ``host`` (the class's own host rule: ``(energies, seconds per program, name)``) when given."""
+        return self._submit(h, J, num_reads, seed, host)
+
+    def _submit(self, h, J, num_reads, seed, host=None):
+        if self.host:  # the host rule's answer: no machine call, nothing charged, nothing audited as the chip's
+            return host_answer(h, J, int(num_reads))
+        machine = self.machine
+        before = machine.last_call
+        e = None
+        try:
+            if self.logical:  # energies are not used by the compiled loops of a logical solver
+                s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
+            else:
+                s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
+        finally:  # a call that failed is charged what it spent
+            if machine.last_call is not before:
+                self.ledger._add_in_place(machine.last_call)
+        s = np.asarray(s)
+        if self.audit is not None:
+            self.audit.record(self.decision, h, J, s, e, machine.last_call, logical=self.logical, host=host,
+                              spec=machine.spec)
+        return s, e
+
     def settle(self, calls, seconds, into: CallLedger | None = None) -> None:
         """Charge what the compiled call submitted through the machine's kernel (``calls[i]`` calls,
         ``seconds[i]`` emulation seconds each, in order) to the machine and to ``into`` (default the
@@ -99,26 +126,12 @@ def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
     if link is None:
         raise RuntimeError("a machine session's record was used outside its `with machine.session(ledger) as link:` "
                            "block")
-    if link.host:  # the host rule's answer: no machine call, nothing charged, nothing audited as the chip's
-        s, e = host_answer(h, J, int(num_reads))
+    s, e = link._submit(h, J, num_reads, seed)
+    if link.host:  # the host rule's answer (no machine call)
         spins[...] = s
         if energies.shape == e.shape:
             energies[...] = e
         return 0.0
-    machine = link.machine
-    before = machine.last_call
-    e = None
-    try:
-        if link.logical:  # energies are not used by the compiled loops of a logical solver
-            s = machine.solve_stack(h, J, num_reads=int(num_reads), seed=int(seed))
-        else:
-            s, e = machine.anneal_batch(h, J, num_reads=int(num_reads), seed=int(seed))
-    finally:  # a call that failed is charged what it spent
-        if machine.last_call is not before:
-            link.ledger._add_in_place(machine.last_call)
-    s = np.asarray(s)
-    if link.audit is not None:
-        link.audit.record(link.decision, h, J, s, e, machine.last_call, logical=link.logical, spec=machine.spec)
     if s.shape != spins.shape or (s.dtype != np.int8 and not ((s == 1) | (s == -1)).all()):
         raise SolverOutputError(f"got shape {s.shape}, expected {spins.shape} spins in {{-1, +1}}")
     spins[...] = s

@@ -20,7 +20,7 @@ class Capture(EPIBT):
     """EPIBT that keeps a copy of each call's plan state and reservation table."""
 
     def _improve(self, state):
-        self.captured = (tuple(a.copy() for a in state), self._res.copy())
+        self.captured = (type(state)(*(a.copy() for a in state)), self._res.copy())
 
 
 def collide(p, q):
@@ -39,7 +39,7 @@ def captured_states(seed, steps=8):
 
 
 def groups_of(state, res, seed=0, t=0, limits=(8, 6, 4, 45)):
-    r = len(state[3])
+    r = len(state.ncand)
     members, gstart = np.empty(r, np.int64), np.empty(limits[0] + 1, np.int64)
     ostart, opt = np.empty(r + 1, np.int64), np.empty(r * limits[2], np.int64)
     ng = select_groups(state, res, limits, (seed, t), np.zeros(r, np.int8), (members, gstart, ostart, opt))
@@ -47,11 +47,11 @@ def groups_of(state, res, seed=0, t=0, limits=(8, 6, 4, 45)):
 
 
 def path(state, q, c):
-    return tuple(state[0][q, c]) if c >= 0 else tuple(state[6][q])
+    return tuple(state.cells[q, c]) if c >= 0 else tuple(state.inh[q])
 
 
 def cost(state, q, c):
-    return int(state[2][q, c]) if c >= 0 else int(state[7][q])
+    return int(state.costs[q, c]) if c >= 0 else int(state.inh_cost[q])
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -61,7 +61,7 @@ def test_groups_are_disjoint_and_their_options_collide_with_no_outsider(seed):
         res0 = res.copy()
         ng, members, gstart, ostart, opt = groups_of(state, res, seed)
         assert np.array_equal(res, res0)  # the table is left as found
-        cur, src = state[4], state[5]
+        cur, src = state.cur, state.src
         r = len(src)
         inside = members[:gstart[ng]]
         assert len(set(inside.tolist())) == len(inside)

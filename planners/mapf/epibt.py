@@ -18,6 +18,7 @@ import itertools
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -28,7 +29,7 @@ from planners.mapf.flow import FlowGuide, FlowPIBT
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "plan_cost", "portfolio_seed",
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
            "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
@@ -227,19 +228,30 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
     return result
 
 
-def new_state(r: int, ops: np.ndarray):
-    """Arrays of one call's plan, filled by :func:`epibt_kernel`: ``(cells, which, costs, ncand, cur, src, inh,
-    inh_cost)`` -- each robot's ranked operations (cells, operation, cost-to-go; how many), its cells now, the
-    candidate they are (-1 inherited), its inherited cells and their cost-to-go."""
+class PlanState(NamedTuple):
+    """One call's joint plan, filled by :func:`epibt_kernel` (a record numba compiles as a tuple; read by name)."""
+
+    cells: np.ndarray     # (R, n_ops, op_len + 1): each robot's ranked operations' cells
+    which: np.ndarray     # (R, n_ops): the operation each candidate is
+    costs: np.ndarray     # (R, n_ops): its (weighted) cost-to-go
+    ncand: np.ndarray     # (R,): how many candidates
+    cur: np.ndarray       # (R, op_len + 1): the robot's cells now
+    src: np.ndarray       # (R,): the candidate they are (-1: inherited)
+    inh: np.ndarray       # (R, op_len + 1): its inherited operation's cells
+    inh_cost: np.ndarray  # (R,): their cost-to-go
+
+
+def new_state(r: int, ops: np.ndarray) -> PlanState:
+    """An empty :class:`PlanState` for ``r`` robots and the operations ``ops``."""
     n_ops, length = ops.shape
-    return (np.empty((r, n_ops, length + 1), np.int64), np.empty((r, n_ops), np.int64), np.empty((r, n_ops), np.int64),
-            np.empty(r, np.int64), np.empty((r, length + 1), np.int64), np.full(r, -1, np.int64),
-            np.empty((r, length + 1), np.int64), np.empty(r, np.int64))
+    return PlanState(np.empty((r, n_ops, length + 1), np.int64), np.empty((r, n_ops), np.int64),
+                     np.empty((r, n_ops), np.int64), np.empty(r, np.int64), np.empty((r, length + 1), np.int64),
+                     np.full(r, -1, np.int64), np.empty((r, length + 1), np.int64), np.empty(r, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
-    """One joint plan into ``state`` (:func:`new_state`), left reserved in ``res`` (``(op_len + 1, cells)``, all -1
+    """One joint plan into ``state`` (a :class:`PlanState`), left reserved in ``res`` (``(op_len + 1, cells)``, all -1
     on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient,
     goals, rows, prio, inherited, weight)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1
     Manhattan; ``inherited[k]`` its fallback operation, jointly conflict-free; ``weight[k]`` multiplies its
@@ -247,7 +259,8 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
     nbr = grid[0]
     pos, orient, goals, rows, prio, inherited, weight = robots
     seed, t, revisits, lns, group = stamp
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    cells, which, costs, ncand = state.cells, state.which, state.costs, state.ncand
+    cur, src, inh, inh_cost = state.cur, state.src, state.inh, state.inh_cost
     r = pos.shape[0]
     n_ops, length = ops.shape
     idle = np.zeros(n_ops, dtype=np.int64)
@@ -281,13 +294,13 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         if not _choose(k, prio, (cells, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
             reserve(res, cur[k], k, k)
     if lns > 0:
-        lns_search((cells, costs, ncand), (cur, src, inh, inh_cost), res, (seed, t, lns, group))
+        lns_search(state, res, (seed, t, lns, group))
 
 
 @numba.njit(cache=True, nogil=True)
 def epibt_finish(ops, inherited, state, out, res) -> None:
     """``out = (chosen, act)``: robot ``k``'s operation (actions) and its first action; ``res`` cleared."""
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    which, cur, src = state.which, state.cur, state.src
     chosen, act = out
     for k in range(cur.shape[0]):
         if src[k] >= 0:
@@ -299,9 +312,9 @@ def epibt_finish(ops, inherited, state, out, res) -> None:
 
 
 def plan_cost(state) -> int:
-    """A joint plan's weighted cost-to-go (:func:`new_state`'s arrays): each robot's chosen operation's, or its
-    inherited one's."""
-    costs, src, inh_cost = state[2], state[5], state[7]
+    """A joint plan's (:class:`PlanState`) weighted cost-to-go: each robot's chosen operation's, or its inherited
+    one's."""
+    costs, src, inh_cost = state.costs, state.src, state.inh_cost
     r = src.shape[0]
     return int(np.where(src >= 0, costs[np.arange(r), np.maximum(src, 0)], inh_cost).sum())
 

@@ -29,7 +29,6 @@ import numba
 import numpy as np
 
 from ising_backend import CallLedger
-from ising_backend.audit import active_audit
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.choice_qubo import read_option, reduce_to_reference
@@ -59,7 +58,7 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
     ``members[gstart[g]:gstart[g + 1]]``, robot slot ``m``'s options ``opt[ostart[m]:ostart[m + 1]]`` (a
     candidate index, -1 its inherited operation; option 0 its operation now).  ``limits = (groups,
     max_robots, max_options, max_spins)``, ``stamp = (seed, t)``, ``taken`` (robots) all 0 on entry."""
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    cells, ncand, cur, src = state.cells, state.ncand, state.cur, state.src
     n_groups, max_robots, max_options, max_spins = limits
     seed, t = stamp
     members, gstart, ostart, opt = out
@@ -107,14 +106,12 @@ def select_groups(state, res, limits, stamp, taken, out) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def _path(state, q, c):
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
-    return cells[q, c] if c >= 0 else inh[q]
+    return state.cells[q, c] if c >= 0 else state.inh[q]
 
 
 @numba.njit(cache=True, nogil=True)
 def _cost(state, q, c) -> int:
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
-    return costs[q, c] if c >= 0 else inh_cost[q]
+    return state.costs[q, c] if c >= 0 else state.inh_cost[q]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -217,7 +214,7 @@ def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
     """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
     when it costs at least ``min_gain`` less than their plan now and collides with nothing left in the plan;
     returns how many did.  ``groups = (ng, members, gstart, ostart, opt)``."""
-    cells, which, costs, ncand, cur, src, inh, inh_cost = state
+    cur, src = state.cur, state.src
     ng, members, gstart, ostart, opt = groups
     applied = 0
     for g in range(ng):
@@ -301,7 +298,7 @@ class EPIBTIsing(EPIBT):
     def _improve(self, state) -> None:
         t0 = time.perf_counter()
         self.last_compute = ComputeReport()
-        r = len(state[3])
+        r = len(state.ncand)
         members = np.empty(r, dtype=np.int64)
         gstart = np.empty(self.n_groups + 1, dtype=np.int64)
         ostart = np.empty(r + 1, dtype=np.int64)
@@ -329,10 +326,13 @@ class EPIBTIsing(EPIBT):
                 qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], limits)
             seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
             if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
-                spins, energies = np.zeros((ng, 1, 0), np.int8), None
+                spins = np.zeros((ng, 1, 0), np.int8)
             else:
-                spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
-                call = self.machine.last_call
+                call = CallLedger()
+                with self.machine.session(call, decision="lns_groups") as link:
+                    host_rule = None if link.audit is None else \
+                        self._host_rule(H, J, (ng, gstart, ostart, host, host_cost), host_s)
+                    spins, _ = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
                 self.ledger = self.ledger + call
             choice = np.zeros(m, dtype=np.int64)
             cost = np.empty(ng, dtype=np.int64)
@@ -343,8 +343,6 @@ class EPIBTIsing(EPIBT):
             worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
             self.stats["chip_better"] += int(better.sum())
             self.stats["chip_worse"] += int(worse.sum())
-            if active_audit() is not None and call is not None:
-                self._audit(H, J, spins, energies, call, (ng, gstart, ostart, host, host_cost), host_s)
         self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost,
                                                 self.min_gain)
         self.stats["decisions"] += ng
@@ -354,9 +352,10 @@ class EPIBTIsing(EPIBT):
         if call is not None:
             self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=total)
 
-    def _audit(self, H, J, spins, energies, call, groups, host_s) -> None:
-        """The programs into the open decision audit as class ``lns_groups``, beside the host rule's choice as
-        spins of the same program (a group the host rule leaves without a choice: its plan now, option 0)."""
+    def _host_rule(self, H, J, groups, host_s) -> tuple:
+        """The host rule beside this step's programs in an open decision audit (class ``lns_groups``): the search's
+        greedy choice as spins of the same programs (a group it leaves without a choice: its plan now, option 0),
+        their energies, and its seconds per program."""
         from ising_backend.health import program_energy
 
         ng, gstart, ostart, host, host_cost = groups
@@ -367,5 +366,4 @@ class EPIBTIsing(EPIBT):
                 if c > 0:
                     hs[g, ostart[i] - ostart[gstart[g]] - (i - gstart[g]) + c - 1] = 1
         e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)
-        active_audit().record("lns_groups", H, J, spins, energies, call, host=(e_host, host_s / ng, "greedy"),
-                              spec=self.machine.spec)
+        return e_host, host_s / ng, "greedy"

@@ -62,13 +62,13 @@ def blockers(k, cells, top, res, size, members, mark) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def lns_search(cand, plans, res, stamp) -> None:
-    """Large-neighbourhood search: ``iters`` times, a robot not on its best operation and the robots in the way
-    of its better ones (at most ``group``) choose again in a seeded order, each its best operation colliding
-    with no one (or its inherited one); kept when their summed ``costs`` fall.  ``cand = (cells, costs, ncand)``,
-    ``plans = (cur, src, inh, inh_cost)``, ``stamp = (seed, t, iters, group)``."""
-    cells, costs, ncand = cand
-    cur, src, inh, inh_cost = plans
+def lns_search(state, res, stamp) -> None:
+    """Large-neighbourhood search over ``state`` (an EPIBT :class:`~planners.mapf.epibt.PlanState`): ``iters``
+    times, a robot not on its best operation and the robots in the way of its better ones (at most ``group``)
+    choose again in a seeded order, each its best operation colliding with no one (or its inherited one); kept
+    when their summed ``costs`` fall.  ``stamp = (seed, t, iters, group)``."""
+    cells, costs, ncand = state.cells, state.costs, state.ncand
+    cur, src, inh, inh_cost = state.cur, state.src, state.inh, state.inh_cost
     seed, t, iters, group = stamp
     r = cur.shape[0]
     if r == 0:

@@ -2,7 +2,7 @@
 
 :class:`JointMovesPIBT` runs the host rule (:class:`~planners.mapf.turning.TurningPIBT`), then the
 decision class ``joint-moves`` of :mod:`planners.mapf.joint_moves`: every group of the step is one
-program of one ``machine.anneal_batch`` (any :class:`ising_backend.IsingMachine`; programs padded
+program of one submission through the machine's session (any :class:`ising_backend.IsingMachine`; programs padded
 with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
 answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
 rule's (the host scores both; the default), ``"chip"`` always the chip's, ``"host"`` always the host
@@ -31,7 +31,6 @@ import numpy as np
 
 from ising_backend import CallLedger
 from ising_backend.host_rule import host_rule_classes
-from ising_backend.audit import active_audit
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
@@ -49,7 +48,7 @@ class JointMovesPIBT(TurningPIBT):
 
     Args:
         grid, seed: as :class:`TurningPIBT` (``field_bytes``, ``bfs_budget`` pass through).
-        machine: any Ising machine (``anneal_batch``, ``spec``, ``usable_spins``); default
+        machine: any Ising machine (``session``, ``spec``, ``usable_spins``); default
             ``ising_backend.EmulatedChip(seed=seed)``.
         max_robots: robots per group (1..45).
         max_spins: options per group (default and upper limit: the machine's usable spins).
@@ -142,9 +141,11 @@ class JointMovesPIBT(TurningPIBT):
             qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
         seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
-        spins, energies = self.machine.anneal_batch(H, J, num_reads=self.num_reads, seed=seed)
+        call = CallLedger()
+        with self.machine.session(call, decision="joint_moves") as link:
+            host_rule = None if link.audit is None else self._host_rule(H, J, gstart, ostart, host, ng, len(pc))
+            spins, energies = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
         t2 = time.perf_counter()
-        call = self.machine.last_call
         self.ledger = self.ledger + call
         stats = np.zeros(2, dtype=np.int64)
         choice = np.empty(self.max_robots, dtype=np.int64)
@@ -168,8 +169,6 @@ class JointMovesPIBT(TurningPIBT):
                                    "chip": int(e_chip), "exact": int(e_opt),
                                    "not_one_hot": int(stats[0] - before[0]), "conflict": int(stats[1] - before[1])})
                 audit_s += time.perf_counter() - ta
-        if active_audit() is not None:
-            self._audit(H, J, spins, energies, call, gstart, ostart, host, ng, len(pc))
         self.decisions += ng
         self.repaired += stats
         claims_to_actions(self.nbr, pc, orient, nxt, act, self._occ_now)
@@ -179,9 +178,9 @@ class JointMovesPIBT(TurningPIBT):
         self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=t3 - t0)
         self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups
 
-    def _audit(self, H, J, spins, energies, call, gstart, ostart, host, ng, robots) -> None:
-        """This step's programs into the open decision audit as class ``joint_moves``, beside the host rule's
-        answer (PIBT's cells as spins of the same program; its seconds: this step's PIBT kernel time, a
+    def _host_rule(self, H, J, gstart, ostart, host, ng, robots) -> tuple:
+        """The host rule beside this step's programs in an open decision audit (class ``joint_moves``): PIBT's
+        cells as spins of the same programs, their energies, and its seconds (this step's PIBT kernel time, a
         group's share by its robots)."""
         from ising_backend.health import program_energy
 
@@ -191,6 +190,4 @@ class JointMovesPIBT(TurningPIBT):
             a, b = gstart[g], gstart[g + 1]
             hs[g, ostart[a:b] - ostart[a] + host[a:b]] = 1
             secs[g] = self.kernel_s * (b - a) / robots
-        e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)
-        active_audit().record("joint_moves", H, J, spins, energies, call, host=(e_host, float(secs.mean()), "pibt"),
-                              spec=self.machine.spec)
+        return program_energy(H.astype(np.float64), J.astype(np.float64), hs), float(secs.mean()), "pibt"

@@ -12,7 +12,7 @@ vacate check cancels, taken by decreasing priority; a group grows breadth-first 
 two free steps (robots further apart share no candidate cell) while it has at most ``max_robots``
 robots and at most ``max_spins`` candidate options.  Robots within two steps of a group are frozen
 (fixed at their claims) for later groups, so groups of one step are independent and go to the chip
-in one ``anneal_batch``.
+in one submission.
 
 **Objective** (minimised; the host rule's answer is scored with it too).  Robot ``i`` claiming cell
 ``v`` costs ``w_i * (2 * (d(v) - d(p_i)) + turns(o_i -> v))`` (0 for its own cell): ``d`` the BFS

@@ -101,7 +101,7 @@ def test_epibt_cuts_its_portfolio_at_the_deadline_and_runs_all_of_it_without_one
     cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)
     assert cut.lns == int(400 * 0.7) and cut.lns_scale == pytest.approx(0.49)
     cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() + 60.0)
-    assert cut.lns == int(400 * 0.7 * 0.7) and cut.lns_scale == pytest.approx(0.539)
+    assert cut.lns == int(400 * (0.7 * 0.7)) and cut.lns_scale == pytest.approx(0.539)
 
 
 # ---------------------------------------------------------------- the entry
@@ -258,3 +258,14 @@ def test_the_greedy_scheduler_under_a_clock_stops_where_the_start_kits_would():
     sim = LoRRSimulator(inst)
     first = later.schedule(sim, deadline=time.perf_counter() + 60.0)  # time enough: the same as work-bounded
     assert np.array_equal(first, free)
+
+
+def test_a_bad_scheduler_option_is_named_not_called_an_unknown_scheduler():
+    from agents.lorr.schedulers import make_scheduler
+
+    with pytest.raises(ValueError, match="^group_size must be an integer >= 1, got 0$"):
+        make_scheduler("strong", group_size=0)
+    with pytest.raises(ValueError, match="^unknown scheduler 'warp'; known: lorr-greedy"):
+        make_scheduler("warp")
+    with pytest.raises(ValueError, match="unknown scheduler 'ssa\\+warp'.*unknown tour planner 'warp'"):
+        make_scheduler("ssa+warp")

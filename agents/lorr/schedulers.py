@@ -155,7 +155,8 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         if options:
             raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")
         return _Greedy()
-    from agents.lifelong.controllers import PipelineAssigner, _learned
+    from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
+    from planners.registry import UnknownPlannerError
 
     own = {"replan": options.pop("replan", False), "shortlist": options.pop("shortlist", DEFAULT_SHORTLIST),
            "keep": options.pop("keep", True)}
@@ -163,11 +164,12 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         if options:
             raise ValueError(f"{name} takes no options besides replan, keep and shortlist, got {sorted(options)}")
         return AssignerScheduler(_learned(name), seed=seed, **own)
+    known = f"known: {', '.join(SCHEDULERS)}, a sharing+tour pair or ppo:MODEL.zip"
+    if name not in PIPELINE_LAYERS and not (name.count("+") == 1 and all(name.split("+"))):
+        raise ValueError(f"unknown scheduler {name!r}; {known}")
     options.setdefault("fill", True)
-    try:
+    try:  # an option's own error passes as it is; only an unknown half of a pair is an unknown scheduler
         assigner = PipelineAssigner(name, chip=chip, **options)
-    except ValueError as exc:
-        why = f" ({exc})" if "+" in name else ""  # which half of a pair is unknown
-        raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}, a sharing+tour pair "
-                         f"or ppo:MODEL.zip{why}") from None
+    except UnknownPlannerError as exc:
+        raise ValueError(f"unknown scheduler {name!r}; {known} ({exc})") from None
     return AssignerScheduler(assigner, seed=seed, **own)

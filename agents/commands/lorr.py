@@ -181,13 +181,14 @@ def check_entry(entry, chip=None) -> None:
 
 
 def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, chip, options: dict, out: str | None,
-              out_name: str | None, limit=None) -> dict:
-    """One run (module level, for the task runner); writes its output file when ``out`` is given."""
+              out_name: str | None, limit=None, progress: bool = False) -> dict:
+    """One run (module level, for the task runner; ``progress``: a bar over its steps, for a run in this process);
+    writes its output file when ``out`` is given."""
     from agents.lorr.output import write_output
     from agents.lorr.run import run_lorr
 
     record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options,
-                                   limit=limit)
+                                   limit=limit, progress=progress)
     if out:
         write_output(sim, Path(out) / out_name, planner_times=step_s)
         record["output"] = str(Path(out) / out_name)
@@ -300,7 +301,7 @@ def _run(args) -> int:
 
     with Audit(args.audit) if args.audit else nullcontext(), host_rule:
         if single and run.backend != "ray":
-            rows = [_single(tasks[0], progress)]
+            rows = [lorr_task(*tasks[0], progress=progress)]
         else:
             rows = run_tasks(lorr_task, tasks, run)
     if args.json:
@@ -324,20 +325,6 @@ def _warm_parts(pairs, progress: bool) -> None:
 
     parts = {f"lorr:{ex}" for _, ex in pairs} | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:")}
     warm(sorted(parts), jobs=min(2, os.cpu_count() or 1), progress=progress)
-
-
-def _single(task: tuple, progress: bool) -> dict:
-    """One run in this process, with a progress bar over its steps."""
-    from agents.lorr.output import write_output
-    from agents.lorr.run import run_lorr
-
-    inst, s, executor, steps, seed, chip, options, out, name, limit = task
-    record, sim, step_s = run_lorr(inst, s, executor, steps=steps, seed=seed, chip=chip, options=options,
-                                   progress=progress, limit=limit)
-    if out:
-        write_output(sim, Path(out) / name, planner_times=step_s)
-        record["output"] = str(Path(out) / name)
-    return record
 
 
 def _round(args) -> int:

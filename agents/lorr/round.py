@@ -93,8 +93,13 @@ class RoundSummary:
 
 
 def _key(entry, steps, limit, seed) -> dict:
-    return {"entry": entry.source, "steps": steps, "clock": "work-bounded" if limit is None else limit.label(),
-            "seed": int(seed)}
+    """What makes two runs of an instance the same run: the entry (its name and rules, wherever its file is), the
+    steps, the clock and the seed."""
+    import hashlib
+
+    rules = json.dumps(entry.to_json()["rules"], sort_keys=True)
+    return {"entry": entry.name, "entry_rules": hashlib.sha1(rules.encode()).hexdigest()[:12], "steps": steps,
+            "clock": "work-bounded" if limit is None else limit.label(), "seed": int(seed)}
 
 
 def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str, best: dict) -> dict:

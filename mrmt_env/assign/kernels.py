@@ -18,14 +18,30 @@ Action ``a < N`` sends the decider to target ``a``; action ``N`` retires it.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
+import numpy as np
 
 from mrmt_env.fast_generation import node_distances
 
-__all__ = ["assign_load", "assign_step", "assign_masks", "assign_observe", "next_decider", "N_ROBOT_FEATURES"]
+__all__ = ["AssignArrays", "assign_load", "assign_step", "assign_masks", "assign_observe", "next_decider", "N_ROBOT_FEATURES"]
 
 #: Feature columns before the per-target distance block (see the env docstring).
 N_ROBOT_FEATURES = 8
+
+
+class AssignArrays(NamedTuple):
+    """The batch's arrays :func:`assign_load` fills (the module docstring), read by name."""
+
+    dist: np.ndarray
+    coords: np.ndarray
+    cell: np.ndarray
+    free_at: np.ndarray
+    active: np.ndarray
+    open_: np.ndarray
+    counters: np.ndarray
+    decider: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
@@ -49,8 +65,9 @@ def next_decider(cell, free_at, active, open_, dist, n_targets) -> int:
 @numba.njit(cache=True, nogil=True)
 def assign_load(b, flat_grid, width, height, nodes, n_robots, state) -> None:
     """Start env ``b`` on a world given as a flat grid and node cells (robots, then targets);
-    ``state`` = ``(dist, coords, cell, free_at, active, open_, counters, decider)``, the batch's arrays."""
-    dist, coords, cell, free_at, active, open_, counters, decider = state
+    ``state`` the batch's :class:`AssignArrays`."""
+    dist, coords, cell, free_at = state.dist, state.coords, state.cell, state.free_at
+    active, open_, counters, decider = state.active, state.open_, state.counters, state.decider
     node_distances(flat_grid, width, nodes, dist[b])
     n_targets = open_.shape[1]
     for a in range(nodes.shape[0]):

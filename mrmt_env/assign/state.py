@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrmt_env.assign.kernels import N_ROBOT_FEATURES, assign_load, assign_masks, assign_observe, assign_step
+from mrmt_env.assign.kernels import AssignArrays, N_ROBOT_FEATURES, assign_load, assign_masks, assign_observe, assign_step
 from mrmt_env.world import World
 
 __all__ = ["AssignBatch", "assign_feature_count", "assign_obs_high"]
@@ -55,7 +55,8 @@ class AssignBatch:
     def load_arrays(self, i: int, flat_grid: np.ndarray, robots: np.ndarray, targets: np.ndarray) -> None:
         """:meth:`load` from flat cell indices (``r * W + c``), as the vector env draws them."""
         nodes = np.concatenate([robots, targets]).astype(np.int64)
-        state = (self.dist, self.coords, self.cell, self.free_at, self.active, self.open_, self.counters, self.decider)
+        state = AssignArrays(self.dist, self.coords, self.cell, self.free_at, self.active, self.open_, self.counters,
+                             self.decider)
         assign_load(i, np.ascontiguousarray(flat_grid, dtype=np.bool_), self.width, self.height, nodes, self.n_robots,
                     state)
         self.worlds[i] = None

@@ -9,12 +9,26 @@ conflicts, swap conflicts``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from mrmt_env.distances import bfs_flat
 
-__all__ = ["grid_load", "grid_step", "grid_masks", "nearest_field"]
+__all__ = ["GridArrays", "grid_load", "grid_step", "grid_masks", "nearest_field"]
+
+
+class GridArrays(NamedTuple):
+    """The vector env's arrays every kernel call takes, read by name (``B`` envs, ``R`` robots, ``N`` targets)."""
+
+    succ: np.ndarray      # (B, H*W, 5): the cell each action leads to
+    tgt_at: np.ndarray    # (B, H*W): the target on each cell, -1 none
+    pos: np.ndarray       # (B, R): robot cells
+    visited: np.ndarray   # (B, N): targets visited
+    moves: np.ndarray     # (B, R): moves per robot
+    counters: np.ndarray  # (B, ...): episode counters
+    obs: np.ndarray       # (B, 2 + R, H*W): the observation planes
 
 _DR = (-1, 1, 0, 0)
 _DC = (0, 0, -1, 1)
@@ -36,9 +50,10 @@ def nearest_field(grid, width, targets, visited, field) -> None:
 
 @numba.njit(cache=True, nogil=True)
 def grid_load(b, grid, width, robots, targets, state, field, dense) -> None:
-    """Start env ``b`` on a world (flat grid, robot and target cells).  ``state`` = ``(succ, tgt_at, pos,
-    visited, moves, counters, obs)``, the vector env's arrays."""
-    succ, tgt_at, pos, visited, moves, counters, obs = state
+    """Start env ``b`` on a world (flat grid, robot and target cells); ``state`` the vector env's
+    :class:`GridArrays`."""
+    succ, tgt_at, pos, visited = state.succ, state.tgt_at, state.pos, state.visited
+    moves, counters, obs = state.moves, state.counters, state.obs
     n = grid.shape[0]
     h = n // width
     for p in range(n):
@@ -88,7 +103,8 @@ def _potential(field_b, pos_b) -> float:
 def grid_step(actions, live, state, target_reward, grids, width, targets, field, dense, rewards, terminated) -> None:
     """Apply the joint action of every live env (``actions (B, R)`` in 0..4, already checked); ``state``
     as in :func:`grid_load`."""
-    succ, tgt_at, pos, visited, moves, counters, obs = state
+    succ, tgt_at, pos, visited = state.succ, state.tgt_at, state.pos, state.visited
+    moves, counters, obs = state.moves, state.counters, state.obs
     n_robots = pos.shape[1]
     n_targets = visited.shape[1]
     frm = np.empty(n_robots, dtype=np.int64)

@@ -18,7 +18,7 @@ from gymnasium.vector.utils import batch_space
 from mrmt_env.config import WorldConfig
 from mrmt_env.core import N_ACTIONS, MRMTCore
 from mrmt_env.fast_generation import draw_world_arrays
-from mrmt_env.grid.kernels import grid_load, grid_masks, grid_step
+from mrmt_env.grid.kernels import GridArrays, grid_load, grid_masks, grid_step
 from mrmt_env.grid.env import OBSERVATIONS
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.vector_base import BatchedVectorEnv, check_joint_moves
@@ -69,7 +69,7 @@ class MRMTVectorEnv(BatchedVectorEnv):
         self._rewards = np.zeros(b, dtype=np.float64)
         self._terminated = np.zeros(b, dtype=np.bool_)
         self._masks = np.zeros((b, N_ACTIONS * r), dtype=np.bool_)
-        self._state = (self.succ, self.tgt_at, self.pos, self.visited, self.moves, self.counters, self._obs)
+        self._state = GridArrays(self.succ, self.tgt_at, self.pos, self.visited, self.moves, self.counters, self._obs)
 
     def _load(self, i: int, rng: np.random.Generator) -> None:
         flat, robots, targets = draw_world_arrays(rng, self.source.params, self.source.fixed)

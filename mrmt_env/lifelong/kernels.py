@@ -26,10 +26,12 @@ steps summed, tasks_arrived, tasks_dropped, open_tasks.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
-__all__ = ["COUNTERS", "lifelong_load", "lifelong_step", "resolve_block", "uniform01", "poisson_count"]
+__all__ = ["COUNTERS", "LifelongArrays", "lifelong_load", "lifelong_step", "resolve_block", "uniform01", "poisson_count"]
 
 COUNTERS = ("steps", "route_cost", "tasks_completed", "invalid_moves", "vertex_conflicts", "swap_conflicts",
             "blocked_moves", "service_sum", "tasks_arrived", "tasks_dropped", "open_tasks")
@@ -41,6 +43,21 @@ _HAS_ROBOT = -3
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
+
+
+class LifelongArrays(NamedTuple):
+    """The batch's arrays every kernel call takes, read by name (``B`` envs, ``R`` robots)."""
+
+    succ: np.ndarray      # (B, H*W, 5): the cell each action leads to
+    pos: np.ndarray       # (B, R): robot cells
+    at: np.ndarray        # (B, H*W): the robot on each cell, -1 none
+    task_t: np.ndarray    # (B, H*W): the step the open task on the cell arrived, -1 none
+    free: np.ndarray      # (B, H*W): the pool cells a task may arrive on now, listed first
+    free_idx: np.ndarray  # (B, H*W): each cell's index in ``free``, -1 none
+    n_free: np.ndarray    # (B,): how many are listed
+    moves: np.ndarray     # (B, R): moves per robot
+    counters: np.ndarray  # (B, len(COUNTERS))
+    obs: np.ndarray       # (B, 2 + R, H*W): the observation planes
 
 
 @numba.njit(cache=True, nogil=True)
@@ -71,9 +88,10 @@ def poisson_count(u, rate) -> int:
 @numba.njit(cache=True, nogil=True)
 def lifelong_load(b, grid, width, robots, tasks, pool, state) -> None:
     """Start env ``b``: flat grid, robot cells, the initial open tasks and the task pool (flat cells).
-    ``state`` = ``(succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs)``, the batch's
-    arrays (:attr:`~mrmt_env.lifelong.state.LifelongBatch.state`)."""
-    succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs = state
+    ``state`` the batch's :class:`LifelongArrays` (:attr:`~mrmt_env.lifelong.state.LifelongBatch.state`)."""
+    succ, pos, at, task_t = state.succ, state.pos, state.at, state.task_t
+    free, free_idx, n_free, moves = state.free, state.free_idx, state.n_free, state.moves
+    counters, obs = state.counters, state.obs
     n = grid.shape[0]
     h = n // width
     ob = obs[b]
@@ -207,7 +225,9 @@ def resolve_block(pos, tgt, at, claim, stack) -> int:
 def lifelong_step(actions, live, state, keys, draws, block, poisson, rate, task_reward, claim, rewards) -> None:
     """Apply the joint action (``actions (B, R)`` in 0..4, checked) of every live env; see the module docstring.
     ``state`` as in :func:`lifelong_load`."""
-    succ, pos, at, task_t, free, free_idx, n_free, moves, counters, obs = state
+    succ, pos, at, task_t = state.succ, state.pos, state.at, state.task_t
+    free, free_idx, n_free, moves = state.free, state.free_idx, state.n_free, state.moves
+    counters, obs = state.counters, state.obs
     n_robots = pos.shape[1]
     tgt = np.empty(n_robots, dtype=np.int64)
     stack = np.empty(n_robots + 1, dtype=np.int64)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrmt_env.grid.kernels import grid_masks
-from mrmt_env.lifelong.kernels import COUNTERS, lifelong_load, lifelong_step
+from mrmt_env.lifelong.kernels import COUNTERS, LifelongArrays, lifelong_load, lifelong_step
 from mrmt_env.maps import build_layout
 from mrmt_env.world import World
 
@@ -93,9 +93,9 @@ class LifelongBatch:
         self.draws = np.zeros(b, dtype=np.uint64)
         self.claim = np.full((b, hw), -1, dtype=np.int64)
         self.rewards = np.zeros(b, dtype=np.float64)
-        #: The arrays every kernel call takes, as one tuple (:func:`~mrmt_env.lifelong.kernels.lifelong_load`).
-        self.state = (self.succ, self.pos, self.at, self.task_t, self.free, self.free_idx, self.n_free, self.moves,
-                      self.counters, self.obs)
+        #: The arrays every kernel call takes, one record (:class:`~mrmt_env.lifelong.kernels.LifelongArrays`).
+        self.state = LifelongArrays(self.succ, self.pos, self.at, self.task_t, self.free, self.free_idx, self.n_free,
+                                    self.moves, self.counters, self.obs)
         self.worlds: list[World | None] = [None] * b
 
     def load(self, i: int, world: World, pool: np.ndarray, key: int) -> None:

@@ -25,9 +25,9 @@ __all__ = ["GreedyScheduler", "pair_distances", "greedy_kernel", "FAR"]
 
 #: Cost of an unreachable errand (larger than any path).
 FAR = np.int64(1 << 40)
-#: Cells a step's searches may visit (half for task lengths, half for robots; about 0.25 s here):
-#: a deterministic stand-in for the start kit's time limit, which stops assigning when time is up.
-#: Only fleets of thousands on large maps reach it (then the rest is assigned in the next steps).
+#: Cells a step's searches may visit without a clock (half for task lengths, half for robots): a deterministic
+#: stand-in for the start kit's time limit.  Only fleets of thousands on large maps reach it (then the rest is
+#: assigned in the next steps); it is about 2-2.5 s a step there (benchmarks/RESULTS.md, issue 56).
 DEFAULT_WORK_BUDGET = 1 << 24
 #: Under a clock the greedy stops at half the time left less this (the start kit's scheduler tolerance).
 STOP_TOLERANCE_S = 0.01

@@ -18,18 +18,17 @@ import itertools
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from planners.mapf.common import int_in, mix
-from planners.mapf.epibt_search import conflict, lns_search, reserve
+from planners.mapf.epibt_search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
 from planners.mapf.flow import FlowGuide, FlowPIBT
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "plan_cost", "portfolio_seed",
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp", "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
            "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
@@ -159,12 +158,11 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _choose(root, prio, cand, plans, tables, revisits) -> bool:
-    """Robot ``root``'s choice with pushes, on an explicit stack (module docstring); ``cand = (cells, ncand)``, ``plans = (cur, src, inh)``: each robot's cells now, the candidate they are (-1 inherited)
-    and its inherited cells; ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its
-    inherited cells, unreserved."""
-    cells, ncand = cand
-    cur, src, inh = plans
+def _choose(root, prio, state, tables, revisits) -> bool:
+    """Robot ``root``'s choice with pushes, on an explicit stack (module docstring), in ``state`` (a
+    :class:`PlanState`); ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its inherited cells,
+    unreserved."""
+    cells, ncand, cur, src, inh = state.cells, state.ncand, state.cur, state.src, state.inh
     res, visit, hit, stack = tables
     st_a, st_i, st_l, st_src, saved = stack
     p = prio[root]
@@ -228,37 +226,15 @@ def _choose(root, prio, cand, plans, tables, revisits) -> bool:
     return result
 
 
-class PlanState(NamedTuple):
-    """One call's joint plan, filled by :func:`epibt_kernel` (a record numba compiles as a tuple; read by name)."""
-
-    cells: np.ndarray     # (R, n_ops, op_len + 1): each robot's ranked operations' cells
-    which: np.ndarray     # (R, n_ops): the operation each candidate is
-    costs: np.ndarray     # (R, n_ops): its (weighted) cost-to-go
-    ncand: np.ndarray     # (R,): how many candidates
-    cur: np.ndarray       # (R, op_len + 1): the robot's cells now
-    src: np.ndarray       # (R,): the candidate they are (-1: inherited)
-    inh: np.ndarray       # (R, op_len + 1): its inherited operation's cells
-    inh_cost: np.ndarray  # (R,): their cost-to-go
-
-
-def new_state(r: int, ops: np.ndarray) -> PlanState:
-    """An empty :class:`PlanState` for ``r`` robots and the operations ``ops``."""
-    n_ops, length = ops.shape
-    return PlanState(np.empty((r, n_ops, length + 1), np.int64), np.empty((r, n_ops), np.int64),
-                     np.empty((r, n_ops), np.int64), np.empty(r, np.int64), np.empty((r, length + 1), np.int64),
-                     np.full(r, -1, np.int64), np.empty((r, length + 1), np.int64), np.empty(r, np.int64))
-
-
 @numba.njit(cache=True, nogil=True)
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
-    """One joint plan into ``state`` (a :class:`PlanState`), left reserved in ``res`` (``(op_len + 1, cells)``, all -1
-    on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of, width, cost)``; ``robots = (pos, orient,
-    goals, rows, prio, inherited, weight)`` (compact cells; ``rows[k]`` robot ``k``'s row of the fields, -1
-    Manhattan; ``inherited[k]`` its fallback operation, jointly conflict-free; ``weight[k]`` multiplies its
-    costs); ``heuristic = (fields, far)``; ``stamp = (seed, t, revisits, lns, group)`` (the search's)."""
+    """One joint plan of ``robots`` (a :class:`Fleet`) into ``state`` (a :class:`PlanState`), left reserved in
+    ``res`` (``(op_len + 1, cells)``, all -1 on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of,
+    width, cost)``; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`."""
     nbr = grid[0]
-    pos, orient, goals, rows, prio, inherited, weight = robots
-    seed, t, revisits, lns, group = stamp
+    pos, orient, goals, rows = robots.pos, robots.orient, robots.goals, robots.rows
+    inherited, weight = robots.inherited, robots.weight
+    seed, t = stamp.seed, stamp.t
     cells, which, costs, ncand = state.cells, state.which, state.costs, state.ncand
     cur, src, inh, inh_cost = state.cur, state.src, state.inh, state.inh_cost
     r = pos.shape[0]
@@ -291,10 +267,10 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         if visit[k] != 0:
             continue
         reserve(res, cur[k], k, -1)
-        if not _choose(k, prio, (cells, ncand), (cur, src, inh), (res, visit, hit, stack), revisits):
+        if not _choose(k, robots.prio, state, (res, visit, hit, stack), stamp.revisits):
             reserve(res, cur[k], k, k)
-    if lns > 0:
-        lns_search(state, res, (seed, t, lns, group))
+    if stamp.lns > 0:
+        lns_search(state, res, (seed, t, stamp.lns, stamp.group))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -428,7 +404,7 @@ class EPIBT(TurningPIBT):
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         t0 = time.perf_counter()
-        state = self._plans(grid, (pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order)
+        state = self._plans(grid, Fleet(pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order)
         self.kernel_s = time.perf_counter() - t0
         self._improve(state)
         epibt_finish(self.ops, self.inherited, state, (chosen, act), self._res)
@@ -451,12 +427,12 @@ class EPIBT(TurningPIBT):
     def _plans(self, grid, robots, heuristic, order):
         """The portfolio's joint plans (one by default), the kept one's state returned and left reserved in
         :attr:`_res`; :attr:`portfolio_costs` holds each plan's weighted cost-to-go."""
-        r, k_plans = robots[0].shape[0], self.portfolio
+        r, k_plans = robots.pos.shape[0], self.portfolio
         states = [new_state(r, self.ops) for _ in range(k_plans)]
         tables = [self._res] + [np.full_like(self._res, -1) for _ in range(k_plans - 1)]
 
         def run(k):
-            stamp = (portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group)
+            stamp = SearchStamp(portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group)
             epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, states[k], tables[k])
 
         k_plans = self._waves(run, k_plans)

@@ -1,4 +1,7 @@
-"""EPIBT's reservation table and large-neighbourhood search over a joint plan (compiled).
+"""EPIBT's records, reservation table and large-neighbourhood search over a joint plan (compiled).
+
+:class:`Fleet` (the robots of a call), :class:`SearchStamp` (a plan's seed and budget) and :class:`PlanState`
+(a joint plan) are the kernels' records, read by name.
 
 The table ``res[t, cell]`` holds the robot on ``cell`` at time ``t`` of the operations (-1 free).
 :func:`lns_search`: ``iters`` times, a robot not on its best operation and the robots in the way of its
@@ -8,12 +11,57 @@ better ones (:func:`blockers`) choose again in a seeded order, each its best ope
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from planners.mapf.common import mix
 
-__all__ = ["reserve", "conflict", "blockers", "lns_search"]
+__all__ = ["Fleet", "SearchStamp", "PlanState", "new_state", "reserve", "conflict", "blockers", "lns_search"]
+
+
+class Fleet(NamedTuple):
+    """The robots of one call, as :func:`~planners.mapf.epibt.epibt_kernel` reads them (compact cells)."""
+
+    pos: np.ndarray        # (R,) cell now
+    orient: np.ndarray     # (R,) orientation
+    goals: np.ndarray      # (R,) goal cell
+    rows: np.ndarray       # (R,) row of the heuristic's fields (-1: Manhattan)
+    prio: np.ndarray       # (R,) priority (higher first; elapsed steps + tie)
+    inherited: np.ndarray  # (R, op_len) fallback operation, jointly conflict-free
+    weight: np.ndarray     # (R,) multiplies the robot's costs-to-go
+
+
+class SearchStamp(NamedTuple):
+    """One plan's seed and search budget."""
+
+    seed: int      # the plan's seed (:func:`~planners.mapf.epibt.portfolio_seed`)
+    t: int         # the call's step
+    revisits: int  # choices a robot may make per call
+    lns: int       # large-neighbourhood iterations
+    group: int     # robots per neighbourhood
+
+
+class PlanState(NamedTuple):
+    """One call's joint plan, filled by :func:`~planners.mapf.epibt.epibt_kernel` (numba compiles it as a tuple)."""
+
+    cells: np.ndarray     # (R, n_ops, op_len + 1): each robot's ranked operations' cells
+    which: np.ndarray     # (R, n_ops): the operation each candidate is
+    costs: np.ndarray     # (R, n_ops): its (weighted) cost-to-go
+    ncand: np.ndarray     # (R,): how many candidates
+    cur: np.ndarray       # (R, op_len + 1): the robot's cells now
+    src: np.ndarray       # (R,): the candidate they are (-1: inherited)
+    inh: np.ndarray       # (R, op_len + 1): its inherited operation's cells
+    inh_cost: np.ndarray  # (R,): their cost-to-go
+
+
+def new_state(r: int, ops: np.ndarray) -> PlanState:
+    """An empty :class:`PlanState` for ``r`` robots and the operations ``ops``."""
+    n_ops, length = ops.shape
+    return PlanState(np.empty((r, n_ops, length + 1), np.int64), np.empty((r, n_ops), np.int64),
+                     np.empty((r, n_ops), np.int64), np.empty(r, np.int64), np.empty((r, length + 1), np.int64),
+                     np.full(r, -1, np.int64), np.empty((r, length + 1), np.int64), np.empty(r, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -63,7 +111,7 @@ def blockers(k, cells, top, res, size, members, mark) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def lns_search(state, res, stamp) -> None:
-    """Large-neighbourhood search over ``state`` (an EPIBT :class:`~planners.mapf.epibt.PlanState`): ``iters``
+    """Large-neighbourhood search over ``state`` (a :class:`PlanState`): ``iters``
     times, a robot not on its best operation and the robots in the way of its better ones (at most ``group``)
     choose again in a seeded order, each its best operation colliding with no one (or its inherited one); kept
     when their summed ``costs`` fall.  ``stamp = (seed, t, iters, group)``."""

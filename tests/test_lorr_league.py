@@ -221,6 +221,12 @@ def test_round_folders_and_best_known_tables(tmp_path):
         best_known_table(tmp_path / "bad.json")
     proc = _mrmt("lorr", "round", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o"))
     assert proc.returncode == 2 and "nowhere: no such round folder" in proc.stderr
+    # an instance with no simulation time anywhere needs --steps, said before anything runs
+    (folder / "simulation_time.json").unlink()
+    (tmp_path / "one.json").write_text(json.dumps({"test": {"EXAMPLE-01": [8, 40, 20]}}))
+    proc = _mrmt("lorr", "round", str(folder), "--out", str(tmp_path / "o"), "--best-known", str(tmp_path / "one.json"))
+    assert proc.returncode == 2 and "EXAMPLE-02.json: no simulation time" in proc.stderr and "give --steps" in proc.stderr
+    assert not (tmp_path / "o").exists()
 
 
 def test_a_round_on_ray_gives_the_local_round(tmp_path):

@@ -254,17 +254,24 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
     return [(path, s, executor, options) for path in insts for s in schedulers], clock_from_args(args, None)
 
 
+def _bad_counts(args, *flags) -> str | None:
+    """The error of the first of ``flags`` given below 1, or of a negative ``--seed``; ``None`` when all fit."""
+    for flag in flags:
+        value = getattr(args, flag[2:].replace("-", "_"))
+        if value is not None and value < 1:
+            return f"{flag} must be >= 1, got {value}"
+    return f"--seed must be >= 0, got {args.seed}" if args.seed < 0 else None
+
+
 def _run(args) -> int:
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.runner import run_tasks
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
     from planners.mapf import TURNING_EXECUTORS
 
-    for name, value in (("--steps", args.steps), ("--seeds", args.seeds)):
-        if value is not None and value < 1:
-            return _fail(f"{name} must be >= 1, got {value}")
-    if args.seed < 0:
-        return _fail(f"--seed must be >= 0, got {args.seed}")
+    bad = _bad_counts(args, "--steps", "--seeds")
+    if bad:
+        return _fail(bad)
     try:
         chip = chip_from_args(args)
         plans, limit = _plans(args, chip)
@@ -333,11 +340,9 @@ def _round(args) -> int:
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
     from planners.mapf import TURNING_EXECUTORS
 
-    for name, value in (("--steps", args.steps), ("--jobs", args.jobs)):
-        if value is not None and value < 1:
-            return _fail(f"{name} must be >= 1, got {value}")
-    if args.seed < 0:
-        return _fail(f"--seed must be >= 0, got {args.seed}")
+    bad = _bad_counts(args, "--steps", "--jobs")
+    if bad:
+        return _fail(bad)
     try:
         entry = load_entry(args.entry)
         check_entry(entry)
@@ -347,6 +352,9 @@ def _round(args) -> int:
         pairs = set()
         for path in paths:  # every instance readable, and its planner able to take its team
             inst = read_instance(path)
+            if args.steps is None and inst.steps is None and inst.name not in best:
+                raise ValueError(f"{path}: no simulation time (no simulation_time.json beside it, no best-known row): "
+                                 f"give --steps")
             c = entry.choose(inst)
             TURNING_EXECUTORS[c.planner].check_team(inst.grid, inst.team_size)
             pairs.add((c.scheduler, c.planner))

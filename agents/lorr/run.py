@@ -129,13 +129,14 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
                   c.chip_time_parallel_s + e.chip_time_parallel_s))
         accel_j += c.accelerator_energy_j + e.accelerator_energy_j
         calls += c.chip_calls + c.logical_calls + e.chip_calls
+        before = sim.t
         late = 0 if limit is None else min(limit.timeouts(sum(n[-1])), steps - sim.t)
         for _ in range(late):
             sim.time_out()
         if sim.t < steps:
             sim.step(actions, proposal)
         if bar is not None:
-            bar.update(late + 1)
+            bar.update(sim.t - before)
     return Loop(sim, sched, ex, np.array(n).reshape(-1, 3), np.array(busy), accel_j, calls, prep_s)
 
 

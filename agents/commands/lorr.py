@@ -33,8 +33,9 @@ def add_arguments(parser) -> None:
     run = sub.add_parser("run", help="run instances with a scheduler and an executor (or an entry)")
     run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
     run.add_argument("--entry", default=None, metavar="NAME|FILE",
-                     help="an entry (default: the package's; or a .toml / .json file) chooses the scheduler, the planner "
-                          "and their options per instance; runs under the rules' clock unless --step-limit says otherwise")
+                     help="an entry (default: the package's; or a .toml / .json file) chooses the scheduler, the "
+                          "planner and their options per instance; runs under the rules' clock unless --step-limit "
+                          "says otherwise")
     run.add_argument("--scheduler", default=None,
                      help="comma-separated: lorr-greedy (the start kit's default), strong, ising, fast, "
                           "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
@@ -67,14 +68,18 @@ def add_arguments(parser) -> None:
     rnd.add_argument("folder", metavar="ROUND_DIR", help="a round folder of the archive (e.g. '2024 Competition/Main "
                                                          "Round Evaluation Instances'): <domain>/<NAME>.json")
     rnd.add_argument("--entry", default="default", metavar="NAME|FILE", help="the entry (default: the package's)")
-    rnd.add_argument("--out", required=True, help="directory: <NAME>/output.json and run.json, summary.json, summary.md")
+    rnd.add_argument("--out", required=True,
+                     help="directory: <NAME>/output.json and run.json, summary.json, summary.md")
     rnd.add_argument("--steps", type=int, default=None,
-                     help="run the first N steps of each instance (a prefix: its share against the best-known pro rata)")
+                     help="run the first N steps of each instance (a prefix: its share against the best-known "
+                          "pro rata)")
     rnd.add_argument("--seed", type=int, default=0, help="seed (default 0)")
     rnd.add_argument("--best-known", default=None, metavar="FILE",
-                     help="a best-known table ({round: {NAME: [agents, steps, tasks]}}); default: the package's table of "
+                     help="a best-known table ({round: {NAME: [agents, steps, tasks]}}); default: the package's "
+                          "table of "
                           "the archive's published scores")
-    rnd.add_argument("--resume", action="store_true", help="keep instances already run by the same entry, steps, clock, seed")
+    rnd.add_argument("--resume", action="store_true",
+                     help="keep instances already run by the same entry, steps, clock, seed")
     _add_clock_arguments(rnd, "default: rules")
     rnd.add_argument("--jobs", type=int, default=1,
                      help="instances at once (default 1: under the clock each instance wants the cores to itself)")
@@ -90,7 +95,8 @@ def add_arguments(parser) -> None:
 
 def _add_clock_arguments(parser, default: str) -> None:
     parser.add_argument("--step-limit", default=None, metavar="S|rules|none",
-                        help=f"the start kit's clock: seconds per step for scheduler and planner together, rules (1 s), "
+                        help=f"the start kit's clock: seconds per step for scheduler and planner together, "
+                             f"rules (1 s), "
                              f"or none; a late decision makes every robot wait, counted as timeouts ({default})")
     parser.add_argument("--preprocess-limit", type=float, default=None, metavar="S",
                         help="seconds for preprocessing under the clock (default 30, the start kit's)")
@@ -371,7 +377,8 @@ def _round(args) -> int:
     summary = run_round(args.folder, entry, args.out, steps=args.steps, seed=args.seed, limit=limit, best=best,
                         resume=args.resume, jobs=args.jobs, backend=backend, address=args.address, progress=progress)
     print(summary_table(summary))
-    print(f"wrote {Path(args.out) / 'summary.json'}, summary.md and {summary.instances} output file(s)", file=sys.stderr)
+    print(f"wrote {Path(args.out) / 'summary.json'}, summary.md and {summary.instances} output file(s)",
+          file=sys.stderr)
     return 0
 
 

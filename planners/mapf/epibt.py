@@ -28,7 +28,8 @@ from planners.mapf.flow import FlowGuide, FlowPIBT
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp", "plan_cost", "portfolio_seed",
+__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
+           "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
            "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 

@@ -47,6 +47,9 @@ def add_arguments(parser) -> None:
     run.add_argument("--guidance", type=int, default=None, metavar="N",
                      help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
                           "default: the executor's own, pibt 2, the others 0)")
+    run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
+                          "values as --executor-option's)")
     run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the executor's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
                           "op_len=4; values: integers, true / false, else text)")
@@ -119,15 +122,15 @@ def clock_from_args(args, default: str | None):
         raise ValueError(f"--step-limit / --preprocess-limit: {exc}") from None
 
 
-def executor_options(executor: str, items: list[str], grid) -> dict:
-    """``KEY=VALUE`` items as the executor's keyword options (integers, ``true`` / ``false``, else text),
-    checked by :func:`check_executor_options`; ``ValueError`` naming a malformed item."""
+def key_values(flag: str, items: list[str]) -> dict:
+    """``KEY=VALUE`` items as keyword options (integers, ``true`` / ``false``, else text); ``ValueError`` naming
+    ``flag`` and a malformed item."""
     options: dict = {}
     for item in items:
         key, eq, text = item.partition("=")
         key = key.strip().replace("-", "_")
         if not eq or not key:
-            raise ValueError(f"--executor-option {item!r}: expected KEY=VALUE")
+            raise ValueError(f"{flag} {item!r}: expected KEY=VALUE")
         text = text.strip()
         low = text.lower()
         if low in ("true", "false"):
@@ -137,7 +140,12 @@ def executor_options(executor: str, items: list[str], grid) -> dict:
                 options[key] = int(text)
             except ValueError:
                 options[key] = text
-    return check_executor_options(executor, options, grid)
+    return options
+
+
+def executor_options(executor: str, items: list[str], grid) -> dict:
+    """``--executor-option`` items (:func:`key_values`) checked by :func:`check_executor_options`."""
+    return check_executor_options(executor, key_values("--executor-option", items), grid)
 
 
 def check_executor_options(executor: str, options: dict, grid) -> dict:
@@ -176,7 +184,7 @@ def check_entry(entry, chip=None) -> None:
             if c.planner not in TURNING_EXECUTORS:
                 raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
             own = {k: v for k, v in c.options.items() if k in ("replan", "keep")}
-            make_scheduler(c.scheduler, chip=chip, **own)
+            make_scheduler(c.scheduler, chip=chip, **own, **c.options.get("scheduler_options", {}))
             if "guidance" in c.options:
                 from planners.mapf.guidance import check_guidance
 
@@ -229,6 +237,7 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
 
         given = [f for f, v in (("--scheduler", args.scheduler), ("--executor", args.executor),
                                 ("--guidance", args.guidance), ("--executor-option", args.executor_option),
+                                ("--scheduler-option", args.scheduler_option),
                                 ("--replan", args.replan), ("--no-keep", args.no_keep)) if v]
         if given:
             raise ValueError(f"--entry decides the scheduler, the planner and their options: drop {', '.join(given)}")
@@ -248,8 +257,14 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         if not args.replan:
             raise ValueError("--no-keep acts on --replan: add --replan")
         options["keep"] = False
-    for s in schedulers:  # names and model files checked before anything starts
-        make_scheduler(s, chip=chip, **options)
+    if args.scheduler_option:
+        options["scheduler_options"] = key_values("--scheduler-option", args.scheduler_option)
+    for s in schedulers:  # names, model files and options checked before anything starts
+        try:
+            make_scheduler(s, chip=chip, **{k: v for k, v in options.items() if k != "scheduler_options"},
+                           **options.get("scheduler_options", {}))
+        except TypeError as exc:
+            raise ValueError(f"--scheduler-option: {exc}") from None
     if args.guidance is not None:
         from planners.mapf.guidance import check_guidance
 

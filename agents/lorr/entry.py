@@ -6,7 +6,7 @@ first rule whose conditions hold for the instance decides, as a submitted entry 
 preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_fill`` /
 ``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions:
 ``scheduler`` (as ``mrmt lorr run --scheduler``), ``planner`` (``--executor``), ``replan``, ``keep``,
-``guidance``, ``planner_options`` (``--executor-option``).  The last rule must have no condition, so every
+``guidance``, ``scheduler_options`` (``--scheduler-option``), ``planner_options`` (``--executor-option``).  The last rule must have no condition, so every
 instance gets a choice.  ``--entry default`` is the package's own (``agents/lorr/entries/default.toml``).
 """
 
@@ -22,7 +22,7 @@ __all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
 #: Entries shipped with the package, by name (``<name>.toml``).
 ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
 _CONDITIONS = ("max_robots", "min_robots", "max_fill", "min_fill", "maps")
-_DECISIONS = ("scheduler", "planner", "replan", "keep", "guidance", "planner_options")
+_DECISIONS = ("scheduler", "planner", "replan", "keep", "guidance", "scheduler_options", "planner_options")
 
 
 class EntryError(ValueError):
@@ -133,11 +133,12 @@ def _rule(where: str, raw, last: bool) -> Rule:
             options[key] = raw[key]
     if "guidance" in raw:
         options["guidance"] = _number(where, "guidance", raw["guidance"], True)
-    planner_options = raw.get("planner_options", {})
-    if not isinstance(planner_options, dict):
-        raise EntryError(f"{where}: planner_options must be a table of the planner's options")
-    if planner_options:
-        options["executor_options"] = dict(planner_options)
+    for key, into in (("scheduler_options", "scheduler_options"), ("planner_options", "executor_options")):
+        table = raw.get(key, {})
+        if not isinstance(table, dict):
+            raise EntryError(f"{where}: {key} must be a table of the {key.split('_')[0]}'s options")
+        if table:
+            options[into] = dict(table)
     return Rule(conditions, Choice(raw["scheduler"], raw["planner"], options))
 
 

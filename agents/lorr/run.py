@@ -29,7 +29,8 @@ from planners.compute import CPU_WATTS_PER_CORE
 
 __all__ = ["run_lorr", "best_known", "proposal_goals", "peak_rss_mb", "RUN_KEYS", "Loop"]
 
-RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "seed", "robots", "steps", "tasks_finished", "best_known",
+RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "scheduler_options", "seed", "robots",
+            "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "host_cpu_s", "chip_s", "paper_energy_per_task_j",
             "total_energy_per_task_j", "clock", "timeouts", "decisions", "preprocess_s", "preprocess_timeout",
@@ -103,6 +104,7 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
 
     options = dict(options)
     ex_options = dict(options.pop("executor_options", None) or {})
+    options.update(options.pop("scheduler_options", None) or {})
     if "guidance" in options:
         ex_options["guidance"] = options.pop("guidance")
     t0 = time.perf_counter()
@@ -172,7 +174,8 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
     best = best_known(inst)
     record = {
         "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": run.ex.guidance,
-        "executor_options": dict(options.get("executor_options") or {}), "seed": int(seed),
+        "executor_options": dict(options.get("executor_options") or {}),
+        "scheduler_options": dict(options.get("scheduler_options") or {}), "seed": int(seed),
         "robots": inst.team_size, "steps": steps, "tasks_finished": sim.finished, "best_known": best,
         # the best-known is over the instance's full simulation time: a share only for a full run
         "share_of_best": (sim.finished / best) if best and steps == inst.steps else None,

@@ -1,6 +1,7 @@
 """LoRR schedulers: which robot takes which task, proposed once per step.
 
 * ``lorr-greedy``: the start kit's default (:class:`mrmt_env.lorr.greedy.GreedyScheduler`).
+* ``lorr-weighted``: the 2024 winner's measure at scale (:class:`agents.lorr.weighted.WeightedScheduler`).
 * a pipeline spec (``strong``, ``ising``, ``fast``, ``ising-paper`` or ``sharing+tour``): the
   package's sharing and tour layers decide, through the lifelong assigner
   (:class:`agents.lifelong.controllers.PipelineAssigner`: idle robots in Z-order groups, each call a
@@ -36,7 +37,7 @@ __all__ = ["AssignerScheduler", "make_scheduler", "SCHEDULERS"]
 #: Free tasks each free robot shortlists for a pipeline or learned decision (least makespan first).
 DEFAULT_SHORTLIST = 6
 #: Scheduler names besides pipeline specs and ``ppo:PATH``.
-SCHEDULERS = ("lorr-greedy", "strong", "ising", "fast", "ising-paper")
+SCHEDULERS = ("lorr-greedy", "lorr-weighted", "strong", "ising", "fast", "ising-paper")
 
 
 class AssignerScheduler:
@@ -155,6 +156,13 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         if options:
             raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")
         return _Greedy()
+    if name == "lorr-weighted":
+        from agents.lorr.weighted import WeightedScheduler
+
+        unknown = sorted(set(options) - {"weight", "reassign", "memory_mb"})
+        if unknown:
+            raise ValueError(f"lorr-weighted takes weight, reassign and memory_mb, got {unknown}")
+        return WeightedScheduler(**options)
     from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
     from planners.registry import UnknownPlannerError
 

@@ -77,6 +77,10 @@ class GoalFields:
         self.fields = np.empty((self.capacity, self.grid.size), dtype=np.int32)
         self._row: dict[int, int] = {}
 
+    def has(self, goal: int) -> bool:
+        """Whether the field of ``goal`` (a flat cell) is built."""
+        return int(goal) in self._row
+
     def rows(self, goals: np.ndarray) -> np.ndarray:
         """Row of each goal cell (flat), computing the missing fields in one compiled call."""
         goals = np.asarray(goals, dtype=np.int64)

@@ -1,0 +1,221 @@
+"""``lorr-weighted``: the 2024 winner's measure as a scheduler that scales to ten thousand robots.
+
+Cost of robot ``r`` taking task ``t``: ``weight x way(r, first errand of t) + legs(t)`` (the legs: errand to
+errand through the task, the start kit's task length); the 2024 winner's scheduler weighs the way by 5 on
+every map.  Robots whose task is not opened yet are free again every step (``reassign``, the rules allow
+it), so a robot that a better-placed one overtakes gives its task up.  The choice is the global greedy
+matching: the pair of least cost first, ties to the lower robot, a cell's tasks shortest first, then the
+lower id -- exact by lazy re-evaluation, as a pair's cost only grows when its cell's best task is taken.
+
+Distances come from one BFS table per first-errand cell (:class:`~planners.mapf.common.GoalFields`, the
+start kit's heuristic table keyed by goal), bounded by ``memory_mb``: on the warehouse maps 352-620 cells
+hold every task's start; a task's legs read the tables of its errands but the last, by symmetry of the
+grid's distances.  Under a clock the missing tables are built 32 at a time until half the time left; tasks
+whose tables are not built yet wait for a later step.  Design notes and measurements: docs/lorr.md.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+
+from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
+from planners.compute import ComputeReport
+
+__all__ = ["WeightedScheduler", "weighted_matching", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB"]
+
+#: Weight of the way to the first errand against the task's legs (the 2024 winner's, on every map).
+DEFAULT_WEIGHT = 5
+#: Memory for the distance tables, MiB (int32 per cell per table).
+DEFAULT_MEMORY_MB = 2048
+#: Tables built per chunk under a clock.
+CHUNK = 32
+
+
+@numba.njit(cache=True, nogil=True)
+def _push(heap, size, key):
+    i = size
+    heap[i] = key
+    while i > 0:
+        up = (i - 1) >> 1
+        if heap[up] <= heap[i]:
+            break
+        heap[up], heap[i] = heap[i], heap[up]
+        i = up
+    return size + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _pop(heap, size):
+    top = heap[0]
+    size -= 1
+    heap[0] = heap[size]
+    i = 0
+    while True:
+        lo = 2 * i + 1
+        if lo >= size:
+            break
+        if lo + 1 < size and heap[lo + 1] < heap[lo]:
+            lo += 1
+        if heap[i] <= heap[lo]:
+            break
+        heap[i], heap[lo] = heap[lo], heap[i]
+        i = lo
+    return top, size
+
+
+@numba.njit(cache=True, nogil=True)
+def _best(way, cell_start, head, length, weight):
+    """A robot's cheapest cell by its ``way`` to each (-1 if none reachable has a task left) and the cost."""
+    best, best_cost = -1, np.int64(1) << 40
+    for c in range(way.shape[0]):
+        if head[c] >= cell_start[c + 1] or way[c] < 0:
+            continue
+        cost = weight * np.int64(way[c]) + length[head[c]]
+        if cost < best_cost:
+            best, best_cost = c, cost
+    return best, best_cost
+
+
+@numba.njit(cache=True, nogil=True)
+def weighted_matching(way, cell_start, length, weight, out) -> int:
+    """The global greedy matching (module docstring).  ``way[i, c]``: moves from robot ``i`` to cell ``c`` (-1 cut
+    off); cell ``c``'s tasks are the slots ``cell_start[c]:cell_start[c + 1]``, shortest first, ``length[slot]``
+    their legs.  ``out[i]`` = the slot robot ``i`` takes, -1 for none; returns the pairs made."""
+    n = way.shape[0]
+    head = cell_start[:-1].copy()
+    seen = np.empty(n, dtype=np.int64)   # the head of its cell when the robot's cost was taken
+    cell = np.empty(n, dtype=np.int64)
+    heap = np.empty(n, dtype=np.int64)
+    size = 0
+    for i in range(n):
+        out[i] = -1
+        c, cost = _best(way[i], cell_start, head, length, weight)
+        cell[i] = c
+        if c >= 0:
+            seen[i] = head[c]
+            size = _push(heap, size, cost * n + i)
+    made = 0
+    while size > 0:
+        key, size = _pop(heap, size)
+        i = key % n
+        c = cell[i]
+        if head[c] != seen[i]:  # its cell's best task went to another robot: cost again
+            c, cost = _best(way[i], cell_start, head, length, weight)
+            cell[i] = c
+            if c >= 0:
+                seen[i] = head[c]
+                size = _push(heap, size, cost * n + i)
+            continue
+        out[i] = head[c]
+        head[c] += 1
+        made += 1
+    return made
+
+
+class WeightedScheduler:
+    """The winner's measure (module docstring); ``schedule(sim, deadline=None)`` -> proposal."""
+
+    name = "lorr-weighted"
+    accelerated = False
+
+    def __init__(self, weight: int = DEFAULT_WEIGHT, reassign: bool = True, memory_mb: int = DEFAULT_MEMORY_MB) -> None:
+        if isinstance(weight, bool) or not isinstance(weight, int) or not 0 <= weight <= 1000:
+            raise ValueError(f"weight must be an integer 0..1000 (the way to the first errand against the legs), "
+                             f"got {weight!r}")
+        if not isinstance(reassign, (bool, np.bool_)):
+            raise ValueError(f"reassign must be True or False, got {reassign!r}")
+        if isinstance(memory_mb, bool) or not isinstance(memory_mb, int) or memory_mb < 1:
+            raise ValueError(f"memory_mb must be an integer >= 1 (MiB for distance tables), got {memory_mb!r}")
+        self.weight, self.reassign, self.memory_mb = int(weight), bool(reassign), int(memory_mb)
+        self.last_compute = ComputeReport()
+        self._sim = None
+
+    def reset(self, sim) -> None:
+        from planners.mapf.common import GoalFields
+
+        self._sim = sim
+        cells = sim.inst.grid.size
+        self.fields = GoalFields(sim.inst.grid, capacity=max(1, (self.memory_mb << 20) // (4 * cells)))
+        self._legs: dict[int, int] = {}   # task file line -> legs (errand to errand)
+        self._firsts: dict[int, int] = {}  # task file line -> first errand
+
+    def _first(self, tasks, task: int) -> int:
+        """The first errand of an unopened ``task`` (cached per file line)."""
+        line = tasks.line[task]
+        cell = self._firsts.get(line)
+        if cell is None:
+            cell = self._firsts[line] = int(tasks.inst.task_errands(line)[0])
+        return cell
+
+    def _ready(self, cells, stop: float | None) -> np.ndarray:
+        """Build the missing tables of ``cells`` (under ``stop``: ``CHUNK`` at a time, at least one chunk, until
+        ``time.perf_counter()`` passes it); returns which cells have one."""
+        missing = [c for c in dict.fromkeys(cells) if not self.fields.has(c)]
+        if stop is None:
+            self.fields.rows(np.array(missing, dtype=np.int64))
+        else:
+            for lo in range(0, len(missing), CHUNK):
+                if lo and time.perf_counter() > stop:
+                    break
+                self.fields.rows(np.array(missing[lo:lo + CHUNK], dtype=np.int64))
+        return np.array([self.fields.has(c) for c in cells], dtype=bool)
+
+    def legs(self, tasks, ids: list[int], stop: float | None = None) -> np.ndarray:
+        """Errand-to-errand length of each task of ``ids`` (cached per file line; -1 while its tables wait for a
+        later step under ``stop``; ``1 << 40`` when an errand is cut off)."""
+        inst = tasks.inst
+        lines = [tasks.line[k] for k in ids]
+        todo = [ln for ln in dict.fromkeys(lines) if ln not in self._legs]
+        if todo:
+            errands = [inst.task_errands(ln) for ln in todo]
+            need = sorted({int(c) for e in errands for c in e[:-1].tolist()})
+            have = dict(zip(need, self._ready(need, stop).tolist()))
+            todo = [(ln, e) for ln, e in zip(todo, errands) if all(have[c] for c in e[:-1].tolist())]
+        if todo:
+            a = np.concatenate([e[:-1] for _, e in todo]).astype(np.int64)
+            b = np.concatenate([e[1:] for _, e in todo]).astype(np.int64)
+            owner = np.repeat(np.arange(len(todo)), [len(e) - 1 for _, e in todo])
+            d = self.fields.fields[self.fields.rows(a), b].astype(np.int64)
+            total = np.zeros(len(todo), dtype=np.int64)
+            np.add.at(total, owner, np.where(d < 0, 1 << 40, d))
+            for (ln, _), v in zip(todo, np.minimum(total, 1 << 40).tolist()):
+                self._legs[ln] = v
+        return np.array([self._legs.get(ln, -1) for ln in lines], dtype=np.int64)
+
+    def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
+        """This step's proposal (module docstring); under ``deadline`` the tables are built until half the time left."""
+        now = time.perf_counter()
+        stop = None if deadline is None else now + (deadline - now) / 2 - STOP_TOLERANCE_S
+        if self._sim is not sim:
+            self.reset(sim)
+        tasks = sim.tasks
+        proposal = tasks.assigned.copy()
+        if self.reassign:
+            for a in np.flatnonzero(proposal >= 0).tolist():
+                if not tasks.is_opened(int(proposal[a])):
+                    proposal[a] = -1
+        robots = np.flatnonzero(proposal < 0)
+        held = set(proposal[proposal >= 0].tolist())
+        ids = [k for k in tasks.open if k not in held]
+        if len(robots) == 0 or not ids:
+            return proposal
+        first = np.array([self._first(tasks, k) for k in ids], dtype=np.int64)
+        legs = self.legs(tasks, ids, stop)
+        ok = (legs >= 0) & (legs < 1 << 40)
+        ok &= self._ready(first.tolist(), stop)
+        ids, first, legs = np.array(ids, dtype=np.int64)[ok], first[ok], legs[ok]
+        if len(ids) == 0:
+            return proposal
+        order = np.lexsort((ids, legs, first))
+        cells, start = np.unique(first[order], return_index=True)
+        cell_start = np.append(start, len(order)).astype(np.int64)
+        rows = self.fields.rows(cells)
+        way = np.ascontiguousarray(self.fields.fields[np.ix_(rows, sim.pos[robots])].T)  # robot by cell, row-wise
+        out = np.empty(len(robots), dtype=np.int64)
+        weighted_matching(way, cell_start, legs[order], self.weight, out)
+        got = out >= 0
+        proposal[robots[got]] = ids[order][out[got]]
+        return proposal

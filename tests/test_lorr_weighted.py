@@ -1,0 +1,152 @@
+"""``lorr-weighted``: the winner's measure as a global greedy matching, checked against a plain Python oracle."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from lorr_reference import bfs as _bfs
+
+from agents.lorr.output import check_output, output_dict
+from agents.lorr.run import run_lorr
+from agents.lorr.schedulers import make_scheduler
+from agents.lorr.weighted import WeightedScheduler, weighted_matching
+from mrmt_env.lorr.instance import example_instance_path, read_instance
+from mrmt_env.lorr.sim import LoRRSimulator
+
+
+def _oracle(dist, robots, first, legs, ids, weight):
+    """Repeatedly the pair of least (cost, robot, first cell, legs, id) among the robots and tasks left."""
+    left, out = set(range(len(first))), {}
+    todo = set(range(len(robots)))
+    while todo and left:
+        cands = [(weight * dist[first[k]][robots[i]] + legs[k], i, first[k], legs[k], ids[k], k)
+                 for i in todo for k in left if dist[first[k]][robots[i]] >= 0]
+        if not cands:
+            break
+        *_, k = min(cands)
+        i = min(cands)[1]
+        out[i] = k
+        todo.discard(i)
+        left.discard(k)
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 6))
+def test_the_matching_is_the_global_greedy_of_the_oracle(seed, weight):
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(3, 10)), int(rng.integers(3, 10))
+    grid = rng.random((h, w)) < 0.3
+    free = np.flatnonzero(~grid.reshape(-1))
+    if len(free) < 2:
+        return
+    robots = rng.choice(free, size=int(rng.integers(1, len(free))), replace=False).astype(np.int64)
+    n = int(rng.integers(1, 2 * len(free)))
+    first = rng.choice(free, size=n).astype(np.int64)     # tasks share cells
+    legs = rng.integers(0, 9, n).astype(np.int64)
+    ids = rng.permutation(n).astype(np.int64) * 7
+    dist = {int(c): _bfs(grid, int(c)) for c in np.unique(first)}
+    order = np.lexsort((ids, legs, first))
+    cells, start = np.unique(first[order], return_index=True)
+    way = np.array([[dist[int(c)][r] for c in cells] for r in robots.tolist()], dtype=np.int32)
+    out = np.empty(len(robots), dtype=np.int64)
+    made = weighted_matching(way, np.append(start, n).astype(np.int64), legs[order], weight, out)
+    want = _oracle(dist, robots.tolist(), first.tolist(), legs.tolist(), ids.tolist(), weight)
+    got = {i: int(order[s]) for i, s in enumerate(out.tolist()) if s >= 0}
+    assert got == want and made == len(want)
+
+
+def test_a_robot_whose_task_is_not_opened_gives_it_to_a_closer_robot():
+    sim = LoRRSimulator(read_instance(example_instance_path()))
+    sched = WeightedScheduler(weight=5)
+    proposal = sched.schedule(sim)
+    assert sim.tasks.check(proposal, 1) is None
+    assert (proposal >= 0).all()  # 12 open tasks, 8 robots, all reachable
+    # a second scheduler's view after robot 0 took robot 1's task by hand: the first step's choice comes back
+    forced = proposal.copy()
+    forced[0], forced[1] = proposal[1], proposal[0]
+    sim.tasks.propose(forced, 1)
+    again = WeightedScheduler(weight=5).schedule(sim)
+    assert again.tolist() == proposal.tolist()
+    kept = WeightedScheduler(weight=5, reassign=False).schedule(sim)
+    assert kept.tolist() == forced.tolist()
+
+
+def test_every_task_costs_the_winners_measure_from_bfs():
+    sim = LoRRSimulator(read_instance(example_instance_path()))
+    sched = WeightedScheduler(weight=3)
+    sched.reset(sim)
+    grid = sim.inst.grid
+    ids = sorted(sim.tasks.open)
+    got = sched.legs(sim.tasks, ids)
+    for k, v in zip(ids, got.tolist()):
+        e = sim.tasks.errands_of(k)
+        assert v == sum(int(_bfs(grid, int(a))[int(b)]) for a, b in zip(e[:-1], e[1:]))
+
+
+def test_a_run_rechecks_to_its_count():
+    record, sim, step_s = run_lorr(example_instance_path(), "lorr-weighted", "pibt", steps=120, seed=0)
+    assert record["scheduler"] == "lorr-weighted"
+    assert record["errors"] == 0 and record["schedule_errors"] == 0
+    data = json.loads(json.dumps(output_dict(sim, step_s)))
+    result = check_output(read_instance(example_instance_path()), data)
+    assert result.numTaskFinished == record["tasks_finished"] == sim.finished > 5
+
+
+def test_tables_stay_within_the_memory_asked():
+    sim = LoRRSimulator(read_instance(example_instance_path()))
+    sched = WeightedScheduler(memory_mb=1)
+    sched.reset(sim)
+    assert sched.fields.fields.nbytes <= 1 << 20
+
+
+@pytest.mark.parametrize("options, needle", [
+    ({"weight": -1}, "weight must be an integer 0..1000"),
+    ({"weight": 2.5}, "weight must be an integer 0..1000"),
+    ({"reassign": "yes"}, "reassign must be True or False, got 'yes'"),
+    ({"memory_mb": 0}, "memory_mb must be an integer >= 1"),
+    ({"radius": 3}, "lorr-weighted takes weight, reassign and memory_mb, got ['radius']"),
+])
+def test_bad_options_name_the_option_and_the_limit(options, needle):
+    with pytest.raises(ValueError) as exc:
+        make_scheduler("lorr-weighted", **options)
+    assert needle in str(exc.value)
+
+
+def _mrmt(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "agents.cli", *args], capture_output=True, text=True, timeout=600)
+
+
+def test_scheduler_options_reach_the_scheduler_and_the_record():
+    p = _mrmt("lorr", "run", str(example_instance_path()), "--scheduler", "lorr-weighted", "--scheduler-option",
+              "weight=1", "--scheduler-option", "reassign=false", "--steps", "30", "--json", "--no-progress")
+    assert p.returncode == 0, p.stderr
+    record = json.loads(p.stdout.strip().splitlines()[-1])
+    assert record["scheduler_options"] == {"weight": 1, "reassign": False}
+
+
+@pytest.mark.parametrize("item, needle", [("weight=x", "weight must be an integer 0..1000"),
+                                          ("weight", "--scheduler-option 'weight': expected KEY=VALUE")])
+def test_a_bad_scheduler_option_is_one_line_and_exit_2(item, needle):
+    p = _mrmt("lorr", "run", str(example_instance_path()), "--scheduler", "lorr-weighted", "--scheduler-option", item,
+              "--steps", "5")
+    assert p.returncode == 2 and needle in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_an_entry_gives_its_scheduler_options(tmp_path):
+    from agents.lorr.entry import load_entry
+
+    f = tmp_path / "e.toml"
+    f.write_text('[[rule]]\nscheduler = "lorr-weighted"\nplanner = "pibt"\nscheduler_options = { weight = 2 }\n')
+    choice = load_entry(f).choose(read_instance(example_instance_path()))
+    assert choice.options["scheduler_options"] == {"weight": 2}
+    f.write_text('[[rule]]\nscheduler = "lorr-weighted"\nplanner = "pibt"\nscheduler_options = 3\n')
+    with pytest.raises(ValueError, match="scheduler_options must be a table of the scheduler's options"):
+        load_entry(f)

@@ -37,8 +37,9 @@ def add_arguments(parser) -> None:
                           "planner and their options per instance; runs under the rules' clock unless --step-limit "
                           "says otherwise")
     run.add_argument("--scheduler", default=None,
-                     help="comma-separated: lorr-greedy (the start kit's default), strong, ising, fast, "
-                          "ising-paper, a sharing+tour pair, ppo:MODEL.zip (default lorr-greedy)")
+                     help="comma-separated: lorr-greedy (the start kit's default), lorr-weighted (the 2024 winner's "
+                          "measure), strong, ising, fast, ising-paper, a sharing+tour pair, ppo:MODEL.zip "
+                          "(default lorr-greedy)")
     run.add_argument("--executor", default=None,
                      help="the one-step planner: pibt (PIBT with turning; default), pibt-flow (PIBT along traffic-flow "
                           "guide paths, the start kit's default planner), epibt (PIBT over 3-action operations with "

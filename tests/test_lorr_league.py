@@ -113,8 +113,13 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
-    sortation = entry.rules[1]
+    sortation, tables = entry.rules[1], entry.rules[2]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
+    assert sortation.choice.scheduler == tables.choice.scheduler == "lorr-weighted"
+    # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930
+    assert tables.holds(10000, 0.26, "warehouse_large.map", 140 * 500)
+    assert tables.holds(1500, 0.03, "Paris_1_256.map", 256 ** 2)
+    assert not tables.holds(6500, 0.07, "brc202d.map", 481 * 530)
 
 
 @pytest.mark.parametrize("text, needle", [
@@ -125,6 +130,8 @@ def test_the_default_entry_chooses_by_team_and_map():
     ('[[rule]]\nmax_robots = -3\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "s"\nplanner = "p"\n',
      "max_robots = -3 must be a whole number >= 0"),
     ('rule = 3\n', "non-empty list of rules"),
+    ('[[rule]]\nmax_cells = 1.5\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "s"\nplanner = "p"\n',
+     "max_cells = 1.5 must be a whole number >= 0"),
     ('[[rule\n', "not TOML"),
 ])
 def test_bad_entries_name_the_file_rule_and_key(tmp_path, text, needle):

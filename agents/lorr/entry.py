@@ -3,7 +3,8 @@
 Contract: :func:`load_entry` ``(name or path) -> Entry``; :meth:`Entry.choose` ``(instance) -> Choice``.  An entry
 file (TOML, or JSON of the same shape) holds ``name``, an optional ``description`` and a list ``rule``; the
 first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
-preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_fill`` /
+preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_cells`` /
+``min_cells`` (the map's cells, blocked ones too), ``max_fill`` /
 ``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions:
 ``scheduler`` (as ``mrmt lorr run --scheduler``), ``planner`` (``--executor``), ``replan``, ``keep``,
 ``guidance``, ``scheduler_options`` (``--scheduler-option``), ``planner_options`` (``--executor-option``).  The last rule must have no condition, so every
@@ -21,7 +22,7 @@ __all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
 
 #: Entries shipped with the package, by name (``<name>.toml``).
 ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
-_CONDITIONS = ("max_robots", "min_robots", "max_fill", "min_fill", "maps")
+_CONDITIONS = ("max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill", "maps")
 _DECISIONS = ("scheduler", "planner", "replan", "keep", "guidance", "scheduler_options", "planner_options")
 
 
@@ -46,9 +47,10 @@ class Rule:
     conditions: dict
     choice: Choice
 
-    def holds(self, robots: int, fill: float, map_name: str) -> bool:
+    def holds(self, robots: int, fill: float, map_name: str, cells: int = 0) -> bool:
         c = self.conditions
         return (robots <= c.get("max_robots", robots) and robots >= c.get("min_robots", robots)
+                and cells <= c.get("max_cells", cells) and cells >= c.get("min_cells", cells)
                 and fill <= c.get("max_fill", fill) and fill >= c.get("min_fill", fill)
                 and ("maps" not in c or any(fnmatch.fnmatch(map_name, p) for p in c["maps"])))
 
@@ -67,7 +69,7 @@ class Entry:
         robots = instance.team_size
         fill = robots / max(int((~instance.grid).sum()), 1)
         for rule in self.rules:
-            if rule.holds(robots, fill, instance.map_name):
+            if rule.holds(robots, fill, instance.map_name, int(instance.grid.size)):
                 return rule.choice
         raise EntryError(f"{self.source}: no rule holds for {instance.name}")  # unreachable: the last has none
 
@@ -109,7 +111,7 @@ def _rule(where: str, raw, last: bool) -> Rule:
         raise EntryError(f"{where}: unknown key {unknown[0]!r}; conditions: {', '.join(_CONDITIONS)}; decisions: "
                          f"{', '.join(_DECISIONS)}")
     conditions = {}
-    for key in ("max_robots", "min_robots"):
+    for key in ("max_robots", "min_robots", "max_cells", "min_cells"):
         if key in raw:
             conditions[key] = _number(where, key, raw[key], True)
     for key in ("max_fill", "min_fill"):

@@ -26,7 +26,9 @@ ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 TEAMS = {"No Man's Sky (1st)": 9.842, "Kitty Knight (2nd)": 9.039, "SYSU-LCIS (3rd)": 8.527, "RAPID": 7.946,
          "start kit default entry": 5.062}
 #: Tasks on WAREHOUSE / SORTATION of the start kit's default entry and of the winner's scheduler or planner alone.
-LEVERS = {"start kit default entry": (63924, 85039), "No Man's Sky, scheduler alone (default planner)": (146398, 146375),
+LEVERS = {"start kit default entry": (63924, 85039),
+          "No Man's Sky, scheduler track (default planner, following its own planner's next cells written into the "
+          "tasks: docs/lorr.md)": (146398, 146375),
           "No Man's Sky, planner alone (default scheduler)": (134418, 135988), "No Man's Sky, combined": (154795, 152714)}
 BEST = {"WAREHOUSE": 154834, "SORTATION": 152714}
 

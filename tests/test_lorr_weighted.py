@@ -150,3 +150,18 @@ def test_an_entry_gives_its_scheduler_options(tmp_path):
     f.write_text('[[rule]]\nscheduler = "lorr-weighted"\nplanner = "pibt"\nscheduler_options = 3\n')
     with pytest.raises(ValueError, match="scheduler_options must be a table of the scheduler's options"):
         load_entry(f)
+
+
+def test_goal_fields_keep_only_the_tables_asked_and_rebuild_the_rest_alike():
+    from planners.mapf.common import GoalFields
+
+    grid = read_instance(example_instance_path()).grid
+    free = np.flatnonzero(~grid.reshape(-1))[:5]
+    fields = GoalFields(grid, capacity=8)
+    rows = fields.rows(free)
+    want = {int(c): fields.fields[r].copy() for c, r in zip(free, rows)}
+    fields.keep([int(free[3]), int(free[1])])
+    assert len(fields) == 2 and fields.has(int(free[3])) and not fields.has(int(free[0]))
+    for c in free.tolist():
+        assert (fields.fields[fields.rows(np.array([c]))[0]] == want[c]).all()
+        assert (want[c] == _bfs(grid, c)).all()

@@ -141,20 +141,23 @@ class WeightedScheduler:
         cells = sim.inst.grid.size
         self.fields = GoalFields(sim.inst.grid, capacity=max(1, (self.memory_mb << 20) // (4 * cells)))
         self._legs: dict[int, int] = {}   # task file line -> legs (errand to errand)
-        self._firsts: dict[int, int] = {}  # task file line -> first errand
+        self._cells: dict[int, tuple] = {}  # task file line -> its errands
+        self._needed: set = set()  # cells of the open free tasks' errands but the last
 
-    def _first(self, tasks, task: int) -> int:
-        """The first errand of an unopened ``task`` (cached per file line)."""
+    def _errands(self, tasks, task: int) -> tuple:
+        """The errands of ``task`` (cached per task file line)."""
         line = tasks.line[task]
-        cell = self._firsts.get(line)
-        if cell is None:
-            cell = self._firsts[line] = int(tasks.inst.task_errands(line)[0])
-        return cell
+        cells = self._cells.get(line)
+        if cells is None:
+            cells = self._cells[line] = tuple(tasks.inst.task_errands(line).tolist())
+        return cells
 
     def _ready(self, cells, stop: float | None) -> np.ndarray:
         """Build the missing tables of ``cells`` (under ``stop``: ``CHUNK`` at a time, at least one chunk, until
         ``time.perf_counter()`` passes it); returns which cells have one."""
         missing = [c for c in dict.fromkeys(cells) if not self.fields.has(c)]
+        if missing and len(self.fields) + len(missing) > self.fields.capacity:
+            self.fields.keep(self._needed)  # full: drop the tables no open task starts or passes at
         if stop is None:
             self.fields.rows(np.array(missing, dtype=np.int64))
         else:
@@ -203,7 +206,8 @@ class WeightedScheduler:
         ids = [k for k in tasks.open if k not in held]
         if len(robots) == 0 or not ids:
             return proposal
-        first = np.array([self._first(tasks, k) for k in ids], dtype=np.int64)
+        self._needed = {c for k in ids for c in self._errands(tasks, k)[:-1]}
+        first = np.array([self._errands(tasks, k)[0] for k in ids], dtype=np.int64)
         legs = self.legs(tasks, ids, stop)
         ok = (legs >= 0) & (legs < 1 << 40)
         ok &= self._ready(first.tolist(), stop)

@@ -81,6 +81,17 @@ class GoalFields:
         """Whether the field of ``goal`` (a flat cell) is built."""
         return int(goal) in self._row
 
+    def keep(self, goals) -> None:
+        """Drop every field but those of ``goals`` (flat cells; the kept move to the first rows)."""
+        keep = [g for g in dict.fromkeys(int(g) for g in goals) if g in self._row]
+        old = self.fields[[self._row[g] for g in keep]] if keep else None
+        self._row = {g: i for i, g in enumerate(keep)}
+        if keep:
+            self.fields[:len(keep)] = old
+
+    def __len__(self) -> int:
+        return len(self._row)
+
     def rows(self, goals: np.ndarray) -> np.ndarray:
         """Row of each goal cell (flat), computing the missing fields in one compiled call."""
         goals = np.asarray(goals, dtype=np.int64)
@@ -91,11 +102,7 @@ class GoalFields:
             self._row.clear()
         missing = [g for g in uniq if g not in self._row]
         if len(self._row) + len(missing) > self.capacity:  # full: keep only the goals asked for now
-            keep = [g for g in uniq if g in self._row]
-            old = self.fields[[self._row[g] for g in keep]] if keep else None
-            self._row = {g: i for i, g in enumerate(keep)}
-            if keep:
-                self.fields[:len(keep)] = old
+            self.keep(uniq)
         if missing:
             start = len(self._row)
             for i, g in enumerate(missing):

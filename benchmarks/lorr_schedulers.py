@@ -1,0 +1,73 @@
+"""Schedulers at scale: the winner's measure (``lorr-weighted``) against the start kit's greedy, same planner.
+
+On the 2024 main round's large instances (CITY-01 1,500 robots, CITY-02 3,000, SORTATION and WAREHOUSE 10,000),
+the first ``--steps`` steps under the rules' 1 s clock, each run in its own process: ``lorr-greedy`` (the start
+kit's default scheduler), ``lorr-weighted`` with the way weighed by 1 (the package's default) and by 5 (the 2024
+winner's), every one with the default entry's planner for the map (PIBT with turning; lanes off on SORTATION).
+Tasks, the ratio to greedy, timeouts, step p99 and peak memory.  Run nothing else beside it.
+
+    flock /tmp/mrmt-bench.lock python benchmarks/lorr_schedulers.py --steps 1000 --write
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import cpu_name, finish  # noqa: E402
+
+SECTION = "## League of Robot Runners 2024: schedulers at scale, the winner's measure against greedy (issue 56)"
+ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
+INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
+             "WAREHOUSE": "warehouse.domain"}
+#: (label, scheduler, scheduler options)
+SCHEDULERS = (("lorr-greedy", "lorr-greedy", []), ("lorr-weighted (weight 1)", "lorr-weighted", ["weight=1"]),
+              ("lorr-weighted (weight 5)", "lorr-weighted", ["weight=5"]))
+
+
+def run(name: str, scheduler: str, options: list[str], steps: int) -> dict:
+    path = ROOT / INSTANCES[name] / f"{name}.json"
+    guidance = ["--guidance", "0"] if name == "SORTATION" else []
+    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler, "--executor", "pibt",
+           *guidance, *[a for o in options for a in ("--scheduler-option", o)], "--steps", str(steps),
+           "--step-limit", "rules", "--json", "--no-progress"]
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--instances", default=",".join(INSTANCES))
+    parser.add_argument("--write", action="store_true")
+    args = parser.parse_args(argv)
+    names = [n.strip() for n in args.instances.split(",") if n.strip()]
+    unknown = [n for n in names if n not in INSTANCES]
+    if unknown:
+        parser.error(f"unknown instance {unknown[0]!r}; known: {', '.join(INSTANCES)}")
+    rows = []
+    for name in names:
+        base = None
+        for label, scheduler, options in SCHEDULERS:
+            r = run(name, scheduler, options, args.steps)
+            base = r["tasks_finished"] if base is None else base
+            rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))
+            print(f"{name} {label}: {r['tasks_finished']} tasks, {r['timeouts']} timeouts", file=sys.stderr)
+    lines = [SECTION, "",
+             f"`python benchmarks/lorr_schedulers.py --steps {args.steps}` ({cpu_name()}; each run its own process, "
+             f"the first {args.steps} steps under the rules' 1 s clock; planner: PIBT with turning, lanes off on "
+             "SORTATION as in the default entry).", "",
+             "| instance | scheduler | tasks | x greedy | timeouts | step p50 s | step p99 s | peak MiB |",
+             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for name, label, r, ratio in rows:
+        lines.append(f"| {name} | {label} | {r['tasks_finished']:,} | {ratio:.2f} | {r['timeouts']} | "
+                     f"{r['step_p50_s']:.3f} | {r['step_p99_s']:.3f} | {r['peak_rss_mb']:,.0f} |")
+    finish(SECTION, lines, args.write)
+
+
+if __name__ == "__main__":
+    main()

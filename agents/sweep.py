@@ -40,14 +40,11 @@ def parse_axes(items) -> dict[str, list[str]]:
     A range field's value is ``m`` (meaning ``(-m, m)``) or ``lo..hi``.  A key given twice, an
     empty value or an item without ``=`` is a ``ValueError`` naming it.
     """
+    from agents.keyvalues import split_items
+
     axes: dict[str, list[str]] = {}
-    for item in items:
-        key, sep, values = str(item).partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ValueError(f"sweep axis {item!r} must be KEY=V1,V2,... (e.g. n_spins=32,45,64)")
-        if key in axes:
-            raise ValueError(f"sweep axis {key!r} is given twice")
+    for key, values in split_items(items, "sweep axis", "n_spins=32,45,64"):
+        item = f"{key}={values}"
         vals = [v.strip() for v in values.split(",")]
         if not vals or any(not v for v in vals):
             raise ValueError(f"sweep axis {item!r} has an empty value")

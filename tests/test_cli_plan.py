@@ -126,7 +126,7 @@ def test_planning_refusal_is_reported_with_line(tmp_path, capsys):
         (["--tour", "4opt"], "unknown tour planner '4opt'; valid tour planners: nn, 2opt, 3opt, brute, ising"),
         (["--pipeline", "quick"], "unknown pipeline preset 'quick'"),
         (["--option", "tour.movez=7"], "takes no option 'movez'"),
-        (["--option", "moves=7"], "must look like LAYER.KEY=VALUE"),
+        (["--option", "moves=7"], "the key must look like LAYER.KEY"),
     ],
 )
 def test_bad_planner_arguments(tmp_path, worlds, capsys, argv, message):

@@ -126,7 +126,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
     (["run", str(EXAMPLE), "--scheduler", "strong", "--no-keep"], "--no-keep acts on --replan: add --replan"),
     (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power"],
-     "--executor-option 'weight_power': expected KEY=VALUE"),
+     "--executor-option 'weight_power' must look like KEY=VALUE"),
     (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "warp=9"],
      "epibt takes no option 'warp'; its options: flow, op_len"),
     (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power=3"],

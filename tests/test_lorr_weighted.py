@@ -133,7 +133,7 @@ def test_scheduler_options_reach_the_scheduler_and_the_record():
 
 
 @pytest.mark.parametrize("item, needle", [("weight=x", "weight must be an integer 0..1000"),
-                                          ("weight", "--scheduler-option 'weight': expected KEY=VALUE")])
+                                          ("weight", "--scheduler-option 'weight' must look like KEY=VALUE")])
 def test_a_bad_scheduler_option_is_one_line_and_exit_2(item, needle):
     p = _mrmt("lorr", "run", str(example_instance_path()), "--scheduler", "lorr-weighted", "--scheduler-option", item,
               "--steps", "5")

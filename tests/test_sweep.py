@@ -36,7 +36,7 @@ def test_aliases_ranges_and_base_fields():
     (["n_spin=32"], r"unknown chip field 'n_spin'.*valid fields"),
     (["bogus=1,2"], r"unknown chip field 'bogus'.*valid fields: n_spins.*n_cores, coef_range"),
     (["n_spins=32", "n_spins=45"], "given twice"),
-    (["n_spins"], "must be KEY=V1,V2"),
+    (["n_spins"], r"must look like KEY=VALUE \(e.g. n_spins=32,45,64\)"),
     (["n_spins=32,,45"], "empty value"),
     (["n_spins=32,32"], "lists a value twice"),
     (["n_spins=0"], "n_spins = 0 must be a positive integer"),

@@ -53,7 +53,7 @@ def add_arguments(parser) -> None:
                           "values as --executor-option's)")
     run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the executor's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
-                          "op_len=4; values: integers, true / false, else text)")
+                          "op_len=4; values: numbers, true / false, null (JSON), else text)")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
     run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
@@ -123,30 +123,11 @@ def clock_from_args(args, default: str | None):
         raise ValueError(f"--step-limit / --preprocess-limit: {exc}") from None
 
 
-def key_values(flag: str, items: list[str]) -> dict:
-    """``KEY=VALUE`` items as keyword options (integers, ``true`` / ``false``, else text); ``ValueError`` naming
-    ``flag`` and a malformed item."""
-    options: dict = {}
-    for item in items:
-        key, eq, text = item.partition("=")
-        key = key.strip().replace("-", "_")
-        if not eq or not key:
-            raise ValueError(f"{flag} {item!r}: expected KEY=VALUE")
-        text = text.strip()
-        low = text.lower()
-        if low in ("true", "false"):
-            options[key] = low == "true"
-        else:
-            try:
-                options[key] = int(text)
-            except ValueError:
-                options[key] = text
-    return options
-
-
 def executor_options(executor: str, items: list[str], grid) -> dict:
     """``--executor-option`` items (:func:`key_values`) checked by :func:`check_executor_options`."""
-    return check_executor_options(executor, key_values("--executor-option", items), grid)
+    from agents.keyvalues import key_values
+
+    return check_executor_options(executor, key_values(items, "--executor-option", "weight_power=2"), grid)
 
 
 def check_executor_options(executor: str, options: dict, grid) -> dict:
@@ -259,7 +240,9 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
             raise ValueError("--no-keep acts on --replan: add --replan")
         options["keep"] = False
     if args.scheduler_option:
-        options["scheduler_options"] = key_values("--scheduler-option", args.scheduler_option)
+        from agents.keyvalues import key_values
+
+        options["scheduler_options"] = key_values(args.scheduler_option, "--scheduler-option", "weight=1")
     for s in schedulers:  # names, model files and options checked before anything starts
         try:
             make_scheduler(s, chip=chip, **{k: v for k, v in options.items() if k != "scheduler_options"},

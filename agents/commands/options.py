@@ -69,17 +69,6 @@ def add_chip_argument(parser, who: str = "the Ising planners", chip: bool = True
                         help="a parameter of the --sampler, e.g. num_sweeps=100 or timeout=2 (repeatable)")
 
 
-def option_value(text: str):
-    """A ``--option`` value: JSON when it parses (numbers, true/false, null), else the string
-    (``--sampler-option`` values are read by their parameter's type: ``chip_from_args``)."""
-    import json
-
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError:
-        return text
-
-
 def chip_from_args(args, key: str = "chip"):
     """The chip the options ask for: ``None`` (none given), a :class:`~ising_backend.ChipSpec`
     (the emulator) or a :class:`~ising_backend.MachineSpec` (``--sampler``); a bad field, an
@@ -95,15 +84,9 @@ def chip_from_args(args, key: str = "chip"):
         if options:
             raise ValueError("--sampler-option given without --sampler")
         return spec
-    texts = []
-    for item in options:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise ValueError(f"--sampler-option {item!r} must look like KEY=VALUE (e.g. num_sweeps=100)")
-        if name.strip() in dict(texts):
-            raise ValueError(f"--sampler-option {name.strip()} given twice ({dict(texts)[name.strip()]!r} and "
-                             f"{value.strip()!r}); give it once")
-        texts.append((name.strip(), value.strip()))
+    from agents.keyvalues import split_items
+
+    texts = split_items(options, "--sampler-option", "num_sweeps=100")  # read by their parameters' types below
     MachineSpec(spec or ChipSpec(), sampler).build()  # an unknown sampler, a missing package, a faulty spec
     try:  # each value read by its parameter's type (ising_backend.sampler_options)
         pairs = parse_sampler_options(sampler, texts)

@@ -45,7 +45,7 @@ import json
 import sys
 from pathlib import Path
 
-from agents.commands.options import add_chip_argument, chip_from_args, option_value
+from agents.commands.options import add_chip_argument, chip_from_args
 
 NAME = "plan"
 HELP = "plan worlds from a JSON / JSON Lines file; one plan (JSON) per world"
@@ -84,15 +84,16 @@ def _error(message: str) -> None:
 
 
 def _parse_options(items: list[str]) -> dict[str, dict]:
+    from agents.keyvalues import split_items, typed
+
     options: dict[str, dict] = {"sharing": {}, "tour": {}, "path": {}}
-    for item in items:
-        key, sep, raw = item.partition("=")
+    for key, raw in split_items(items, "--option", "tour.moves=7"):
         layer, dot, name = key.partition(".")
-        if not sep or not dot or not name:
-            raise ValueError(f"--option {item!r} must look like LAYER.KEY=VALUE (e.g. tour.moves=7)")
+        if not dot or not name:
+            raise ValueError(f"--option {key}={raw}: the key must look like LAYER.KEY (e.g. tour.moves=7)")
         if layer not in options:
-            raise ValueError(f"--option {item!r}: layer {layer!r} is not one of sharing, tour, path")
-        options[layer][name] = option_value(raw)
+            raise ValueError(f"--option {key}={raw}: layer {layer!r} is not one of sharing, tour, path")
+        options[layer][name] = typed(raw)
     return options
 
 

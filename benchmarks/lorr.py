@@ -52,7 +52,7 @@ def _path(name: str) -> Path:
 
 def _executor_spec(spec: str, name: str) -> tuple[str, dict]:
     """``NAME[:KEY=VALUE[:KEY=VALUE...]]`` (e.g. ``epibt:weight_power=2``) as the executor and its own options,
-    parsed and checked on instance ``name`` as ``mrmt lorr run --executor-option KEY=VALUE`` does."""
+    parsed and checked on instance ``name`` as ``mrmt lorr run --planner-option KEY=VALUE`` does."""
     from agents.commands.lorr import executor_options
     from mrmt_env.lorr.instance import read_instance
 

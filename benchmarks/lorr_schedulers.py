@@ -32,7 +32,7 @@ SCHEDULERS = (("lorr-greedy", "lorr-greedy", []), ("lorr-weighted (weight 1)", "
 def run(name: str, scheduler: str, options: list[str], steps: int) -> dict:
     path = ROOT / INSTANCES[name] / f"{name}.json"
     guidance = ["--guidance", "0"] if name == "SORTATION" else []
-    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler, "--executor", "pibt",
+    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler, "--planner", "pibt",
            *guidance, *[a for o in options for a in ("--scheduler-option", o)], "--steps", str(steps),
            "--step-limit", "rules", "--json", "--no-progress"]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout

@@ -180,11 +180,11 @@ def test_joint_moves_decisions_are_audited_against_pibt_and_charged_to_the_run(t
 def test_lorr_run_host_rule_flag_reaches_the_executors_decision_class(tmp_path):
     from mrmt_env.lorr.instance import example_instance_path
 
-    base = ["lorr", "run", str(example_instance_path()), "--scheduler", "lorr-greedy", "--executor", "epibt-ising",
+    base = ["lorr", "run", str(example_instance_path()), "--scheduler", "lorr-greedy", "--planner", "epibt-ising",
             "--steps", "20", "--json", "--no-progress"]
     rows = {}
     for name, extra in (("chip", []), ("flag", ["--host-rule", "lns_groups", "--audit", str(tmp_path / "f")]),
-                        ("option", ["--executor-option", "decider=host"])):
+                        ("option", ["--planner-option", "decider=host"])):
         r = _mrmt(*base, *extra)
         assert r.returncode == 0, r.stderr
         rows[name] = json.loads(r.stdout.splitlines()[-1])

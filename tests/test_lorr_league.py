@@ -166,8 +166,8 @@ def test_an_entry_run_is_under_the_rules_clock_unless_told_and_refuses_its_own_f
     proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--steps", "15", "--step-limit", "none",
                  "--no-progress", "--json")
     assert json.loads(proc.stdout.splitlines()[0])["clock"] == "work-bounded"
-    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--executor", "epibt", "--no-progress")
-    assert proc.returncode == 2 and "--entry decides the scheduler, the planner and their options: drop --executor" \
+    proc = _mrmt("lorr", "run", str(EXAMPLE), "--entry", str(path), "--planner", "epibt", "--no-progress")
+    assert proc.returncode == 2 and "--entry decides the scheduler, the planner and their options: drop --planner" \
         in proc.stderr
 
 

@@ -85,12 +85,12 @@ def test_check_command_on_the_2023_record(tmp_path):
 
 
 def test_executor_options_reach_the_executor_and_the_record(tmp_path):
-    """``--executor-option`` builds the executor with its own options (the run then differs from the
+    """``--planner-option`` builds the executor with its own options (the run then differs from the
     default one and equals the API run with the same options), and the record names them."""
     row = lambda proc: json.loads(proc.stdout.splitlines()[0])  # noqa: E731
-    base = ["lorr", "run", str(EXAMPLE), "--executor", "epibt", "--steps", "40", "--no-progress", "--json"]
+    base = ["lorr", "run", str(EXAMPLE), "--planner", "epibt", "--steps", "40", "--no-progress", "--json"]
     plain = _mrmt(*base, "--out", str(tmp_path / "plain"))
-    opted = _mrmt(*base, "--executor-option", "op_len=2", "--executor-option", "flow=false", "--out", str(tmp_path / "o"))
+    opted = _mrmt(*base, "--planner-option", "op_len=2", "--planner-option", "flow=false", "--out", str(tmp_path / "o"))
     assert plain.returncode == 0 and opted.returncode == 0, plain.stderr + opted.stderr
     assert row(plain)["executor_options"] == {} and row(opted)["executor_options"] == {"op_len": 2, "flow": False}
     paths = lambda d: read_output(tmp_path / d / "output.json")["actualPaths"]  # noqa: E731
@@ -119,17 +119,17 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
                                                        "ising, fast, ising-paper, a sharing+tour pair or ppo:MODEL.zip"),
     (["run", str(EXAMPLE), "--scheduler", "ssa+telepathy"], "a sharing+tour pair or ppo:MODEL.zip (unknown tour "
                                                            "planner 'telepathy'"),
-    (["run", str(EXAMPLE), "--executor", "teleport"], "unknown executor 'teleport'"),
+    (["run", str(EXAMPLE), "--planner", "teleport"], "unknown planner 'teleport'"),
     (["run", str(EXAMPLE), "--steps", "0"], "--steps must be >= 1, got 0"),
     (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "
                                                 "its lane), got 17"),
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
     (["run", str(EXAMPLE), "--scheduler", "strong", "--no-keep"], "--no-keep acts on --replan: add --replan"),
-    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power"],
-     "--executor-option 'weight_power' must look like KEY=VALUE"),
-    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "warp=9"],
+    (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power"],
+     "--planner-option 'weight_power' must look like KEY=VALUE"),
+    (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "warp=9"],
      "epibt takes no option 'warp'; its options: flow, op_len"),
-    (["run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "weight_power=3"],
+    (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power=3"],
      "weight_power (the search's weights (R + 1 - rank) ** p) = 3 must be an integer in [0, 2]"),
     (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),
 ])
@@ -218,7 +218,7 @@ def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
 @needs_shared
 def test_an_executor_that_cannot_take_the_team_is_refused_before_the_run():
     warehouse = SHARED / "2024-main" / "warehouse.domain" / "WAREHOUSE.json"
-    proc = _mrmt("lorr", "run", str(warehouse), "--executor", "pibt-flow", "--steps", "2", timeout=120)
+    proc = _mrmt("lorr", "run", str(warehouse), "--planner", "pibt-flow", "--steps", "2", timeout=120)
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "10000 robots x 38586 free cells need 3,086,880,000 bytes" in lines[0]
@@ -282,3 +282,16 @@ def test_a_replanned_robot_keeps_its_task_unless_given_a_shorter_one_or_its_task
     assert [x.tolist() for x in sim_on.actual] != [x.tolist() for x in sim_off.actual]
     with pytest.raises(ValueError, match="keep must be True or False, got 1"):
         make_scheduler("strong", replan=True, keep=1)
+
+
+def test_the_old_flag_names_still_run_and_say_they_are_deprecated():
+    new = _mrmt("lorr", "run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "op_len=2", "--steps", "20",
+                "--no-progress", "--json")
+    old = _mrmt("lorr", "run", str(EXAMPLE), "--executor", "epibt", "--executor-option", "op_len=2", "--steps", "20",
+                "--no-progress", "--json")
+    assert new.returncode == old.returncode == 0, old.stderr
+    assert json.loads(new.stdout.splitlines()[0])["tasks_finished"] == json.loads(old.stdout.splitlines()[0])["tasks_finished"]
+    assert "--executor is deprecated; use --planner" in old.stderr
+    assert "--executor-option is deprecated; use --planner-option" in old.stderr and "deprecated" not in new.stderr
+    both = _mrmt("lorr", "run", str(EXAMPLE), "--executor", "pibt", "--planner", "pibt", "--steps", "5")
+    assert both.returncode == 2 and "--executor is the old name of --planner: give --planner only" in both.stderr

@@ -40,20 +40,23 @@ def add_arguments(parser) -> None:
                      help="comma-separated: lorr-greedy (the start kit's default), lorr-weighted (the 2024 winner's "
                           "measure), strong, ising, fast, ising-paper, a sharing+tour pair, ppo:MODEL.zip "
                           "(default lorr-greedy)")
-    run.add_argument("--executor", default=None,
-                     help="the one-step planner: pibt (PIBT with turning; default), pibt-flow (PIBT along traffic-flow "
-                          "guide paths, the start kit's default planner), epibt (PIBT over 3-action operations with "
-                          "large-neighbourhood search, the best on RANDOM), epibt-ising (epibt with the chip choosing "
-                          "neighbourhood groups), windowed, pibt-ising")
+    run.add_argument("--planner", default=None,
+                     help="the one-step planner (the start kit's MAPFPlanner): pibt (PIBT with turning; default), "
+                          "pibt-flow (PIBT along traffic-flow guide paths, the start kit's default planner), epibt (PIBT "
+                          "over 3-action operations with large-neighbourhood search, the best on RANDOM), epibt-ising "
+                          "(epibt with the chip choosing neighbourhood groups), windowed, pibt-ising")
+    run.add_argument("--executor", default=None, help="deprecated: the old name of --planner")
     run.add_argument("--guidance", type=int, default=None, metavar="N",
                      help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
                           "default: the executor's own, pibt 2, the others 0)")
     run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
                           "values as --executor-option's)")
-    run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
-                     help="an option of the executor's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
+    run.add_argument("--planner-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="an option of the planner's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
                           "op_len=4; values: numbers, true / false, null (JSON), else text)")
+    run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="deprecated: the old name of --planner-option")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
     run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
@@ -123,11 +126,25 @@ def clock_from_args(args, default: str | None):
         raise ValueError(f"--step-limit / --preprocess-limit: {exc}") from None
 
 
+def planner_aliases(args) -> None:
+    """Fold the deprecated ``--executor`` / ``--executor-option`` into ``--planner`` / ``--planner-option`` (one
+    warning line each); ``ValueError`` when both names are given."""
+    for old, new, value in (("--executor", "--planner", "planner"), ("--executor-option", "--planner-option",
+                                                                     "planner_option")):
+        given = getattr(args, old[2:].replace("-", "_"))
+        if not given:
+            continue
+        if getattr(args, value):
+            raise ValueError(f"{old} is the old name of {new}: give {new} only")
+        print(f"mrmt lorr: warning: {old} is deprecated; use {new}", file=sys.stderr)
+        setattr(args, value, given)
+
+
 def executor_options(executor: str, items: list[str], grid) -> dict:
     """``--executor-option`` items (:func:`key_values`) checked by :func:`check_executor_options`."""
     from agents.keyvalues import key_values
 
-    return check_executor_options(executor, key_values(items, "--executor-option", "weight_power=2"), grid)
+    return check_executor_options(executor, key_values(items, "--planner-option", "weight_power=2"), grid)
 
 
 def check_executor_options(executor: str, options: dict, grid) -> dict:
@@ -142,12 +159,12 @@ def check_executor_options(executor: str, options: dict, grid) -> dict:
              if n not in ("grid", "seed", "guidance") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
     for key, value in options.items():
         if key not in known:
-            raise ValueError(f"--executor-option {key}={value}: {executor} takes no option {key!r}; "
+            raise ValueError(f"--planner-option {key}={value}: {executor} takes no option {key!r}; "
                              f"its options: {', '.join(known)}")
     try:
         cls(grid, **options)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"--executor-option: {exc}") from None
+        raise ValueError(f"--planner-option: {exc}") from None
     return dict(options)
 
 
@@ -213,12 +230,13 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
     from mrmt_env.lorr.instance import read_instance
     from planners.mapf import TURNING_EXECUTORS
 
+    planner_aliases(args)
     insts = {path: read_instance(path) for path in args.instances}
     if args.entry is not None:
         from agents.lorr.entry import load_entry
 
-        given = [f for f, v in (("--scheduler", args.scheduler), ("--executor", args.executor),
-                                ("--guidance", args.guidance), ("--executor-option", args.executor_option),
+        given = [f for f, v in (("--scheduler", args.scheduler), ("--planner", args.planner),
+                                ("--guidance", args.guidance), ("--planner-option", args.planner_option),
                                 ("--scheduler-option", args.scheduler_option),
                                 ("--replan", args.replan), ("--no-keep", args.no_keep)) if v]
         if given:
@@ -231,9 +249,9 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
     schedulers = [s.strip() for s in (args.scheduler or "lorr-greedy").split(",") if s.strip()]
     if not schedulers:
         raise ValueError("--scheduler names no scheduler")
-    executor = args.executor or "pibt"
+    executor = args.planner or "pibt"
     if executor not in TURNING_EXECUTORS:
-        raise ValueError(f"unknown executor {executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
+        raise ValueError(f"unknown planner {executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
     options = {"replan": True} if args.replan else {}
     if args.no_keep:
         if not args.replan:
@@ -253,9 +271,9 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         from planners.mapf.guidance import check_guidance
 
         options["guidance"] = check_guidance(args.guidance)
-    if args.executor_option:
+    if args.planner_option:
         grid = next(iter(insts.values())).grid
-        options["executor_options"] = executor_options(executor, args.executor_option, grid)
+        options["executor_options"] = executor_options(executor, args.planner_option, grid)
     return [(path, s, executor, options) for path in insts for s in schedulers], clock_from_args(args, None)
 
 

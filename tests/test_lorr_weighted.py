@@ -165,3 +165,19 @@ def test_goal_fields_keep_only_the_tables_asked_and_rebuild_the_rest_alike():
     for c in free.tolist():
         assert (fields.fields[fields.rows(np.array([c]))[0]] == want[c]).all()
         assert (want[c] == _bfs(grid, c)).all()
+
+
+@pytest.mark.parametrize("name", ["lorr-greedy", "lorr-weighted", "strong"])
+def test_every_scheduler_plays_the_start_kits_scheduler_role(name):
+    from agents.lorr.roles import Scheduler
+
+    assert isinstance(make_scheduler(name), Scheduler)
+
+
+def test_every_planner_plays_the_start_kits_planner_role():
+    from agents.lorr.roles import Planner
+    from planners.mapf import TURNING_EXECUTORS, make_turning_executor
+
+    grid = read_instance(example_instance_path()).grid
+    for name in TURNING_EXECUTORS:
+        assert isinstance(make_turning_executor(name, grid), Planner), name

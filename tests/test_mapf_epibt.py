@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -64,8 +65,9 @@ def oracle_operations(length):
 class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
-    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0, portfolio=1):
-        self.grid, self.seed, self.guidance, self.revisits = grid, seed, guidance, revisits
+    def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0, portfolio=1,
+                 anneal=0.0):
+        self.grid, self.seed, self.guidance, self.revisits, self.anneal = grid, seed, guidance, revisits, anneal
         self.lns, self.group, self.weight_power, self.portfolio = lns, group, weight_power, portfolio
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
@@ -207,6 +209,8 @@ class Oracle:
         costs weighted by ``weight``)."""
         r = len(plan)
         start = int(mix(seed, self.t, r, 0)) % r
+        total = best = 0
+        at_best, saved = True, None
         for it in range(self.lns):
             k = (start + it) % r
             now = plan[k][3]
@@ -223,6 +227,8 @@ class Oracle:
                             members.append(b)
             old = [plan[i] for i in members]
             before = sum(weight[i] * plan[i][2] for i in members)
+            temp = self.anneal * (1.0 - it / self.lns)
+            cutoff = before if not self.anneal else before + int(20.0 * temp * max(before, 1))
             for i in members:
                 plan[i] = None
             after, ok = 0, True
@@ -230,29 +236,45 @@ class Oracle:
                 pick = next((o for o in opts[i] if not collide(i, o[0])), None)
                 if pick is None and not collide(i, inh[i][0]):
                     pick = inh[i]
-                if pick is None or after >= before:
+                if pick is None or after >= cutoff:
                     ok = False
                     break
                 plan[i] = pick
                 after += weight[i] * pick[2]
-            if not (ok and after < before):
-                for i, entry in zip(members, old):
-                    plan[i] = entry
+            keep = ok and after < before
+            if self.anneal and ok and not keep and temp > 0 and after < cutoff:
+                u = (int(mix(seed, self.t, it, r + 7)) >> 11) * 2.0 ** -53
+                keep = u < math.exp(-(after - before) / (temp * max(before, 1)))
+            if keep:
+                if after >= before and at_best:  # leaving the best plan met for a worse one: keep a copy of it
+                    saved = list(plan)
+                    for i, entry in zip(members, old):
+                        saved[i] = entry
+                    at_best = False
+                total += after - before
+                if total < best:
+                    best, at_best = total, True
+                continue
+            for i, entry in zip(members, old):
+                plan[i] = entry
+        if not at_best:
+            plan[:] = saved
 
 
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 7), w=st.integers(3, 7),
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
        op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]),
-       weight_power=st.sampled_from([0, 1, 2]), portfolio=st.sampled_from([1, 1, 2, 3]), threads=st.sampled_from([1, 2]))
+       weight_power=st.sampled_from([0, 1, 2]), portfolio=st.sampled_from([1, 1, 2, 3]), threads=st.sampled_from([1, 2]),
+       anneal=st.sampled_from([0.0, 0.0, 0.05, 0.5]))
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power,
-                                        portfolio, threads):
+                                        portfolio, threads, anneal):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
-               weight_power=weight_power, portfolio=portfolio, threads=threads)
+               weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal)
     oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
-                    portfolio=portfolio)
+                    portfolio=portfolio, anneal=anneal)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
@@ -324,7 +346,9 @@ def test_registered_and_bad_options_name_the_value():
                        ({"flow": "yes"}, "flow"), ({"replans": -1}, "replans"), ({"lns": -1}, r"lns .* -1 .*\[0, "),
                        ({"group": 1}, r"group .* 1 .*\[2, 4096\]"), ({"weight_power": 3}, r"weight_power .* 3 .*\[0, 2\]"),
                        ({"portfolio": 0}, r"portfolio .* 0 .*\[1, 64\]"), ({"portfolio": 65}, r"portfolio .* 65 "),
-                       ({"threads": 0}, r"threads .* 0 .*\[1, 64\]")):
+                       ({"threads": 0}, r"threads .* 0 .*\[1, 64\]"),
+                       ({"anneal": 1.5}, r"anneal must be a number 0..1 .* got 1.5"),
+                       ({"anneal": "hot"}, r"anneal must be a number 0..1 .* got 'hot'")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a path"):
@@ -373,3 +397,22 @@ def test_no_robots_no_actions():
     grid = np.zeros((4, 4), dtype=bool)
     for ex in (EPIBT(grid, lns=10), EPIBT(grid, flow=False)):
         assert ex.actions(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)).tolist() == []
+
+
+@pytest.mark.parametrize("anneal", [0.05, 0.5])
+def test_annealing_leaves_the_best_plan_it_met_conflict_free(anneal):
+    """Annealing accepts worse neighbourhoods on the way, yet the plan it leaves is the best it met: never costlier
+    than the construction's (lns=0), conflict-free at every time."""
+    from planners.mapf.epibt import plan_cost
+
+    rng = np.random.default_rng(7)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.15, 0.7)
+    costs = {}
+    for lns in (0, 400):
+        ex = EPIBT(grid, seed=3, flow=False, lns=lns, weight_power=2, anneal=anneal)
+        captured = []
+        ex._improve = captured.append  # the kept plan's state before its first actions are taken
+        ex.actions(pos, orient, goals)
+        costs[lns] = plan_cost(captured[0])
+        assert plan_conflicts(grid, pos, orient, ex.plans) == []
+    assert costs[400] <= costs[0]

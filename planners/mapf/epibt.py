@@ -271,7 +271,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         if not _choose(k, robots.prio, state, (res, visit, hit, stack), stamp.revisits):
             reserve(res, cur[k], k, k)
     if stamp.lns > 0:
-        lns_search(state, res, (seed, t, stamp.lns, stamp.group))
+        lns_search(state, res, stamp)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -331,7 +331,8 @@ class EPIBT(TurningPIBT):
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int | str = DEFAULT_OP_LEN,
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
                  replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER, portfolio: int = 1,
-                 threads: int | None = None, field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+                 threads: int | None = None, anneal: float = 0.0, field_bytes: int = DEFAULT_FIELD_BYTES,
+                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
@@ -343,6 +344,10 @@ class EPIBT(TurningPIBT):
         self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
         self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
         self.portfolio = int_in("portfolio (joint plans per call)", portfolio, 1, MAX_PORTFOLIO)
+        if isinstance(anneal, bool) or not isinstance(anneal, (int, float)) or not 0.0 <= anneal <= 1.0:
+            raise ValueError(f"anneal must be a number 0..1 (the search's starting temperature, a share of a "
+                             f"neighbourhood's cost; 0 = descent), got {anneal!r}")
+        self.anneal = float(anneal)
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         self.threads = (min(self.portfolio, cores) if threads is None
                         else int_in("threads (the portfolio's threads)", threads, 1, MAX_PORTFOLIO))
@@ -433,7 +438,7 @@ class EPIBT(TurningPIBT):
         tables = [self._res] + [np.full_like(self._res, -1) for _ in range(k_plans - 1)]
 
         def run(k):
-            stamp = SearchStamp(portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group)
+            stamp = SearchStamp(portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group, self.anneal)
             epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, states[k], tables[k])
 
         k_plans = self._waves(run, k_plans)

@@ -6,7 +6,9 @@
 The table ``res[t, cell]`` holds the robot on ``cell`` at time ``t`` of the operations (-1 free).
 :func:`lns_search`: ``iters`` times, a robot not on its best operation and the robots in the way of its
 better ones (:func:`blockers`) choose again in a seeded order, each its best operation colliding with no one
-(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt`).
+(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt`), or,
+annealing (``anneal > 0``), also when they rise by ``d`` with probability ``exp(-d / (T x their cost before))``,
+``T`` falling linearly from ``anneal`` to 0 over the iterations; the best joint plan met is the one left.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ class SearchStamp(NamedTuple):
     revisits: int  # choices a robot may make per call
     lns: int       # large-neighbourhood iterations
     group: int     # robots per neighbourhood
+    anneal: float = 0.0  # the search's starting temperature (share of a neighbourhood's cost); 0: descent
 
 
 class PlanState(NamedTuple):
@@ -110,14 +113,19 @@ def blockers(k, cells, top, res, size, members, mark) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
+def _uniform(seed, t, it, salt) -> float:
+    return float(mix(seed, t, it, salt) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@numba.njit(cache=True, nogil=True)
 def lns_search(state, res, stamp) -> None:
-    """Large-neighbourhood search over ``state`` (a :class:`PlanState`): ``iters``
-    times, a robot not on its best operation and the robots in the way of its better ones (at most ``group``)
-    choose again in a seeded order, each its best operation colliding with no one (or its inherited one); kept
-    when their summed ``costs`` fall.  ``stamp = (seed, t, iters, group)``."""
+    """Large-neighbourhood search over ``state`` (a :class:`PlanState`) by ``stamp`` (a :class:`SearchStamp`):
+    ``lns`` times, a robot not on its best operation and the robots in the way of its better ones (at most
+    ``group``) choose again in a seeded order, each its best operation colliding with no one (or its inherited
+    one); kept when their summed ``costs`` fall, or by the annealing rule of the module docstring."""
     cells, costs, ncand = state.cells, state.costs, state.ncand
     cur, src, inh, inh_cost = state.cur, state.src, state.inh, state.inh_cost
-    seed, t, iters, group = stamp
+    seed, t, iters, group, temp0 = stamp.seed, stamp.t, stamp.lns, stamp.group, stamp.anneal
     r = cur.shape[0]
     if r == 0:
         return
@@ -127,10 +135,15 @@ def lns_search(state, res, stamp) -> None:
     old_src = np.empty(group, dtype=np.int64)
     old_cur = np.empty((group, cur.shape[1]), dtype=np.int64)
     start = np.int64(mix(seed, t, r, 0) % np.uint64(max(r, 1)))
+    anneal = temp0 > 0.0
+    best_src = src.copy()  # the best plan met, saved when the search leaves it for a worse one
+    best_cur = cur.copy()
+    total, best, at_best = 0, 0, True
     for it in range(iters):
         k = (start + it) % r
         if src[k] == 0 or ncand[k] == 0:
             continue
+        temp = temp0 * (1.0 - it / iters)
         top = src[k] if src[k] > 0 else ncand[k]
         n = blockers(k, cells, top, res, group, members, mark)
         before = 0
@@ -142,6 +155,7 @@ def lns_search(state, res, stamp) -> None:
             old_cur[j] = cur[i]
             reserve(res, cur[i], i, -1)
             keys[j] = mix(seed, t, it, i)
+        cutoff = before if not anneal else before + np.int64(20.0 * temp * max(before, 1))
         idx = np.argsort(keys[:n])
         after = 0
         placed = 0
@@ -154,15 +168,28 @@ def lns_search(state, res, stamp) -> None:
                     break
             if pick == -2 and conflict(res, inh[i], i) == -1:
                 pick = -1
-            if pick == -2 or after >= before:
-                after = before
+            if pick == -2 or after >= cutoff:
+                after = cutoff
                 break
             cur[i] = cells[i, pick] if pick >= 0 else inh[i]
             src[i] = pick
             reserve(res, cur[i], i, i)
             after += costs[i, pick] if pick >= 0 else inh_cost[i]
             placed += 1
-        if placed == n and after < before:
+        keep = placed == n and after < before
+        if anneal and placed == n and not keep and temp > 0.0 and after < cutoff:
+            keep = _uniform(seed, t, it, r + 7) < np.exp(-(after - before) / (temp * max(before, 1)))
+        if keep:
+            if after >= before and at_best:
+                best_src[:] = src
+                best_cur[:] = cur
+                for j in range(n):  # the saved plan is the one before this move
+                    best_src[members[j]] = old_src[j]
+                    best_cur[members[j]] = old_cur[j]
+                at_best = False
+            total += after - before
+            if total < best:
+                best, at_best = total, True
             continue
         for j in idx[:placed]:
             reserve(res, cur[members[j]], members[j], -1)
@@ -170,4 +197,11 @@ def lns_search(state, res, stamp) -> None:
             i = members[j]
             src[i] = old_src[j]
             cur[i] = old_cur[j]
+            reserve(res, cur[i], i, i)
+    if not at_best:  # back to the best plan met
+        for i in range(r):
+            reserve(res, cur[i], i, -1)
+        for i in range(r):
+            src[i] = best_src[i]
+            cur[i] = best_cur[i]
             reserve(res, cur[i], i, i)

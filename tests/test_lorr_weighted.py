@@ -152,7 +152,7 @@ def test_an_entry_gives_its_scheduler_options(tmp_path):
         load_entry(f)
 
 
-def test_goal_fields_keep_only_the_tables_asked_and_rebuild_the_rest_alike():
+def test_goal_fields_keep_only_the_tables_asked_and_reuse_the_rows_of_the_rest():
     from planners.mapf.common import GoalFields
 
     grid = read_instance(example_instance_path()).grid
@@ -162,6 +162,10 @@ def test_goal_fields_keep_only_the_tables_asked_and_rebuild_the_rest_alike():
     want = {int(c): fields.fields[r].copy() for c, r in zip(free, rows)}
     fields.keep([int(free[3]), int(free[1])])
     assert len(fields) == 2 and fields.has(int(free[3])) and not fields.has(int(free[0]))
+    kept_rows = fields.rows(free[[3, 1]]).tolist()
+    assert kept_rows == [rows[3], rows[1]]  # kept fields stay where they were: nothing is copied
+    more = np.flatnonzero(~grid.reshape(-1))[5:11]  # six new goals: three freed rows reused, then new ones
+    assert sorted(fields.rows(more).tolist()) == sorted([rows[0], rows[2], rows[4], 5, 6, 7])
     for c in free.tolist():
         assert (fields.fields[fields.rows(np.array([c]))[0]] == want[c]).all()
         assert (want[c] == _bfs(grid, c)).all()

@@ -76,18 +76,18 @@ class GoalFields:
         self.capacity = max(int(capacity), 1)
         self.fields = np.empty((self.capacity, self.grid.size), dtype=np.int32)
         self._row: dict[int, int] = {}
+        self._free: list[int] = []  # rows given back by keep(), reused first (no field is copied)
+        self._next = 0  # rows below it were handed out
 
     def has(self, goal: int) -> bool:
         """Whether the field of ``goal`` (a flat cell) is built."""
         return int(goal) in self._row
 
     def keep(self, goals) -> None:
-        """Drop every field but those of ``goals`` (flat cells; the kept move to the first rows)."""
-        keep = [g for g in dict.fromkeys(int(g) for g in goals) if g in self._row]
-        old = self.fields[[self._row[g] for g in keep]] if keep else None
-        self._row = {g: i for i, g in enumerate(keep)}
-        if keep:
-            self.fields[:len(keep)] = old
+        """Drop every field but those of ``goals`` (flat cells); their rows are reused by later goals."""
+        keep = {int(g) for g in goals}
+        for g in [g for g in self._row if g not in keep]:
+            self._free.append(self._row.pop(g))
 
     def __len__(self) -> int:
         return len(self._row)
@@ -100,15 +100,22 @@ class GoalFields:
             self.capacity = 2 * len(uniq)
             self.fields = np.empty((self.capacity, self.grid.size), dtype=np.int32)
             self._row.clear()
+            self._free.clear()
+            self._next = 0
         missing = [g for g in uniq if g not in self._row]
         if len(self._row) + len(missing) > self.capacity:  # full: keep only the goals asked for now
             self.keep(uniq)
         if missing:
-            start = len(self._row)
-            for i, g in enumerate(missing):
-                self._row[g] = start + i
-            _fill(self.grid, self.width, np.array(missing, dtype=np.int64),
-                  np.arange(start, start + len(missing), dtype=np.int64), self.fields)
+            rows = []
+            for g in missing:
+                if self._free:
+                    row = self._free.pop()
+                else:
+                    row, self._next = self._next, self._next + 1
+                self._row[g] = row
+                rows.append(row)
+            _fill(self.grid, self.width, np.array(missing, dtype=np.int64), np.array(rows, dtype=np.int64),
+                  self.fields)
         return np.array([self._row[g] for g in goals.tolist()], dtype=np.int64)
 
 

@@ -43,6 +43,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--instances", default=",".join(INSTANCES))
+    parser.add_argument("--rows", default=",".join(label for label, _, _ in SCHEDULERS),
+                        help="which of the scheduler rows to run (labels, comma-separated)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.instances.split(",") if n.strip()]
@@ -52,13 +54,14 @@ def main(argv=None) -> None:
     rows = []
     for name in names:
         base = None
-        for label, scheduler, options in SCHEDULERS:
+        for label, scheduler, options in [row for row in SCHEDULERS if row[0] in args.rows.split(",")]:
             r = run(name, scheduler, options, args.steps)
             base = r["tasks_finished"] if base is None else base
             rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))
             print(f"{name} {label}: {r['tasks_finished']} tasks, {r['timeouts']} timeouts", file=sys.stderr)
     lines = [SECTION, "",
-             f"`python benchmarks/lorr_schedulers.py --steps {args.steps}` ({cpu_name()}; each run its own process, "
+             f"`python benchmarks/lorr_schedulers.py --steps {args.steps} --rows '{args.rows}'` ({cpu_name()}; each run "
+             f"its own process, "
              f"the first {args.steps} steps under the rules' 1 s clock; planner: PIBT with turning, lanes off on "
              "SORTATION as in the default entry).", "",
              "| instance | scheduler | tasks | x greedy | timeouts | step p50 s | step p99 s | peak MiB |",

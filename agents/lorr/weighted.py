@@ -146,10 +146,12 @@ class WeightedScheduler:
 
     def _errands(self, tasks, task: int) -> tuple:
         """The errands of ``task`` (cached per task file line)."""
-        line = tasks.line[task]
+        return self._line(tasks.inst, tasks.line[task])
+
+    def _line(self, inst, line: int) -> tuple:
         cells = self._cells.get(line)
         if cells is None:
-            cells = self._cells[line] = tuple(tasks.inst.task_errands(line).tolist())
+            cells = self._cells[line] = tuple(inst.task_errands(line).tolist())
         return cells
 
     def _ready(self, cells, stop: float | None) -> np.ndarray:
@@ -174,13 +176,13 @@ class WeightedScheduler:
         lines = [tasks.line[k] for k in ids]
         todo = [ln for ln in dict.fromkeys(lines) if ln not in self._legs]
         if todo:
-            errands = [inst.task_errands(ln) for ln in todo]
-            need = sorted({int(c) for e in errands for c in e[:-1].tolist()})
+            errands = [self._line(inst, ln) for ln in todo]
+            need = sorted({c for e in errands for c in e[:-1]})
             have = dict(zip(need, self._ready(need, stop).tolist()))
-            todo = [(ln, e) for ln, e in zip(todo, errands) if all(have[c] for c in e[:-1].tolist())]
+            todo = [(ln, e) for ln, e in zip(todo, errands) if all(have[c] for c in e[:-1])]
         if todo:
-            a = np.concatenate([e[:-1] for _, e in todo]).astype(np.int64)
-            b = np.concatenate([e[1:] for _, e in todo]).astype(np.int64)
+            a = np.array([c for _, e in todo for c in e[:-1]], dtype=np.int64)
+            b = np.array([c for _, e in todo for c in e[1:]], dtype=np.int64)
             owner = np.repeat(np.arange(len(todo)), [len(e) - 1 for _, e in todo])
             d = self.fields.fields[self.fields.rows(a), b].astype(np.int64)
             total = np.zeros(len(todo), dtype=np.int64)

@@ -51,7 +51,7 @@ def add_arguments(parser) -> None:
                           "default: the executor's own, pibt 2, the others 0)")
     run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
-                          "values as --executor-option's)")
+                          "values as --planner-option's)")
     run.add_argument("--planner-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the planner's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
                           "op_len=4; values: numbers, true / false, null (JSON), else text)")
@@ -141,7 +141,7 @@ def planner_aliases(args) -> None:
 
 
 def executor_options(executor: str, items: list[str], grid) -> dict:
-    """``--executor-option`` items (:func:`key_values`) checked by :func:`check_executor_options`."""
+    """``--planner-option`` items (:func:`~agents.keyvalues.key_values`) checked by :func:`check_executor_options`."""
     from agents.keyvalues import key_values
 
     return check_executor_options(executor, key_values(items, "--planner-option", "weight_power=2"), grid)
@@ -182,8 +182,8 @@ def check_entry(entry, chip=None) -> None:
         try:
             if c.planner not in TURNING_EXECUTORS:
                 raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
-            own = {k: v for k, v in c.options.items() if k in ("replan", "keep")}
-            make_scheduler(c.scheduler, chip=chip, **own, **c.options.get("scheduler_options", {}))
+            own = {k: v for k, v in c.options.items() if k in ("replan", "keep", "scheduler_options")}
+            make_scheduler(c.scheduler, chip=chip, **own)
             if "guidance" in c.options:
                 from planners.mapf.guidance import check_guidance
 
@@ -263,8 +263,7 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         options["scheduler_options"] = key_values(args.scheduler_option, "--scheduler-option", "weight=1")
     for s in schedulers:  # names, model files and options checked before anything starts
         try:
-            make_scheduler(s, chip=chip, **{k: v for k, v in options.items() if k != "scheduler_options"},
-                           **options.get("scheduler_options", {}))
+            make_scheduler(s, chip=chip, **options)
         except TypeError as exc:
             raise ValueError(f"--scheduler-option: {exc}") from None
     if args.guidance is not None:

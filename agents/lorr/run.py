@@ -104,7 +104,6 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
 
     options = dict(options)
     ex_options = dict(options.pop("executor_options", None) or {})
-    options.update(options.pop("scheduler_options", None) or {})
     if "guidance" in options:
         ex_options["guidance"] = options.pop("guidance")
     t0 = time.perf_counter()

@@ -151,7 +151,9 @@ class _Greedy(GreedyScheduler):
 
 
 def make_scheduler(name: str, seed: int = 0, chip=None, **options):
-    """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one."""
+    """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one.  ``options`` may hold
+    ``scheduler_options`` (a dict: ``--scheduler-option``, an entry's table), merged with the others."""
+    options.update(options.pop("scheduler_options", None) or {})
     if name == "lorr-greedy":
         if options:
             raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")

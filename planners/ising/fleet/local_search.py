@@ -9,32 +9,40 @@ machine's error ends the call).  Design notes: docs/design/ising_fleet.md.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from planners.ising.fleet.recreate import ruin_recreate
 from planners.ising.moves.routes import route_cost
-from planners.ising.moves.search import LOCAL_OPTIMUM, REFUSED, move_search
+from planners.ising.moves.search import LOCAL_OPTIMUM, REFUSED, SearchLimits, move_search
 
-__all__ = ["iterated_search"]
+__all__ = ["iterated_search", "FleetBest"]
 
 _NO_LIMIT = 1 << 62  # the fleet's local search runs to a local optimum
+
+
+class FleetBest(NamedTuple):
+    """What :func:`iterated_search` updates in place as it goes."""
+
+    nxt: np.ndarray  # the cheapest routes so far
+    cost: np.ndarray  # (1,) their cost
+    stats: np.ndarray  # the search's statistics record (planners.ising.moves.search.new_stats)
+    per_rule: tuple  # (clean, wins): per quantization rule its valid reads and best reads
 
 
 @numba.njit(cache=True)
 def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, machine, best):
     """The iterated local search (module docstring) from ``nxt`` / ``prv``; ``order[t]`` the nodes nearest
-    target ``r + t`` (itself first), ``kick`` = ``(kicks, ruin, slack)``; ``best`` = ``(best_nxt, best_cost
-    (1,), stats, per_rule)``, updated in place as the search goes: the cheapest routes so far, the statistics
-    as :data:`~planners.ising.moves.search.STAT_FIELDS` and per quantization rule its valid reads and best
-    reads (``move_search``'s ``per_rule``); ``search = (capacity, max_overlap, max_retries, chip)``.
-    Returns ``(status, calls, emulation_s)``."""
+    target ``r + t`` (itself first), ``kick`` = ``(kicks, ruin, slack)``; ``best`` a :class:`FleetBest`;
+    ``search`` the :class:`~planners.ising.moves.search.SearchLimits` (its ``max_rounds`` unused: each local
+    search runs to a local optimum).  Returns ``(status, calls, emulation_s)``."""
     kicks, ruin, slack = kick
-    best_nxt, best_cost, stats, per_rule = best
+    best_nxt, best_cost = best.nxt, best.cost
     n = d.shape[0] - r
     calls, emu, subs = np.zeros(0, dtype=np.int64), np.zeros(0), 0
-    capacity, max_overlap, max_retries, chip = search
-    limits = (capacity, max_overlap, max_retries, _NO_LIMIT, chip)
+    limits = SearchLimits(search.capacity, search.max_overlap, search.max_retries, _NO_LIMIT, search.chip)
     status = LOCAL_OPTIMUM
     for it in range(kicks + 1):  # the local search from the start, then one per kick
         if it == 0:
@@ -44,14 +52,15 @@ def iterated_search(rng, d, nxt, prv, r, neigh, order, search, kick, program, ma
             seed_target = r + rng.integers(0, n)
             q = min(rng.integers(2, ruin + 1), n)
             ruin_recreate(d, cand_nxt, cand_prv, r, seed_target, order[seed_target - r, 1:], q, rng.permutation(q))
-        status, calls, emu, subs = move_search(rng, d, cand_nxt, cand_prv, r, None, neigh, limits, program, machine,
-                                               stats, per_rule, (calls, emu, subs))
+        out = move_search(rng, d, cand_nxt, cand_prv, r, None, neigh, limits, program, machine, best.stats,
+                          best.per_rule, (calls, emu, subs))
+        status, calls, emu, subs = out.status, out.calls, out.emu, out.used
         if status == REFUSED:
             break
         new = route_cost(d, cand_nxt, r)
         if it == 0 or new <= best_cost[0] * (1.0 + slack) + 1e-9:  # record-to-record travel around the best
             nxt, prv = cand_nxt, cand_prv
-            stats[8] += it > 0
+            best.stats[0].kicks_accepted += it > 0
             if new < best_cost[0] - 1e-9:
                 best_nxt[:] = cand_nxt
                 best_cost[0] = new

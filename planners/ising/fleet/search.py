@@ -18,9 +18,9 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.config import IsingConfig, check_choice, check_int, check_real, check_rules, resolve_config
 from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
-from planners.ising.fleet.local_search import iterated_search
+from planners.ising.fleet.local_search import FleetBest, iterated_search
 from planners.ising.moves.routes import route_cost
-from planners.ising.moves.search import FLEET_FIELDS, REFUSED, STAT_FIELDS
+from planners.ising.moves.search import FLEET_FIELDS, REFUSED, SearchLimits, new_stats, stats_dict
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.sharing_classical import SSASharing
 
@@ -116,20 +116,20 @@ class IsingFleetSharing:
         ruin = max(2, cfg.ruin or max(5, 2 * n // r))
         per_target = cfg.kicks_per_target * n
         kicks = max(per_target, min(cfg.min_kicks, 3 * per_target)) if cfg.kicks is None else cfg.kicks
-        search = (min(int(self.chip.usable_spins), cfg.max_moves), cfg.max_overlap, cfg.max_retries,
-                  cfg.selection == "chip")
+        search = SearchLimits(capacity=min(int(self.chip.usable_spins), cfg.max_moves), max_overlap=cfg.max_overlap,
+                              max_retries=cfg.max_retries, max_rounds=0, chip=cfg.selection == "chip")
         charged = CallLedger()
         best_nxt, best_cost = nxt.copy(), np.array([route_cost(d, nxt, r)])  # the cheapest routes so far
         stats: dict = {}
         failure = kept = None
-        counts = np.zeros(len(STAT_FIELDS), dtype=np.int64)  # as the search goes, also up to a machine's error
+        counts = new_stats()  # as the search goes, also up to a machine's error
         clean, wins = np.zeros(len(cfg.chip_rules), dtype=np.int64), np.zeros(len(cfg.chip_rules), dtype=np.int64)
         try:
             with self.chip.session(charged, decision="fleet_moves") as link:
                 program = program_record(cfg.chip_rules, self.chip.spec, cfg.num_reads)
                 status, calls, emu = iterated_search(
                     rng, d, nxt, prv, r, neigh, order, search, (int(kicks), int(ruin), float(cfg.slack)), program,
-                    link.args, (best_nxt, best_cost, counts, (clean, wins)))
+                    link.args, FleetBest(best_nxt, best_cost, counts, (clean, wins)))
                 link.settle(calls, emu)
             if status == REFUSED:
                 failure = REFUSED_MESSAGE
@@ -146,10 +146,11 @@ class IsingFleetSharing:
                 g.append(int(x) - r)
                 x = best_nxt[x]
             groups.append(tuple(g))
-        programs = int(counts[0]) if cfg.selection == "chip" else 0  # each chip round: one program per rule
+        fleet = stats_dict(counts, FLEET_FIELDS)
+        programs = fleet["rounds"] if cfg.selection == "chip" else 0  # each chip round: one program per rule
         stats["mapping"] = {"fleet": mapping_record(cfg.chip_rules, [
             (programs, programs * cfg.num_reads, valid, won, 0) for valid, won in zip(clean.tolist(), wins.tolist())])}
-        stats["fleet"] = {**dict(zip(FLEET_FIELDS, counts.tolist())),
+        stats["fleet"] = {**fleet,
                           "ssa_cost": float(route_cost_of(d, base.assignment, r)), "cost": float(best_cost[0])}
         compute = ComputeReport.from_ledger(charged)
         if failure:

@@ -9,6 +9,8 @@ one submission, score the reads (a read selecting two clashing moves is invalid)
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -16,7 +18,8 @@ from ising_backend import QUANTIZE_RULE_IDS, quantize_rules, submit_packs
 from ising_backend.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
-           "read_gain", "score_reads", "greedy_selection", "select_round", "program_record", "ROUND_OK",
+           "read_gain", "score_reads", "greedy_selection", "select_round", "program_record", "RoundProgram", "RoundOut",
+           "Scored", "ROUND_OK",
            "ROUND_REFUSED", "REFUSED_MESSAGE"]
 
 #: Columns of a spans row.
@@ -28,6 +31,39 @@ ROUND_OK, ROUND_REFUSED = 0, 1
 REFUSED_MESSAGE = ("the chip refused a move-selection program: a coefficient is not finite (distances too large "
                    "to add)")
 _EPS = 1e-9
+
+
+class RoundProgram(NamedTuple):
+    """How a round's selection QUBO goes to the chip (:func:`program_record`)."""
+
+    rules: np.ndarray  # the quantization rules' ids, one program each
+    Lh: float  # the chip's coefficient limits
+    Lj: float
+    num_reads: int
+
+
+class Scored(NamedTuple):
+    """:func:`score_reads`' result."""
+
+    valid: np.ndarray  # (programs,) valid reads
+    selecting: np.ndarray  # (programs,) those among them that select a move
+    best_rule: int  # the first valid read of largest total gain: its program (-1: none above 0)
+    best_read: int
+    gain: float
+
+
+class RoundOut(NamedTuple):
+    """:func:`select_round`'s result."""
+
+    status: int  # ROUND_OK or ROUND_REFUSED
+    keep: np.ndarray  # the offered moves (indices into gains)
+    clashes: np.ndarray  # their clash matrix
+    taken: np.ndarray  # the best read's moves (indices into keep; empty when no valid read selects one)
+    valid: np.ndarray  # per rule: valid reads
+    selecting: np.ndarray  # and those selecting a move
+    best: int  # the best read's rule (-1: none)
+    calls: int  # the submission's chip calls
+    emu: float  # and the kernel's seconds
 
 
 @numba.njit(cache=True, inline="always")
@@ -110,9 +146,7 @@ def read_gain(chosen, clashes, gains):
 
 @numba.njit(cache=True)
 def score_reads(spins, clashes, gains):
-    """Reads ``(programs, reads, M)`` of one selection round.  Returns ``(valid (programs,), selecting
-    (programs,), program, read, gain)``: per program its valid reads and those among them that
-    select a move, and the first valid read of largest total gain (program -1: none above 0)."""
+    """Reads ``(programs, reads, M)`` of one selection round scored: a :class:`Scored`."""
     p_n, reads, _m = spins.shape
     valid = np.zeros(p_n, dtype=np.int64)
     selecting = np.zeros(p_n, dtype=np.int64)
@@ -127,7 +161,7 @@ def score_reads(spins, clashes, gains):
                 selecting[p] += 1
             if total > best + _EPS:
                 best_p, best_r, best = p, rd, total
-    return valid, selecting, best_p, best_r, best
+    return Scored(valid, selecting, best_p, best_r, best)
 
 
 @numba.njit(cache=True)
@@ -151,14 +185,10 @@ def greedy_selection(clashes):
 @numba.njit(cache=True, inline="always")  # inlined into both searches' loops: no link level of its own
 def select_round(rng, spans, gains, k, max_overlap, program, machine):
     """One selection round: at most ``k`` moves offered (:func:`pick_candidates`), their QUBO mapped by
-    every rule of ``program`` = ``(rules, Lh, Lj, num_reads)`` (``keep_sign``, percentile 95), one
-    submission on ``machine`` (an :func:`ising_backend.anneal_submit` record) with a seed drawn from
-    ``rng``, the reads scored.  Returns ``(status, keep, clashes, taken, valid (R,), selecting (R,),
-    best, calls, emulation_s)``: the offered moves (indices into ``gains``) and their clash matrix, the
-    best read's moves (indices into ``keep``; empty when no valid read selects one), per rule its valid
-    reads and those selecting a move, the best read's rule (-1: none), the submission's chip calls and
-    the kernel's seconds."""
-    rules, Lh, Lj, num_reads = program
+    every rule of the :class:`RoundProgram` ``program`` (``keep_sign``, percentile 95), one submission on
+    ``machine`` (an :func:`ising_backend.anneal_submit` record) with a seed drawn from ``rng``, the reads
+    scored.  Returns a :class:`RoundOut`."""
+    rules = program.rules
     R = rules.shape[0]
     keep = pick_candidates(spans, gains, k, max_overlap)
     clashes = conflicts(spans, keep)
@@ -167,19 +197,20 @@ def select_round(rng, spans, gains, k, max_overlap, program, machine):
     q, Q = selection_qubo(offered, clashes, 1.0)
     h, J, _offset = ising_of_qubo(q, Q, 0.0)
     # one program per rule (as pack_qubo_stack packs them at capacity M: each its own pack, in rule order)
-    st, hq, Jq = quantize_rules(h, J, rules, Lh, Lj, True, 95.0)
+    st, hq, Jq = quantize_rules(h, J, rules, program.Lh, program.Lj, True, 95.0)
     for r in range(R):
         if st[r] != 0:
-            return ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0, 0.0
+            return RoundOut(ROUND_REFUSED, keep, clashes, none, np.zeros(R, np.int64), np.zeros(R, np.int64), -1, 0, 0.0)
     seed = rng.integers(0, 9223372036854775807)
-    spins, calls, emu = submit_packs(hq, Jq, num_reads, np.uint64(seed), machine)
-    valid, selecting, best, read, _gain = score_reads(spins, clashes, offered)
-    taken = np.flatnonzero(spins[best, read] > 0) if best >= 0 else none
-    return ROUND_OK, keep, clashes, taken, valid, selecting, best, calls, emu
+    spins, calls, emu = submit_packs(hq, Jq, program.num_reads, np.uint64(seed), machine)
+    scored = score_reads(spins, clashes, offered)
+    best = scored.best_rule
+    taken = np.flatnonzero(spins[best, scored.best_read] > 0) if best >= 0 else none
+    return RoundOut(ROUND_OK, keep, clashes, taken, scored.valid, scored.selecting, best, calls, emu)
 
 
-def program_record(chip_rules, spec, num_reads: int) -> tuple:
-    """:func:`select_round`'s ``program`` record: the rules' ids, the chip's coefficient limits, the reads per
-    program (the machine's record comes from each call's session)."""
+def program_record(chip_rules, spec, num_reads: int) -> RoundProgram:
+    """:func:`select_round`'s ``program`` record (the machine's record comes from each call's session)."""
     rules = np.array([QUANTIZE_RULE_IDS[r] for r in chip_rules], dtype=np.int64)
-    return (rules, *(float(v) for v in spec.coefficient_limits), int(num_reads))
+    Lh, Lj = (float(v) for v in spec.coefficient_limits)
+    return RoundProgram(rules=rules, Lh=Lh, Lj=Lj, num_reads=int(num_reads))

@@ -10,18 +10,17 @@ caller plans the rest with ``find_path``.  Design notes: docs/design/ising_path.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from ising_backend import CallLedger, ChipUnavailableError, SolverOutputError, record_of_reads
 from planners.compute import ComputeReport
-from planners.ising.path.engine import REACHED, run_query
+from planners.ising.path.engine import COUNT_NAMES, REACHED, run_query
 from planners.ising.path.kernels import cut_walk
 
 __all__ = ["LegBatch", "plan_legs", "run_legs"]
-
-_COUNTS = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
 
 
 @dataclass
@@ -32,6 +31,22 @@ class LegBatch:
     compute: object = None
     stats: dict = field(default_factory=dict)
     failed: object = None  # the PathResult of leg len(paths) when the batch stopped at it
+
+
+class LegsOut(NamedTuple):
+    """:func:`run_legs`' result: leg ``j``'s path is ``points[ends[j]:ends[j + 1]]``; counts, mapping and
+    walk steps are those of the legs done."""
+
+    done: int  # the legs done
+    points: np.ndarray  # (T, 2) their paths, one after the other
+    ends: np.ndarray  # (done + 1,)
+    counts: np.ndarray  # (5,) by the engine's COUNT_NAMES
+    mapping: np.ndarray  # (k, 4) per style: reads, valid reads, wins, map_errors
+    calls: np.ndarray  # per chip submission: its calls (the first n_sub the legs done', the rest the leg not done)
+    emu: np.ndarray  # and emulation seconds
+    walked: int  # walk steps
+    last: object  # the QueryOut of the last leg run (the one not done when done < L)
+    n_sub: int
 
 
 @numba.njit(cache=True)
@@ -50,13 +65,9 @@ def usable_legs(cells, grid):
 def run_legs(rng, keys, tables, padded, fields, stops, loop, machine, grid, cut):
     """The legs ``stops[j] -> stops[j + 1]`` with :func:`~.engine.run_query` each (the same arguments),
     until the first leg that does not reach its goal with a valid path.  ``fields[j]`` is leg ``j``'s
-    ranking field (``(L, 0, 0)`` for the Manhattan key).  Returns ``(done, points (T, 2), ends (done + 1,),
-    counts (5,), mapping (k, 4), sub_calls, sub_emu, walked, last, n_sub)``: leg ``j``'s path is
-    ``points[ends[j]:ends[j + 1]]``; counts, mapping and walk steps are those of the legs done;
-    ``last`` is the :func:`run_query` output of the last leg run (the one not done when ``done <
-    L``); the first ``n_sub`` submissions are the legs done', the rest that leg's."""
+    ranking field (``(L, 0, 0)`` for the Manhattan key).  Returns a :class:`LegsOut`."""
     L = stops.shape[0] - 1
-    k = loop[6].shape[0]  # the merge styles
+    k = loop.style_ids.shape[0]  # the merge styles
     cap = 64
     points = np.empty((cap, 2), dtype=np.int64)
     ends = np.zeros(L + 1, dtype=np.int64)
@@ -73,11 +84,11 @@ def run_legs(rng, keys, tables, padded, fields, stops, loop, machine, grid, cut)
         if j:
             last = run_query(rng, keys, tables, padded, fields[j], stops[j, 0], stops[j, 1], stops[j + 1, 0],
                              stops[j + 1, 1], loop, machine)
-        status, walk, leg_counts, leg_map, sub_calls, sub_emu = last[0], last[3], last[4], last[5], last[6], last[7]
-        calls = np.concatenate((calls, sub_calls))
-        emu = np.concatenate((emu, sub_emu))
-        if status != REACHED:
+        calls = np.concatenate((calls, last.sub_calls))
+        emu = np.concatenate((emu, last.sub_emu))
+        if last.status != REACHED:
             break
+        walk = last.walk
         ok, path = cut_walk(walk, grid, stops[j, 0], stops[j, 1], stops[j + 1, 0], stops[j + 1, 1], cut)
         if not ok:
             break
@@ -89,12 +100,12 @@ def run_legs(rng, keys, tables, padded, fields, stops, loop, machine, grid, cut)
             points = grown
         points[top: top + path.shape[0]] = path
         ends[j + 1] = top + path.shape[0]
-        counts += leg_counts
-        mapping += leg_map
+        counts += last.counts
+        mapping += last.mapping
         n_sub = calls.shape[0]
         walked += walk.shape[0] - 1
         done += 1
-    return done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked, last, n_sub
+    return LegsOut(done, points[: ends[done]], ends[: done + 1], counts, mapping, calls, emu, walked, last, n_sub)
 
 
 def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatch:
@@ -113,29 +124,29 @@ def plan_legs(runner, fields, world, cells, rng: np.random.Generator) -> LegBatc
     charged = CallLedger()
     try:
         with runner.chip.session(charged, decision="path_query") as link:
-            done, points, ends, counts, mapping, calls, emu, walked, last, n_sub = run_legs(
-                rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
-                runner.loop_args(grid), link.args, grid, cfg.cut_loops)
+            out = run_legs(rng, *runner.pool.arrays(), runner.padded(grid), fields.goals(world, stops[1:]), stops,
+                           runner.loop_args(grid), link.args, grid, cfg.cut_loops)
     except (ChipUnavailableError, SolverOutputError):  # a machine behind the callback failed: the legs go
         return LegBatch(compute=ComputeReport.from_ledger(charged))  # one by one
+    done, points, ends, calls, n_sub = out.done, out.points, out.ends, out.calls, out.n_sub
     failed = None
     if done < n_legs:  # that leg's own result, charged to it (a callback machine charged the batch as it ran)
         leg = CallLedger()
-        link.settle(calls[n_sub:], emu[n_sub:], into=leg)
+        link.settle(calls[n_sub:], out.emu[n_sub:], into=leg)
         a, b = tuple(int(v) for v in stops[done]), tuple(int(v) for v in stops[done + 1])
-        failed = runner.result(grid, a, b, last, leg, used=int(calls[n_sub:].sum()))
+        failed = runner.result(grid, a, b, out.last, leg, used=int(calls[n_sub:].sum()))
     batch = LegBatch(compute=ComputeReport.from_ledger(charged), failed=failed)
     if not done:
         return batch
-    link.settle(calls[:n_sub], emu[:n_sub])
+    link.settle(calls[:n_sub], out.emu[:n_sub])
     batch.paths = [points[ends[j]: ends[j + 1]] for j in range(done)]
     batch.compute = ComputeReport.from_ledger(charged)
     batch.stats = {
         "chip_calls": int(charged.physical_calls),
         "chip_batches": int(charged.batches),
-        **{name: int(v) for name, v in zip(_COUNTS, counts.tolist())},
-        "walk_length": int(walked),
-        "mapping": {"path": record_of_reads(cfg.styles, mapping, cfg.num_reads)},
+        **{name: int(v) for name, v in zip(COUNT_NAMES, out.counts.tolist())},
+        "walk_length": int(out.walked),
+        "mapping": {"path": record_of_reads(cfg.styles, out.mapping, cfg.num_reads)},
         "path_length": int(ends[done] - done),
     }
     return batch

@@ -9,6 +9,7 @@ counted.  Oracle: ``tests/path_reference.py``; design notes: docs/design/ising_p
 
 from __future__ import annotations
 
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -20,7 +21,7 @@ from ising_backend.numeric import ising_of_qubo
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 
-__all__ = ["ProgramPool", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "COUNT_NAMES", "QUERY_OPTIONS"]
+__all__ = ["ProgramPool", "PoolTables", "QueryLoop", "QueryOut", "run_query", "REACHED", "BUDGET_SPENT", "EXHAUSTED", "COUNT_NAMES", "QUERY_OPTIONS"]
 
 REACHED, BUDGET_SPENT, EXHAUSTED = 0, 1, 2
 COUNT_NAMES = ("patch_solves", "anneal_calls", "segments", "backtracks", "direct_moves")
@@ -37,6 +38,63 @@ QUERY_OPTIONS = np.dtype([
 ])
 
 
+class PoolTables(NamedTuple):
+    """A :class:`ProgramPool`'s arrays, one row (slot) per memoised patch problem."""
+
+    count: np.ndarray  # (1,) slots in use
+    n_var: np.ndarray  # the problem's variables (free patch cells but the centre)
+    cells: np.ndarray  # their patch cells
+    lh: np.ndarray  # the logical Ising model: h
+    lJ: np.ndarray  # J
+    loff: np.ndarray  # offset
+    width: np.ndarray  # the widest style's spins
+    ph: np.ndarray  # each style's chip program, C order in the first k * width (k * width^2) entries: h
+    pJ: np.ndarray  # J
+    ptr: np.ndarray  # each style's spin groups per variable (merge pointers)
+    idx: np.ndarray  # and their spins
+    status: np.ndarray  # merge code per style (0: fits)
+    comp: np.ndarray  # the problem's free-cell mask (checked on a hashed key)
+    target: np.ndarray  # its local target
+
+
+class QueryLoop(NamedTuple):
+    """What :func:`run_query` needs of a grid and configuration (:meth:`~.runner.QueryRunner.loop_args`)."""
+
+    nbr: np.ndarray  # the patch frame's neighbour table
+    ring: np.ndarray  # its ring of local targets
+    offsets: np.ndarray  # each patch cell's (row, col) offset from the centre
+    adj4: np.ndarray  # its 4-adjacency
+    diag: np.ndarray  # and diagonal pairs
+    coef: np.ndarray  # the QUBO weights (C, B, Dg, A_end, A)
+    style_ids: np.ndarray  # the merge styles tried
+    options: np.ndarray  # one QUERY_OPTIONS record
+
+
+class QueryOut(NamedTuple):
+    """:func:`run_query`'s result."""
+
+    status: int  # REACHED, BUDGET_SPENT or EXHAUSTED
+    row: int  # where the walk ended
+    col: int
+    walk: np.ndarray  # (L, 2) the cells walked, segments and backtracks stitched
+    counts: np.ndarray  # (5,) by COUNT_NAMES
+    mapping: np.ndarray  # (k, 4) per style: reads, valid reads, wins, map_errors
+    sub_calls: np.ndarray  # per chip submission: its calls
+    sub_emu: np.ndarray  # and emulation seconds
+    err: np.ndarray  # (row, col, local target, style) of the first program a style could not map (-1: none)
+    err_comp: np.ndarray  # its free-cell mask
+
+
+class Submission(NamedTuple):
+    """The chip programs of one step (:func:`_submission`)."""
+
+    h: np.ndarray  # (P, W) program fields
+    J: np.ndarray  # (P, W, W) couplings
+    rows: np.ndarray  # (P, 2) = (slot, style) of each problem program
+    where: np.ndarray  # (P, 2) = (chip program, first spin) holding it
+    sizes: np.ndarray  # (P,) its spins
+
+
 class ProgramPool:
     """Memoised patch programs of one planner as compiled arrays (cleared when full)."""
 
@@ -46,30 +104,20 @@ class ProgramPool:
         N = max(int(n_spins), 1)
         cap = int(max(64, min(4096, budget_bytes // max(1, n_styles * N * N * 2))))
         self.keys = Dict.empty(key_type=types.int64, value_type=types.int64)
-        self.count = np.zeros(1, dtype=np.int64)
-        self.n_var = np.zeros(cap, dtype=np.int64)
-        self.cells = np.zeros((cap, nv), dtype=np.int64)
-        self.lh = np.zeros((cap, nv))
-        self.lJ = np.zeros((cap, nv, nv))
-        self.loff = np.zeros(cap)
-        self.width = np.zeros(cap, dtype=np.int64)
-        # a slot's k chip programs of width w, C order in the first k*w (k*w*w) entries: the
-        # integer coefficients the chip takes, handed to its kernel as they are
-        self.ph = np.zeros((cap, n_styles * N), dtype=np.int16)
-        self.pJ = np.zeros((cap, n_styles * N * N), dtype=np.int16)
-        self.ptr = np.zeros((cap, n_styles, nv + 1), dtype=np.int64)
-        self.idx = np.zeros((cap, n_styles, N), dtype=np.int64)
-        self.status = np.zeros((cap, n_styles), dtype=np.int64)  # merge code per style (0: fits)
-        self.comp = np.zeros((cap, n_cells), dtype=np.bool_)  # the slot's problem, checked on a hashed key
-        self.target = np.zeros(cap, dtype=np.int64)
-
-        self._tables = (self.count, self.n_var, self.cells, self.lh, self.lJ, self.loff, self.width,
-                        self.ph, self.pJ, self.ptr, self.idx, self.status, self.comp, self.target)
+        # the chip programs are the integer coefficients the chip takes, handed to its kernel as they are
+        self.tables = PoolTables(
+            count=np.zeros(1, dtype=np.int64), n_var=np.zeros(cap, dtype=np.int64),
+            cells=np.zeros((cap, nv), dtype=np.int64), lh=np.zeros((cap, nv)), lJ=np.zeros((cap, nv, nv)),
+            loff=np.zeros(cap), width=np.zeros(cap, dtype=np.int64),
+            ph=np.zeros((cap, n_styles * N), dtype=np.int16), pJ=np.zeros((cap, n_styles * N * N), dtype=np.int16),
+            ptr=np.zeros((cap, n_styles, nv + 1), dtype=np.int64), idx=np.zeros((cap, n_styles, N), dtype=np.int64),
+            status=np.zeros((cap, n_styles), dtype=np.int64), comp=np.zeros((cap, n_cells), dtype=np.bool_),
+            target=np.zeros(cap, dtype=np.int64))
 
     def arrays(self) -> tuple:
-        """``(keys, tables)``: the typed dict apart from the tuple of arrays (a tuple holding a typed
-        dict is typed in Python on every compiled call; a tuple of arrays is not)."""
-        return self.keys, self._tables
+        """``(keys, tables)``: the typed dict apart from the :class:`PoolTables` (a record holding a typed
+        dict is typed in Python on every compiled call; a record of arrays is not)."""
+        return self.keys, self.tables
 
     def __deepcopy__(self, memo) -> "ProgramPool":
         """An empty pool of the same size (a memo: a copy's plans are the same without its entries;
@@ -95,55 +143,55 @@ def _key(comp, target):
 
 
 @numba.njit(cache=True)
-def _program(pool, comp, target, adj4, diag, degree, coef, scale, style_ids, Lh, Lj, n_spins):
-    """Pool slot of the patch program (built and merged on a miss; a style that does not fit has a
-    non-zero ``status`` and no program)."""
-    keys, count, n_var, cells, lh, lJ, loff, width, ph, pJ, ptr, idx, status, pcomp, ptarget = pool
+def _program(keys, t, comp, target, loop):
+    """Pool slot (of ``keys`` and :class:`PoolTables` ``t``) of the patch program (built and merged on a
+    miss; a style that does not fit has a non-zero ``status`` and no program)."""
     n = comp.shape[0]
     key = _key(comp, target)
     if key in keys:
         slot = keys[key]
-        if n <= _EXACT_KEY_CELLS or (ptarget[slot] == target and np.array_equal(pcomp[slot], comp)):
+        if n <= _EXACT_KEY_CELLS or (t.target[slot] == target and np.array_equal(t.comp[slot], comp)):
             return slot
-    var, qv, Qv, off = _patch_qubo_kernel(adj4, diag, comp, n // 2, target, degree, coef[0], coef[1], coef[2],
-                                          coef[3], coef[4])
+    o = loop.options[0]
+    coef = loop.coef
+    var, qv, Qv, off = _patch_qubo_kernel(loop.adj4, loop.diag, comp, n // 2, target, o.degree, coef[0], coef[1],
+                                          coef[2], coef[3], coef[4])
     m = var.shape[0]
-    h, J, o = ising_of_qubo(qv, Qv, off)
-    if count[0] >= n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
+    h, J, offset = ising_of_qubo(qv, Qv, off)
+    if t.count[0] >= t.n_var.shape[0]:  # full: start over (a cache; results do not depend on it)
         keys.clear()
-        count[0] = 0
-    slot = count[0]
+        t.count[0] = 0
+    slot = t.count[0]
     w = 0
-    status[slot, :] = 0
+    t.status[slot, :] = 0
     if m > 0:  # every style's mapping, straight into the slot
         H = np.empty(m, dtype=np.int64)
         C = np.empty((m, m), dtype=np.int64)
         for i in range(m):
-            H[i] = np.int64(np.rint(h[i] * scale))
+            H[i] = np.int64(np.rint(h[i] * o.scale))
             for j in range(m):
-                C[i, j] = np.int64(np.rint(J[i, j] * scale))
-        w = merge_styles_flat(H, C, style_ids, Lh, Lj, Lj, n_spins, ph[slot], pJ[slot], ptr[slot], idx[slot],
-                              status[slot])
-    count[0] += 1
+                C[i, j] = np.int64(np.rint(J[i, j] * o.scale))
+        w = merge_styles_flat(H, C, loop.style_ids, o.Lh, o.Lj, o.Lj, o.n_spins, t.ph[slot], t.pJ[slot], t.ptr[slot],
+                              t.idx[slot], t.status[slot])
+    t.count[0] += 1
     keys[key] = slot
-    pcomp[slot] = comp
-    ptarget[slot] = target
-    n_var[slot] = m
-    cells[slot, :m] = var
-    lh[slot, :m] = h
-    lJ[slot, :m, :m] = J
-    loff[slot] = o
-    width[slot] = w
+    t.comp[slot] = comp
+    t.target[slot] = target
+    t.n_var[slot] = m
+    t.cells[slot, :m] = var
+    t.lh[slot, :m] = h
+    t.lJ[slot, :m, :m] = J
+    t.loff[slot] = offset
+    t.width[slot] = w
     return slot
 
 
 @numba.njit(cache=True)
-def _submission(pool, slots, nb, k, pack, n_spins):
-    """The chip programs of one step: the fitting styles of the problems ``slots[:nb]`` (those with
-    variables), zero-padded to the widest (or block-packed into ``n_spins``-spin programs).
-
-    Returns ``(h, J, rows (P, 2) = (slot, style), where (P, 2) = (program, first spin), sizes (P,))``."""
-    n_var, width, ph, pJ, ptr, status = pool[2], pool[7], pool[8], pool[9], pool[10], pool[12]
+def _submission(t, slots, nb, k, pack, n_spins):
+    """The :class:`Submission` of one step: the fitting styles of the problems ``slots[:nb]`` (those with
+    variables) of :class:`PoolTables` ``t``, zero-padded to the widest (or block-packed into ``n_spins``-spin
+    programs)."""
+    n_var, width, ph, pJ, ptr, status = t.n_var, t.width, t.ph, t.pJ, t.ptr, t.status
     P = 0
     W = 0
     for b in range(nb):
@@ -176,30 +224,20 @@ def _submission(pool, slots, nb, k, pack, n_spins):
     if pack and P > 1:
         pack_of, order, n_packs, width_p = pack_layout(sizes, n_spins)
         h, J, where = fill_packs(h, J, sizes, order, pack_of, n_packs, width_p)
-    return h, J, rows, where, sizes
+    return Submission(h, J, rows, where, sizes)
 
 
 @numba.njit(cache=True)
 def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
-    """One query of Algorithm 1 (see the module docstring); ``keys, tables`` are
-    :meth:`ProgramPool.arrays`; ``loop`` is ``(nbr .. diag, coef, style_ids, options)``
-    (:meth:`~.runner.QueryRunner.loop_args`): the patch frame's tables, the QUBO weights, the merge
-    styles and a :data:`QUERY_OPTIONS` record (``per_call``: the local targets per submission);
-    ``machine`` the session's record (:attr:`ising_backend.MachineSession.args`).
-
-    Returns ``(status, pos_r, pos_c, walk (L, 2), counts (5,), mapping (k, 4), sub_calls, sub_emu,
-    err (4,), err_comp (n,))``: counts = patch_solves, anneal_calls, segments, backtracks,
-    direct_moves; mapping rows per style = reads, valid reads, wins, map_errors; per chip submission
-    its calls and emulation seconds; ``err`` = (row, col, local target, style) of the first program
-    a style could not map (``-1`` if none) and ``err_comp`` its free-cell mask.
-    """
-    nbr, ring, offsets, adj4, diag, coef, style_ids, options = loop
-    count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget = tables
-    o = options[0]
-    size, interior, merged, backtrack = o.size, o.interior, o.merged, o.backtrack
-    num_reads, per_call, pack, max_attempts, max_calls = o.num_reads, o.per_call, o.pack, o.max_attempts, o.max_calls
-    degree, scale, Lh, Lj, n_spins, free_cells = o.degree, o.scale, o.Lh, o.Lj, o.n_spins, o.free_cells
-    pool = (keys, count, n_var, cells_p, lh, lJ, loff, width, ph, pJ, ptr, idx, status_p, pcomp, ptarget)
+    """One query of Algorithm 1 (see the module docstring) from ``(sr, sc)`` to ``(gr, gc)``: ``keys,
+    tables`` are :meth:`ProgramPool.arrays`, ``loop`` a :class:`QueryLoop` (its ``options``' ``per_call``:
+    the local targets per submission), ``machine`` the session's record
+    (:attr:`ising_backend.MachineSession.args`).  Returns a :class:`QueryOut`."""
+    nbr, ring, offsets, style_ids = loop.nbr, loop.ring, loop.offsets, loop.style_ids
+    n_var, cells_p, width, ph, pJ = tables.n_var, tables.cells, tables.width, tables.ph, tables.pJ
+    o = loop.options[0]
+    size, num_reads, per_call, pack = o.size, o.num_reads, o.per_call, o.pack
+    max_attempts, max_calls, n_spins, free_cells = o.max_attempts, o.max_calls, o.n_spins, o.free_cells
     rad = size // 2
     n = size * size
     centre = n // 2
@@ -246,9 +284,10 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
         for t in range(nf):
             if f_pos[t, 0] == pr and f_pos[t, 1] == pc:
                 excluded[f_cell[t, 0] + rad, f_cell[t, 1] + rad] = True
-        comp, ranked = rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, interior, merged, field)
+        comp, ranked = rank_local_targets(padded, pr, pc, gr, gc, size, nbr, ring, excluded, o.interior, o.merged,
+                                          field)
         if ranked.shape[0] == 0:
-            if backtrack and nseg > 0:
+            if o.backtrack and nseg > 0:
                 nseg -= 1
                 s0 = seg_start[nseg]
                 L = seg_len[nseg]
@@ -264,18 +303,18 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
         # calls left in the budget limit how many targets share this submission
         room = min(max(1, (max_calls - used) // per_target), max_attempts - counts[0])
         nb = min(per_call, room, ranked.shape[0])
-        if count[0] + nb > n_var.shape[0]:  # the step's programs must not evict each other
+        if tables.count[0] + nb > n_var.shape[0]:  # the step's programs must not evict each other
             keys.clear()
-            count[0] = 0
+            tables.count[0] = 0
         on_chip = 0
         for b in range(nb):
-            slots[b] = _program(pool, comp, ranked[b], adj4, diag, degree, coef, scale, style_ids, Lh, Lj, n_spins)
+            slots[b] = _program(keys, tables, comp, ranked[b], loop)
             sl = slots[b]
             fits[b] = 0
             if n_var[sl] == 0:
                 continue
             for s in range(k):
-                if status_p[sl, s] == 0:
+                if tables.status[sl, s] == 0:
                     fits[b] += 1
                 else:
                     mapping[s, 3] += 1
@@ -293,8 +332,9 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
                 hf = ph[slots[0], : k * w].reshape((k, w)).astype(np.float64)
                 Jf = pJ[slots[0], : k * w * w].reshape((k, w, w)).astype(np.float64)
             else:
-                h, J, rows, where, sizes = _submission(pool, slots, nb, k, pack, n_spins)
-                hf, Jf = h.astype(np.float64), J.astype(np.float64)
+                sub = _submission(tables, slots, nb, k, pack, n_spins)
+                rows, where, sizes = sub.rows, sub.where, sub.sizes
+                hf, Jf = sub.h.astype(np.float64), sub.J.astype(np.float64)
             spins, _calls, sub_emu[nsub] = submit_packs(hf, Jf, num_reads, np.uint64(seed), machine)
             sub_calls[nsub] = spins.shape[0] * num_reads
             used += spins.shape[0] * num_reads
@@ -321,7 +361,8 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
                 continue  # no style fits: counted above
             if whole:
                 n_valid, best, energy, logical = score_patch_samples(
-                    spins, ptr[sl], idx[sl], m, cells, centre, li, nbr, lh[sl, :m], lJ[sl, :m, :m], loff[sl])
+                    spins, tables.ptr[sl], tables.idx[sl], m, cells, centre, li, nbr, tables.lh[sl, :m],
+                    tables.lJ[sl, :m, :m], tables.loff[sl])
             else:
                 w = 0
                 for q in range(P):
@@ -331,8 +372,8 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
                     f = where[at + q, 1]
                     sp[q, :, : sizes[at + q]] = spins[where[at + q, 0], :, f: f + sizes[at + q]]
                 n_valid, best, energy, logical = score_patch_samples(
-                    sp, ptr[sl][rows[at: at + P, 1]], idx[sl][rows[at: at + P, 1]], m, cells, centre, li, nbr,
-                    lh[sl, :m], lJ[sl, :m, :m], loff[sl])
+                    sp, tables.ptr[sl][rows[at: at + P, 1]], tables.idx[sl][rows[at: at + P, 1]], m, cells, centre,
+                    li, nbr, tables.lh[sl, :m], tables.lJ[sl, :m, :m], tables.loff[sl])
             best_score = np.inf
             brow = -1
             for q in range(P):
@@ -389,4 +430,4 @@ def run_query(rng, keys, tables, padded, field, sr, sc, gr, gc, loop, machine):
         seg_top = s0 + L
         counts[2] += 1
         pr, pc = seg_cells[s0 + L - 1, 0], seg_cells[s0 + L - 1, 1]
-    return status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub], err, err_comp
+    return QueryOut(status, pr, pc, walk[:wl], counts, mapping, sub_calls[:nsub], sub_emu[:nsub], err, err_comp)

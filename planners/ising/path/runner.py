@@ -15,7 +15,9 @@ from ising_backend import (
     mapping_record, merge_error_message, merge_styles, record_of_reads,
 )
 from planners.fallback import unavailable_message
-from planners.ising.path.engine import BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, QUERY_OPTIONS, ProgramPool, run_query
+from planners.ising.path.engine import (
+    BUDGET_SPENT, COUNT_NAMES, EXHAUSTED, QUERY_OPTIONS, ProgramPool, QueryLoop, run_query,
+)
 from planners.ising.path.kernels import cut_walk, neighbour_table
 from planners.ising.path.qubo import build_patch_qubo
 
@@ -57,17 +59,17 @@ class QueryRunner:
         options = np.array([(fr.size, cfg.interior_targets, cfg.target_order == "merged", cfg.backtrack,
                              cfg.num_reads, cfg.targets_per_call, cfg.pack, max_attempts, max_calls,
                              cfg.form == "degree", float(cfg.chip_scale), *self.limits, free)], dtype=QUERY_OPTIONS)
-        args = (self.nbr, fr.ring, fr.offsets, fr.adj4, fr.diag, self.coef, self.style_ids, options)
-        self._grid_for = (grid, padded, free, args)
+        loop = QueryLoop(nbr=self.nbr, ring=fr.ring, offsets=fr.offsets, adj4=fr.adj4, diag=fr.diag, coef=self.coef,
+                         style_ids=self.style_ids, options=options)
+        self._grid_for = (grid, padded, free, loop)
         return self._grid_for
 
     def padded(self, grid) -> np.ndarray:
         """The grid padded with obstacles by the patch radius (memoised for the last grid)."""
         return self._for_grid(grid)[1]
 
-    def loop_args(self, grid) -> tuple:
-        """:func:`.engine.run_query`'s ``loop`` record on ``grid``: ``(nbr, ring, offsets, adj4, diag,
-        coef, style_ids, options)``."""
+    def loop_args(self, grid) -> QueryLoop:
+        """:func:`.engine.run_query`'s ``loop`` record on ``grid``."""
         return self._for_grid(grid)[3]
 
     def budgets(self, grid) -> tuple[int, int, int]:
@@ -90,7 +92,7 @@ class QueryRunner:
             with self.chip.session(charged, decision="path_query") as link:
                 out = run_query(rng, *self.pool.arrays(), self.padded(grid), field, s[0], s[1], g[0], g[1],
                                 self.loop_args(grid), link.args)
-                link.settle(out[6], out[7])
+                link.settle(out.sub_calls, out.sub_emu)
         except (ChipUnavailableError, SolverOutputError) as exc:  # a machine behind the callback failed
             unavailable = isinstance(exc, ChipUnavailableError)
             failure = unavailable_message(exc) if unavailable else f"the chip returned malformed samples: {exc}"
@@ -102,26 +104,26 @@ class QueryRunner:
         return self.result(grid, s, g, out, charged)
 
     def result(self, grid, s, g, out, charged, used=None):
-        """The :class:`PathResult` of one :func:`.engine.run_query` output, charged already to
-        ``charged`` (``used``: the query's physical chip calls, if not all of ``charged``)."""
+        """The :class:`PathResult` of one :func:`.engine.run_query` output (a :class:`~.engine.QueryOut`),
+        charged already to ``charged`` (``used``: the query's physical chip calls, if not all of ``charged``)."""
         cfg = self.config
-        status, pr, pc, walk, counts, mp, _calls, _emu, err, err_comp = out
+        pr, pc = out.row, out.col
         max_attempts, _per_target, max_calls = self.budgets(grid)
-        counts = dict(zip(COUNT_NAMES, (int(v) for v in counts)))
-        mapping = record_of_reads(cfg.styles, mp, cfg.num_reads)
+        counts = dict(zip(COUNT_NAMES, (int(v) for v in out.counts)))
+        mapping = record_of_reads(cfg.styles, out.mapping, cfg.num_reads)
         failure = None
-        if status == BUDGET_SPENT:
+        if out.status == BUDGET_SPENT:
             failure = (f"gave up at [{pr}, {pc}] before reaching goal [{g[0]}, {g[1]}]: budget spent "
                        f"({counts['patch_solves']} patch solves of max_attempts={max_attempts}, "
                        f"{charged.physical_calls if used is None else used} chip calls of "
                        f"max_chip_calls={max_calls})")
-        elif status == EXHAUSTED:
+        elif out.status == EXHAUSTED:
             failure = (f"no path found from [{s[0]}, {s[1]}] to [{g[0]}, {g[1]}]: every local target "
                        f"reachable from [{pr}, {pc}] was visited or failed"
                        + (" and backtracking is exhausted" if cfg.backtrack else " (backtrack=False)")
                        + " (the goal may be unreachable)")
-        map_error = self._map_error(err, err_comp) if err[0] >= 0 else None
-        return self.finish(grid, s, g, walk, counts, mapping, charged, failure, map_error)
+        map_error = self._map_error(out.err, out.err_comp) if out.err[0] >= 0 else None
+        return self.finish(grid, s, g, out.walk, counts, mapping, charged, failure, map_error)
 
     def _map_error(self, err, comp) -> str:
         """``"style: message"`` of the first program a merge style could not map (``err`` and

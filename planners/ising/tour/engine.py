@@ -9,6 +9,8 @@ returned for the caller to charge.  Oracle: ``tests/tour_reference.py``; design:
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -16,26 +18,61 @@ from ising_backend import quantize_rules, solve_submit, submit_packs
 from ising_backend.branching import branch_stack, frozen_spins
 from planners.ising.tour.kernels import best_onehot, expand_branches, onehot_ising
 
-__all__ = ["solve_order", "SOLVED", "UNSOLVED", "TOO_MANY_BITS", "UNQUANTIZABLE"]
+__all__ = ["solve_order", "OrderOptions", "OrderStats", "OrderOut", "SOLVED", "UNSOLVED", "TOO_MANY_BITS",
+           "UNQUANTIZABLE"]
 
 SOLVED, UNSOLVED, TOO_MANY_BITS, UNQUANTIZABLE = 0, 1, 2, 3
+
+
+class OrderOptions(NamedTuple):
+    """:func:`solve_order`'s settings."""
+
+    margin_factor: float  # the one-hot penalty over the largest weight
+    max_retries: int
+    num_reads: int
+    budget: int  # the spin budget of one program
+    max_bits: int  # the most frozen spins (branching bits)
+    rule: int  # the chip's quantization rule id
+    Lh: float  # and its limits
+    Lj: float
+
+
+class OrderStats(NamedTuple):
+    """:func:`solve_order`'s counts."""
+
+    programs: int  # for TOO_MANY_BITS: the bits needed
+    reads: int
+    valid_reads: int
+    valid_programs: int
+    retries: int
+    unsolved: int  # 0/1
+    subproblems: int
+    valid_subproblems: int
+
+
+class OrderOut(NamedTuple):
+    """:func:`solve_order`'s result."""
+
+    status: int  # SOLVED, UNSOLVED, TOO_MANY_BITS or UNQUANTIZABLE
+    order: np.ndarray  # (s,) or (0,)
+    stats: OrderStats
+    calls: np.ndarray  # per attempt: its calls
+    emu: np.ndarray  # and emulation seconds
 
 
 @numba.njit(cache=True)
 def solve_order(rng, d, entry, ex, options, solver, machine):
     """Best valid order of one one-hot open-path subproblem (module docstring).
 
-    ``options`` = ``(margin_factor, max_retries, num_reads, budget, max_bits, rule, Lh, Lj)``;
-    ``solver`` = the logical solver's session record (:meth:`~ising_backend.MachineSession.args_for`) and
-    ``machine`` None, or ``solver`` None and ``machine`` the chip's (:attr:`~ising_backend.MachineSession.args`):
-    programs quantized by ``rule`` within ``Lh`` / ``Lj``.  The unused record is None, so numba prunes
-    its branch before typing: a logical solve does not compile the chip's submission (cold start).  Returns ``(status, order (s,) or (0,), stats (8,), calls
-    (attempts,), emulation_s (attempts,))`` with stats = programs, reads, valid_reads, valid
-    programs, retries, unsolved (0/1), subproblems, valid subproblems; status :data:`SOLVED`,
-    :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats[0]`` holds the
-    bits needed) or :data:`UNQUANTIZABLE` (a non-finite coefficient).
+    ``options`` an :class:`OrderOptions`; ``solver`` = the logical solver's session record
+    (:meth:`~ising_backend.MachineSession.args_for`) and ``machine`` None, or ``solver`` None and ``machine``
+    the chip's (:attr:`~ising_backend.MachineSession.args`): programs quantized by ``rule`` within ``Lh`` /
+    ``Lj``.  The unused record is None, so numba prunes its branch before typing: a logical solve does not
+    compile the chip's submission (cold start).  Returns an :class:`OrderOut`: :data:`SOLVED`,
+    :data:`UNSOLVED` (no valid read after the retries), :data:`TOO_MANY_BITS` (``stats.programs`` holds
+    the bits needed) or :data:`UNQUANTIZABLE` (a non-finite coefficient).
     """
-    margin_factor, max_retries, num_reads, budget, max_bits, rule, Lh, Lj = options
+    max_retries, num_reads, budget = options.max_retries, options.num_reads, options.budget
     s = d.shape[0]
     n = s * s
     w_max = 0.0
@@ -43,16 +80,15 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
         w_max = max(w_max, abs(entry[i]), abs(ex[i]))
         for j in range(s):
             w_max = max(w_max, abs(d[i, j]))
-    A = 1.0 * (margin_factor * w_max + 1.0)
+    A = 1.0 * (options.margin_factor * w_max + 1.0)
     h, J, off = onehot_ising(d, entry, ex, A, 1.0)
-    stats = np.zeros(8, dtype=np.int64)
+    programs = reads = valid_reads = valid_programs = retries = subproblems = valid_subproblems = 0
     calls = np.zeros(max_retries + 1, dtype=np.int64)
     emu = np.zeros(max_retries + 1)
     none = np.zeros(0, dtype=np.int64)
     k = max(n - budget, 0)
-    if k > max_bits:
-        stats[0] = k
-        return TOO_MANY_BITS, none, stats, calls[:0], emu[:0]
+    if k > options.max_bits:
+        return OrderOut(TOO_MANY_BITS, none, OrderStats(k, 0, 0, 0, 0, 0, 0, 0), calls[:0], emu[:0])
     if k:
         frozen = frozen_spins(h, J, k)
         free, hb, Jb, _offs = branch_stack(h, J, off, frozen)
@@ -69,11 +105,11 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
         Js = J.reshape(1, n, n).copy()
         B, nf = 1, n
     if machine is not None:  # every branch program quantized by the rule, as the chip takes it
-        rules = np.full(1, rule, dtype=np.int64)
+        rules = np.full(1, options.rule, dtype=np.int64)
         for b in range(B):
-            st, qh, qJ = quantize_rules(hb[b], Jb, rules, Lh, Lj, True, 95.0)
+            st, qh, qJ = quantize_rules(hb[b], Jb, rules, options.Lh, options.Lj, True, 95.0)
             if st[0] != 0:
-                return UNQUANTIZABLE, none, stats, calls[:0], emu[:0]
+                return OrderOut(UNQUANTIZABLE, none, OrderStats(0, 0, 0, 0, 0, 0, 0, 0), calls[:0], emu[:0])
             hb[b] = qh[0]
             Js[b] = qJ[0]
     for attempt in range(max_retries + 1):
@@ -96,18 +132,19 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
         nv = 0
         for r in range(B * num_reads):
             nv += valid[r]
-        stats[0] += B
-        stats[1] += B * num_reads
-        stats[2] += nv
+        programs += B
+        reads += B * num_reads
+        valid_reads += nv
         for b in range(B):
             any_b = 0
             for r in range(num_reads):
                 any_b |= valid[b * num_reads + r]
-            stats[3] += any_b
-        stats[6] += 1
-        stats[7] += nv > 0
+            valid_programs += any_b
+        subproblems += 1
+        valid_subproblems += nv > 0
         if best >= 0:
-            return SOLVED, orders[best].copy(), stats, calls[: attempt + 1], emu[: attempt + 1]
-        stats[4] += 1
-    stats[5] = 1
-    return UNSOLVED, none, stats, calls, emu
+            stats = OrderStats(programs, reads, valid_reads, valid_programs, retries, 0, subproblems, valid_subproblems)
+            return OrderOut(SOLVED, orders[best].copy(), stats, calls[: attempt + 1], emu[: attempt + 1])
+        retries += 1
+    stats = OrderStats(programs, reads, valid_reads, valid_programs, retries, 1, subproblems, valid_subproblems)
+    return OrderOut(UNSOLVED, none, stats, calls, emu)

@@ -16,7 +16,7 @@ from ising_backend import (
 )
 from ising_backend.branching import branch_stack, frozen_spins
 from planners.ising.tour.cluster import TourFailure, _Run
-from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, solve_order
+from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, OrderOptions, solve_order
 from planners.ising.tour.kernels import expand_branches
 
 __all__ = ["OneHotSolver"]
@@ -72,25 +72,28 @@ class OneHotSolver:
         physical = cfg.backend != "logical"
         width = min(s * s, self.budget)
         with (self.chip if physical else self.solver).session(run.charged, decision="tour_order") as link:
-            status, order, st, calls, emu = solve_order(
+            Lh, Lj = (float(v) for v in self.spec.coefficient_limits)
+            options = OrderOptions(margin_factor=cfg.penalty_factor, max_retries=cfg.max_retries,
+                                   num_reads=cfg.num_reads, budget=self.budget, max_bits=cfg.max_branch_bits,
+                                   rule=QUANTIZE_RULE_IDS[cfg.chip_quantize], Lh=Lh, Lj=Lj)
+            out = solve_order(
                 run.rng, np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(entry, dtype=np.float64),
-                np.ascontiguousarray(ex, dtype=np.float64),
-                (cfg.penalty_factor, cfg.max_retries, cfg.num_reads, self.budget, cfg.max_branch_bits,
-                 QUANTIZE_RULE_IDS[cfg.chip_quantize], *(float(v) for v in self.spec.coefficient_limits)),
+                np.ascontiguousarray(ex, dtype=np.float64), options,
                 None if physical else link.args_for(width), link.args if physical else None)
-            link.settle(calls, emu)
-        if status == TOO_MANY_BITS:
-            raise TourFailure(f"a {s * s}-spin program needs {int(st[0])} frozen spins > max_branch_bits = "
+            link.settle(out.calls, out.emu)
+        st = out.stats
+        if out.status == TOO_MANY_BITS:
+            raise TourFailure(f"a {s * s}-spin program needs {int(st.programs)} frozen spins > max_branch_bits = "
                               f"{cfg.max_branch_bits}")
-        if status == UNQUANTIZABLE:
+        if out.status == UNQUANTIZABLE:
             raise TourFailure("a one-hot program could not be quantized: a coefficient is not finite")
-        programs, reads, valid_reads, valid, retries, unsolved, subproblems, valid_sub = (int(v) for v in st)
         # the one choice: each solved model is its win
-        add_counts(run.stats["mapping"]["tour"][cfg.choices[0]], programs=programs, reads=reads, valid=valid_reads,
-                   wins=valid_sub)
-        add_counts(run.stats, valid_programs=valid, subproblems=subproblems, valid_subproblems=valid_sub)
-        run.stats["retries"] += retries
-        if unsolved:
+        add_counts(run.stats["mapping"]["tour"][cfg.choices[0]], programs=int(st.programs), reads=int(st.reads),
+                   valid=int(st.valid_reads), wins=int(st.valid_subproblems))
+        add_counts(run.stats, valid_programs=int(st.valid_programs), subproblems=int(st.subproblems),
+                   valid_subproblems=int(st.valid_subproblems))
+        run.stats["retries"] += int(st.retries)
+        if st.unsolved:
             run.stats["unsolved"][kind] += 1
             return None
-        return [int(i) for i in order]
+        return [int(i) for i in out.order]

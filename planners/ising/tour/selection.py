@@ -17,7 +17,7 @@ import numpy as np
 
 from ising_backend import add_counts
 from planners.ising.moves.routes import linked, route_of
-from planners.ising.moves.search import GAVE_UP, REFUSED, STAT_FIELDS, move_search
+from planners.ising.moves.search import GAVE_UP, REFUSED, SearchLimits, move_search, new_stats, stats_dict
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
 from planners.ising.tour.cluster import TourFailure
 
@@ -31,7 +31,6 @@ class ProgramRefused(TourFailure):
 
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
 KICK_ABOVE = 16
-_AT = {name: i for i, name in enumerate(STAT_FIELDS)}  # the search's statistics by name
 _NO_LOG = (np.zeros(0, dtype=np.int64), np.zeros(0), 0)  # an empty submission log (grown, never written)
 
 
@@ -77,15 +76,16 @@ class MoveSearch:
         self.spec = chip.spec
 
     @cached_property
-    def _move_args(self) -> tuple:
+    def _move_args(self) -> RoundProgram:
         """The compiled loop's ``program`` record (:func:`~planners.ising.moves.selection.program_record`)."""
         return program_record(self.config.chip_rules, self.spec, self.config.num_reads)
 
     @cached_property
-    def _limits(self) -> tuple:
-        """The search's ``(capacity, max_overlap, max_retries, max_rounds, chip)``."""
+    def _limits(self) -> SearchLimits:
+        """How far the search goes."""
         cfg = self.config
-        return self._capacity, cfg.max_overlap, cfg.max_retries, cfg.max_rounds, True
+        return SearchLimits(capacity=self._capacity, max_overlap=cfg.max_overlap, max_retries=cfg.max_retries,
+                            max_rounds=cfg.max_rounds, chip=True)
 
     @property
     def _capacity(self) -> int:
@@ -136,15 +136,16 @@ class MoveSearch:
         :func:`settle`.  A chip that never selects a valid improving set for a route that has improving moves
         fails the start (:class:`TourFailure`): the route would be the host's, not the chip's."""
         k = len(self.config.chip_rules)
-        stats = np.zeros(len(STAT_FIELDS), dtype=np.int64)
+        stats = new_stats()
         clean, wins = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
         nxt, prv = linked(route)
-        status, calls, emu, used = move_search(run.rng, dist, nxt, prv, 1, self.config.max_segment, None, self._limits,
-                                               self._move_args, link.args, stats, (clean, wins), _NO_LOG)
-        charges.append((calls[:used], emu[:used]))
-        no_progress = status == GAVE_UP and not stats[_AT["moves_applied"]]
-        self._count_start(run, stats, clean, wins, status == GAVE_UP)
-        if status == REFUSED:
+        out = move_search(run.rng, dist, nxt, prv, 1, self.config.max_segment, None, self._limits, self._move_args,
+                          link.args, stats, (clean, wins), _NO_LOG)
+        charges.append((out.calls[:out.used], out.emu[:out.used]))
+        st = stats_dict(stats)
+        no_progress = out.status == GAVE_UP and not st["moves_applied"]
+        self._count_start(run, st, clean, wins, out.status == GAVE_UP)
+        if out.status == REFUSED:
             raise ProgramRefused(REFUSED_MESSAGE)
         if no_progress:
             raise TourFailure(self._no_progress)
@@ -157,11 +158,11 @@ class MoveSearch:
                 f"submissions of {len(cfg.chip_rules)} programs")
 
     def _count_start(self, run, st, clean, wins, gave_up: bool) -> None:
-        """The statistics of one start: ``st`` (the search's, as :data:`~planners.ising.moves.search.STAT_FIELDS`),
+        """The statistics of one start: ``st`` (the search's, :func:`~planners.ising.moves.search.stats_dict`),
         ``clean`` (valid reads per rule), ``wins`` (best reads per rule), whether the chip gave up."""
         cfg = self.config
-        rounds, retries, applied = int(st[_AT["rounds"]]), int(st[_AT["retries"]]), int(st[_AT["moves_applied"]])
-        valid_rounds, valid_programs = int(st[_AT["valid_rounds"]]), int(st[_AT["valid_programs"]])
+        rounds, retries, applied = st["rounds"], st["retries"], st["moves_applied"]
+        valid_rounds, valid_programs = st["valid_rounds"], st["valid_programs"]
         m = run.stats["mapping"]["tour"]  # each round sends one program per rule
         for rule, valid, won in zip(cfg.chip_rules, clean.tolist(), wins.tolist()):
             add_counts(m[rule], programs=rounds, reads=rounds * cfg.num_reads, valid=valid, wins=won)

@@ -20,7 +20,7 @@ from planners.base import SharingResult
 from planners.compute import ComputeReport
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.search import failed
-from planners.ising.sharing.split_problem import branch_problems, split_model
+from planners.ising.sharing.split_problem import SplitProblems, branch_problems, split_model
 from ising_backend import STACK_OK
 from planners.ising.sharing.stage_steps import submit_stage
 from planners.ising.sharing.submission import StageSolver, stage_refusal
@@ -563,8 +563,9 @@ class ReferenceStages(StageSolver):
         q, Q, free, sizes, nfix, fixed, parent = branch_problems(q, Q, free, sizes, int(self.chip.spec.n_spins))
         try:
             with self.chip.session(self.meter.charged) as link:
-                status, calls, emu, out = submit_stage((q, Q, free, sizes, anchors[parent], reject[parent], nfix, fixed),
-                                                       self.program(), np.uint64(seed), link.args, w, R)
+                status, calls, emu, scores, sides = submit_stage(
+                    SplitProblems(q, Q, free, sizes, anchors[parent], reject[parent], nfix, fixed), self.program(),
+                    np.uint64(seed), link.args, w, R)
                 if status == STACK_OK:
                     link.settle([calls], [emu])
         except SolverOutputError as exc:  # a broken machine behind the callback: nothing to decode
@@ -573,7 +574,8 @@ class ReferenceStages(StageSolver):
             raise SharingFailure(f"the chip refused a mapped split program: {exc}") from exc
         if status != STACK_OK:
             raise SharingFailure(stage_refusal(status))
-        b_valid, b_best, c_split, c_cut, s0, n0, s1, n1 = out
+        b_valid, b_best, c_split, c_cut, _side = scores
+        s0, n0, s1, n1 = sides
         mapping = stats["mapping"]["sharing"]
         cands: list = [[] for _ in problems]
         for m, (k, cut, a, b) in enumerate(zip(parent[c_split].tolist(), c_cut.tolist(), n0.tolist(), n1.tolist())):

@@ -628,7 +628,8 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     """submit_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
     programs the chip's check refuses; the sharing names the refusal."""
     from ising_backend import QUANTIZE_RULE_IDS, STACK_NONFINITE, STACK_OK, STACK_UNFIT, EmulatedChip
-    from planners.ising.sharing.stage_steps import submit_stage
+    from planners.ising.sharing.split_problem import SplitProblems
+    from planners.ising.sharing.stage_steps import StageProgram, submit_stage
 
     chip = EmulatedChip()
     rules = np.array([QUANTIZE_RULE_IDS["linear"]], dtype=np.int64)
@@ -640,17 +641,18 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     Q = np.triu(np.ones((1, 4, 4)), k=1)
 
     def run(q, Lh=7.0, Lj=7.0):
-        problems = (q, Q, free, sizes, anchors, np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64),
-                    np.zeros((1, 4), dtype=np.int8))
-        return submit_stage(problems, (rules, Lh, Lj, 45, 2, 45, 0), np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
+        problems = SplitProblems(q, Q, free, sizes, anchors, np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64),
+                                 np.zeros((1, 4), dtype=np.int8))
+        program = StageProgram(rules=rules, Lh=Lh, Lj=Lj, capacity=45, num_reads=2, n_spins=45, retries=0)
+        return submit_stage(problems, program, np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
 
     good = run(q)
-    assert good[0] == STACK_OK and good[1] == 2 and good[3][0].sum() <= 2
+    assert good.status == STACK_OK and good.calls == 2 and good.scores.n_valid.sum() <= 2
     bad = q.copy()
     bad[0, 1] = np.nan
     out = run(bad)
-    assert out[0] == STACK_NONFINITE and out[1] == 0 and len(out[3][2]) == 0
-    assert run(q, Lh=7.5)[0] == STACK_UNFIT  # a non-integer limit: the quantized fields are not the chip's integers
+    assert out.status == STACK_NONFINITE and out.calls == 0 and len(out.scores.split) == 0
+    assert run(q, Lh=7.5).status == STACK_UNFIT  # a non-integer limit: the quantized fields are not the chip's integers
 
 
 def test_sharing_on_distances_too_large_to_add_fails_naming_the_refused_stage():

@@ -148,7 +148,7 @@ def fine_cut(w, pool, side0, side1):
 def expand_candidates(w, pool, store, scratch, row, members, start):
     """The candidates of the coarse split in store row ``scratch`` expanded to fine sets and re-scored
     on ``w`` (:func:`fine_cut`) into row ``row``, best cut first (ties in candidate order)."""
-    c_cut, c_m0, c_m1, c_n = store
+    c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     n = c_n[scratch]
     cut = np.empty(n)
     f0 = np.empty(n, dtype=np.int64)

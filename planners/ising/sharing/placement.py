@@ -192,7 +192,7 @@ def pair_gains(dist, pk, pl, rows, S, sets, store, memo, counters, pricing, pool
     """The best re-split of each pair ``(pk[j], pl[j])`` among the candidates of its store rows
     ``rows[j * S + s]`` (one per shift; a partition several shifts propose counted once), by route
     cost: ``(gain, k, l, new targets of k, new targets of l)`` of the pairs it improves, in pair order."""
-    c_cut, c_m0, c_m1, c_n = store
+    c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     n_pairs = pk.shape[0]
     gain = np.empty(n_pairs)
     gk = np.empty(n_pairs, dtype=np.int64)

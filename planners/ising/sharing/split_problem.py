@@ -9,12 +9,71 @@ the results are the bits of ``choose_anchors`` / ``build_split_qubo`` / ``cut_va
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from ising_backend.numeric import pairwise_sum
 
-__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "branch_problems", "score_stage"]
+__all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "branch_problems", "score_stage",
+           "SplitModel", "SplitProblems", "Branches", "StageScores", "Sides"]
+
+
+class SplitModel(NamedTuple):
+    """One group's anchored split (:func:`split_model`)."""
+
+    a: int  # the anchor on side 0
+    b: int  # the anchor on side 1
+    free: np.ndarray  # the other nodes
+    q: np.ndarray  # the -cut QUBO over them: linear
+    Q: np.ndarray  # pairs (upper)
+    offset: float
+
+
+class SplitProblems(NamedTuple):
+    """The splits of one stage submission (zero-padded to the largest)."""
+
+    q: np.ndarray  # (P, f)
+    Q: np.ndarray  # (P, f, f)
+    free: np.ndarray  # (P, f) the free nodes, then the frozen ones of a spin-budget branch
+    sizes: np.ndarray  # (P,) free nodes
+    anchors: np.ndarray  # (P, 2)
+    reject: np.ndarray  # (P,) whether a side without a robot is invalid
+    nfix: np.ndarray  # (P,) frozen nodes
+    fixed: np.ndarray  # (P, f) their spins
+
+
+class Branches(NamedTuple):
+    """:func:`branch_problems`' result: the branches' QUBOs, in split order then branch order."""
+
+    q: np.ndarray
+    Q: np.ndarray
+    free: np.ndarray  # each branch's free nodes, then its frozen ones
+    sizes: np.ndarray
+    nfix: np.ndarray
+    fixed: np.ndarray  # the frozen nodes' spins
+    parent: np.ndarray  # each branch's split
+
+
+class StageScores(NamedTuple):
+    """:func:`score_stage`'s result."""
+
+    n_valid: np.ndarray  # (P, k) valid reads per split and rule
+    best: np.ndarray  # (P, k) the rule's best -cut (inf: none)
+    split: np.ndarray  # (M,) the split of each distinct valid partition, first occurrence order
+    cut: np.ndarray  # (M,) its cut
+    side: np.ndarray  # (M, f) bool: its nodes on side 1
+
+
+class Sides(NamedTuple):
+    """:func:`candidate_sides`' result: row ``m`` holds each side's sorted global nodes in its first ``n0[m]``
+    / ``n1[m]`` entries."""
+
+    side0: np.ndarray  # (M, f + 1), anchor a first
+    n0: np.ndarray
+    side1: np.ndarray  # anchor b first
+    n1: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -36,7 +95,7 @@ def _farthest_pair(dist, pool):
 
 @numba.njit(cache=True)
 def split_model(dist, nodes, n_robots):
-    """Anchors ``(a, b)``, free nodes and ``(q, Q, offset)`` of the anchored split of ``nodes``."""
+    """The :class:`SplitModel` of the anchored split of ``nodes``."""
     nr = 0
     for v in nodes:
         nr += v < n_robots
@@ -82,7 +141,7 @@ def split_model(dist, nodes, n_robots):
         wb[i] = dist[free[i], b]
         q[i] = (-pairwise_sum(row, 0, f) - dist[free[i], a]) + wb[i]
     offset = -dist[a, b] - pairwise_sum(wb, 0, f)
-    return a, b, free, q, Q, offset
+    return SplitModel(a, b, free, q, Q, offset)
 
 
 @numba.njit(cache=True)
@@ -215,8 +274,7 @@ def branch_problems(q, Q, free, sizes, budget):
     with ``k = sizes[p] - budget > 0`` free nodes too many becomes ``2^k`` splits of ``budget`` nodes,
     the ``k`` nodes of strongest Ising interaction (``|h_i| + sum_j |J_ij|``, lowest index first on
     ties) frozen, branch ``m`` putting frozen node ``t`` on side 1 when bit ``t`` of ``m`` is set.
-    Returns ``(q, Q, free, sizes, nfix, fixed, parent)`` of the branches, in split order then branch
-    order, the frozen nodes after each branch's free nodes in ``free`` and their spins in ``fixed``."""
+    Returns the :class:`Branches`."""
     P, f = q.shape
     E = 0
     for p in range(P):
@@ -269,7 +327,7 @@ def branch_problems(q, Q, free, sizes, budget):
             nfix[e] = k
             parent[e] = p
             e += 1
-    return q2, Q2, free2, sizes2, nfix, fixed, parent
+    return Branches(q2, Q2, free2, sizes2, nfix, fixed, parent)
 
 
 @numba.njit(cache=True)
@@ -280,9 +338,7 @@ def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject, n
     ``free (P, f)`` / ``anchors (P, 2)`` / ``reject (P,)`` per split (see :func:`score_split_reads`);
     split ``p``'s program holds its first ``sizes[p]`` free nodes, and the ``nfix[p]`` nodes after
     them are frozen at spins ``fixed[p]`` (a spin-budget branch, :func:`branch_problems`).
-    Returns ``(n_valid (P, k), best (P, k)`` -- the rule's best ``-cut``, ``inf`` if none --
-    ``, cand (M, 2)`` -- split and cut rank key of each distinct valid partition, first occurrence
-    order -- ``, cut (M,), side1 (M, f) bool)``.
+    Returns the :class:`StageScores`.
     """
     P = sizes.shape[0]
     R = spins.shape[1]
@@ -319,14 +375,12 @@ def score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject, n
                         for i in range(n):
                             cand_side[M, i] = blocks[row, i] > 0
                         M += 1
-    return n_valid, best, cand_split[:M], cand_cut[:M], cand_side[:M]
+    return StageScores(n_valid, best, cand_split[:M], cand_cut[:M], cand_side[:M])
 
 
 @numba.njit(cache=True)
 def candidate_sides(c_split, c_side, free, sizes, anchors):
-    """The sides of every candidate of :func:`score_stage`: ``(side0 (M, f + 1), n0 (M,), side1,
-    n1)``, row ``m`` holding the sorted global nodes of each side (anchor ``a`` on side 0, ``b``
-    on side 1) in its first ``n0[m]`` / ``n1[m]`` entries."""
+    """The :class:`Sides` of every candidate of :func:`score_stage`."""
     M = c_split.shape[0]
     f = free.shape[1]
     side0 = np.zeros((M, f + 1), dtype=np.int64)
@@ -349,4 +403,4 @@ def candidate_sides(c_split, c_side, free, sizes, anchors):
         _sort_small(side1[m], b)
         n0[m] = a
         n1[m] = b
-    return side0, n0, side1, n1
+    return Sides(side0, n0, side1, n1)

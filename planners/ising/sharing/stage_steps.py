@@ -9,15 +9,20 @@ leaves.  Oracle: ``tests/sharing_search_reference.py``; design notes: docs/desig
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from ising_backend import STACK_OK, pack_qubo_stack, submit_packs, via_callback
-from planners.ising.sharing.split_problem import add_balance, branch_problems, candidate_sides, score_stage, split_model
+from planners.ising.sharing.split_problem import (
+    SplitProblems, StageScores, Sides, add_balance, branch_problems, candidate_sides, score_stage, split_model,
+)
 from planners.ising.sharing.node_sets import intern, nodes_of, robots_in, size
 
 __all__ = ["solve_splits", "submit_stage", "problems_of", "keep_candidates", "todo_groups", "expand_states", "set_sizes",
-           "set_nodes", "SOLVED", "FAILED_SPLIT", "REFUSED_STAGE", "NO_ROOM", "COUNTERS"]
+           "set_nodes", "StageProgram", "StageOut", "StageBook", "StoreArrays", "Splits", "SOLVED", "FAILED_SPLIT",
+           "REFUSED_STAGE", "NO_ROOM", "COUNTERS"]
 
 #: :func:`solve_splits`' status: every split has candidates; a split had none after the retries (``what``:
 #: its group's set id); a stage the chip would refuse (``what``: the :func:`ising_backend.pack_qubo_stack`
@@ -28,6 +33,56 @@ COUNTERS = ("stages", "splits", "trivial_splits", "bundles", "tour_solves", "sta
             "pair_accepted", "coarse_splits")
 STAGES, SPLITS, TRIVIAL, BUNDLES, TOUR_SOLVES, STATES, PAIR_RESPLITS, PAIR_ACCEPTED, COARSE = range(9)
 _SEED_HIGH = 9223372036854775807  # rng.integers(2**63 - 1), as the reference draws chip seeds
+
+
+class StageProgram(NamedTuple):
+    """How a stage goes to the chip (:meth:`.submission.StageSolver.program`)."""
+
+    rules: np.ndarray  # the quantization rules' ids, one program per split and rule
+    Lh: float  # the chip's coefficient limits
+    Lj: float
+    capacity: int  # spins per packed program
+    num_reads: int
+    n_spins: int  # the chip's spins (splits beyond them are branched)
+    retries: int  # of a split without a valid read
+
+
+class StageOut(NamedTuple):
+    """:func:`submit_stage`'s result; nothing is annealed unless ``status`` is ``STACK_OK``."""
+
+    status: int  # the ising_backend.pack_qubo_stack status
+    calls: int  # the submission's chip calls
+    emu: float  # and emulation seconds
+    scores: StageScores  # every read decoded, checked and scored
+    sides: Sides  # each distinct valid partition's sides
+
+
+class StageBook(NamedTuple):
+    """What :func:`solve_splits` counts in place."""
+
+    mapping: np.ndarray  # (k, 3) per rule: candidates, valid reads, wins
+    counters: np.ndarray  # the sharing call's counters, by COUNTERS
+    calls: np.ndarray  # (retries + 1,) per submission: its chip calls
+    emu: np.ndarray  # and emulation seconds
+
+
+class StoreArrays(NamedTuple):
+    """Each split problem's distinct valid candidates, best cut first (a row per problem)."""
+
+    cut: np.ndarray  # (rows, C)
+    side0: np.ndarray  # (rows, C) set ids
+    side1: np.ndarray
+    count: np.ndarray  # (rows,)
+
+
+class Splits(NamedTuple):
+    """:func:`problems_of`' result, zero-padded to the largest split."""
+
+    q: np.ndarray  # (P, f)
+    Q: np.ndarray  # (P, f, f)
+    free: np.ndarray  # (P, f)
+    sizes: np.ndarray  # (P,)
+    anchors: np.ndarray  # (P, 2)
 
 
 @numba.njit(cache=True)
@@ -47,9 +102,8 @@ def set_nodes(pool, s):
 
 @numba.njit(cache=True)
 def problems_of(w, groups, R, balance, pool):
-    """:func:`.split_problem.split_model` of every group (set ids), with the balance term (:func:`.split_problem.add_balance`)
-    when ``balance``: ``(q (P, f), Q (P, f, f), free (P, f), sizes, anchors (P, 2))``, zero-padded to the
-    largest split."""
+    """:func:`.split_problem.split_model` of every group (set ids), with the balance term
+    (:func:`.split_problem.add_balance`) when ``balance``: the :class:`Splits`."""
     P = groups.shape[0]
     sizes = np.empty(P, dtype=np.int64)
     f = 0
@@ -61,28 +115,29 @@ def problems_of(w, groups, R, balance, pool):
     free = np.zeros((P, f), dtype=np.int64)
     anchors = np.empty((P, 2), dtype=np.int64)
     for p in range(P):
-        a, b, fr, qq, QQ, _off = split_model(w, nodes_of(pool, groups[p]), R)
+        m = split_model(w, nodes_of(pool, groups[p]), R)
         if balance:
-            add_balance(w, fr, a, b, R, qq, QQ, balance)
+            add_balance(w, m.free, m.a, m.b, R, m.q, m.Q, balance)
         n = sizes[p]
-        anchors[p, 0] = a
-        anchors[p, 1] = b
-        free[p, :n] = fr
-        q[p, :n] = qq
-        Q[p, :n, :n] = QQ
-    return q, Q, free, sizes, anchors
+        anchors[p, 0] = m.a
+        anchors[p, 1] = m.b
+        free[p, :n] = m.free
+        q[p, :n] = m.q
+        Q[p, :n, :n] = m.Q
+    return Splits(q, Q, free, sizes, anchors)
 
 
 @numba.njit(cache=True)
 def keep_candidates(out, parent, pending, pids, reads, rng, mapping, store, pool):
-    """A submission's reads (``out``: :func:`submit_stage`'s arrays) into the
+    """A submission's reads (``out``: a :class:`StageOut`) into the :class:`StoreArrays` ``store``'s
     candidates of the pending splits: split ``i`` (problem ``pending[i]``, branches ``parent == i``)
     gets its distinct valid partitions in store row ``pids[pending[i]]``, best cut first; per rule
     ``mapping`` counts candidates, valid reads and wins (ties between rules drawn from ``rng``).
     Returns ``(room, failed)``: ``room`` False when a split has more candidates than the store's
     width; ``failed`` the pending problems without a valid candidate."""
-    b_valid, b_best, c_split, cut, s0, n0, s1, n1 = out
-    c_cut, c_m0, c_m1, c_n = store
+    b_valid, b_best, c_split, cut = out.scores.n_valid, out.scores.best, out.scores.split, out.scores.cut
+    s0, n0, s1, n1 = out.sides.side0, out.sides.n0, out.sides.side1, out.sides.n1
+    c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     P = pending.shape[0]
     nk = b_valid.shape[1]
     n_valid = np.zeros((P, nk), dtype=np.int64)
@@ -164,8 +219,9 @@ def todo_groups(groups, ng, R, kind, base_max, above, pool):
 @numba.njit(cache=True)
 def expand_states(score, groups, ng, todo_s, todo_g, rows, width, max_states, store):
     """``SplitSearch.expand`` (the oracle) on set ids: every state's split groups replaced by up to
-    ``width`` candidates each, at most ``max_states`` states, best summed cut first."""
-    c_cut, c_m0, c_m1, c_n = store
+    ``width`` candidates each, at most ``max_states`` states, best summed cut first (``store``: the
+    :class:`StoreArrays`)."""
+    c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     S, G = groups.shape
     cap = S * max_states
     out_score = np.empty(cap)
@@ -224,26 +280,22 @@ def expand_states(score, groups, ng, todo_s, todo_g, rows, width, max_states, st
 
 @numba.njit(cache=True)
 def submit_stage(problems, program, seed, machine, dist, n_robots):
-    """One stage submission of the split ``problems = (q (P, f), Q (P, f, f), free (P, f), sizes (P,), anchors
-    (P, 2), reject (P,), nfix (P,), fixed (P, f))`` (spin-budget branches: the ``nfix[p]`` nodes after the free
-    ones frozen at spins ``fixed[p]``) under ``program = (rule ids, Lh, Lj, capacity, reads, ...)``: every
-    split x rule mapped and packed (:func:`ising_backend.pack_qubo_stack`), annealed with ``seed`` on the
-    session record ``machine``, every read decoded, checked and scored on ``dist``.  Returns ``(status,
-    calls, emulation_s, (n_valid, best, c_split, c_cut, side0, n0, side1, n1))`` (as
-    :func:`.split_problem.score_stage` and :func:`.split_problem.candidate_sides`); nothing is annealed unless
-    ``status`` is ``STACK_OK``."""
-    q, Q, free, sizes, anchors, reject, nfix, fixed = problems
-    rules, Lh, Lj, capacity, num_reads = program[0], program[1], program[2], program[3], program[4]
-    k = rules.shape[0]
+    """One stage submission of the split ``problems`` (:class:`~.split_problem.SplitProblems`) under the
+    :class:`StageProgram` ``program``: every split x rule mapped and packed (:func:`ising_backend.pack_qubo_stack`),
+    annealed with ``seed`` on the session record ``machine``, every read decoded, checked and scored on
+    ``dist``.  Returns a :class:`StageOut`."""
+    sizes, free, anchors = problems.sizes, problems.free, problems.anchors
+    rules = program.rules
+    capacity = program.capacity
     if via_callback(machine):  # a machine behind the callback: packs up to its usable spins, as the checked path
         capacity = max(capacity, sizes.max())
-    status, h, J, where = pack_qubo_stack(q, Q, sizes, rules, Lh, Lj, capacity)
+    status, h, J, where = pack_qubo_stack(problems.q, problems.Q, sizes, rules, program.Lh, program.Lj, capacity)
     # a refused stage: nothing annealed, no read to score
-    spins, calls, emu = submit_packs(h, J, num_reads if status == STACK_OK else 0, seed, machine)
-    n_valid, best, c_split, c_cut, c_side = score_stage(spins, where, sizes, k, free, anchors, dist, n_robots, reject,
-                                                        nfix, fixed)
-    s0, n0, s1, n1 = candidate_sides(c_split, c_side, free, sizes + nfix, anchors)
-    return status, calls, emu, (n_valid, best, c_split, c_cut, s0, n0, s1, n1)
+    spins, calls, emu = submit_packs(h, J, program.num_reads if status == STACK_OK else 0, seed, machine)
+    scores = score_stage(spins, where, sizes, rules.shape[0], free, anchors, dist, n_robots, problems.reject,
+                         problems.nfix, problems.fixed)
+    sides = candidate_sides(scores.split, scores.side, free, sizes + problems.nfix, anchors)
+    return StageOut(status, calls, emu, scores, sides)
 
 
 @numba.njit(cache=True)
@@ -253,12 +305,11 @@ def solve_splits(ws, R, groups, balance, reject, rows, rng, program, machine, bo
     valid candidates, best cut on ``ws[0]`` first, into store row ``rows[i * S + s]`` -- one partition for a
     split without a free node, else the submissions of ``ReferenceStages.solve_all`` (the oracle): all
     pending splits in one submission, those without a valid candidate again, up to ``retries`` times.
-    ``program = (rule ids, Lh, Lj, capacity, reads, n_spins, retries)``; ``book = (mapping (k, 3), counters,
-    calls (retries + 1,), emulation_s (retries + 1,))`` gets each submission's charge.  Returns ``(status,
-    what, submissions)``."""
-    n_spins, retries = program[5], program[6]
-    mapping, counters, sub_calls, sub_emu = book
-    c_cut, c_m0, c_m1, c_n = store
+    ``program`` the :class:`StageProgram`; the :class:`StageBook` ``book`` gets each submission's charge.
+    Returns ``(status, what, submissions)``."""
+    n_spins, retries = program.n_spins, program.retries
+    counters = book.counters
+    c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     S = ws.shape[0]
     P = groups.shape[0] * S
     f = 0
@@ -270,15 +321,15 @@ def solve_splits(ws, R, groups, balance, reject, rows, rng, program, machine, bo
     sizes = np.empty(P, dtype=np.int64)
     anchors = np.empty((P, 2), dtype=np.int64)
     for s in range(S):
-        qs, Qs, fs, zs, As = problems_of(ws[s], groups, R, balance, pool)
+        sp = problems_of(ws[s], groups, R, balance, pool)
         for i in range(groups.shape[0]):
             p = i * S + s
-            n = zs[i]
+            n = sp.sizes[i]
             sizes[p] = n
-            anchors[p] = As[i]
-            free[p, :n] = fs[i, :n]
-            q[p, :n] = qs[i, :n]
-            Q[p, :n, :n] = Qs[i, :n, :n]
+            anchors[p] = sp.anchors[i]
+            free[p, :n] = sp.free[i, :n]
+            q[p, :n] = sp.q[i, :n]
+            Q[p, :n, :n] = sp.Q[i, :n, :n]
     n_pending = 0
     pending = np.empty(P, dtype=np.int64)
     for p in range(P):
@@ -300,20 +351,20 @@ def solve_splits(ws, R, groups, balance, reject, rows, rng, program, machine, bo
         seed = rng.integers(0, _SEED_HIGH)
         m = pending.shape[0]
         if sizes[pending].max() > n_spins:  # splits beyond the chip as their spin-budget branches, merged below
-            bq, bQ, bfree, bsizes, nfix, fixed, parent = branch_problems(q[pending], Q[pending], free[pending],
-                                                                        sizes[pending], n_spins)
+            br = branch_problems(q[pending], Q[pending], free[pending], sizes[pending], n_spins)
+            parent = br.parent
+            problems = SplitProblems(br.q, br.Q, br.free, br.sizes, anchors[pending][parent],
+                                     np.full(parent.shape[0], reject), br.nfix, br.fixed)
         else:
-            bq, bQ, bfree, bsizes = q[pending], Q[pending], free[pending], sizes[pending]
             parent = np.arange(m)
-            nfix = np.zeros(m, dtype=np.int64)
-            fixed = np.zeros((m, 0), dtype=np.int8)
-        problems = (bq, bQ, bfree, bsizes, anchors[pending][parent], np.full(parent.shape[0], reject), nfix, fixed)
-        status, calls, emu, out = submit_stage(problems, program, np.uint64(seed), machine, ws[0], R)
-        if status != STACK_OK:
-            return REFUSED_STAGE, status, attempts
-        sub_calls[attempts] = calls
-        sub_emu[attempts] = emu
-        room, failed = keep_candidates(out, parent, pending, rows, program[4], rng, mapping, store, pool)
+            problems = SplitProblems(q[pending], Q[pending], free[pending], sizes[pending], anchors[pending][parent],
+                                     np.full(m, reject), np.zeros(m, dtype=np.int64), np.zeros((m, 0), dtype=np.int8))
+        out = submit_stage(problems, program, np.uint64(seed), machine, ws[0], R)
+        if out.status != STACK_OK:
+            return REFUSED_STAGE, out.status, attempts
+        book.calls[attempts] = out.calls
+        book.emu[attempts] = out.emu
+        room, failed = keep_candidates(out, parent, pending, rows, program.num_reads, rng, book.mapping, store, pool)
         if not room:
             return NO_ROOM, 0, attempts + 1
         if failed.shape[0] and attempts >= retries:

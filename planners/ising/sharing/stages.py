@@ -15,7 +15,8 @@ from planners.ising.sharing.bundles import SharingFailure
 from planners.ising.sharing.clusters import coarsen, expand_candidates
 from planners.ising.sharing.node_sets import intern
 from planners.ising.sharing.stage_steps import (COARSE, FAILED_SPLIT, NO_ROOM, REFUSED_STAGE, SPLITS,
-                                                STAGES, STATES, expand_states, set_nodes, solve_splits, todo_groups)
+                                                STAGES, STATES, StageBook, StoreArrays, expand_states, set_nodes,
+                                                solve_splits, todo_groups)
 from planners.ising.sharing.submission import stage_refusal
 
 __all__ = ["SplitStages", "SharingStop", "CandidateStore"]
@@ -28,16 +29,16 @@ class SharingStop(SharingFailure):
 
 
 class CandidateStore:
-    """Each split problem's distinct valid candidates, best cut first: ``arrays = (cut (rows, C),
-    side0 (rows, C), side1 (rows, C), count (rows,))``, grown by rows as problems come."""
+    """Each split problem's distinct valid candidates, best cut first: ``arrays`` the
+    :class:`~.stage_steps.StoreArrays`, grown by rows as problems come."""
 
     def __init__(self, width: int, rows: int = 16):
-        self.arrays = (np.zeros((rows, width)), np.zeros((rows, width), dtype=np.int64),
-                       np.zeros((rows, width), dtype=np.int64), np.zeros(rows, dtype=np.int64))
+        self.arrays = StoreArrays(cut=np.zeros((rows, width)), side0=np.zeros((rows, width), dtype=np.int64),
+                                  side1=np.zeros((rows, width), dtype=np.int64), count=np.zeros(rows, dtype=np.int64))
 
     def reserve(self, n: int) -> None:
         """Room for ``n`` problems (rows kept)."""
-        rows = self.arrays[0].shape[0]
+        rows = self.arrays.cut.shape[0]
         if n > rows:
             cap = max(n, 2 * rows)
             grown = []
@@ -45,7 +46,7 @@ class CandidateStore:
                 b = np.zeros((cap,) + a.shape[1:], dtype=a.dtype)
                 b[:rows] = a
                 grown.append(b)
-            self.arrays = tuple(grown)
+            self.arrays = StoreArrays(*grown)
 
 
 class SplitStages:
@@ -69,7 +70,8 @@ class SplitStages:
         self.n_spins = solver.n_spins
         self.program = solver.program()
         # the compiled step's counters and per-submission charges (one row per submission of a call)
-        self._book = (mapping, counters, np.zeros(self.retries + 1, dtype=np.int64), np.zeros(self.retries + 1))
+        self._book = StageBook(mapping=mapping, counters=counters, calls=np.zeros(self.retries + 1, dtype=np.int64),
+                               emu=np.zeros(self.retries + 1))
         self.n_prob = 0
         self.memo: dict = {}
         self.calls: list[int] = []
@@ -84,8 +86,8 @@ class SplitStages:
         book = self._book
         status, what, subs = solve_splits(ws, R, groups, balance, reject, rows, self.rng, self.program, self.machine,
                                           book, self.store.arrays, self.pool)
-        self.calls.extend(book[2][:subs].tolist())
-        self.seconds.extend(book[3][:subs].tolist())
+        self.calls.extend(book.calls[:subs].tolist())
+        self.seconds.extend(book.emu[:subs].tolist())
         if status == FAILED_SPLIT:
             nodes = set_nodes(self.pool, what).tolist()
             raise SharingStop(f"every chip candidate for the split of group {nodes} was invalid after {subs} "

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ising_backend import QUANTIZE_RULE_IDS, STACK_NONFINITE
+from planners.ising.sharing.stage_steps import StageProgram
 
 __all__ = ["StageSolver", "stage_refusal"]
 
@@ -40,8 +41,8 @@ class StageSolver:
         health probe found."""
         return int(self.chip.usable_spins)
 
-    def program(self) -> tuple:
-        """The stage steps' ``program`` record (:func:`.stage_steps.solve_splits`): rule ids, coefficient
-        limits, packing capacity, reads, the chip's spins and the retries of a split without a valid read."""
-        return (self.rule_ids, *self.limits, self.capacity(), int(self.config.reads), self.n_spins,
-                int(self.config.retries))
+    def program(self) -> StageProgram:
+        """The stage steps' ``program`` record (:func:`.stage_steps.solve_splits`)."""
+        Lh, Lj = self.limits
+        return StageProgram(rules=self.rule_ids, Lh=Lh, Lj=Lj, capacity=self.capacity(), num_reads=int(self.config.reads),
+                            n_spins=self.n_spins, retries=int(self.config.retries))

@@ -61,8 +61,8 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
 
 def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=0):
     """Per problem: ``(host, chip, exact, not_one_hot, conflict, host seconds of build + decode)``."""
-    from planners.mapf.joint_moves import (build_qubo, decode_reads, group_spread, objective, qubo_to_ising,
-                                           solve_exact)
+    from ising_backend import integer_program
+    from planners.mapf.joint_moves import build_qubo, decode_reads, group_spread, objective, solve_exact
 
     out = []
     for c0 in range(0, len(problems), chunk):
@@ -78,7 +78,7 @@ def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=
             mem = np.arange(size)
             pen = 1 + group_spread(0, size, ostart, opt) if penalty is None else penalty
             k = build_qubo(pos, mem, 0, size, ostart, opt, pen, pen, q)
-            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k])
+            integer_program(q, k, H[g, :k], J[g, :k, :k], (7, 7))
             build.append(time.perf_counter() - t0)
         spins, _ = machine.anneal_batch(H, J, num_reads=num_reads, seed=seed + c0)
         for g, (pos, ostart, opt, host) in enumerate(batch):

@@ -23,7 +23,7 @@ from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable,
 from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
 from .meter import MeteredSolver
 from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
-from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, quantize_rules
+from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, integer_program, quantize_rules
 from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
 from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
 from .branching import Branch, BranchError, branch, freeze_order
@@ -66,7 +66,7 @@ __all__ = [
     # metering
     "MeteredSolver", "SolverOutputError",
     # mapping toolkit
-    "QUANTIZE_RULES", "QuantizeError", "quantize", "quantize_stack", "saturate", "quantize_rules",
+    "QUANTIZE_RULES", "QuantizeError", "quantize", "quantize_stack", "saturate", "quantize_rules", "integer_program",
     "QUANTIZE_RULE_IDS",
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_styles", "merge_styles_flat",
     "merge_error_message", "MERGE_STYLE_IDS",

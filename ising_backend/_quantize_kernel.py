@@ -13,7 +13,9 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays"]
+from .numeric import ising_of_qubo
+
+__all__ = ["RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays", "integer_program"]
 
 #: quantization rule name -> rule id of the kernel (the order of ``QUANTIZE_RULES``)
 RULE_IDS = {"linear": 0, "clip95": 1, "rank": 2, "sqrt": 3}
@@ -216,3 +218,32 @@ def saturate_arrays(h, J, scale, h_lo, h_hi, j_lo, j_hi):
         for j in range(n):
             out_J[i, j] = _clip(np.rint(J[i, j] * scale), j_lo, j_hi)
     return out_h, out_J
+
+
+@numba.njit(cache=True, nogil=True)
+def integer_program(q, n, h, J, limits):
+    """The chip program of the integer QUBO ``q[:n, :n]`` (linear terms on the diagonal, pairs above it): its
+    Ising model (:func:`~ising_backend.numeric.ising_of_qubo`) scaled by one factor so that max ``|h|`` reaches
+    ``limits[0]`` or max ``|J|`` ``limits[1]`` (each maximum taken as at least 1/4, a QUBO unit), rounded half
+    away from zero into ``h[:n]``, ``J[:n, :n]`` (the rest zeroed); returns the factor."""
+    lin = np.empty(n)
+    pairs = np.zeros((n, n))
+    for i in range(n):
+        lin[i] = q[i, i]
+        for j in range(i + 1, n):
+            pairs[i, j] = q[i, j]
+    hf, Jf, _offset = ising_of_qubo(lin, pairs, 0.0)
+    top_h = 0.25
+    top_j = 0.25
+    for i in range(n):
+        top_h = max(top_h, abs(hf[i]))
+        for j in range(i + 1, n):
+            top_j = max(top_j, abs(Jf[i, j]))
+    s = min(limits[0] / top_h, limits[1] / top_j)
+    h[:] = 0
+    J[:, :] = 0
+    for i in range(n):
+        h[i] = np.sign(hf[i]) * np.floor(abs(hf[i]) * s + 0.5)
+        for j in range(i + 1, n):
+            J[i, j] = np.sign(Jf[i, j]) * np.floor(abs(Jf[i, j]) * s + 0.5)
+    return s

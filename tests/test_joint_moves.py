@@ -6,10 +6,13 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from ising_backend import integer_program
 from planners.mapf import TURNING_EXECUTORS, make_turning_executor
 from planners.mapf.joint_executor import JointMovesPIBT
-from planners.mapf.joint_moves import CELL, COST, DEP, FWD, UNREAL, build_qubo, decode_reads, objective, qubo_to_ising, \
+from planners.mapf.joint_moves import CELL, COST, DEP, FWD, UNREAL, build_qubo, decode_reads, objective, \
     solve_exact
 
 F, R, C, W = 0, 1, 2, 3
@@ -106,8 +109,38 @@ def test_mapping_fits_the_chip_and_keeps_signs():
         q = np.empty((n, n), dtype=np.int64)
         build_qubo(pos, np.arange(size), 0, size, ostart, opt, 7, 7, q)
         h, J = np.empty(n, dtype=np.int64), np.empty((n, n), dtype=np.int64)
-        qubo_to_ising(q, n, h, J)
+        integer_program(q, n, h, J, (7, 7))
         assert np.abs(h).max() <= 7 and np.abs(J).max() <= 7 and n <= 45
+
+
+def integer_program_reference(q, n, limits):
+    """The group programs' mapping rule in integers (the oracle): the Ising model of ``q`` times 4, scaled so
+    that max |h| reaches limits[0] or max |J| limits[1] (each at least 1), rounded half away from zero."""
+    q = np.asarray(q[:n, :n], dtype=np.int64)
+    h4 = 2 * np.diag(q).copy()
+    for i in range(n):
+        for j in range(i + 1, n):
+            h4[i] += q[i, j]
+            h4[j] += q[i, j]
+    top_h = max(1, int(np.abs(h4).max(initial=0)))
+    top_j = max(1, int(np.abs(np.triu(q, 1)).max(initial=0)))
+    s = min(limits[0] / top_h, limits[1] / top_j)
+    half_away = lambda x: np.sign(x) * np.floor(np.abs(x) * s + 0.5)
+    return half_away(h4).astype(np.int64), np.triu(half_away(q), 1).astype(np.int64)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 45), st.sampled_from([(7, 7), (15, 15), (7, 3), (1, 1)]),
+       st.integers(1, 6))
+def test_integer_program_is_the_integer_rule_bit_for_bit(seed, n, limits, digits):
+    """ising_backend.integer_program (the one QUBO-to-Ising, then scaled and rounded) gives the integer
+    rule's bits: no double rounding on the way through the float model."""
+    rng = np.random.default_rng(seed)
+    q = np.triu(rng.integers(-10**digits, 10**digits, (n + 2, n + 2)))
+    h, J = np.full(n + 2, 99, dtype=np.int64), np.full((n + 2, n + 2), 99, dtype=np.int64)
+    integer_program(q, n, h[:n], J[:n, :n], limits)
+    rh, rJ = integer_program_reference(q, n, limits)
+    assert np.array_equal(h[:n], rh) and np.array_equal(J[:n, :n], rJ)
 
 
 def test_decode_always_gives_feasible_choices_even_from_random_spins():

@@ -28,14 +28,13 @@ from dataclasses import replace
 import numba
 import numpy as np
 
-from ising_backend import CallLedger
+from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT
 from planners.mapf.epibt_search import blockers, conflict, reserve
-from planners.mapf.joint_moves import qubo_to_ising
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
@@ -323,7 +322,7 @@ class EPIBTIsing(EPIBT):
             limits = self.machine.spec.coefficient_limits
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)
-                qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], limits)
+                integer_program(q, k, H[g, :k], J[g, :k, :k], limits)
             seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
             if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
                 spins = np.zeros((ng, 1, 0), np.int8)

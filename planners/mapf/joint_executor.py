@@ -29,12 +29,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ising_backend import CallLedger
+from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import int_in, machine_for, mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
-                                       objective, program_batch, qubo_to_ising, robot_options, select_groups, solve_exact)
+                                       objective, program_batch, robot_options, select_groups, solve_exact)
 from planners.mapf.turning import TurningPIBT
 
 __all__ = ["JointMovesPIBT", "ACCEPT"]
@@ -138,7 +138,7 @@ class JointMovesPIBT(TurningPIBT):
             a, b = gstart[g], gstart[g + 1]
             pen = 1 + group_spread(a, b, ostart, opt) if self.penalty is None else self.penalty
             k = build_qubo(pc, members, a, b, ostart, opt, pen, pen, q)
-            qubo_to_ising(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
+            integer_program(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
         seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
         call = CallLedger()

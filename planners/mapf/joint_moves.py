@@ -40,7 +40,7 @@ import numpy as np
 
 from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
 
-__all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo", "qubo_to_ising",
+__all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo",
            "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD"]
 
 MAX_OPTIONS = 5  # own cell + four neighbours
@@ -278,32 +278,6 @@ def program_batch(ng: int, gstart: np.ndarray, ostart: np.ndarray):
     sizes = ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]]
     n = int(sizes.max())
     return sizes, np.empty((n, n), dtype=np.int64), np.zeros((ng, n), dtype=np.int64), np.zeros((ng, n, n), np.int64)
-
-
-@numba.njit(cache=True, nogil=True)
-def qubo_to_ising(q, n, h, J, limits=(7, 7)):
-    """The mapping rule: Ising of ``q[:n, :n]`` times 4 (integers), scaled so max ``|h|`` reaches ``limits[0]`` or
-    max ``|J|`` ``limits[1]`` (a machine's ``spec.coefficient_limits``; the paper chip's 7), rounded half away
-    from zero into ``h[:n]``, ``J[:n, :n]`` (rest zero); returns the scale."""
-    h4 = np.zeros(n, dtype=np.int64)
-    top_j = 1
-    for i in range(n):
-        h4[i] += 2 * q[i, i]
-        for j in range(i + 1, n):
-            h4[i] += q[i, j]
-            h4[j] += q[i, j]
-            top_j = max(top_j, abs(q[i, j]))
-    top_h = 1
-    for i in range(n):
-        top_h = max(top_h, abs(h4[i]))
-    s = min(limits[0] / top_h, limits[1] / top_j)
-    h[:] = 0
-    J[:, :] = 0
-    for i in range(n):
-        h[i] = np.sign(h4[i]) * np.floor(abs(h4[i]) * s + 0.5)
-        for j in range(i + 1, n):
-            J[i, j] = np.sign(q[i, j]) * np.floor(abs(q[i, j]) * s + 0.5)
-    return s
 
 
 @numba.njit(cache=True, nogil=True)

@@ -47,7 +47,7 @@ from .portfolio import (
 )
 from .composite import COMPOSITE_RULES, QuantizeComposite
 from .mapping_stats import MAPPING_FIELDS, add_counts, mapping_record, record_of_reads
-from .link import MachineSession, anneal_submit, solve_submit, via_callback
+from .link import AnnealArgs, MachineSession, SolverArgs, anneal_submit, solve_submit, via_callback
 from .machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       sampler_names)
 
@@ -56,7 +56,7 @@ __all__ = [
     "IsingModel", "QuboModel", "ModelError", "from_bqm", "ising_from_qubo", "ChipSpec", "SCHEDULES", "CallLedger",
     # Ising machines
     "IsingMachine", "MachineBase", "SamplerChip", "DriverMachine", "LogicalDriver", "as_logical_solver", "MachineSpec", "SAMPLERS", "as_machine", "build_machine",
-    "sampler_names", "MachineSession", "anneal_submit", "solve_submit", "via_callback",
+    "sampler_names", "MachineSession", "AnnealArgs", "SolverArgs", "anneal_submit", "solve_submit", "via_callback",
     # chip
     "EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit",
     # faults

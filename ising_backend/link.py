@@ -10,6 +10,7 @@ it always does.  A machine's exception propagates unchanged.  Design notes: docs
 from __future__ import annotations
 
 import itertools
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -22,7 +23,29 @@ from .ledger import CallLedger
 from .tabu import mix_seed, tabu_kernel
 from .health import SolverOutputError
 
-__all__ = ["MachineSession", "anneal_submit", "solve_submit", "via_callback"]
+__all__ = ["MachineSession", "AnnealArgs", "SolverArgs", "anneal_submit", "solve_submit", "via_callback"]
+
+
+class AnnealArgs(NamedTuple):
+    """An annealer session's record for compiled loops (:attr:`MachineSession.args`): the emulator's kernel
+    arguments after the seed (``EmulatedChip.kernel_args``), or a callback handle."""
+
+    handle: int  # -1: the loop runs the emulator's kernel; else the session's callback handle
+    sweeps: int
+    geometric: bool  # the schedule
+    beta_hot: float  # -1: the kernel's default range
+    beta_cold: float
+    mismatch: np.ndarray  # the coupling mismatch
+    flip_prob: float  # readout flips
+
+
+class SolverArgs(NamedTuple):
+    """A logical solver's session record for programs of one size (:meth:`MachineSession.args_for`)."""
+
+    handle: int  # -1: the loop runs the tabu kernel; else the session's callback handle
+    restarts: int
+    iterations: int
+    tenure: int
 
 _SESSIONS: dict[int, "MachineSession"] = {}
 _IDS = itertools.count()
@@ -58,15 +81,15 @@ class MachineSession:
         if self.logical:
             self.args = None
         elif self.direct:
-            self.args = (-1, *kernel)
+            self.args = AnnealArgs(-1, *kernel)
         else:
-            self.args = (self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
+            self.args = AnnealArgs(self.handle, 1, True, -1.0, -1.0, _NO_MISMATCH, 0.0)
 
-    def args_for(self, n: int) -> tuple:
+    def args_for(self, n: int) -> SolverArgs:
         """A logical solver's record for programs of ``n`` spins (:func:`solve_submit`)."""
         if not self.logical:
             raise TypeError("args_for(n) is a logical solver's record; an annealer's is .args")
-        return (-1, *self._kernel(n)) if self.direct else (self.handle, 1, 1, 1)
+        return SolverArgs(-1, *self._kernel(n)) if self.direct else SolverArgs(self.handle, 1, 1, 1)
 
     def __enter__(self) -> "MachineSession":
         if not self.direct:
@@ -115,7 +138,7 @@ class MachineSession:
 def via_callback(machine) -> bool:
     """Whether an anneal record reaches its machine by the callback (its checks and packing rule are
     the machine's own) rather than the emulator's kernel."""
-    return machine[0] >= 0
+    return machine.handle >= 0
 
 
 def _callback(handle, h, J, num_reads, seed, spins, energies) -> float:
@@ -164,13 +187,12 @@ def anneal_submit(h, J, num_reads, seed, machine, spins, energies):
     """Anneal ``h (B, n)``, ``J (B, n, n)`` into ``spins`` / ``energies`` on the session's machine
     (``machine`` = :attr:`MachineSession.args`); returns the emulation seconds to charge (the
     emulator's kernel), 0 for a machine that charged itself."""
-    handle, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob = machine
-    if handle < 0:
+    if machine.handle < 0:
         t0 = clock_ns()  # the emulator's own kernel: its wall seconds are what the caller charges
-        anneal_kernel(h, J, num_reads, seed, sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob,
-                      (NO_CORES, NO_CLAMP), (spins, energies))
+        anneal_kernel(h, J, num_reads, seed, machine.sweeps, machine.geometric, machine.beta_hot, machine.beta_cold,
+                      machine.mismatch, machine.flip_prob, (NO_CORES, NO_CLAMP), (spins, energies))
         return (clock_ns() - t0) * 1e-9
-    return _answered(handle, h, J, num_reads, seed, spins, energies)
+    return _answered(machine.handle, h, J, num_reads, seed, spins, energies)
 
 
 @numba.njit(cache=True)
@@ -178,9 +200,9 @@ def solve_submit(h, J, num_reads, seed, solver, spins, energies):
     """A logical solver's ``solve_stack`` of ``h (B, n)``, ``J (B, n, n)`` into ``spins`` (``solver`` =
     :meth:`MachineSession.args_for`): its tabu kernel in the loop, or the callback; returns the
     emulation seconds to charge (0 for a solver that charged itself)."""
-    handle, restarts, iterations, tenure = solver
-    if handle < 0:
+    if solver.handle < 0:
         t0 = clock_ns()
-        tabu_kernel(h, J, num_reads, mix_seed(seed, h.shape[1]), restarts, iterations, tenure, spins, energies)
+        tabu_kernel(h, J, num_reads, mix_seed(seed, h.shape[1]), solver.restarts, solver.iterations, solver.tenure,
+                    spins, energies)
         return (clock_ns() - t0) * 1e-9
-    return _answered(handle, h, J, num_reads, seed, spins, energies)
+    return _answered(solver.handle, h, J, num_reads, seed, spins, energies)

@@ -627,7 +627,7 @@ def test_compiled_stage_submission_makes_the_reference_decisions(spec, options):
 def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
     """submit_stage anneals nothing (a non-zero status, no calls) for a non-finite split model or
     programs the chip's check refuses; the sharing names the refusal."""
-    from ising_backend import QUANTIZE_RULE_IDS, STACK_NONFINITE, STACK_OK, STACK_UNFIT, EmulatedChip
+    from ising_backend import QUANTIZE_RULE_IDS, STACK_NONFINITE, STACK_OK, STACK_UNFIT, AnnealArgs, EmulatedChip
     from planners.ising.sharing.split_problem import SplitProblems
     from planners.ising.sharing.stage_steps import StageProgram, submit_stage
 
@@ -644,7 +644,7 @@ def test_compiled_stage_submission_refuses_what_the_chip_would_refuse():
         problems = SplitProblems(q, Q, free, sizes, anchors, np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.int64),
                                  np.zeros((1, 4), dtype=np.int8))
         program = StageProgram(rules=rules, Lh=Lh, Lj=Lj, capacity=45, num_reads=2, n_spins=45, retries=0)
-        return submit_stage(problems, program, np.uint64(5), (-1, *chip.kernel_args()), dist, 2)
+        return submit_stage(problems, program, np.uint64(5), AnnealArgs(-1, *chip.kernel_args()), dist, 2)
 
     good = run(q)
     assert good.status == STACK_OK and good.calls == 2 and good.scores.n_valid.sum() <= 2

@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -17,7 +19,19 @@ from ising_backend import splitmix
 from mrmt_env.distances import bfs_flat
 
 __all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid", "sort_options",
-           "pibt_core", "int_in", "machine_for"]
+           "pibt_core", "int_in", "machine_for", "GroupBatch"]
+
+
+class GroupBatch(NamedTuple):
+    """One step's groups of robots for a chip decision (the League planners' group programs): group ``g`` is
+    slots ``gstart[g]:gstart[g + 1]``, slot ``i`` robot ``members[i]`` with options ``ostart[i]:ostart[i + 1]``
+    of ``opt`` (each planner's own option layout)."""
+
+    ng: int
+    gstart: np.ndarray
+    members: np.ndarray
+    ostart: np.ndarray
+    opt: np.ndarray
 
 _DR = (0, 1, 0, -1)  # east, south, west, north
 _DC = (1, 0, -1, 0)

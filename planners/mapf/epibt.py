@@ -19,6 +19,8 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -53,6 +55,26 @@ MAX_PORTFOLIO = 64
 DEADLINE_MARGIN_S = 0.05
 _PORTFOLIO_SALT = 0x70F7  # the portfolio's seeds: mix(seed, k, salt, 0), k >= 1
 _SHIFT = 24  # key = cost-to-go << _SHIFT | idle << 16 | 16 bits of tie
+
+
+class RobotAt(NamedTuple):
+    """One robot's place in a joint plan (:func:`_options`)."""
+
+    k: int  # the robot
+    cell: int
+    orient: int
+    goal: int
+    row: int  # its goal's distance row (-1: none)
+
+
+class ChoiceStack(NamedTuple):
+    """:func:`_choose`'s explicit stack of pushes, one level per robot on it."""
+
+    robot: np.ndarray  # the robot choosing at this level
+    option: np.ndarray  # its next option to try
+    pushed: np.ndarray  # the robot its current try pushed (-1: none)
+    pushed_src: np.ndarray  # that robot's option before the push
+    pushed_cells: np.ndarray  # and its cells
 
 
 def operations(op_len: int = DEFAULT_OP_LEN) -> np.ndarray:
@@ -118,11 +140,11 @@ def _to_go(grid, heuristic, goal, row, c, o) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
-    """Robot ``robot = (k, p, o, goal, row)``'s operations, ranked and without equal cell sequences, into
+    """The operations of robot ``robot`` (a :class:`RobotAt`), ranked and without equal cell sequences, into
     ``cand = (cells, which, costs)`` (``cells[i]`` its cells, ``which[i]`` the operation, ``costs[i]`` its
     cost-to-go); returns how many."""
     nbr = grid[0]
-    k, p, o, goal, row = robot
+    k, p, o, goal, row = robot.k, robot.cell, robot.orient, robot.goal, robot.row
     seed, t = stamp
     cells, which, costs = cand
     tmp, keys = scratch
@@ -161,11 +183,12 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
 @numba.njit(cache=True, nogil=True)
 def _choose(root, prio, state, tables, revisits) -> bool:
     """Robot ``root``'s choice with pushes, on an explicit stack (module docstring), in ``state`` (a
-    :class:`PlanState`); ``tables = (res, visit, hit, stack)``.  On failure ``root`` holds its inherited cells,
-    unreserved."""
+    :class:`PlanState`); ``tables = (res, visit, hit, stack)`` (``stack`` a :class:`ChoiceStack`).  On failure
+    ``root`` holds its inherited cells, unreserved."""
     cells, ncand, cur, src, inh = state.cells, state.ncand, state.cur, state.src, state.inh
     res, visit, hit, stack = tables
-    st_a, st_i, st_l, st_src, saved = stack
+    st_a, st_i, st_l = stack.robot, stack.option, stack.pushed
+    st_src, saved = stack.pushed_src, stack.pushed_cells
     p = prio[root]
     top = 0
     st_a[0], st_i[0], st_l[0] = root, 0, -1
@@ -247,7 +270,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
                 idle[i] += 2 * (length - s) + (1 if ops[i, s] == WAIT else 0)
     scratch = (np.empty((n_ops, length + 1), dtype=np.int64), np.empty(n_ops, dtype=np.int64))
     for k in range(r):
-        ncand[k] = _options(grid, heuristic, (k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
+        ncand[k] = _options(grid, heuristic, RobotAt(k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
                             (cells[k], which[k], costs[k]), scratch)
         end = _walk(nbr, pos[k], orient[k], inherited[k], inh[k])
         if end < 0:  # never after a valid plan: stay
@@ -261,8 +284,8 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
         reserve(res, inh[k], k, k)
     visit = np.zeros(r, dtype=np.int64)
     hit = np.zeros(r, dtype=np.int8)
-    stack = (np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
-             np.empty(r, dtype=np.int64), np.empty((r, length + 1), dtype=np.int64))
+    stack = ChoiceStack(np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
+                        np.empty(r, dtype=np.int64), np.empty((r, length + 1), dtype=np.int64))
     for idx in range(r):
         k = order[idx]
         if visit[k] != 0:

@@ -32,7 +32,7 @@ from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.choice_qubo import read_option, reduce_to_reference
-from planners.mapf.common import int_in, machine_for, mix
+from planners.mapf.common import GroupBatch, int_in, machine_for, mix
 from planners.mapf.epibt import EPIBT
 from planners.mapf.epibt_search import blockers, conflict, reserve
 
@@ -212,11 +212,11 @@ def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
 def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
     """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
     when it costs at least ``min_gain`` less than their plan now and collides with nothing left in the plan;
-    returns how many did.  ``groups = (ng, members, gstart, ostart, opt)``."""
+    returns how many did (``groups`` a :class:`~planners.mapf.common.GroupBatch`)."""
     cur, src = state.cur, state.src
-    ng, members, gstart, ostart, opt = groups
+    members, gstart, ostart, opt = groups.members, groups.gstart, groups.ostart, groups.opt
     applied = 0
-    for g in range(ng):
+    for g in range(groups.ng):
         a, b = gstart[g], gstart[g + 1]
         if costs_now[g] < 0:
             continue
@@ -307,6 +307,7 @@ class EPIBTIsing(EPIBT):
                            (self.seed, self.t), taken, (members, gstart, ostart, opt))
         if ng == 0:
             return
+        batch = GroupBatch(ng, gstart, members, ostart, opt)
         m = gstart[ng]
         host = np.zeros(m, dtype=np.int64)
         host_cost = np.empty(ng, dtype=np.int64)
@@ -330,7 +331,7 @@ class EPIBTIsing(EPIBT):
                 call = CallLedger()
                 with self.machine.session(call, decision="lns_groups") as link:
                     host_rule = None if link.audit is None else \
-                        self._host_rule(H, J, (ng, gstart, ostart, host, host_cost), host_s)
+                        self._host_rule(H, J, batch, (host, host_cost), host_s)
                     spins, _ = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
                 self.ledger = self.ledger + call
             choice = np.zeros(m, dtype=np.int64)
@@ -342,8 +343,7 @@ class EPIBTIsing(EPIBT):
             worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
             self.stats["chip_better"] += int(better.sum())
             self.stats["chip_worse"] += int(worse.sum())
-        self.stats["applied"] += apply_choices(state, self._res, (ng, members, gstart, ostart, opt), choice, cost,
-                                                self.min_gain)
+        self.stats["applied"] += apply_choices(state, self._res, batch, choice, cost, self.min_gain)
         self.stats["decisions"] += ng
         total = time.perf_counter() - t0
         emul = 0.0 if call is None else float(call.emulation_s)
@@ -351,13 +351,14 @@ class EPIBTIsing(EPIBT):
         if call is not None:
             self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=total)
 
-    def _host_rule(self, H, J, groups, host_s) -> tuple:
+    def _host_rule(self, H, J, batch, greedy, host_s) -> tuple:
         """The host rule beside this step's programs in an open decision audit (class ``lns_groups``): the search's
-        greedy choice as spins of the same programs (a group it leaves without a choice: its plan now, option 0),
-        their energies, and its seconds per program."""
+        greedy choice ``greedy = (choice, cost)`` as spins of the same programs (a group it leaves without a choice:
+        its plan now, option 0), their energies, and its seconds per program."""
         from ising_backend.health import program_energy
 
-        ng, gstart, ostart, host, host_cost = groups
+        ng, gstart, ostart = batch.ng, batch.gstart, batch.ostart
+        host, host_cost = greedy
         hs = -np.ones(H.shape, dtype=np.int8)
         for g in range(ng):
             for i in range(gstart[g], gstart[g + 1]):

@@ -20,18 +20,44 @@ robot over the free cells.  Measurements: ``docs/design/lifelong_turning.md``.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from planners.mapf.guidance import spread
 from planners.mapf.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
-__all__ = ["FlowPIBT", "FlowGuide", "flow_astar", "path_field", "replan_paths", "guide_bytes", "check_team",
+__all__ = ["FlowPIBT", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "check_team",
            "DEFAULT_REPLAN_WORK"]
 
 #: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this
 #: // free cells, at most one per robot (every robot on RANDOM's 819 cells; 22 on CITY-01's 47,240).
 DEFAULT_REPLAN_WORK = 1 << 20
+
+
+class AStarScratch(NamedTuple):
+    """:func:`flow_astar`'s scratch (:func:`astar_scratch`), per free cell but ``stamp`` and ``heap``."""
+
+    g: np.ndarray  # moves from the start
+    flow_cost: np.ndarray  # flow met on the way
+    parent: np.ndarray
+    pdir: np.ndarray  # the move into the cell
+    seen: np.ndarray  # the call that reached the cell
+    closed: np.ndarray  # the call that closed it
+    stamp: np.ndarray  # (1,) the calls so far
+    heap: tuple  # five columns: the key's three parts, the push order, the cell
+
+
+class GuideState(NamedTuple):
+    """The robots' guide paths that :func:`replan_paths` re-plans (compact cells)."""
+
+    pos: np.ndarray
+    goals: np.ndarray
+    paths: np.ndarray  # (R, L) each robot's guide path
+    lengths: np.ndarray
+    fields: np.ndarray  # each robot's PIBT field along its path
+    far: np.ndarray  # the fields' value off the paths
 
 
 @numba.njit(cache=True, nogil=True)
@@ -95,7 +121,8 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
     ``scratch`` from :func:`astar_scratch`."""
     nbr, cell_of, width, cost = grid
     fields, row = heuristic
-    g, fc, parent, pdir, seen, closed, stamp, heap = scratch
+    g, fc, parent, pdir = scratch.g, scratch.flow_cost, scratch.parent, scratch.pdir
+    seen, closed, stamp, heap = scratch.seen, scratch.closed, scratch.stamp, scratch.heap
     stamp[0] += 1
     call = stamp[0]
     g[start], fc[start], parent[start], pdir[start], seen[start] = 0, 0, -1, -1, call
@@ -142,8 +169,7 @@ def astar_scratch(n: int):
     """Scratch of :func:`flow_astar` for a map of ``n`` free cells (heap entries: at most 4 per cell)."""
     m = 4 * n + 1
     heap = tuple(np.zeros(m, dtype=np.int64) for _ in range(5))
-    return (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
-            np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(1, np.int64), heap)
+    return AStarScratch(*(np.zeros(n, np.int64) for _ in range(6)), stamp=np.zeros(1, np.int64), heap=heap)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -175,11 +201,11 @@ def path_field(nbr, path, length, field, far, queue):
 def replan_paths(grid, flow, goal_fields, state, who, scratch):
     """Re-plan the guide paths of robots ``who`` in order: each path's flow out, A* on the rest, its flow in,
     its PIBT field re-computed.  ``goal_fields = (fields, rows)`` with ``rows[k]`` robot ``k``'s goal row;
-    ``state = (pos, goals, paths, lengths, fields, far)`` (compact cells; ``fields[k]`` robot ``k``'s
-    PIBT field)."""
+    ``state`` a :class:`GuideState`."""
     nbr = grid[0]
     gf, grow = goal_fields
-    pos, goals, paths, lengths, fields, far = state
+    pos, goals, paths, lengths = state.pos, state.goals, state.paths, state.lengths
+    fields, far = state.fields, state.far
     queue = np.empty(nbr.shape[0], dtype=np.int64)
     for k in who:
         _add_path(nbr, flow, paths[k], lengths[k], -1)
@@ -269,7 +295,7 @@ class FlowGuide:
         extra = min(len(rest), max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
         who = np.concatenate([new, np.resize(rest, extra if len(rest) else 0)]).astype(np.int64)  # cyclic passes
         replan_paths((self.nbr, self.cell_of, self.width, self.cost), self.flow, (goal_fields, goal_rows),
-                     (pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)
+                     GuideState(pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)
         self.last[who] = self.calls
         self.replanned += len(who)
         return who

@@ -32,7 +32,7 @@ import numpy as np
 from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.common import int_in, machine_for, mix
+from planners.mapf.common import GroupBatch, int_in, machine_for, mix
 from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
                                        objective, program_batch, robot_options, select_groups, solve_exact)
 from planners.mapf.turning import TurningPIBT
@@ -96,8 +96,8 @@ class JointMovesPIBT(TurningPIBT):
         self.sample = None
 
     def groups(self, pc, orient, gc, rows, order, nxt, act):
-        """This step's groups: ``(ng, gstart, members, ostart, opt, host)`` (kernels of
-        :mod:`planners.mapf.joint_moves`; compact cells)."""
+        """This step's groups (a :class:`~planners.mapf.common.GroupBatch`, kernels of
+        :mod:`planners.mapf.joint_moves`; compact cells) and PIBT's choice per slot."""
         r = len(pc)
         cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
         cost = np.empty((r, MAX_OPTIONS), dtype=np.int64)
@@ -116,14 +116,15 @@ class JointMovesPIBT(TurningPIBT):
         if ng:
             group_options(self.nbr, (pc, orient, nxt, act), (cand, cost), rank, (gid, members, gstart), ng,
                           (self.levels, self.push), (self._claim, self._occ_now), (ostart, opt, host))
-        return ng, gstart, members, ostart, opt, host
+        return GroupBatch(ng, gstart, members, ostart, opt), host
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         t0 = time.perf_counter()
         self.last_compute = ComputeReport()
         if "joint_moves" in host_rule_classes():  # the ablation: PIBT's answer stands
             return
-        ng, gstart, members, ostart, opt, host = self.groups(pc, orient, gc, rows, order, nxt, act)
+        batch, host = self.groups(pc, orient, gc, rows, order, nxt, act)
+        ng, gstart, members, ostart, opt = batch.ng, batch.gstart, batch.members, batch.ostart, batch.opt
         if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
             for g in range(ng):
                 a, b = gstart[g], gstart[g + 1]
@@ -143,7 +144,7 @@ class JointMovesPIBT(TurningPIBT):
         t1 = time.perf_counter()
         call = CallLedger()
         with self.machine.session(call, decision="joint_moves") as link:
-            host_rule = None if link.audit is None else self._host_rule(H, J, gstart, ostart, host, ng, len(pc))
+            host_rule = None if link.audit is None else self._host_rule(H, J, batch, host, len(pc))
             spins, energies = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
         t2 = time.perf_counter()
         self.ledger = self.ledger + call
@@ -178,15 +179,16 @@ class JointMovesPIBT(TurningPIBT):
         self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=t3 - t0)
         self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups
 
-    def _host_rule(self, H, J, gstart, ostart, host, ng, robots) -> tuple:
+    def _host_rule(self, H, J, batch, host, robots) -> tuple:
         """The host rule beside this step's programs in an open decision audit (class ``joint_moves``): PIBT's
         cells as spins of the same programs, their energies, and its seconds (this step's PIBT kernel time, a
         group's share by its robots)."""
         from ising_backend.health import program_energy
 
+        gstart, ostart = batch.gstart, batch.ostart
         hs = -np.ones(H.shape, dtype=np.int8)
-        secs = np.empty(ng)
-        for g in range(ng):
+        secs = np.empty(batch.ng)
+        for g in range(batch.ng):
             a, b = gstart[g], gstart[g + 1]
             hs[g, ostart[a:b] - ostart[a] + host[a:b]] = 1
             secs[g] = self.kernel_s * (b - a) / robots

@@ -9,10 +9,13 @@ Oracle: ``tests/mapping_reference.py``.  Design notes: docs/design/mapping_kerne
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 __all__ = [
+    "Merged",
     "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
     "merge_batch", "merge_styles", "merge_styles_flat", "decode_copies",
 ]
@@ -286,6 +289,20 @@ def _layout(a, n, start, ptr, idx):
             idx[ptr[i] + m] = _phys(i, m, start)
 
 
+class Merged(NamedTuple):
+    """:func:`merge_batch`'s result, one row per (model, style), row ``r = b * k + s``."""
+
+    status: np.ndarray  # (R,) MERGE_* codes
+    err: np.ndarray  # (R, 2) the term that did not fit (-1 unused)
+    a: np.ndarray  # (R, n_max) copy counts (at the failure for a failed row, 0 beyond the model)
+    n_phys: np.ndarray  # (R,) physical spins (0 if failed)
+    h: np.ndarray  # (R, N) float64, zero-padded to N = max(n_phys)
+    J: np.ndarray  # (R, N, N) float64, upper triangular
+    offset_add: np.ndarray  # (R,) tie x ties (the physical offset is offset x scale + offset_add)
+    ptr: np.ndarray  # (R, n_max + 1) copy layout (constant beyond the model)
+    idx: np.ndarray  # (R, N)
+
+
 @numba.njit(cache=True)
 def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
     """Merge ``B`` logical models with each of ``styles`` (style ids, see :data:`STYLE_IDS`).
@@ -298,15 +315,7 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
         Lh, Lj: symmetric range limits (>= 1); tie: tie strength in ``[1, Lj]``;
         n_spins: the chip's spin budget.
 
-    Returns ``(status, err, a, n_phys, h, J, offset_add, ptr, idx)`` with one row per
-    (model, style), row ``r = b * k + s``:
-        status ``(R,)`` int64 (``MERGE_*`` codes); err ``(R, 2)`` int64 (the term that did
-        not fit, ``-1`` unused); a ``(R, n_max)`` int64 copy counts (at the failure for a
-        failed row, 0 beyond the model); n_phys ``(R,)`` int64 physical spins (0 if
-        failed); h ``(R, N)`` float64 and J ``(R, N, N)`` float64 upper triangular,
-        zero-padded to ``N = max(n_phys)``; offset_add ``(R,)`` float64 ``tie x ties``
-        (the physical offset is ``offset x scale + offset_add``); ptr ``(R, n_max + 1)``
-        / idx ``(R, N)`` int64 copy layout (``ptr`` constant beyond the model).
+    Returns a :class:`Merged`.
     """
     B = H.shape[0]
     n_max = H.shape[1]
@@ -350,7 +359,7 @@ def merge_batch(H, C, n, styles, Lh, Lj, tie, n_spins):
             ptr[r, i] = ptr[r, nb]
         even = _EVEN[styles[r % k]]
         offset_add[r] = tie * _fill(H, C, b, nb, a[r], even, Lh, Lj, tie, start, h[r], J[r])
-    return status, err, a, n_phys, h, J, offset_add, ptr, idx
+    return Merged(status, err, a, n_phys, h, J, offset_add, ptr, idx)
 
 
 @numba.njit(cache=True)

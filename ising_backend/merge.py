@@ -155,11 +155,11 @@ def merge_spins(model: IsingModel, style: str, spec: ChipSpec | None = None, sca
         raise MergeError(f"model has {n} spins; the chip has {spec.n_spins}: branch first")
     H = np.rint(model.h * scale).astype(np.int64)
     C = np.rint(model.J * scale).astype(np.int64)
-    status, err, a, _, hp, Jp, offset_add, ptr, idx = merge_styles(H, C, _STYLE_ARRAY[style], Lh, Lj, tie,
-                                                                  spec.n_spins)
-    if status[0] != MERGE_OK:
-        raise MergeError(merge_error_message(int(status[0]), err[0], H, C, a[0], Lh, Lj, spec.n_spins, scale))
-    offset = model.offset * scale + float(offset_add[0])
+    m = merge_styles(H, C, _STYLE_ARRAY[style], Lh, Lj, tie, spec.n_spins)
+    if m.status[0] != MERGE_OK:
+        raise MergeError(merge_error_message(int(m.status[0]), m.err[0], H, C, m.a[0], Lh, Lj, spec.n_spins, scale))
+    hp, Jp, ptr, idx = m.h, m.J, m.ptr, m.idx
+    offset = model.offset * scale + float(m.offset_add[0])
     if math.isfinite(offset):
         physical = IsingModel.trusted(hp[0], Jp[0], float(offset))
     else:  # the validating constructor names the non-finite offset

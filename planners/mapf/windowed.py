@@ -21,18 +21,34 @@ A* order (larger g, then insertion).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from planners.mapf.common import GoalFields, moves_to_actions, successor_table
 
-__all__ = ["WindowedPlanner", "windowed_kernel", "DEFAULT_WINDOW", "MAX_WINDOW"]
+__all__ = ["WindowedPlanner", "windowed_kernel", "SearchHeap", "new_heap", "DEFAULT_WINDOW", "MAX_WINDOW"]
 
 DEFAULT_WINDOW = 8
 MAX_WINDOW = 64
 _FAR = 1 << 30
 #: Cost unit of the A* key: cost * _SOFT + cells of other robots entered (a tie-break among equal costs).
 _SOFT = 1024
+
+
+class SearchHeap(NamedTuple):
+    """The windowed A*'s binary heap, one column per entry field (:func:`_push`, :func:`_pop`)."""
+
+    f: np.ndarray  # the key: cost * _SOFT + cells of others crossed
+    g: np.ndarray  # cost so far
+    state: np.ndarray  # t * cells + cell (or the turning planner's state)
+    parent: np.ndarray  # the state it came from
+
+
+def new_heap(cap: int) -> SearchHeap:
+    """An empty heap of ``cap`` entries."""
+    return SearchHeap(*(np.empty(cap, dtype=np.int64) for _ in range(4)))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -49,12 +65,11 @@ def _swap(heap, i, j):
 
 @numba.njit(cache=True, nogil=True)
 def _push(heap, size, f, g, s, p):
-    heap_f, heap_g, heap_s, heap_p = heap
     i = size
-    heap_f[i], heap_g[i], heap_s[i], heap_p[i] = f, g, s, p
+    heap.f[i], heap.g[i], heap.state[i], heap.parent[i] = f, g, s, p
     while i > 0:
         q = (i - 1) // 2
-        if not _better(heap_f, heap_g, i, q):
+        if not _better(heap.f, heap.g, i, q):
             break
         _swap(heap, i, q)
         i = q
@@ -63,8 +78,8 @@ def _push(heap, size, f, g, s, p):
 
 @numba.njit(cache=True, nogil=True)
 def _pop(heap, size):
-    heap_f, heap_g, heap_s, heap_p = heap
-    f, g, s, p = heap_f[0], heap_g[0], heap_s[0], heap_p[0]
+    """Remove the first entry of the :class:`SearchHeap` (moved to index ``size - 1``); returns the new size."""
+    heap_f, heap_g = heap.f, heap.g
     size -= 1
     _swap(heap, 0, size)
     i = 0
@@ -78,7 +93,7 @@ def _pop(heap, size):
             break
         _swap(heap, i, m)
         i = m
-    return f, g, s, p, size
+    return size
 
 
 @numba.njit(cache=True, nogil=True)
@@ -90,8 +105,8 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
     hw = succ.shape[0]
     w = window
     cap = 5 * (w + 1) * hw + 1
-    heap = (np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
-            np.empty(cap, dtype=np.int64))
+    heap = SearchHeap(np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
+                      np.empty(cap, dtype=np.int64))
     soft = np.zeros((w + 1) * hw, dtype=np.int64)
     hold = np.full(hw, -1, dtype=np.int64)  # robots not planned yet keep their cell at time 1
     start = np.full(hw, -1, dtype=np.int64)  # every robot's cell now: crossing it is a soft cost
@@ -109,7 +124,8 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
         size = _push(heap, 0, (_FAR if h0 < 0 else h0) * _SOFT, 0, s0, -1)
         best = -1
         while size > 0:
-            f, g, s, p, size = _pop(heap, size)
+            size = _pop(heap, size)
+            f, g, s, p = heap.f[size], heap.g[size], heap.state[size], heap.parent[size]
             if seen[s] == stamp:
                 continue
             seen[s] = stamp

@@ -19,7 +19,7 @@ import numpy as np
 from planners.mapf.guidance import orient_cost_rows
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
                                    FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
-from planners.mapf.windowed import _pop, _push
+from planners.mapf.windowed import _pop, _push, new_heap
 
 __all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
            "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
@@ -155,7 +155,8 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
         best = -1
         popped = 0
         while size > 0 and popped < expansions:
-            f, g, s, p, size = _pop(heap, size)
+            size = _pop(heap, size)
+            f, g, s, p = heap.f[size], heap.g[size], heap.state[size], heap.parent[size]
             if seen[s] == stamp:
                 continue
             seen[s] = stamp
@@ -296,7 +297,7 @@ class WindowedTurningPlanner(TurningPIBT):
         self._occ = np.full((self.window + 1) * n, -1, dtype=np.int64)
         self._seen = np.zeros(states, dtype=np.int64)
         self._parent = np.zeros(states, dtype=np.int64)
-        self._heap = tuple(np.empty(4 * self.expansions + 1, dtype=np.int64) for _ in range(4))
+        self._heap = new_heap(4 * self.expansions + 1)
         self._stamp = 0
         self.still, self._prev = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         self.paths = np.zeros((0, self.window + 1), dtype=np.int64)

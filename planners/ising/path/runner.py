@@ -136,8 +136,9 @@ class QueryRunner:
         H = np.rint(model.h * cfg.chip_scale).astype(np.int64)
         C = np.rint(model.J * cfg.chip_scale).astype(np.int64)
         Lh, Lj, n_spins = self.limits
-        st, e, a, *_ = merge_styles(H, C, self.style_ids[style: style + 1], Lh, Lj, Lj, n_spins)
-        return f"{cfg.styles[style]}: {merge_error_message(int(st[0]), e[0], H, C, a[0], Lh, Lj, n_spins, cfg.chip_scale)}"
+        m = merge_styles(H, C, self.style_ids[style: style + 1], Lh, Lj, Lj, n_spins)
+        message = merge_error_message(int(m.status[0]), m.err[0], H, C, m.a[0], Lh, Lj, n_spins, cfg.chip_scale)
+        return f"{cfg.styles[style]}: {message}"
 
     def finish(self, grid, s, g, walk, counts, mapping, delta, failure, first_map_error):
         """The query's :class:`PathResult`: compute from the charge ``delta``, statistics, the

@@ -36,6 +36,7 @@ Families and their options (defaults in :data:`LAYOUT_OPTIONS`;
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -147,6 +148,17 @@ def _splits(length: int, size: int) -> list[tuple[int, int]]:
     return list(zip(starts, stops))
 
 
+class _Wall(NamedTuple):
+    """The wall between two neighbouring rooms, where a door may go."""
+
+    a: int  # the rooms
+    b: int
+    is_row: bool  # the wall is a grid row (else a column)
+    index: int  # that row or column
+    start: int  # the span the rooms share along it
+    stop: int
+
+
 def _rooms(rng, height, width, room_size, door_width, extra_doors) -> np.ndarray:
     rows, cols = _splits(height, room_size), _splits(width, room_size)
     grid = np.zeros((height, width), dtype=bool)
@@ -155,19 +167,18 @@ def _rooms(rng, height, width, room_size, door_width, extra_doors) -> np.ndarray
     for _, stop in cols[:-1]:
         grid[:, stop] = True
     nr, nc = len(rows), len(cols)
-    # each edge: (room a, room b, wall is a row?, wall index, span start, span stop)
     edges = []
     for i in range(nr):
         for j in range(nc):
             if i + 1 < nr:
-                edges.append((i * nc + j, (i + 1) * nc + j, True, rows[i][1], *cols[j]))
+                edges.append(_Wall(i * nc + j, (i + 1) * nc + j, True, rows[i][1], *cols[j]))
             if j + 1 < nc:
-                edges.append((i * nc + j, i * nc + j + 1, False, cols[j][1], *rows[i]))
+                edges.append(_Wall(i * nc + j, i * nc + j + 1, False, cols[j][1], *rows[i]))
     if not edges:
         return grid
     order = rng.permutation(len(edges))
     extra = rng.random(len(edges)) < extra_doors
-    spans = np.array([e[5] - e[4] for e in edges], dtype=np.int64)
+    spans = np.array([e.stop - e.start for e in edges], dtype=np.int64)
     widths = np.minimum(spans, door_width)
     offsets = rng.integers(0, spans - widths + 1)
     parent = list(range(nr * nc))
@@ -180,17 +191,17 @@ def _rooms(rng, height, width, room_size, door_width, extra_doors) -> np.ndarray
 
     door = extra.copy()
     for e in order.tolist():
-        ra, rb = root(edges[e][0]), root(edges[e][1])
+        ra, rb = root(edges[e].a), root(edges[e].b)
         if ra != rb:
             parent[ra] = rb
             door[e] = True
     for e in np.flatnonzero(door).tolist():
-        _, _, is_row, wall, start, _ = edges[e]
-        lo = start + int(offsets[e])
-        if is_row:
-            grid[wall, lo:lo + int(widths[e])] = False
+        wall = edges[e]
+        lo = wall.start + int(offsets[e])
+        if wall.is_row:
+            grid[wall.index, lo:lo + int(widths[e])] = False
         else:
-            grid[lo:lo + int(widths[e]), wall] = False
+            grid[lo:lo + int(widths[e]), wall.index] = False
     return grid
 
 

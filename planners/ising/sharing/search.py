@@ -165,9 +165,7 @@ class IsingSharing:
         cfg = self.config
         memo, pricing = prices
         w = np.ascontiguousarray(self.split_weights(dist, R))  # one layout for the stage steps
-        options = (cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages, cfg.resolved_base_max,
-                   cfg.refine_above, int(cfg.reject_empty_robot_side))
-        groups, ng = stages.split_all(w, R, options, float(cfg.balance))
+        groups, ng = stages.split_all(w, R, cfg)
         # every state's bundles placed; the state of least route cost (ties: larger cuts)
         ok, sets = place_states(dist, R, groups, ng, ORDER_IDS[cfg.bundle_order], memo, stages.counters, pricing,
                                 stages.pool)

@@ -156,11 +156,13 @@ class SplitStages:
         self.n_prob = n_prob + nf
         return rows
 
-    def split_all(self, w, R, options, balance: float):
+    def split_all(self, w, R, cfg):
         """``SplitSearch.split_all`` (the oracle): ``(groups (S, G), ng (S,))``, the candidate partial
-        solutions as rows of group ids, best summed cut first.  ``options = (beam, refine_beam,
-        max_states, refine_stages, base_max, refine_above, reject_robots)``."""
-        beam, refine_beam, max_states, refine_stages, base_max, above, reject_robots = options
+        solutions as rows of group ids, best summed cut first, under the sharing's configuration ``cfg``
+        (beams, states, stages, sizes, balance)."""
+        beam, refine_beam, max_states, refine_stages = cfg.beam, cfg.refine_beam, cfg.max_states, cfg.refine_stages
+        base_max, above, reject_robots = cfg.resolved_base_max, cfg.refine_above, int(cfg.reject_empty_robot_side)
+        balance = float(cfg.balance)
         n = w.shape[0]
         score = np.zeros(1)
         groups = np.zeros((1, n), dtype=np.int64)

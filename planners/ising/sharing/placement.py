@@ -9,6 +9,7 @@ docs/design/ising_sharing.md, "Bundle placement and its pricing".
 from __future__ import annotations
 
 import weakref
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -21,7 +22,7 @@ from planners.ising.sharing.stage_steps import BUNDLES, TOUR_SOLVES
 from planners.held_karp import MAX_BRUTE_TARGETS, _exact_route_cost
 from planners.tours_classical import three_opt_cost
 
-__all__ = ["new_memo", "place_bundles", "place_states", "neighbour_pairs", "pair_groups", "pair_gains",
+__all__ = ["new_memo", "place_bundles", "place_states", "neighbour_pairs", "pair_groups", "pair_gains", "PairGains",
            "flat_sets", "ORDER_IDS", "PRICERS"]
 
 #: the bundle pricers of running sharing calls with a pricing tour other than ``"auto"``, by handle
@@ -187,11 +188,21 @@ def pair_groups(pool, sets, pk, pl):
     return groups
 
 
+class PairGains(NamedTuple):
+    """:func:`pair_gains`' result: the pairs whose best re-split lowers their route cost, in pair order."""
+
+    gain: np.ndarray
+    k: np.ndarray  # the pair's robots
+    l: np.ndarray
+    new_k: np.ndarray  # their new target set ids
+    new_l: np.ndarray
+
+
 @numba.njit(cache=True)
 def pair_gains(dist, pk, pl, rows, S, sets, store, memo, counters, pricing, pool, R):
     """The best re-split of each pair ``(pk[j], pl[j])`` among the candidates of its store rows
     ``rows[j * S + s]`` (one per shift; a partition several shifts propose counted once), by route
-    cost: ``(gain, k, l, new targets of k, new targets of l)`` of the pairs it improves, in pair order."""
+    cost: the :class:`PairGains` of the pairs it improves."""
     c_cut, c_m0, c_m1, c_n = store.cut, store.side0, store.side1, store.count
     n_pairs = pk.shape[0]
     gain = np.empty(n_pairs)
@@ -233,7 +244,7 @@ def pair_gains(dist, pk, pl, rows, S, sets, store, memo, counters, pricing, pool
             gain[n_gain] = old - best
             gk[n_gain], gl[n_gain] = k, l
             n_gain += 1
-    return gain[:n_gain], gk[:n_gain], gl[:n_gain], new_k[:n_gain], new_l[:n_gain]
+    return PairGains(gain[:n_gain], gk[:n_gain], gl[:n_gain], new_k[:n_gain], new_l[:n_gain])
 
 
 @numba.njit(cache=True)

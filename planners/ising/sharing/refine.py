@@ -61,8 +61,8 @@ def refine_boundaries(stages, dist, pair_w, R, sets, rounds: int, per_robot: int
         stages.n_prob += P
         _split_pairs(stages, pair_w, R, groups, rows)
         counters[PAIR_RESPLITS] += len(pairs)
-        gain, gk, gl, new_k, new_l = pair_gains(dist, pk, pl, rows, S, sets, stages.store.arrays, memo, counters,
-                                                pricing, stages.pool, R)
+        found = pair_gains(dist, pk, pl, rows, S, sets, stages.store.arrays, memo, counters, pricing, stages.pool, R)
+        gain, gk, gl, new_k, new_l = found.gain, found.k, found.l, found.new_k, found.new_l
         if gain.shape[0] == 0:
             break
         moved = np.zeros(R, dtype=bool)

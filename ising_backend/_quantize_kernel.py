@@ -239,7 +239,8 @@ def integer_program(q, n, h, J, limits):
         top_h = max(top_h, abs(hf[i]))
         for j in range(i + 1, n):
             top_j = max(top_j, abs(Jf[i, j]))
-    s = min(limits[0] / top_h, limits[1] / top_j)
+    lim_h, lim_j = limits
+    s = min(lim_h / top_h, lim_j / top_j)
     h[:] = 0
     J[:, :] = 0
     for i in range(n):

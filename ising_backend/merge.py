@@ -120,8 +120,8 @@ class MergedModel:
         if "_ptr" not in self.__dict__:
             self.layout()
         d = self.__dict__
-        out, broken = decode_copies(s, d["_nlog"], d["_ptr"], d["_idx"], method == "first")
-        return out[0].reshape(lead + (self.logical.n,)), broken[0].reshape(lead)
+        decoded, broken = decode_copies(s, d["_nlog"], d["_ptr"], d["_idx"], method == "first")
+        return decoded[0].reshape(lead + (self.logical.n,)), broken[0].reshape(lead)
 
 
 def _limit(rng) -> int:

@@ -28,8 +28,8 @@ def _first(mask: np.ndarray) -> tuple[int, ...]:
     return tuple(int(v) for v in np.argwhere(mask)[0])
 
 
-def _where(prog: tuple, batched: bool) -> str:
-    return f" in program {prog[0]}" if batched else ""
+def _where(at: tuple, batched: bool) -> str:
+    return f" in program {at[0]}" if batched else ""
 
 
 @numba.njit(cache=True, nogil=True)

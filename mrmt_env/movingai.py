@@ -119,13 +119,14 @@ def read_movingai_scen(path) -> list[Scenario]:
         if len(parts) != 9:
             raise WorldError(f"{path} line {n}: expected 9 columns (bucket map w h sx sy gx gy optimal), got {len(parts)}")
         names = ("bucket", "map", "width", "height", "start_x", "start_y", "goal_x", "goal_y", "optimal_length")
-        values = []
+        col = {}
         for k in (0, 2, 3, 4, 5, 6, 7):
             try:
-                values.append(int(parts[k]))
+                col[names[k]] = int(parts[k])
             except ValueError:
                 raise WorldError(f"{path} line {n}: {names[k]} must be an integer, got {_short(parts[k], 40)}") from None
-        bucket, w, h, sx, sy, gx, gy = values
+        bucket, w, h = col["bucket"], col["width"], col["height"]
+        sx, sy, gx, gy = col["start_x"], col["start_y"], col["goal_x"], col["goal_y"]
         try:
             opt = float(parts[8])
         except ValueError:

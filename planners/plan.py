@@ -179,9 +179,9 @@ def validate_plan(world: World, plan: Plan, require_complete: bool = True) -> No
             raise PlanError(
                 f"robot {k}: path starts at {path[0].tolist()}, not at its start cell {world.robots[k].tolist()}"
             )
-        last = path[-1]
+        end_r, end_c = path[-1]
         fast_ok = path.dtype == np.int64 and _path_ok(world.grid, path, int(path[0, 0]), int(path[0, 1]),
-                                                      int(last[0]), int(last[1]))
+                                                      int(end_r), int(end_c))
         for step, cell in enumerate(() if fast_ok else path):
             r, c = int(cell[0]), int(cell[1])
             if not (0 <= r < world.height and 0 <= c < world.width):

@@ -98,7 +98,7 @@ class LifelongDecisionEnv(gym.Env):
                     return x, reward, False, dict(info, robot=int(chooser.idle[chooser.cursor]))
             obs, _, term, trunc, info = self.env.step(self.ctrl.move(rnd))
             if term or trunc:
-                x, reward, _, _, info = self._end(info)
+                x, reward, _terminated, _truncated, info = self._end(info)
                 return x, reward, True, info
 
 

@@ -33,8 +33,10 @@ from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
-from planners.mapf.joint_moves import (CELL, MAX_OPTIONS, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
-                                       objective, program_batch, robot_options, select_groups, solve_exact)
+from planners.mapf.joint_moves import (
+    CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
+    objective, program_batch, robot_options, select_groups, solve_exact,
+)
 from planners.mapf.turning import TurningPIBT
 
 __all__ = ["JointMovesPIBT", "ACCEPT"]
@@ -168,7 +170,8 @@ class JointMovesPIBT(TurningPIBT):
                 e_opt = solve_exact(pc, members, a, b, ostart, opt, exact)
                 self.audit.append({"t": self.t, "robots": int(b - a), "spins": int(sizes[g]), "host": int(e_host),
                                    "chip": int(e_chip), "exact": int(e_opt),
-                                   "not_one_hot": int(stats[0] - before[0]), "conflict": int(stats[1] - before[1])})
+                                   "not_one_hot": int(stats[NOT_ONE_HOT] - before[NOT_ONE_HOT]),
+                                   "conflict": int(stats[CONFLICT] - before[CONFLICT])})
                 audit_s += time.perf_counter() - ta
         self.decisions += ng
         self.repaired += stats

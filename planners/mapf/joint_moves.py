@@ -41,9 +41,12 @@ import numpy as np
 from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
 
 __all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo",
-           "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD"]
+           "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD",
+           "NOT_ONE_HOT", "CONFLICT"]
 
 MAX_OPTIONS = 5  # own cell + four neighbours
+#: :func:`decode_reads`' counts: reads not one-hot, reads with a conflict repaired.
+NOT_ONE_HOT, CONFLICT = 0, 1
 #: Columns of the option table: claimed cell, cost, the group-local member whose cell is claimed by a
 #: forward move (-1: none), the cost when that member does not move forward, 1 for a forward claim.
 CELL, COST, DEP, UNREAL, FWD = 0, 1, 2, 3, 4
@@ -371,7 +374,7 @@ def solve_exact(pos, members, a, b, ostart, opt, choice) -> int:
 @numba.njit(cache=True, nogil=True)
 def decode_reads(pos, members, a, b, ostart, opt, host, spins, choice, stats) -> int:
     """Best read of the group after repair (module docstring) into ``choice``; returns its objective.
-    ``stats[0]`` += reads not one-hot, ``stats[1]`` += reads with a conflict repaired."""
+    ``stats[NOT_ONE_HOT]`` += reads not one-hot, ``stats[CONFLICT]`` += reads with a conflict repaired."""
     size = b - a
     base = ostart[a]
     cur = np.empty(size, dtype=np.int64)
@@ -405,8 +408,8 @@ def decode_reads(pos, members, a, b, ostart, opt, host, spins, choice, stats) ->
                             cur[j] = host[a + j]
                             changed = True
                         fixed = True
-        stats[0] += broken
-        stats[1] += fixed
+        stats[NOT_ONE_HOT] += broken
+        stats[CONFLICT] += fixed
         e = objective(a, b, ostart, opt, cur)
         if e < best:
             best = e

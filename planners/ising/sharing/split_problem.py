@@ -77,19 +77,19 @@ class Sides(NamedTuple):
 
 
 @numba.njit(cache=True)
-def _farthest_pair(dist, pool):
-    """First maximum of ``dist`` over pool pairs ``i < j`` in row-major order."""
+def _farthest_pair(dist, nodes):
+    """First maximum of ``dist`` over nodes pairs ``i < j`` in row-major order."""
     best = -np.inf
-    a = pool[0]
-    b = pool[1]
-    m = pool.shape[0]
+    a = nodes[0]
+    b = nodes[1]
+    m = nodes.shape[0]
     for i in range(m):
         for j in range(i + 1, m):
-            v = dist[pool[i], pool[j]]
+            v = dist[nodes[i], nodes[j]]
             if v > best:
                 best = v
-                a = pool[i]
-                b = pool[j]
+                a = nodes[i]
+                b = nodes[j]
     return a, b
 
 

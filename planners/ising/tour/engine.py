@@ -107,8 +107,8 @@ def solve_order(rng, d, entry, ex, options, solver, machine):
     if machine is not None:  # every branch program quantized by the rule, as the chip takes it
         rules = np.full(1, options.rule, dtype=np.int64)
         for b in range(B):
-            st, qh, qJ = quantize_rules(hb[b], Jb, rules, options.Lh, options.Lj, True, 95.0)
-            if st[0] != 0:
+            codes, qh, qJ = quantize_rules(hb[b], Jb, rules, options.Lh, options.Lj, True, 95.0)
+            if codes[0] != 0:
                 return OrderOut(UNQUANTIZABLE, none, OrderStats(0, 0, 0, 0, 0, 0, 0, 0), calls[:0], emu[:0])
             hb[b] = qh[0]
             Js[b] = qJ[0]

@@ -97,6 +97,20 @@ def _pop(heap, size):
 
 
 @numba.njit(cache=True, nogil=True)
+def _pop_unseen(heap, size, seen, stamp, parent) -> int:
+    """Pop until an entry whose state this search (``stamp``) has not seen: it is marked seen, its parent
+    recorded, and left at the returned index (the heap's new size); -1 when the heap runs out first."""
+    while size > 0:
+        size = _pop(heap, size)
+        s = heap.state[size]
+        if seen[s] != stamp:
+            seen[s] = stamp
+            parent[s] = heap.parent[size]
+            return size
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
 def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, seen, parent, stamp) -> int:
     """Plan every robot's window in ``order``; ``nxt[k]`` = its first move.  ``occ ((W+1)*HW)`` holds
     the robot reserving each (time, cell), -1 free; ``seen`` / ``parent`` are A* scratch over the same
@@ -124,12 +138,10 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
         size = _push(heap, 0, (_FAR if h0 < 0 else h0) * _SOFT, 0, s0, -1)
         best = -1
         while size > 0:
-            size = _pop(heap, size)
-            f, g, s, p = heap.f[size], heap.g[size], heap.state[size], heap.parent[size]
-            if seen[s] == stamp:
-                continue
-            seen[s] = stamp
-            parent[s] = p
+            size = _pop_unseen(heap, size, seen, stamp, parent)
+            if size < 0:
+                break
+            f, s = heap.f[size], heap.state[size]
             soft[s] = f % _SOFT
             t, cell = s // hw, s % hw
             if t == w:  # every plan spans the window: a robot at its goal moves aside if a reservation needs it

@@ -19,7 +19,7 @@ import numpy as np
 from planners.mapf.guidance import orient_cost_rows
 from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
                                    FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
-from planners.mapf.windowed import _pop, _push, new_heap
+from planners.mapf.windowed import _pop_unseen, _push, new_heap
 
 __all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
            "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
@@ -155,12 +155,10 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
         best = -1
         popped = 0
         while size > 0 and popped < expansions:
-            size = _pop(heap, size)
-            f, g, s, p = heap.f[size], heap.g[size], heap.state[size], heap.parent[size]
-            if seen[s] == stamp:
-                continue
-            seen[s] = stamp
-            parent[s] = p
+            size = _pop_unseen(heap, size, seen, stamp, parent)
+            if size < 0:
+                break
+            f, g, s = heap.f[size], heap.g[size], heap.state[size]
             popped += 1
             t = s // ns
             if t == w:

@@ -27,7 +27,7 @@ from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_ins
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
 
-__all__ = ["run_lorr", "best_known", "proposal_goals", "peak_rss_mb", "RUN_KEYS", "Loop"]
+__all__ = ["run_lorr", "best_known", "proposal_goals", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "Loop"]
 
 RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "scheduler_options", "seed", "robots",
             "steps", "tasks_finished", "best_known",
@@ -96,19 +96,32 @@ def _warm(scheduler: str, executor: str, chip, options) -> None:
         _loop(read_instance(example_instance_path()), scheduler, executor, 3, 0, chip, dict(options), None)
 
 
-def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):
-    """The run: per decision, ``(scheduler host, executor host, chip)`` seconds and the CPU seconds beyond the wall;
-    under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first."""
+def split_options(options: dict | None) -> tuple[dict, dict]:
+    """:func:`run_lorr`'s ``options`` as ``(scheduler's, planner's)``: ``guidance`` and ``executor_options`` go to
+    the planner, the rest to :func:`~agents.lorr.schedulers.make_scheduler`."""
+    options = dict(options or {})
+    planner = dict(options.pop("executor_options", None) or {})
+    if "guidance" in options:
+        planner["guidance"] = options.pop("guidance")
+    return options, planner
+
+
+def make_roles(grid, scheduler: str, executor: str, seed: int = 0, chip=None, options: dict | None = None):
+    """The scheduler and the one-step planner of a run on ``grid`` (``options`` as :func:`run_lorr`'s), as the
+    runner and the start kit's adapter (:mod:`agents.lorr.startkit`, one role each) build them."""
     from agents.lorr.schedulers import make_scheduler
     from planners.mapf import make_turning_executor
 
-    options = dict(options)
-    ex_options = dict(options.pop("executor_options", None) or {})
-    if "guidance" in options:
-        ex_options["guidance"] = options.pop("guidance")
+    sched_options, planner_options = split_options(options)
+    return (make_scheduler(scheduler, seed=seed, chip=chip, **sched_options),
+            make_turning_executor(executor, grid, seed=seed, **planner_options))
+
+
+def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):
+    """The run: per decision, ``(scheduler host, executor host, chip)`` seconds and the CPU seconds beyond the wall;
+    under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first."""
     t0 = time.perf_counter()
-    sched = make_scheduler(scheduler, seed=seed, chip=chip, **options)
-    ex = make_turning_executor(executor, inst.grid, seed=seed, **ex_options)
+    sched, ex = make_roles(inst.grid, scheduler, executor, seed, chip, options)
     sim = LoRRSimulator(inst)
     sched.reset(sim)
     prep_s = time.perf_counter() - t0

@@ -1,0 +1,180 @@
+"""The package's scheduler and planner inside the League's own simulator (the 2024 start kit's Python track).
+
+Contract: :class:`KitScheduler` and :class:`KitPlanner` are the start kit's ``pyTaskScheduler`` and
+``pyMAPFPlanner``: built with the kit's ``SharedEnvironment`` (``env``), ``initialize(preprocess_time_limit)``
+once, ``plan(time_limit)`` each step, the time limit in milliseconds from ``env.plan_start_time`` on the kit's
+clock (``env.plan_current_time()``).  They read only the kit's fields and return plain ints: a task id or -1 per
+robot, and an action per robot (0 forward, 1 clockwise, 2 counter-clockwise, 3 wait; the kit's ``Action``).
+Which scheduler and planner run is the entry's choice on what the kit shows (team size, map name, cells), as
+``mrmt lorr run --entry`` chooses: ``MRMT_LORR_ENTRY`` (an entry name or file, default ``default``) and
+``MRMT_LORR_SEED`` (default 0).  The modules the kit imports are in :data:`TRACK_DIR`.  Steps to build the kit
+and run it: docs/lorr.md ("Inside the start kit").
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["KitScheduler", "KitPlanner", "KitInstance", "KitTasks", "KitState", "TRACK_DIR"]
+
+#: The folder holding ``pyMAPFPlanner.py`` and ``pyTaskScheduler.py`` for the kit's ``config.json``
+#: (``{"python_path": "<this folder>"}``).
+TRACK_DIR = Path(__file__).resolve().parent / "startkit_track"
+
+
+class KitInstance:
+    """What an entry and the schedulers read of an instance, from the kit's ``env`` (the map, the team, each
+    task's errands as the kit's task pool shows them)."""
+
+    strategy = None  # 2024 rules: a scheduler assigns
+
+    def __init__(self, env) -> None:
+        self.height, self.width = int(env.rows), int(env.cols)
+        self.grid = np.asarray(list(env.map), dtype=np.int64).reshape(self.height, self.width) == 1
+        self.team_size = int(env.num_of_agents)
+        self.map_name = Path(str(env.map_name)).name
+        self.name = Path(self.map_name).stem
+        self.errands: dict[int, np.ndarray] = {}  # task id -> its errand cells (a task's errands never change)
+        self.target = max(len(env.task_pool), 1)  # the open tasks the kit keeps (numTasksReveal x teamSize)
+
+    def task_errands(self, task: int) -> np.ndarray:
+        return self.errands[task]
+
+    def open_target(self) -> int:
+        return self.target
+
+
+class KitTasks:
+    """The kit's task pool as the package's schedulers read a :class:`~mrmt_env.lorr.tasks.TaskPool`: open
+    tasks in reveal order (ids rise as the kit reveals), each one's errands done and holder, every robot's
+    task and next errand, the tasks and free robots new this step.  A task's ``line`` is its id."""
+
+    def __init__(self, env, inst: KitInstance) -> None:
+        pool = env.task_pool
+        ids = sorted(int(k) for k in pool.keys())
+        errands = {}
+        self.next_idx: dict[int, int] = {}
+        self.holder: dict[int, int] = {}
+        for k in ids:
+            task = pool[k]
+            errands[k] = inst.errands[k] if k in inst.errands else np.asarray(list(task.locations), dtype=np.int64)
+            self.next_idx[k] = int(task.idx_next_loc)
+            self.holder[k] = int(task.agent_assigned)
+        inst.errands = errands  # finished tasks leave the pool, and the cache
+        self.inst = inst
+        self.line = {k: k for k in ids}
+        self.open = dict.fromkeys(ids)
+        self.assigned = np.asarray(list(env.curr_task_schedule), dtype=np.int64)
+        self.goal = np.array([int(self.remaining(k)[0]) if k in self.open else -1 for k in self.assigned.tolist()],
+                             dtype=np.int64)
+        self.new_tasks = [int(k) for k in env.new_tasks]
+        self.new_free = [int(a) for a in env.new_freeagents]
+
+    def errands_of(self, task: int) -> np.ndarray:
+        return self.inst.errands[task]
+
+    def remaining(self, task: int) -> np.ndarray:
+        return self.inst.errands[task][self.next_idx[task]:]
+
+    def is_opened(self, task: int) -> bool:
+        return self.next_idx[task] > 0
+
+    def open_tasks(self) -> np.ndarray:
+        return np.fromiter(self.open, dtype=np.int64, count=len(self.open))
+
+
+class KitState:
+    """The read-only view of the run the roles get, one object for the whole run (a scheduler may keep state
+    between steps of the same run): the instance, and as of :meth:`refresh` the tasks, each robot's cell and
+    orientation, the step."""
+
+    def __init__(self, env, inst: KitInstance, tasks: bool = True) -> None:
+        self.env = env
+        self.inst = inst
+        self.width = inst.width
+        self.n_robots = inst.team_size
+        self.with_tasks = tasks
+        self.refresh()
+
+    def refresh(self) -> "KitState":
+        """This step's fields from the kit's ``env``."""
+        env = self.env
+        states = env.curr_states
+        self.pos = np.fromiter((s.location for s in states), dtype=np.int64, count=len(states))
+        self.orient = np.fromiter((s.orientation for s in states), dtype=np.int64, count=len(states))
+        self.t = int(env.curr_timestep)
+        self.tasks = KitTasks(env, self.inst) if self.with_tasks else None
+        return self
+
+
+def deadline_of(env, time_limit: int) -> float:
+    """The ``time.perf_counter()`` second by which the kit wants this step's answer: ``time_limit`` ms after
+    ``env.plan_start_time`` on the kit's clock."""
+    left = env.plan_start_time + datetime.timedelta(milliseconds=int(time_limit)) - env.plan_current_time()
+    return time.perf_counter() + left.total_seconds()
+
+
+class _Role:
+    """What both roles share: the kit's ``env``, the entry's choice on it, the seed."""
+
+    def __init__(self, env=None, entry: str | None = None, seed: int | None = None) -> None:
+        self.env = env
+        self.entry = entry if entry is not None else os.environ.get("MRMT_LORR_ENTRY", "default")
+        self.seed = int(seed if seed is not None else os.environ.get("MRMT_LORR_SEED", "0"))
+        self.inst = None
+        self.choice = None
+
+    def _choose(self) -> tuple[dict, dict]:
+        """The entry's choice on the kit's instance; returns its ``(scheduler's, planner's)`` options."""
+        from agents.lorr.entry import load_entry
+        from agents.lorr.run import split_options
+
+        self.inst = KitInstance(self.env)
+        self.choice = load_entry(self.entry).choose(self.inst)
+        return split_options(self.choice.options)
+
+
+class KitScheduler(_Role):
+    """The start kit's ``pyTaskScheduler`` (module docstring)."""
+
+    def initialize(self, preprocess_time_limit: int) -> bool:
+        from agents.lorr.schedulers import make_scheduler
+
+        options, _planner = self._choose()
+        self.scheduler = make_scheduler(self.choice.scheduler, seed=self.seed, **options)
+        self.state = KitState(self.env, self.inst)
+        self.scheduler.reset(self.state)
+        return True
+
+    def plan(self, time_limit: int) -> list[int]:
+        deadline = deadline_of(self.env, time_limit)
+        proposal = self.scheduler.schedule(self.state.refresh(), deadline=deadline)
+        return [int(k) for k in np.asarray(proposal).tolist()]
+
+
+class KitPlanner(_Role):
+    """The start kit's ``pyMAPFPlanner`` (module docstring): each robot heads for the first of its
+    ``env.goal_locations`` (the next errand of its proposed task), or stays without one."""
+
+    def initialize(self, preprocess_time_limit: int) -> bool:
+        from planners.mapf import make_turning_executor
+
+        _scheduler, options = self._choose()
+        self.planner = make_turning_executor(self.choice.planner, self.inst.grid, seed=self.seed, **options)
+        self.state = KitState(self.env, self.inst, tasks=False)
+        return True
+
+    def plan(self, time_limit: int) -> list[int]:
+        deadline = deadline_of(self.env, time_limit)
+        state = self.state.refresh()
+        goals = state.pos.copy()
+        for a, goal in enumerate(self.env.goal_locations):
+            if len(goal):
+                goals[a] = int(goal[0][0])
+        actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline)
+        return [int(a) for a in np.asarray(actions).tolist()]

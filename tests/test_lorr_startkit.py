@@ -108,3 +108,11 @@ def test_an_unknown_entry_is_named_at_initialize(monkeypatch):
     env.sync(LoRRSimulator(inst))
     with pytest.raises(EntryError, match="no-such-entry"):
         KitPlanner(env).initialize(30_000)
+
+
+def test_the_startkit_command_prints_the_kits_python_path(capsys):
+    from agents.cli import main
+
+    assert main(["lorr", "startkit"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert json.loads(first.split(": ", 1)[1]) == {"python_path": str(TRACK_DIR)}

@@ -29,7 +29,7 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 def add_arguments(parser) -> None:
     from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
-    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check}")
+    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check,startkit}")
     run = sub.add_parser("run", help="run instances with a scheduler and an executor (or an entry)")
     run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
     run.add_argument("--entry", default=None, metavar="NAME|FILE",
@@ -98,6 +98,7 @@ def add_arguments(parser) -> None:
     check.add_argument("instance", metavar="INSTANCE.json")
     check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
     check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
+    sub.add_parser("startkit", help="print how the 2024 start kit runs the package's entry (its python_path)")
 
 
 def _add_clock_arguments(parser, default: str) -> None:
@@ -420,10 +421,20 @@ def _check(args) -> int:
     return 0
 
 
+def _startkit(args) -> int:
+    from agents.lorr.startkit import TRACK_DIR
+
+    print(f"config.json: {json.dumps({'python_path': str(TRACK_DIR)})}")
+    print(f"from the kit's folder (its python/ samples have the same module names; this puts the package's first): "
+          f"PYTHONPATH={TRACK_DIR}:$PYTHONPATH ./build/lifelong -i INSTANCE.json -o output.json")
+    print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; compile first: mrmt warmup")
+    return 0
+
+
 def _fail(message: str) -> int:
     print(f"mrmt lorr: error: {message}", file=sys.stderr)
     return 2
 
 
 def run(args) -> int:
-    return {"run": _run, "round": _round, "check": _check}[args.lorr_command](args)
+    return {"run": _run, "round": _round, "check": _check, "startkit": _startkit}[args.lorr_command](args)

@@ -43,7 +43,10 @@ class SharedEnvironment:
         self.map_name = inst.map_name
         self.num_of_agents = inst.team_size
         self.file_storage_path = ""
-        self.goal_locations = [[] for _ in range(inst.team_size)]
+        self.curr_timestep = 0
+        # what the kit has not set yet when it calls initialize (it reveals the first tasks after it)
+        self.curr_states, self.task_pool, self.curr_task_schedule = [], {}, []
+        self.new_tasks, self.new_freeagents, self.goal_locations = [], [], []
         self.plan_start_time = self.plan_current_time()
 
     @staticmethod
@@ -52,6 +55,7 @@ class SharedEnvironment:
 
     def sync(self, sim: LoRRSimulator) -> None:
         tasks = sim.tasks
+        self.goal_locations = self.goal_locations or [[] for _ in range(sim.n_robots)]
         self.curr_timestep = sim.t
         self.curr_states = [State(int(p), sim.t, int(o)) for p, o in zip(sim.pos.tolist(), sim.orient.tolist())]
         self.task_pool = {k: Task(k, [int(c) for c in tasks.errands_of(k).tolist()], tasks.next_idx[k],
@@ -75,9 +79,8 @@ def run_standin(inst, steps: int, scheduler_cls, planner_cls, time_limit_ms: int
     step the scheduler's and the planner's ``plan`` (every answer checked to be a list of plain ints)."""
     sim = LoRRSimulator(inst)
     env = SharedEnvironment(inst)
-    env.sync(sim)
     scheduler, planner = scheduler_cls(env, **role), planner_cls(env, **role)
-    assert scheduler.initialize(30_000) and planner.initialize(30_000)
+    assert scheduler.initialize(30_000) and planner.initialize(30_000)  # before the kit shows any task
     while sim.t < steps:
         env.sync(sim)
         env.plan_start_time = env.plan_current_time()

@@ -100,12 +100,8 @@ def test_the_track_folder_holds_the_modules_the_kit_imports(monkeypatch):
 
 
 def test_an_unknown_entry_is_named_at_initialize(monkeypatch):
-    from mrmt_env.lorr.sim import LoRRSimulator
-
     monkeypatch.setenv("MRMT_LORR_ENTRY", "no-such-entry")
-    inst = read_instance(example_instance_path())
-    env = SharedEnvironment(inst)
-    env.sync(LoRRSimulator(inst))
+    env = SharedEnvironment(read_instance(example_instance_path()))
     with pytest.raises(EntryError, match="no-such-entry"):
         KitPlanner(env).initialize(30_000)
 

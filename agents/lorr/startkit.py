@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["KitScheduler", "KitPlanner", "KitInstance", "KitTasks", "KitState", "TRACK_DIR"]
+__all__ = ["KitScheduler", "KitPlanner", "KitInstance", "KitTasks", "KitState", "view_of", "TRACK_DIR"]
 
 #: The folder holding ``pyMAPFPlanner.py`` and ``pyTaskScheduler.py`` for the kit's ``config.json``
 #: (``{"python_path": "<this folder>"}``).
@@ -29,7 +29,8 @@ TRACK_DIR = Path(__file__).resolve().parent / "startkit_track"
 
 class KitInstance:
     """What an entry and the schedulers read of an instance, from the kit's ``env`` (the map, the team, each
-    task's errands as the kit's task pool shows them)."""
+    task's errands as the kit's task pool shows them).  At ``initialize`` the kit has set only the map, its
+    name and the team: the tasks come with the first step."""
 
     strategy = None  # 2024 rules: a scheduler assigns
 
@@ -40,40 +41,68 @@ class KitInstance:
         self.map_name = Path(str(env.map_name)).name
         self.name = Path(self.map_name).stem
         self.errands: dict[int, np.ndarray] = {}  # task id -> its errand cells (a task's errands never change)
-        self.target = max(len(env.task_pool), 1)  # the open tasks the kit keeps (numTasksReveal x teamSize)
+        self.env = env
+        self.target = None
 
     def task_errands(self, task: int) -> np.ndarray:
         return self.errands[task]
 
     def open_target(self) -> int:
+        """The open tasks the kit keeps (``numTasksReveal x teamSize``): its pool's size from the first step."""
+        if self.target is None:
+            self.target = max(len(self.env.task_pool), 1)
         return self.target
 
 
 class KitTasks:
     """The kit's task pool as the package's schedulers read a :class:`~mrmt_env.lorr.tasks.TaskPool`: open
     tasks in reveal order (ids rise as the kit reveals), each one's errands done and holder, every robot's
-    task and next errand, the tasks and free robots new this step.  A task's ``line`` is its id."""
+    task and next errand, the tasks and free robots new this step.  A task's ``line`` is its id.
+
+    Read incrementally (at 10,000 robots a full read of the pool costs a tenth of the step): a task's errands
+    once, when it appears; its errands done again only where its holder stands on its next errand (the kit
+    advances a task only there); the holders from the schedule."""
 
     def __init__(self, env, inst: KitInstance) -> None:
-        pool = env.task_pool
-        ids = sorted(int(k) for k in pool.keys())
-        errands = {}
-        self.next_idx: dict[int, int] = {}
-        self.holder: dict[int, int] = {}
-        for k in ids:
-            task = pool[k]
-            errands[k] = inst.errands[k] if k in inst.errands else np.asarray(list(task.locations), dtype=np.int64)
-            self.next_idx[k] = int(task.idx_next_loc)
-            self.holder[k] = int(task.agent_assigned)
-        inst.errands = errands  # finished tasks leave the pool, and the cache
+        self.env = env
         self.inst = inst
-        self.line = {k: k for k in ids}
-        self.open = dict.fromkeys(ids)
-        self.assigned = np.asarray(list(env.curr_task_schedule), dtype=np.int64)
-        self.goal = np.array([int(self.remaining(k)[0]) if k in self.open else -1 for k in self.assigned.tolist()],
-                             dtype=np.int64)
+        self.open: dict[int, None] = {}  # in reveal order: a new task's id is above every id before it
+        self.line: dict[int, int] = {}
+        self.next_idx: dict[int, int] = {}
+        self._cell: dict[int, int] = {}  # task id -> its next errand (a Python int: the loop below reads many)
+
+    def refresh(self, pos: np.ndarray) -> "KitTasks":
+        """This step's pool and schedule from the kit, the robots standing at ``pos``."""
+        env, inst = self.env, self.inst
+        pool = env.task_pool
+        now = set(pool.keys())
+        for k in [k for k in self.open if k not in now]:  # finished: out of every cache
+            del self.open[k], self.line[k], self.next_idx[k], self._cell[k], inst.errands[k]
+        for k in sorted(now.difference(self.open)):  # new
+            task = pool[k]
+            locations = list(task.locations)
+            inst.errands[k] = np.asarray(locations, dtype=np.int64)
+            self.next_idx[k] = i = int(task.idx_next_loc)
+            self._cell[k] = int(locations[i])
+            self.open[k] = None
+            self.line[k] = k
+        cell, next_idx = self._cell, self.next_idx
+        schedule = list(env.curr_task_schedule)
+        goal = [-1] * len(schedule)
+        self.holder = dict.fromkeys(self.open, -1)
+        for a, (k, p) in enumerate(zip(schedule, pos.tolist())):
+            if k < 0:
+                continue
+            if p == cell[k]:  # it arrived: the kit may have moved the task on
+                i = next_idx[k] = int(pool[k].idx_next_loc)
+                cell[k] = int(inst.errands[k][i])
+            goal[a] = cell[k]
+            self.holder[k] = a
+        self.assigned = np.array(schedule, dtype=np.int64)
+        self.goal = np.array(goal, dtype=np.int64)
         self.new_tasks = [int(k) for k in env.new_tasks]
         self.new_free = [int(a) for a in env.new_freeagents]
+        return self
 
     def errands_of(self, task: int) -> np.ndarray:
         return self.inst.errands[task]
@@ -91,25 +120,44 @@ class KitTasks:
 class KitState:
     """The read-only view of the run the roles get, one object for the whole run (a scheduler may keep state
     between steps of the same run): the instance, and as of :meth:`refresh` the tasks, each robot's cell and
-    orientation, the step."""
+    orientation, the step.  The two roles of one kit share it (:func:`view_of`): the robots are read once a
+    step (a pybind attribute a robot: 10,000 robots take tens of milliseconds)."""
 
-    def __init__(self, env, inst: KitInstance, tasks: bool = True) -> None:
+    def __init__(self, env, inst: KitInstance) -> None:
         self.env = env
         self.inst = inst
         self.width = inst.width
         self.n_robots = inst.team_size
-        self.with_tasks = tasks
-        self.refresh()
+        self._tasks = KitTasks(env, inst)
+        self.t = None
+        self.tasks = None
 
-    def refresh(self) -> "KitState":
-        """This step's fields from the kit's ``env``."""
+    def refresh(self, tasks: bool = True, again: bool = False) -> "KitState":
+        """This step's fields from the kit's ``env``: read when the step is new or ``again`` (the scheduler,
+        first in the kit's step, reads them; the planner after it in the same step reuses them); the tasks
+        when asked."""
         env = self.env
-        states = env.curr_states
-        self.pos = np.fromiter((s.location for s in states), dtype=np.int64, count=len(states))
-        self.orient = np.fromiter((s.orientation for s in states), dtype=np.int64, count=len(states))
-        self.t = int(env.curr_timestep)
-        self.tasks = KitTasks(env, self.inst) if self.with_tasks else None
+        t = int(env.curr_timestep)
+        if again or t != self.t:
+            states = env.curr_states
+            self.pos = np.fromiter((s.location for s in states), dtype=np.int64, count=len(states))
+            self.orient = np.fromiter((s.orientation for s in states), dtype=np.int64, count=len(states))
+            self.t = t
+            self.tasks = None
+        if tasks and self.tasks is None:
+            self.tasks = self._tasks.refresh(self.pos)
         return self
+
+
+_VIEW: list = [None]  # the view of the kit this process runs (one kit, two roles)
+
+
+def view_of(env) -> KitState:
+    """The one view of the kit's ``env`` its roles share (a new ``env``: a new view)."""
+    view = _VIEW[0]
+    if view is None or view.env is not env:
+        view = _VIEW[0] = KitState(env, KitInstance(env))
+    return view
 
 
 def deadline_of(env, time_limit: int) -> float:
@@ -134,7 +182,8 @@ class _Role:
         from agents.lorr.entry import load_entry
         from agents.lorr.run import split_options
 
-        self.inst = KitInstance(self.env)
+        self.state = view_of(self.env)
+        self.inst = self.state.inst
         self.choice = load_entry(self.entry).choose(self.inst)
         return split_options(self.choice.options)
 
@@ -147,13 +196,16 @@ class KitScheduler(_Role):
 
         options, _planner = self._choose()
         self.scheduler = make_scheduler(self.choice.scheduler, seed=self.seed, **options)
-        self.state = KitState(self.env, self.inst)
-        self.scheduler.reset(self.state)
+        self.started = False
         return True
 
     def plan(self, time_limit: int) -> list[int]:
         deadline = deadline_of(self.env, time_limit)
-        proposal = self.scheduler.schedule(self.state.refresh(), deadline=deadline)
+        state = self.state.refresh(again=True)
+        if not self.started:  # the robots and tasks come with the first step
+            self.scheduler.reset(state)
+            self.started = True
+        proposal = self.scheduler.schedule(state, deadline=deadline)
         return [int(k) for k in np.asarray(proposal).tolist()]
 
 
@@ -166,12 +218,11 @@ class KitPlanner(_Role):
 
         _scheduler, options = self._choose()
         self.planner = make_turning_executor(self.choice.planner, self.inst.grid, seed=self.seed, **options)
-        self.state = KitState(self.env, self.inst, tasks=False)
         return True
 
     def plan(self, time_limit: int) -> list[int]:
         deadline = deadline_of(self.env, time_limit)
-        state = self.state.refresh()
+        state = self.state.refresh(tasks=False)
         goals = state.pos.copy()
         for a, goal in enumerate(self.env.goal_locations):
             if len(goal):

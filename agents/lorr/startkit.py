@@ -104,6 +104,12 @@ class KitTasks:
         self.new_free = [int(a) for a in env.new_freeagents]
         return self
 
+    def goals(self, schedule, pos: np.ndarray) -> np.ndarray:
+        """Each robot's goal under ``schedule`` (the kit's ``goal_locations``, read from the view: the next errand of
+        its task, or its own cell without one)."""
+        cell = self._cell
+        return np.array([cell.get(k, p) for k, p in zip(schedule, pos.tolist())], dtype=np.int64)
+
     def errands_of(self, task: int) -> np.ndarray:
         return self.inst.errands[task]
 
@@ -210,8 +216,9 @@ class KitScheduler(_Role):
 
 
 class KitPlanner(_Role):
-    """The start kit's ``pyMAPFPlanner`` (module docstring): each robot heads for the first of its
-    ``env.goal_locations`` (the next errand of its proposed task), or stays without one."""
+    """The start kit's ``pyMAPFPlanner`` (module docstring): each robot heads for its ``env.goal_locations``, the
+    next errand of its task in the schedule the kit has set from the proposal (read from the shared view: the
+    kit's goal list is a Python list a robot a step), or stays without one."""
 
     def initialize(self, preprocess_time_limit: int) -> bool:
         from planners.mapf import make_turning_executor
@@ -222,10 +229,7 @@ class KitPlanner(_Role):
 
     def plan(self, time_limit: int) -> list[int]:
         deadline = deadline_of(self.env, time_limit)
-        state = self.state.refresh(tasks=False)
-        goals = state.pos.copy()
-        for a, goal in enumerate(self.env.goal_locations):
-            if len(goal):
-                goals[a] = int(goal[0][0])
+        state = self.state.refresh()
+        goals = state.tasks.goals(list(self.env.curr_task_schedule), state.pos)
         actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline)
         return [int(a) for a in np.asarray(actions).tolist()]

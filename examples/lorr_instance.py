@@ -12,7 +12,7 @@ import argparse
 import gymnasium as gym
 
 import mrmt_env  # noqa: F401  (registers the ids)
-from agents.lorr.output import write_output
+from mrmt_env.lorr.output import write_output
 from planners.mapf import make_turning_executor
 
 

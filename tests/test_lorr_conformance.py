@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from lorr_reference import check_events, replay_cells
 
-from agents.lorr.output import check_output, output_dict
+from mrmt_env.lorr.output import check_output, output_dict
 from agents.lorr.run import run_lorr
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.sim import LoRRSimulator

@@ -13,7 +13,7 @@ import pytest
 from lorr_reference import check_events
 
 from agents.lorr.entry import EntryError, load_entry
-from agents.lorr.output import check_output, output_dict
+from mrmt_env.lorr.output import check_output, output_dict
 from agents.lorr.round import best_known_table, round_instances
 from agents.lorr.run import run_lorr
 from mrmt_env.lorr.clock import StepLimit, step_limit

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.lorr.output import check_output, output_dict, read_output
+from mrmt_env.lorr.output import check_output, output_dict, read_output
 from agents.lorr.run import RUN_KEYS, run_lorr
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 

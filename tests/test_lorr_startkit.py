@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from agents.lorr.entry import EntryError, load_entry
-from agents.lorr.output import output_dict
+from mrmt_env.lorr.output import output_dict
 from agents.lorr.run import run_lorr
 from agents.lorr.startkit import TRACK_DIR, KitInstance, KitPlanner, KitScheduler, deadline_of
 from mrmt_env.lorr.instance import example_instance_path, read_instance

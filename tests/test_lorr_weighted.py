@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from lorr_reference import bfs as _bfs
 
-from agents.lorr.output import check_output, output_dict
+from mrmt_env.lorr.output import check_output, output_dict
 from agents.lorr.run import run_lorr
 from agents.lorr.schedulers import make_scheduler
 from agents.lorr.weighted import WeightedScheduler, weighted_matching

@@ -198,7 +198,7 @@ def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, ch
               out_name: str | None, limit=None, progress: bool = False) -> dict:
     """One run (module level, for the task runner; ``progress``: a bar over its steps, for a run in this process);
     writes its output file when ``out`` is given."""
-    from agents.lorr.output import write_output
+    from mrmt_env.lorr.output import write_output
     from agents.lorr.run import run_lorr
 
     record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options,
@@ -400,7 +400,7 @@ def _round(args) -> int:
 
 
 def _check(args) -> int:
-    from agents.lorr.output import OutputError, check_output, read_output
+    from mrmt_env.lorr.output import OutputError, check_output, read_output
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
 
     try:

@@ -106,7 +106,7 @@ def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str
     """One instance of a round (module level, for the process pool and Ray): the entry's choice run, its files
     written, its row returned."""
     from agents.lorr.entry import load_entry
-    from agents.lorr.output import write_output
+    from mrmt_env.lorr.output import write_output
     from agents.lorr.run import run_lorr
     from mrmt_env.lorr.instance import read_instance
 

@@ -25,6 +25,7 @@ import numpy as np
 from mrmt_env.lorr.env import DEFAULT_STEPS
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
 from mrmt_env.lorr.sim import LoRRSimulator
+from mrmt_env.lorr.tasks import goals_under
 from planners.compute import CPU_WATTS_PER_CORE
 
 __all__ = ["run_lorr", "best_known", "proposal_goals", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "Loop"]
@@ -74,16 +75,10 @@ def best_known(instance: LoRRInstance) -> int | None:
 
 
 def proposal_goals(sim: LoRRSimulator, proposal) -> np.ndarray:
-    """The cell each robot heads for under ``proposal``: its task's next errand, else its own cell."""
-    tasks = sim.tasks
-    goals = np.where(tasks.goal >= 0, tasks.goal, sim.pos)
-    if proposal is None:
-        return goals
-    proposal = np.asarray(proposal)
-    for a in np.flatnonzero(proposal != tasks.assigned).tolist():
-        k = int(proposal[a])
-        goals[a] = int(tasks.remaining(k)[0]) if k in tasks.open else sim.pos[a]
-    return goals
+    """The cell each robot heads for under ``proposal``: its task's next errand
+    (:func:`~mrmt_env.lorr.tasks.goals_under`), else its own cell."""
+    goals = goals_under(sim.tasks, proposal)
+    return np.where(goals >= 0, goals, sim.pos)
 
 
 def _warm(scheduler: str, executor: str, chip, options) -> None:

@@ -26,6 +26,7 @@ from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
 from mrmt_env.lorr.rules import ORIENT_LETTERS, n_actions
 from mrmt_env.lorr.sim import LoRRSimulator
+from mrmt_env.lorr.tasks import goals_under
 
 __all__ = ["LoRREnv", "LoRRSetup", "DEFAULT_STEPS"]
 
@@ -100,17 +101,9 @@ class LoRRSetup:
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
         """``(task, goal)`` per robot under the pending schedule: the task it is to serve and that
         task's next errand (-1 without one)."""
-        sim = self.sim
-        tasks = sim.tasks
-        if self.pending is None:
-            return tasks.assigned.copy(), tasks.goal.copy()
-        task = self.pending.copy()
-        goal = tasks.goal.copy()
-        for a in np.flatnonzero(task != tasks.assigned).tolist():
-            k = int(task[a])
-            ok = k in tasks.open
-            goal[a] = int(tasks.remaining(k)[0]) if ok else -1
-        return task, goal
+        tasks = self.sim.tasks
+        task = tasks.assigned.copy() if self.pending is None else self.pending.copy()
+        return task, goals_under(tasks, self.pending)
 
     def step(self, actions) -> int:
         done = self.sim.step(actions, self.pending)

@@ -7,7 +7,7 @@ finished``.  Per step (start kit ``BaseSystem::simulate``): the joint action is 
 schedule (2024), mark errands reached and reveal tasks.  :meth:`LoRRSimulator.time_out` is a step the
 entry's decision was late for (start kit ``BaseSystem::simulate``): every robot's action is ``NA``
 (written ``T``), nobody moves, no task is updated, and it counts in :attr:`timeouts`.  The record (proposed and executed actions,
-events, schedules) is what :mod:`agents.lorr.output` writes; ``makespan`` is, as in the start
+events, schedules) is what :mod:`mrmt_env.lorr.output` writes; ``makespan`` is, as in the start
 kit, the most steps any robot spent holding a task.
 """
 

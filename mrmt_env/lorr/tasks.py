@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["TaskPool", "RoundRobin", "make_tasks"]
+__all__ = ["TaskPool", "RoundRobin", "make_tasks", "goals_under"]
 
 
 def _note(table: list, last: np.ndarray, values: np.ndarray, t: int) -> None:
@@ -208,3 +208,17 @@ class RoundRobin:
 def make_tasks(instance):
     """The task rules of ``instance``: :class:`RoundRobin` for 2023 ``roundrobin``, else :class:`TaskPool`."""
     return RoundRobin(instance) if instance.strategy == "roundrobin" else TaskPool(instance)
+
+
+def goals_under(tasks, proposal=None) -> np.ndarray:
+    """Each robot's next errand under ``proposal`` (a task id or -1 per robot; ``None``: the schedule as it is),
+    -1 without one: the proposed task's next errand where the proposal changes a robot's task (-1 for an id
+    not open), else its task's."""
+    goal = tasks.goal.copy()
+    if proposal is None:
+        return goal
+    proposal = np.asarray(proposal)
+    for a in np.flatnonzero(proposal != tasks.assigned).tolist():
+        k = int(proposal[a])
+        goal[a] = int(tasks.remaining(k)[0]) if k in tasks.open else -1
+    return goal

@@ -50,10 +50,10 @@ def _prefix(data: dict, steps: int) -> dict:
 def test_the_last_errand_counts_only_after_the_others_in_order(tmp_path):
     inst = read_instance(_corridor(tmp_path))
     full = check_output(inst, FIXED)
-    assert (full.numTaskFinished, full.errands, full.errors, full.events_agree) == (1, 2, 0, True)
+    assert (full.tasks_finished, full.errands, full.errors, full.events_agree) == (1, 2, 0, True)
     # seven steps: the robot has passed its last errand and reached its first; nothing is finished
     seven = check_output(inst, _prefix(FIXED, 7))
-    assert (seven.numTaskFinished, seven.errands, seven.events_agree) == (0, 1, True)
+    assert (seven.tasks_finished, seven.errands, seven.events_agree) == (0, 1, True)
     assert check_events(FIXED, inst.width) == 1
     # the simulator itself: the same walk gives the same events, at the same steps
     sim = LoRRSimulator(inst)

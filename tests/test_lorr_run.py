@@ -34,7 +34,7 @@ def test_a_run_finishes_tasks_without_errors_and_its_file_rechecks_to_its_count(
     assert len(step_s) == 120 and (step_s > 0).all()
     data = json.loads(json.dumps(output_dict(sim, step_s)))
     result = check_output(read_instance(EXAMPLE), data)
-    assert result.numTaskFinished == record["tasks_finished"] == data["numTaskFinished"]
+    assert result.tasks_finished == record["tasks_finished"] == data["numTaskFinished"]
     assert result.errors == 0 and result.steps == 120
     # events: one per errand reached, independently counted from the tasks' errand lists
     per_task = {}
@@ -71,7 +71,7 @@ def test_check_counts_a_tampered_file_not_its_claim():
     paths[0] = ["W"] * len(paths[0])
     data["plannerPaths"] = [",".join(p) for p in paths]
     result = check_output(read_instance(EXAMPLE), data)
-    assert result.claimed == claimed + 100 and result.numTaskFinished != claimed + 100
+    assert result.claimed == claimed + 100 and result.tasks_finished != claimed + 100
 
 
 @needs_shared

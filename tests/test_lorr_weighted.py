@@ -94,7 +94,7 @@ def test_a_run_rechecks_to_its_count():
     assert record["errors"] == 0 and record["schedule_errors"] == 0
     data = json.loads(json.dumps(output_dict(sim, step_s)))
     result = check_output(read_instance(example_instance_path()), data)
-    assert result.numTaskFinished == record["tasks_finished"] == sim.finished > 5
+    assert result.tasks_finished == record["tasks_finished"] == sim.finished > 5
 
 
 def test_tables_stay_within_the_memory_asked():

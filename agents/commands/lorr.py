@@ -411,13 +411,13 @@ def _check(args) -> int:
     if args.json:
         print(json.dumps(result.to_json()))
         return 0
-    tasks = "unknown (the file holds no schedule)" if result.numTaskFinished is None else result.numTaskFinished
+    tasks = "unknown (the file holds no schedule)" if result.tasks_finished is None else result.tasks_finished
     print(f"{inst.name}: {result.steps} steps, tasks finished {tasks}, errors {result.errors}, "
-          f"schedule errors {result.scheduleErrors}, timeouts {result.timeouts}")
+          f"schedule errors {result.schedule_errors}, timeouts {result.timeouts}")
     if result.events_agree is False:
         print("the file's events are not the re-simulated ones (a step, robot, task or errand differs)")
-    if result.claimed is not None and result.numTaskFinished is not None and result.claimed != result.numTaskFinished:
-        print(f"the file claims {result.claimed} tasks finished; re-simulated: {result.numTaskFinished}")
+    if result.claimed is not None and result.tasks_finished is not None and result.claimed != result.tasks_finished:
+        print(f"the file claims {result.claimed} tasks finished; re-simulated: {result.tasks_finished}")
     return 0
 
 

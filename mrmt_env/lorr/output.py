@@ -12,7 +12,7 @@ errands done]``, one per errand reached) and ``tasks`` (``[id, revealed, [row, c
 (``plannerPaths``, else ``actualPaths``) through the rules, the accepted schedule
 (``actualSchedule``) through the task rules, a step of ``T`` only as a timeout; 2023 instances assign by
 their rule.  A 2024 file
-without a schedule cannot tell its tasks (``numTaskFinished`` is then ``None``).
+without a schedule cannot tell its tasks (``tasks_finished`` is then ``None``).
 """
 
 from __future__ import annotations
@@ -86,18 +86,18 @@ class CheckResult:
     invalid joint actions, rejected schedules, steps, the file's own claim, and whether the file's ``events``
     are the re-simulated ones (``None`` when it has none or no schedule)."""
 
-    numTaskFinished: int | None
+    tasks_finished: int | None
     errands: int | None
     errors: int
-    scheduleErrors: int
+    schedule_errors: int
     steps: int
     claimed: int | None
     events_agree: bool | None = None
     timeouts: int = 0
 
     def to_json(self) -> dict:
-        return {"numTaskFinished": self.numTaskFinished, "errors": self.errors, "steps": self.steps,
-                "errands": self.errands, "scheduleErrors": self.scheduleErrors, "claimedTaskFinished": self.claimed,
+        return {"numTaskFinished": self.tasks_finished, "errors": self.errors, "steps": self.steps,
+                "errands": self.errands, "scheduleErrors": self.schedule_errors, "claimedTaskFinished": self.claimed,
                 "eventsAgree": self.events_agree, "numEntryTimeouts": self.timeouts}
 
 
@@ -199,8 +199,8 @@ def check_output(instance, data: dict, path="output") -> CheckResult:
     agree = None
     if counted and isinstance(events, list) and instance.strategy is None:
         agree = [list(e) for e in events] == [list(e) for e in sim.tasks.events]
-    return CheckResult(numTaskFinished=sim.finished if counted else None,
+    return CheckResult(tasks_finished=sim.finished if counted else None,
                        errands=sim.tasks.errands_done if counted else None, errors=len(sim.errors),
-                       scheduleErrors=len(sim.tasks.schedule_errors), steps=steps,
+                       schedule_errors=len(sim.tasks.schedule_errors), steps=steps,
                        claimed=int(claimed) if isinstance(claimed, int) else None, events_agree=agree,
                        timeouts=sim.timeouts)

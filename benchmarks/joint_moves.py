@@ -1,7 +1,7 @@
 """Joint next moves on the Ising chip vs PIBT's priority order (issue 33, item 3), measured.
 
 ``decisions``: groups sampled from LoRR runs driven by the host rule (start kit greedy scheduler,
-TurningPIBT), each solved three ways under one objective (planners/mapf/joint_moves.py): the host
+TurningPIBT), each solved three ways under one objective (planners/mapf/chip/joint_moves.py): the host
 rule's answer, the chip's (best decoded read, repaired), the exact optimum (branch and bound).
 ``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds and the
 same lane guidance (``--guidance``, default 0).
@@ -29,8 +29,8 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import read_instance
     from mrmt_env.lorr.sim import LoRRSimulator
-    from planners.mapf.joint_executor import JointMovesPIBT
-    from planners.mapf.turning import TurningPIBT
+    from planners.mapf.chip.joint_executor import JointMovesPIBT
+    from planners.mapf.pibt.turning import TurningPIBT
 
     inst = read_instance(path)
     sim = LoRRSimulator(inst, record=False)
@@ -62,7 +62,7 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
 def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=0):
     """Per problem: ``(host, chip, exact, not_one_hot, conflict, host seconds of build + decode)``."""
     from ising_backend import integer_program
-    from planners.mapf.joint_moves import build_qubo, decode_reads, group_spread, objective, solve_exact
+    from planners.mapf.chip.joint_moves import build_qubo, decode_reads, group_spread, objective, solve_exact
 
     out = []
     for c0 in range(0, len(problems), chunk):
@@ -145,7 +145,7 @@ def main(argv=None):
     else:
         from agents.lorr.run import run_lorr
         from planners.mapf import TURNING_EXECUTORS
-        from planners.mapf.joint_executor import JointMovesPIBT
+        from planners.mapf.chip.joint_executor import JointMovesPIBT
 
         made = []
 

@@ -1,4 +1,4 @@
-"""The lane rule of the guided executors, written from its statement (planners/mapf/guidance.py) for the tests."""
+"""The lane rule of the guided executors, written from its statement (planners/mapf/guides/guidance.py) for the tests."""
 
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from planners.mapf.choice_qubo import read_option, reduce_to_reference
+from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
 
 
 def random_problem(rng):

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 
 from ising_backend import integer_program
 from planners.mapf import TURNING_EXECUTORS, make_turning_executor
-from planners.mapf.joint_executor import JointMovesPIBT
-from planners.mapf.joint_moves import CELL, COST, DEP, FWD, UNREAL, build_qubo, decode_reads, objective, \
+from planners.mapf.chip.joint_executor import JointMovesPIBT
+from planners.mapf.chip.joint_moves import CELL, COST, DEP, FWD, UNREAL, build_qubo, decode_reads, objective, \
     solve_exact
 
 F, R, C, W = 0, 1, 2, 3

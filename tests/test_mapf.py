@@ -44,7 +44,7 @@ def successors(grid):
 
 
 class OraclePriorities:
-    """PIBT's priorities as documented (planners/mapf/pibt.py), kept here: robot ``k``'s priority is the
+    """PIBT's priorities as documented (planners/mapf/pibt/grid.py), kept here: robot ``k``'s priority is the
     steps since it last stood on its goal (``elapsed``, 0 at the start and on the goal) plus a tie-breaker
     drawn once from ``np.random.default_rng(seed)`` in [0, 1); robots plan in decreasing priority."""
 

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
-from planners.mapf.epibt import AUTO_OP_LEN_FILL, DEFAULT_OP_LEN
+from planners.mapf.epibt.plans import AUTO_OP_LEN_FILL, DEFAULT_OP_LEN
 from planners.mapf.common import mix
 from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, free_neighbours, guided, random_instance, retarget
 
@@ -286,7 +286,7 @@ def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_
 
 
 def test_operations_follow_the_pruning_rules():
-    from planners.mapf.epibt import operations
+    from planners.mapf.epibt.plans import operations
 
     for n in (1, 2, 3, 4):
         assert [tuple(op) for op in operations(n).tolist()] == oracle_operations(n)
@@ -403,7 +403,7 @@ def test_no_robots_no_actions():
 def test_annealing_leaves_the_best_plan_it_met_conflict_free(anneal):
     """Annealing accepts worse neighbourhoods on the way, yet the plan it leaves is the best it met: never costlier
     than the construction's (lns=0), conflict-free at every time."""
-    from planners.mapf.epibt import plan_cost
+    from planners.mapf.epibt.plans import plan_cost
 
     rng = np.random.default_rng(7)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.15, 0.7)

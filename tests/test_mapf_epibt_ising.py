@@ -11,7 +11,7 @@ import pytest
 from ising_backend import CallLedger, EmulatedChip
 from planners.mapf import TURNING_EXECUTORS, EPIBT, EPIBTIsing
 from planners.mapf.common import mix
-from planners.mapf.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
+from planners.mapf.chip.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
 

@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, FlowPIBT, make_turning_executor
-from planners.mapf.flow import astar_scratch, flow_astar, path_field
-from planners.mapf.turning import compact_grid
+from planners.mapf.guides.flow import astar_scratch, flow_astar, path_field
+from planners.mapf.pibt.turning import compact_grid
 from test_mapf_turning import Oracle, apply, random_instance, retarget
 from test_mapf_turning import free_neighbours as neighbours
 

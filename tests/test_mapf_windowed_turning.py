@@ -10,7 +10,7 @@ import pytest
 
 from lanes_reference import lane_cost
 from planners.mapf import TURNING_EXECUTORS, TurningPIBT, WindowedTurningPlanner, make_turning_executor
-from planners.mapf.windowed_turning import OrientFields
+from planners.mapf.pibt.windowed_turning import OrientFields
 
 F, R, C, W = 0, 1, 2, 3
 DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)  # east, south, west, north

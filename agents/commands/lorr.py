@@ -186,7 +186,7 @@ def check_entry(entry, chip=None) -> None:
             own = {k: v for k, v in c.options.items() if k in ("replan", "keep", "scheduler_options")}
             make_scheduler(c.scheduler, chip=chip, **own)
             if "guidance" in c.options:
-                from planners.mapf.guidance import check_guidance
+                from planners.mapf.guides.guidance import check_guidance
 
                 check_guidance(c.options["guidance"])
             check_executor_options(c.planner, c.options.get("executor_options", {}), grid)
@@ -268,7 +268,7 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         except TypeError as exc:
             raise ValueError(f"--scheduler-option: {exc}") from None
     if args.guidance is not None:
-        from planners.mapf.guidance import check_guidance
+        from planners.mapf.guides.guidance import check_guidance
 
         options["guidance"] = check_guidance(args.guidance)
     if args.planner_option:

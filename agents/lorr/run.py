@@ -154,7 +154,7 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
     """Run ``instance`` (a path or :class:`LoRRInstance`) for ``steps`` (default: its simulation
     time); returns ``(record, sim, decision_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
     the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), ``guidance`` for the executor
-    (:mod:`planners.mapf.guidance`; default: the executor's own) and ``executor_options``, a dict of the
+    (:mod:`planners.mapf.guides.guidance`; default: the executor's own) and ``executor_options``, a dict of the
     executor's own keyword options (e.g. ``{"weight_power": 2}`` for ``epibt``).  ``limit``: a
     :class:`~mrmt_env.lorr.clock.StepLimit` runs under the start kit's clock (a late decision costs timeouts; the
     record's ``clock`` says so); ``None`` (default) is work-bounded and deterministic."""

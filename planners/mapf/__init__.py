@@ -10,18 +10,22 @@ turning (flat cells and orientations -> actions F, R, C, W);
 orientation, time) for the same rules; :func:`make_turning_executor` builds either by name
 (:data:`TURNING_EXECUTORS`); :class:`FlowPIBT` is PIBT with turning along traffic-flow guide paths;
 :class:`EPIBT` is PIBT over multi-action operations along the same guide paths.
+
+Rooms: ``pibt/`` (the PIBT family and windowed A*), ``guides/`` (lane guidance, traffic-flow guide paths),
+``epibt/`` (EPIBT's plans and search), ``chip/`` (the planners that leave a decision to an Ising machine),
+``common`` (what they share: successor tables, goal fields, seeds, the groups record).
 """
 
 from __future__ import annotations
 
-from planners.mapf.epibt import EPIBT
-from planners.mapf.epibt_ising import EPIBTIsing
-from planners.mapf.flow import FlowPIBT
-from planners.mapf.joint_executor import JointMovesPIBT
-from planners.mapf.pibt import PIBT
-from planners.mapf.turning import TurningPIBT
-from planners.mapf.windowed import WindowedPlanner
-from planners.mapf.windowed_turning import WindowedTurningPlanner
+from planners.mapf.chip.epibt_ising import EPIBTIsing
+from planners.mapf.chip.joint_executor import JointMovesPIBT
+from planners.mapf.epibt.plans import EPIBT
+from planners.mapf.guides.flow import FlowPIBT
+from planners.mapf.pibt.grid import PIBT
+from planners.mapf.pibt.turning import TurningPIBT
+from planners.mapf.pibt.windowed import WindowedPlanner
+from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
            "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT", "EPIBTIsing"]

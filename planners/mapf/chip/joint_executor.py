@@ -1,7 +1,7 @@
 """TurningPIBT whose congested groups re-choose their next cells on an Ising machine (``pibt-ising``).
 
-:class:`JointMovesPIBT` runs the host rule (:class:`~planners.mapf.turning.TurningPIBT`), then the
-decision class ``joint-moves`` of :mod:`planners.mapf.joint_moves`: every group of the step is one
+:class:`JointMovesPIBT` runs the host rule (:class:`~planners.mapf.pibt.turning.TurningPIBT`), then the
+decision class ``joint-moves`` of :mod:`planners.mapf.chip.joint_moves`: every group of the step is one
 program of one submission through the machine's session (any :class:`ising_backend.IsingMachine`; programs padded
 with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
 answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
@@ -33,11 +33,11 @@ from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
-from planners.mapf.joint_moves import (
+from planners.mapf.chip.joint_moves import (
     CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
     objective, program_batch, robot_options, select_groups, solve_exact,
 )
-from planners.mapf.turning import TurningPIBT
+from planners.mapf.pibt.turning import TurningPIBT
 
 __all__ = ["JointMovesPIBT", "ACCEPT"]
 
@@ -64,7 +64,7 @@ class JointMovesPIBT(TurningPIBT):
         num_reads: reads per group program (1..64; default 32: 4 batches of the 8 cores).
         accept: ``"better"``, ``"chip"`` or ``"host"`` (module docstring).
         audit: record every decision with its exact optimum (slow: for benchmarks and tests).
-        options: :class:`~planners.mapf.turning.TurningPIBT`'s; ``guidance`` defaults to 0 here (the
+        options: :class:`~planners.mapf.pibt.turning.TurningPIBT`'s; ``guidance`` defaults to 0 here (the
             option costs and the QUBO's weights were tuned on plain distances).
     """
 
@@ -99,7 +99,7 @@ class JointMovesPIBT(TurningPIBT):
 
     def groups(self, pc, orient, gc, rows, order, nxt, act):
         """This step's groups (a :class:`~planners.mapf.common.GroupBatch`, kernels of
-        :mod:`planners.mapf.joint_moves`; compact cells) and PIBT's choice per slot."""
+        :mod:`planners.mapf.chip.joint_moves`; compact cells) and PIBT's choice per slot."""
         r = len(pc)
         cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
         cost = np.empty((r, MAX_OPTIONS), dtype=np.int64)

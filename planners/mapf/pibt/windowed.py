@@ -1,6 +1,6 @@
 """Windowed prioritized planning: space-time A* over a short window, one robot after another, compiled.
 
-Each step, robots in decreasing priority (as :class:`~planners.mapf.pibt.PIBT`:
+Each step, robots in decreasing priority (as :class:`~planners.mapf.pibt.grid.PIBT`:
 steps since the goal was last reached, seeded ties) plan a path over the next
 ``window`` steps with A* over (cell, time) states, avoiding the cells and
 the exchanges already reserved by higher-priority robots; beyond the window

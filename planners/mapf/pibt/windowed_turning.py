@@ -1,6 +1,6 @@
 """Windowed prioritized planning with turning (LoRR MAPF_T): space-time A* over (cell, orientation, time), compiled.
 
-Each call rolls :class:`~planners.mapf.turning.TurningPIBT` out ``window`` steps
+Each call rolls :class:`~planners.mapf.pibt.turning.TurningPIBT` out ``window`` steps
 (several times, with different tie-breaks; the cheapest joint plan is kept): a
 conflict-free plan, every robot's fallback.  Robots in TurningPIBT's priority
 order then re-plan their window with A* over F / R / C / W against every other
@@ -16,10 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.mapf.guidance import orient_cost_rows
-from planners.mapf.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
+from planners.mapf.guides.guidance import orient_cost_rows
+from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
                                    FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
-from planners.mapf.windowed import _pop_unseen, _push, new_heap
+from planners.mapf.pibt.windowed import _pop_unseen, _push, new_heap
 
 __all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
            "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
@@ -70,7 +70,7 @@ def _orient_bfs_rows(nbr, goals, rows, fields, far):
 
 
 class OrientFields(TurnFields):
-    """:class:`~planners.mapf.turning.TurnFields` over (free cell, orientation): ``fields[row, v * 4 + o]``
+    """:class:`~planners.mapf.pibt.turning.TurnFields` over (free cell, orientation): ``fields[row, v * 4 + o]``
     = fewest actions from compact ``v`` facing ``o`` to the goal, facing any way, or their least cost
     under guidance (same cache bound, BFS budget in states)."""
 
@@ -249,12 +249,12 @@ def repair_kernel(nbr, pos, orient, act, order, nxt, owner, occ_now) -> int:
 
 class WindowedTurningPlanner(TurningPIBT):
     """Windowed prioritized planning with turning on one grid (see the module docstring); shares
-    :class:`~planners.mapf.turning.TurningPIBT`'s input checks, priorities and :meth:`step`.
+    :class:`~planners.mapf.pibt.turning.TurningPIBT`'s input checks, priorities and :meth:`step`.
 
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: priority tie-breaks (of the PIBT rollout too).
-        guidance: extra cost of a move against its lane (:class:`~planners.mapf.turning.TurningPIBT`);
+        guidance: extra cost of a move against its lane (:class:`~planners.mapf.pibt.turning.TurningPIBT`);
             the rollouts, the (cell, orientation) fields and A*'s step costs all go by it.  Default 0:
             on RANDOM-01..05 it helped at 400-700 robots and cost tasks at 100-200 and 800.
         window: planning horizon in steps (2..64, default 16; with 1, A* undoes the turns by which PIBT
@@ -270,7 +270,7 @@ class WindowedTurningPlanner(TurningPIBT):
         work: robot-steps of rollout per call (default 2**17): with more robots, fewer rollouts
             (at least 1), then a shorter window (at least 2) -- :meth:`effort`.
         field_bytes, bfs_budget: bound and BFS work per call of each field cache (BFS distance for the
-            rollout, (cell, orientation) distance for A*), as :class:`~planners.mapf.turning.TurnFields`.
+            rollout, (cell, orientation) distance for A*), as :class:`~planners.mapf.pibt.turning.TurnFields`.
     """
 
     name = "windowed"

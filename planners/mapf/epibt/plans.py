@@ -6,7 +6,7 @@ which only the first runs before the next call re-plans (the 2024 League of Robo
 seeded tie.  Each robot's *inherited* operation (last call's rest, then W) is reserved first, so every robot
 has a conflict-free fallback; robots in priority order then take the first operation that collides with no
 one or with one lower robot, which is pushed (at most ``revisits`` choices per robot and call); then a
-large-neighbourhood search (:mod:`planners.mapf.epibt_search`) re-chooses small groups while their summed
+large-neighbourhood search (:mod:`planners.mapf.epibt.search`) re-chooses small groups while their summed
 (optionally weighted) costs-to-go fall.  A *portfolio* of ``K`` such plans from seeds apart runs side by side
 on threads (the kernels release the GIL), the one of least weighted cost-to-go kept.  Fields: goal fields or
 FlowGuide's guide paths (docs/design/lifelong_turning.md).
@@ -25,9 +25,9 @@ import numba
 import numpy as np
 
 from planners.mapf.common import int_in, mix
-from planners.mapf.epibt_search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
-from planners.mapf.flow import FlowGuide, FlowPIBT
-from planners.mapf.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
+from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
+from planners.mapf.guides.flow import FlowGuide, FlowPIBT
+from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
 __all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
@@ -328,8 +328,8 @@ class EPIBT(TurningPIBT):
     """EPIBT on one grid (module docstring).
 
     Args:
-        grid, seed, guidance: as :class:`~planners.mapf.turning.TurningPIBT` (guidance default 0 here).
-        flow: rank by traffic-flow guide paths (:class:`~planners.mapf.flow.FlowGuide`; default) instead of
+        grid, seed, guidance: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (guidance default 0 here).
+        flow: rank by traffic-flow guide paths (:class:`~planners.mapf.guides.flow.FlowGuide`; default) instead of
             the goal fields.
         op_len: actions per operation (1..5; default 3), or ``"auto"``: chosen on the first call from the
             team's share of the free cells (:data:`AUTO_OP_LEN_FILL`).
@@ -340,13 +340,13 @@ class EPIBT(TurningPIBT):
         weight_power: the search weighs each robot's cost-to-go by ``(R + 1 - rank) ** weight_power``, rank 0
             the first in priority order (default 0, unweighted).
         replans: guide paths re-planned per call beyond new goals (``flow`` only; as
-            :class:`~planners.mapf.flow.FlowPIBT`).
+            :class:`~planners.mapf.guides.flow.FlowPIBT`).
         portfolio: joint plans per call (1..64, default 1), each a construction and search of its own from
             seeds apart (:func:`portfolio_seed`; the first is the single plan's); the one of least weighted
             cost-to-go is kept (ties: the first), as the 2024 winner's threads do up to the deadline.
         threads: threads the portfolio's plans run on (default: one per plan, at most the cores this process
             may use); the plans and the choice do not depend on it.
-        field_bytes, bfs_budget: as :class:`~planners.mapf.turning.TurningPIBT` (and the guide paths' bound).
+        field_bytes, bfs_budget: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide paths' bound).
     """
 
     name = "epibt"
@@ -403,7 +403,7 @@ class EPIBT(TurningPIBT):
         return self.guide.fields, np.arange(len(pc), dtype=np.int64)
 
     def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
-        """As :meth:`TurningPIBT.actions <planners.mapf.turning.TurningPIBT.actions>`; a robot not where the
+        """As :meth:`TurningPIBT.actions <planners.mapf.pibt.turning.TurningPIBT.actions>`; a robot not where the
         last call's plans put it (another executor acted, a new episode) drops every inherited operation.  Under a
         ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as the
         last, ends before it (the first wave always runs), and the search's iterations are scaled by

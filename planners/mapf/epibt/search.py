@@ -6,7 +6,7 @@
 The table ``res[t, cell]`` holds the robot on ``cell`` at time ``t`` of the operations (-1 free).
 :func:`lns_search`: ``iters`` times, a robot not on its best operation and the robots in the way of its
 better ones (:func:`blockers`) choose again in a seeded order, each its best operation colliding with no one
-(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt`), or,
+(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt.plans`), or,
 annealing (``anneal > 0``), also when they rise by ``d`` with probability ``exp(-d / (T x their cost before))``,
 ``T`` falling linearly from ``anneal`` to 0 over the iterations; the best joint plan met is the one left.
 """
@@ -24,7 +24,7 @@ __all__ = ["Fleet", "SearchStamp", "PlanState", "new_state", "reserve", "conflic
 
 
 class Fleet(NamedTuple):
-    """The robots of one call, as :func:`~planners.mapf.epibt.epibt_kernel` reads them (compact cells)."""
+    """The robots of one call, as :func:`~planners.mapf.epibt.plans.epibt_kernel` reads them (compact cells)."""
 
     pos: np.ndarray        # (R,) cell now
     orient: np.ndarray     # (R,) orientation
@@ -38,7 +38,7 @@ class Fleet(NamedTuple):
 class SearchStamp(NamedTuple):
     """One plan's seed and search budget."""
 
-    seed: int      # the plan's seed (:func:`~planners.mapf.epibt.portfolio_seed`)
+    seed: int      # the plan's seed (:func:`~planners.mapf.epibt.plans.portfolio_seed`)
     t: int         # the call's step
     revisits: int  # choices a robot may make per call
     lns: int       # large-neighbourhood iterations
@@ -47,7 +47,7 @@ class SearchStamp(NamedTuple):
 
 
 class PlanState(NamedTuple):
-    """One call's joint plan, filled by :func:`~planners.mapf.epibt.epibt_kernel` (numba compiles it as a tuple)."""
+    """One call's joint plan, filled by :func:`~planners.mapf.epibt.plans.epibt_kernel` (numba compiles it as a tuple)."""
 
     cells: np.ndarray     # (R, n_ops, op_len + 1): each robot's ranked operations' cells
     which: np.ndarray     # (R, n_ops): the operation each candidate is

@@ -5,7 +5,7 @@ A robot is a flat cell ``row * W + col`` and an orientation (0 east, 1 south,
 2 C (turn counter-clockwise), 3 W (wait).  One call of
 :meth:`TurningPIBT.actions` returns one joint action, valid by construction:
 
-1. PIBT (as :class:`~planners.mapf.pibt.PIBT`: priority = steps since the robot
+1. PIBT (as :class:`~planners.mapf.pibt.grid.PIBT`: priority = steps since the robot
    last stood on its goal + a seeded tie-breaker, except that a step ending in a
    dead end -- a cell with one free neighbour -- off the goal counts 1 +
    :data:`DEAD_END_BONUS`, as in the start kit) picks each robot's next cell.
@@ -34,7 +34,7 @@ import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
-from planners.mapf.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
+from planners.mapf.guides.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
@@ -51,7 +51,7 @@ DEAD_END_BONUS = 10
 #: BFS fields' worth of work of one guided field (bucketed Dijkstra: 2.7 ms against 0.5 ms for BFS on CITY-01's
 #: 47,240 free cells), so that a call's field budget holds under guidance too.
 GUIDED_WORK = 5
-#: Extra cost of a move against its lane (:mod:`planners.mapf.guidance`) of TurningPIBT, by default: chosen
+#: Extra cost of a move against its lane (:mod:`planners.mapf.guides.guidance`) of TurningPIBT, by default: chosen
 #: on RANDOM-01..05 (0, 2 and 4 tried, three seeds; docs/design/lifelong_turning.md).
 DEFAULT_GUIDANCE = 2
 
@@ -302,7 +302,7 @@ class TurningPIBT:
         grid: ``(H, W)`` bool obstacles.
         seed: tie-breaks (robot priorities and equal cells).
         guidance: extra cost of a forward move against its lane's direction (crisscross lanes,
-            :mod:`planners.mapf.guidance`; default 2; 0 = off, plain BFS distances); goal fields and
+            :mod:`planners.mapf.guides.guidance`; default 2; 0 = off, plain BFS distances); goal fields and
             the candidate order then go by the guided cost.
         field_bytes: memory bound of the goal-field cache (:class:`TurnFields`).
         bfs_budget: BFS work per call in cells (new goal fields per call = this // free cells; a robot
@@ -344,7 +344,7 @@ class TurningPIBT:
     @staticmethod
     def check_team(grid, n_robots: int) -> None:
         """``ValueError`` when the executor cannot take ``n_robots`` robots on ``grid`` (any number here;
-        :class:`~planners.mapf.flow.FlowPIBT` bounds its memory)."""
+        :class:`~planners.mapf.guides.flow.FlowPIBT` bounds its memory)."""
 
     def _ensure(self, n_robots: int) -> None:
         if len(self.elapsed) != n_robots:

@@ -25,8 +25,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from planners.mapf.guidance import spread
-from planners.mapf.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
+from planners.mapf.guides.guidance import spread
+from planners.mapf.pibt.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
 __all__ = ["FlowPIBT", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "check_team",
            "DEFAULT_REPLAN_WORK"]
@@ -243,7 +243,7 @@ class FlowGuide:
     """The robots' guide paths, their flow and each robot's PIBT field (module docstring).
 
     Args:
-        nbr, cell_of, width: the compact grid (:func:`~planners.mapf.turning.compact_grid`).
+        nbr, cell_of, width: the compact grid (:func:`~planners.mapf.pibt.turning.compact_grid`).
         cost: ``(n, 4)`` moves counted per forward move (lane guidance), ``None``: 1 each.
         replans: guide paths re-planned per call beyond those of new goals (``None``: one per robot, at
             most :data:`DEFAULT_REPLAN_WORK` // free cells).
@@ -305,12 +305,12 @@ class FlowPIBT(TurningPIBT):
     """PIBT with turning that follows traffic-flow guide paths (module docstring).
 
     Args:
-        grid, seed, guidance: as :class:`~planners.mapf.turning.TurningPIBT` (guidance, default 0 here,
+        grid, seed, guidance: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (guidance, default 0 here,
             adds lane costs to the guide paths' moves).
         replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
             :data:`DEFAULT_REPLAN_WORK` // free cells).
         field_bytes: memory bound of the goal fields, and of the paths and fields of the robots.
-        bfs_budget, commits: as :class:`~planners.mapf.turning.TurningPIBT`; commitments on by default
+        bfs_budget, commits: as :class:`~planners.mapf.pibt.turning.TurningPIBT`; commitments on by default
             here (as in the start kit).
     """
 

@@ -1,6 +1,6 @@
 """Joint next moves of congested robot groups as an Ising-chip decision (issue 33, item 3).
 
-The decision class ``joint-moves``: after :class:`~planners.mapf.turning.TurningPIBT` has picked
+The decision class ``joint-moves``: after :class:`~planners.mapf.pibt.turning.TurningPIBT` has picked
 every robot's next cell (its *claim*), groups of up to ``max_robots`` robots in congested regions
 re-choose their claims jointly; everyone else keeps the host rule's claim.  Actions come from the
 claims as in TurningPIBT (ahead -> F, side / behind -> turn, own cell -> W, then the vacate check),
@@ -30,7 +30,7 @@ Mapping rule: QUBO -> Ising, multiplied by 4 (all integers), scaled so the large
 is 7 and rounded half away from zero.  Decode: a robot without exactly one option set, then any robot
 in a claim or swap conflict (repeated until none is left), takes the host rule's claim (``repaired``
 counts reads that needed it); the read of least objective wins (ties: the first).
-The executor that uses these kernels: :mod:`planners.mapf.joint_executor`.
+The executor that uses these kernels: :mod:`planners.mapf.chip.joint_executor`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from planners.mapf.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
+from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
 
 __all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo",
            "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD",

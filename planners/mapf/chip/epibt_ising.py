@@ -1,6 +1,6 @@
 """EPIBT whose neighbourhood groups choose their operations jointly on an Ising machine (``epibt-ising``).
 
-After :class:`~planners.mapf.epibt.EPIBT`'s plan and search, each call poses up to ``groups`` decisions of
+After :class:`~planners.mapf.epibt.plans.EPIBT`'s plan and search, each call poses up to ``groups`` decisions of
 class ``lns_groups``: a robot not on its best operation and the robots in the way of its better ones (up
 to ``max_robots``; robots of one group in no other), each with its operation now (option 0) and its best
 others that collide with no robot outside the group (up to ``max_options``; a spin per option besides the
@@ -15,7 +15,7 @@ cheapest collision-free read, where a robot with more than one spin up keeps its
 takes the decided choice when it collides with no one and costs at least ``min_gain`` less than the group's
 plan now; groups apply in turn, each checked against the plan as the ones before it left it.
 
-Charges as :class:`~planners.mapf.joint_executor.JointMovesPIBT` (:attr:`ledger`, :attr:`last_compute`); an
+Charges as :class:`~planners.mapf.chip.joint_executor.JointMovesPIBT` (:attr:`ledger`, :attr:`last_compute`); an
 open decision audit records every program with the host rule's answer as spins of the same program.
 Measurements: ``docs/design/lifelong_turning.md``.
 """
@@ -31,10 +31,10 @@ import numpy as np
 from ising_backend import CallLedger, integer_program
 from ising_backend.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.choice_qubo import read_option, reduce_to_reference
+from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
-from planners.mapf.epibt import EPIBT
-from planners.mapf.epibt_search import blockers, conflict, reserve
+from planners.mapf.epibt.plans import EPIBT
+from planners.mapf.epibt.search import blockers, conflict, reserve
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
@@ -117,7 +117,7 @@ def _cost(state, q, c) -> int:
 def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
     """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]``; ``n``, returned, is its options
     less one per robot: a robot's operation now (option 0) is all its spins down, another option one spin up
-    (:func:`planners.mapf.choice_qubo.reduce_to_reference`).  The objective: each option's cost-to-go, ``P`` on
+    (:func:`planners.mapf.chip.choice_qubo.reduce_to_reference`).  The objective: each option's cost-to-go, ``P`` on
     each pair of colliding options; with ``s = 1 +`` the widest gap of one option's cost to its robot's operation
     now, ``penalty x s`` on each pair of spins of one robot and ``P`` half that.  Among reads with at most one spin
     up per robot the energy is the cost above the plan now plus ``P`` per colliding pair; the chip's few levels
@@ -252,7 +252,7 @@ class EPIBTIsing(EPIBT):
     """EPIBT plus the joint choice of operations of neighbourhood groups (module docstring).
 
     Args:
-        grid, seed: as :class:`~planners.mapf.epibt.EPIBT` (its options pass through).
+        grid, seed: as :class:`~planners.mapf.epibt.plans.EPIBT` (its options pass through).
         machine: any Ising machine; default ``ising_backend.EmulatedChip(seed=seed)`` (not built with
             ``decider="host"``).
         decider: ``"chip"`` (the machine decides) or ``"host"`` (the host rule, no machine call).

@@ -1,0 +1,2 @@
+"""The PIBT family: grid PIBT (``grid``), PIBT with turning for the League's action model (``turning``), and
+windowed prioritized space-time A* without and with turning (``windowed``, ``windowed_turning``)."""

@@ -152,8 +152,15 @@ class _Greedy(GreedyScheduler):
 
 def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one.  ``options`` may hold
-    ``scheduler_options`` (a dict: ``--scheduler-option``, an entry's table), merged with the others."""
+    ``scheduler_options`` (a dict: ``--scheduler-option``, an entry's table), merged with the others; ``busy``
+    (any scheduler) parks robots beyond that share of the team (:mod:`agents.lorr.parking`)."""
     options.update(options.pop("scheduler_options", None) or {})
+    if "busy" in options:
+        from agents.lorr.parking import Parked, check_busy
+
+        busy = check_busy(options.pop("busy"))
+        inner = make_scheduler(name, seed=seed, chip=chip, **options)
+        return inner if busy == 1 else Parked(inner, busy)
     if name == "lorr-greedy":
         if options:
             raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")

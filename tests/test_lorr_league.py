@@ -109,15 +109,11 @@ def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 2)
+    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 1)
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
-    assert "scheduler_options" not in small.options  # every robot may hold a task away from density
-    dense = entry.rules[0]  # RANDOM-04 / -05: 700 and 800 robots on 819 free cells; not RANDOM-03's 400
-    assert dense.holds(700, 700 / 819, "random-32-32-20.map") and not dense.holds(400, 400 / 819, "random-32-32-20.map")
-    assert dense.choice.options["scheduler_options"] == {"busy": 0.4}
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
-    sortation, tables = entry.rules[2], entry.rules[3]
+    sortation, tables = entry.rules[1], entry.rules[2]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert sortation.choice.scheduler == tables.choice.scheduler == "lorr-weighted"
     # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930

@@ -4,9 +4,9 @@ Contract: ``Parked(inner, busy)`` is a scheduler (:class:`~agents.lorr.roles.Sch
 proposes, except that robots given a new task beyond ``busy x team`` busy robots get none this step (nearest
 first by Manhattan way to the task's first errand, ties by robot); tasks held stay held.  A parked robot keeps
 no task, so the one-step planner treats it as any robot without a goal: it stays and is pushed aside when
-another needs its cell.  On RANDOM-04 / -05 (700 / 800 robots on 819 free cells) fewer robots in the aisles
-finish more tasks (``benchmarks/RESULTS.md``, "Parking at density").  ``make_scheduler(name, busy=...)`` wraps
-any scheduler.
+another needs its cell (not sent to a parking place: over a full run parked robots gather in the aisles;
+measured in ``benchmarks/RESULTS.md``, "Parking at density").  ``make_scheduler(name, busy=...)`` wraps any
+scheduler.
 """
 
 from __future__ import annotations

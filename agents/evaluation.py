@@ -28,7 +28,7 @@ episode (:func:`compute_record`):
     host glue of the Ising pipeline); ``total_energy_j`` is their sum;
 ``retries``, ``fallbacks``
     chip calls re-dispatched after a fault, and layer calls handed to the
-    classical layer (a faulty chip; see :mod:`ising_backend.health`).
+    classical layer (a faulty chip; see :mod:`ising_backend.faults.health`).
 
 Worlds: episode ``i`` of every controller and seed resets the env with
 ``seed=world_seed + i``, so all controllers see the same worlds.  Seeds:

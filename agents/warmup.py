@@ -193,7 +193,7 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     run = RunConfig(backend="inline" if jobs == 1 else "process", jobs=jobs, chunk_size=1, progress=progress)
     kwargs = dict(world_kwargs or {})
     try:
-        from ising_backend.audit import suspended
+        from ising_backend.audit.record import suspended
 
         with suspended():  # compiling decides nothing: an open audit records none of it
             run_tasks(_warm_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")

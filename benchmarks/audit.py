@@ -1,6 +1,6 @@
 """The decision audit on the paper's worlds, fleet worlds and a LoRR instance: what the chip is worth per decision.
 
-Records every chip program (``ising_backend.audit.Audit``) of: the ``ising-paper`` and ``ising`` presets on
+Records every chip program (``ising_backend.audit.record.Audit``) of: the ``ising-paper`` and ``ising`` presets on
 ``--worlds`` paper worlds (10x10, 3 robots, 10 targets), the ``ising`` preset on ``--fleet`` fleet worlds
 (20x20, 5 robots, 40 targets: the fleet search), and the ``ising`` LoRR scheduler on RANDOM-01 for ``--steps``
 steps, and the ``pibt-ising`` and ``epibt-ising`` executors on RANDOM-03; judges each class (``mrmt audit``: chip vs the host rule vs the optimum) and exports the problems as a
@@ -27,7 +27,7 @@ LORR = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 
 def _record(directory: Path, args) -> dict:
     from agents.lorr.run import run_lorr
-    from ising_backend.audit import Audit
+    from ising_backend.audit.record import Audit
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
 
@@ -75,8 +75,8 @@ def main(argv=None) -> None:
     parser.add_argument("--export", default=None, help="also export the benchmark set here")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
-    from ising_backend.audit import read_records, read_specs
-    from ising_backend.audit_judge import export, judge, table
+    from ising_backend.audit.record import read_records, read_specs
+    from ising_backend.audit.judge import export, judge, table
 
     directory = Path(args.audit or tempfile.mkdtemp(prefix="mrmt-audit-"))
     t0 = time.perf_counter()

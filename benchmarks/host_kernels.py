@@ -42,10 +42,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._common import cpu_name, write_results_section  # noqa: E402
 from ising_backend import MERGE_STYLES, QUANTIZE_RULES, QuboModel, merge_spins, quantize  # noqa: E402
-from ising_backend._merge_kernel import STYLE_IDS, decode_copies, merge_styles  # noqa: E402
+from ising_backend.mapping._merge_kernel import STYLE_IDS, decode_copies, merge_styles  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the oracles live with the tests
 from mapping_reference import decode_ref, merge_spins_ref, quantize_ref  # noqa: E402
-from ising_backend.quantize import quantize_stack  # noqa: E402
+from ising_backend.mapping.quantize import quantize_stack  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.ising.path.qubo import build_patch_qubo, patch_frame  # noqa: E402
 from planners.ising.sharing.split_problem import split_model  # noqa: E402

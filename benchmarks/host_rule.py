@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _common import cpu_name, finish  # noqa: E402
 
-from ising_backend.host_rule import GENERIC_CLASSES, HostRule  # noqa: E402
+from ising_backend.audit.host_rule import GENERIC_CLASSES, HostRule  # noqa: E402
 from mrmt_env.generation import generate_world  # noqa: E402
 from planners.pipeline import make_pipeline  # noqa: E402
 

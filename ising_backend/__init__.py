@@ -13,23 +13,23 @@ notes: docs/design/emulated_chip.md and the notes it links.  Example::
     (-23.0, 16)
 """
 
-from ._rng import splitmix
-from .ledger import CallLedger
-from .models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
-from .spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
-from .faults import FaultMap
-from .health import ChipUnavailableError, HealthMonitor, SolverOutputError
-from .chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, programs_fit, stack_programs
-from .logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
-from .meter import MeteredSolver
-from .quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
-from ._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, integer_program, quantize_rules
-from .merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
-from ._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
-from .branching import Branch, BranchError, branch, freeze_order
-from .blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
-from .stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack, submit_packs
-from .portfolio import (
+from ising_backend._rng import splitmix
+from ising_backend.ledger import CallLedger
+from ising_backend.models import IsingModel, ModelError, QuboModel, from_bqm, ising_from_qubo
+from ising_backend.spec import DEAD_CORE_MODES, SCHEDULES, ChipSpec
+from ising_backend.faults.model import FaultMap
+from ising_backend.faults.health import ChipUnavailableError, HealthMonitor, SolverOutputError
+from ising_backend.machines.chip import ChipProgramError, EmulatedChip, check_program, kernel_capable, programs_fit, stack_programs
+from ising_backend.machines.logical import LOGICAL_METHODS, LogicalIsingSolver, LogicalResult
+from ising_backend.meter import MeteredSolver
+from ising_backend.mapping.quantize import QUANTIZE_RULES, QuantizeError, quantize, quantize_stack, saturate
+from ising_backend.mapping._quantize_kernel import RULE_IDS as QUANTIZE_RULE_IDS, integer_program, quantize_rules
+from ising_backend.mapping.merge import MERGE_STYLES, MergedModel, MergeError, merge_error_message, merge_spins, saturate_mapping
+from ising_backend.mapping._merge_kernel import STYLE_IDS as MERGE_STYLE_IDS, merge_styles, merge_styles_flat
+from ising_backend.mapping.branching import Branch, BranchError, branch, freeze_order
+from ising_backend.mapping.blocks import fill_packs, pack_blocks, pack_layout, plan_packs, unpack_blocks
+from ising_backend.mapping.stack import STACK_NONFINITE, STACK_OK, STACK_UNFIT, pack_qubo_stack, submit_packs
+from ising_backend.mapping.portfolio import (
     BranchMapping,
     IdentityMapping,
     MappedProgram,
@@ -45,10 +45,10 @@ from .portfolio import (
     run_portfolio,
     run_portfolio_batch,
 )
-from .composite import COMPOSITE_RULES, QuantizeComposite
-from .mapping_stats import MAPPING_FIELDS, add_counts, mapping_record, record_of_reads
-from .link import AnnealArgs, MachineSession, SolverArgs, anneal_submit, solve_submit, via_callback
-from .machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
+from ising_backend.machines.composite import COMPOSITE_RULES, QuantizeComposite
+from ising_backend.mapping.mapping_stats import MAPPING_FIELDS, add_counts, mapping_record, record_of_reads
+from ising_backend.machines.link import AnnealArgs, MachineSession, SolverArgs, anneal_submit, solve_submit, via_callback
+from ising_backend.machines.machine import (SAMPLERS, DriverMachine, LogicalDriver, as_logical_solver, IsingMachine, MachineBase, MachineSpec, SamplerChip, as_machine, build_machine,
                       sampler_names)
 
 __all__ = [

@@ -15,7 +15,7 @@ from functools import reduce
 from operator import add
 from dataclasses import asdict, dataclass, fields
 
-from .spec import ChipSpec
+from ising_backend.spec import ChipSpec
 
 __all__ = ["CallLedger"]
 

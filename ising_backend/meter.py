@@ -4,7 +4,7 @@ Contract: :class:`MeteredSolver` wraps a solver (anything with ``spec``, ``ledge
 for one planning call, forwards the calls, checks that every answer is a ``(programs, reads, spins)``
 array of +-1 (else :class:`SolverOutputError`) and adds exactly what each call charged to
 :attr:`MeteredSolver.charged`, also what a call spent before a
-:class:`~ising_backend.health.ChipUnavailableError`.  Design notes: docs/design/machine_link.md.
+:class:`~ising_backend.faults.health.ChipUnavailableError`.  Design notes: docs/design/machine_link.md.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from .audit import active_audit
-from .host_rule import host_answer, host_rule_classes
-from .health import ChipUnavailableError, SolverOutputError
-from .ledger import CallLedger
+from ising_backend.audit.record import active_audit
+from ising_backend.audit.host_rule import host_answer, host_rule_classes
+from ising_backend.faults.health import ChipUnavailableError, SolverOutputError
+from ising_backend.ledger import CallLedger
 
 __all__ = ["MeteredSolver", "SolverOutputError"]
 
@@ -74,8 +74,8 @@ class MeteredSolver:
     def solve_many(self, models, num_reads: int = 1, seed: int | None = None):
         """``solver.solve_many`` (logical solvers) with the answers checked and the charge metered."""
         if self.decision in host_rule_classes():
-            from .logical import LogicalResult
-            from .programs import stack_programs
+            from ising_backend.machines.logical import LogicalResult
+            from ising_backend.machines.programs import stack_programs
 
             out = []
             for m in models:
@@ -93,7 +93,7 @@ class MeteredSolver:
             if s.shape != (num_reads, m.n) or not ((s == 1) | (s == -1)).all():
                 raise SolverOutputError(f"got shape {s.shape}, expected {(num_reads, m.n)} spins in {{-1, +1}}")
         if models and active_audit() is not None:
-            from .programs import stack_programs
+            from ising_backend.machines.programs import stack_programs
 
             h, J = stack_programs(models)
             spins = np.zeros((len(models), num_reads, h.shape[1]), dtype=np.int8)
@@ -117,7 +117,7 @@ class MeteredSolver:
 
     def anneal_models(self, models, num_reads: int = 1, seed: int | None = None):
         """Chip-legal models in one batch: ``[(spins (reads, n_b), energies + offset)]``."""
-        from .programs import stack_programs
+        from ising_backend.machines.programs import stack_programs
 
         h, J = stack_programs(models)
         spins, energies = self.anneal_batch(h, J, num_reads=num_reads, seed=seed)

@@ -289,7 +289,7 @@ class Pipeline:
         scratch.warmup_first = False
         if isinstance(seed, np.random.Generator):  # a copy: the caller's generator must not move
             seed = copy.deepcopy(seed)
-        from ising_backend.audit import suspended
+        from ising_backend.audit.record import suspended
 
         with suspended():  # the scratch run decides nothing of the plan: not audited
             scratch.plan(world, seed=seed)

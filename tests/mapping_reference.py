@@ -1,4 +1,4 @@
-"""Pure-Python/numpy oracles of the compiled mapping kernels (``ising_backend.merge`` / ``quantize``).
+"""Pure-Python/numpy oracles of the compiled mapping kernels (``ising_backend.mapping.merge`` / ``quantize``).
 
 The implementations the package used before its hot paths were compiled, kept unchanged as the
 specification: the tests hold the kernels bit-identical to them and ``benchmarks/host_kernels.py``
@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ising_backend.merge import MergedModel, MergeError, _limit
+from ising_backend.mapping.merge import MergedModel, MergeError, _limit
 from ising_backend.models import IsingModel
-from ising_backend.quantize import QUANTIZE_RULES, QuantizeError
-from ising_backend.quantize import _limit as _q_limit
-from ising_backend.quantize import _pair
+from ising_backend.mapping.quantize import QUANTIZE_RULES, QuantizeError
+from ising_backend.mapping.quantize import _limit as _q_limit
+from ising_backend.mapping.quantize import _pair
 from ising_backend.spec import ChipSpec
 
 __all__ = ["merge_spins_ref", "decode_ref", "quantize_ref", "saturate_ref", "plan_packs_ref", "freeze_order_ref", "branch_ref"]
@@ -228,7 +228,7 @@ def plan_packs_ref(sizes, capacity: int) -> list[list[int]]:
 
 def freeze_order_ref(model: IsingModel) -> np.ndarray:
     """Spins by decreasing ``|h_i| + sum_j |J_ij|``, lowest index first on ties (the oracle of
-    ``ising_backend.branching.freeze_strength`` / ``frozen_spins``)."""
+    ``ising_backend.mapping.branching.freeze_strength`` / ``frozen_spins``)."""
     strength = np.abs(model.h) + np.abs(model.J_sym).sum(axis=1)
     return np.argsort(-strength, kind="stable")
 

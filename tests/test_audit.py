@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ising_backend import CallLedger, ChipSpec, EmulatedChip
-from ising_backend.audit import Audit, active_audit, program_arrays, read_records
-from ising_backend.audit_judge import exact_ground, greedy_descent, judge, load_benchmark, table
+from ising_backend.audit.record import Audit, active_audit, program_arrays, read_records
+from ising_backend.audit.judge import exact_ground, greedy_descent, judge, load_benchmark, table
 from mrmt_env.generation import generate_world
 from planners.pipeline import make_pipeline
 

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from ising_backend import ChipProgramError, ChipSpec, EmulatedChip, IsingModel
-from ising_backend.chip import MAX_READS, check_num_reads
+from ising_backend.machines.chip import MAX_READS, check_num_reads
 
 SPEC = ChipSpec()
 LO, HI = SPEC.h_range

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from ising_backend.audit_judge import greedy_descent
-from ising_backend.host_rule import HOST_RULE_CLASSES, HostRule, host_answer, host_rule_classes, parse_classes
+from ising_backend.audit.judge import greedy_descent
+from ising_backend.audit.host_rule import HOST_RULE_CLASSES, HostRule, host_answer, host_rule_classes, parse_classes
 from mrmt_env.generation import generate_world
 from planners.pipeline import make_pipeline
 

@@ -112,7 +112,7 @@ def test_shapes_dtypes_energies_and_determinism():
 def test_kernel_gives_the_same_samples_for_every_coefficient_dtype(mismatch):
     """Integer programs handed to the kernel as int16 (the compiled path planner), int64 or
     float64 anneal to the same spins and energies."""
-    from ising_backend.anneal import NO_CLAMP, NO_CORES, anneal_kernel
+    from ising_backend.machines.anneal import NO_CLAMP, NO_CORES, anneal_kernel
 
     rng = np.random.default_rng(11)
     B, n, R = 5, 17, 2

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import ising_backend
-import ising_backend.composite
+import ising_backend.machines.composite
 from ising_backend import (
     COMPOSITE_RULES,
     QUANTIZE_RULES,
@@ -69,7 +69,7 @@ def test_sampler_and_composite_api():
     assert sampler.properties["rules"] == list(QUANTIZE_RULES) + ["saturate"] == list(COMPOSITE_RULES)
     assert {"num_reads", "seed", "rule", "scale"} <= set(sampler.parameters)
     assert set(chip.parameters) <= set(sampler.parameters)
-    assert ising_backend.QuantizeComposite is ising_backend.composite.QuantizeComposite
+    assert ising_backend.QuantizeComposite is ising_backend.machines.composite.QuantizeComposite
     assert "QuantizeComposite" in ising_backend.__all__
 
 
@@ -240,4 +240,4 @@ def test_generic_child_with_ranges():
 
 
 def test_docstring_example_runs():
-    assert doctest.testmod(ising_backend.composite).failed == 0
+    assert doctest.testmod(ising_backend.machines.composite).failed == 0

@@ -12,8 +12,8 @@ from ising_backend import (
     CallLedger, ChipSpec, ChipUnavailableError, EmulatedChip, FaultMap, IsingModel, LogicalIsingSolver,
     MeteredSolver,
 )
-from ising_backend.anneal import NO_CLAMP, NO_CORES, anneal_kernel
-from ising_backend.health import PROBE_READS
+from ising_backend.machines.anneal import NO_CLAMP, NO_CORES, anneal_kernel
+from ising_backend.faults.health import PROBE_READS
 
 CLEAN = ChipSpec().noise_free()
 
@@ -279,7 +279,7 @@ def test_logical_solver_shares_the_chip_health():
 @given(st.lists(st.integers(-(2**63), 2**64 - 1), min_size=1, max_size=6))
 def test_mix_of_scalars_is_the_array_hash(parts):
     """Scalar parts take a pure-integer path: the same bits as the numpy path of one-element arrays."""
-    from ising_backend.faults import mix
+    from ising_backend.faults.model import mix
 
     arrays = [np.array([p], dtype=np.uint64 if p >= 2**63 else np.int64) for p in parts]
     assert int(mix(*parts)) == int(mix(*arrays)[0])
@@ -301,7 +301,7 @@ def _mix_oracle(*parts: int) -> int:
 
 
 def test_fault_keys_are_one_splitmix64_round_per_part_for_scalars_and_arrays():
-    from ising_backend.faults import mix
+    from ising_backend.faults.model import mix
 
     rng = np.random.default_rng(3)
     for _ in range(100):

@@ -26,7 +26,7 @@ from ising_backend import (
     saturate,
     saturate_mapping,
 )
-from ising_backend._merge_kernel import (
+from ising_backend.mapping._merge_kernel import (
     MERGE_COUPLING_UNFIT,
     MERGE_FIELD_UNFIT,
     MERGE_OK,
@@ -37,10 +37,10 @@ from ising_backend._merge_kernel import (
     merge_styles,
     merge_styles_flat,
 )
-from ising_backend._quantize_kernel import RULE_IDS, quantize_rules
+from ising_backend.mapping._quantize_kernel import RULE_IDS, quantize_rules
 from mapping_reference import decode_ref, merge_spins_ref, quantize_ref, saturate_ref
-from ising_backend.merge import merge_error_message
-from ising_backend.quantize import quantize_stack
+from ising_backend.mapping.merge import merge_error_message
+from ising_backend.mapping.quantize import quantize_stack
 
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 ALL_STYLES = np.array([STYLE_IDS[s] for s in MERGE_STYLES], dtype=np.int64)

@@ -138,7 +138,7 @@ def _splitmix_sub_seed(seed: int, k: int) -> int:
 
 
 def test_the_size_groups_sub_seed_is_splitmix64_over_every_call_seed():
-    from ising_backend.tabu import mix_seed
+    from ising_backend.machines.tabu import mix_seed
 
     rng = np.random.default_rng(7)
     seeds = [0, 1, 2**63 - 1, 2**63, 2**64 - 1] + [int(x) for x in rng.integers(0, 2**64 - 1, 200, dtype=np.uint64)]

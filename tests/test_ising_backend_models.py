@@ -79,7 +79,7 @@ def test_docstring_examples_run():
     import doctest
 
     import ising_backend
-    import ising_backend.chip
+    import ising_backend.machines.chip
 
-    for mod in (ising_backend, ising_backend.chip):
+    for mod in (ising_backend, ising_backend.machines.chip):
         assert doctest.testmod(mod).failed == 0

@@ -14,8 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ising_backend import CallLedger, QuboModel, branch
-from ising_backend.branching import branch_stack
-from ising_backend.numeric import ising_of_qubo, pairwise_sum
+from ising_backend.mapping.branching import branch_stack
+from ising_backend.mapping.numeric import ising_of_qubo, pairwise_sum
 from mapping_reference import branch_ref
 from planners.ising.path.config import DEFAULT_WEIGHTS
 from planners.ising.path.kernels import extract_path, neighbour_table, rank_local_targets, score_patch_samples
@@ -775,7 +775,7 @@ def test_frozen_spins_is_freeze_order(seed, n, k):
     """The compiled freezing order (every spin-budget branching) against the numpy one of
     tests/mapping_reference.py, ties included (integer coefficients)."""
     from ising_backend import IsingModel, freeze_order
-    from ising_backend.branching import frozen_spins
+    from ising_backend.mapping.branching import frozen_spins
     from mapping_reference import freeze_order_ref
 
     rng = np.random.default_rng(seed)

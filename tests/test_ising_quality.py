@@ -158,7 +158,7 @@ def test_big_tours_kick_the_best_route_instead_of_restarting():
 def test_compiled_move_kernels_match_the_reference(case, rnd):
     from ising_backend import ising_from_qubo
     from ising_backend import STACK_OK, pack_qubo_stack, quantize_stack
-    from ising_backend.numeric import ising_of_qubo
+    from ising_backend.mapping.numeric import ising_of_qubo
     from planners.ising.moves.routes import linked, route_of
     from planners.ising.moves.route_moves import apply_route_moves as compiled_apply
 

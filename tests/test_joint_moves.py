@@ -213,7 +213,7 @@ def test_bad_options_named(kw, word):
 
 
 def test_host_rule_flag_keeps_pibts_answer_without_a_chip_call():
-    from ising_backend.host_rule import HostRule
+    from ising_backend.audit.host_rule import HostRule
 
     grid, pos, orient, goals = crowd(6, fill=0.7)
     host = JointMovesPIBT(grid, seed=2, accept="host")  # the chip runs, PIBT's answer is kept

@@ -12,7 +12,7 @@ import pytest
 from ising_backend import (CallLedger, ChipSpec, DriverMachine, EmulatedChip, IsingMachine, LogicalDriver,
                            LogicalIsingSolver, MachineBase, anneal_submit, as_logical_solver, as_machine,
                            solve_submit, via_callback)
-from ising_backend.link import _SESSIONS
+from ising_backend.machines.link import _SESSIONS
 
 ROOT = Path(__file__).resolve().parents[1]
 

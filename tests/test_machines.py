@@ -216,7 +216,7 @@ def test_cli_plan_with_a_sampler(tmp_path, capsys):
 def test_sampler_parameter_types_come_from_the_sampler():
     import dwave.samplers
 
-    from ising_backend.sampler_options import describe, parameter_types, parse_value
+    from ising_backend.machines.sampler_options import describe, parameter_types, parse_value
 
     types = parameter_types(dwave.samplers.SimulatedAnnealingSampler())
     assert describe(types["num_sweeps"]) == "an integer" and describe(types["randomize_order"]) == "true or false"

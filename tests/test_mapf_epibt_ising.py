@@ -255,8 +255,8 @@ def test_same_seed_same_plans_and_bad_options():
 
 
 def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
-    from ising_backend.audit import Audit, read_records
-    from ising_backend.audit_judge import judge
+    from ising_backend.audit.record import Audit, read_records
+    from ising_backend.audit.judge import judge
 
     rng = np.random.default_rng(4)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
@@ -288,7 +288,7 @@ def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
 
 
 def test_host_rule_flag_takes_the_searchs_greedy_without_a_chip_call():
-    from ising_backend.host_rule import HostRule
+    from ising_backend.audit.host_rule import HostRule
 
     rng = np.random.default_rng(8)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)

@@ -86,7 +86,7 @@ def test_the_planners_reach_machines_only_through_sessions():
 
 
 def test_one_qubo_to_ising_conversion_in_compiled_code():
-    """Every compiled QUBO-to-Ising conversion is ``ising_backend.numeric.ising_of_qubo`` (the group programs
+    """Every compiled QUBO-to-Ising conversion is ``ising_backend.mapping.numeric.ising_of_qubo`` (the group programs
     of the League planners reach it through ``ising_backend.integer_program``)."""
     converters = []
     for where, tree in _modules():
@@ -95,4 +95,4 @@ def test_one_qubo_to_ising_conversion_in_compiled_code():
                 compiled = any("njit" in ast.unparse(d) for d in node.decorator_list)
                 if compiled:
                     converters.append(f"{where}:{node.name}")
-    assert converters == ["ising_backend/numeric.py:ising_of_qubo"]
+    assert converters == ["ising_backend/mapping/numeric.py:ising_of_qubo"]

@@ -211,7 +211,7 @@ def reference_solve_path(tour, d, entry, ex, run, kind: str):
     import math
 
     from ising_backend import IsingModel, LogicalIsingSolver, quantize
-    from ising_backend.branching import branch_stack
+    from ising_backend.mapping.branching import branch_stack
     from mapping_reference import freeze_order_ref as freeze_order
     from planners.ising.tour.kernels import best_onehot, expand_branches, onehot_ising
     from tour_qubo_reference import onehot_penalty

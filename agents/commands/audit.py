@@ -9,7 +9,7 @@ Each row: decisions, the share where the chip's best energy is strictly below th
 (``chip_better``) and strictly above (``chip_worse``), the mean gap to the optimum of each (fractions of
 ``max(|optimum|, 1)``), the chip's seconds per decision (paper rule, 50 us a call) and the host rule's
 (measured).  The optimum is exact up to ``--exact-max`` active spins, else the best of a long tabu run
-(:mod:`ising_backend.audit_judge`).  docs/audit.md.
+(:mod:`ising_backend.audit.judge`).  docs/audit.md.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ def _error(message: str) -> int:
 
 
 def run(args) -> int:
-    from ising_backend.audit import read_records, read_specs
-    from ising_backend.audit_judge import EXACT_MAX, export, judge, table
+    from ising_backend.audit.record import read_records, read_specs
+    from ising_backend.audit.judge import EXACT_MAX, export, judge, table
 
     exact_max = EXACT_MAX if args.exact_max is None else args.exact_max
     if not 0 <= exact_max <= 26:

@@ -49,7 +49,7 @@ def run(args) -> int:
     from contextlib import nullcontext
     from pathlib import Path
 
-    from ising_backend.audit import Audit
+    from ising_backend.audit.record import Audit
 
     elsewhere = (args.backend not in (None, "inline")) or args.address or (args.jobs or 1) > 1
     for flag, given, what in (("--audit", args.audit, "records"), ("--host-rule", args.host_rule, "acts on")):

@@ -327,7 +327,7 @@ def _run(args) -> int:
         _warm_parts([(s, ex) for _, s, ex, _ in plans], progress)
     from contextlib import nullcontext
 
-    from ising_backend.audit import Audit
+    from ising_backend.audit.record import Audit
 
     with Audit(args.audit) if args.audit else nullcontext(), host_rule:
         if single and run.backend != "ray":

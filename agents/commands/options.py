@@ -74,7 +74,7 @@ def chip_from_args(args, key: str = "chip"):
     (the emulator) or a :class:`~ising_backend.MachineSpec` (``--sampler``); a bad field, an
     unknown sampler or option, or a missing package raises ``ValueError`` in one line."""
     from ising_backend import ChipSpec, MachineSpec
-    from ising_backend.machine import parse_sampler_options
+    from ising_backend.machines.machine import parse_sampler_options
 
     items = getattr(args, key, None) or []
     spec = ChipSpec.from_options(items) if items else None
@@ -88,7 +88,7 @@ def chip_from_args(args, key: str = "chip"):
 
     texts = split_items(options, "--sampler-option", "num_sweeps=100")  # read by their parameters' types below
     MachineSpec(spec or ChipSpec(), sampler).build()  # an unknown sampler, a missing package, a faulty spec
-    try:  # each value read by its parameter's type (ising_backend.sampler_options)
+    try:  # each value read by its parameter's type (ising_backend.machines.sampler_options)
         pairs = parse_sampler_options(sampler, texts)
     except ValueError as exc:
         raise ValueError(f"--sampler-option {exc}") from None
@@ -120,7 +120,7 @@ def check_positive(args, names) -> str | None:
 def add_decision_arguments(parser, where: str) -> None:
     """``--no-progress``, ``--audit DIR`` (every chip decision recorded; ``where`` says where it applies) and
     ``--host-rule CLASS[,CLASS...]|all`` (the host rule answers those decision classes instead of the chip)."""
-    from ising_backend.host_rule import HOST_RULE_CLASSES
+    from ising_backend.audit.host_rule import HOST_RULE_CLASSES
 
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--audit", default=None, metavar="DIR",
@@ -135,6 +135,6 @@ def host_rule_from_args(args):
     """The ``HostRule`` context of ``--host-rule`` (a null context without it); ``ValueError`` naming a bad class."""
     from contextlib import nullcontext
 
-    from ising_backend.host_rule import HostRule
+    from ising_backend.audit.host_rule import HostRule
 
     return HostRule(args.host_rule) if args.host_rule else nullcontext()

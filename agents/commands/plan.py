@@ -141,7 +141,7 @@ def run(args) -> int:
         _error(f"--audit {args.audit}: exists and is not a directory")
         return 2
     if args.host_rule:
-        from ising_backend.host_rule import parse_classes
+        from ising_backend.audit.host_rule import parse_classes
 
         try:
             parse_classes(args.host_rule)
@@ -206,7 +206,7 @@ def run(args) -> int:
     done = 0
     from contextlib import nullcontext
 
-    from ising_backend.audit import Audit
+    from ising_backend.audit.record import Audit
 
     from agents.commands.options import host_rule_from_args
 

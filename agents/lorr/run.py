@@ -85,7 +85,7 @@ def _warm(scheduler: str, executor: str, chip, options) -> None:
     if (scheduler, executor) in _WARM:
         return
     _WARM.add((scheduler, executor))
-    from ising_backend.audit import suspended
+    from ising_backend.audit.record import suspended
 
     with suspended():  # compiling decides nothing of the run: an open audit records none of it
         _loop(read_instance(example_instance_path()), scheduler, executor, 3, 0, chip, dict(options), None)

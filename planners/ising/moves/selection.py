@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from ising_backend import QUANTIZE_RULE_IDS, quantize_rules, submit_packs
-from ising_backend.numeric import ising_of_qubo
+from ising_backend.mapping.numeric import ising_of_qubo
 
 __all__ = ["SPAN_FIELDS", "clash", "conflicts", "pick_candidates", "selection_qubo",
            "read_gain", "score_reads", "greedy_selection", "select_round", "program_record", "RoundProgram", "RoundOut",

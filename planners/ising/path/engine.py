@@ -17,7 +17,7 @@ from numba import types
 from numba.typed import Dict
 
 from ising_backend import fill_packs, merge_styles_flat, pack_layout, submit_packs
-from ising_backend.numeric import ising_of_qubo
+from ising_backend.mapping.numeric import ising_of_qubo
 from planners.ising.path.kernels import extract_path, rank_local_targets, score_patch_samples
 from planners.ising.path.qubo import _patch_qubo_kernel
 

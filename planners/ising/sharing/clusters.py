@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend.numeric import pairwise_sum
+from ising_backend.mapping.numeric import pairwise_sum
 from planners.ising.sharing.node_sets import intern, nodes_of
 
 __all__ = ["farthest_point_labels", "coarsen", "fine_cut", "expand_candidates"]

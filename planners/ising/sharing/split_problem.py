@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ising_backend.numeric import pairwise_sum
+from ising_backend.mapping.numeric import pairwise_sum
 
 __all__ = ["split_model", "add_balance", "pair_mean", "score_split_reads", "branch_problems", "score_stage",
            "SplitModel", "SplitProblems", "Branches", "StageScores", "Sides"]

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from ising_backend import quantize_rules, solve_submit, submit_packs
-from ising_backend.branching import branch_stack, frozen_spins
+from ising_backend.mapping.branching import branch_stack, frozen_spins
 from planners.ising.tour.kernels import best_onehot, expand_branches, onehot_ising
 
 __all__ = ["solve_order", "OrderOptions", "OrderStats", "OrderOut", "SOLVED", "UNSOLVED", "TOO_MANY_BITS",

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ising_backend.numeric import ising_of_qubo, pairwise_sum
+from ising_backend.mapping.numeric import ising_of_qubo, pairwise_sum
 
 __all__ = ["onehot_ising", "maxcut_ising", "expand_branches", "best_onehot", "cluster_distances",
            "dist_flags", "route_cost"]
@@ -61,7 +61,7 @@ def maxcut_ising(w):
 @numba.njit(cache=True)
 def expand_branches(spins, free, frozen, n):
     """Bits ``(B * R, n)`` uint8 (``x = (1 + s) / 2``) of the reads ``spins (B, R, >= nf)`` of the
-    branches of :func:`ising_backend.branching.branch_stack` (program-major, frozen spins set per branch)."""
+    branches of :func:`ising_backend.mapping.branching.branch_stack` (program-major, frozen spins set per branch)."""
     B, R = spins.shape[0], spins.shape[1]
     k = frozen.shape[0]
     out = np.empty((B * R, n), dtype=np.uint8)

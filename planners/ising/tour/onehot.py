@@ -14,7 +14,7 @@ import numpy as np
 from ising_backend import (
     QUANTIZE_RULE_IDS, IsingModel, LogicalIsingSolver, add_counts, as_logical_solver, quantize,
 )
-from ising_backend.branching import branch_stack, frozen_spins
+from ising_backend.mapping.branching import branch_stack, frozen_spins
 from planners.ising.tour.cluster import TourFailure, _Run
 from planners.ising.tour.engine import TOO_MANY_BITS, UNQUANTIZABLE, OrderOptions, solve_order
 from planners.ising.tour.kernels import expand_branches

@@ -9,7 +9,7 @@ operation now is all its spins down, another option one spin up; the options' co
 operation now as linear terms; penalties for two spins of one robot up and for each pair of options of two
 robots that collide (vertex or swap at any time).
 The host rule in the chip's place (``decider="host"``, or the class named by an open
-:class:`ising_backend.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
+:class:`ising_backend.audit.host_rule.HostRule`; no machine call): the robots in a seeded order, each its cheapest
 option that collides with no one placed before (the search's own greedy).  The chip's answer is its
 cheapest collision-free read, where a robot with more than one spin up keeps its operation now.  A group
 takes the decided choice when it collides with no one and costs at least ``min_gain`` less than the group's
@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from ising_backend import CallLedger, integer_program
-from ising_backend.host_rule import host_rule_classes
+from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
@@ -355,7 +355,7 @@ class EPIBTIsing(EPIBT):
         """The host rule beside this step's programs in an open decision audit (class ``lns_groups``): the search's
         greedy choice ``greedy = (choice, cost)`` as spins of the same programs (a group it leaves without a choice:
         its plan now, option 0), their energies, and its seconds per program."""
-        from ising_backend.health import program_energy
+        from ising_backend.faults.health import program_energy
 
         ng, gstart, ostart = batch.ng, batch.gstart, batch.ostart
         host, host_cost = greedy

@@ -7,7 +7,7 @@ with free spins to the step's largest), decoded and repaired on the host.  ``acc
 answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
 rule's (the host scores both; the default), ``"chip"`` always the chip's, ``"host"`` always the host
 rule's (the chip still runs: for audits on the host rule's own trajectory).  While an open
-:class:`ising_backend.host_rule.HostRule` names ``joint_moves``, no group is posed: PIBT's answer stands and
+:class:`ising_backend.audit.host_rule.HostRule` names ``joint_moves``, no group is posed: PIBT's answer stands and
 no chip call is made (the ablation flag ``--host-rule joint_moves``).
 
 Charges: :attr:`ledger` (this executor's calls) and :attr:`last_compute`, a
@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ising_backend import CallLedger, integer_program
-from ising_backend.host_rule import host_rule_classes
+from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
 from planners.mapf.chip.joint_moves import (
@@ -186,7 +186,7 @@ class JointMovesPIBT(TurningPIBT):
         """The host rule beside this step's programs in an open decision audit (class ``joint_moves``): PIBT's
         cells as spins of the same programs, their energies, and its seconds (this step's PIBT kernel time, a
         group's share by its robots)."""
-        from ising_backend.health import program_energy
+        from ising_backend.faults.health import program_energy
 
         gstart, ostart = batch.gstart, batch.ostart
         hs = -np.ones(H.shape, dtype=np.int8)

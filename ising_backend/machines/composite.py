@@ -2,7 +2,7 @@
 
 Contract: :class:`QuantizeComposite` samples a BQM on a strict child (the chip, or any sampler with
 integer ``h_range`` / ``j_range`` and ``num_spins`` properties) through a quantization rule (one of
-:data:`~ising_backend.quantize.QUANTIZE_RULES`, or ``"saturate"``).  Returned energies are the original
+:data:`~ising_backend.mapping.quantize.QUANTIZE_RULES`, or ``"saturate"``).  Returned energies are the original
 BQM's; a BQM larger than the child raises ``ValueError`` (nothing is truncated, merged or branched); an
 empty BQM returns 0 rows without a chip call.  Design notes: docs/design/mapping_kernels.md.
 """
@@ -14,9 +14,9 @@ from collections.abc import Mapping
 import dimod
 import numpy as np
 
-from .ledger import CallLedger
-from .models import IsingModel, QuboModel
-from .quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
+from ising_backend.ledger import CallLedger
+from ising_backend.models import IsingModel, QuboModel
+from ising_backend.mapping.quantize import QUANTIZE_RULES, QuantizeError, quantize, saturate
 
 __all__ = ["COMPOSITE_RULES", "QuantizeComposite"]
 
@@ -38,7 +38,7 @@ class QuantizeComposite(dimod.ComposedSampler):
     """Sample any BQM on an integer-range Ising sampler through a quantization rule.
 
     Args:
-        child: an :class:`~ising_backend.chip.EmulatedChip` or any dimod sampler
+        child: an :class:`~ising_backend.machines.chip.EmulatedChip` or any dimod sampler
             with ``properties["h_range"]``, ``["j_range"]`` (integer ``(low, high)``)
             and ``["num_spins"]``.
         rule: default rule, one of :data:`COMPOSITE_RULES`.
@@ -100,7 +100,7 @@ class QuantizeComposite(dimod.ComposedSampler):
 
         Raises:
             ValueError: more variables than the child's ``num_spins``; a bad rule or scale
-                (:class:`~ising_backend.quantize.QuantizeError`); a non-finite bias
+                (:class:`~ising_backend.mapping.quantize.QuantizeError`); a non-finite bias
                 (:class:`~ising_backend.models.ModelError`).
         """
         rule = self.rule if rule is None else rule

@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-from .numeric import ising_of_qubo
+from ising_backend.mapping.numeric import ising_of_qubo
 
 __all__ = ["RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays", "integer_program"]
 
@@ -223,7 +223,7 @@ def saturate_arrays(h, J, scale, h_lo, h_hi, j_lo, j_hi):
 @numba.njit(cache=True, nogil=True)
 def integer_program(q, n, h, J, limits):
     """The chip program of the integer QUBO ``q[:n, :n]`` (linear terms on the diagonal, pairs above it): its
-    Ising model (:func:`~ising_backend.numeric.ising_of_qubo`) scaled by one factor so that max ``|h|`` reaches
+    Ising model (:func:`~ising_backend.mapping.numeric.ising_of_qubo`) scaled by one factor so that max ``|h|`` reaches
     ``limits[0]`` or max ``|J|`` ``limits[1]`` (each maximum taken as at least 1/4, a QUBO unit), rounded half
     away from zero into ``h[:n]``, ``J[:n, :n]`` (the rest zeroed); returns the factor."""
     lin = np.empty(n)

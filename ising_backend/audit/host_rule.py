@@ -1,7 +1,7 @@
 """Host-rule ablation: a decision class's programs answered by the host rule instead of the machine.
 
 Contract: inside ``with HostRule({"sharing_split"}):`` (or ``HostRule("all")``) every submission of a named
-decision class takes :func:`ising_backend.audit_judge.greedy_descent`'s answer on the host, the same for
+decision class takes :func:`ising_backend.audit.judge.greedy_descent`'s answer on the host, the same for
 every read and charged nothing to the machine; ``joint_moves`` and ``lns_groups`` take their executors'
 own host rules.  Closed, nothing changes.  Usage: docs/audit.md; design: docs/design/machine_link.md.
 """
@@ -56,7 +56,7 @@ def host_answer(h, J, num_reads: int) -> tuple[np.ndarray, np.ndarray]:
     """``(spins (B, num_reads, n) int8, energies (B, num_reads))`` of programs ``h (B, n)``, ``J (B, n, n)``
     (``J (n, n)`` with ``h (B, n)``: shared by the B programs; one program: ``h (n,)``, ``J (n, n)`` gives ``(num_reads, n)`` and ``(num_reads,)``): the host
     rule's answer repeated over the reads."""
-    from .audit_judge import greedy_descent
+    from ising_backend.audit.judge import greedy_descent
 
     h, J = np.asarray(h, dtype=np.float64), np.asarray(J, dtype=np.float64)
     single = h.ndim == 1

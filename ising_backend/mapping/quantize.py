@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._quantize_kernel import QUANT_NONFINITE, QUANT_OK, RULE_IDS, quantize_rules, saturate_arrays
-from .models import IsingModel
+from ising_backend.mapping._quantize_kernel import QUANT_NONFINITE, QUANT_OK, RULE_IDS, quantize_rules, saturate_arrays
+from ising_backend.models import IsingModel
 
 __all__ = [
     "QUANTIZE_RULES", "quantize", "quantize_stack", "saturate", "QuantizeError",
-    # the compiled kernels (array in, array out; see ising_backend._quantize_kernel)
+    # the compiled kernels (array in, array out; see ising_backend.mapping._quantize_kernel)
     "RULE_IDS", "QUANT_OK", "QUANT_NONFINITE", "quantize_rules", "saturate_arrays",
 ]
 

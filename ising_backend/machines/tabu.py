@@ -2,7 +2,7 @@
 
 :func:`tabu_kernel` runs ``B`` programs x ``num_reads`` reads; :func:`mix_seed` derives the sub-seed of a size
 group (splitmix64; called from Python by the solver and from compiled loops), so a compiled loop calling the kernel
-draws what :meth:`~ising_backend.logical.LogicalIsingSolver.solve_stack` draws.
+draws what :meth:`~ising_backend.machines.logical.LogicalIsingSolver.solve_stack` draws.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._rng import GOLDEN as _GOLDEN
-from ._rng import splitmix as _splitmix
-from ._rng import xorshift_star as _next
+from ising_backend._rng import GOLDEN as _GOLDEN
+from ising_backend._rng import splitmix as _splitmix
+from ising_backend._rng import xorshift_star as _next
 
 __all__ = ["tabu_kernel", "mix_seed"]
 

@@ -13,8 +13,8 @@ import time
 
 import numpy as np
 
-from .faults import FaultMap, garbage_spins, mix, write_failures
-from .spec import ChipSpec
+from ising_backend.faults.model import FaultMap, garbage_spins, mix, write_failures
+from ising_backend.spec import ChipSpec
 
 __all__ = ["ChipUnavailableError", "SolverOutputError", "HealthMonitor", "dispatch", "emulate", "program_energy",
            "PROBE_READS"]

@@ -4,7 +4,7 @@ Contract: while ``with Audit(directory):`` is open, each program of every submis
 class (``machine.session(ledger, decision=CLASS)``, ``MeteredSolver(..., decision=CLASS)``) is recorded
 with its class, the program as the machine took it, the machine's best energy and the charge.  Plans are
 the same with and without it; closed, it records and changes nothing.  Judged by
-:mod:`ising_backend.audit_judge`.  Usage: docs/audit.md; design: docs/design/machine_link.md.
+:mod:`ising_backend.audit.judge`.  Usage: docs/audit.md; design: docs/design/machine_link.md.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ class Audit:
         if not B:
             return
         if energies is None:
-            from .health import program_energy
+            from ising_backend.faults.health import program_energy
 
             energies = program_energy(h, J, spins)
         energies = np.asarray(energies, dtype=np.float64).reshape(B, -1)

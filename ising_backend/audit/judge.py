@@ -16,8 +16,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from .audit import program_arrays
-from .tabu import tabu_kernel
+from ising_backend.audit.record import program_arrays
+from ising_backend.machines.tabu import tabu_kernel
 
 __all__ = ["exact_ground", "greedy_descent", "judge", "table", "export", "load_benchmark", "EXACT_MAX"]
 

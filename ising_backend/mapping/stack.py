@@ -12,11 +12,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._quantize_kernel import quantize_rules
-from .blocks import fill_packs, pack_layout
-from .link import anneal_submit
-from .numeric import ising_of_qubo
-from .programs import programs_fit
+from ising_backend.mapping._quantize_kernel import quantize_rules
+from ising_backend.mapping.blocks import fill_packs, pack_layout
+from ising_backend.machines.link import anneal_submit
+from ising_backend.mapping.numeric import ising_of_qubo
+from ising_backend.machines.programs import programs_fit
 
 __all__ = ["pack_qubo_stack", "submit_packs", "STACK_OK", "STACK_NONFINITE", "STACK_UNFIT"]
 

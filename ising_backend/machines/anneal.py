@@ -12,8 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ._rng import GOLDEN as _GOLDEN
-from ._rng import splitmix as _splitmix
+from ising_backend._rng import GOLDEN as _GOLDEN
+from ising_backend._rng import splitmix as _splitmix
 
 __all__ = ["anneal_kernel", "beta_range_auto", "NO_CORES", "NO_CLAMP"]
 

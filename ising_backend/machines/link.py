@@ -15,13 +15,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ._clock import clock_ns
-from .anneal import NO_CLAMP, NO_CORES, anneal_kernel
-from .audit import active_audit
-from .host_rule import host_answer, host_rule_classes
-from .ledger import CallLedger
-from .tabu import mix_seed, tabu_kernel
-from .health import SolverOutputError
+from ising_backend._clock import clock_ns
+from ising_backend.machines.anneal import NO_CLAMP, NO_CORES, anneal_kernel
+from ising_backend.audit.record import active_audit
+from ising_backend.audit.host_rule import host_answer, host_rule_classes
+from ising_backend.ledger import CallLedger
+from ising_backend.machines.tabu import mix_seed, tabu_kernel
+from ising_backend.faults.health import SolverOutputError
 
 __all__ = ["MachineSession", "AnnealArgs", "SolverArgs", "anneal_submit", "solve_submit", "via_callback"]
 
@@ -58,7 +58,7 @@ class MachineSession:
     ``kernel``: the machine's kernel arguments after the seed when the loop may run its kernel
     itself (``machine.kernel_args()``; for a logical solver a function of the program size), or
     ``None`` for a machine reached by the callback.  ``ledger`` is charged what ran.  ``decision``
-    names the decision class of what the session submits; while an :class:`~ising_backend.audit.Audit`
+    names the decision class of what the session submits; while an :class:`~ising_backend.audit.record.Audit`
     is open every session goes through the callback and each submission is recorded under it.
     """
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._merge_kernel import (
+from ising_backend.mapping._merge_kernel import (
     MERGE_COUPLING_UNFIT,
     MERGE_FIELD_UNFIT,
     MERGE_OK,
@@ -24,12 +24,12 @@ from ._merge_kernel import (
     merge_batch,
     merge_styles,
 )
-from .models import IsingModel
-from .spec import ChipSpec
+from ising_backend.models import IsingModel
+from ising_backend.spec import ChipSpec
 
 __all__ = [
     "MERGE_STYLES", "MergedModel", "MergeError", "merge_spins", "saturate_mapping", "merge_error_message",
-    # the compiled kernels (array in, array out; see ising_backend._merge_kernel)
+    # the compiled kernels (array in, array out; see ising_backend.mapping._merge_kernel)
     "STYLE_IDS", "MERGE_OK", "MERGE_FIELD_UNFIT", "MERGE_COUPLING_UNFIT", "MERGE_TOO_MANY_SPINS",
     "merge_batch", "merge_styles", "decode_copies",
 ]
@@ -193,7 +193,7 @@ def merge_error_message(status: int, err, H, C, a, Lh: int, Lj: int, n_spins: in
 
 def saturate_mapping(model: IsingModel, spec: ChipSpec | None = None, scale: float = 1.0) -> MergedModel:
     """The authors' fixed-scale saturating mapping as a copy-free :class:`MergedModel`."""
-    from .quantize import saturate
+    from ising_backend.mapping.quantize import saturate
 
     spec = _DEFAULT_SPEC if spec is None else spec
     if model.n > spec.n_spins:

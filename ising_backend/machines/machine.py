@@ -1,7 +1,7 @@
 """Any Ising machine behind the planners: dimod adapters, driver adapters, recipes.
 
-Contract: :class:`SamplerChip` wraps any ``dimod.Sampler`` as an :class:`~ising_backend.base.IsingMachine`
-(re-exported here with :class:`~ising_backend.base.MachineBase`); :func:`as_machine` gives a bare sampler
+Contract: :class:`SamplerChip` wraps any ``dimod.Sampler`` as an :class:`~ising_backend.machines.base.IsingMachine`
+(re-exported here with :class:`~ising_backend.machines.base.MachineBase`); :func:`as_machine` gives a bare sampler
 the paper's spec and puts a minimal driver (``spec``, ``ledger``, ``anneal_batch``) behind a
 :class:`DriverMachine`; :class:`MachineSpec` is a picklable recipe (spec + sampler name) for workers.
 Design notes: docs/design/machine_link.md.
@@ -17,15 +17,15 @@ from typing import Any
 import dimod
 import numpy as np
 
-from .base import IsingMachine, MachineBase
-from .chip import EmulatedChip
-from .ledger import CallLedger
-from .link import MachineSession
-from .logical import LogicalIsingSolver
-from .models import IsingModel
-from .health import SolverOutputError
-from .sampler_options import RESERVED, check_value, parameter_types, parse_value
-from .spec import ChipSpec
+from ising_backend.machines.base import IsingMachine, MachineBase
+from ising_backend.machines.chip import EmulatedChip
+from ising_backend.ledger import CallLedger
+from ising_backend.machines.link import MachineSession
+from ising_backend.machines.logical import LogicalIsingSolver
+from ising_backend.models import IsingModel
+from ising_backend.faults.health import SolverOutputError
+from ising_backend.machines.sampler_options import RESERVED, check_value, parameter_types, parse_value
+from ising_backend.spec import ChipSpec
 
 __all__ = ["IsingMachine", "MachineBase", "SamplerChip", "DriverMachine", "LogicalDriver", "as_logical_solver", "MachineSpec", "SAMPLERS", "as_machine",
            "build_machine", "parse_sampler_options", "sampler_names"]
@@ -61,7 +61,7 @@ def _load_sampler(name: str) -> dimod.Sampler:
 def parse_sampler_options(name: str, items) -> tuple[tuple[str, Any], ...]:
     """``(key, text)`` pairs (command-line ``KEY=VALUE`` s) for the sampler ``name`` as typed
     ``(key, value)`` pairs, each text read by its parameter's type
-    (:mod:`ising_backend.sampler_options`); ``ValueError`` in one line naming an unknown or
+    (:mod:`ising_backend.machines.sampler_options`); ``ValueError`` in one line naming an unknown or
     reserved key (with the sampler's known parameters) or a value of the wrong type."""
     sampler = _load_sampler(name)
     types = parameter_types(sampler)
@@ -87,7 +87,7 @@ class SamplerChip(MachineBase):
     outside it are refused exactly as by :class:`EmulatedChip`) and what each call costs; the
     sampler's wall time is recorded as ``emulation_s``.  ``params`` are checked against
     ``sampler.parameters`` and the keywords of ``sampler.sample``, their values against the types of those
-    keywords (:mod:`ising_backend.sampler_options`).  The emulator's knobs (``sweeps``, ``schedule``,
+    keywords (:mod:`ising_backend.machines.sampler_options`).  The emulator's knobs (``sweeps``, ``schedule``,
     noise) do not apply.
     """
 
@@ -264,7 +264,7 @@ class LogicalDriver:
 
 
 def as_logical_solver(solver):
-    """``solver`` itself when it is a :class:`~ising_backend.logical.LogicalIsingSolver`, else behind a
+    """``solver`` itself when it is a :class:`~ising_backend.machines.logical.LogicalIsingSolver`, else behind a
     :class:`LogicalDriver` (it needs ``solve_many`` and ``ledger``; anything else is refused)."""
     if isinstance(solver, LogicalIsingSolver):
         return solver

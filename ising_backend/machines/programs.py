@@ -13,8 +13,8 @@ import dimod
 import numba
 import numpy as np
 
-from .models import IsingModel
-from .spec import ChipSpec
+from ising_backend.models import IsingModel
+from ising_backend.spec import ChipSpec
 
 __all__ = ["ChipProgramError", "check_program", "stack_programs", "programs_fit", "sample_bqm", "check_call_seed",
            "check_num_reads", "seeded_rng", "MAX_READS"]

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._rng import chain_key, splitmix_array
-from .spec import ChipSpec
+from ising_backend._rng import chain_key, splitmix_array
+from ising_backend.spec import ChipSpec
 
 __all__ = ["FaultMap", "write_failures", "garbage_spins", "mix"]
 

@@ -14,14 +14,14 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from .blocks import checked_layout, fill_packs
-from .branching import BranchError, branch
-from .chip import ChipProgramError, stack_programs
-from .logical import LogicalIsingSolver
-from .merge import MERGE_STYLES, MergeError, merge_spins, saturate_mapping
-from .models import IsingModel
-from .quantize import QUANTIZE_RULES, QuantizeError, quantize
-from .spec import ChipSpec
+from ising_backend.mapping.blocks import checked_layout, fill_packs
+from ising_backend.mapping.branching import BranchError, branch
+from ising_backend.machines.chip import ChipProgramError, stack_programs
+from ising_backend.machines.logical import LogicalIsingSolver
+from ising_backend.mapping.merge import MERGE_STYLES, MergeError, merge_spins, saturate_mapping
+from ising_backend.models import IsingModel
+from ising_backend.mapping.quantize import QUANTIZE_RULES, QuantizeError, quantize
+from ising_backend.spec import ChipSpec
 
 __all__ = [
     "MappedProgram", "Mapping", "QuantizeMapping", "MergeMapping", "SaturateMapping", "BranchMapping",
@@ -70,7 +70,7 @@ class IdentityMapping(Mapping):
 
 
 class QuantizeMapping(Mapping):
-    """:func:`~ising_backend.quantize.quantize` with one rule."""
+    """:func:`~ising_backend.mapping.quantize.quantize` with one rule."""
 
     def __init__(self, rule: str, keep_sign: bool = True):
         if rule not in QUANTIZE_RULES:
@@ -85,7 +85,7 @@ class QuantizeMapping(Mapping):
 
 
 class MergeMapping(Mapping):
-    """:func:`~ising_backend.merge.merge_spins` with one style (decode: majority of copies)."""
+    """:func:`~ising_backend.mapping.merge.merge_spins` with one style (decode: majority of copies)."""
 
     def __init__(self, style: str, scale: float = 1.0, tie: int | None = None, decode: str = "majority"):
         if style not in MERGE_STYLES:
@@ -114,7 +114,7 @@ class SaturateMapping(Mapping):
 
 
 class BranchMapping(Mapping):
-    """Spin-budget branches (:func:`~ising_backend.branching.branch`); each branch mapped by ``inner``."""
+    """Spin-budget branches (:func:`~ising_backend.mapping.branching.branch`); each branch mapped by ``inner``."""
 
     def __init__(self, budget: int | None = None, inner: Mapping | None = None, name: str = "branch"):
         self.name = name
@@ -339,7 +339,7 @@ def _dispatch(solver, programs: list[IsingModel], num_reads: int, seed, pack: bo
     if isinstance(solver, LogicalIsingSolver):
         return [r.spins for r in solver.solve_many(programs, num_reads=num_reads, seed=seed)]
     h, J = stack_programs(programs)
-    if pack:  # first-fit decreasing onto the chip's spins (ising_backend.blocks)
+    if pack:  # first-fit decreasing onto the chip's spins (ising_backend.mapping.blocks)
         sizes = np.array([p.n for p in programs], dtype=np.int64)
         pack_of, order, n_packs, width = checked_layout(sizes, solver.spec.n_spins)
         h, J, where = fill_packs(h, J, sizes, order, pack_of, n_packs, width)

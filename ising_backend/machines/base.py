@@ -15,11 +15,11 @@ from typing import Protocol, runtime_checkable
 import dimod
 import numpy as np
 
-from .health import SolverOutputError, program_energy
-from .ledger import CallLedger
-from .link import MachineSession
-from .programs import check_call_seed, check_num_reads, check_program, sample_bqm, seeded_rng, stack_programs
-from .spec import ChipSpec
+from ising_backend.faults.health import SolverOutputError, program_energy
+from ising_backend.ledger import CallLedger
+from ising_backend.machines.link import MachineSession
+from ising_backend.machines.programs import check_call_seed, check_num_reads, check_program, sample_bqm, seeded_rng, stack_programs
+from ising_backend.spec import ChipSpec
 
 __all__ = ["IsingMachine", "MachineBase"]
 
@@ -152,7 +152,7 @@ class MachineBase(dimod.Sampler):
         return [(spins[b, :, : m.n], energies[b] + m.offset) for b, m in enumerate(models)]
 
     def session(self, ledger: CallLedger, decision: str = "unlabelled"):
-        """A :class:`~ising_backend.link.MachineSession` charging ``ledger`` for submissions of the decision
+        """A :class:`~ising_backend.machines.link.MachineSession` charging ``ledger`` for submissions of the decision
         class ``decision``: compiled loops reach this machine by the callback (its own ``anneal_batch``)."""
         return MachineSession(self, ledger, decision=decision)
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .models import IsingModel
-from .numeric import pairwise_sum
+from ising_backend.models import IsingModel
+from ising_backend.mapping.numeric import pairwise_sum
 
 __all__ = ["Branch", "branch", "freeze_order", "BranchError", "frozen_spins", "branch_stack", "freeze_strength"]
 

@@ -17,14 +17,14 @@ from typing import Sequence
 import dimod
 import numpy as np
 
-from .base import MachineBase
-from .link import MachineSession
-from .tabu import mix_seed, tabu_kernel
-from .programs import ChipProgramError, sample_bqm, stack_programs
-from .health import dispatch, program_energy
-from .ledger import CallLedger
-from .models import IsingModel
-from .spec import ChipSpec
+from ising_backend.machines.base import MachineBase
+from ising_backend.machines.link import MachineSession
+from ising_backend.machines.tabu import mix_seed, tabu_kernel
+from ising_backend.machines.programs import ChipProgramError, sample_bqm, stack_programs
+from ising_backend.faults.health import dispatch, program_energy
+from ising_backend.ledger import CallLedger
+from ising_backend.models import IsingModel
+from ising_backend.spec import ChipSpec
 
 __all__ = ["LogicalIsingSolver", "LogicalResult", "LOGICAL_METHODS", "tabu_kernel"]
 
@@ -73,7 +73,7 @@ class LogicalIsingSolver(MachineBase):
         seed: seed of the generator that seeds calls made without their own seed.
         ledger: the :class:`CallLedger` to charge (default a new one; a pipeline passes its
             chip's ledger so physical and projected calls add up in one place).
-        health: a faulty chip's :class:`~ising_backend.health.HealthMonitor` (``chip.health``):
+        health: a faulty chip's :class:`~ising_backend.faults.health.HealthMonitor` (``chip.health``):
             the projected calls then run on its healthy cores (module docstring).
     """
 
@@ -274,7 +274,7 @@ class LogicalIsingSolver(MachineBase):
         return self.budget if self.health is None else min(self.budget, self.health.usable_spins)
 
     def session(self, ledger: CallLedger, decision: str = "unlabelled"):
-        """A logical :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run the
+        """A logical :class:`~ising_backend.machines.link.MachineSession` charging ``ledger``: compiled loops run the
         tabu kernel themselves (method ``"tabu"``, no fault model, this very class), else call back
         into :meth:`solve_stack`."""
         direct = type(self) is LogicalIsingSolver and self.method == "tabu" and self.health is None

@@ -1,10 +1,10 @@
 """The emulated CMOS Ising chip (paper sections 2.2, 3 and 6.1).
 
-Contract: :class:`EmulatedChip` is a :class:`~ising_backend.base.MachineBase` (so a ``dimod.Sampler``)
+Contract: :class:`EmulatedChip` is a :class:`~ising_backend.machines.base.MachineBase` (so a ``dimod.Sampler``)
 with :meth:`EmulatedChip.anneal_batch`.  It refuses a program that does not fit its ``spec`` with a
 :class:`ChipProgramError` naming the coefficient, its value and the limit (never clips or rescales) and
 charges every call to its ``ledger``; with a fault model it probes its cores at bring-up and dispatches
-through :mod:`ising_backend.health`.  Design notes: docs/design/emulated_chip.md, docs/design/faults.md.
+through :mod:`ising_backend.faults.health`.  Design notes: docs/design/emulated_chip.md, docs/design/faults.md.
 """
 
 from __future__ import annotations
@@ -12,15 +12,15 @@ from __future__ import annotations
 import time
 import numpy as np
 
-from .anneal import NO_CLAMP, NO_CORES, anneal_kernel
-from .base import MachineBase
-from .faults import FaultMap
-from .health import HealthMonitor, dispatch
-from .ledger import CallLedger
-from .link import MachineSession
-from .programs import (MAX_READS, ChipProgramError, check_call_seed, check_num_reads, check_program,  # noqa: F401
+from ising_backend.machines.anneal import NO_CLAMP, NO_CORES, anneal_kernel
+from ising_backend.machines.base import MachineBase
+from ising_backend.faults.model import FaultMap
+from ising_backend.faults.health import HealthMonitor, dispatch
+from ising_backend.ledger import CallLedger
+from ising_backend.machines.link import MachineSession
+from ising_backend.machines.programs import (MAX_READS, ChipProgramError, check_call_seed, check_num_reads, check_program,  # noqa: F401
                        programs_fit, sample_bqm, seeded_rng, stack_programs)
-from .spec import ChipSpec
+from ising_backend.spec import ChipSpec
 
 __all__ = ["EmulatedChip", "ChipProgramError", "check_program", "stack_programs", "kernel_capable", "programs_fit"]
 
@@ -49,8 +49,8 @@ def _mismatch_matrices(spec: ChipSpec) -> np.ndarray:
 
 
 class EmulatedChip(MachineBase):
-    """An emulated multi-core CMOS Ising chip (a :class:`~ising_backend.base.MachineBase` whose anneal is
-    the compiled kernel of :mod:`ising_backend.anneal`).
+    """An emulated multi-core CMOS Ising chip (a :class:`~ising_backend.machines.base.MachineBase` whose anneal is
+    the compiled kernel of :mod:`ising_backend.machines.anneal`).
 
     Args:
         spec: hardware limits, accounting numbers, emulation knobs and fault model.
@@ -107,7 +107,7 @@ class EmulatedChip(MachineBase):
         return self.spec.n_spins if self.health is None else self.health.usable_spins
 
     def session(self, ledger: CallLedger, decision: str = "unlabelled"):
-        """A :class:`~ising_backend.link.MachineSession` charging ``ledger``: compiled loops run this
+        """A :class:`~ising_backend.machines.link.MachineSession` charging ``ledger``: compiled loops run this
         chip's kernel themselves when it is healthy and its own (:func:`kernel_capable`), else they
         call back into :meth:`anneal_batch`."""
         kernel = self._kernel
@@ -116,7 +116,7 @@ class EmulatedChip(MachineBase):
         return MachineSession(self, ledger, kernel or None, decision=decision)
 
     def _dispatch(self, hf, Jf, num_reads, seed, t0):
-        """The anneal on a faulty chip: :func:`ising_backend.health.dispatch`, each round charged
+        """The anneal on a faulty chip: :func:`ising_backend.faults.health.dispatch`, each round charged
         the seconds since the last (the first from the call's start: the check and the driver's own
         bookkeeping are the machine's time too)."""
         total = CallLedger()  # the rounds added up in order, as they are charged
@@ -153,7 +153,7 @@ class EmulatedChip(MachineBase):
 
     def kernel_args(self) -> tuple:
         """``(sweeps, geometric, beta_hot, beta_cold, mismatch, flip_prob)``: this chip's arguments of
-        :func:`~ising_backend.anneal.anneal_kernel` after the seed.
+        :func:`~ising_backend.machines.anneal.anneal_kernel` after the seed.
 
         For compiled planners that anneal chip-legal programs inside their own loops with the
         very kernel, seeds and padding :meth:`anneal_batch` would use; they charge the calls

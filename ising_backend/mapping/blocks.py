@@ -14,8 +14,8 @@ from typing import Sequence
 import numba
 import numpy as np
 
-from .models import IsingModel
-from .programs import stack_programs
+from ising_backend.models import IsingModel
+from ising_backend.machines.programs import stack_programs
 
 __all__ = ["pack_blocks", "unpack_blocks", "plan_packs", "checked_layout", "pack_layout", "fill_packs"]
 

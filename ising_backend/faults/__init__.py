@@ -1,0 +1,1 @@
+"""A faulty chip: the fault model (``model``) and graceful degradation (``health``)."""

@@ -57,3 +57,13 @@ def finish(section: str, lines: list[str], write: bool) -> str:
     if write:
         write_results_section(section, text)
     return text
+
+
+def lorr_run_json(instance: Path, *args: str) -> dict:
+    """The record of ``mrmt lorr run INSTANCE ARGS --json --no-progress`` (one instance, in a process of its own)."""
+    import json
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(instance), *args, "--json", "--no-progress"]
+    return json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])

@@ -14,24 +14,21 @@ nothing else beside it.
 from __future__ import annotations
 
 import argparse
-import json
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import cpu_name, finish  # noqa: E402
+from _common import cpu_name, finish, lorr_run_json  # noqa: E402
 
 SECTION = "## EPIBT's search as a host annealer against its descent (issue 57)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
 
 
 def run(name: str, anneal: float, steps: int, seed: int, portfolio: int) -> dict:
-    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(ROOT / f"{name}.json"), "--scheduler", "strong",
-           "--replan", "--planner", "epibt", "--planner-option", "weight_power=2", "--planner-option", "op_len=auto",
-           "--planner-option", f"portfolio={portfolio}", "--planner-option", f"anneal={anneal}", "--steps", str(steps),
-           "--seed", str(seed), "--json", "--no-progress"]
-    return json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+    return lorr_run_json(ROOT / f"{name}.json", "--scheduler", "strong", "--replan", "--planner", "epibt",
+                         "--planner-option", "weight_power=2", "--planner-option", "op_len=auto", "--planner-option",
+                         f"portfolio={portfolio}", "--planner-option", f"anneal={anneal}", "--steps", str(steps),
+                         "--seed", str(seed))
 
 
 def main(argv=None) -> None:

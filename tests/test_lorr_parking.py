@@ -68,8 +68,11 @@ def test_a_parked_run_holds_no_more_busy_robots_than_its_share():
     """On the example (8 robots), busy = 0.5: every step's proposal has at most 4 busy robots beyond those whose
     task was held, no schedule error, and the run re-checks; busy = 1 is the scheduler itself."""
     inst = read_instance(example_instance_path())
+    from agents.lorr.roles import Scheduler
+
     sched = make_scheduler("lorr-greedy", busy=0.5)
-    assert isinstance(sched, Parked) and not isinstance(make_scheduler("lorr-greedy", busy=1), Parked)
+    assert isinstance(sched, Parked) and isinstance(sched, Scheduler)  # the start kit's role, as every scheduler
+    assert not isinstance(make_scheduler("lorr-greedy", busy=1), Parked)
     record, sim, _ = run_lorr(inst, "lorr-greedy", "pibt", steps=60, options={"scheduler_options": {"busy": 0.5}})
     assert record["schedule_errors"] == 0 and record["tasks_finished"] > 0
     counts = np.zeros(61, dtype=np.int64)

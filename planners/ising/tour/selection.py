@@ -18,7 +18,7 @@ import numpy as np
 from ising_backend import add_counts
 from planners.ising.moves.routes import linked, route_of
 from planners.ising.moves.search import GAVE_UP, REFUSED, SearchLimits, move_search, new_stats, stats_dict
-from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
+from planners.ising.moves.selection import REFUSED_MESSAGE, RoundProgram, program_record
 from planners.ising.tour.cluster import TourFailure
 
 __all__ = ["MoveSearch", "double_bridge", "settle", "nearest_neighbour_kernel", "KICK_ABOVE", "ProgramRefused"]

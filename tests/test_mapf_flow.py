@@ -193,3 +193,103 @@ def test_bad_options_name_the_value():
     with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
         FlowPIBT.check_team(grid, 3, field_bytes=100)
     FlowPIBT.check_team(grid, 3)  # fits the default bound
+
+
+def _goal_field(grid, goal):
+    """BFS moves to flat ``goal`` as a dict over flat cells."""
+    return bfs(grid, int(goal))
+
+
+def test_guide_work_bounds_the_searches_and_robots_waiting_follow_their_goal_fields():
+    grid = np.zeros((6, 7), dtype=bool)
+    grid[2, 1:6] = True
+    free = np.flatnonzero(~grid.reshape(-1))
+    pos = free[[0, 3, 6, 9, 12, 15]].astype(np.int64)
+    goals = free[[30, 28, 26, 24, 22, 20]].astype(np.int64)
+    orient = np.zeros(6, dtype=np.int64)
+    ex = FlowPIBT(grid, seed=4, replans=0, guide_work=1)  # one search per call: the check comes before a robot
+    g = ex.guide
+    for call in range(1, 4):
+        ex.actions(pos, orient, goals)
+        assert g.replanned == call and np.flatnonzero(g.fresh).tolist() == list(range(call))
+        for k in range(6):
+            path = [int(ex.cell_of[v]) for v in g.paths[k, :g.lengths[k]]]
+            want = guide_field(grid, path) if g.fresh[k] else _goal_field(grid, goals[k])  # a waiting robot: its goal's field
+            assert {int(ex.cell_of[v]): int(g.fields[k, v]) for v in range(len(ex.cell_of))} == want
+        recount = np.zeros_like(g.flow)
+        for k in range(6):
+            for u, v in zip(g.paths[k, :g.lengths[k] - 1], g.paths[k, 1:g.lengths[k]]):
+                recount[u, list(ex.nbr[u]).index(v)] += 1
+        assert np.array_equal(recount, g.flow)
+    assert g.late == 5 + 4 + 3  # robot-calls spent waiting
+    goals = goals.copy()
+    goals[0] = free[29]  # robot 0 wants a new path now; robots 3..5 have waited since the first call
+    ex.actions(pos, orient, goals)
+    assert g.fresh.tolist() == [False, True, True, True, False, False]
+
+
+def test_goal_fields_not_computed_yet_leave_a_waiting_robot_on_manhattan_distance():
+    grid = np.zeros((5, 5), dtype=bool)
+    pos, orient = np.array([0, 4, 20]), np.zeros(3, dtype=np.int64)
+    goals = np.array([24, 12, 2])
+    ex = FlowPIBT(grid, seed=0, replans=0, guide_work=1, bfs_budget=1)  # one goal field and one search per call
+    heuristic_rows = []
+    real = ex.guide.update
+    ex.guide.update = lambda *a: heuristic_rows.append(real(*a)) or heuristic_rows[-1]
+    for call in range(3):
+        ex.actions(pos, orient, goals)
+        has_field = ex.fields.row_of[ex.cid[goals]] >= 0
+        assert has_field.sum() == call + 1  # one new goal field a call
+        expect = [k if ex.guide.fresh[k] or has_field[k] else -1 for k in range(3)]
+        assert heuristic_rows[call].tolist() == expect
+        assert ex.guide.fresh.tolist() == [k <= call for k in range(3)]
+        if call == 0:
+            assert -1 in expect  # a waiting robot whose goal has no field yet: Manhattan distance
+
+
+def test_longer_paths_grow_the_rows_and_wider_values_the_dtype_with_the_same_run(monkeypatch):
+    import planners.mapf.guides.flow as flow
+
+    def run(h=18, w=18):
+        rng = np.random.default_rng(8)
+        grid, free, pos, orient, goals = random_instance(rng, h, w, 0.2, 0.3)
+        ex = FlowPIBT(grid, seed=3)
+        trace = []
+        for _ in range(25):
+            act = ex.actions(pos, orient, goals)
+            trace.append(act.tolist())
+            pos, orient, err = apply(grid, pos, orient, act)
+            assert err is None
+            goals = retarget(rng, free, pos, goals)
+        return trace, ex.guide
+
+    plain, guide = run()
+    assert guide.paths.shape[1] == min(flow.FIRST_PATH_CELLS, len(guide.cell_of)) and guide.dtype == np.uint16
+    monkeypatch.setattr(flow, "FIRST_PATH_CELLS", 2)
+    real = flow.field_dtype
+    monkeypatch.setattr(flow, "field_dtype", lambda nbr: (np.dtype(np.uint16), 65534 - 6))  # room for 7-cell paths
+    grown, guide = run()
+    assert grown == plain
+    assert guide.paths.shape[1] >= guide.lengths.max() > 7 and guide.dtype == np.uint32
+    assert real(guide.nbr)[0] == np.uint16
+
+
+def test_under_a_clock_past_its_stop_no_path_is_planned_and_the_actions_stay_valid():
+    import time
+
+    rng = np.random.default_rng(2)
+    grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.1, 0.4)
+    ex = FlowPIBT(grid, seed=1)
+    act = ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
+    assert ex.guide.replanned == 0 and not ex.guide.fresh.any()
+    _pos, _orient, err = apply(grid, pos, orient, act)
+    assert err is None
+
+
+@pytest.mark.parametrize("bad", [0, -3, 1.5, True, "many"])
+def test_bad_guide_work_names_the_value(bad):
+    grid = np.zeros((4, 4), dtype=bool)
+    with pytest.raises(ValueError, match=f"guide_work must be an integer >= 1.*got {bad!r}"):
+        FlowPIBT(grid, guide_work=bad)
+    with pytest.raises(ValueError, match="guide_work must be"):
+        make_turning_executor("epibt", grid, guide_work=bad)

@@ -26,7 +26,7 @@ import numpy as np
 
 from planners.mapf.common import int_in, mix
 from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
-from planners.mapf.guides.flow import FlowGuide, FlowPIBT
+from planners.mapf.guides.flow import DEFAULT_GUIDE_WORK, FlowGuide, FlowPIBT
 from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
@@ -347,6 +347,8 @@ class EPIBT(TurningPIBT):
         threads: threads the portfolio's plans run on (default: one per plan, at most the cores this process
             may use); the plans and the choice do not depend on it.
         field_bytes, bfs_budget: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide paths' bound).
+        guide_work: A* expansions per call for guide paths (``flow`` only; as
+            :class:`~planners.mapf.guides.flow.FlowPIBT`).
     """
 
     name = "epibt"
@@ -355,7 +357,7 @@ class EPIBT(TurningPIBT):
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
                  replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER, portfolio: int = 1,
                  threads: int | None = None, anneal: float = 0.0, field_bytes: int = DEFAULT_FIELD_BYTES,
-                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
+                 bfs_budget: int = DEFAULT_BFS_BUDGET, guide_work: int | None = DEFAULT_GUIDE_WORK) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
@@ -384,7 +386,7 @@ class EPIBT(TurningPIBT):
         self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else op_len)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,
-                               self.seed) if self.flow else None
+                               self.seed, work=guide_work) if self.flow else None
         self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
 
     def _set_ops(self, op_len) -> None:
@@ -399,8 +401,8 @@ class EPIBT(TurningPIBT):
         rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
         if self.guide is None:
             return self.fields.fields, rows
-        self.guide.update(pc, gc, self.fields.fields, rows)
-        return self.guide.fields, np.arange(len(pc), dtype=np.int64)
+        rows = self.guide.update(pc, gc, self.fields.fields, rows)  # first: it may make the fields
+        return self.guide.fields, rows
 
     def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
         """As :meth:`TurningPIBT.actions <planners.mapf.pibt.turning.TurningPIBT.actions>`; a robot not where the

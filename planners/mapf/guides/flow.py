@@ -13,27 +13,44 @@ path's cells, the goal's end first).
 
 Each call re-plans the paths of robots whose goal changed, then ``replans`` more in turn (robots off
 their path first, then the longest since their last re-plan, then a seeded tie; past the last robot
-the turn starts again): a fixed count
-where the start kit fills its time, so that a seed gives one run.  Memory: a path and a field per
-robot over the free cells.  Measurements: ``docs/design/lifelong_turning.md``.
+the turn starts again): a fixed count where the start kit fills its time, so that a seed gives one run.
+Re-planning stops once the call's A* expansions reach ``work`` (new goals first, the longest waiting
+first) or, under a clock, at the planner's stop time; a robot whose goal has no guide path yet ranks
+its cells by its goal's field meanwhile (the start kit: by its goal's heuristic table).  Memory: a
+field per robot over the free cells, and paths as long as the longest.  Measurements:
+``docs/design/lifelong_turning.md``.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import time
+
 import numba
 import numpy as np
 
-from planners.mapf.guides.guidance import spread
+from planners.mapf.guides.guidance import distance_bound, spread
+from planners.mapf.common import compact_grid
 from planners.mapf.pibt.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
 
-__all__ = ["FlowPIBT", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "check_team",
-           "DEFAULT_REPLAN_WORK"]
+__all__ = ["FlowPIBT", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
+           "DEFAULT_REPLAN_WORK", "DEFAULT_GUIDE_WORK"]
 
 #: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this
 #: // free cells, at most one per robot (every robot on RANDOM's 819 cells; 22 on CITY-01's 47,240).
 DEFAULT_REPLAN_WORK = 1 << 20
+
+#: A* expansions per call for guide paths: above every robot's path re-planned on a map of 1,000 robots x
+#: 1,000 free cells (one search closes each cell at most once), about 0.7 s on the 10,000-robot warehouse.
+DEFAULT_GUIDE_WORK = 1 << 20
+
+#: Rows of a guide path when the robots are first seen (they grow to the longest path planned).
+FIRST_PATH_CELLS = 256
+
+#: Under a clock, guide paths stop this long before the step's deadline, beyond twice PIBT's last pass
+#: (a search of the 10,000-robot warehouse takes up to 25 ms).
+GUIDE_MARGIN_S = 0.05
 
 
 class AStarScratch(NamedTuple):
@@ -47,6 +64,8 @@ class AStarScratch(NamedTuple):
     closed: np.ndarray  # the call that closed it
     stamp: np.ndarray  # (1,) the calls so far
     heap: tuple  # five columns: the key's three parts, the push order, the cell
+    expanded: np.ndarray  # (1,) the cells closed so far, over all calls
+    path: np.ndarray  # (n,) the path found by the latest call
 
 
 class GuideState(NamedTuple):
@@ -58,6 +77,7 @@ class GuideState(NamedTuple):
     lengths: np.ndarray
     fields: np.ndarray  # each robot's PIBT field along its path
     far: np.ndarray  # the fields' value off the paths
+    room: int  # the most moves a path's field may count along it (its dtype's room above the map's distances)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -136,6 +156,7 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
         if closed[u] == call:
             continue
         closed[u] = call
+        scratch.expanded[0] += 1
         if u == goal:
             found = True
             break
@@ -169,7 +190,8 @@ def astar_scratch(n: int):
     """Scratch of :func:`flow_astar` for a map of ``n`` free cells (heap entries: at most 4 per cell)."""
     m = 4 * n + 1
     heap = tuple(np.zeros(m, dtype=np.int64) for _ in range(5))
-    return AStarScratch(*(np.zeros(n, np.int64) for _ in range(6)), stamp=np.zeros(1, np.int64), heap=heap)
+    return AStarScratch(*(np.zeros(n, np.int64) for _ in range(6)), stamp=np.zeros(1, np.int64), heap=heap,
+                        expanded=np.zeros(1, np.int64), path=np.zeros(n, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -198,20 +220,41 @@ def path_field(nbr, path, length, field, far, queue):
 
 
 @numba.njit(cache=True, nogil=True)
-def replan_paths(grid, flow, goal_fields, state, who, scratch):
+def replan_paths(grid, flow, goal_fields, state, who, scratch, work):
     """Re-plan the guide paths of robots ``who`` in order: each path's flow out, A* on the rest, its flow in,
     its PIBT field re-computed.  ``goal_fields = (fields, rows)`` with ``rows[k]`` robot ``k``'s goal row;
-    ``state`` a :class:`GuideState`."""
+    ``state`` a :class:`GuideState`.  Stops before a robot once this call's expansions reach ``work``
+    (< 0: no bound), or at a path longer than ``state.paths``' rows or than the fields' ``room`` (that
+    robot's path left as it was); returns the robots re-planned (a prefix of ``who``) and the cells of the
+    path that did not fit (0: none)."""
     nbr = grid[0]
     gf, grow = goal_fields
     pos, goals, paths, lengths = state.pos, state.goals, state.paths, state.lengths
     fields, far = state.fields, state.far
     queue = np.empty(nbr.shape[0], dtype=np.int64)
-    for k in who:
+    found = scratch.path
+    first = scratch.expanded[0]
+    for i in range(who.shape[0]):
+        if work >= 0 and scratch.expanded[0] - first >= work:
+            return i, 0
+        k = who[i]
         _add_path(nbr, flow, paths[k], lengths[k], -1)
-        lengths[k] = flow_astar(grid, flow, (gf, grow[k]), pos[k], goals[k], scratch, paths[k])
-        _add_path(nbr, flow, paths[k], lengths[k], 1)
-        path_field(nbr, paths[k], lengths[k], fields[k], far, queue)
+        m = flow_astar(grid, flow, (gf, grow[k]), pos[k], goals[k], scratch, found)
+        if m > paths.shape[1] or m - 1 > state.room:
+            _add_path(nbr, flow, paths[k], lengths[k], 1)
+            return i, m
+        paths[k, :m] = found[:m]
+        lengths[k] = m
+        _add_path(nbr, flow, paths[k], m, 1)
+        path_field(nbr, paths[k], m, fields[k], far, queue)
+    return who.shape[0], 0
+
+
+@numba.njit(cache=True, nogil=True)
+def copy_rows(src, src_rows, dst, dst_rows):
+    """``dst[dst_rows[i]] = src[src_rows[i]]`` for each ``i`` (row by row, no temporary)."""
+    for i in range(src_rows.shape[0]):
+        dst[dst_rows[i]] = src[src_rows[i]]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -224,19 +267,36 @@ def _on_path(paths, lengths, pos, out):
                 break
 
 
-def guide_bytes(n_free: int, n_robots: int, cost_max: int = 1) -> tuple[int, np.dtype]:
-    """Bytes of the guide paths (int32) and fields of ``n_robots`` robots over ``n_free`` free cells, and
-    the fields' dtype (uint16 while any value, at most ``2 * n_free * cost_max + 1``, fits)."""
-    dtype = np.dtype(np.uint16 if 2 * n_free * cost_max + 2 < 65535 else np.uint32)
-    return n_robots * n_free * (4 + dtype.itemsize), dtype
+def guide_bytes(n_free: int, n_robots: int, itemsize: int = 2) -> int:
+    """Bytes of the PIBT fields of ``n_robots`` robots over ``n_free`` free cells (``itemsize`` bytes a value)
+    and of their first guide paths (int32, :data:`FIRST_PATH_CELLS` cells each; they grow with the longest)."""
+    return n_robots * (n_free * itemsize + 4 * min(n_free, FIRST_PATH_CELLS))
 
 
-def check_team(n_free: int, n_robots: int, max_bytes: int, cost_max: int = 1) -> None:
-    """``ValueError`` naming the numbers when the robots' paths and fields exceed ``max_bytes``."""
-    need, _ = guide_bytes(n_free, n_robots, cost_max)
+def field_dtype(nbr: np.ndarray) -> tuple[np.dtype, int]:
+    """The fields' first dtype and the map's distance bound: uint16 while a value of a path of up to
+    ``2 ** 15`` cells fits above the bound (any path of a map under ``2 ** 15`` free cells), else uint32;
+    a longer path widens them (:meth:`FlowGuide._widen`)."""
+    bound = distance_bound(nbr, np.ones((nbr.shape[0], 4), dtype=np.int64), 1)
+    return np.dtype(np.uint16 if bound + min(nbr.shape[0], 1 << 15) < 65535 else np.uint32), bound
+
+
+def check_team(n_free: int, n_robots: int, max_bytes: int, itemsize: int = 2) -> None:
+    """``ValueError`` naming the numbers when the robots' fields and first paths exceed ``max_bytes``."""
+    need = guide_bytes(n_free, n_robots, itemsize)
     if need > max_bytes:
-        raise ValueError(f"pibt-flow keeps a path and a field per robot: {n_robots} robots x {n_free} free cells "
+        raise ValueError(f"pibt-flow keeps a field and a path per robot: {n_robots} robots x {n_free} free cells "
                          f"need {need:,} bytes, over field_bytes = {max_bytes:,} (use the executor pibt)")
+
+
+def check_work(work) -> int | None:
+    """``work`` as an int (``None`` kept: no bound); ``ValueError`` naming it unless an integer >= 1."""
+    if work is None:
+        return None
+    if isinstance(work, bool) or not isinstance(work, (int, np.integer)) or work < 1:
+        raise ValueError(f"guide_work must be an integer >= 1 (A* expansions per call for guide paths) or None, "
+                         f"got {work!r}")
+    return int(work)
 
 
 class FlowGuide:
@@ -247,45 +307,72 @@ class FlowGuide:
         cost: ``(n, 4)`` moves counted per forward move (lane guidance), ``None``: 1 each.
         replans: guide paths re-planned per call beyond those of new goals (``None``: one per robot, at
             most :data:`DEFAULT_REPLAN_WORK` // free cells).
-        max_bytes: memory bound of the paths and fields of all robots.
+        max_bytes: memory bound of the fields and first paths of all robots.
         seed: the tie among robots equally due for a re-plan.
+        work: A* expansions per call (:data:`DEFAULT_GUIDE_WORK`; ``None``: no bound).
     """
 
-    def __init__(self, nbr, cell_of, width, cost=None, replans=None, max_bytes=DEFAULT_FIELD_BYTES, seed=0):
+    def __init__(self, nbr, cell_of, width, cost=None, replans=None, max_bytes=DEFAULT_FIELD_BYTES, seed=0,
+                 work=DEFAULT_GUIDE_WORK):
         self.nbr, self.cell_of, self.width = nbr, cell_of, int(width)
         n = nbr.shape[0]
         self.cost = np.ones((n, 4), dtype=np.int64) if cost is None else np.asarray(cost, dtype=np.int64)
-        self.dtype = guide_bytes(n, 0, int(self.cost.max()))[1]
+        self.dtype, self.bound = field_dtype(nbr)
         self.far = self.dtype.type(np.iinfo(self.dtype).max)
         self.replans = replans
         self.max_bytes = int(max_bytes)
         self.seed = int(seed)
+        self.work = check_work(work)
         self.flow = np.zeros((n, 4), dtype=np.int64)
         self.scratch = astar_scratch(n)
         self.robots = -1
         self.calls = 0
         self.replanned = 0  # guide paths planned so far
+        self.late = 0  # robot-calls in which a robot with a new goal waited for its path (work or clock)
 
     def _ensure(self, r: int) -> None:
         if r == self.robots:
             return
         n = self.nbr.shape[0]
-        check_team(n, r, self.max_bytes, int(self.cost.max()))
+        check_team(n, r, self.max_bytes, self.dtype.itemsize)
         self.robots = r
-        self.paths = np.zeros((r, n), dtype=np.int32)
+        self.paths = np.zeros((r, min(n, FIRST_PATH_CELLS)), dtype=np.int32)
         self.lengths = np.zeros(r, dtype=np.int64)
         self.fields = np.zeros((r, n), dtype=self.dtype)
         self.last = np.full(r, -1, dtype=np.int64)
+        self.since = np.full(r, -1, dtype=np.int64)  # the call since which a robot wants a path (-1: it has one)
+        self.fresh = np.zeros(r, dtype=np.bool_)  # its row holds its path's field for its goal
+        self.copied = np.full(r, -1, dtype=np.int64)  # else the goal whose field its row holds (-1: none)
         self.flow[:] = 0
 
-    def update(self, pc, gc, goal_fields, goal_rows) -> np.ndarray:
-        """Re-plan (new goals, then ``replans`` more) for robots at compact ``pc`` heading to compact
-        ``gc``; returns the robots re-planned, in order."""
+    def _grow(self, cells: int) -> None:
+        """Room for a path of ``cells`` cells: longer path rows, wider fields when its values would not fit."""
+        if cells > self.paths.shape[1]:
+            paths = np.zeros((self.robots, max(cells, 2 * self.paths.shape[1])), dtype=np.int32)
+            paths[:, :self.paths.shape[1]] = self.paths
+            self.paths = paths
+        if cells - 1 > self._room():
+            far = self.fields == self.far
+            self.dtype = np.dtype(np.uint32)
+            self.far = self.dtype.type(np.iinfo(self.dtype).max)
+            self.fields = np.where(far, self.far, self.fields.astype(self.dtype))
+
+    def _room(self) -> int:
+        return int(self.far) - 1 - self.bound
+
+    def update(self, pc, gc, goal_fields, goal_rows, stop: float | None = None) -> np.ndarray:
+        """Re-plan (new goals, then ``replans`` more; within :attr:`work` and, given, until the
+        ``time.perf_counter()`` time ``stop``) for robots at compact ``pc`` heading to compact ``gc``;
+        returns each robot's row of :attr:`fields` (its own; -1: no field yet, Manhattan distance)."""
         r = len(pc)
         self._ensure(r)
         self.calls += 1
         ends = self.paths[np.arange(r), np.maximum(self.lengths - 1, 0)]
-        new = np.flatnonzero((self.lengths == 0) | (ends != gc))
+        need = (self.lengths == 0) | (ends != gc)
+        self.since = np.where(need, np.where(self.since < 0, self.calls, self.since), -1)
+        self.fresh &= ~need
+        new = np.flatnonzero(need)
+        new = new[np.argsort(self.since[new], kind="stable")]  # the longest waiting first, then by index
         on = np.empty(r, dtype=np.bool_)
         _on_path(self.paths, self.lengths, pc, on)
         tie = np.random.default_rng((self.seed, self.calls)).random(r)
@@ -294,11 +381,49 @@ class FlowGuide:
         n = self.nbr.shape[0]
         extra = min(len(rest), max(DEFAULT_REPLAN_WORK // n, 1)) if self.replans is None else int(self.replans)
         who = np.concatenate([new, np.resize(rest, extra if len(rest) else 0)]).astype(np.int64)  # cyclic passes
-        replan_paths((self.nbr, self.cell_of, self.width, self.cost), self.flow, (goal_fields, goal_rows),
-                     GuideState(pc, gc, self.paths, self.lengths, self.fields, self.far), who, self.scratch)
-        self.last[who] = self.calls
-        self.replanned += len(who)
-        return who
+        rows = self._rows(gc, goal_fields, goal_rows)  # first: the re-plans then fill the time left
+        done = self._replan(pc, gc, (goal_fields, goal_rows), who, stop)
+        served = who[:done]
+        self.last[served] = self.calls
+        self.since[served] = -1
+        self.fresh[served] = True
+        self.copied[served] = -1
+        rows[served] = served
+        self.replanned += done
+        self.late += int(np.count_nonzero(self.since >= 0))
+        return rows
+
+    def _replan(self, pc, gc, goal_fields, who, stop) -> int:
+        """Run :func:`replan_paths` over ``who`` within the work and the clock; returns the robots done."""
+        grid = (self.nbr, self.cell_of, self.width, self.cost)
+        first = int(self.scratch.expanded[0])
+        chunk = len(who) if stop is None else 1
+        done = 0
+        while done < len(who):
+            left = -1 if self.work is None else self.work - (int(self.scratch.expanded[0]) - first)
+            if (self.work is not None and left <= 0) or (stop is not None and time.perf_counter() >= stop):
+                break
+            part = who[done:done + chunk]
+            state = GuideState(pc, gc, self.paths, self.lengths, self.fields, self.far, self._room())
+            k, cells = replan_paths(grid, self.flow, goal_fields, state, part, self.scratch, left)
+            done += k
+            if cells:
+                self._grow(cells)
+            elif k < len(part):
+                break  # the work is spent
+        return done
+
+    def _rows(self, gc, goal_fields, goal_rows) -> np.ndarray:
+        """Each robot's row: its own, holding its path's field, or else a copy of its goal's field (-1 without)."""
+        rows = np.arange(self.robots, dtype=np.int64)
+        wait = np.flatnonzero(~self.fresh)
+        if len(wait):
+            has = goal_rows[wait] >= 0
+            copy = wait[has & (self.copied[wait] != gc[wait])]
+            copy_rows(goal_fields, goal_rows[copy], self.fields, copy)
+            self.copied[copy] = gc[copy]
+            rows[wait[~has]] = -1
+        return rows
 
 
 class FlowPIBT(TurningPIBT):
@@ -309,28 +434,38 @@ class FlowPIBT(TurningPIBT):
             adds lane costs to the guide paths' moves).
         replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
             :data:`DEFAULT_REPLAN_WORK` // free cells).
-        field_bytes: memory bound of the goal fields, and of the paths and fields of the robots.
+        field_bytes: memory bound of the goal fields, and of the robots' fields and first paths.
         bfs_budget, commits: as :class:`~planners.mapf.pibt.turning.TurningPIBT`; commitments on by default
             here (as in the start kit).
+        guide_work: A* expansions per call for guide paths (:data:`DEFAULT_GUIDE_WORK`; ``None``: no bound);
+            under a clock they also stop :data:`GUIDE_MARGIN_S` + twice PIBT's last pass before the deadline.
     """
 
     name = "pibt-flow"
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, replans: int | None = None,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = True) -> None:
+                 commits: bool = True, guide_work: int | None = DEFAULT_GUIDE_WORK) -> None:
         super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits)
         if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
                                     or replans < 0):
             raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes, self.seed)
+        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes, self.seed,
+                               work=guide_work)
+        self.guide_stop: float | None = None
+
+    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
+        """:meth:`TurningPIBT.actions`; under a clock the guide paths stop in time for PIBT's pass."""
+        self.guide_stop = None if deadline is None else deadline - GUIDE_MARGIN_S - 2 * self.kernel_s
+        return super().actions(pos, orient, goals, deadline)
 
     @staticmethod
     def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
         """``ValueError`` when ``n_robots`` robots' paths and fields on ``grid`` exceed ``field_bytes``."""
-        check_team(int((~np.asarray(grid, dtype=bool)).sum()), int(n_robots), int(field_bytes))
+        nbr = compact_grid(np.asarray(grid, dtype=bool))[2]
+        check_team(nbr.shape[0], int(n_robots), int(field_bytes), field_dtype(nbr)[0].itemsize)
 
     def _heuristic(self, pc, gc, order):
         rows = self.fields.rows(gc, order)
-        self.guide.update(pc, gc, self.fields.fields, rows)
-        return self.guide.fields, np.arange(len(pc), dtype=np.int64)
+        rows = self.guide.update(pc, gc, self.fields.fields, rows, self.guide_stop)  # first: it may grow the fields
+        return self.guide.fields, rows

@@ -351,7 +351,7 @@ def test_registered_and_bad_options_name_the_value():
                        ({"anneal": "hot"}, r"anneal must be a number 0..1 .* got 'hot'")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
-    with pytest.raises(ValueError, match="pibt-flow keeps a path"):
+    with pytest.raises(ValueError, match="pibt-flow keeps a field and a path"):
         EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)
 
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lanes_reference import lane_cost
+from lanes_reference import corridor_cost, lane_cost
 from planners.mapf import TURNING_EXECUTORS, TurningPIBT, make_turning_executor
 from planners.mapf.common import mix
 
@@ -72,8 +72,8 @@ def bfs(grid, goal):
     return dist
 
 
-def guided(grid, goal, weight):
-    """Least lane cost from every free cell to ``goal`` (Dijkstra, backwards)."""
+def guided(grid, goal, weight, corridors=0):
+    """Least lane cost (+ one-way corridor cost) from every free cell to ``goal`` (Dijkstra, backwards)."""
     h, w = grid.shape
     dist, heap = {goal: 0}, [(0, goal)]
     while heap:
@@ -85,7 +85,7 @@ def guided(grid, goal, weight):
             nr, nc = r + DR[e], c + DC[e]
             if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
                 q = nr * w + nc
-                nd = d + lane_cost(grid, q, (e + 2) % 4, weight)
+                nd = d + lane_cost(grid, q, (e + 2) % 4, weight) + corridor_cost(grid, q, (e + 2) % 4, corridors)
                 if nd < dist.get(q, FAR):
                     dist[q] = nd
                     heapq.heappush(heap, (nd, q))
@@ -373,3 +373,51 @@ def test_a_one_cell_corridor_has_no_lane_and_big_maps_keep_uint16_guided_fields(
         == np.uint32
     row = big.fields.rows(np.array([0]), np.zeros(1, dtype=np.int64))[0]
     assert big.fields.fields[row].max() < big.fields.far  # every cell reached, within the dtype
+
+
+def shelves(rows=2, bays=5):
+    """A warehouse strip: aisles between rows of 3-wide shelves, corridors one cell wide between them, and a
+    dead-end pocket (a corridor closed at its south end) on the right."""
+    h, w = 3 * rows + 1, 4 * bays + 3
+    grid = np.zeros((h, w), dtype=bool)
+    for k in range(rows):
+        for b in range(bays):
+            grid[3 * k + 1:3 * k + 3, 4 * b + 1:4 * b + 4] = True
+    grid[1:, w - 2] = True
+    grid[h - 1, w - 1] = True
+    return grid
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_one_way_corridors_equal_their_statement(seed):
+    from planners.mapf.common import compact_grid
+    from planners.mapf.guides.guidance import corridor_costs
+
+    rng = np.random.default_rng(seed)
+    grid = shelves(2 + seed % 2, 4 + seed) if seed % 3 == 0 else rng.random((9, 11)) < 0.35
+    grid[0, 0] = False
+    cid, cell_of, nbr = compact_grid(grid)
+    extra = corridor_costs(nbr, cell_of, grid.shape[1], 5)
+    want = [[corridor_cost(grid, int(p), d, 5) if nbr[i, d] >= 0 else extra[i, d] for d in range(4)]
+            for i, p in enumerate(cell_of)]
+    assert extra.tolist() == want
+    if seed == 0:  # neighbouring corridors carry opposite ways; the pocket keeps both
+        first = [int(cid[1 * grid.shape[1] + 4 * b]) for b in range(1, 4)]
+        assert [int(np.argmax(extra[c])) for c in first] == [1, 3, 1]  # runs 1, 2, 3 (column 0 is run 0): an odd
+        # run goes north (its south moves cost more), an even one south
+        assert (extra[cid[np.flatnonzero(~grid[:, -1]) * grid.shape[1] + grid.shape[1] - 1]] == 0).all()
+    assert not corridor_costs(nbr, cell_of, grid.shape[1], 0).any()
+
+
+@pytest.mark.parametrize("lanes, corridors", [(0, 6), (2, 4)])
+def test_corridor_fields_equal_the_dijkstra_oracle_and_robots_keep_the_way(lanes, corridors):
+    grid = shelves(2, 5)
+    ex = TurningPIBT(grid, guidance=lanes, corridors=corridors)
+    goals = np.arange(len(ex.cell_of))
+    rows = ex.fields.rows(goals, goals)
+    for gc, row in zip(goals.tolist(), rows.tolist()):
+        want = guided(grid, int(ex.cell_of[gc]), lanes, corridors)
+        assert [int(x) for x in ex.fields.fields[row]] == [want.get(int(cell), ex.fields.far) for cell in ex.cell_of]
+    for bad in (-1, 17, 1.5, True):
+        with pytest.raises(ValueError, match=rf"corridors must be an integer in 0..16 .*one-way corridor.*got {bad!r}"):
+            TurningPIBT(grid, corridors=bad)

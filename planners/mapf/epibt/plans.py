@@ -346,7 +346,8 @@ class EPIBT(TurningPIBT):
             cost-to-go is kept (ties: the first), as the 2024 winner's threads do up to the deadline.
         threads: threads the portfolio's plans run on (default: one per plan, at most the cores this process
             may use); the plans and the choice do not depend on it.
-        field_bytes, bfs_budget: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide paths' bound).
+        field_bytes, bfs_budget, corridors: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide
+            paths' bound).
         guide_work: A* expansions per call for guide paths (``flow`` only; as
             :class:`~planners.mapf.guides.flow.FlowPIBT`).
     """
@@ -357,8 +358,9 @@ class EPIBT(TurningPIBT):
                  revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
                  replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER, portfolio: int = 1,
                  threads: int | None = None, anneal: float = 0.0, field_bytes: int = DEFAULT_FIELD_BYTES,
-                 bfs_budget: int = DEFAULT_BFS_BUDGET, guide_work: int | None = DEFAULT_GUIDE_WORK) -> None:
-        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
+                 bfs_budget: int = DEFAULT_BFS_BUDGET, guide_work: int | None = DEFAULT_GUIDE_WORK,
+                 corridors: int = 0) -> None:
+        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, corridors=corridors)
         if not isinstance(flow, (bool, np.bool_)):
             raise ValueError(f"flow must be True or False, got {flow!r}")
         big = 1 << 24

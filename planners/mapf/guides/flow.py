@@ -49,8 +49,8 @@ DEFAULT_GUIDE_WORK = 1 << 20
 FIRST_PATH_CELLS = 256
 
 #: Under a clock, guide paths stop this long before the step's deadline, beyond twice PIBT's last pass
-#: (a search of the 10,000-robot warehouse takes up to 25 ms).
-GUIDE_MARGIN_S = 0.05
+#: (and no search starts that would end past it, at the pace of the call's longest search so far).
+GUIDE_MARGIN_S = 0.03
 
 
 class AStarScratch(NamedTuple):
@@ -63,7 +63,7 @@ class AStarScratch(NamedTuple):
     seen: np.ndarray  # the call that reached the cell
     closed: np.ndarray  # the call that closed it
     stamp: np.ndarray  # (1,) the calls so far
-    heap: tuple  # five columns: the key's three parts, the push order, the cell
+    heap: np.ndarray  # (4n + 1, 5) an entry a row: the key's three parts, the push order, the cell
     expanded: np.ndarray  # (1,) the cells closed so far, over all calls
     path: np.ndarray  # (n,) the path found by the latest call
 
@@ -83,21 +83,21 @@ class GuideState(NamedTuple):
 @numba.njit(cache=True, nogil=True)
 def _before(heap, i, j) -> bool:
     """Heap entry ``i`` pops before ``j``: keys compared in order (flow cost + f, f, -2g + turned, push order)."""
-    for a in heap[:4]:
-        if a[i] != a[j]:
-            return a[i] < a[j]
+    for c in range(4):
+        if heap[i, c] != heap[j, c]:
+            return heap[i, c] < heap[j, c]
     return False
 
 
 @numba.njit(cache=True, nogil=True)
 def _swap(heap, i, j):
-    for a in heap:
-        a[i], a[j] = a[j], a[i]
+    for c in range(5):
+        heap[i, c], heap[j, c] = heap[j, c], heap[i, c]
 
 
 @numba.njit(cache=True, nogil=True)
 def _heap_push(heap, size, key, seq, v) -> int:
-    heap[0][size], heap[1][size], heap[2][size], heap[3][size], heap[4][size] = key[0], key[1], key[2], seq, v
+    heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3], heap[size, 4] = key[0], key[1], key[2], seq, v
     i = size
     while i > 0:
         q = (i - 1) >> 1
@@ -152,7 +152,7 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
     found = False
     while size > 0:
         size = _heap_pop(heap, size)
-        u = heap[4][size]
+        u = heap[size, 4]
         if closed[u] == call:
             continue
         closed[u] = call
@@ -189,7 +189,7 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
 def astar_scratch(n: int):
     """Scratch of :func:`flow_astar` for a map of ``n`` free cells (heap entries: at most 4 per cell)."""
     m = 4 * n + 1
-    heap = tuple(np.zeros(m, dtype=np.int64) for _ in range(5))
+    heap = np.zeros((m, 5), dtype=np.int64)
     return AStarScratch(*(np.zeros(n, np.int64) for _ in range(6)), stamp=np.zeros(1, np.int64), heap=heap,
                         expanded=np.zeros(1, np.int64), path=np.zeros(n, np.int64))
 
@@ -399,13 +399,16 @@ class FlowGuide:
         first = int(self.scratch.expanded[0])
         chunk = len(who) if stop is None else 1
         done = 0
+        longest = 0.0  # under a clock: the longest search so far; the next one must end before the stop
         while done < len(who):
             left = -1 if self.work is None else self.work - (int(self.scratch.expanded[0]) - first)
-            if (self.work is not None and left <= 0) or (stop is not None and time.perf_counter() >= stop):
+            now = time.perf_counter()
+            if (self.work is not None and left <= 0) or (stop is not None and now + longest >= stop):
                 break
             part = who[done:done + chunk]
             state = GuideState(pc, gc, self.paths, self.lengths, self.fields, self.far, self._room())
             k, cells = replan_paths(grid, self.flow, goal_fields, state, part, self.scratch, left)
+            longest = max(longest, time.perf_counter() - now)
             done += k
             if cells:
                 self._grow(cells)
@@ -435,8 +438,8 @@ class FlowPIBT(TurningPIBT):
         replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
             :data:`DEFAULT_REPLAN_WORK` // free cells).
         field_bytes: memory bound of the goal fields, and of the robots' fields and first paths.
-        bfs_budget, commits: as :class:`~planners.mapf.pibt.turning.TurningPIBT`; commitments on by default
-            here (as in the start kit).
+        bfs_budget, commits, corridors: as :class:`~planners.mapf.pibt.turning.TurningPIBT`; commitments on by
+            default here (as in the start kit).
         guide_work: A* expansions per call for guide paths (:data:`DEFAULT_GUIDE_WORK`; ``None``: no bound);
             under a clock they also stop :data:`GUIDE_MARGIN_S` + twice PIBT's last pass before the deadline.
     """
@@ -445,8 +448,9 @@ class FlowPIBT(TurningPIBT):
 
     def __init__(self, grid, seed: int = 0, guidance: int = 0, *, replans: int | None = None,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = True, guide_work: int | None = DEFAULT_GUIDE_WORK) -> None:
-        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits)
+                 commits: bool = True, guide_work: int | None = DEFAULT_GUIDE_WORK, corridors: int = 0) -> None:
+        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits,
+                         corridors=corridors)
         if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
                                     or replans < 0):
             raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")

@@ -14,18 +14,19 @@ import numba
 import numpy as np
 
 
-__all__ = ["check_guidance", "crisscross_costs", "distance_bound", "cost_rows", "orient_cost_rows", "spread",
+__all__ = ["check_guidance", "crisscross_costs", "corridor_costs", "move_costs", "distance_bound", "cost_rows", "orient_cost_rows", "spread",
            "MAX_GUIDANCE"]
 
 #: Largest extra cost of a move against its lane.
 MAX_GUIDANCE = 16
 
 
-def check_guidance(weight) -> int:
-    """``weight`` as an int; ``ValueError`` naming it unless it is an integer in 0..:data:`MAX_GUIDANCE`."""
+def check_guidance(weight, name: str = "guidance") -> int:
+    """``weight`` as an int; ``ValueError`` naming it (as ``name``) unless it is an integer in 0..:data:`MAX_GUIDANCE`."""
     if isinstance(weight, bool) or not isinstance(weight, (int, np.integer)) or not 0 <= weight <= MAX_GUIDANCE:
-        raise ValueError(f"guidance must be an integer in 0..{MAX_GUIDANCE} (extra cost of a move against "
-                         f"its lane), got {weight!r}")
+        what = "its lane" if name == "guidance" else "a one-way corridor"
+        raise ValueError(f"{name} must be an integer in 0..{MAX_GUIDANCE} (extra cost of a move against "
+                         f"{what}), got {weight!r}")
     return int(weight)
 
 
@@ -46,6 +47,50 @@ def crisscross_costs(nbr: np.ndarray, cell_of: np.ndarray, width: int, weight: i
     cost[~south & wide_v, 1] += weight
     cost[south & wide_v, 3] += weight
     return cost
+
+
+def corridor_costs(nbr: np.ndarray, cell_of: np.ndarray, width: int, weight: int) -> np.ndarray:
+    """``(n, 4)`` int64 extra cost of a move along a corridor one cell wide against its one-way direction.
+
+    A corridor: a run of free cells with no free neighbour across it (vertical: none east or west),
+    open at both ends (a dead end keeps both ways).  Corridors whose first cell (north or west end) lies
+    on the same line are numbered along it; even ones run south (east), odd ones north (west), so
+    neighbouring corridors carry opposite ways, as the aisles between a warehouse's shelves.  A move from
+    a corridor cell against its way costs ``weight`` more; 0 everywhere else."""
+    weight = check_guidance(weight, "corridors")
+    n = len(cell_of)
+    extra = np.zeros((n, 4), dtype=np.int64)
+    if weight == 0:
+        return extra
+    for fwd, across in ((1, 0), (0, 1)):  # vertical corridors (moves south / north), then horizontal
+        back = fwd + 2
+        inner = (nbr[:, across] < 0) & (nbr[:, across + 2] < 0) & ((nbr[:, fwd] >= 0) | (nbr[:, back] >= 0))
+        prev = nbr[:, back]
+        first = inner & ~((prev >= 0) & inner[np.maximum(prev, 0)])
+        runs = []
+        for s in np.flatnonzero(first).tolist():
+            cells = [s]
+            while nbr[cells[-1], fwd] >= 0 and inner[nbr[cells[-1], fwd]]:
+                cells.append(int(nbr[cells[-1], fwd]))
+            if nbr[s, back] >= 0 and nbr[cells[-1], fwd] >= 0:  # open at both ends
+                line, at = divmod(int(cell_of[s]), width) if fwd == 1 else divmod(int(cell_of[s]), width)[::-1]
+                runs.append((line, at, cells))
+        runs.sort(key=lambda r: (r[0], r[1]))
+        rank, last = 0, None
+        for line, _, cells in runs:
+            rank = rank + 1 if line == last else 0
+            last = line
+            extra[cells, back if rank % 2 == 0 else fwd] += weight
+    return extra
+
+
+def move_costs(nbr: np.ndarray, cell_of: np.ndarray, width: int, lanes: int, corridors: int) -> np.ndarray | None:
+    """Forward-move costs of crisscross ``lanes`` (:func:`crisscross_costs`) plus one-way ``corridors``
+    (:func:`corridor_costs`); ``None`` when both weights are 0 (every move costs 1)."""
+    lanes, corridors = check_guidance(lanes), check_guidance(corridors, "corridors")
+    if not lanes and not corridors:
+        return None
+    return crisscross_costs(nbr, cell_of, width, lanes) + corridor_costs(nbr, cell_of, width, corridors)
 
 
 def distance_bound(nbr: np.ndarray, cost: np.ndarray, per_cell: int) -> int:

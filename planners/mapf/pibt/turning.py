@@ -34,7 +34,7 @@ import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
-from planners.mapf.guides.guidance import check_guidance, cost_rows, crisscross_costs, distance_bound
+from planners.mapf.guides.guidance import check_guidance, cost_rows, distance_bound, move_costs
 
 __all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
@@ -309,6 +309,8 @@ class TurningPIBT:
             whose goal has no field yet goes by Manhattan distance meanwhile).
         commits: a robot keeps claiming the cell it chose until it stands on it (through its turns and
             waits; no other robot may claim it, as in the start kit's default planner); default off.
+        corridors: extra cost of a move against a one-way corridor (corridors one cell wide, open at both
+            ends, alternate their ways: :func:`~planners.mapf.guides.guidance.corridor_costs`; default 0 = off).
     """
 
     name = "pibt"
@@ -318,14 +320,15 @@ class TurningPIBT:
 
     def __init__(self, grid: np.ndarray, seed: int = 0, guidance: int = DEFAULT_GUIDANCE, *,
                  field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = False) -> None:
+                 commits: bool = False, corridors: int = 0) -> None:
         self.grid = np.asarray(grid, dtype=bool)
         if self.grid.ndim != 2:
             raise ValueError(f"grid must be 2-d (H, W), got shape {self.grid.shape}")
         self.width = int(self.grid.shape[1])
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
         self.guidance = check_guidance(guidance)
-        self.move_cost = crisscross_costs(self.nbr, self.cell_of, self.width, guidance) if self.guidance else None
+        self.corridors = check_guidance(corridors, "corridors")
+        self.move_cost = move_costs(self.nbr, self.cell_of, self.width, self.guidance, self.corridors)
         self.fields = TurnFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         if not isinstance(commits, (bool, np.bool_)):

@@ -13,17 +13,20 @@ from lorr_reference import bfs as _bfs
 from mrmt_env.lorr.output import check_output, output_dict
 from agents.lorr.run import run_lorr
 from agents.lorr.schedulers import make_scheduler
-from agents.lorr.weighted import WeightedScheduler, weighted_matching
+from agents.lorr.weighted import Crowd, WeightedScheduler, weighted_matching
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.sim import LoRRSimulator
 
 
-def _oracle(dist, robots, first, legs, ids, weight):
-    """Repeatedly the pair of least (cost, robot, first cell, legs, id) among the robots and tasks left."""
+def _oracle(dist, robots, first, legs, ids, weight, jam=0, block_of=None, load=None):
+    """Repeatedly the pair of least (cost, robot, first cell, legs, id) among the robots and tasks left; the cost
+    adds ``jam`` per robot in or sent to the first cell's block (``load``, grown by each pair made)."""
     left, out = set(range(len(first))), {}
     todo = set(range(len(robots)))
+    load = dict(load or {})
     while todo and left:
-        cands = [(weight * dist[first[k]][robots[i]] + legs[k], i, first[k], legs[k], ids[k], k)
+        cands = [(weight * dist[first[k]][robots[i]] + legs[k] + (jam * load[block_of(first[k])] if jam else 0),
+                  i, first[k], legs[k], ids[k], k)
                  for i in todo for k in left if dist[first[k]][robots[i]] >= 0]
         if not cands:
             break
@@ -32,12 +35,14 @@ def _oracle(dist, robots, first, legs, ids, weight):
         out[i] = k
         todo.discard(i)
         left.discard(k)
+        if jam:
+            load[block_of(first[k])] += 1
     return out
 
 
-@settings(max_examples=60, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(0, 6))
-def test_the_matching_is_the_global_greedy_of_the_oracle(seed, weight):
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 6), st.sampled_from([0, 0, 1, 3]), st.integers(1, 4))
+def test_the_matching_is_the_global_greedy_of_the_oracle(seed, weight, jam, side):
     rng = np.random.default_rng(seed)
     h, w = int(rng.integers(3, 10)), int(rng.integers(3, 10))
     grid = rng.random((h, w)) < 0.3
@@ -54,8 +59,16 @@ def test_the_matching_is_the_global_greedy_of_the_oracle(seed, weight):
     cells, start = np.unique(first[order], return_index=True)
     way = np.array([[dist[int(c)][r] for c in cells] for r in robots.tolist()], dtype=np.int32)
     out = np.empty(len(robots), dtype=np.int64)
-    made = weighted_matching(way, np.append(start, n).astype(np.int64), legs[order], weight, out)
-    want = _oracle(dist, robots.tolist(), first.tolist(), legs.tolist(), ids.tolist(), weight)
+    across = -(-w // side)
+
+    def block_of(c):
+        return (c // w // side) * across + c % w // side
+
+    load = rng.integers(0, 4, -(-h // side) * across).astype(np.int64)
+    crowd = Crowd(np.array([block_of(int(c)) for c in cells], dtype=np.int64), load.copy(), jam)
+    made = weighted_matching(way, np.append(start, n).astype(np.int64), legs[order], weight, out, crowd)
+    want = _oracle(dist, robots.tolist(), first.tolist(), legs.tolist(), ids.tolist(), weight, jam, block_of,
+                   dict(enumerate(load.tolist())))
     got = {i: int(order[s]) for i, s in enumerate(out.tolist()) if s >= 0}
     assert got == want and made == len(want)
 
@@ -74,6 +87,30 @@ def test_a_robot_whose_task_is_not_opened_gives_it_to_a_closer_robot():
     assert again.tolist() == proposal.tolist()
     kept = WeightedScheduler(weight=5, reassign=False).schedule(sim)
     assert kept.tolist() == forced.tolist()
+
+
+def test_the_jam_term_counts_robots_standing_and_bound_per_block():
+    sim = LoRRSimulator(read_instance(example_instance_path()))
+    proposal = WeightedScheduler().schedule(sim)
+    sim.tasks.propose(proposal, 1)
+    sched = WeightedScheduler(jam=2, block=3)
+    cells = np.flatnonzero(~sim.inst.grid.reshape(-1))[:10]
+    crowd = sched.crowd(sim, proposal, cells)
+    h, w = sim.inst.grid.shape
+    count = {}
+    for k in range(len(sim.pos)):  # an independent count: where each robot stands, where its task sends it
+        for cell in (int(sim.pos[k]), sim.tasks.errands_of(int(proposal[k]))[0] if proposal[k] >= 0 else None):
+            if cell is not None:
+                key = (cell // w // 3, cell % w // 3)
+                count[key] = count.get(key, 0) + 1
+    across = -(-w // 3)
+    assert {(b // across, b % across): int(v) for b, v in enumerate(crowd.load) if v} == count
+    assert crowd.block.tolist() == [(int(c) // w // 3) * across + int(c) % w // 3 for c in cells]
+    assert crowd.weight == 2 and not WeightedScheduler().crowd(sim, proposal, cells).load.any()
+    for bad, match in (({"jam": -1}, "jam must be an integer 0..1000"), ({"block": 0}, "block must be an integer 1..4096"),
+                       ({"jam": 1.5}, "jam must be")):
+        with pytest.raises(ValueError, match=match):
+            WeightedScheduler(**bad)
 
 
 def test_every_task_costs_the_winners_measure_from_bfs():
@@ -109,7 +146,7 @@ def test_tables_stay_within_the_memory_asked():
     ({"weight": 2.5}, "weight must be an integer 0..1000"),
     ({"reassign": "yes"}, "reassign must be True or False, got 'yes'"),
     ({"memory_mb": 0}, "memory_mb must be an integer >= 1"),
-    ({"radius": 3}, "lorr-weighted takes weight, reassign and memory_mb, got ['radius']"),
+    ({"radius": 3}, "lorr-weighted takes weight, reassign, memory_mb, jam and block, got ['radius']"),
 ])
 def test_bad_options_name_the_option_and_the_limit(options, needle):
     with pytest.raises(ValueError) as exc:

@@ -168,9 +168,9 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     if name == "lorr-weighted":
         from agents.lorr.weighted import WeightedScheduler
 
-        unknown = sorted(set(options) - {"weight", "reassign", "memory_mb"})
+        unknown = sorted(set(options) - {"weight", "reassign", "memory_mb", "jam", "block"})
         if unknown:
-            raise ValueError(f"lorr-weighted takes weight, reassign and memory_mb, got {unknown}")
+            raise ValueError(f"lorr-weighted takes weight, reassign, memory_mb, jam and block, got {unknown}")
         return WeightedScheduler(**options)
     from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
     from planners.registry import UnknownPlannerError

@@ -18,6 +18,7 @@ whose tables are not built yet wait for a later step.  Design notes and measurem
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -25,7 +26,7 @@ import numpy as np
 from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
 
-__all__ = ["WeightedScheduler", "weighted_matching", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB"]
+__all__ = ["WeightedScheduler", "weighted_matching", "Crowd", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
 #: Weight of the way to the first errand against the task's legs (the 2024 winner's is 5; 1 measured better here).
 DEFAULT_WEIGHT = 1
@@ -33,6 +34,8 @@ DEFAULT_WEIGHT = 1
 DEFAULT_MEMORY_MB = 2048
 #: Tables built per chunk under a clock.
 CHUNK = 32
+#: Side of the square blocks the jam term counts robots in.
+DEFAULT_BLOCK = 16
 
 
 @numba.njit(cache=True, nogil=True)
@@ -67,51 +70,63 @@ def _pop(heap, size):
     return top, size
 
 
+class Crowd(NamedTuple):
+    """The jam term of :func:`weighted_matching`: a cell's cost grows by ``weight`` per robot bound for its block."""
+
+    block: np.ndarray  # (cells,) each candidate cell's block
+    load: np.ndarray  # (blocks,) robots in or bound for each block; the matching adds the robots it sends
+    weight: int  # moves per robot (0: off)
+
+
 @numba.njit(cache=True, nogil=True)
-def _best(way, cell_start, head, length, weight):
+def _best(way, cell_start, head, length, weight, crowd):
     """A robot's cheapest cell by its ``way`` to each (-1 if none reachable has a task left) and the cost."""
     best, best_cost = -1, np.int64(1) << 40
     for c in range(way.shape[0]):
         if head[c] >= cell_start[c + 1] or way[c] < 0:
             continue
-        cost = weight * np.int64(way[c]) + length[head[c]]
+        cost = weight * np.int64(way[c]) + length[head[c]] + crowd.weight * crowd.load[crowd.block[c]]
         if cost < best_cost:
             best, best_cost = c, cost
     return best, best_cost
 
 
 @numba.njit(cache=True, nogil=True)
-def weighted_matching(way, cell_start, length, weight, out) -> int:
+def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     """The global greedy matching (module docstring).  ``way[i, c]``: moves from robot ``i`` to cell ``c`` (-1 cut
     off); cell ``c``'s tasks are the slots ``cell_start[c]:cell_start[c + 1]``, shortest first, ``length[slot]``
-    their legs.  ``out[i]`` = the slot robot ``i`` takes, -1 for none; returns the pairs made."""
+    their legs; ``crowd`` a :class:`Crowd` (its loads grow as robots are sent).  ``out[i]`` = the slot robot ``i``
+    takes, -1 for none; returns the pairs made.  Costs only grow, so lazy re-evaluation stays exact."""
     n = way.shape[0]
     head = cell_start[:-1].copy()
     seen = np.empty(n, dtype=np.int64)   # the head of its cell when the robot's cost was taken
+    seen_load = np.empty(n, dtype=np.int64)  # and its block's load
     cell = np.empty(n, dtype=np.int64)
     heap = np.empty(n, dtype=np.int64)
     size = 0
     for i in range(n):
         out[i] = -1
-        c, cost = _best(way[i], cell_start, head, length, weight)
+        c, cost = _best(way[i], cell_start, head, length, weight, crowd)
         cell[i] = c
         if c >= 0:
-            seen[i] = head[c]
+            seen[i], seen_load[i] = head[c], crowd.load[crowd.block[c]]
             size = _push(heap, size, cost * n + i)
     made = 0
     while size > 0:
         key, size = _pop(heap, size)
         i = key % n
         c = cell[i]
-        if head[c] != seen[i]:  # its cell's best task went to another robot: cost again
-            c, cost = _best(way[i], cell_start, head, length, weight)
+        if head[c] != seen[i] or (crowd.weight and crowd.load[crowd.block[c]] != seen_load[i]):
+            # its cell's best task went to another robot, or more robots were sent to its block: cost again
+            c, cost = _best(way[i], cell_start, head, length, weight, crowd)
             cell[i] = c
             if c >= 0:
-                seen[i] = head[c]
+                seen[i], seen_load[i] = head[c], crowd.load[crowd.block[c]]
                 size = _push(heap, size, cost * n + i)
             continue
         out[i] = head[c]
         head[c] += 1
+        crowd.load[crowd.block[c]] += 1
         made += 1
     return made
 
@@ -122,7 +137,8 @@ class WeightedScheduler:
     name = "lorr-weighted"
     accelerated = False
 
-    def __init__(self, weight: int = DEFAULT_WEIGHT, reassign: bool = True, memory_mb: int = DEFAULT_MEMORY_MB) -> None:
+    def __init__(self, weight: int = DEFAULT_WEIGHT, reassign: bool = True, memory_mb: int = DEFAULT_MEMORY_MB,
+                 jam: int = 0, block: int = DEFAULT_BLOCK) -> None:
         if isinstance(weight, bool) or not isinstance(weight, int) or not 0 <= weight <= 1000:
             raise ValueError(f"weight must be an integer 0..1000 (the way to the first errand against the legs), "
                              f"got {weight!r}")
@@ -130,7 +146,13 @@ class WeightedScheduler:
             raise ValueError(f"reassign must be True or False, got {reassign!r}")
         if isinstance(memory_mb, bool) or not isinstance(memory_mb, int) or memory_mb < 1:
             raise ValueError(f"memory_mb must be an integer >= 1 (MiB for distance tables), got {memory_mb!r}")
+        for name, value, top, what in (("jam", jam, 1000, "moves per robot in or bound for a task's block"),
+                                       ("block", block, 4096, "side of the jam term's blocks, cells")):
+            low = 0 if name == "jam" else 1
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= top:
+                raise ValueError(f"{name} must be an integer {low}..{top} ({what}), got {value!r}")
         self.weight, self.reassign, self.memory_mb = int(weight), bool(reassign), int(memory_mb)
+        self.jam, self.block = int(jam), int(block)
         self.last_compute = ComputeReport()
         self._sim = None
 
@@ -222,7 +244,26 @@ class WeightedScheduler:
         rows = self.fields.rows(cells)
         way = np.ascontiguousarray(self.fields.fields[np.ix_(rows, sim.pos[robots])].T)  # robot by cell, row-wise
         out = np.empty(len(robots), dtype=np.int64)
-        weighted_matching(way, cell_start, legs[order], self.weight, out)
+        weighted_matching(way, cell_start, legs[order], self.weight, out, self.crowd(sim, proposal, cells))
         got = out >= 0
         proposal[robots[got]] = ids[order][out[got]]
         return proposal
+
+    def crowd(self, sim, proposal, cells) -> Crowd:
+        """The jam term for candidate ``cells``: per block, the robots standing in it and those of ``proposal``
+        whose next errand lies in it (the matching adds the robots it sends)."""
+        width = sim.inst.grid.shape[1]
+        across = -(-width // self.block)
+
+        def block(flat):
+            return (flat // width // self.block) * across + flat % width // self.block
+
+        blocks = -(-sim.inst.grid.shape[0] // self.block) * across
+        load = np.zeros(blocks, dtype=np.int64)
+        if self.jam:
+            from mrmt_env.lorr.tasks import goals_under
+
+            goals = goals_under(sim.tasks, proposal)
+            load += np.bincount(block(sim.pos), minlength=blocks)
+            load += np.bincount(block(goals[goals >= 0]), minlength=blocks)
+        return Crowd(block(np.asarray(cells, dtype=np.int64)), load, self.jam)

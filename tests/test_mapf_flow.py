@@ -149,6 +149,21 @@ def test_new_goals_replan_first_and_replans_bounds_the_rest():
     assert ex.guide.replanned == 7  # robot 3's new goal, then one more
 
 
+def _trace(ex, grid, state, steps, redraw=None):
+    """``ex``'s actions over ``steps`` steps from ``state = (pos, orient, goals)``, each checked valid; reached goals
+    re-drawn from ``redraw = (rng, free)`` if given.  Returns (actions per step, final positions)."""
+    pos, orient, goals = state
+    trace = []
+    for _ in range(steps):
+        act = ex.actions(pos, orient, goals)
+        trace.append(act.tolist())
+        pos, orient, err = apply(grid, pos, orient, act)
+        assert err is None
+        if redraw is not None:
+            goals = retarget(*redraw, pos, goals)
+    return trace, pos
+
+
 def test_robots_reach_their_goals_and_same_seed_same_run():
     rng = np.random.default_rng(3)
     grid = np.zeros((8, 8), dtype=bool)
@@ -159,12 +174,7 @@ def test_robots_reach_their_goals_and_same_seed_same_run():
     for _ in range(2):
         pos, goals, orient = cells[:12], cells[12:], np.zeros(12, dtype=np.int64)
         ex = make_turning_executor("pibt-flow", grid, seed=5)
-        trace = []
-        for _ in range(120):
-            act = ex.actions(pos, orient, goals)
-            trace.append(act.tolist())
-            pos, orient, err = apply(grid, pos, orient, act)
-            assert err is None
+        trace, pos = _trace(ex, grid, (pos, orient, goals), 120)
         assert np.array_equal(pos, goals)
         runs.append(trace)
     assert runs[0] == runs[1]
@@ -254,14 +264,7 @@ def test_longer_paths_grow_the_rows_and_wider_values_the_dtype_with_the_same_run
         rng = np.random.default_rng(8)
         grid, free, pos, orient, goals = random_instance(rng, h, w, 0.2, 0.3)
         ex = FlowPIBT(grid, seed=3)
-        trace = []
-        for _ in range(25):
-            act = ex.actions(pos, orient, goals)
-            trace.append(act.tolist())
-            pos, orient, err = apply(grid, pos, orient, act)
-            assert err is None
-            goals = retarget(rng, free, pos, goals)
-        return trace, ex.guide
+        return _trace(ex, grid, (pos, orient, goals), 25, (rng, free))[0], ex.guide
 
     plain, guide = run()
     assert guide.paths.shape[1] == min(flow.FIRST_PATH_CELLS, len(guide.cell_of)) and guide.dtype == np.uint16

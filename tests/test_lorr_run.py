@@ -218,10 +218,12 @@ def test_shortlist_keeps_each_free_robots_least_makespan_tasks():
 @needs_shared
 def test_an_executor_that_cannot_take_the_team_is_refused_before_the_run():
     warehouse = SHARED / "2024-main" / "warehouse.domain" / "WAREHOUSE.json"
-    proc = _mrmt("lorr", "run", str(warehouse), "--planner", "pibt-flow", "--steps", "2", timeout=120)
+    proc = _mrmt("lorr", "run", str(warehouse), "--planner", "pibt-flow", "--planner-option", "field_bytes=500000000",
+                 "--steps", "2", timeout=120)
     assert proc.returncode == 2 and proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "10000 robots x 38586 free cells need 3,086,880,000 bytes" in lines[0]
+    assert len(lines) == 1 and ("10000 robots x 38586 free cells need 781,960,000 bytes, over field_bytes = "
+                                "500,000,000") in lines[0]
 
 
 def test_run_help_names_every_turning_executor(capsys):

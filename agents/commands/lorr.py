@@ -224,6 +224,12 @@ def _table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _memory(options: dict) -> dict:
+    """The planner's own memory bound among a run's ``options`` (``field_bytes``), for its ``check_team``."""
+    own = options.get("executor_options") or {}
+    return {"field_bytes": own["field_bytes"]} if "field_bytes" in own else {}
+
+
 def _plans(args, chip) -> tuple[list[tuple], object]:
     """``[(instance, scheduler, executor, options)]`` the flags or the entry ask for, every name and option checked,
     and the clock; ``ValueError`` naming what is wrong."""
@@ -298,9 +304,9 @@ def _run(args) -> int:
     try:
         chip = chip_from_args(args)
         plans, limit = _plans(args, chip)
-        for path, _, executor, _ in plans:  # whether the executor takes the instance's team
+        for path, _, executor, options in plans:  # whether the executor takes the instance's team
             inst = read_instance(path)
-            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size)
+            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **_memory(options))
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return _fail(str(exc))
@@ -379,7 +385,7 @@ def _round(args) -> int:
                 raise ValueError(f"{path}: no simulation time (no simulation_time.json beside it, no best-known row): "
                                  f"give --steps")
             c = entry.choose(inst)
-            TURNING_EXECUTORS[c.planner].check_team(inst.grid, inst.team_size)
+            TURNING_EXECUTORS[c.planner].check_team(inst.grid, inst.team_size, **_memory(c.options))
             pairs.add((c.scheduler, c.planner))
         backend = "ray" if args.address else args.backend
         if backend == "ray":

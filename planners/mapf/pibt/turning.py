@@ -345,9 +345,10 @@ class TurningPIBT:
         self._occ_next = np.full(n, -1, dtype=np.int64)
 
     @staticmethod
-    def check_team(grid, n_robots: int) -> None:
-        """``ValueError`` when the executor cannot take ``n_robots`` robots on ``grid`` (any number here;
-        :class:`~planners.mapf.guides.flow.FlowPIBT` bounds its memory)."""
+    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
+        """``ValueError`` when the executor cannot take ``n_robots`` robots on ``grid`` within ``field_bytes`` (any
+        number here: the goal fields' cache makes room; :class:`~planners.mapf.guides.flow.FlowPIBT` bounds a
+        field per robot)."""
 
     def _ensure(self, n_robots: int) -> None:
         if len(self.elapsed) != n_robots:

@@ -33,7 +33,7 @@ __all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG
 #: Parts compiled side by side share the anneal and quantization kernels, so the sum over two workers is an
 #: upper estimate.
 PART_SECONDS = {"ising:sharing": 81, "ising-paper:tour+path": 75, "ising-fleet": 42, "ising:tour+path": 31,
-                "lorr:epibt": 18, "lorr:pibt-flow": 13, "strong": 12, "lorr:windowed": 11, "lorr:pibt": 8,
+                "lorr:epibt": 20, "lorr:pibt-flow": 15, "strong": 12, "lorr:windowed": 11, "lorr:pibt": 8,
                 "exact": 7, "fast": 5}
 
 #: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,

@@ -7,6 +7,9 @@ SORTATION (the default; docs/lorr.md).  Robots whose task is not opened yet are 
 it), so a robot that a better-placed one overtakes gives its task up.  The choice is the global greedy
 matching: the pair of least cost first, ties to the lower robot, a cell's tasks shortest first, then the
 lower id -- exact by lazy re-evaluation, as a pair's cost only grows when its cell's best task is taken.
+With ``jam`` > 0 a task's cost adds ``jam`` moves per robot standing in, or bound for, the ``block`` x ``block``
+square of its first errand, the robots the matching sends counted as it goes (docs/lorr.md, "Jams on the
+warehouse maps").
 
 Distances come from one BFS table per first-errand cell (:class:`~planners.mapf.common.GoalFields`, the
 start kit's heuristic table keyed by goal), bounded by ``memory_mb``: on the warehouse maps 352-620 cells

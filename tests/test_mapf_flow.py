@@ -282,11 +282,15 @@ def test_under_a_clock_past_its_stop_no_path_is_planned_and_the_actions_stay_val
 
     rng = np.random.default_rng(2)
     grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.1, 0.4)
-    ex = FlowPIBT(grid, seed=1)
-    act = ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
-    assert ex.guide.replanned == 0 and not ex.guide.fresh.any()
-    _pos, _orient, err = apply(grid, pos, orient, act)
-    assert err is None
+    for name in ("pibt-flow", "epibt"):  # EPIBT ranks by the same guide paths and keeps the same stop
+        ex = make_turning_executor(name, grid, seed=1)
+        act = ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
+        assert ex.guide.replanned == 0 and not ex.guide.fresh.any(), name
+        _pos, _orient, err = apply(grid, pos, orient, act)
+        assert err is None, name
+        late = make_turning_executor(name, grid, seed=1)
+        late.actions(pos, orient, goals, deadline=time.perf_counter() + 60.0)  # far off: every path planned
+        assert late.guide.fresh.all(), name
 
 
 @pytest.mark.parametrize("bad", [0, -3, 1.5, True, "many"])

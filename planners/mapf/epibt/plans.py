@@ -26,7 +26,7 @@ import numpy as np
 
 from planners.mapf.common import int_in, mix
 from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
-from planners.mapf.guides.flow import DEFAULT_GUIDE_WORK, FlowGuide, FlowPIBT
+from planners.mapf.guides.flow import DEFAULT_GUIDE_WORK, GUIDE_MARGIN_S, FlowGuide, FlowPIBT
 from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
                                    TurningPIBT, _distance)
 
@@ -349,7 +349,8 @@ class EPIBT(TurningPIBT):
         field_bytes, bfs_budget, corridors: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide
             paths' bound).
         guide_work: A* expansions per call for guide paths (``flow`` only; as
-            :class:`~planners.mapf.guides.flow.FlowPIBT`).
+            :class:`~planners.mapf.guides.flow.FlowPIBT`: under a clock they also stop
+            :data:`~planners.mapf.guides.flow.GUIDE_MARGIN_S` + twice the last plans' construction before the deadline).
     """
 
     name = "epibt"
@@ -403,7 +404,8 @@ class EPIBT(TurningPIBT):
         rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
         if self.guide is None:
             return self.fields.fields, rows
-        rows = self.guide.update(pc, gc, self.fields.fields, rows)  # first: it may make the fields
+        stop = None if self.deadline is None else self.deadline - GUIDE_MARGIN_S - 2 * self.kernel_s
+        rows = self.guide.update(pc, gc, self.fields.fields, rows, stop)  # first: it may make the fields
         return self.guide.fields, rows
 
     def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:

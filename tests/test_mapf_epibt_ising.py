@@ -306,3 +306,81 @@ def test_host_rule_flag_takes_the_searchs_greedy_without_a_chip_call():
     assert flagged.stats["decisions"] == host.stats["decisions"] > 0
     assert flagged.stats["applied"] == host.stats["applied"] > 0
     assert chip.ledger.physical_calls == flagged.ledger.physical_calls == 0
+
+
+@pytest.mark.parametrize("decider", ["chip", "host"])
+def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, monkeypatch):
+    """``rounds=k``: the first round is the single round's (same groups, same plan when no later round applies);
+    a later round's groups are not the ones the first round's seed would pose on the same plan; the chip's calls
+    equal the ledger's over every round; the plans stay conflict-free; the cost-to-go of the joint plan never
+    rises from one round to the next."""
+    import planners.mapf.chip.epibt_ising as mod
+
+    rng = np.random.default_rng(5)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    chip = EmulatedChip(seed=3)
+    costs = []
+    posed = []
+    real = mod.select_groups
+
+    def recording(state, res, limits, stamp, taken, out):
+        ng = real(state, res, limits, stamp, taken, out)
+        posed.append(out[0][:out[1][ng]].tolist())
+        return ng
+
+    monkeypatch.setattr(mod, "select_groups", recording)
+    fresh = []
+
+    class Costs(EPIBTIsing):
+        def _round(self, state, k):
+            if k > 0:
+                same = groups_of(state, self._res.copy(), seed=self.seed, t=self.t,
+                                 limits=(self.n_groups, self.max_robots, self.max_options, self.max_spins))
+                n = len(posed)
+            call = super()._round(state, k)
+            if k > 0:
+                fresh.append(posed[n] != same[1][:same[2][same[0]]].tolist())
+            costs.append((k, sum(cost(state, q, c) for q, c in enumerate(state.src.tolist()))))
+            return call
+
+    one = EPIBTIsing(grid, seed=2, machine=EmulatedChip(seed=3), decider=decider, lns=0, groups=4)
+    many = Costs(grid, seed=2, machine=chip, decider=decider, lns=0, groups=4, rounds=6)
+    for step in range(25):
+        first = one.actions(pos, orient, goals)
+        before = chip.ledger.physical_calls
+        act = many.actions(pos, orient, goals)
+        assert plan_conflicts(grid, pos, orient, many.plans) == [], f"step {step}"
+        if decider == "chip":
+            assert many.last_compute.chip_calls == chip.ledger.physical_calls - before
+        if step == 0:
+            assert costs[0][0] == 0 and many.stats["decisions"] >= one.stats["decisions"]
+        pos, orient, err = apply(grid, pos, orient, first)
+        assert err is None
+        goals = retarget(rng, free, pos, goals)
+        many.inherited[:] = 3  # both start each step from the same state: the single round's walk
+        many._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        one._expect = many._expect
+    run = [c for k, c in costs]
+    ks = [k for k, c in costs]
+    assert many.stats["rounds"] == len(costs) > 25 and max(ks) == 5
+    for i in range(1, len(costs)):
+        if ks[i] > 0:
+            assert run[i] <= run[i - 1], (i, run[i - 1], run[i])
+    assert many.stats["applied"] > one.stats["applied"] and any(fresh)
+    if decider == "chip":
+        assert many.ledger.physical_calls == chip.ledger.physical_calls > one.ledger.physical_calls
+
+
+def test_rounds_stop_at_the_deadline_and_bad_rounds_are_named():
+    import time
+
+    rng = np.random.default_rng(5)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
+    ex = EPIBTIsing(grid, seed=2, lns=0, groups=4, rounds=50, decider="host")
+    ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
+    assert ex.stats["rounds"] == 1  # the first round always runs
+    ex.actions(pos, orient, goals)
+    assert ex.stats["rounds"] > 2
+    for bad in (0, 4097, 1.5, True):
+        with pytest.raises(ValueError, match=f"rounds .*{bad!r}"):
+            EPIBTIsing(grid, rounds=bad)

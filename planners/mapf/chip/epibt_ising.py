@@ -33,13 +33,14 @@ from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import GroupBatch, int_in, machine_for, mix
-from planners.mapf.epibt.plans import EPIBT
+from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT
 from planners.mapf.epibt.search import blockers, conflict, reserve
 
 __all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
 
 DECIDERS = ("chip", "host")
+_ROUND_SALT = 0x2D0  # a round's seed beyond the first: mix(seed, t, round, salt)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -264,13 +265,18 @@ class EPIBTIsing(EPIBT):
             docs/design/lifelong_turning.md).
         min_gain: a group takes the decided choice when it lowers the group's cost-to-go by at least this much
             (1..1000, default 1: any gain).
+        rounds: rounds of decisions per call (1..4096, default 1): each round poses fresh groups on the plan the
+            rounds before it left (the chip as the search's annealer, with ``lns=0`` in place of the host's
+            search); under a clock the rounds stop when the next, as long as the longest so far, would end past
+            the deadline less :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time
+            (host seconds, not the emulation's, plus the machine's own).
     """
 
     name = "epibt-ising"
 
     def __init__(self, grid, seed: int = 0, machine=None, *, decider: str = "chip", groups: int = 32,
                  max_robots: int = 11, max_options: int = 4, num_reads: int = 64, penalty: int = 2,
-                 min_gain: int = 1, **options) -> None:
+                 min_gain: int = 1, rounds: int = 1, **options) -> None:
         super().__init__(grid, seed=seed, **options)
         if decider not in DECIDERS:
             raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
@@ -286,17 +292,43 @@ class EPIBTIsing(EPIBT):
         self.num_reads = int_in("num_reads", num_reads, 1, 64)
         self.penalty = int_in("penalty", penalty, 1, 64)
         self.min_gain = int_in("min_gain", min_gain, 1, 1000)
+        self.rounds = int_in("rounds (decision rounds per call)", rounds, 1, 4096)
         self.max_spins = spins
         if self.max_spins < self.max_robots:
             raise ValueError(f"max_robots = {max_robots} needs {max_robots} spins; the machine has {spins}")
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
-        #: decisions so far; taken (the decided choice applied); the chip's cost below / above the host rule's
-        self.stats = {"decisions": 0, "applied": 0, "chip_better": 0, "chip_worse": 0, "host_s": 0.0}
+        self._last_groups = 0  # groups the latest round posed
+        #: decisions so far; taken (the decided choice applied); the chip's cost below / above the host rule's;
+        #: rounds run
+        self.stats = {"decisions": 0, "applied": 0, "chip_better": 0, "chip_worse": 0, "host_s": 0.0, "rounds": 0}
 
     def _improve(self, state) -> None:
-        t0 = time.perf_counter()
+        """Up to :attr:`rounds` rounds of group decisions (class docstring), the machine's charges summed."""
         self.last_compute = ComputeReport()
+        spent = CallLedger()  # this call's machine charges: its emulation is not the step's, its own time is
+        longest = 0.0
+        for k in range(self.rounds):
+            t0 = time.perf_counter()
+            if k and self.deadline is not None and t0 - spent.emulation_s + spent.chip_time_parallel_s + longest \
+                    > self.deadline - DEADLINE_MARGIN_S:
+                break
+            call = self._round(state, k)
+            self.stats["rounds"] += 1
+            wall = time.perf_counter() - t0
+            if call is not None:
+                spent = spent + call
+                self.last_compute = self.last_compute + replace(ComputeReport.from_ledger(call), cpu_s=wall)
+                wall += call.chip_time_parallel_s - call.emulation_s
+            longest = max(longest, wall)
+            if self._last_groups == 0:  # no robot off its best operation with others in the way: none later
+                break
+
+    def _round(self, state, k: int):
+        """One round of decisions on ``state`` (round ``k`` of the call: round 0 keeps the seeds of a single round);
+        returns its machine charges, ``None`` when the machine was not called."""
+        t0 = time.perf_counter()
+        seed = self.seed if k == 0 else int(mix(self.seed, self.t, k, _ROUND_SALT) & np.uint64((1 << 62) - 1))
         r = len(state.ncand)
         members = np.empty(r, dtype=np.int64)
         gstart = np.empty(self.n_groups + 1, dtype=np.int64)
@@ -304,9 +336,10 @@ class EPIBTIsing(EPIBT):
         opt = np.empty(r * self.max_options, dtype=np.int64)
         taken = np.zeros(r, dtype=np.int8)
         ng = select_groups(state, self._res, (self.n_groups, self.max_robots, self.max_options, self.max_spins),
-                           (self.seed, self.t), taken, (members, gstart, ostart, opt))
+                           (seed, self.t), taken, (members, gstart, ostart, opt))
+        self._last_groups = ng
         if ng == 0:
-            return
+            return None
         batch = GroupBatch(ng, gstart, members, ostart, opt)
         m = gstart[ng]
         host = np.zeros(m, dtype=np.int64)
@@ -314,7 +347,7 @@ class EPIBTIsing(EPIBT):
         th = time.perf_counter()
         for g in range(ng):
             host_cost[g] = greedy_choice(state, members, gstart[g], gstart[g + 1], ostart, opt,
-                                         (self.seed, self.t, g), host[gstart[g]:])
+                                         (seed, self.t, g), host[gstart[g]:])
         host_s = time.perf_counter() - th
         choice, cost, call = host, host_cost, None
         if self.decider == "chip" and "lns_groups" not in host_rule_classes():
@@ -324,7 +357,7 @@ class EPIBTIsing(EPIBT):
             for g in range(ng):
                 k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.penalty)
                 integer_program(q, k, H[g, :k], J[g, :k, :k], limits)
-            seed = int(mix(self.seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
+            chip_seed = int(mix(seed, self.t, 0x1A5, 0)) & ((1 << 63) - 1)
             if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
                 spins = np.zeros((ng, 1, 0), np.int8)
             else:
@@ -332,7 +365,7 @@ class EPIBTIsing(EPIBT):
                 with self.machine.session(call, decision="lns_groups") as link:
                     host_rule = None if link.audit is None else \
                         self._host_rule(H, J, batch, (host, host_cost), host_s)
-                    spins, _ = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
+                    spins, _ = link.anneal(H, J, num_reads=self.num_reads, seed=chip_seed, host=host_rule)
                 self.ledger = self.ledger + call
             choice = np.zeros(m, dtype=np.int64)
             cost = np.empty(ng, dtype=np.int64)
@@ -348,8 +381,7 @@ class EPIBTIsing(EPIBT):
         total = time.perf_counter() - t0
         emul = 0.0 if call is None else float(call.emulation_s)
         self.stats["host_s"] += total - emul
-        if call is not None:
-            self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=total)
+        return call
 
     def _host_rule(self, H, J, batch, greedy, host_s) -> tuple:
         """The host rule beside this step's programs in an open decision audit (class ``lns_groups``): the search's

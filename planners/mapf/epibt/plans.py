@@ -452,7 +452,8 @@ class EPIBT(TurningPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         if deadline is not None:  # the search's share of the next steps: less when this one ended late
-            slack = deadline - time.perf_counter()
+            charged = self.last_compute.chip_time_parallel_s - self.last_compute.emulation_s  # a machine's, if any
+            slack = deadline - time.perf_counter() - charged
             if slack < DEADLINE_MARGIN_S:
                 self.lns_scale *= 0.7
             elif slack > 0.25 * (deadline - started):

@@ -69,7 +69,7 @@ def _apply(spec, key: str, value: str):
     if ".." in value:  # an explicit range lo..hi
         lo, _, hi = value.partition("..")
         value = f"{lo},{hi}"
-    return ChipSpec.from_options([f"{key}={value}"], base=spec)
+    return ChipSpec.from_options([(key, value)], base=spec)
 
 
 def chip_grid(axes: dict[str, list[str]], base=None) -> list[tuple[dict, object]]:

@@ -93,26 +93,25 @@ class ChipSpec:
 
     @classmethod
     def from_options(cls, items, base: "ChipSpec | None" = None) -> "ChipSpec":
-        """A spec from command-line items: ``KEY=VALUE`` strings and/or paths of JSON files
-        holding one object of fields, applied in order on ``base`` (default ``ChipSpec()``).
+        """A spec from ``(key, value)`` pairs and/or paths of JSON files holding one object of fields, applied in
+        order on ``base`` (default ``ChipSpec()``).  The command line splits its ``KEY=VALUE`` items into pairs
+        (``agents.keyvalues``, the one splitter); this reads the values.
 
-        Values: integers and floats as usual; a range (``h_range``, ``j_range``) as ``m``
-        (meaning ``(-m, m)``) or ``lo,hi``; ``beta_range`` as ``hot,cold`` or ``none``.  A JSON
-        file is data only (parsed with :mod:`json`, at most 64 KiB).  An unknown field or a bad
-        value raises ``ValueError`` naming it and listing the valid fields.
+        Values: integers and floats as usual, as numbers or text; a range (``h_range``, ``j_range``) as ``m``
+        (meaning ``(-m, m)``) or ``lo,hi`` (or a pair); ``beta_range`` as ``hot,cold`` or ``none``.  A JSON file is
+        data only (parsed with :mod:`json`, at most 64 KiB).  An unknown field or a bad value raises ``ValueError``
+        naming it and listing the valid fields.
         """
         spec = cls() if base is None else base
-        if isinstance(items, str):
-            items = [items]
         for item in items:
-            if not isinstance(item, str):
-                raise ValueError(f"chip option {item!r} must be a KEY=VALUE string or a JSON file path")
-            if "=" in item:
-                key, _, value = item.partition("=")
-                spec = spec._with(key.strip(), value.strip(), where=f"chip option {item!r}")
-            else:
+            if isinstance(item, tuple) and len(item) == 2:
+                key, value = item
+                spec = spec._with(str(key), value, where=f"chip option {key}={value!r}")
+            elif isinstance(item, (str, Path)):
                 for key, value in _read_spec_file(item).items():
                     spec = spec._with(key, value, where=f"{item}: field {key!r}")
+            else:
+                raise ValueError(f"chip option {item!r} must be a (key, value) pair or a JSON file path")
         return spec
 
     def _with(self, key: str, value, where: str) -> "ChipSpec":

@@ -216,6 +216,8 @@ def test_chip_option_plans_on_another_chip(tmp_path, worlds, capsys):
     (["n_spins=4.5"], "n_spins = '4.5' must be an integer"),
     (["j_range=0"], "a single value m means (-m, m) and must be >= 1"),
     (["missing.json"], "neither KEY=VALUE nor a readable JSON file"),
+    (["n_spins=64", "n-spins=32"], "--chip n_spins given twice ('64' and '32'); give it once"),
+    (["=3"], "--chip '=3' must look like KEY=VALUE"),
 ])
 def test_bad_chip_option_is_one_line_and_exit_2(tmp_path, worlds, capsys, chip, message):
     src = tmp_path / "w.json"
@@ -250,7 +252,7 @@ def test_chip_spec_file_is_data_with_a_size_limit(tmp_path):
     broken.write_text('{\n  "n_spins": 64,\n  "sweeps": \n}')
     with pytest.raises(ValueError, match="line 4"):
         ChipSpec.from_options([str(broken)])
-    spec = ChipSpec.from_options(["beta_range=0.1,3", "h_range=-3,5", "readout_flip_prob=0.01"])
+    spec = ChipSpec.from_options([("beta_range", "0.1,3"), ("h_range", "-3,5"), ("readout_flip_prob", "0.01")])
     assert spec.beta_range == (0.1, 3.0) and spec.h_range == (-3, 5) and spec.readout_flip_prob == 0.01
 
 

@@ -57,14 +57,14 @@ def test_bad_fault_values_are_refused_naming_value_and_limit(field, value, words
 
 
 def test_fault_fields_from_options_and_defaults():
-    spec = ChipSpec.from_options(["dead_cores=1", "stuck_spins=2", "program_error_prob=0.05",
-                                  "dead_core_mode=timeout", "max_retries=5"])
+    spec = ChipSpec.from_options([("dead_cores", "1"), ("stuck_spins", 2), ("program_error_prob", "0.05"),
+                                  ("dead_core_mode", "timeout"), ("max_retries", "5")])
     assert (spec.dead_cores, spec.stuck_spins, spec.program_error_prob, spec.dead_core_mode, spec.max_retries) == \
         (1, 2, 0.05, "timeout", 5)
     assert spec.faulty and not spec.fault_free().faulty and spec.fault_free().readout_flip_prob == 0
     assert not ChipSpec().faulty and not ChipSpec(readout_flip_prob=0.01).faulty
     with pytest.raises(ValueError, match="dead_cores = 12"):
-        ChipSpec.from_options(["dead_cores=12"])
+        ChipSpec.from_options([("dead_cores", "12")])
     assert ChipSpec(cores_per_chip=1, n_chips=2, dead_cores=2).dead_cores == 2  # every core may be dead
 
 

@@ -76,16 +76,17 @@ def chip_from_args(args, key: str = "chip"):
     from ising_backend import ChipSpec, MachineSpec
     from ising_backend.machines.machine import parse_sampler_options
 
+    from agents.keyvalues import split_items
+
     items = getattr(args, key, None) or []
-    spec = ChipSpec.from_options(items) if items else None
+    pairs = iter(split_items([i for i in items if "=" in i], "--chip", "n_spins=64"))
+    spec = ChipSpec.from_options([next(pairs) if "=" in i else i for i in items]) if items else None
     sampler = getattr(args, "sampler", None)
     options = getattr(args, "sampler_option", None) or []
     if sampler is None:
         if options:
             raise ValueError("--sampler-option given without --sampler")
         return spec
-    from agents.keyvalues import split_items
-
     texts = split_items(options, "--sampler-option", "num_sweeps=100")  # read by their parameters' types below
     MachineSpec(spec or ChipSpec(), sampler).build()  # an unknown sampler, a missing package, a faulty spec
     try:  # each value read by its parameter's type (ising_backend.machines.sampler_options)

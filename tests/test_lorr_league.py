@@ -151,7 +151,7 @@ def test_bad_entries_name_the_file_rule_and_key(tmp_path, text, needle):
     ('scheduler = "telepathy"\nplanner = "pibt"', "rule 1: unknown scheduler 'telepathy'"),
     ('scheduler = "strong"\nplanner = "teleport"', "rule 1: unknown planner 'teleport'"),
     ('scheduler = "strong"\nplanner = "epibt"\nplanner_options = { warp = 9 }', "epibt takes no option 'warp'"),
-    ('scheduler = "strong"\nplanner = "epibt"\nplanner_options = { op_len = 9 }', "op_len must be an integer 1..5"),
+    ('scheduler = "strong"\nplanner = "epibt"\nplanner_options = { op_len = 9 }', "op_len = 9 must be an integer in [1, 5] or 'auto'"),
 ])
 def test_an_entry_whose_names_or_options_do_not_build_is_refused_in_one_line(tmp_path, rule, needle):
     path = tmp_path / "mine.toml"

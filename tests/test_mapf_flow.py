@@ -3,6 +3,7 @@ PIBT on the guide fields against the recursive oracle of test_mapf_turning."""
 
 from __future__ import annotations
 
+import re
 import heapq
 from collections import deque
 
@@ -195,7 +196,7 @@ def test_dense_crowds_only_get_valid_joint_actions():
 def test_bad_options_name_the_value():
     grid = np.zeros((4, 4), dtype=bool)
     for bad in (-1, 1.5, True):
-        with pytest.raises(ValueError, match=f"replans must be an integer >= 0.*{bad!r}"):
+        with pytest.raises(ValueError, match=rf"replans = {re.escape(repr(bad))} must be an integer in \[0, 16777216\] or null$"):
             FlowPIBT(grid, replans=bad)
     ex = FlowPIBT(grid, field_bytes=100)
     with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
@@ -296,7 +297,7 @@ def test_under_a_clock_past_its_stop_no_path_is_planned_and_the_actions_stay_val
 @pytest.mark.parametrize("bad", [0, -3, 1.5, True, "many"])
 def test_bad_guide_work_names_the_value(bad):
     grid = np.zeros((4, 4), dtype=bool)
-    with pytest.raises(ValueError, match=f"guide_work must be an integer >= 1.*got {bad!r}"):
+    with pytest.raises(ValueError, match=rf"guide_work = {re.escape(repr(bad))} must be an integer in \[1, 1099511627776\] or null$"):
         FlowPIBT(grid, guide_work=bad)
-    with pytest.raises(ValueError, match="guide_work must be"):
+    with pytest.raises(ValueError, match="guide_work = "):
         make_turning_executor("epibt", grid, guide_work=bad)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import heapq
 from collections import deque
 
@@ -329,7 +330,7 @@ def test_bad_input_names_the_value():
         with pytest.raises(ValueError, match=message):
             ex.actions(**{**ok, **change})
     for bad in (-1, 17, 2.5, True, "3"):
-        with pytest.raises(ValueError, match=rf"guidance must be an integer in 0..16 .*got {bad!r}"):
+        with pytest.raises(ValueError, match=rf"guidance = {re.escape(repr(bad))} must be an integer in \[0, 16\]$"):
             TurningPIBT(grid, guidance=bad)
     with pytest.raises(ValueError, match="unknown turning executor 'cbs'; known: pibt"):
         make_turning_executor("cbs", grid)
@@ -419,5 +420,5 @@ def test_corridor_fields_equal_the_dijkstra_oracle_and_robots_keep_the_way(lanes
         want = guided(grid, int(ex.cell_of[gc]), lanes, corridors)
         assert [int(x) for x in ex.fields.fields[row]] == [want.get(int(cell), ex.fields.far) for cell in ex.cell_of]
     for bad in (-1, 17, 1.5, True):
-        with pytest.raises(ValueError, match=rf"corridors must be an integer in 0..16 .*one-way corridor.*got {bad!r}"):
+        with pytest.raises(ValueError, match=rf"corridors = {re.escape(repr(bad))} must be an integer in \[0, 16\]$"):
             TurningPIBT(grid, corridors=bad)

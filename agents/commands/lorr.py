@@ -29,7 +29,7 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 def add_arguments(parser) -> None:
     from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
-    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check,startkit}")
+    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check,startkit,options}")
     run = sub.add_parser("run", help="run instances with a scheduler and an executor (or an entry)")
     run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
     run.add_argument("--entry", default=None, metavar="NAME|FILE",
@@ -99,6 +99,9 @@ def add_arguments(parser) -> None:
     check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
     check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
     sub.add_parser("startkit", help="print how the 2024 start kit runs the package's entry (its python_path)")
+    opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE): name, default, "
+                                          "what it takes, what it does")
+    opts.add_argument("planner", nargs="?", default=None, help="a planner (default: every one)")
 
 
 def _add_clock_arguments(parser, default: str) -> None:
@@ -149,23 +152,16 @@ def executor_options(executor: str, items: list[str], grid) -> dict:
 
 
 def check_executor_options(executor: str, options: dict, grid) -> dict:
-    """``options`` when ``executor`` takes them all (checked by building it once on ``grid``); ``ValueError`` naming
-    an option the executor does not take (and those it takes) or a value it refuses."""
-    import inspect
-
+    """``options`` when ``executor`` takes them all (its typed options record, then built once on ``grid``);
+    ``ValueError`` naming an option the executor does not take (and those it takes) or a value it refuses."""
     from planners.mapf import TURNING_EXECUTORS
 
     cls = TURNING_EXECUTORS[executor]
-    known = [n for n, p in inspect.signature(cls).parameters.items()
-             if n not in ("grid", "seed", "guidance") and p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)]
-    for key, value in options.items():
-        if key not in known:
-            raise ValueError(f"--planner-option {key}={value}: {executor} takes no option {key!r}; "
-                             f"its options: {', '.join(known)}")
     try:
+        cls.Options.from_dict(options, executor)
         cls(grid, **options)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"--planner-option: {exc}") from None
+    except ValueError as exc:
+        raise ValueError(f"--planner-option {exc}") from None
     return dict(options)
 
 
@@ -437,10 +433,23 @@ def _startkit(args) -> int:
     return 0
 
 
+def _options(args) -> int:
+    from planners.mapf import TURNING_EXECUTORS
+
+    if args.planner is not None and args.planner not in TURNING_EXECUTORS:
+        return _fail(f"unknown planner {args.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
+    for name in [args.planner] if args.planner else list(TURNING_EXECUTORS):
+        print(f"{name}:")
+        for key, default, allowed, meaning in TURNING_EXECUTORS[name].Options.describe():
+            print(f"  {key} = {json.dumps(default)}  ({allowed}) {meaning}")
+    return 0
+
+
 def _fail(message: str) -> int:
     print(f"mrmt lorr: error: {message}", file=sys.stderr)
     return 2
 
 
 def run(args) -> int:
-    return {"run": _run, "round": _round, "check": _check, "startkit": _startkit}[args.lorr_command](args)
+    return {"run": _run, "round": _round, "check": _check, "startkit": _startkit,
+            "options": _options}[args.lorr_command](args)

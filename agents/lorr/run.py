@@ -97,6 +97,9 @@ def split_options(options: dict | None) -> tuple[dict, dict]:
     options = dict(options or {})
     planner = dict(options.pop("executor_options", None) or {})
     if "guidance" in options:
+        if "guidance" in planner:
+            raise ValueError(f"guidance given twice ({options['guidance']!r} and the planner option's "
+                             f"{planner['guidance']!r}); give it once")
         planner["guidance"] = options.pop("guidance")
     return options, planner
 

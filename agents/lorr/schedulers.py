@@ -27,12 +27,15 @@ loses steps: docs/lorr.md measures it).  Every scheduler leaves its step's
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from mrmt_env.lorr.greedy import FAR, GreedyScheduler
 from planners.compute import ComputeReport
+from planners.options import Options, option
 
-__all__ = ["AssignerScheduler", "make_scheduler", "SCHEDULERS"]
+__all__ = ["AssignerScheduler", "AssignerOptions", "make_scheduler", "SCHEDULERS"]
 
 #: Free tasks each free robot shortlists for a pipeline or learned decision (least makespan first).
 DEFAULT_SHORTLIST = 6
@@ -40,24 +43,31 @@ DEFAULT_SHORTLIST = 6
 SCHEDULERS = ("lorr-greedy", "lorr-weighted", "strong", "ising", "fast", "ising-paper")
 
 
+@dataclass(frozen=True)
+class AssignerOptions(Options):
+    """A pipeline or learned scheduler's own options (module docstring); the rest go to its layers."""
+
+    replan: bool = option(False, bool, meaning="robots whose task is not opened yet are free again when a task "
+                          "finishes")
+    shortlist: int | None = option(DEFAULT_SHORTLIST, int, 1, 1 << 20, none=True, meaning="free tasks each free "
+                                   "robot shortlists, least makespan first (null: every free task)")
+    keep: bool = option(True, bool, meaning="with replan: a re-planned robot keeps its task unless given one of "
+                        "smaller makespan or its task goes to another robot")
+
+
 class AssignerScheduler:
     """A lifelong assigner (``assign(grid, fields, idle_cells, task_cells, seed, fleet)``) as a LoRR
-    scheduler (see the module docstring)."""
+    scheduler (see the module docstring); ``options``: the fields of :class:`AssignerOptions`."""
 
-    def __init__(self, assigner, seed: int = 0, replan: bool = False, shortlist: int | None = DEFAULT_SHORTLIST,
-                 keep: bool = True) -> None:
-        for name, flag in (("replan", replan), ("keep", keep)):
-            if not isinstance(flag, (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {flag!r}")
-        if shortlist is not None and (isinstance(shortlist, bool) or not isinstance(shortlist, int) or shortlist < 1):
-            raise ValueError(f"shortlist must be an integer >= 1 or None (every free task), got {shortlist!r}")
-        self.shortlist = shortlist
+    Options = AssignerOptions
+
+    def __init__(self, assigner, seed: int = 0, **options) -> None:
+        self.options = opts = AssignerOptions.from_dict(options, assigner.name)
+        self.shortlist, self.replan, self.keep = opts.shortlist, opts.replan, opts.keep
         self.assigner = assigner
         self.name = assigner.name
         self.accelerated = bool(assigner.accelerated)
         self.seed = int(seed)
-        self.replan = bool(replan)
-        self.keep = bool(keep)
         self.last_compute = ComputeReport()
 
     def reset(self, sim) -> None:
@@ -168,15 +178,11 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     if name == "lorr-weighted":
         from agents.lorr.weighted import WeightedScheduler
 
-        unknown = sorted(set(options) - {"weight", "reassign", "memory_mb", "jam", "block"})
-        if unknown:
-            raise ValueError(f"lorr-weighted takes weight, reassign, memory_mb, jam and block, got {unknown}")
         return WeightedScheduler(**options)
     from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
     from planners.registry import UnknownPlannerError
 
-    own = {"replan": options.pop("replan", False), "shortlist": options.pop("shortlist", DEFAULT_SHORTLIST),
-           "keep": options.pop("keep", True)}
+    own = {key: options.pop(key) for key in ("replan", "shortlist", "keep") if key in options}
     if name.startswith("ppo:"):
         if options:
             raise ValueError(f"{name} takes no options besides replan, keep and shortlist, got {sorted(options)}")

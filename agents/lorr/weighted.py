@@ -21,6 +21,7 @@ whose tables are not built yet wait for a later step.  Design notes and measurem
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba
@@ -28,6 +29,7 @@ import numpy as np
 
 from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
+from planners.options import Options, option
 
 __all__ = ["WeightedScheduler", "weighted_matching", "Crowd", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
@@ -134,28 +136,30 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     return made
 
 
+@dataclass(frozen=True)
+class WeightedOptions(Options):
+    """:class:`WeightedScheduler`'s options (``--scheduler-option``)."""
+
+    weight: int = option(DEFAULT_WEIGHT, int, 0, 1000, meaning="the way to the first errand weighed against the "
+                         "errand legs")
+    reassign: bool = option(True, bool, meaning="robots whose task is not opened yet are free again every step")
+    memory_mb: int = option(DEFAULT_MEMORY_MB, int, 1, 1 << 20, meaning="MiB for distance tables")
+    jam: int = option(0, int, 0, 1000, meaning="moves per robot in or bound for a task's block (0 = off)")
+    block: int = option(DEFAULT_BLOCK, int, 1, 4096, meaning="side of the jam term's blocks, cells")
+
+
 class WeightedScheduler:
-    """The winner's measure (module docstring); ``schedule(sim, deadline=None)`` -> proposal."""
+    """The winner's measure (module docstring); ``schedule(sim, deadline=None)`` -> proposal; ``options``: the
+    fields of :class:`WeightedOptions`."""
 
     name = "lorr-weighted"
     accelerated = False
+    Options = WeightedOptions
 
-    def __init__(self, weight: int = DEFAULT_WEIGHT, reassign: bool = True, memory_mb: int = DEFAULT_MEMORY_MB,
-                 jam: int = 0, block: int = DEFAULT_BLOCK) -> None:
-        if isinstance(weight, bool) or not isinstance(weight, int) or not 0 <= weight <= 1000:
-            raise ValueError(f"weight must be an integer 0..1000 (the way to the first errand against the legs), "
-                             f"got {weight!r}")
-        if not isinstance(reassign, (bool, np.bool_)):
-            raise ValueError(f"reassign must be True or False, got {reassign!r}")
-        if isinstance(memory_mb, bool) or not isinstance(memory_mb, int) or memory_mb < 1:
-            raise ValueError(f"memory_mb must be an integer >= 1 (MiB for distance tables), got {memory_mb!r}")
-        for name, value, top, what in (("jam", jam, 1000, "moves per robot in or bound for a task's block"),
-                                       ("block", block, 4096, "side of the jam term's blocks, cells")):
-            low = 0 if name == "jam" else 1
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= top:
-                raise ValueError(f"{name} must be an integer {low}..{top} ({what}), got {value!r}")
-        self.weight, self.reassign, self.memory_mb = int(weight), bool(reassign), int(memory_mb)
-        self.jam, self.block = int(jam), int(block)
+    def __init__(self, **options) -> None:
+        self.options = opts = WeightedOptions.from_dict(options, self.name)
+        self.weight, self.reassign, self.memory_mb = opts.weight, opts.reassign, opts.memory_mb
+        self.jam, self.block = opts.jam, opts.block
         self.last_compute = ComputeReport()
         self._sim = None
 

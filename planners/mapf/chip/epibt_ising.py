@@ -23,7 +23,7 @@ Measurements: ``docs/design/lifelong_turning.md``.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -32,11 +32,12 @@ from ising_backend import CallLedger, integer_program
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
-from planners.mapf.common import GroupBatch, int_in, machine_for, mix
-from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT
+from planners.mapf.common import GroupBatch, machine_for, mix
+from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, EPIBTOptions
+from planners.options import option
 from planners.mapf.epibt.search import blockers, conflict, reserve
 
-__all__ = ["EPIBTIsing", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
+__all__ = ["EPIBTIsing", "EPIBTIsingOptions", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
            "DECIDERS"]
 
 DECIDERS = ("chip", "host")
@@ -249,53 +250,57 @@ def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
 
 
 
+@dataclass(frozen=True)
+class EPIBTIsingOptions(EPIBTOptions):
+    """:class:`EPIBTIsing`'s options: :class:`~planners.mapf.epibt.plans.EPIBTOptions` and its decisions'."""
+
+    decider: str = option("chip", str, words=DECIDERS, meaning="the machine decides, or the host rule (no machine "
+                          "call)")
+    groups: int = option(32, int, 0, 1 << 16, meaning="decisions per round")
+    max_robots: int = option(11, int, 2, 22, meaning="robots per group")
+    max_options: int = option(4, int, 2, 8, meaning="options per robot")
+    num_reads: int = option(64, int, 1, 64, meaning="reads per program")
+    penalty: int = option(2, int, 1, 64, meaning="the at-most-one penalty in units of 1 + the widest gap of one "
+                          "option's cost to its robot's operation now; collisions half that")
+    min_gain: int = option(1, int, 1, 1000, meaning="a group takes the decided choice when it lowers the group's "
+                           "cost-to-go by at least this much")
+    rounds: int = option(1, int, 1, 4096, meaning="rounds of decisions per call, each on fresh groups; under a "
+                         "clock they stop before the deadline on the step's charged time")
+
+
 class EPIBTIsing(EPIBT):
     """EPIBT plus the joint choice of operations of neighbourhood groups (module docstring).
 
     Args:
-        grid, seed: as :class:`~planners.mapf.epibt.plans.EPIBT` (its options pass through).
+        grid, seed: as :class:`~planners.mapf.epibt.plans.EPIBT`.
         machine: any Ising machine; default ``ising_backend.EmulatedChip(seed=seed)`` (not built with
             ``decider="host"``).
-        decider: ``"chip"`` (the machine decides) or ``"host"`` (the host rule, no machine call).
-        groups: decisions per call (default 32).
-        max_robots, max_options: robots per group (2..22, default 11) and options per robot (2..8, default 4).
-        num_reads: reads per program (1..64, default 64).
-        penalty: the at-most-one penalty in units of ``1 +`` the widest gap of one option's cost to its robot's
-            operation now; collisions half that (1..64, default 2; chosen on RANDOM-03 and -05:
-            docs/design/lifelong_turning.md).
-        min_gain: a group takes the decided choice when it lowers the group's cost-to-go by at least this much
-            (1..1000, default 1: any gain).
-        rounds: rounds of decisions per call (1..4096, default 1): each round poses fresh groups on the plan the
-            rounds before it left (the chip as the search's annealer, with ``lns=0`` in place of the host's
-            search); under a clock the rounds stop when the next, as long as the longest so far, would end past
-            the deadline less :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time
-            (host seconds, not the emulation's, plus the machine's own).
+        options: the fields of :class:`EPIBTIsingOptions`.  ``penalty`` 2 was chosen on RANDOM-03 and -05
+            (docs/design/lifelong_turning.md).  ``rounds`` > 1 with ``lns=0`` makes the chip the search's
+            annealer: each round poses fresh groups on the plan the rounds before it left; under a clock the
+            rounds stop when the next, as long as the longest so far, would end past the deadline less
+            :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time (host seconds, not
+            the emulation's, plus the machine's own).
     """
 
     name = "epibt-ising"
+    Options = EPIBTIsingOptions
 
-    def __init__(self, grid, seed: int = 0, machine=None, *, decider: str = "chip", groups: int = 32,
-                 max_robots: int = 11, max_options: int = 4, num_reads: int = 64, penalty: int = 2,
-                 min_gain: int = 1, rounds: int = 1, **options) -> None:
+    def __init__(self, grid, seed: int = 0, machine=None, **options) -> None:
         super().__init__(grid, seed=seed, **options)
-        if decider not in DECIDERS:
-            raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
-        self.decider = decider
+        opts = self.options
+        self.decider = opts.decider
         self.machine = None
         spins = 45
-        if decider == "chip":
+        if self.decider == "chip":
             self.machine = machine_for(machine, self.seed)
             spins = int(self.machine.usable_spins)
-        self.n_groups = int_in("groups", groups, 0, 1 << 16)
-        self.max_robots = int_in("max_robots", max_robots, 2, 22)
-        self.max_options = int_in("max_options", max_options, 2, 8)
-        self.num_reads = int_in("num_reads", num_reads, 1, 64)
-        self.penalty = int_in("penalty", penalty, 1, 64)
-        self.min_gain = int_in("min_gain", min_gain, 1, 1000)
-        self.rounds = int_in("rounds (decision rounds per call)", rounds, 1, 4096)
+        self.n_groups, self.max_robots, self.max_options = opts.groups, opts.max_robots, opts.max_options
+        self.num_reads, self.penalty = opts.num_reads, opts.penalty
+        self.min_gain, self.rounds = opts.min_gain, opts.rounds
         self.max_spins = spins
         if self.max_spins < self.max_robots:
-            raise ValueError(f"max_robots = {max_robots} needs {max_robots} spins; the machine has {spins}")
+            raise ValueError(f"max_robots = {self.max_robots} needs {self.max_robots} spins; the machine has {spins}")
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
         self._last_groups = 0  # groups the latest round posed

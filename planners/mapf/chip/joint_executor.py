@@ -25,68 +25,74 @@ harness for a better objective; ``pibt`` stays the default executor.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ising_backend import CallLedger, integer_program
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.common import GroupBatch, int_in, machine_for, mix
+from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.chip.joint_moves import (
     CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
     objective, program_batch, robot_options, select_groups, solve_exact,
 )
-from planners.mapf.pibt.turning import TurningPIBT
+from planners.mapf.guides.guidance import MAX_GUIDANCE
+from planners.mapf.pibt.turning import TurningOptions, TurningPIBT
+from planners.options import option
 
-__all__ = ["JointMovesPIBT", "ACCEPT"]
+__all__ = ["JointMovesPIBT", "JointMovesOptions", "ACCEPT"]
 
 ACCEPT = ("better", "chip", "host")
 
+
+
+@dataclass(frozen=True)
+class JointMovesOptions(TurningOptions):
+    """:class:`JointMovesPIBT`'s options: :class:`~planners.mapf.pibt.turning.TurningOptions` with lanes off by default
+    (the option costs and the QUBO's weights were tuned on plain distances) and its decisions'."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
+    max_robots: int = option(11, int, 1, 45, meaning="robots per group")
+    max_spins: int | None = option(None, int, MAX_OPTIONS, 1 << 16, none=True, meaning="options per group (null: the "
+                                   "machine's usable spins, also the upper limit)")
+    levels: int = option(3, int, 1, 7, meaning="priority weight tiers inside a group (1 = every robot weighs 1)")
+    push: int = option(2, int, 0, 2, meaning="a forward claim whose robot ahead does not move forward counts push / "
+                       "2 of its cost (0: as a wait; 2: in full, PIBT's own view; 2 the least harmful of 0, 1, 2)")
+    penalty: int | None = option(10, int, 1, 1 << 20, none=True, meaning="one-hot and conflict penalty of the QUBO "
+                                 "(10 measured against 4, 7 and null = 1 + the group's widest spread of one robot's "
+                                 "option costs); infeasible reads are repaired")
+    num_reads: int = option(32, int, 1, 64, meaning="reads per group program (32: 4 batches of the 8 cores)")
+    accept: str = option("better", str, words=ACCEPT, meaning="whose answer a group takes (module docstring)")
+    audit: bool = option(False, bool, meaning="record every decision with its exact optimum (slow: benchmarks, tests)")
 
 
 class JointMovesPIBT(TurningPIBT):
     """PIBT with turning plus the chip's joint next moves for congested groups (module docstring).
 
     Args:
-        grid, seed: as :class:`TurningPIBT` (``field_bytes``, ``bfs_budget`` pass through).
+        grid, seed: as :class:`TurningPIBT`.
         machine: any Ising machine (``session``, ``spec``, ``usable_spins``); default
             ``ising_backend.EmulatedChip(seed=seed)``.
-        max_robots: robots per group (1..45).
-        max_spins: options per group (default and upper limit: the machine's usable spins).
-        levels: priority weight tiers inside a group (1 = every robot weighs 1; 1..7).
-        push: a forward claim whose robot ahead does not move forward counts ``push / 2`` of its
-            cost (0: as a wait; 2: in full, PIBT's own view of a push; 0..2; default 2, the least
-            harmful end to end of 0, 1, 2).
-        penalty: one-hot and conflict penalty of the QUBO (default 10: measured against 4, 7 and the
-            safe ``None`` = 1 + the group's largest spread of one robot's option costs, which leaves
-            the costs too little of the chip's 15 levels); infeasible reads are repaired.
-        num_reads: reads per group program (1..64; default 32: 4 batches of the 8 cores).
-        accept: ``"better"``, ``"chip"`` or ``"host"`` (module docstring).
-        audit: record every decision with its exact optimum (slow: for benchmarks and tests).
-        options: :class:`~planners.mapf.pibt.turning.TurningPIBT`'s; ``guidance`` defaults to 0 here (the
-            option costs and the QUBO's weights were tuned on plain distances).
+        options: the fields of :class:`JointMovesOptions`.
     """
 
     name = "pibt-ising"
+    Options = JointMovesOptions
 
-    def __init__(self, grid, seed: int = 0, machine=None, *, max_robots: int = 11, max_spins: int | None = None,
-                 levels: int = 3, push: int = 2, penalty: int | None = 10, num_reads: int = 32, accept: str = "better",
-                 audit: bool = False, **options) -> None:
-        options.setdefault("guidance", 0)
+    def __init__(self, grid, seed: int = 0, machine=None, **options) -> None:
         super().__init__(grid, seed=seed, **options)
+        opts = self.options
         self.machine = machine_for(machine, self.seed)
         usable = int(self.machine.usable_spins)
-        self.max_robots = int_in("max_robots", max_robots, 1, 45)
-        self.max_spins = usable if max_spins is None else int_in("max_spins", max_spins, MAX_OPTIONS, usable)
-        self.levels = int_in("levels", levels, 1, 7)
-        self.push = int_in("push", push, 0, 2)
-        self.penalty = None if penalty is None else int_in("penalty", penalty, 1, 1 << 20)
-        self.num_reads = int_in("num_reads", num_reads, 1, 64)
-        if accept not in ACCEPT:
-            raise ValueError(f"accept = {accept!r} must be one of {', '.join(ACCEPT)}")
-        self.accept = accept
-        self.audit = [] if audit else None
+        if opts.max_spins is not None and opts.max_spins > usable:
+            raise ValueError(f"max_spins = {opts.max_spins} must be an integer in [{MAX_OPTIONS}, {usable}] (the "
+                             f"machine's usable spins)")
+        self.max_robots = opts.max_robots
+        self.max_spins = usable if opts.max_spins is None else opts.max_spins
+        self.levels, self.push, self.penalty = opts.levels, opts.push, opts.penalty
+        self.num_reads, self.accept = opts.num_reads, opts.accept
+        self.audit = [] if opts.audit else None
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
         self.decisions = 0

@@ -18,19 +18,21 @@ import itertools
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 from typing import NamedTuple
 
 import numba
 import numpy as np
 
-from planners.mapf.common import int_in, mix
+from planners.mapf.common import mix
 from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
-from planners.mapf.guides.flow import DEFAULT_GUIDE_WORK, GUIDE_MARGIN_S, FlowGuide, FlowPIBT
-from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, FORWARD, WAIT,
-                                   TurningPIBT, _distance)
+from planners.mapf.guides.flow import GUIDE_MARGIN_S, FlowGuide, FlowPIBT, guide_work_option, replans_option
+from planners.mapf.guides.guidance import MAX_GUIDANCE
+from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, LaneOptions, TurningPIBT, _distance
+from planners.options import option
 
-__all__ = ["EPIBT", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
+__all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
            "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
            "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
@@ -324,72 +326,61 @@ def portfolio_seed(seed: int, k: int) -> int:
     return int(seed) if k == 0 else int(mix(np.uint64(seed), k, _PORTFOLIO_SALT, 0)) & ((1 << 62) - 1)
 
 
+@dataclass(frozen=True)
+class EPIBTOptions(LaneOptions):
+    """:class:`EPIBT`'s options (the goal fields' of :class:`~planners.mapf.pibt.turning.LaneOptions`, lanes off by
+    default; ``replans``, ``guide_work`` as :class:`~planners.mapf.guides.flow.FlowOptions`, for ``flow``)."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
+    flow: bool = option(True, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
+    op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; auto: "
+                               "chosen on the first call from the team's share of the free cells (AUTO_OP_LEN_FILL)")
+    revisits: int = option(DEFAULT_REVISITS, int, 1, 1000, meaning="choices a robot may make per call")
+    lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="large-neighbourhood iterations per call "
+                             "(null: 50 per robot, at most 32,768; 0 = off)")
+    group: int = option(DEFAULT_GROUP, int, 2, 4096, meaning="robots per neighbourhood")
+    replans: int | None = replans_option()
+    weight_power: int = option(DEFAULT_WEIGHT_POWER, int, 0, 2, meaning="the search weighs each robot's cost-to-go "
+                               "by (R + 1 - rank) ** weight_power, rank 0 the first in priority order")
+    portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="joint plans per call from seeds apart "
+                            "(portfolio_seed), the one of least weighted cost-to-go kept (ties: the first)")
+    threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
+                                 "on (null: one per plan, at most the cores this process may use); plans do not "
+                                 "depend on it")
+    anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "
+                           "neighbourhood's cost (0 = descent)")
+    guide_work: int | None = guide_work_option()
+
+
 class EPIBT(TurningPIBT):
     """EPIBT on one grid (module docstring).
 
     Args:
-        grid, seed, guidance: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (guidance default 0 here).
-        flow: rank by traffic-flow guide paths (:class:`~planners.mapf.guides.flow.FlowGuide`; default) instead of
-            the goal fields.
-        op_len: actions per operation (1..5; default 3), or ``"auto"``: chosen on the first call from the
-            team's share of the free cells (:data:`AUTO_OP_LEN_FILL`).
-        revisits: choices a robot may make per call (default 10).
-        lns: large-neighbourhood iterations per call over the joint plan (default: 50 per robot, at most
-            32,768; 0 = off).
-        group: robots per neighbourhood (default 16).
-        weight_power: the search weighs each robot's cost-to-go by ``(R + 1 - rank) ** weight_power``, rank 0
-            the first in priority order (default 0, unweighted).
-        replans: guide paths re-planned per call beyond new goals (``flow`` only; as
-            :class:`~planners.mapf.guides.flow.FlowPIBT`).
-        portfolio: joint plans per call (1..64, default 1), each a construction and search of its own from
-            seeds apart (:func:`portfolio_seed`; the first is the single plan's); the one of least weighted
-            cost-to-go is kept (ties: the first), as the 2024 winner's threads do up to the deadline.
-        threads: threads the portfolio's plans run on (default: one per plan, at most the cores this process
-            may use); the plans and the choice do not depend on it.
-        field_bytes, bfs_budget, corridors: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (and the guide
-            paths' bound).
-        guide_work: A* expansions per call for guide paths (``flow`` only; as
-            :class:`~planners.mapf.guides.flow.FlowPIBT`: under a clock they also stop
-            :data:`~planners.mapf.guides.flow.GUIDE_MARGIN_S` + twice the last plans' construction before the deadline).
+        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
+        options: the fields of :class:`EPIBTOptions`.
     """
 
     name = "epibt"
+    Options = EPIBTOptions
 
-    def __init__(self, grid, seed: int = 0, guidance: int = 0, *, flow: bool = True, op_len: int | str = DEFAULT_OP_LEN,
-                 revisits: int = DEFAULT_REVISITS, lns: int | None = None, group: int = DEFAULT_GROUP,
-                 replans: int | None = None, weight_power: int = DEFAULT_WEIGHT_POWER, portfolio: int = 1,
-                 threads: int | None = None, anneal: float = 0.0, field_bytes: int = DEFAULT_FIELD_BYTES,
-                 bfs_budget: int = DEFAULT_BFS_BUDGET, guide_work: int | None = DEFAULT_GUIDE_WORK,
-                 corridors: int = 0) -> None:
-        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, corridors=corridors)
-        if not isinstance(flow, (bool, np.bool_)):
-            raise ValueError(f"flow must be True or False, got {flow!r}")
-        big = 1 << 24
-        self.revisits = int_in("revisits (choices per robot and call)", revisits, 1, 1000)
-        if replans is not None:
-            int_in("replans (guide paths re-planned per call)", replans, 0, big)
-        self.lns_option = None if lns is None else int_in("lns (search iterations per call)", lns, 0, big)
-        self.group = int_in("group (robots per neighbourhood)", group, 2, 4096)
-        self.weight_power = int_in("weight_power (the search's weights (R + 1 - rank) ** p)", weight_power, 0, 2)
-        self.portfolio = int_in("portfolio (joint plans per call)", portfolio, 1, MAX_PORTFOLIO)
-        if isinstance(anneal, bool) or not isinstance(anneal, (int, float)) or not 0.0 <= anneal <= 1.0:
-            raise ValueError(f"anneal must be a number 0..1 (the search's starting temperature, a share of a "
-                             f"neighbourhood's cost; 0 = descent), got {anneal!r}")
-        self.anneal = float(anneal)
+    def __init__(self, grid, seed: int = 0, **options) -> None:
+        super().__init__(grid, seed, **options)
+        opts = self.options
+        self.revisits, self.lns_option, self.group = opts.revisits, opts.lns, opts.group
+        self.weight_power, self.portfolio, self.anneal = opts.weight_power, opts.portfolio, opts.anneal
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        self.threads = (min(self.portfolio, cores) if threads is None
-                        else int_in("threads (the portfolio's threads)", threads, 1, MAX_PORTFOLIO))
+        self.threads = min(self.portfolio, cores) if opts.threads is None else opts.threads
         self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
         self.kept = 0  # and the one kept
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.lns_scale = 1.0  # under a clock: the share of the search's iterations the steps leave time for
-        self.auto_op_len = op_len == "auto"
-        self.flow = bool(flow)
+        self.auto_op_len = opts.op_len == "auto"
+        self.flow = opts.flow
         n = len(self.cell_of)
-        self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else op_len)
+        self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else opts.op_len)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes,
-                               self.seed, work=guide_work) if self.flow else None
+        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
+                               self.seed, work=opts.guide_work) if self.flow else None
         self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
 
     def _set_ops(self, op_len) -> None:

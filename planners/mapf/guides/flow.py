@@ -26,15 +26,17 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import time
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from planners.mapf.guides.guidance import distance_bound, spread
+from planners.mapf.guides.guidance import MAX_GUIDANCE, distance_bound, spread
 from planners.mapf.common import compact_grid
-from planners.mapf.pibt.turning import DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, TurningPIBT, _distance
+from planners.mapf.pibt.turning import DEFAULT_FIELD_BYTES, TurningOptions, TurningPIBT, _distance, commits_option
+from planners.options import option
 
-__all__ = ["FlowPIBT", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
+__all__ = ["FlowPIBT", "FlowOptions", "replans_option", "guide_work_option", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
            "DEFAULT_REPLAN_WORK", "DEFAULT_GUIDE_WORK"]
 
 #: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this
@@ -429,33 +431,48 @@ class FlowGuide:
         return rows
 
 
+def replans_option():
+    """The ``replans`` option of the planners along guide paths."""
+    return option(None, int, 0, 1 << 24, none=True, meaning="guide paths re-planned per call beyond those of new "
+                  "goals (null: one per robot, at most DEFAULT_REPLAN_WORK // free cells)")
+
+
+def guide_work_option():
+    """The ``guide_work`` option of the planners along guide paths."""
+    return option(DEFAULT_GUIDE_WORK, int, 1, 1 << 40, none=True, meaning="A* expansions per call for guide paths "
+                  "(null: no bound); under a clock they also stop GUIDE_MARGIN_S + twice the last pass before the "
+                  "deadline")
+
+
+@dataclass(frozen=True)
+class FlowOptions(TurningOptions):
+    """:class:`FlowPIBT`'s options: :class:`~planners.mapf.pibt.turning.TurningOptions` with lanes off and commitments
+    on by default (as in the start kit), and the guide paths' bounds (``field_bytes`` bounds the robots' fields and
+    first paths too)."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane, added "
+                           "to the guide paths' moves (0 = off)")
+    commits: bool = commits_option(True)
+    replans: int | None = replans_option()
+    guide_work: int | None = guide_work_option()
+
+
 class FlowPIBT(TurningPIBT):
     """PIBT with turning that follows traffic-flow guide paths (module docstring).
 
     Args:
-        grid, seed, guidance: as :class:`~planners.mapf.pibt.turning.TurningPIBT` (guidance, default 0 here,
-            adds lane costs to the guide paths' moves).
-        replans: guide paths re-planned per call beyond those of new goals (default: one per robot, at most
-            :data:`DEFAULT_REPLAN_WORK` // free cells).
-        field_bytes: memory bound of the goal fields, and of the robots' fields and first paths.
-        bfs_budget, commits, corridors: as :class:`~planners.mapf.pibt.turning.TurningPIBT`; commitments on by
-            default here (as in the start kit).
-        guide_work: A* expansions per call for guide paths (:data:`DEFAULT_GUIDE_WORK`; ``None``: no bound);
-            under a clock they also stop :data:`GUIDE_MARGIN_S` + twice PIBT's last pass before the deadline.
+        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
+        options: the fields of :class:`FlowOptions`.
     """
 
     name = "pibt-flow"
+    Options = FlowOptions
 
-    def __init__(self, grid, seed: int = 0, guidance: int = 0, *, replans: int | None = None,
-                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = True, guide_work: int | None = DEFAULT_GUIDE_WORK, corridors: int = 0) -> None:
-        super().__init__(grid, seed, guidance, field_bytes=field_bytes, bfs_budget=bfs_budget, commits=commits,
-                         corridors=corridors)
-        if replans is not None and (isinstance(replans, bool) or not isinstance(replans, (int, np.integer))
-                                    or replans < 0):
-            raise ValueError(f"replans must be an integer >= 0 (guide paths re-planned per call), got {replans!r}")
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, replans, field_bytes, self.seed,
-                               work=guide_work)
+    def __init__(self, grid, seed: int = 0, **options) -> None:
+        super().__init__(grid, seed, **options)
+        opts = self.options
+        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
+                               self.seed, work=opts.guide_work)
         self.guide_stop: float | None = None
 
     def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:

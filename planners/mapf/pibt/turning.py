@@ -28,15 +28,17 @@ distance).  Design and measurements: ``docs/design/lifelong_turning.md``.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
-from planners.mapf.guides.guidance import check_guidance, cost_rows, distance_bound, move_costs
+from planners.mapf.guides.guidance import MAX_GUIDANCE, cost_rows, distance_bound, move_costs
+from planners.options import Options, option
 
-__all__ = ["TurningPIBT", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
+__all__ = ["TurningPIBT", "TurningOptions", "LaneOptions", "commits_option", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
            "DEAD_END_BONUS", "DEFAULT_GUIDANCE"]
 
@@ -295,45 +297,59 @@ def _int_array(name: str, values) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.int64)
 
 
+@dataclass(frozen=True)
+class LaneOptions(Options):
+    """The goal fields' options, shared by every planner with turning."""
+
+    guidance: int = option(DEFAULT_GUIDANCE, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against "
+                           "its lane (crisscross lanes, planners.mapf.guides.guidance; 0 = plain BFS distances)")
+    field_bytes: int = option(DEFAULT_FIELD_BYTES, int, 1, 1 << 40, meaning="memory bound of the goal-field cache "
+                              "(TurnFields)")
+    bfs_budget: int = option(DEFAULT_BFS_BUDGET, int, 1, 1 << 40, meaning="BFS work per call in cells (new goal "
+                             "fields per call = this // free cells; a goal without a field goes by Manhattan distance)")
+    corridors: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a move against a one-way corridor "
+                            "(corridors one cell wide, open at both ends, alternate their ways; 0 = off)")
+
+
+def commits_option(default: bool):
+    """The ``commits`` option (its default per planner)."""
+    return option(default, bool, meaning="a robot keeps claiming the cell it chose until it stands on it (as in "
+                  "the start kit's default planner)")
+
+
+@dataclass(frozen=True)
+class TurningOptions(LaneOptions):
+    """:class:`TurningPIBT`'s options."""
+
+    commits: bool = commits_option(False)
+
+
 class TurningPIBT:
     """PIBT with turning on one grid (see the module docstring).
 
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: tie-breaks (robot priorities and equal cells).
-        guidance: extra cost of a forward move against its lane's direction (crisscross lanes,
-            :mod:`planners.mapf.guides.guidance`; default 2; 0 = off, plain BFS distances); goal fields and
-            the candidate order then go by the guided cost.
-        field_bytes: memory bound of the goal-field cache (:class:`TurnFields`).
-        bfs_budget: BFS work per call in cells (new goal fields per call = this // free cells; a robot
-            whose goal has no field yet goes by Manhattan distance meanwhile).
-        commits: a robot keeps claiming the cell it chose until it stands on it (through its turns and
-            waits; no other robot may claim it, as in the start kit's default planner); default off.
-        corridors: extra cost of a move against a one-way corridor (corridors one cell wide, open at both
-            ends, alternate their ways: :func:`~planners.mapf.guides.guidance.corridor_costs`; default 0 = off).
+        options: the fields of :attr:`Options` (:class:`TurningOptions`), checked; the record is :attr:`options`.
     """
 
     name = "pibt"
+    Options = TurningOptions
     #: the chip charge of the latest step (none here; a subclass that decides on a chip sets it)
     last_compute = ComputeReport()
     kernel_s = 0.0
 
-    def __init__(self, grid: np.ndarray, seed: int = 0, guidance: int = DEFAULT_GUIDANCE, *,
-                 field_bytes: int = DEFAULT_FIELD_BYTES, bfs_budget: int = DEFAULT_BFS_BUDGET,
-                 commits: bool = False, corridors: int = 0) -> None:
+    def __init__(self, grid: np.ndarray, seed: int = 0, **options) -> None:
+        self.options = opts = type(self).Options.from_dict(options, self.name)
         self.grid = np.asarray(grid, dtype=bool)
         if self.grid.ndim != 2:
             raise ValueError(f"grid must be 2-d (H, W), got shape {self.grid.shape}")
         self.width = int(self.grid.shape[1])
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
-        self.guidance = check_guidance(guidance)
-        self.corridors = check_guidance(corridors, "corridors")
+        self.guidance, self.corridors, self.commits = opts.guidance, opts.corridors, getattr(opts, "commits", False)
         self.move_cost = move_costs(self.nbr, self.cell_of, self.width, self.guidance, self.corridors)
-        self.fields = TurnFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
+        self.fields = TurnFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
-        if not isinstance(commits, (bool, np.bool_)):
-            raise ValueError(f"commits must be True or False, got {commits!r}")
-        self.commits = bool(commits)
         self.seed = int(seed) & ((1 << 63) - 1)
         self.t = 0
         self.elapsed = np.zeros(0, dtype=np.int64)

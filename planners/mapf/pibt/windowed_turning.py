@@ -13,15 +13,18 @@ is a valid joint action; every call re-plans.  Jam guards, measurements:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
-from planners.mapf.guides.guidance import orient_cost_rows
-from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES,
-                                   FORWARD, WAIT, TurnFields, TurningPIBT, turning_kernel)
+from planners.mapf.guides.guidance import MAX_GUIDANCE, orient_cost_rows
+from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, FORWARD, WAIT, LaneOptions, TurnFields,
+                                   TurningPIBT, turning_kernel)
+from planners.options import option
 from planners.mapf.pibt.windowed import _pop_unseen, _push, new_heap
 
-__all__ = ["WindowedTurningPlanner", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
+__all__ = ["WindowedTurningPlanner", "WindowedOptions", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
            "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
            "DEFAULT_WORK"]
 
@@ -247,6 +250,29 @@ def repair_kernel(nbr, pos, orient, act, order, nxt, owner, occ_now) -> int:
     return changed
 
 
+@dataclass(frozen=True)
+class WindowedOptions(LaneOptions):
+    """:class:`WindowedTurningPlanner`'s options: the goal fields' (:class:`~planners.mapf.pibt.turning.LaneOptions`;
+    ``field_bytes``, ``bfs_budget`` bound each cache: BFS distance for the rollout, (cell, orientation) distance for
+    A*; lanes off by default: on RANDOM-01..05 they helped at 400-700 robots and cost tasks at 100-200 and 800)
+    and the windows'."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a move against its lane (rollouts, "
+                           "fields and A*'s step costs; 0 = off)")
+    window: int = option(DEFAULT_WINDOW, int, 2, MAX_WINDOW, meaning="planning horizon in steps (with 1, A* undoes "
+                         "the turns by which PIBT makes way: robots facing each other wait for good)")
+    expansions: int = option(DEFAULT_EXPANSIONS, int, 1, 1 << 30, meaning="A* expansions per robot and pass (a "
+                             "search out of budget keeps the plan)")
+    passes: int = option(1, int, 0, 1 << 10, meaning="re-planning passes over all robots per call (0: no A*, the "
+                         "cheapest rollout runs; with rollouts=1 too the actions are TurningPIBT's)")
+    rollouts: int = option(DEFAULT_ROLLOUTS, int, 1, 1 << 10, meaning="PIBT rollouts per call, the first with the "
+                           "planner's own tie-breaks, the others drawn from (seed, step, k); the cheapest is re-planned")
+    patience: int = option(DEFAULT_PATIENCE, int, 0, 1 << 20, meaning="a robot that has not changed cell for more "
+                           "than this many calls keeps its PIBT plan")
+    work: int = option(DEFAULT_WORK, int, 1, 1 << 40, meaning="robot-steps of rollout per call: with more robots, "
+                       "fewer rollouts (at least 1), then a shorter window (at least 2)")
+
+
 class WindowedTurningPlanner(TurningPIBT):
     """Windowed prioritized planning with turning on one grid (see the module docstring); shares
     :class:`~planners.mapf.pibt.turning.TurningPIBT`'s input checks, priorities and :meth:`step`.
@@ -254,41 +280,18 @@ class WindowedTurningPlanner(TurningPIBT):
     Args:
         grid: ``(H, W)`` bool obstacles.
         seed: priority tie-breaks (of the PIBT rollout too).
-        guidance: extra cost of a move against its lane (:class:`~planners.mapf.pibt.turning.TurningPIBT`);
-            the rollouts, the (cell, orientation) fields and A*'s step costs all go by it.  Default 0:
-            on RANDOM-01..05 it helped at 400-700 robots and cost tasks at 100-200 and 800.
-        window: planning horizon in steps (2..64, default 16; with 1, A* undoes the turns by which PIBT
-            makes way, whose use comes a step later: robots facing each other wait for good).
-        expansions: A* expansions per robot and pass (>= 1; a search out of budget keeps the plan).
-        passes: re-planning passes over all robots per call (0: no A*, the cheapest rollout runs; with
-            ``rollouts=1`` too the actions are TurningPIBT's).
-        patience: a robot that has not changed cell for more than ``patience`` calls keeps its PIBT plan
-            (A* would hold it still in a jam that PIBT's turning resolves).
-        rollouts: PIBT rollouts per call (default 8), the first with the planner's own tie-breaks, the
-            others with tie-breaks drawn from ``(seed, step, k)``; the cheapest (sum of plan costs) is
-            re-planned.
-        work: robot-steps of rollout per call (default 2**17): with more robots, fewer rollouts
-            (at least 1), then a shorter window (at least 2) -- :meth:`effort`.
-        field_bytes, bfs_budget: bound and BFS work per call of each field cache (BFS distance for the
-            rollout, (cell, orientation) distance for A*), as :class:`~planners.mapf.pibt.turning.TurnFields`.
+        options: the fields of :class:`WindowedOptions`.
     """
 
     name = "windowed"
+    Options = WindowedOptions
 
-    def __init__(self, grid: np.ndarray, seed: int = 0, window: int = DEFAULT_WINDOW, *,
-                 guidance: int = 0, expansions: int = DEFAULT_EXPANSIONS, passes: int = 1, rollouts: int = DEFAULT_ROLLOUTS,
-                 patience: int = DEFAULT_PATIENCE, work: int = DEFAULT_WORK, field_bytes: int = DEFAULT_FIELD_BYTES,
-                 bfs_budget: int = DEFAULT_BFS_BUDGET) -> None:
-        for name, value, low, top in (("window", window, 2, MAX_WINDOW), ("expansions", expansions, 1, None),
-                                      ("passes", passes, 0, None), ("rollouts", rollouts, 1, None),
-                                      ("patience", patience, 0, None), ("work", work, 1, None)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
-                    top is not None and value > top):
-                raise ValueError(f"{name} must be an integer in {low}..{top or 'any'}, got {value!r}")
-        super().__init__(grid, seed=seed, guidance=guidance, field_bytes=field_bytes, bfs_budget=bfs_budget)
-        self.window, self.expansions, self.passes = int(window), int(expansions), int(passes)
-        self.rollouts, self.patience, self.work = int(rollouts), int(patience), int(work)
-        self.ofields = OrientFields(self.nbr, field_bytes, bfs_budget, cost=self.move_cost)
+    def __init__(self, grid: np.ndarray, seed: int = 0, **options) -> None:
+        super().__init__(grid, seed=seed, **options)
+        opts = self.options
+        self.window, self.expansions, self.passes = opts.window, opts.expansions, opts.passes
+        self.rollouts, self.patience, self.work = opts.rollouts, opts.patience, opts.work
+        self.ofields = OrientFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
         self.move = self.move_cost if self.move_cost is not None else np.ones((len(self.cell_of), 4), np.int64)
         n = len(self.cell_of)
         states = (self.window + 1) * 4 * n

@@ -1,0 +1,108 @@
+"""Typed, validated options: one record per planner or scheduler, one validator for them all.
+
+A class's options are the fields of a frozen dataclass derived from :class:`Options`, each declared with
+:func:`option` (its default, its kind, its range or its words, one line of meaning).  Building the record checks
+every field; :meth:`Options.from_dict` also refuses an option the class does not take, listing those it takes.
+An error is one ``ValueError`` line naming the option, the bad value and what is allowed.
+
+Choice: stdlib dataclasses with this one validator rather than pydantic: no new dependency of the core, the
+messages are the package's own one-liners, and a record is a plain frozen value (hashable, ``==``, ``replace``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import MISSING, dataclass, field, fields
+
+import numpy as np
+
+__all__ = ["Options", "option", "Bound"]
+
+
+@dataclass(frozen=True)
+class Bound:
+    """What an option's value may be: ``kind`` (``int``, ``float``, ``bool`` or ``str``) within ``[lo, hi]``
+    (either end ``None``: open), or one of ``words`` (besides a number, e.g. ``"auto"``), or ``None`` when
+    ``none`` is set."""
+
+    kind: type
+    lo: float | None = None
+    hi: float | None = None
+    words: tuple[str, ...] = ()
+    none: bool = False
+    meaning: str = ""
+
+    def allowed(self) -> str:
+        """What the option takes, in words (the tail of an error line)."""
+        if self.kind is bool:
+            text = "true or false"
+        elif self.kind is str:
+            text = "one of " + ", ".join(self.words)
+        else:
+            noun = "an integer" if self.kind is int else "a number"
+            lo, hi = (None if x is None else str(x) if self.kind is int else f"{x:g}" for x in (self.lo, self.hi))
+            if lo is not None and hi is not None:
+                text = f"{noun} in [{lo}, {hi}]"
+            elif lo is not None:
+                text = f"{noun} >= {lo}"
+            elif hi is not None:
+                text = f"{noun} <= {hi}"
+            else:
+                text = noun
+            if self.words:
+                text += " or " + " or ".join(repr(w) for w in self.words)
+        return text + (" or null" if self.none else "")
+
+    def read(self, name: str, value):
+        """``value`` as the option's type, or ``ValueError`` naming ``name``, ``value`` and :meth:`allowed`."""
+        if value is None and self.none:
+            return None
+        if isinstance(value, str) and value in self.words:
+            return value
+        if self.kind is bool:
+            if isinstance(value, (bool, np.bool_)):
+                return bool(value)
+        elif self.kind is int:
+            if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and self._within(value):
+                return int(value)
+        elif self.kind is float:
+            if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)) \
+                    and np.isfinite(value) and self._within(value):
+                return float(value)
+        raise ValueError(f"{name} = {value!r} must be {self.allowed()}")
+
+    def _within(self, value) -> bool:
+        return (self.lo is None or value >= self.lo) and (self.hi is None or value <= self.hi)
+
+
+def option(default, kind: type, lo=None, hi=None, *, words: tuple[str, ...] = (), none: bool = False,
+           meaning: str = ""):
+    """A dataclass field of an :class:`Options` record (module docstring)."""
+    return field(default=default, metadata={"bound": Bound(kind, lo, hi, tuple(words), none, meaning)})
+
+
+@dataclass(frozen=True)
+class Options:
+    """Base of every options record: each field checked (and made its plain type) when the record is built."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            object.__setattr__(self, f.name, f.metadata["bound"].read(f.name, getattr(self, f.name)))
+
+    @classmethod
+    def from_dict(cls, values: dict, owner: str):
+        """The record of ``values`` (option name -> value; the others their defaults); ``ValueError`` naming an
+        option ``owner`` does not take, with those it takes."""
+        names = [f.name for f in fields(cls)]
+        for key in values:
+            if key not in names:
+                raise ValueError(f"{owner} takes no option {key!r}; its options: {', '.join(names)}")
+        return cls(**values)
+
+    @classmethod
+    def describe(cls) -> list[tuple[str, object, str, str]]:
+        """``(name, default, allowed, meaning)`` of every option, in declaration order."""
+        out = []
+        for f in fields(cls):
+            b = f.metadata["bound"]
+            out.append((f.name, None if f.default is MISSING else f.default, b.allowed(), b.meaning))
+        return out

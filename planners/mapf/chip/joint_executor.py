@@ -38,7 +38,8 @@ from planners.mapf.chip.joint_moves import (
     objective, program_batch, robot_options, select_groups, solve_exact,
 )
 from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.turning import TurningOptions, TurningPIBT
+from planners.mapf.pibt.options import TurningOptions
+from planners.mapf.pibt.turning import TurningPIBT
 from planners.options import option
 
 __all__ = ["JointMovesPIBT", "JointMovesOptions", "ACCEPT"]

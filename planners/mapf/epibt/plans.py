@@ -29,7 +29,8 @@ from planners.mapf.common import mix
 from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
 from planners.mapf.guides.flow import GUIDE_MARGIN_S, FlowGuide, FlowPIBT, guide_work_option, replans_option
 from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, LaneOptions, TurningPIBT, _distance
+from planners.mapf.pibt.options import LaneOptions, congestion_options
+from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, TurningPIBT, _distance
 from planners.options import option
 
 __all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
@@ -350,6 +351,8 @@ class EPIBTOptions(LaneOptions):
     anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "
                            "neighbourhood's cost (0 = descent)")
     guide_work: int | None = guide_work_option()
+    congestion: int = congestion_options()[0]
+    refresh: int = congestion_options()[1]
 
 
 class EPIBT(TurningPIBT):
@@ -366,6 +369,9 @@ class EPIBT(TurningPIBT):
     def __init__(self, grid, seed: int = 0, **options) -> None:
         super().__init__(grid, seed, **options)
         opts = self.options
+        if opts.congestion and opts.flow:
+            raise ValueError(f"congestion = {opts.congestion} needs flow=false (the guide paths' A* takes the goal "
+                             f"fields for its heuristic, which the crowd's costs would overestimate)")
         self.revisits, self.lns_option, self.group = opts.revisits, opts.lns, opts.group
         self.weight_power, self.portfolio, self.anneal = opts.weight_power, opts.portfolio, opts.anneal
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -392,7 +398,7 @@ class EPIBT(TurningPIBT):
     check_team = staticmethod(FlowPIBT.check_team)  # the same guide paths and fields
 
     def _heuristic(self, pc, gc, order):
-        rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
+        rows = self.goal_rows(pc, gc, order)  # first: it may grow the cache (a new array)
         if self.guide is None:
             return self.fields.fields, rows
         stop = None if self.deadline is None else self.deadline - GUIDE_MARGIN_S - 2 * self.kernel_s

@@ -33,7 +33,8 @@ import numpy as np
 
 from planners.mapf.guides.guidance import MAX_GUIDANCE, distance_bound, spread
 from planners.mapf.common import compact_grid
-from planners.mapf.pibt.turning import DEFAULT_FIELD_BYTES, TurningOptions, TurningPIBT, _distance, commits_option
+from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES, LaneOptions, commits_option
+from planners.mapf.pibt.turning import TurningPIBT, _distance
 from planners.options import option
 
 __all__ = ["FlowPIBT", "FlowOptions", "replans_option", "guide_work_option", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
@@ -445,10 +446,10 @@ def guide_work_option():
 
 
 @dataclass(frozen=True)
-class FlowOptions(TurningOptions):
-    """:class:`FlowPIBT`'s options: :class:`~planners.mapf.pibt.turning.TurningOptions` with lanes off and commitments
-    on by default (as in the start kit), and the guide paths' bounds (``field_bytes`` bounds the robots' fields and
-    first paths too)."""
+class FlowOptions(LaneOptions):
+    """:class:`FlowPIBT`'s options: the goal fields' (:class:`~planners.mapf.pibt.options.LaneOptions`) with lanes off
+    and commitments on by default (as in the start kit), and the guide paths' bounds (``field_bytes`` bounds the
+    robots' fields and first paths too)."""
 
     guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane, added "
                            "to the guide paths' moves (0 = off)")

@@ -28,34 +28,30 @@ distance).  Design and measurements: ``docs/design/lifelong_turning.md``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
-from planners.mapf.guides.guidance import MAX_GUIDANCE, cost_rows, distance_bound, move_costs
-from planners.options import Options, option
+from planners.mapf.guides.congestion import Congestion
+from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
+from planners.mapf.pibt.options import (DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, DEFAULT_GUIDANCE, DEFAULT_REFRESH,
+                                       LaneOptions, TurningOptions, commits_option, congestion_options)
 
 __all__ = ["TurningPIBT", "TurningOptions", "LaneOptions", "commits_option", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
-           "DEAD_END_BONUS", "DEFAULT_GUIDANCE"]
+           "DEAD_END_BONUS", "DEFAULT_GUIDANCE", "DEFAULT_REFRESH", "congestion_options", "FIELD_MARGIN_S"]
 
 FORWARD, CLOCKWISE, COUNTER, WAIT = 0, 1, 2, 3
-#: Default memory bound of the goal-field cache (the fields of the goals asked for in one call are always kept).
-DEFAULT_FIELD_BYTES = 1 << 30
-#: Default BFS work of one call, in cells: new goal fields per call = this // free cells.
-DEFAULT_BFS_BUDGET = 1 << 24
 #: Extra priority per step spent in a dead end off the goal (the start kit's value; without it a robot
 #: leaving a dead end and a higher-priority robot entering it block each other for good).
 DEAD_END_BONUS = 10
 #: BFS fields' worth of work of one guided field (bucketed Dijkstra: 2.7 ms against 0.5 ms for BFS on CITY-01's
 #: 47,240 free cells), so that a call's field budget holds under guidance too.
 GUIDED_WORK = 5
-#: Extra cost of a move against its lane (:mod:`planners.mapf.guides.guidance`) of TurningPIBT, by default: chosen
-#: on RANDOM-01..05 (0, 2 and 4 tried, three seeds; docs/design/lifelong_turning.md).
-DEFAULT_GUIDANCE = 2
+#: Under a clock, refreshes of goal fields stop this long before the step's deadline, beyond twice the last pass.
+FIELD_MARGIN_S = 0.03
 
 
 @numba.njit(cache=True, nogil=True)
@@ -110,6 +106,7 @@ class TurnFields:
         self.row_of = np.full(n, -1, dtype=np.int64)  # compact goal -> row
         self.goal_of = np.empty(0, dtype=np.int64)  # row -> compact goal
         self.stamp = np.empty(0, dtype=np.int64)  # row -> last call that asked for it
+        self.filled = np.empty(0, dtype=np.int64)  # row -> the call that last computed it
         self.used = 0
         self.calls = 0
         self.computed = 0  # fields computed so far (recomputations included)
@@ -123,6 +120,7 @@ class TurnFields:
         self.fields = fields
         self.goal_of = np.concatenate([self.goal_of[:self.used], np.full(size - self.used, -1, np.int64)])
         self.stamp = np.concatenate([self.stamp[:self.used], np.full(size - self.used, -1, np.int64)])
+        self.filled = np.concatenate([self.filled[:self.used], np.full(size - self.used, -1, np.int64)])
 
     def rows(self, goals: np.ndarray, order: np.ndarray) -> np.ndarray:
         """Row of :attr:`fields` of each compact goal cell (-1: not computed yet, over the budget);
@@ -152,8 +150,15 @@ class TurnFields:
         self.stamp[new] = self.calls
         self.row_of[miss] = new
         self._fill(miss, new)
+        self.filled[new] = self.calls
         self.computed += len(miss)
         return self.row_of[goals]
+
+    def refill(self, rows: np.ndarray) -> None:
+        """Recompute the fields in ``rows`` under the costs now (:class:`~planners.mapf.guides.congestion.Congestion`)."""
+        self._fill(self.goal_of[rows], rows)
+        self.filled[rows] = self.calls
+        self.computed += len(rows)
 
     #: the kernels that fill fields: by BFS (every action costs 1) and by Dijkstra under ``cost``
     plain_kernel = staticmethod(_bfs_rows)
@@ -297,33 +302,6 @@ def _int_array(name: str, values) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.int64)
 
 
-@dataclass(frozen=True)
-class LaneOptions(Options):
-    """The goal fields' options, shared by every planner with turning."""
-
-    guidance: int = option(DEFAULT_GUIDANCE, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against "
-                           "its lane (crisscross lanes, planners.mapf.guides.guidance; 0 = plain BFS distances)")
-    field_bytes: int = option(DEFAULT_FIELD_BYTES, int, 1, 1 << 40, meaning="memory bound of the goal-field cache "
-                              "(TurnFields)")
-    bfs_budget: int = option(DEFAULT_BFS_BUDGET, int, 1, 1 << 40, meaning="BFS work per call in cells (new goal "
-                             "fields per call = this // free cells; a goal without a field goes by Manhattan distance)")
-    corridors: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a move against a one-way corridor "
-                            "(corridors one cell wide, open at both ends, alternate their ways; 0 = off)")
-
-
-def commits_option(default: bool):
-    """The ``commits`` option (its default per planner)."""
-    return option(default, bool, meaning="a robot keeps claiming the cell it chose until it stands on it (as in "
-                  "the start kit's default planner)")
-
-
-@dataclass(frozen=True)
-class TurningOptions(LaneOptions):
-    """:class:`TurningPIBT`'s options."""
-
-    commits: bool = commits_option(False)
-
-
 class TurningPIBT:
     """PIBT with turning on one grid (see the module docstring).
 
@@ -348,7 +326,13 @@ class TurningPIBT:
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
         self.guidance, self.corridors, self.commits = opts.guidance, opts.corridors, getattr(opts, "commits", False)
         self.move_cost = move_costs(self.nbr, self.cell_of, self.width, self.guidance, self.corridors)
-        self.fields = TurnFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
+        self.congestion, field_cost = None, self.move_cost
+        if getattr(opts, "congestion", 0):
+            base = np.ones((len(self.cell_of), 4), np.int64) if self.move_cost is None else self.move_cost
+            self.congestion = Congestion(self.nbr, base, opts.congestion, opts.refresh)
+            field_cost = self.congestion.bound()  # the fields' dtype holds the costliest moves
+        self.fields = TurnFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=field_cost)
+        self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)
         self.t = 0
@@ -413,6 +397,7 @@ class TurningPIBT:
         heading to flat ``goals`` (a robot without a task takes its own cell); always a valid joint
         action.  Advances the priorities, assuming the actions are executed.  ``deadline``: the step's
         ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it."""
+        self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
         r = len(pos)
         order = self.order(r)
@@ -443,8 +428,20 @@ class TurningPIBT:
     def _heuristic(self, pc, gc, order):
         """``(fields, rows)``: PIBT ranks robot ``k``'s cells by ``fields[rows[k]]`` (here its goal's field;
         row -1: Manhattan distance)."""
-        rows = self.fields.rows(gc, order)  # first: it may grow the cache (a new array)
+        rows = self.goal_rows(pc, gc, order)  # first: it may grow the cache (a new array)
         return self.fields.fields, rows
+
+    def goal_rows(self, pc, gc, order) -> np.ndarray:
+        """The goal fields' rows of robots at compact ``pc`` heading to ``gc`` (:meth:`TurnFields.rows`); under
+        ``congestion`` the fields take the crowd's costs now and up to ``refresh`` of them are recomputed (under a
+        clock, stopping in time for the plans: :data:`FIELD_MARGIN_S` + twice the last pass before the deadline)."""
+        if self.congestion is None:
+            return self.fields.rows(gc, order)
+        self.fields.cost = self.congestion.costs(pc)
+        rows = self.fields.rows(gc, order)
+        stop = None if self.deadline is None else self.deadline - FIELD_MARGIN_S - 2 * self.kernel_s
+        self.congestion.update(self.fields, gc, rows, stop)
+        return rows
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
         """Hook for subclasses: may change the claims ``nxt`` (compact cells; kept distinct and swap-free)

@@ -19,8 +19,9 @@ import numba
 import numpy as np
 
 from planners.mapf.guides.guidance import MAX_GUIDANCE, orient_cost_rows
-from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, FORWARD, WAIT, LaneOptions, TurnFields,
-                                   TurningPIBT, turning_kernel)
+from planners.mapf.pibt.options import LaneOptions
+from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, FORWARD, WAIT, TurnFields, TurningPIBT,
+                                   turning_kernel)
 from planners.options import option
 from planners.mapf.pibt.windowed import _pop_unseen, _push, new_heap
 

@@ -54,7 +54,8 @@ def add_arguments(parser) -> None:
                           "values as --planner-option's)")
     run.add_argument("--planner-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the planner's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
-                          "op_len=4; values: numbers, true / false, null (JSON), else text)")
+                          "op_len=4; values: numbers, true / false, null (JSON), else text; mrmt lorr options "
+                          "lists each planner's)")
     run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
                      help="deprecated: the old name of --planner-option")
     run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")

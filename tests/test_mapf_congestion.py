@@ -1,11 +1,10 @@
-"""Goal fields that see the crowd (``congestion``, ``refresh``): every field a call computes equals a Dijkstra
-oracle written from the statement (a move into a cell a robot stands on costs ``P`` more, on top of the lanes),
+"""Goal fields that see the crowd (``congestion``, ``refresh``): every field a call computes equals the Dijkstra
+oracle of ``test_mapf_turning.guided`` (a move into a cell a robot stands on costs ``P`` more, on top of the lanes),
 the refresh recomputes the most-wanted stale fields first and no more than asked, and the joint actions stay
 valid; ``congestion=0`` changes nothing."""
 
 from __future__ import annotations
 
-import heapq
 import time
 
 import numpy as np
@@ -13,29 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lanes_reference import lane_cost
 from planners.mapf import EPIBT, TurningPIBT, make_turning_executor
-from test_mapf_turning import DC, DR, FAR, apply, random_instance, retarget
-
-
-def crowd_field(grid, goal, weight, lanes, occupied):
-    """Least cost from every free cell to ``goal``: each move its lane cost, plus ``weight`` into an occupied cell."""
-    h, w = grid.shape
-    dist, heap = {goal: 0}, [(0, goal)]
-    while heap:
-        d, p = heapq.heappop(heap)
-        if d > dist[p]:
-            continue
-        r, c = divmod(p, w)
-        for e in range(4):  # q one step in direction e from p moves to p in direction e + 2
-            nr, nc = r + DR[e], c + DC[e]
-            if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
-                q = nr * w + nc
-                nd = d + lane_cost(grid, q, (e + 2) % 4, lanes) + (weight if p in occupied else 0)
-                if nd < dist.get(q, FAR):
-                    dist[q] = nd
-                    heapq.heappush(heap, (nd, q))
-    return dist
+from test_mapf_turning import apply, guided, random_instance, retarget
 
 
 @settings(max_examples=30, deadline=None)
@@ -52,7 +30,7 @@ def test_fields_computed_in_a_call_equal_the_crowd_oracle(seed, h, w, density, f
         fresh = np.flatnonzero(f.filled[:f.used] == f.calls)
         assert len(fresh) == len(np.unique(goals))  # every goal of the call: new, or refreshed
         for row in fresh.tolist():
-            want = crowd_field(grid, int(ex.cell_of[f.goal_of[row]]), weight, lanes, at)
+            want = guided(grid, int(ex.cell_of[f.goal_of[row]]), lanes, crowd=weight, occupied=at)
             assert [int(x) for x in f.fields[row]] == [want.get(int(c), f.far) for c in ex.cell_of]
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None

@@ -73,8 +73,9 @@ def bfs(grid, goal):
     return dist
 
 
-def guided(grid, goal, weight, corridors=0):
-    """Least lane cost (+ one-way corridor cost) from every free cell to ``goal`` (Dijkstra, backwards)."""
+def guided(grid, goal, weight, corridors=0, crowd=0, occupied=frozenset()):
+    """Least lane cost (+ one-way corridor cost, + ``crowd`` into each ``occupied`` cell) from every free cell to
+    ``goal`` (Dijkstra, backwards)."""
     h, w = grid.shape
     dist, heap = {goal: 0}, [(0, goal)]
     while heap:
@@ -86,7 +87,8 @@ def guided(grid, goal, weight, corridors=0):
             nr, nc = r + DR[e], c + DC[e]
             if 0 <= nr < h and 0 <= nc < w and not grid[nr, nc]:
                 q = nr * w + nc
-                nd = d + lane_cost(grid, q, (e + 2) % 4, weight) + corridor_cost(grid, q, (e + 2) % 4, corridors)
+                nd = d + lane_cost(grid, q, (e + 2) % 4, weight) + corridor_cost(grid, q, (e + 2) % 4, corridors) \
+                    + (crowd if p in occupied else 0)
                 if nd < dist.get(q, FAR):
                     dist[q] = nd
                     heapq.heappush(heap, (nd, q))

@@ -62,8 +62,9 @@ def main(argv=None) -> None:
     for name in names:
         for row, opts in rows([float(a) for a in args.anneals.split(",")], args.chip_rows == "on", args.rounds,
                               args.reads).items():
-            recs = [lorr_run_json(ROOT / f"{name}.json", *BASE, *opts, "--planner-option", f"portfolio={args.portfolio}",
-                                  "--steps", str(args.steps), "--seed", str(s), "--step-limit", args.step_limit)
+            common = ("--planner-option", f"portfolio={args.portfolio}", "--steps", str(args.steps),
+                      "--step-limit", args.step_limit)
+            recs = [lorr_run_json(ROOT / f"{name}.json", *BASE, *opts, *common, "--seed", str(s))
                     for s in range(args.seeds)]
             tasks = sum(r["tasks_finished"] for r in recs)
             host_j = sum(r["host_cpu_s"] for r in recs) * 15.0

@@ -34,11 +34,11 @@ from planners.compute import ComputeReport
 from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, EPIBTOptions
-from planners.options import option
 from planners.mapf.epibt.search import blockers, conflict, reserve
+from planners.options import option
 
-__all__ = ["EPIBTIsing", "EPIBTIsingOptions", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices",
-           "DECIDERS"]
+__all__ = ["EPIBTIsing", "EPIBTIsingOptions", "select_groups", "group_qubo", "greedy_choice", "decode_choice",
+           "apply_choices", "DECIDERS"]
 
 DECIDERS = ("chip", "host")
 _ROUND_SALT = 0x2D0  # a round's seed beyond the first: mix(seed, t, round, salt)

@@ -33,7 +33,8 @@ from planners.mapf.pibt.options import LaneOptions, congestion_options
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, TurningPIBT, _distance
 from planners.options import option
 
-__all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet", "SearchStamp",
+__all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet",
+           "SearchStamp",
            "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
            "DEFAULT_LNS_MAX", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
@@ -334,8 +335,9 @@ class EPIBTOptions(LaneOptions):
 
     guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
     flow: bool = option(True, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
-    op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; auto: "
-                               "chosen on the first call from the team's share of the free cells (AUTO_OP_LEN_FILL)")
+    op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; "
+                               "auto: chosen on the first call from the team's share of the free cells "
+                               "(AUTO_OP_LEN_FILL)")
     revisits: int = option(DEFAULT_REVISITS, int, 1, 1000, meaning="choices a robot may make per call")
     lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="large-neighbourhood iterations per call "
                              "(null: 50 per robot, at most 32,768; 0 = off)")

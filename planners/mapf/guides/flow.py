@@ -37,7 +37,8 @@ from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES, LaneOptions, commits
 from planners.mapf.pibt.turning import TurningPIBT, _distance
 from planners.options import option
 
-__all__ = ["FlowPIBT", "FlowOptions", "replans_option", "guide_work_option", "FlowGuide", "AStarScratch", "GuideState", "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
+__all__ = ["FlowPIBT", "FlowOptions", "replans_option", "guide_work_option", "FlowGuide", "AStarScratch", "GuideState",
+           "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
            "DEFAULT_REPLAN_WORK", "DEFAULT_GUIDE_WORK"]
 
 #: Free cells' worth of guide-path re-planning per call beyond new goals: ``replans`` defaults to this

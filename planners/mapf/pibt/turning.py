@@ -39,7 +39,8 @@ from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
 from planners.mapf.pibt.options import (DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, DEFAULT_GUIDANCE, DEFAULT_REFRESH,
                                        LaneOptions, TurningOptions, commits_option, congestion_options)
 
-__all__ = ["TurningPIBT", "TurningOptions", "LaneOptions", "commits_option", "TurnFields", "turning_kernel", "vacate_check", "compact_grid",
+__all__ = ["TurningPIBT", "TurningOptions", "LaneOptions", "commits_option", "TurnFields", "turning_kernel",
+           "vacate_check", "compact_grid",
            "FORWARD", "CLOCKWISE", "COUNTER", "WAIT", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET",
            "DEAD_END_BONUS", "DEFAULT_GUIDANCE", "DEFAULT_REFRESH", "congestion_options", "FIELD_MARGIN_S"]
 
@@ -155,7 +156,7 @@ class TurnFields:
         return self.row_of[goals]
 
     def refill(self, rows: np.ndarray) -> None:
-        """Recompute the fields in ``rows`` under the costs now (:class:`~planners.mapf.guides.congestion.Congestion`)."""
+        """Recompute the fields in ``rows`` under the costs now (:mod:`planners.mapf.guides.congestion`)."""
         self._fill(self.goal_of[rows], rows)
         self.filled[rows] = self.calls
         self.computed += len(rows)

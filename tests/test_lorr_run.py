@@ -121,8 +121,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
                                                            "planner 'telepathy'"),
     (["run", str(EXAMPLE), "--planner", "teleport"], "unknown planner 'teleport'"),
     (["run", str(EXAMPLE), "--steps", "0"], "--steps must be >= 1, got 0"),
-    (["run", str(EXAMPLE), "--guidance", "17"], "guidance must be an integer in 0..16 (extra cost of a move against "
-                                                "its lane), got 17"),
+    (["run", str(EXAMPLE), "--guidance", "17"], "--guidance: guidance = 17 must be an integer in [0, 16]"),
     (["run", str(EXAMPLE), "--scheduler", "ppo:/no/such.zip"], "/no/such.zip"),
     (["run", str(EXAMPLE), "--scheduler", "strong", "--no-keep"], "--no-keep acts on --replan: add --replan"),
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power"],

@@ -169,6 +169,7 @@ def check_executor_options(executor: str, options: dict, grid) -> dict:
 def check_entry(entry, chip=None) -> None:
     """Every rule of ``entry`` buildable: its scheduler by name, its planner and options on the example map;
     ``ValueError`` naming the entry's file and rule."""
+    from agents.lorr.run import split_options
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import example_instance_path, read_instance
     from planners.mapf import TURNING_EXECUTORS
@@ -182,11 +183,7 @@ def check_entry(entry, chip=None) -> None:
                 raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
             own = {k: v for k, v in c.options.items() if k in ("replan", "keep", "scheduler_options")}
             make_scheduler(c.scheduler, chip=chip, **own)
-            if "guidance" in c.options:
-                from planners.mapf.guides.guidance import check_guidance
-
-                check_guidance(c.options["guidance"])
-            check_executor_options(c.planner, c.options.get("executor_options", {}), grid)
+            check_executor_options(c.planner, split_options(c.options)[1], grid)  # guidance there too
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
 
@@ -271,9 +268,12 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         except TypeError as exc:
             raise ValueError(f"--scheduler-option: {exc}") from None
     if args.guidance is not None:
-        from planners.mapf.guides.guidance import check_guidance
+        from planners.mapf import TURNING_EXECUTORS
 
-        options["guidance"] = check_guidance(args.guidance)
+        try:  # the planner's own record checks it, as every planner option
+            options["guidance"] = TURNING_EXECUTORS[executor].Options(guidance=args.guidance).guidance
+        except ValueError as exc:
+            raise ValueError(f"--guidance: {exc}") from None
     if args.planner_option:
         grid = next(iter(insts.values())).grid
         options["executor_options"] = executor_options(executor, args.planner_option, grid)

@@ -1,0 +1,58 @@
+"""EPIBT's options record (:mod:`planners.options`) and the defaults it declares."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from planners.mapf.guides.flow import guide_work_option, replans_option
+from planners.mapf.guides.guidance import MAX_GUIDANCE
+from planners.mapf.pibt.options import LaneOptions, congestion_options
+from planners.options import option
+
+__all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
+           "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_GROUP", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
+
+DEFAULT_OP_LEN = 3
+MAX_OP_LEN = 5
+#: ``op_len="auto"``: 4 while the robots fill at most this share of the free cells, else 3 (measured on
+#: random-32-32-20: 4 gains at 100-400 robots and loses at 700-800, docs/design/lifelong_turning.md).
+AUTO_OP_LEN_FILL = 0.5
+#: Choices a robot may make per call (the first, then each time it is pushed).
+DEFAULT_REVISITS = 10
+#: Large-neighbourhood iterations per call and robot (at most :data:`DEFAULT_LNS_MAX`), robots per neighbourhood
+#: (chosen on RANDOM-01, -03, -04, 300 steps: docs/design/lifelong_turning.md).
+DEFAULT_LNS_PER_ROBOT = 50
+DEFAULT_LNS_MAX = 1 << 15
+DEFAULT_GROUP = 16
+#: The search's weights ``(R + 1 - rank) ** p``: p = 0 did best over full RANDOM runs (design note).
+DEFAULT_WEIGHT_POWER = 0
+#: Joint plans per call at most (option ``portfolio``).
+MAX_PORTFOLIO = 64
+
+@dataclass(frozen=True)
+class EPIBTOptions(LaneOptions):
+    """:class:`EPIBT`'s options (the goal fields' of :class:`~planners.mapf.pibt.turning.LaneOptions`, lanes off by
+    default; ``replans``, ``guide_work`` as :class:`~planners.mapf.guides.flow.FlowOptions`, for ``flow``)."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
+    flow: bool = option(True, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
+    op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; "
+                               "auto: chosen on the first call from the team's share of the free cells "
+                               "(AUTO_OP_LEN_FILL)")
+    revisits: int = option(DEFAULT_REVISITS, int, 1, 1000, meaning="choices a robot may make per call")
+    lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="large-neighbourhood iterations per call "
+                             "(null: 50 per robot, at most 32,768; 0 = off)")
+    group: int = option(DEFAULT_GROUP, int, 2, 4096, meaning="robots per neighbourhood")
+    replans: int | None = replans_option()
+    weight_power: int = option(DEFAULT_WEIGHT_POWER, int, 0, 2, meaning="the search weighs each robot's cost-to-go "
+                               "by (R + 1 - rank) ** weight_power, rank 0 the first in priority order")
+    portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="joint plans per call from seeds apart "
+                            "(portfolio_seed), the one of least weighted cost-to-go kept (ties: the first)")
+    threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
+                                 "on (null: one per plan, at most the cores this process may use); plans do not "
+                                 "depend on it")
+    anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "
+                           "neighbourhood's cost (0 = descent)")
+    guide_work: int | None = guide_work_option()
+    congestion: int = congestion_options()[0]
+    refresh: int = congestion_options()[1]

@@ -27,7 +27,7 @@ loses steps: docs/lorr.md measures it).  Every scheduler leaves its step's
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -182,7 +182,7 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
     from planners.registry import UnknownPlannerError
 
-    own = {key: options.pop(key) for key in ("replan", "shortlist", "keep") if key in options}
+    own = {f.name: options.pop(f.name) for f in fields(AssignerOptions) if f.name in options}
     if name.startswith("ppo:"):
         if options:
             raise ValueError(f"{name} takes no options besides replan, keep and shortlist, got {sorted(options)}")

@@ -46,9 +46,9 @@ class Congestion:
         occupied[pc] = self.weight
         return self.base + occupied[self.nbr]
 
-    def update(self, fields, gc: np.ndarray, rows: np.ndarray, stop: float | None = None) -> int:
-        """Recompute up to :attr:`refresh` of the fields in ``rows`` (of goals ``gc``; -1 none) not computed in this
-        call, under ``fields.cost``: most robots x calls since computed first, then the oldest; returns how many."""
+    def update(self, fields, rows: np.ndarray, stop: float | None = None) -> int:
+        """Recompute up to :attr:`refresh` of the fields in ``rows`` (the robots' goal rows; -1 none) not computed in
+        this call, under ``fields.cost``: most robots x calls since computed first, then the oldest; returns how many."""
         has = rows >= 0
         used, count = np.unique(rows[has], return_counts=True)
         stale = fields.filled[used] < fields.calls

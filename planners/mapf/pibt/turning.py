@@ -441,7 +441,7 @@ class TurningPIBT:
         self.fields.cost = self.congestion.costs(pc)
         rows = self.fields.rows(gc, order)
         stop = None if self.deadline is None else self.deadline - FIELD_MARGIN_S - 2 * self.kernel_s
-        self.congestion.update(self.fields, gc, rows, stop)
+        self.congestion.update(self.fields, rows, stop)
         return rows
 
     def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:

@@ -4,6 +4,7 @@
     mrmt lorr run A.json B.json --scheduler lorr-greedy,strong --seeds 2 --backend ray --out DIR
     mrmt lorr run RANDOM-01.json --entry default [--step-limit rules] --out DIR
     mrmt lorr round ROUND_DIR --entry default --out DIR [--steps N] [--resume]
+    mrmt lorr sweep RANDOM-04.json --planner epibt-ising --chip n_spins=16,32,45,64 --out DIR
     mrmt lorr check RANDOM-01.json OUTPUT.json [--json]
 
 ``run`` prints, per instance x scheduler x seed, the tasks finished, the best-known and the
@@ -29,49 +30,23 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 def add_arguments(parser) -> None:
     from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
-    sub = parser.add_subparsers(dest="lorr_command", required=True, metavar="{run,round,check,startkit,options}")
+    from agents.commands import lorr_sweep
+
+    sub = parser.add_subparsers(dest="lorr_command", required=True,
+                                metavar="{run,round,sweep,check,startkit,options}")
     run = sub.add_parser("run", help="run instances with a scheduler and an executor (or an entry)")
-    run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
+    add_plan_arguments(run)
     run.add_argument("--entry", default=None, metavar="NAME|FILE",
                      help="an entry (default: the package's; or a .toml / .json file) chooses the scheduler, the "
                           "planner and their options per instance; runs under the rules' clock unless --step-limit "
                           "says otherwise")
-    run.add_argument("--scheduler", default=None,
-                     help="comma-separated: lorr-greedy (the start kit's default), lorr-weighted (the 2024 winner's "
-                          "measure), strong, ising, fast, ising-paper, a sharing+tour pair, ppo:MODEL.zip "
-                          "(default lorr-greedy)")
-    run.add_argument("--planner", default=None,
-                     help="the one-step planner (the start kit's MAPFPlanner): pibt (PIBT with turning; default), "
-                          "pibt-flow (PIBT along traffic-flow guide paths, the start kit's default planner), epibt (PIBT "
-                          "over 3-action operations with large-neighbourhood search, the best on RANDOM), epibt-ising "
-                          "(epibt with the chip choosing neighbourhood groups), windowed, pibt-ising")
-    run.add_argument("--executor", default=None, help="deprecated: the old name of --planner")
-    run.add_argument("--guidance", type=int, default=None, metavar="N",
-                     help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
-                          "default: the executor's own, pibt 2, the others 0)")
-    run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
-                     help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
-                          "values as --planner-option's)")
-    run.add_argument("--planner-option", action="append", default=[], metavar="KEY=VALUE",
-                     help="an option of the planner's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
-                          "op_len=4; values: numbers, true / false, null (JSON), else text; mrmt lorr options "
-                          "lists each planner's)")
-    run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
-                     help="deprecated: the old name of --planner-option")
-    run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
-    run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
-    run.add_argument("--replan", action="store_true",
-                     help="pipeline schedulers re-plan robots whose task is not opened yet when a task finishes")
-    run.add_argument("--no-keep", action="store_true",
-                     help="with --replan: re-plan from scratch (by default a re-planned robot keeps its task unless "
-                          "given one of smaller makespan or its task goes to another robot)")
     _add_clock_arguments(run, "default: none (work-bounded, deterministic); with --entry: rules")
     run.add_argument("--out", default=None, help="directory for output.json (start kit format) and runs.json")
     run.add_argument("--json", action="store_true", help="print the runs as JSON lines instead of a table")
     add_decision_arguments(run, "inline backend only")
     add_runner_arguments(run)
-    add_chip_argument(run, who="the ising scheduler")
+    add_chip_argument(run, who="the ising scheduler and the chip planners (epibt-ising, pibt-ising)")
+    lorr_sweep.add_parser(sub)
     rnd = sub.add_parser("round", help="run an entry on every instance of a round folder, scored as the League scores")
     rnd.add_argument("folder", metavar="ROUND_DIR", help="a round folder of the archive (e.g. '2024 Competition/Main "
                                                          "Round Evaluation Instances'): <domain>/<NAME>.json")
@@ -103,6 +78,42 @@ def add_arguments(parser) -> None:
     opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE): name, default, "
                                           "what it takes, what it does")
     opts.add_argument("planner", nargs="?", default=None, help="a planner (default: every one)")
+
+
+def add_plan_arguments(run) -> None:
+    """The arguments of what a run plays: instances, scheduler, planner, their options, steps and seeds (``run`` and
+    ``sweep``)."""
+    run.add_argument("instances", nargs="+", metavar="INSTANCE.json", help="LoRR instance files")
+    run.add_argument("--scheduler", default=None,
+                     help="comma-separated: lorr-greedy (the start kit's default), lorr-weighted (the 2024 winner's "
+                          "measure), strong, ising, fast, ising-paper, a sharing+tour pair, ppo:MODEL.zip "
+                          "(default lorr-greedy)")
+    run.add_argument("--planner", default=None,
+                     help="the one-step planner (the start kit's MAPFPlanner): pibt (PIBT with turning; default), "
+                          "pibt-flow (PIBT along traffic-flow guide paths, the start kit's default planner), epibt (PIBT "
+                          "over 3-action operations with large-neighbourhood search, the best on RANDOM), epibt-ising "
+                          "(epibt with the chip choosing neighbourhood groups), windowed, pibt-ising")
+    run.add_argument("--executor", default=None, help="deprecated: the old name of --planner")
+    run.add_argument("--guidance", type=int, default=None, metavar="N",
+                     help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
+                          "default: the executor's own, pibt 2, the others 0)")
+    run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
+                          "values as --planner-option's)")
+    run.add_argument("--planner-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="an option of the planner's own, repeatable (e.g. epibt's weight_power=2, lns=0, "
+                          "op_len=4; values: numbers, true / false, null (JSON), else text; mrmt lorr options "
+                          "lists each planner's)")
+    run.add_argument("--executor-option", action="append", default=[], metavar="KEY=VALUE",
+                     help="deprecated: the old name of --planner-option")
+    run.add_argument("--steps", type=int, default=None, help="steps (default: the instance's simulation time)")
+    run.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    run.add_argument("--seeds", type=int, default=1, help="seeds per instance and scheduler (default 1)")
+    run.add_argument("--replan", action="store_true",
+                     help="pipeline schedulers re-plan robots whose task is not opened yet when a task finishes")
+    run.add_argument("--no-keep", action="store_true",
+                     help="with --replan: re-plan from scratch (by default a re-planned robot keeps its task unless "
+                          "given one of smaller makespan or its task goes to another robot)")
 
 
 def _add_clock_arguments(parser, default: str) -> None:
@@ -227,6 +238,7 @@ def _memory(options: dict) -> dict:
 def _plans(args, chip) -> tuple[list[tuple], object]:
     """``[(instance, scheduler, executor, options)]`` the flags or the entry ask for, every name and option checked,
     and the clock; ``ValueError`` naming what is wrong."""
+    from agents.lorr.run import check_chip_use
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import read_instance
     from planners.mapf import TURNING_EXECUTORS
@@ -246,6 +258,9 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         check_entry(entry, chip)
         plans = [(path, c.scheduler, c.planner, dict(c.options)) for path, inst in insts.items()
                  for c in [entry.choose(inst)]]
+        for path, s, planner, opts in plans if chip is not None else ():  # the machine each instance's rule runs
+            own = {k: v for k, v in opts.items() if k in ("replan", "keep", "scheduler_options")}
+            check_chip_use(chip, make_scheduler(s, chip=chip, **own), s, planner)
         return plans, clock_from_args(args, "rules")
     schedulers = [s.strip() for s in (args.scheduler or "lorr-greedy").split(",") if s.strip()]
     if not schedulers:
@@ -264,7 +279,7 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         options["scheduler_options"] = key_values(args.scheduler_option, "--scheduler-option", "weight=1")
     for s in schedulers:  # names, model files and options checked before anything starts
         try:
-            make_scheduler(s, chip=chip, **options)
+            check_chip_use(chip, make_scheduler(s, chip=chip, **options), s, executor)
         except TypeError as exc:
             raise ValueError(f"--scheduler-option: {exc}") from None
     if args.guidance is not None:
@@ -452,5 +467,7 @@ def _fail(message: str) -> int:
 
 
 def run(args) -> int:
-    return {"run": _run, "round": _round, "check": _check, "startkit": _startkit,
+    from agents.commands import lorr_sweep
+
+    return {"run": _run, "round": _round, "sweep": lorr_sweep.run, "check": _check, "startkit": _startkit,
             "options": _options}[args.lorr_command](args)

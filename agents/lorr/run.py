@@ -34,7 +34,7 @@ RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options",
             "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "host_cpu_s", "chip_s", "paper_energy_per_task_j",
-            "total_energy_per_task_j", "clock", "timeouts", "decisions", "preprocess_s", "preprocess_timeout",
+            "total_energy_per_task_j", "host_energy_per_task_j", "machine_energy_per_task_j", "clock", "timeouts", "decisions", "preprocess_s", "preprocess_timeout",
             "peak_rss_mb")
 _WARM: set = set()
 
@@ -108,11 +108,27 @@ def make_roles(grid, scheduler: str, executor: str, seed: int = 0, chip=None, op
     """The scheduler and the one-step planner of a run on ``grid`` (``options`` as :func:`run_lorr`'s), as the
     runner and the start kit's adapter (:mod:`agents.lorr.startkit`, one role each) build them."""
     from agents.lorr.schedulers import make_scheduler
-    from planners.mapf import make_turning_executor
+    from planners.mapf import MACHINE_PLANNERS, make_turning_executor
 
     sched_options, planner_options = split_options(options)
-    return (make_scheduler(scheduler, seed=seed, chip=chip, **sched_options),
-            make_turning_executor(executor, grid, seed=seed, **planner_options))
+    sched = make_scheduler(scheduler, seed=seed, chip=chip, **sched_options)
+    check_chip_use(chip, sched, scheduler, executor)
+    if chip is not None and executor in MACHINE_PLANNERS:  # the same machine recipe, a machine of the planner's own
+        from ising_backend import build_machine
+
+        planner_options["machine"] = build_machine(chip, seed)
+    return sched, make_turning_executor(executor, grid, seed=seed, **planner_options)
+
+
+def check_chip_use(chip, sched, scheduler: str, executor: str) -> None:
+    """``ValueError`` when a machine is given (``chip``: ``--chip`` / ``--sampler``) but neither the scheduler
+    ``sched`` (named ``scheduler``) nor the planner ``executor`` runs on one: nothing given is dropped unsaid."""
+    from planners.mapf import MACHINE_PLANNERS
+
+    if chip is not None and executor not in MACHINE_PLANNERS and not sched.accelerated:
+        raise ValueError(f"--chip or --sampler given, but neither the scheduler {scheduler!r} nor the planner "
+                         f"{executor!r} runs on a machine (chip schedulers: ising, fast, ising-paper or a pair "
+                         f"with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
 
 
 def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):
@@ -199,7 +215,8 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
         "executor_p99_s": float(np.percentile(n[:, 1], 99)), "chip_calls": int(run.calls), "host_s": host_s,
         "host_cpu_s": host_cpu_s,
         "chip_s": chip_s, "paper_energy_per_task_j": (run.accel_j if run.sched.accelerated else host_j) / done,
-        "total_energy_per_task_j": (host_j + run.accel_j) / done, "peak_rss_mb": peak_rss_mb(),
+        "total_energy_per_task_j": (host_j + run.accel_j) / done, "host_energy_per_task_j": host_j / done,
+        "machine_energy_per_task_j": run.accel_j / done, "peak_rss_mb": peak_rss_mb(),
     }
     return record, sim, step_s
 

@@ -195,12 +195,12 @@ class MachineSpec:
         return out
 
 
-def build_machine(chip) -> IsingMachine:
-    """A fresh machine from a :class:`ChipSpec` (the emulator) or a :class:`MachineSpec`."""
+def build_machine(chip, seed: int | None = None) -> IsingMachine:
+    """A fresh machine from a :class:`ChipSpec` (the emulator) or a :class:`MachineSpec`, seeded with ``seed``."""
     if isinstance(chip, MachineSpec):
-        return chip.build()
+        return chip.build(seed)
     if isinstance(chip, ChipSpec):
-        return EmulatedChip(chip)
+        return EmulatedChip(chip, seed=seed)
     raise TypeError(f"chip = {chip!r} must be a ChipSpec or a MachineSpec")
 
 

@@ -28,13 +28,15 @@ from planners.mapf.pibt.windowed import WindowedPlanner
 from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT", "EPIBTIsing"]
+           "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT", "EPIBTIsing"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
 TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
                      "epibt": EPIBT, "epibt-ising": EPIBTIsing,
                      "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
+#: The turning executors that take an Ising machine (``machine=``; default the paper's emulated chip).
+MACHINE_PLANNERS = ("epibt-ising", "pibt-ising")
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):

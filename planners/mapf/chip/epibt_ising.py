@@ -257,7 +257,8 @@ class EPIBTIsingOptions(EPIBTOptions):
     decider: str = option("chip", str, words=DECIDERS, meaning="the machine decides, or the host rule (no machine "
                           "call)")
     groups: int = option(32, int, 0, 1 << 16, meaning="decisions per round")
-    max_robots: int = option(11, int, 2, 22, meaning="robots per group")
+    max_robots: int | None = option(None, int, 2, 22, none=True, meaning="robots per group (null: the machine's "
+                                    "spins // max_options, in [2, 22]: 11 on the paper's 45-spin chip)")
     max_options: int = option(4, int, 2, 8, meaning="options per robot")
     num_reads: int = option(64, int, 1, 64, meaning="reads per program")
     penalty: int = option(2, int, 1, 64, meaning="the at-most-one penalty in units of 1 + the widest gap of one "
@@ -274,7 +275,7 @@ class EPIBTIsing(EPIBT):
     Args:
         grid, seed: as :class:`~planners.mapf.epibt.plans.EPIBT`.
         machine: any Ising machine; default ``ising_backend.EmulatedChip(seed=seed)`` (not built with
-            ``decider="host"``).
+            ``decider="host"``; a machine given there shapes the groups, as it would for the chip, and is not called).
         options: the fields of :class:`EPIBTIsingOptions`.  ``penalty`` 2 was chosen on RANDOM-03 and -05
             (docs/design/lifelong_turning.md).  ``rounds`` > 1 with ``lns=0`` makes the chip the search's
             annealer: each round poses fresh groups on the plan the rounds before it left; under a clock the
@@ -290,12 +291,12 @@ class EPIBTIsing(EPIBT):
         super().__init__(grid, seed=seed, **options)
         opts = self.options
         self.decider = opts.decider
-        self.machine = None
-        spins = 45
-        if self.decider == "chip":
-            self.machine = machine_for(machine, self.seed)
-            spins = int(self.machine.usable_spins)
-        self.n_groups, self.max_robots, self.max_options = opts.groups, opts.max_robots, opts.max_options
+        # the host rule poses the groups a given machine would (its spins), but never calls it
+        shape = machine_for(machine, self.seed) if self.decider == "chip" or machine is not None else None
+        self.machine = shape if self.decider == "chip" else None
+        spins, nominal = (45, 45) if shape is None else (int(shape.usable_spins), int(shape.spec.n_spins))
+        self.n_groups, self.max_options = opts.groups, opts.max_options
+        self.max_robots = min(22, max(2, nominal // self.max_options)) if opts.max_robots is None else opts.max_robots
         self.num_reads, self.penalty = opts.num_reads, opts.penalty
         self.min_gain, self.rounds = opts.min_gain, opts.rounds
         self.max_spins = spins

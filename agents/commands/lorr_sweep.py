@@ -1,0 +1,78 @@
+"""``mrmt lorr sweep``: a scheduler and planner over a grid of Ising machines on League instances, each machine
+beside its host-rule twin.
+
+    mrmt lorr sweep RANDOM-04.json --planner epibt-ising --planner-option lns=0 --planner-option rounds=4096 \\
+        --scheduler strong --replan --chip n_spins=16,32,45,64 --steps 200 --step-limit rules --out DIR
+
+``--chip KEY=V1,V2,...`` is a sweep axis as in ``mrmt sweep`` (repeatable; the grid is the product);
+``--base-chip`` the fields that do not vary; ``--sampler`` a dimod sampler behind every spec.  Writes ``sweep.csv``,
+``sweep.json``, ``summary.md`` and ``sweep.png`` (:mod:`agents.lorr.sweep`).  Bad input: one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def add_parser(sub) -> None:
+    from agents.commands.lorr import _add_clock_arguments, add_plan_arguments
+    from agents.commands.options import add_chip_argument, add_runner_arguments
+
+    p = sub.add_parser("sweep", help="run a scheduler and planner over a grid of Ising machines, each beside its "
+                                     "host-rule twin")
+    add_plan_arguments(p)
+    p.add_argument("--chip", action="append", default=[], metavar="KEY=V1,V2,...", required=True,
+                   help="a sweep axis: a ChipSpec field (or n_cores, coef_range) and its values, e.g. "
+                        "n_spins=16,32,45,64; repeatable, the grid is the product")
+    p.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
+                   help="fixed ChipSpec fields under the grid; repeatable")
+    add_chip_argument(p, "every machine of the grid", chip=False)
+    _add_clock_arguments(p, "default: none (work-bounded, deterministic)")
+    p.add_argument("--out", required=True, help="directory for sweep.csv, sweep.json, summary.md, sweep.png")
+    add_runner_arguments(p)
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.set_defaults(entry=None)
+
+
+def run(args) -> int:
+    from agents.commands.lorr import _bad_counts, _fail, _plans, _warm_parts
+    from agents.commands.options import chip_from_args, runner_from_args
+    from agents.lorr.sweep import DECIDERS, sweep_rows, sweep_task, write_sweep
+    from agents.runner import run_tasks
+    from agents.sweep import chip_grid, parse_axes
+    from mrmt_env.lorr.instance import LoRRFormatError
+
+    bad = _bad_counts(args, "--steps", "--seeds")
+    if bad:
+        return _fail(bad)
+    try:
+        grid = chip_grid(parse_axes(args.chip), chip_from_args(args, key="base_chip"))
+        plans, limit = _plans(args, grid[0][1])  # names and options checked, and that a machine decides something
+        run_cfg = runner_from_args(args)
+        if limit is not None and run_cfg.backend != "inline" and args.jobs > 1:
+            raise ValueError(f"--step-limit with --jobs {args.jobs}: runs under a clock want the cores to themselves; "
+                             f"give --jobs 1")
+    except (LoRRFormatError, ValueError, OSError) as exc:
+        return _fail(str(exc))
+    labels, tasks = [], []
+    for inst, s, ex, options in plans:
+        for spec_id, (axis, chip) in enumerate(grid):
+            name = ",".join(f"{k}={v}" for k, v in axis.items())
+            for seed in range(args.seed, args.seed + args.seeds):
+                for decider in DECIDERS:
+                    labels.append((spec_id, name, decider))
+                    tasks.append((inst, s, ex, args.steps, seed, chip, options, decider, limit))
+    if not args.address:
+        _warm_parts([(s, ex) for _, s, ex, _ in plans], not args.no_progress)
+    try:
+        records = run_tasks(sweep_task, tasks, run_cfg, desc="lorr sweep", unit="run")
+    except ValueError as exc:  # a spec of the grid the planner refuses (e.g. fewer spins than a group needs)
+        return _fail(str(exc))
+    title = f"{plans[0][1]} + {plans[0][2]} over {len(grid)} machine(s)"
+    summary = write_sweep(sweep_rows(records, labels), args.out, title)
+    for s in summary:
+        ratio = "-" if s["ratio"] is None else f"{s['ratio']:.3f}"
+        print(f"{s['instance']:<12} {s['spec']:<24} tasks {s['machine_tasks']:>7} host rule {s['host_rule_tasks']:>7} "
+              f"ratio {ratio}")
+    print(f"wrote sweep.csv, sweep.json, summary.md and sweep.png in {args.out}", file=sys.stderr)
+    return 0

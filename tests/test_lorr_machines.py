@@ -135,6 +135,7 @@ def test_sweep_runs_each_machine_beside_its_twin_and_sums_what_the_runs_say(tmp_
     (["--chip", "n_spins=0,45"], "n_spins = 0 must be a positive integer"),
     (["--chip", "n_spins=45", "--step-limit", "rules", "--jobs", "2"], "give --jobs 1"),
     (["--chip", "n_spins=45", "--planner", "pibt"], "neither the scheduler 'lorr-greedy' nor the planner 'pibt'"),
+    (["--chip", "n_spins=45", "--scheduler", "strong,ising"], "a sweep runs one scheduler"),
 ])
 def test_sweep_bad_input_is_one_line_and_exit_2(args, needle, tmp_path):
     base = ["--planner", "epibt-ising"] if "--planner" not in args else []

@@ -35,19 +35,25 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from agents.commands.lorr import _bad_counts, _fail, _plans, _warm_parts
+    from agents.commands.lorr import _bad_counts, _fail, _memory, _plans, _warm_parts
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.lorr.sweep import DECIDERS, sweep_rows, sweep_task, write_sweep
     from agents.runner import run_tasks
     from agents.sweep import chip_grid, parse_axes
-    from mrmt_env.lorr.instance import LoRRFormatError
+    from mrmt_env.lorr.instance import LoRRFormatError, read_instance
+    from planners.mapf import TURNING_EXECUTORS
 
     bad = _bad_counts(args, "--steps", "--seeds")
     if bad:
         return _fail(bad)
+    if args.scheduler and "," in args.scheduler:
+        return _fail(f"--scheduler {args.scheduler}: a sweep runs one scheduler (its axes are the machines); give one")
     try:
         grid = chip_grid(parse_axes(args.chip), chip_from_args(args, key="base_chip"))
         plans, limit = _plans(args, grid[0][1])  # names and options checked, and that a machine decides something
+        for path, _, executor, options in plans:  # whether the planner takes the instance's team
+            inst = read_instance(path)
+            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **_memory(options))
         run_cfg = runner_from_args(args)
         if limit is not None and run_cfg.backend != "inline" and args.jobs > 1:
             raise ValueError(f"--step-limit with --jobs {args.jobs}: runs under a clock want the cores to themselves; "

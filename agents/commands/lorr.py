@@ -177,6 +177,11 @@ def check_executor_options(executor: str, options: dict, grid) -> dict:
     return dict(options)
 
 
+def _scheduler_own(options: dict) -> dict:
+    """The scheduler's part of an entry rule's ``options``."""
+    return {k: v for k, v in options.items() if k in ("replan", "keep", "scheduler_options")}
+
+
 def check_entry(entry, chip=None) -> None:
     """Every rule of ``entry`` buildable: its scheduler by name, its planner and options on the example map;
     ``ValueError`` naming the entry's file and rule."""
@@ -192,8 +197,7 @@ def check_entry(entry, chip=None) -> None:
         try:
             if c.planner not in TURNING_EXECUTORS:
                 raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
-            own = {k: v for k, v in c.options.items() if k in ("replan", "keep", "scheduler_options")}
-            make_scheduler(c.scheduler, chip=chip, **own)
+            make_scheduler(c.scheduler, chip=chip, **_scheduler_own(c.options))
             check_executor_options(c.planner, split_options(c.options)[1], grid)  # guidance there too
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
@@ -258,9 +262,9 @@ def _plans(args, chip) -> tuple[list[tuple], object]:
         check_entry(entry, chip)
         plans = [(path, c.scheduler, c.planner, dict(c.options)) for path, inst in insts.items()
                  for c in [entry.choose(inst)]]
-        for path, s, planner, opts in plans if chip is not None else ():  # the machine each instance's rule runs
-            own = {k: v for k, v in opts.items() if k in ("replan", "keep", "scheduler_options")}
-            check_chip_use(chip, make_scheduler(s, chip=chip, **own), s, planner)
+        if chip is not None:  # the machine runs under each instance's rule
+            for path, s, planner, opts in plans:
+                check_chip_use(chip, make_scheduler(s, chip=chip, **_scheduler_own(opts)), s, planner)
         return plans, clock_from_args(args, "rules")
     schedulers = [s.strip() for s in (args.scheduler or "lorr-greedy").split(",") if s.strip()]
     if not schedulers:

@@ -34,8 +34,8 @@ RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options",
             "steps", "tasks_finished", "best_known",
             "share_of_best", "errands", "errors", "schedule_errors", "step_p50_s", "step_p99_s", "step_max_s",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "host_cpu_s", "chip_s", "paper_energy_per_task_j",
-            "total_energy_per_task_j", "host_energy_per_task_j", "machine_energy_per_task_j", "clock", "timeouts", "decisions", "preprocess_s", "preprocess_timeout",
-            "peak_rss_mb")
+            "total_energy_per_task_j", "host_energy_per_task_j", "machine_energy_per_task_j", "clock", "timeouts",
+            "decisions", "preprocess_s", "preprocess_timeout", "peak_rss_mb")
 _WARM: set = set()
 
 

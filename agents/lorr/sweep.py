@@ -62,7 +62,8 @@ def summarise(rows: list[dict]) -> list[dict]:
         mean = (lambda key, rs: sum(r[key] for r in rs) / len(rs) if rs else None)
         out.append({"instance": instance, "spec_id": spec_id, "spec": spec, "seeds": len(m),
                     "machine_tasks": tm, "host_rule_tasks": th, "ratio": tm / th if th else None,
-                    "machine_timeouts": sum(r["timeouts"] for r in m), "host_rule_timeouts": sum(r["timeouts"] for r in h),
+                    "machine_timeouts": sum(r["timeouts"] for r in m),
+                    "host_rule_timeouts": sum(r["timeouts"] for r in h),
                     "calls_per_step": mean("calls_per_step", m), "host_j_per_task": mean("host_energy_per_task_j", m),
                     "machine_j_per_task": mean("machine_energy_per_task_j", m),
                     "host_rule_host_j_per_task": mean("host_energy_per_task_j", h)})
@@ -78,7 +79,8 @@ def _markdown(summary: list[dict], title: str) -> str:
     for s in summary:
         lines.append(f"| {s['instance']} | {s['spec']} | {s['seeds']} | {s['machine_tasks']:,} | "
                      f"{s['host_rule_tasks']:,} | {f(s['ratio'], '.3f')} | {s['machine_timeouts']} / "
-                     f"{s['host_rule_timeouts']} | {f(s['calls_per_step'], ',.0f')} | {f(s['host_j_per_task'], '.2f')} | "
+                     f"{s['host_rule_timeouts']} | {f(s['calls_per_step'], ',.0f')} | "
+                     f"{f(s['host_j_per_task'], '.2f')} | "
                      f"{f(s['machine_j_per_task'], '.4f')} | {f(s['host_rule_host_j_per_task'], '.2f')} |")
     return "\n".join(lines) + "\n"
 

@@ -28,7 +28,8 @@ from planners.mapf.pibt.windowed import WindowedPlanner
 from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT", "EPIBTIsing"]
+           "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT",
+           "EPIBTIsing"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).

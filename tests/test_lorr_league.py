@@ -121,7 +121,8 @@ def test_the_default_entry_chooses_by_team_and_map():
     for rule in (sortation, warehouse):  # the jam term and one-way corridors on the warehouse maps
         assert rule.choice.options["scheduler_options"] == {"jam": 4}
     assert sortation.choice.options["executor_options"] == {"corridors": 8}
-    assert warehouse.choice.options["executor_options"] == {"corridors": 8, "congestion": 2}
+    assert warehouse.choice.planner == "epibt"  # on the crowd's goal fields, not along guide paths
+    assert warehouse.choice.options["executor_options"] == {"flow": False, "corridors": 8, "congestion": 2}
     # the city on goal fields that price the crowd
     assert tables.choice.options["executor_options"] == {"congestion": 2}
     # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930

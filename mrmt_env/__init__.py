@@ -15,8 +15,8 @@ targets on 64 x 64: ``MRMT-64x64-v0`` (uniform, 20 % obstacles),
 ``MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets).  Plan level:
 ``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Lifelong (:data:`LIFELONG_IDS`: a task
 stream, collisions refused): ``MRMT-Lifelong-v0`` and ``MRMT-Lifelong-Warehouse-v0`` (PettingZoo
-``mrmt_env/mrmt_lifelong_v0``).  Every id and env takes the
-world's arguments as one frozen :class:`~mrmt_env.config.WorldConfig` (``config=``) or as
+``mrmt_env/mrmt_lifelong_v0``).  Every id and env takes its options (world, episode, lifelong
+stream, League instance) as one frozen :class:`~mrmt_env.config.EnvConfig` (``config=``) or as
 keywords, e.g. ``gymnasium.make("mrmt_env/MRMT-v0", layout="rooms", height=32, width=32)``.
 """
 
@@ -33,6 +33,7 @@ __all__ = [
     "UNREACHABLE",
     "MOVES",
     "WorldConfig",
+    "EnvConfig",
     "MRMTEnv",
     "MRMTParallelEnv",
     "parallel_env",
@@ -154,6 +155,7 @@ _LAZY = {
     "action_between": "mrmt_env.core",
     "actions_from_path": "mrmt_env.core",
     "WorldConfig": "mrmt_env.config",
+    "EnvConfig": "mrmt_env.config",
     "MRMTEnv": "mrmt_env.grid.env",
     "world_from_observation": "mrmt_env.observation",
     "MRMTParallelEnv": "mrmt_env.grid.pz",

@@ -6,9 +6,9 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import WORLD_OPTIONS, EnvConfig, WorldConfig
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
-from mrmt_env.core import check_render_mode, check_step_limit, render_ready, show
+from mrmt_env.core import check_render_mode, render_ready, show
 from mrmt_env.render import render_ansi, render_rgb
 from mrmt_env.world import World
 
@@ -129,12 +129,16 @@ class MRMTAssignEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 2}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
-                 render_mode: str | None = None, **world) -> None:
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*WORLD_OPTIONS, "max_episode_steps")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.max_episode_steps = check_step_limit(max_episode_steps)
-        self.source = WorldConfig.of(config, **world).source()
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.max_episode_steps = cfg.max_episode_steps
+        self.source = cfg.source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.fixed.n_targets if self.source.fixed is not None else self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

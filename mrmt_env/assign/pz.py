@@ -24,7 +24,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import AECEnv
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import WORLD_OPTIONS, EnvConfig, WorldConfig
 from mrmt_env.assign.env import _check_action
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import check_render_mode
@@ -43,13 +43,17 @@ class MRMTAssignAECEnv(AECEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_assign_v0", "is_parallelizable": False,
                 "render_fps": 2}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
-                 render_mode: str | None = None, **world) -> None:
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*WORLD_OPTIONS, "max_cycles")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
         super().__init__()
         check_render_mode(render_mode, self.metadata["render_modes"])
-        self.max_cycles = check_cycles(max_cycles, None, DEFAULT_MAX_CYCLES)
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.max_cycles = check_cycles(cfg.max_cycles, None, DEFAULT_MAX_CYCLES)
         self.render_mode = render_mode
-        self.source = WorldConfig.of(config, **world).source()
+        self.source = cfg.source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

@@ -12,7 +12,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import EnvConfig, WorldConfig
+from mrmt_env.assign.env import MRMTAssignEnv
 from mrmt_env.assign.state import AssignBatch, assign_feature_count, assign_obs_high
 from mrmt_env.core import show
 from mrmt_env.fast_generation import draw_world_arrays
@@ -27,12 +28,15 @@ class MRMTAssignVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
-                 render_mode=None, autoreset_mode="NextStep", copy: bool = True, **world) -> None:
+    config_options = MRMTAssignEnv.config_options
+
+    def __init__(self, num_envs: int = 1, config: EnvConfig | WorldConfig | None = None, *, render_mode=None,
+                 autoreset_mode="NextStep", copy: bool = True, **options) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        self.source = WorldConfig.of(config, **world).source()
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        super().__init__(num_envs, cfg.max_episode_steps, autoreset_mode, copy)
+        self.source = cfg.source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

@@ -6,16 +6,12 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
-from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, render_ready, show
+from mrmt_env.config import OBSERVATIONS, WORLD_OPTIONS, EnvConfig, WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, render_ready, show
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.world import World
 
 __all__ = ["MRMTEnv", "check_joint_action", "OBSERVATIONS"]
-
-#: Observation forms: the binary channels, or the same as a CNN-ready image.
-OBSERVATIONS = ("binary", "image")
-
 
 def check_joint_action(action, n_robots: int) -> list[int]:
     """Validate a joint action and return it as a list of Python ints.
@@ -176,13 +172,14 @@ class MRMTEnv(gym.Env):
 
     ```
 
-    The world's arguments come as one frozen :class:`~mrmt_env.config.WorldConfig` (``config``, the
-    first positional argument) or as keywords of the same names, which override it (what
-    ``gym.make(id, n_robots=5)`` passes); every env of the package takes them so.
+    The options come as one frozen :class:`~mrmt_env.config.EnvConfig` (``config``, the first
+    positional argument; a :class:`~mrmt_env.config.WorldConfig` holds the world's alone) or as
+    keywords of the same names, which override it (what ``gym.make(id, n_robots=5)`` passes); every
+    env of the package takes them so, and refuses, naming them, options it does not take.
 
     | Parameter          | Type                 | Default     | Description                                        |
     |--------------------|----------------------|-------------|----------------------------------------------------|
-    | `config`           | WorldConfig or None  | None        | the world's arguments below, as one record         |
+    | `config`           | EnvConfig or None    | None        | the options below (but `render_mode`), as one record |
     | `height`           | int                  | 10          | grid rows (generated worlds)                       |
     | `width`            | int                  | 10          | grid columns (generated worlds)                    |
     | `obstacle_density` | float or None        | 0.2         | obstacle share of the `uniform` layout             |
@@ -216,25 +213,23 @@ class MRMTEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 4}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
-                 target_reward: float | None = None, render_mode: str | None = None, observation: str = "binary",
-                 dense_reward: float = 0.0, **world) -> None:
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*WORLD_OPTIONS, "max_episode_steps", "target_reward", "observation", "dense_reward")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
-        if observation not in OBSERVATIONS:
-            raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
-        if isinstance(dense_reward, bool) or not isinstance(dense_reward, (int, float, np.floating, np.integer)) \
-                or not np.isfinite(dense_reward) or dense_reward < 0:
-            raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
-        self.observation_mode = observation
-        self.dense_reward = float(dense_reward)
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.observation_mode = cfg.observation
+        self.dense_reward = float(cfg.dense_reward)
         self.render_mode = render_mode
-        self.max_episode_steps = check_step_limit(max_episode_steps)
-        self.source = WorldConfig.of(config, **world).source(grid_env=True)
+        self.max_episode_steps = cfg.max_episode_steps
+        self.source = cfg.source(grid_env=True)
         self.n_robots = self.source.n_robots
         self.action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)
-        space = image_observation_space if observation == "image" else observation_space
+        space = image_observation_space if cfg.observation == "image" else observation_space
         self.observation_space = space(self.n_robots, self.source.height, self.source.width)
-        self.core = MRMTCore(target_reward)
+        self.core = MRMTCore(cfg.target_reward)
         self._field = None
         self._ashape = (self.n_robots,)
         self.world: World | None = None

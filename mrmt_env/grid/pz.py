@@ -25,7 +25,7 @@ import numpy as np
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import WORLD_OPTIONS, EnvConfig, WorldConfig
 from mrmt_env.core import MRMTCore
 from mrmt_env.observation import ROBOT_CHANNEL0
 from mrmt_env.team import RobotTeamEnv, check_cycles, check_move
@@ -60,14 +60,17 @@ class MRMTParallelEnv(RobotTeamEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_v0", "is_parallelizable": True,
                 "render_fps": 4}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
-                 max_episode_steps: int | None = None, target_reward: float | None = None,
-                 render_mode: str | None = None, **world) -> None:
-        self.source = WorldConfig.of(config, **world).source(grid_env=True)
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*WORLD_OPTIONS, "max_cycles", "max_episode_steps", "target_reward")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.source = cfg.source(grid_env=True)
         src = self.source
         self._team(src.n_robots, src.height, src.width, render_mode,
-                   check_cycles(max_cycles, max_episode_steps, DEFAULT_MAX_CYCLES))
-        self.core = MRMTCore(target_reward)
+                   check_cycles(cfg.max_cycles, cfg.max_episode_steps, DEFAULT_MAX_CYCLES))
+        self.core = MRMTCore(cfg.target_reward)
         self.world: World | None = None
 
     # ---------------------------------------------------------------- API

@@ -15,11 +15,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import EnvConfig, WorldConfig
 from mrmt_env.core import N_ACTIONS, MRMTCore
 from mrmt_env.fast_generation import draw_world_arrays
 from mrmt_env.grid.kernels import GridArrays, grid_load, grid_masks, grid_step
-from mrmt_env.grid.env import OBSERVATIONS
+from mrmt_env.grid.env import MRMTEnv
 from mrmt_env.observation import image_observation_space, observation_space, to_image
 from mrmt_env.vector_base import BatchedVectorEnv, check_joint_moves
 
@@ -32,24 +32,23 @@ class MRMTVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
-                 target_reward=None, render_mode=None, observation: str = "binary", dense_reward: float = 0.0,
-                 autoreset_mode="NextStep", copy: bool = True, **world) -> None:
+    config_options = MRMTEnv.config_options
+
+    def __init__(self, num_envs: int = 1, config: EnvConfig | WorldConfig | None = None, *, render_mode=None,
+                 autoreset_mode="NextStep", copy: bool = True, **options) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
-        if observation not in OBSERVATIONS:
-            raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
-        if isinstance(dense_reward, bool) or not np.isfinite(dense_reward) or dense_reward < 0:
-            raise ValueError(f"dense_reward must be a finite number >= 0 (0 = off), got {dense_reward!r}")
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        self.source = WorldConfig.of(config, **world).source(grid_env=True)
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        super().__init__(num_envs, cfg.max_episode_steps, autoreset_mode, copy)
+        self.source = cfg.source(grid_env=True)
+        target_reward, observation = cfg.target_reward, cfg.observation
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         b = self.num_envs
         MRMTCore(target_reward)  # validates target_reward with the single env's message
         self.target_reward = MRMTCore.default_target_reward(h, w) if target_reward is None else float(target_reward)
         self.height, self.width, self.n_robots, self.n_targets = h, w, r, n
-        self.observation_mode, self.dense_reward = observation, float(dense_reward)
+        self.observation_mode, self.dense_reward = observation, float(cfg.dense_reward)
         self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * r)
         space = image_observation_space if observation == "image" else observation_space
         self.single_observation_space = space(r, h, w)

@@ -6,8 +6,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from mrmt_env.config import WorldConfig
-from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, check_step_limit, render_ready
+from mrmt_env.config import WORLD_OPTIONS, EnvConfig, WorldConfig
+from mrmt_env.core import N_ACTIONS, MRMTCore, check_render_mode, render_ready
 from mrmt_env.grid.env import check_joint_action
 from mrmt_env.lifelong.state import LifelongBatch, LifelongOptions, task_pool
 from mrmt_env.observation import observation_space
@@ -21,9 +21,10 @@ class LifelongSetup:
     """What a lifelong env (single, vector or PettingZoo) is built from: the world source, the options
     and the task reward; ``start(batch, i, rng, options)`` draws a world, its pool and stream key."""
 
-    def __init__(self, config: WorldConfig, tasks, task_rate, collisions, target_reward) -> None:
-        self.options = LifelongOptions(tasks=tasks, task_rate=task_rate, collisions=collisions)
+    def __init__(self, config: EnvConfig) -> None:
+        self.options = LifelongOptions(tasks=config.tasks, task_rate=config.task_rate, collisions=config.collisions)
         self.source = config.source(grid_env=True)
+        target_reward = config.target_reward
         MRMTCore(target_reward)  # validates target_reward with the one-shot env's message
         h, w = self.source.height, self.source.width
         self.task_reward = MRMTCore.default_target_reward(h, w) if target_reward is None else float(target_reward)
@@ -108,13 +109,16 @@ class MRMTLifelongEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "render_fps": 4}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_episode_steps: int | None = None,
-                 target_reward: float | None = None, render_mode: str | None = None, tasks: str = "refill",
-                 task_rate: float | None = None, collisions: str = "block", **world) -> None:
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*WORLD_OPTIONS, "max_episode_steps", "target_reward", "tasks", "task_rate", "collisions")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.max_episode_steps = check_step_limit(max_episode_steps)
-        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.max_episode_steps = cfg.max_episode_steps
+        self.setup = LifelongSetup(cfg)
         self.source = self.setup.source
         self.options = self.setup.options
         self.n_robots = self.source.n_robots

@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import EnvConfig, WorldConfig
 from mrmt_env.grid.pz import _CheckedAEC
-from mrmt_env.lifelong.env import LifelongSetup, render_state
+from mrmt_env.lifelong.env import LifelongSetup, MRMTLifelongEnv, render_state
 from mrmt_env.team import RobotTeamEnv, check_cycles
 
 __all__ = ["MRMTLifelongParallelEnv", "lifelong_parallel_env", "lifelong_env", "DEFAULT_MAX_CYCLES"]
@@ -35,13 +35,16 @@ class MRMTLifelongParallelEnv(RobotTeamEnv):
     metadata = {"render_modes": ["ansi", "rgb_array", "human"], "name": "mrmt_lifelong_v0",
                 "is_parallelizable": True, "render_fps": 4}
 
-    def __init__(self, config: WorldConfig | None = None, *, max_cycles: int | None = None,
-                 max_episode_steps: int | None = None, target_reward=None, render_mode: str | None = None,
-                 tasks: str = "refill", task_rate=None, collisions: str = "block", **world) -> None:
-        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
+    #: The options of :class:`~mrmt_env.config.EnvConfig` this env takes.
+    config_options = (*MRMTLifelongEnv.config_options, "max_cycles")
+
+    def __init__(self, config: EnvConfig | WorldConfig | None = None, *, render_mode: str | None = None,
+                 **options) -> None:
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        self.setup = LifelongSetup(cfg)
         s = self.setup.source
         self._team(s.n_robots, s.height, s.width, render_mode,
-                   check_cycles(max_cycles, max_episode_steps, DEFAULT_MAX_CYCLES))
+                   check_cycles(cfg.max_cycles, cfg.max_episode_steps, DEFAULT_MAX_CYCLES))
         self.batch = self.setup.batch(1)
         self.world = None
         self._live = np.ones(1, dtype=np.bool_)

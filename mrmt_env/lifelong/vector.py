@@ -14,9 +14,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from mrmt_env.config import WorldConfig
+from mrmt_env.config import EnvConfig, WorldConfig
 from mrmt_env.core import N_ACTIONS
-from mrmt_env.lifelong.env import LifelongSetup
+from mrmt_env.lifelong.env import LifelongSetup, MRMTLifelongEnv
 from mrmt_env.observation import observation_space
 from mrmt_env.vector_base import BatchedVectorEnv, check_joint_moves
 
@@ -29,13 +29,15 @@ class MRMTLifelongVectorEnv(BatchedVectorEnv):
 
     metadata = {**BatchedVectorEnv.metadata, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, config: WorldConfig | None = None, *, max_episode_steps=None,
-                 target_reward=None, render_mode=None, tasks: str = "refill", task_rate=None,
-                 collisions: str = "block", autoreset_mode="NextStep", copy: bool = True, **world) -> None:
+    config_options = MRMTLifelongEnv.config_options
+
+    def __init__(self, num_envs: int = 1, config: EnvConfig | WorldConfig | None = None, *, render_mode=None,
+                 autoreset_mode="NextStep", copy: bool = True, **options) -> None:
         if render_mode is not None:
             raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, copy)
-        self.setup = LifelongSetup(WorldConfig.of(config, **world), tasks, task_rate, collisions, target_reward)
+        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        super().__init__(num_envs, cfg.max_episode_steps, autoreset_mode, copy)
+        self.setup = LifelongSetup(cfg)
         s = self.setup.source
         self.height, self.width, self.n_robots = s.height, s.width, s.n_robots
         self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)

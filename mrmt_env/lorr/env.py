@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from mrmt_env.config import EnvConfig
 from mrmt_env.core import check_render_mode
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
@@ -37,7 +38,11 @@ _ARROWS = ">v<^"
 class LoRRSetup:
     """What every form of the LoRR env is built from: the instance, the steps and the scheduler."""
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy", action_model: str = "MAPF_T") -> None:
+    #: The options of :class:`~mrmt_env.config.EnvConfig` the League envs take.
+    config_options = ("instance", "steps", "scheduler", "action_model")
+
+    def __init__(self, config: EnvConfig) -> None:
+        instance, steps, scheduler, action_model = config.instance, config.steps, config.scheduler, config.action_model
         self.n_actions = n_actions(action_model)
         self.action_model = action_model
         if instance is None:
@@ -56,11 +61,13 @@ class LoRRSetup:
         self.pending: np.ndarray | None = None
 
     @classmethod
-    def attach(cls, env, instance, steps, scheduler, render_mode, action_model) -> LoRRInstance:
-        """Check ``render_mode`` against ``env.metadata``, set ``env.render_mode`` and ``env.setup``; the instance."""
+    def attach(cls, env, config, render_mode, options: dict) -> LoRRInstance:
+        """Check ``render_mode`` against ``env.metadata``; set ``env.render_mode``, ``env.config`` (``config``
+        with ``options``) and ``env.setup``; the instance."""
         check_render_mode(render_mode, env.metadata["render_modes"])
         env.render_mode = render_mode
-        env.setup = cls(instance, steps, scheduler, action_model)
+        env.config = EnvConfig.of(config, takes=cls.config_options, env=type(env).__name__, **options)
+        env.setup = cls(env.config)
         return env.setup.instance
 
     def observation_space(self, shape: tuple) -> spaces.Dict:
@@ -123,14 +130,15 @@ class LoRREnv(gym.Env):
     1 south, 2 west, 3 north), ``task`` (the task each robot is to serve, -1 none) and ``goal``
     (that task's next errand, -1 none), each ``(R,)`` int64.  ``info``: ``step``,
     ``tasks_finished``, ``errands_reached``, ``errors`` (invalid joint actions, each made a wait),
-    ``schedule_errors`` (rejected schedules).
+    ``schedule_errors`` (rejected schedules).  Options (``config``, an
+    :class:`~mrmt_env.config.EnvConfig`, or keywords): ``instance``, ``steps``, ``scheduler``,
+    ``action_model``; and ``render_mode``.
     """
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
-                 action_model: str = "MAPF_T") -> None:
-        inst = LoRRSetup.attach(self, instance, steps, scheduler, render_mode, action_model)
+    def __init__(self, config: EnvConfig | None = None, *, render_mode: str | None = None, **options) -> None:
+        inst = LoRRSetup.attach(self, config, render_mode, options)
         self.instance = inst
         r = inst.team_size
         self.n_robots = r

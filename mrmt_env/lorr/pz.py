@@ -13,6 +13,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from mrmt_env.config import EnvConfig
 from mrmt_env.lorr.env import LoRRSetup, render_lorr
 
 __all__ = ["LoRRParallelEnv", "lorr_parallel_env"]
@@ -24,9 +25,8 @@ class LoRRParallelEnv(ParallelEnv):
     metadata = {"render_modes": ["ansi", "rgb_array"], "name": "lorr_v0", "is_parallelizable": True,
                 "render_fps": 8}
 
-    def __init__(self, instance=None, steps=None, scheduler="greedy", render_mode: str | None = None,
-                 action_model: str = "MAPF_T") -> None:
-        inst = LoRRSetup.attach(self, instance, steps, scheduler, render_mode, action_model)
+    def __init__(self, config: EnvConfig | None = None, *, render_mode: str | None = None, **options) -> None:
+        inst = LoRRSetup.attach(self, config, render_mode, options)
         self.possible_agents = [f"robot_{k}" for k in range(inst.team_size)]
         self.agents: list[str] = []
         big = np.iinfo(np.int64).max

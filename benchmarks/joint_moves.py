@@ -25,24 +25,23 @@ ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "
 def sample_decisions(path, steps, seed=0, per_instance=400, **options):
     """Groups of the host rule's own run: ``(problems, host rule seconds per step, group seconds per step,
     groups per step)``; ``per_instance`` problems drawn uniformly (seeded) from all steps."""
-    from agents.lorr.run import proposal_goals
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import read_instance
+    from mrmt_env.lorr.loop import StepLoop
     from mrmt_env.lorr.sim import LoRRSimulator
     from planners.mapf.chip.joint_executor import JointMovesPIBT
     from planners.mapf.pibt.turning import TurningPIBT
 
     inst = read_instance(path)
-    sim = LoRRSimulator(inst, record=False)
-    sched = make_scheduler("lorr-greedy", seed=seed)
-    sched.reset(sim)
+    loop = StepLoop(LoRRSimulator(inst, record=False), make_scheduler("lorr-greedy", seed=seed))
+    sim = loop.sim
     ex = JointMovesPIBT(inst.grid, seed=seed, accept="host", **options)
     ref = TurningPIBT(inst.grid, seed=seed, guidance=0)  # the host rule alone, timed on the same states
     ex.sample = []
     host_s, group_s, groups = [], [], []
     for _ in range(steps):
-        prop = sched.schedule(sim)
-        goals = proposal_goals(sim, prop)
+        loop.propose()
+        goals = loop.goal_cells()
         t0 = time.perf_counter()
         a_ref = ref.actions(sim.pos, sim.orient, goals)
         t1 = time.perf_counter()
@@ -53,7 +52,7 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
         host_s.append(t1 - t0)
         group_s.append(max((t2 - t1) - (t1 - t0), 0.0))
         groups.append(len(ex.sample) - n0)
-        sim.step(act, prop)
+        loop.advance(act)
     rng = np.random.default_rng(seed)
     pick = np.sort(rng.choice(len(ex.sample), min(per_instance, len(ex.sample)), replace=False))
     return [ex.sample[i] for i in pick], np.array(host_s), np.array(group_s), np.array(groups), sim.finished

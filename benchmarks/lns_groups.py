@@ -66,17 +66,16 @@ def exact_cost(state, members, a, b, ostart, opt) -> int:
 
 
 def run(instance: str, steps: int, executor: str, options: dict, exact: bool, seed: int = 0):
-    from agents.lorr.run import proposal_goals
     from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import read_instance
+    from mrmt_env.lorr.loop import StepLoop
     from mrmt_env.lorr.sim import LoRRSimulator
     from planners.mapf import make_turning_executor
     from planners.mapf import epibt_ising as E
 
     inst = read_instance(ROOT / f"{instance}.json")
-    sim = LoRRSimulator(inst, record=False)
-    sched = make_scheduler("lorr-greedy", seed=seed)
-    sched.reset(sim)
+    loop = StepLoop(LoRRSimulator(inst, record=False), make_scheduler("lorr-greedy", seed=seed))
+    sim = loop.sim
     if "levels" in options:  # a chip of wider (or narrower) coefficient ranges: a what-if for chip makers
         from ising_backend import ChipSpec, EmulatedChip
 
@@ -108,12 +107,12 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
     step_s = np.zeros(steps)
     try:
         for t in range(steps):
-            proposal = sched.schedule(sim)
+            loop.propose()
             t0, j0 = time.perf_counter(), judged[0]
-            act = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal))
+            act = ex.actions(sim.pos, sim.orient, loop.goal_cells())
             emul = float(ex.last_compute.emulation_s) + judged[0] - j0
             step_s[t] = time.perf_counter() - t0 - emul + ex.last_compute.chip_time_parallel_s
-            sim.step(act, proposal)
+            loop.advance(act)
     finally:
         if exact:
             E.greedy_choice, E.decode_choice = greedy, decode

@@ -47,7 +47,7 @@ class SharedEnvironment:
         # what the kit has not set yet when it calls initialize (it reveals the first tasks after it)
         self.curr_states, self.task_pool, self.curr_task_schedule = [], {}, []
         self.new_tasks, self.new_freeagents, self.goal_locations = [], [], []
-        self.plan_start_time = self.plan_current_time()
+        self.plan_start_time = SharedEnvironment.plan_current_time()
 
     @staticmethod
     def plan_current_time() -> datetime.timedelta:
@@ -74,20 +74,50 @@ class SharedEnvironment:
                 self.goal_locations[a].append((task.locations[task.idx_next_loc], task.t_revealed))
 
 
-def run_standin(inst, steps: int, scheduler_cls, planner_cls, time_limit_ms: int = 3_600_000, **role) -> LoRRSimulator:
-    """``steps`` steps of ``inst`` as the kit runs a Python entry: roles built with the env, initialized, then per
-    step the scheduler's and the planner's ``plan`` (every answer checked to be a list of plain ints)."""
+class SharedEnvironment2026(SharedEnvironment):
+    """The 2026 kit's (v3.1) fields as far as a one-step planner sees them: no ``plan_start_time`` nor
+    ``plan_current_time`` in its binding, and ``curr_timestep`` 0 (the planning snapshot's own start)."""
+
+    def __init__(self, inst) -> None:
+        super().__init__(inst)
+        del self.plan_start_time
+
+    plan_current_time = property(lambda self: _absent("plan_current_time"))
+
+    def sync(self, sim: LoRRSimulator) -> None:
+        super().sync(sim)
+        self.curr_timestep = 0
+
+
+def _absent(name):
+    raise AttributeError(f"'SharedEnvironment' object has no attribute {name!r}")
+
+
+def run_standin(inst, steps: int, scheduler_cls, planner_cls, time_limit_ms: int = 3_600_000, kit: int = 2024,
+                **role) -> LoRRSimulator:
+    """``steps`` steps of ``inst`` as the kit runs a Python entry: roles built with the env (2026: built bare, the
+    env set before ``initialize``), initialized, then per step the scheduler's and the planner's ``plan`` (every
+    answer checked to be a list of plain ints; 2026: a one-action window per robot, executed one action a tick)."""
     sim = LoRRSimulator(inst)
-    env = SharedEnvironment(inst)
-    scheduler, planner = scheduler_cls(env, **role), planner_cls(env, **role)
+    if kit == 2026:
+        env = SharedEnvironment2026(inst)
+        scheduler, planner = scheduler_cls(**role), planner_cls(**role)
+        scheduler.env = planner.env = env
+    else:
+        env = SharedEnvironment(inst)
+        scheduler, planner = scheduler_cls(env, **role), planner_cls(env, **role)
     assert scheduler.initialize(30_000) and planner.initialize(30_000)  # before the kit shows any task
     while sim.t < steps:
         env.sync(sim)
-        env.plan_start_time = env.plan_current_time()
+        if kit == 2024:
+            env.plan_start_time = env.plan_current_time()
         proposal = scheduler.plan(time_limit_ms)
         assert isinstance(proposal, list) and all(type(k) is int for k in proposal)
         env.update_goal_locations(proposal)
         actions = planner.plan(time_limit_ms)
+        if kit == 2026:
+            assert isinstance(actions, list) and all(type(w) is list and len(w) == 1 for w in actions)
+            actions = [w[0] for w in actions]
         assert isinstance(actions, list) and all(type(a) is int and 0 <= a <= 3 for a in actions)
         sim.step(actions, proposal)
     return sim

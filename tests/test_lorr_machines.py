@@ -12,10 +12,11 @@ import sys
 import numpy as np
 import pytest
 
-from agents.lorr.run import make_roles, proposal_goals, run_lorr
+from agents.lorr.run import make_roles, run_lorr
 from ising_backend import ChipSpec, EmulatedChip, MachineSpec, SamplerChip
 from ising_backend.audit.host_rule import HostRule
 from mrmt_env.lorr.instance import example_instance_path, read_instance
+from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.mapf import EPIBTIsing
 from test_mapf_turning import apply, random_instance, retarget
@@ -63,14 +64,14 @@ def _drive(chip, planner="epibt-ising", steps=6, options=None):
     inst = read_instance(EXAMPLE)
     sched, ex = make_roles(inst.grid, "lorr-greedy", planner, seed=0, chip=chip,
                            options={"executor_options": options or {}})
-    sim = LoRRSimulator(inst)
-    sched.reset(sim)
+    loop = StepLoop(LoRRSimulator(inst), sched)
+    sim = loop.sim
     calls = 0
     for _ in range(steps):
-        proposal = sched.schedule(sim)
-        actions = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal))
+        loop.propose()
+        actions = ex.actions(sim.pos, sim.orient, loop.goal_cells())
         calls += ex.last_compute.chip_calls
-        sim.step(actions, proposal)
+        loop.advance(actions)
     return ex, calls
 
 

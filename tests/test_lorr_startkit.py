@@ -17,9 +17,10 @@ import pytest
 from agents.lorr.entry import EntryError, load_entry
 from mrmt_env.lorr.output import output_dict
 from agents.lorr.run import run_lorr
-from agents.lorr.startkit import TRACK_DIR, KitInstance, KitPlanner, KitScheduler, deadline_of
+from agents.lorr.startkit import TRACK_DIR, TRACK_DIR_2026, KitInstance, KitPlanner, KitPlanner2026, KitScheduler, \
+    deadline_of
 from mrmt_env.lorr.instance import example_instance_path, read_instance
-from startkit_standin import SharedEnvironment, run_standin
+from startkit_standin import SharedEnvironment, SharedEnvironment2026, run_standin
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "lorr"
 
@@ -112,3 +113,46 @@ def test_the_startkit_command_prints_the_kits_python_path(capsys):
     assert main(["lorr", "startkit"]) == 0
     first = capsys.readouterr().out.splitlines()[0]
     assert json.loads(first.split(": ", 1)[1]) == {"python_path": str(TRACK_DIR)}
+
+
+@pytest.mark.parametrize("scheduler, planner, decisions", [
+    ("lorr-greedy", "pibt", {}),
+    ("strong", "epibt", {"replan": True, "planner_options": {"portfolio": 2, "weight_power": 2}}),
+])
+def test_the_2026_kit_runs_the_one_step_planner_as_the_runner_does(tmp_path, scheduler, planner, decisions):
+    """The 2026 kit's form (roles built bare, the env set before ``initialize``, no plan start on its clock, a
+    planning snapshot whose ``curr_timestep`` stays 0, a window of actions per robot): executed one action a
+    tick, the adapter's roles make the runner's run."""
+    inst = read_instance(example_instance_path())
+    entry = _entry(tmp_path, scheduler, planner, **decisions)
+    choice = load_entry(entry).choose(inst)
+    sim = run_standin(inst, 40, KitScheduler, KitPlanner2026, kit=2026, entry=str(entry), seed=3)
+    record, own, _ = run_lorr(inst, scheduler, planner, steps=40, seed=3, options=choice.options)
+    assert _digest(sim) == _digest(own) and sim.finished == record["tasks_finished"] > 0
+
+
+def test_without_the_kits_plan_start_the_deadline_runs_from_the_call():
+    env = SharedEnvironment2026(read_instance(example_instance_path()))
+    before = time.perf_counter()
+    deadline = deadline_of(env, 700)
+    assert before + 0.7 <= deadline <= time.perf_counter() + 0.7
+
+
+def test_the_2026_track_folder_holds_the_modules_the_kit_imports(monkeypatch):
+    monkeypatch.syspath_prepend(str(TRACK_DIR_2026))
+    for module, cls in (("pyMAPFPlanner", KitPlanner2026), ("pyTaskScheduler", KitScheduler)):
+        sys.modules.pop(module, None)
+        assert getattr(importlib.import_module(module), module) is cls
+    sys.modules.pop("pyMAPFPlanner", None)
+    sys.modules.pop("pyTaskScheduler", None)
+
+
+def test_the_startkit_command_names_the_2026_files(capsys):
+    from agents.cli import main
+
+    assert main(["lorr", "startkit", "--kit", "2026"]) == 0
+    out = capsys.readouterr().out
+    assert f"cp {TRACK_DIR_2026}/pyMAPFPlanner.py python/user_planner/" in out and "--plannerPython true" in out
+    with pytest.raises(SystemExit) as exit_:
+        main(["lorr", "startkit", "--kit", "2025"])
+    assert exit_.value.code == 2

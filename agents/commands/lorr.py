@@ -1,6 +1,6 @@
 """``mrmt lorr``: League of Robot Runners instances -- run a scheduler and an executor, a whole round, or check a file.
 
-    mrmt lorr run RANDOM-01.json --scheduler ising --executor pibt [--steps N] --out DIR
+    mrmt lorr run RANDOM-01.json --scheduler ising --planner pibt [--steps N] --out DIR
     mrmt lorr run A.json B.json --scheduler lorr-greedy,strong --seeds 2 --backend ray --out DIR
     mrmt lorr run RANDOM-01.json --entry default [--step-limit rules] --out DIR
     mrmt lorr round ROUND_DIR --entry default --out DIR [--steps N] [--resume]
@@ -74,7 +74,9 @@ def add_arguments(parser) -> None:
     check.add_argument("instance", metavar="INSTANCE.json")
     check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
     check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
-    sub.add_parser("startkit", help="print how the 2024 start kit runs the package's entry (its python_path)")
+    kit = sub.add_parser("startkit", help="print how the start kit runs the package's entry (2024: its python_path; "
+                                          "2026: the files to put in place)")
+    kit.add_argument("--kit", type=int, choices=(2024, 2026), default=2024, help="the start kit's year (default 2024)")
     opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE): name, default, "
                                           "what it takes, what it does")
     opts.add_argument("planner", nargs="?", default=None, help="a planner (default: every one)")
@@ -444,8 +446,15 @@ def _check(args) -> int:
 
 
 def _startkit(args) -> int:
-    from agents.lorr.startkit import TRACK_DIR
+    from agents.lorr.startkit import TRACK_DIR, TRACK_DIR_2026
 
+    if args.kit == 2026:
+        print(f"from the kit's folder: cp {TRACK_DIR_2026}/pyMAPFPlanner.py python/user_planner/ && "
+              f"cp {TRACK_DIR_2026}/pyTaskScheduler.py python/user_scheduler/")
+        print("then: ./build/lifelong -i INSTANCE.json -o output.json --plannerPython true --schedulerPython true "
+              "(the kit's own executor stages each one-action plan)")
+        print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; compile first: mrmt warmup")
+        return 0
     print(f"config.json: {json.dumps({'python_path': str(TRACK_DIR)})}")
     print(f"from the kit's folder (its python/ samples have the same module names; this puts the package's first): "
           f"PYTHONPATH={TRACK_DIR}:$PYTHONPATH ./build/lifelong -i INSTANCE.json -o output.json")

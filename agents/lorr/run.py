@@ -24,11 +24,11 @@ import numpy as np
 
 from mrmt_env.lorr.env import DEFAULT_STEPS
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
+from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
-from mrmt_env.lorr.tasks import goals_under
 from planners.compute import CPU_WATTS_PER_CORE
 
-__all__ = ["run_lorr", "best_known", "proposal_goals", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "Loop"]
+__all__ = ["run_lorr", "best_known", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "Loop"]
 
 RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "scheduler_options", "seed", "robots",
             "steps", "tasks_finished", "best_known",
@@ -72,13 +72,6 @@ def best_known(instance: LoRRInstance) -> int | None:
                 return row.tasks
     row = best_known_table().get(instance.name)
     return None if row is None else row.tasks
-
-
-def proposal_goals(sim: LoRRSimulator, proposal) -> np.ndarray:
-    """The cell each robot heads for under ``proposal``: its task's next errand
-    (:func:`~mrmt_env.lorr.tasks.goals_under`), else its own cell."""
-    goals = goals_under(sim.tasks, proposal)
-    return np.where(goals >= 0, goals, sim.pos)
 
 
 def _warm(scheduler: str, executor: str, chip, options) -> None:
@@ -137,7 +130,7 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
     t0 = time.perf_counter()
     sched, ex = make_roles(inst.grid, scheduler, executor, seed, chip, options)
     sim = LoRRSimulator(inst)
-    sched.reset(sim)
+    loop = StepLoop(sim, sched)
     prep_s = time.perf_counter() - t0
     n = []  # per decision: scheduler host, executor host, chip seconds
     busy = []  # CPU seconds beyond the wall (an executor's plans on several threads)
@@ -146,10 +139,10 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
     while sim.t < steps:
         t0 = time.perf_counter()
         deadline = None if limit is None else t0 + limit.step_s
-        proposal = sched.schedule(sim, deadline=deadline) if inst.strategy is None else None
+        loop.propose(deadline)
         t1 = time.perf_counter()
         c1 = time.process_time()
-        actions = ex.actions(sim.pos, sim.orient, proposal_goals(sim, proposal), deadline=deadline)
+        actions = ex.actions(sim.pos, sim.orient, loop.goal_cells(), deadline=deadline)
         t2 = time.perf_counter()
         busy.append(max(time.process_time() - c1 - (t2 - t1), 0.0))
         c, e = sched.last_compute, ex.last_compute  # an executor with a chip decision charges it too
@@ -158,11 +151,7 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
         accel_j += c.accelerator_energy_j + e.accelerator_energy_j
         calls += c.chip_calls + c.logical_calls + e.chip_calls
         before = sim.t
-        late = 0 if limit is None else min(limit.timeouts(sum(n[-1])), steps - sim.t)
-        for _ in range(late):
-            sim.time_out()
-        if sim.t < steps:
-            sim.step(actions, proposal)
+        loop.advance(actions, 0 if limit is None else limit.timeouts(sum(n[-1])), steps)
         if bar is not None:
             bar.update(sim.t - before)
     return Loop(sim, sched, ex, np.array(n).reshape(-1, 3), np.array(busy), accel_j, calls, prep_s)

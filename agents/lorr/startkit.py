@@ -20,11 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["KitScheduler", "KitPlanner", "KitInstance", "KitTasks", "KitState", "view_of", "TRACK_DIR"]
+__all__ = ["KitScheduler", "KitPlanner", "KitPlanner2026", "KitInstance", "KitTasks", "KitState", "view_of", "TRACK_DIR",
+           "TRACK_DIR_2026"]
 
 #: The folder holding ``pyMAPFPlanner.py`` and ``pyTaskScheduler.py`` for the kit's ``config.json``
 #: (``{"python_path": "<this folder>"}``).
 TRACK_DIR = Path(__file__).resolve().parent / "startkit_track"
+#: The 2026 kit's (v3.1) modules: it imports ``python/user_planner/pyMAPFPlanner.py`` and
+#: ``python/user_scheduler/pyTaskScheduler.py`` from its own folder, which these replace.
+TRACK_DIR_2026 = Path(__file__).resolve().parent / "startkit_track_2026"
 
 
 class KitInstance:
@@ -137,21 +141,29 @@ class KitState:
         self._tasks = KitTasks(env, inst)
         self.t = None
         self.tasks = None
+        self.fresh = False  # read by the scheduler of this step, not yet used by the planner
+        self._kit_t = None
+        self._reads = 0
 
     def refresh(self, tasks: bool = True, again: bool = False) -> "KitState":
         """This step's fields from the kit's ``env``: read when the step is new or ``again`` (the scheduler,
         first in the kit's step, reads them; the planner after it in the same step reuses them); the tasks
-        when asked."""
+        when asked.  A step is new when the kit's ``curr_timestep`` moved (2024) or, where it stays 0 (the 2026
+        kit's planning snapshot), when no scheduler read it since the planner's last call.  :attr:`t` is the kit's
+        step, or where the kit keeps it at 0 the count of steps read before this one."""
         env = self.env
         t = int(env.curr_timestep)
-        if again or t != self.t:
+        if again or t != self._kit_t or not self.fresh:
             states = env.curr_states
             self.pos = np.fromiter((s.location for s in states), dtype=np.int64, count=len(states))
             self.orient = np.fromiter((s.orientation for s in states), dtype=np.int64, count=len(states))
-            self.t = t
+            self._kit_t = t
+            self.t = t if t > 0 else self._reads
+            self._reads += 1
             self.tasks = None
         if tasks and self.tasks is None:
             self.tasks = self._tasks.refresh(self.pos)
+        self.fresh = again
         return self
 
 
@@ -168,7 +180,9 @@ def view_of(env) -> KitState:
 
 def deadline_of(env, time_limit: int) -> float:
     """The ``time.perf_counter()`` second by which the kit wants this step's answer: ``time_limit`` ms after
-    ``env.plan_start_time`` on the kit's clock."""
+    ``env.plan_start_time`` on the kit's clock (2024); from now where the kit shows no start (2026)."""
+    if not hasattr(env, "plan_current_time"):
+        return time.perf_counter() + int(time_limit) / 1000.0
     left = env.plan_start_time + datetime.timedelta(milliseconds=int(time_limit)) - env.plan_current_time()
     return time.perf_counter() + left.total_seconds()
 
@@ -233,3 +247,13 @@ class KitPlanner(_Role):
         goals = state.tasks.goals(list(self.env.curr_task_schedule), state.pos)
         actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline)
         return [int(a) for a in np.asarray(actions).tolist()]
+
+
+class KitPlanner2026(KitPlanner):
+    """The 2026 start kit's (v3.1) ``pyMAPFPlanner``, as far as a one-step planner goes there: built without
+    arguments (the kit sets ``env`` before ``initialize``), it plans each robot's next action from the kit's
+    planning snapshot (``curr_states``: the states the kit's executor predicts after its staged actions) and
+    returns it as a window of one action per robot (``plan.actions[i]``); the kit's executor stages and times it."""
+
+    def plan(self, time_limit: int) -> list[list[int]]:
+        return [[a] for a in super().plan(time_limit)]

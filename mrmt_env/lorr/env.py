@@ -25,9 +25,9 @@ from mrmt_env.config import EnvConfig
 from mrmt_env.core import check_render_mode
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_instance
+from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.rules import ORIENT_LETTERS, n_actions
 from mrmt_env.lorr.sim import LoRRSimulator
-from mrmt_env.lorr.tasks import goals_under
 
 __all__ = ["LoRREnv", "LoRRSetup", "DEFAULT_STEPS"]
 
@@ -58,7 +58,7 @@ class LoRRSetup:
             raise ValueError(f"scheduler must be 'greedy', None or an object with schedule(sim), got {scheduler!r}")
         self.scheduler = scheduler
         self.sim: LoRRSimulator | None = None
-        self.pending: np.ndarray | None = None
+        self.loop: StepLoop | None = None
 
     @classmethod
     def attach(cls, env, config, render_mode, options: dict) -> LoRRInstance:
@@ -82,39 +82,27 @@ class LoRRSetup:
 
     def reset(self) -> None:
         self.sim = LoRRSimulator(self.instance, action_model=self.action_model)
-        if self.scheduler is not None and hasattr(self.scheduler, "reset"):
-            self.scheduler.reset(self.sim)
-        self.pending = None
-        self.plan()
+        self.loop = StepLoop(self.sim, self.scheduler)
+        self.loop.propose()
 
-    def plan(self) -> None:
-        """The scheduler's proposal for the coming step (2024 instances)."""
-        sim = self.sim
-        if self.scheduler is not None and sim.inst.strategy is None:
-            self.pending = np.asarray(self.scheduler.schedule(sim), dtype=np.int64)
-        else:
-            self.pending = None
+    @property
+    def pending(self) -> np.ndarray | None:
+        """The proposal the coming step applies (``None``: none)."""
+        return None if self.loop is None else self.loop.pending
 
     def propose(self, schedule) -> None:
-        sim = self.sim
-        if sim.inst.strategy is not None:
-            raise ValueError(f"{sim.inst.name} assigns tasks by its {sim.inst.strategy!r} rule; it takes no schedule")
-        s = np.asarray(schedule)
-        if s.shape != (sim.n_robots,) or s.dtype.kind not in "iu":
-            raise ValueError(f"a schedule is one task id (or -1) per robot: expected ({sim.n_robots},) integers, "
-                             f"got shape {s.shape} dtype {s.dtype}")
-        self.pending = s.astype(np.int64)
+        self.loop.hold(schedule)
 
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
         """``(task, goal)`` per robot under the pending schedule: the task it is to serve and that
         task's next errand (-1 without one)."""
-        tasks = self.sim.tasks
-        task = tasks.assigned.copy() if self.pending is None else self.pending.copy()
-        return task, goals_under(tasks, self.pending)
+        pending = self.loop.pending
+        task = self.sim.tasks.assigned.copy() if pending is None else pending.copy()
+        return task, self.loop.goals()
 
     def step(self, actions) -> int:
-        done = self.sim.step(actions, self.pending)
-        self.plan()
+        done = self.loop.advance(actions)
+        self.loop.propose()
         return done
 
     def info(self) -> dict:

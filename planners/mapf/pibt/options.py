@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from planners.mapf.guides.guidance import MAX_GUIDANCE
 from planners.options import Options, option
 
-__all__ = ["LaneOptions", "TurningOptions", "commits_option", "congestion_options", "DEFAULT_FIELD_BYTES",
+__all__ = ["LaneOptions", "TurningOptions", "commits_option", "congestion_options", "park_option", "DEFAULT_FIELD_BYTES",
            "DEFAULT_BFS_BUDGET", "DEFAULT_GUIDANCE", "DEFAULT_REFRESH"]
 
 #: Default memory bound of the goal-field cache (the fields of the goals asked for in one call are always kept).
@@ -50,6 +50,13 @@ def congestion_options():
                    "most, first those with the most robots heading there x calls since computed"))
 
 
+def park_option():
+    """The ``park`` option (:mod:`planners.mapf.guides.parking`)."""
+    return option(0.0, float, 0, 1, meaning="a robot without a goal (its goal its own cell) heads for the nearest "
+                  "parking place, this share of the free cells with the least through-traffic "
+                  "(planners.mapf.guides.parking; 0 = it stays where it is)")
+
+
 @dataclass(frozen=True)
 class TurningOptions(LaneOptions):
     """:class:`TurningPIBT`'s options."""
@@ -57,3 +64,4 @@ class TurningOptions(LaneOptions):
     commits: bool = commits_option(False)
     congestion: int = congestion_options()[0]
     refresh: int = congestion_options()[1]
+    park: float = park_option()

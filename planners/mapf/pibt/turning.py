@@ -36,6 +36,7 @@ from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
 from planners.mapf.guides.congestion import Congestion
 from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
+from planners.mapf.guides.parking import ParkingPlaces
 from planners.mapf.pibt.options import (DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, DEFAULT_GUIDANCE, DEFAULT_REFRESH,
                                        LaneOptions, TurningOptions, commits_option, congestion_options)
 
@@ -333,6 +334,8 @@ class TurningPIBT:
             self.congestion = Congestion(self.nbr, base, opts.congestion, opts.refresh)
             field_cost = self.congestion.bound()  # the fields' dtype holds the costliest moves
         self.fields = TurnFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=field_cost)
+        park = getattr(opts, "park", 0.0)
+        self.parking = ParkingPlaces(self.nbr, park, seed) if park else None
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)
@@ -400,6 +403,8 @@ class TurningPIBT:
         ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
+        if self.parking is not None:  # a robot without a goal heads for the nearest parking place
+            goals = self.parking.goals(pos, goals, self.cid, self.cell_of)
         r = len(pos)
         order = self.order(r)
         pc = self.cid[pos]

@@ -114,6 +114,7 @@ def test_the_default_entry_chooses_by_team_and_map():
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
     assert big.options["executor_options"] == {"congestion": 2}  # GAME: goal fields that price the crowd
+    assert big.options["scheduler_options"] == {"busy": 0.6}  # and at most 60 % of the team holding tasks
     sortation, warehouse, tables = entry.rules[1], entry.rules[2], entry.rules[3]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")

@@ -354,6 +354,19 @@ def test_registered_and_bad_options_name_the_value():
             EPIBT(grid, **opts)
     with pytest.raises(ValueError, match="pibt-flow keeps a field and a path"):
         EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)
+    EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6, flow=False)  # goal fields: the cache makes room
+
+
+def test_the_run_command_takes_a_big_team_on_epibts_goal_fields(tmp_path):
+    """The memory check of a run asks EPIBT about its own mode: guide paths refused past the bound, goal fields not."""
+    from agents.cli import main
+
+    from mrmt_env.lorr.instance import example_instance_path
+
+    base = ["lorr", "run", str(example_instance_path()), "--planner", "epibt", "--steps", "2", "--out", str(tmp_path),
+            "--planner-option", "field_bytes=1000"]
+    assert main(base) == 2
+    assert main(base + ["--planner-option", "flow=false"]) == 0
 
 
 @pytest.mark.parametrize("robots, op_len", [(8, 4), (16, 4), (17, 3), (30, 3)])

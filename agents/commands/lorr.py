@@ -236,9 +236,10 @@ def _table(rows: list[dict]) -> str:
 
 
 def _memory(options: dict) -> dict:
-    """The planner's own memory bound among a run's ``options`` (``field_bytes``), for its ``check_team``."""
+    """The planner's own memory bound among a run's ``options`` (``field_bytes``, and EPIBT's ``flow``), for its
+    ``check_team``."""
     own = options.get("executor_options") or {}
-    return {"field_bytes": own["field_bytes"]} if "field_bytes" in own else {}
+    return {key: own[key] for key in ("field_bytes", "flow") if key in own}
 
 
 def _plans(args, chip) -> tuple[list[tuple], object]:

@@ -31,6 +31,7 @@ from planners.mapf.epibt.options import (AUTO_OP_LEN_FILL, DEFAULT_GROUP, DEFAUL
                                         DEFAULT_OP_LEN, DEFAULT_REVISITS, DEFAULT_WEIGHT_POWER, MAX_OP_LEN,
                                         MAX_PORTFOLIO, EPIBTOptions)
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, TurningPIBT, _distance
+from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES
 
 __all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet",
            "SearchStamp",
@@ -351,7 +352,12 @@ class EPIBT(TurningPIBT):
         self._res = np.full((self.ops.shape[1] + 1, len(self.cell_of)), -1, dtype=np.int64)
         self.plans = np.zeros((0, self.ops.shape[1]), dtype=np.int8)  # the last call's operations
 
-    check_team = staticmethod(FlowPIBT.check_team)  # the same guide paths and fields
+    @staticmethod
+    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES, flow: bool = True) -> None:
+        """As :meth:`FlowPIBT.check_team <planners.mapf.guides.flow.FlowPIBT.check_team>` along guide paths (a path
+        and a field per robot); on the goal fields (``flow=False``) any team: their cache makes room."""
+        if flow:
+            FlowPIBT.check_team(grid, n_robots, field_bytes)
 
     def _heuristic(self, pc, gc, order):
         rows = self.goal_rows(pc, gc, order)  # first: it may grow the cache (a new array)

@@ -83,7 +83,7 @@ class EnvConfig(WorldConfig):
         max_episode_steps: steps before truncation (the registered id's limit, else none; PettingZoo
             envs: ``max_cycles``, default 200).
         max_cycles: the PettingZoo envs' step limit (``max_episode_steps`` is its alias there).
-        target_reward: the reward of a target or task reached (default ``height + width``).
+        target_reward: the reward of a target or task reached (default ``2 * height * width``).
         observation: ``"binary"`` planes or ``"image"`` (grid env).
         dense_reward: the weight of the distance-shaping reward, 0 = off (grid env).
         tasks, task_rate, collisions: the lifelong task stream (``refill`` or ``poisson`` at
@@ -119,9 +119,10 @@ class EnvConfig(WorldConfig):
     @classmethod
     def of(cls, config: EnvConfig | WorldConfig | None = None, *, takes: tuple[str, ...] = WORLD_OPTIONS,
            env: str = "this env", **options) -> EnvConfig:
-        """``config`` (an :class:`EnvConfig`, a :class:`WorldConfig` or ``None``) with the keyword
-        ``options`` put in (``None`` for a field whose default is ``None`` changes nothing); ``TypeError`` naming an unknown option, a ``config`` of another type, or an
-        option set away from its default that ``env`` does not take (``takes``)."""
+        """``config`` (an :class:`EnvConfig`, a :class:`WorldConfig` or ``None``) with the keyword ``options``
+        put in (``None`` for a field whose default is ``None`` changes nothing); ``TypeError`` naming an unknown
+        option, a ``config`` of another type, or an option set away from its default that ``env`` (a name for
+        the message) does not take (``takes``)."""
         if config is None:
             config = cls()
         elif type(config) is WorldConfig:
@@ -145,7 +146,6 @@ class EnvConfig(WorldConfig):
     def world_config(self) -> WorldConfig:
         """The world part."""
         return WorldConfig(**{name: getattr(self, name) for name in WORLD_OPTIONS})
-
 
 
 def _at_default(value, default) -> bool:

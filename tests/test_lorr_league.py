@@ -121,8 +121,8 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"
     for rule in (sortation, warehouse):  # the jam term and one-way corridors on the warehouse maps
         assert rule.choice.options["scheduler_options"] == {"jam": 4}
-    assert sortation.choice.options["executor_options"] == {"corridors": 8}
-    assert warehouse.choice.planner == "epibt"  # on the crowd's goal fields, not along guide paths
+    assert sortation.choice.options["executor_options"] == {"flow": False, "corridors": 8}
+    assert sortation.choice.planner == warehouse.choice.planner == "epibt"  # on goal fields, not along guide paths
     assert warehouse.choice.options["executor_options"] == {"flow": False, "corridors": 8, "congestion": 2}
     # the city on goal fields that price the crowd; EPIBT on them where the city is crowded (CITY-02, not CITY-01)
     assert tables.choice.options["executor_options"] == {"congestion": 2}

@@ -267,8 +267,8 @@ def test_unsupported_assignment_strategy_is_named(tmp_path):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.integers(0, 2**32 - 1))
-def test_greedy_kernel_is_the_sequential_greedy_on_random_grids(seed):
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 1, 3, 5]))
+def test_greedy_kernel_is_the_sequential_greedy_on_random_grids(seed, way):
     from mrmt_env.lorr.greedy import greedy_kernel
 
     rng = np.random.default_rng(seed)
@@ -288,11 +288,11 @@ def test_greedy_kernel_is_the_sequential_greedy_on_random_grids(seed):
     free = np.ones(n_tasks, dtype=bool)
     out = np.empty(len(robots), dtype=np.int64)
     assert greedy_kernel(grid.reshape(-1), w, robots, cell_start, order, length, ids, free, int(length.min()),
-                         1 << 40, out) == len(robots)
+                         1 << 40, way, out) == len(robots)
     left = set(range(n_tasks))
     for i, r in enumerate(robots.tolist()):
         d = _bfs(grid, r)
-        cands = [(d[first[k]] + length[k], ids[k], k) for k in left if d[first[k]] >= 0]
+        cands = [(way * d[first[k]] + length[k], ids[k], k) for k in left if d[first[k]] >= 0]
         want = min(cands)[2] if cands else -1
         assert out[i] == want
         left.discard(want)

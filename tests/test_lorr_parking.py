@@ -97,3 +97,18 @@ def test_the_command_line_refuses_a_bad_share_in_one_line():
                           "--scheduler", "lorr-greedy", "--scheduler-option", "busy=2", "--steps", "5"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "busy = 2" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_the_greedy_way_weight_one_is_the_start_kits_and_bad_weights_are_named():
+    """``way`` (lorr-greedy): 1 is the start kit's greedy to the step; another weight runs valid; bad ones named."""
+    inst = read_instance(example_instance_path())
+    plain, _, _ = run_lorr(inst, "lorr-greedy", "pibt", steps=60)
+    one, _, _ = run_lorr(inst, "lorr-greedy", "pibt", steps=60, options={"scheduler_options": {"way": 1}})
+    five, _, _ = run_lorr(inst, "lorr-greedy", "pibt", steps=60, options={"scheduler_options": {"way": 5, "busy": 0.5}})
+    assert one["tasks_finished"] == plain["tasks_finished"] and one["errands"] == plain["errands"]
+    assert five["schedule_errors"] == 0 and five["errors"] == 0
+    for way in (0, 65, 2.5, True):
+        with pytest.raises(ValueError, match=rf"way = {way!r} must be an integer in \[1, 64\]"):
+            make_scheduler("lorr-greedy", way=way)
+    with pytest.raises(ValueError, match="lorr-greedy takes no option 'jam'; its options: way, busy"):
+        make_scheduler("lorr-greedy", jam=4)

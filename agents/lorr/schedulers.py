@@ -172,9 +172,10 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         inner = make_scheduler(name, seed=seed, chip=chip, **options)
         return inner if busy == 1 else Parked(inner, busy)
     if name == "lorr-greedy":
-        if options:
-            raise ValueError(f"lorr-greedy takes no options, got {sorted(options)}")
-        return _Greedy()
+        if set(options) - {"way"}:
+            raise ValueError(f"lorr-greedy takes no option {sorted(set(options) - {'way'})[0]!r}; its options: way, "
+                             f"busy")
+        return _Greedy(**options)
     if name == "lorr-weighted":
         from agents.lorr.weighted import WeightedScheduler
 

@@ -2,7 +2,8 @@
 
 Each free robot (ascending index; the start kit walks a hash set) takes the free task of least
 makespan -- the shortest way to its first errand, then through every errand in order (BFS, no
-turning) -- ties to the lowest task id; a robot with no free task left waits for the next step.  Like the
+turning) -- ties to the lowest task id (option ``way``: the way weighs that many times the errand legs, as in the
+2024 winner's measure; 1, the start kit's, by default); a robot with no free task left waits for the next step.  Like the
 start kit, which stops assigning when its time is up, a step's search work is bounded
 (:data:`DEFAULT_WORK_BUDGET` cells, deterministic), or under a clock the time (half the step, as the start
 kit's); robots beyond it wait for the next step.
@@ -29,6 +30,8 @@ FAR = np.int64(1 << 40)
 #: stand-in for the start kit's time limit.  Only fleets of thousands on large maps reach it (then the rest is
 #: assigned in the next steps); it is about 2-2.5 s a step there (benchmarks/RESULTS.md, issue 56).
 DEFAULT_WORK_BUDGET = 1 << 24
+#: The largest weight of the way to a task's first errand (option ``way``; the 2024 winner's measure takes 5).
+MAX_WAY = 64
 #: Under a clock the greedy stops at half the time left less this (the start kit's scheduler tolerance).
 STOP_TOLERANCE_S = 0.01
 
@@ -59,11 +62,11 @@ def pair_distances(flat_grid, width, a, b, out) -> int:
 
 @numba.njit(cache=True, nogil=True)
 def greedy_kernel(flat_grid, width, robots, cell_start, cell_tasks, length, task_id, free, min_len, budget,
-                  out) -> int:
+                  way, out) -> int:
     """The greedy choice of every robot in ``robots`` (flat cells, in order): ``out[i]`` = the index
-    of the free task of least ``BFS(robot, first errand) + length``, ties to the lowest ``task_id``
+    of the free task of least ``way x BFS(robot, first errand) + length``, ties to the lowest ``task_id``
     (-1 if none is reachable); the task is then taken (``free[k] = False``).  Tasks sit at cells
-    through ``cell_tasks[cell_start[c]:cell_start[c + 1]]``.  Each robot's BFS stops once its depth
+    through ``cell_tasks[cell_start[c]:cell_start[c + 1]]``.  Each robot's BFS stops once ``way`` x its depth
     plus ``min_len`` exceeds the best cost found, so near tasks cost a small search.  Robots are
     taken in order until ``budget`` cells were visited (at least one); returns how many were."""
     n = flat_grid.shape[0]
@@ -90,12 +93,12 @@ def greedy_kernel(flat_grid, width, robots, cell_start, cell_tasks, length, task
             p = queue[head]
             head += 1
             d = dist[p]
-            if d + min_len > best_cost:
+            if way * d + min_len > best_cost:
                 break
             for j in range(cell_start[p], cell_start[p + 1]):
                 k = cell_tasks[j]
                 if free[k]:
-                    c = d + length[k]
+                    c = way * d + length[k]
                     if c < best_cost or (c == best_cost and task_id[k] < task_id[best]):
                         best_cost = c
                         best = k
@@ -121,10 +124,14 @@ class GreedyScheduler:
     name = "lorr-greedy"
     accelerated = False
 
-    def __init__(self, work_budget: int = DEFAULT_WORK_BUDGET) -> None:
+    def __init__(self, work_budget: int = DEFAULT_WORK_BUDGET, way: int = 1) -> None:
         if isinstance(work_budget, bool) or not isinstance(work_budget, int) or work_budget < 1:
             raise ValueError(f"work_budget must be an integer >= 1 (cells visited per step), got {work_budget!r}")
+        if isinstance(way, bool) or not isinstance(way, int) or not 1 <= way <= MAX_WAY:
+            raise ValueError(f"way = {way!r} must be an integer in [1, {MAX_WAY}] (the weight of the way to a task's "
+                             f"first errand against its errand legs; 1 = the start kit's)")
         self.work_budget = work_budget
+        self.way = way
         self._sim = None
 
     def reset(self, sim) -> None:
@@ -200,7 +207,7 @@ class GreedyScheduler:
         step = len(robots) if stop is None else 16
         while done < len(robots) and (stop is None or done == 0 or time.perf_counter() <= stop):
             n = greedy_kernel(self.flat, sim.width, cells[done:done + step], cell_start, order, length, ids, free,
-                              min_len, budget, out[done:done + step])
+                              min_len, budget, self.way, out[done:done + step])
             done += n
             if stop is None:
                 break

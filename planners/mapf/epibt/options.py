@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from planners.mapf.guides.flow import guide_work_option, replans_option
 from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.options import LaneOptions, congestion_options, park_option
+from planners.mapf.pibt.options import LaneOptions, active_option, congestion_options, park_option
 from planners.options import option
 
 __all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
@@ -57,3 +57,4 @@ class EPIBTOptions(LaneOptions):
     congestion: int = congestion_options()[0]
     refresh: int = congestion_options()[1]
     park: float = park_option()
+    active: float = active_option()

@@ -376,8 +376,7 @@ class EPIBT(TurningPIBT):
         deadline and grows by 1.1 (up to 1) after one that leaves a quarter of its time."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
-        if self.parking is not None:  # a robot without a goal heads for the nearest parking place
-            goals = self.parking.goals(pos, goals, self.cid, self.cell_of)
+        goals = self.steer(pos, goals)
         r = len(pos)
         if self.auto_op_len:
             self.auto_op_len = False

@@ -57,6 +57,12 @@ def park_option():
                   "(planners.mapf.guides.parking; 0 = it stays where it is)")
 
 
+def active_option():
+    """The ``active`` option (:mod:`planners.mapf.guides.focus`)."""
+    return option(1.0, float, 0.001, 1, meaning="the share of the team that heads for its goal each step, the robots "
+                  "of least way to it (planners.mapf.guides.focus; the others stay and are pushed aside; 1 = all)")
+
+
 @dataclass(frozen=True)
 class TurningOptions(LaneOptions):
     """:class:`TurningPIBT`'s options."""
@@ -65,3 +71,4 @@ class TurningOptions(LaneOptions):
     congestion: int = congestion_options()[0]
     refresh: int = congestion_options()[1]
     park: float = park_option()
+    active: float = active_option()

@@ -36,6 +36,7 @@ from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
 from planners.mapf.guides.congestion import Congestion
 from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
+from planners.mapf.guides.focus import active_count, active_goals
 from planners.mapf.guides.parking import ParkingPlaces
 from planners.mapf.pibt.options import (DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, DEFAULT_GUIDANCE, DEFAULT_REFRESH,
                                        LaneOptions, TurningOptions, commits_option, congestion_options)
@@ -336,6 +337,7 @@ class TurningPIBT:
         self.fields = TurnFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=field_cost)
         park = getattr(opts, "park", 0.0)
         self.parking = ParkingPlaces(self.nbr, park, seed) if park else None
+        self.active = getattr(opts, "active", 1.0)
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)
@@ -403,8 +405,7 @@ class TurningPIBT:
         ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
-        if self.parking is not None:  # a robot without a goal heads for the nearest parking place
-            goals = self.parking.goals(pos, goals, self.cid, self.cell_of)
+        goals = self.steer(pos, goals)
         r = len(pos)
         order = self.order(r)
         pc = self.cid[pos]
@@ -424,6 +425,24 @@ class TurningPIBT:
             self.commit = np.where(moved == nxt, -1, nxt)
         self._advance(moved, gc)
         return act
+
+    def steer(self, pos, goals) -> np.ndarray:
+        """The flat goals a step heads for: under ``active`` < 1 only the robots at work keep theirs, those of least
+        way to it by their goal fields (Manhattan distance without one; :mod:`planners.mapf.guides.focus`); with
+        ``park`` a robot without a goal heads for the nearest parking place."""
+        if self.active < 1:
+            pc, gc = self.cid[pos], self.cid[goals]
+            rows = self.fields.rows(gc, self.order(len(pos)))
+            a, b = self.cell_of[pc], self.cell_of[gc]
+            way = np.abs(a // self.width - b // self.width) + np.abs(a % self.width - b % self.width)
+            has = np.flatnonzero(rows >= 0)
+            if len(has):
+                f = self.fields
+                way[has] = f.fields[rows[has], pc[has] * f.per_cell].astype(np.int64)
+            goals = active_goals(pos, goals, way, active_count(self.active, len(pos)))
+        if self.parking is not None:
+            goals = self.parking.goals(pos, goals, self.cid, self.cell_of)
+        return goals
 
     def _advance(self, moved, gc) -> None:
         """Priorities after the robots reach compact cells ``moved`` (goals ``gc``); the next call's step."""

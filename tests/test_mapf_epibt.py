@@ -66,8 +66,9 @@ class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
     def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0, portfolio=1,
-                 anneal=0.0):
+                 anneal=0.0, steady=False):
         self.grid, self.seed, self.guidance, self.revisits, self.anneal = grid, seed, guidance, revisits, anneal
+        self.steady = steady
         self.lns, self.group, self.weight_power, self.portfolio = lns, group, weight_power, portfolio
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
@@ -103,7 +104,7 @@ class Oracle:
             if got is None:
                 continue
             cells, end = got
-            idle = sum(2 * (n - s) + (a == W) for s, a in enumerate(op) if a != F)
+            idle = sum(2 * (n - s) + ((a in (R, C)) if self.steady else (a == W)) for s, a in enumerate(op) if a != F)
             ranked.append(((self.to_go(dist, goal, cells[-1], end), idle, int(mix(s, self.t, k, i)) & 0xFFFF, i),
                            tuple(cells), op))
         ranked.sort()
@@ -266,15 +267,15 @@ class Oracle:
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
        op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]),
        weight_power=st.sampled_from([0, 1, 2]), portfolio=st.sampled_from([1, 1, 2, 3]), threads=st.sampled_from([1, 2]),
-       anneal=st.sampled_from([0.0, 0.0, 0.05, 0.5]))
+       anneal=st.sampled_from([0.0, 0.0, 0.05, 0.5]), steady=st.booleans())
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power,
-                                        portfolio, threads, anneal):
+                                        portfolio, threads, anneal, steady):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
-               weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal)
+               weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal, steady=steady)
     oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
-                    portfolio=portfolio, anneal=anneal)
+                    portfolio=portfolio, anneal=anneal, steady=steady)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)

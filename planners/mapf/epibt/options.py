@@ -51,6 +51,8 @@ class EPIBTOptions(LaneOptions):
     threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
                                  "on (null: one per plan, at most the cores this process may use); plans do not "
                                  "depend on it")
+    steady: bool = option(False, bool, meaning="of operations of equal cost-to-go, one that waits beats one that "
+                          "turns (a blocked robot keeps facing its way instead of turning to another as good)")
     anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "
                            "neighbourhood's cost (0 = descent)")
     guide_work: int | None = guide_work_option()

@@ -82,6 +82,15 @@ def operations(op_len: int = DEFAULT_OP_LEN) -> np.ndarray:
     return np.array(keep, dtype=np.int8)
 
 
+def op_idle(ops: np.ndarray, steady: bool = False) -> np.ndarray:
+    """Each operation's rank among those of equal cost-to-go (lower first): 2 x (actions left) for every action
+    that is not a forward move, so early moves come first, + 1 for a wait (a turn, under ``steady``)."""
+    length = ops.shape[1]
+    late = 2 * (length - np.arange(length))
+    tie = (ops == CLOCKWISE) | (ops == COUNTER) if steady else ops == WAIT
+    return ((ops != FORWARD) * late + tie).sum(axis=1).astype(np.int64)
+
+
 @numba.njit(cache=True, nogil=True)
 def _walk(nbr, p, o, op, cells) -> int:
     """Cells of ``op`` from compact ``p`` facing ``o`` into ``cells`` (start first); the final
@@ -239,10 +248,11 @@ def _choose(root, prio, state, tables, revisits) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
-def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
+def epibt_kernel(grid, robots, heuristic, order, stamp, ops, idle, state, res):
     """One joint plan of ``robots`` (a :class:`Fleet`) into ``state`` (a :class:`PlanState`), left reserved in
     ``res`` (``(op_len + 1, cells)``, all -1 on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of,
-    width, cost)``; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`."""
+    width, cost)``; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`; ``idle`` each operation's
+    tie rank among those of equal cost-to-go (:func:`op_idle`)."""
     nbr = grid[0]
     pos, orient, goals, rows = robots.pos, robots.orient, robots.goals, robots.rows
     inherited, weight = robots.inherited, robots.weight
@@ -251,11 +261,6 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, state, res):
     cur, src, inh, inh_cost = state.cur, state.src, state.inh, state.inh_cost
     r = pos.shape[0]
     n_ops, length = ops.shape
-    idle = np.zeros(n_ops, dtype=np.int64)
-    for i in range(n_ops):
-        for s in range(length):
-            if ops[i, s] != FORWARD:
-                idle[i] += 2 * (length - s) + (1 if ops[i, s] == WAIT else 0)
     scratch = (np.empty((n_ops, length + 1), dtype=np.int64), np.empty(n_ops, dtype=np.int64))
     for k in range(r):
         ncand[k] = _options(grid, heuristic, RobotAt(k, pos[k], orient[k], goals[k], rows[k]), ops, idle, (seed, t),
@@ -348,6 +353,7 @@ class EPIBT(TurningPIBT):
 
     def _set_ops(self, op_len) -> None:
         self.ops = operations(op_len)
+        self.idle = op_idle(self.ops, self.options.steady)
         self.inherited = np.zeros((0, self.ops.shape[1]), dtype=np.int8)
         self._res = np.full((self.ops.shape[1] + 1, len(self.cell_of)), -1, dtype=np.int64)
         self.plans = np.zeros((0, self.ops.shape[1]), dtype=np.int8)  # the last call's operations
@@ -429,7 +435,7 @@ class EPIBT(TurningPIBT):
 
         def run(k):
             stamp = SearchStamp(portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group, self.anneal)
-            epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, states[k], tables[k])
+            epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, self.idle, states[k], tables[k])
 
         k_plans = self._waves(run, k_plans)
         states = states[:k_plans]

@@ -114,8 +114,9 @@ def test_the_default_entry_chooses_by_team_and_map():
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
     assert big.options["executor_options"] == {"congestion": 2}  # GAME: goal fields that price the crowd
-    assert big.options["scheduler_options"] == {"busy": 0.6}  # and at most 60 % of the team holding tasks
-    sortation, warehouse, crowded, tables = entry.rules[1], entry.rules[2], entry.rules[3], entry.rules[4]
+    assert big.options["guidance"] == 8  # along lanes of weight 8
+    assert big.options["scheduler_options"] == {"busy": 0.6, "way": 5}  # 60 % of the team at most, the way x 5
+    sortation, warehouse, tables = entry.rules[1], entry.rules[2], entry.rules[3]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
     assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"
@@ -124,11 +125,10 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert sortation.choice.options["executor_options"] == {"flow": False, "corridors": 8}
     assert sortation.choice.planner == warehouse.choice.planner == "epibt"  # on goal fields, not along guide paths
     assert warehouse.choice.options["executor_options"] == {"flow": False, "corridors": 8, "congestion": 2}
-    # the city on goal fields that price the crowd; EPIBT on them where the city is crowded (CITY-02, not CITY-01)
-    assert tables.choice.options["executor_options"] == {"congestion": 2}
-    assert (crowded.choice.scheduler, crowded.choice.planner) == ("lorr-weighted", "epibt")
-    assert crowded.choice.options["executor_options"] == {"flow": False, "congestion": 2}
-    assert crowded.holds(3000, 0.06, "Paris_1_256.map", 256 ** 2) and not crowded.holds(1500, 0.03, "Paris_1_256.map", 256 ** 2)
+    # the city (CITY-01 and CITY-02): EPIBT on goal fields that price the crowd
+    assert (tables.choice.scheduler, tables.choice.planner) == ("lorr-weighted", "epibt")
+    assert tables.choice.options["executor_options"] == {"flow": False, "congestion": 2}
+    assert tables.holds(3000, 0.06, "Paris_1_256.map", 256 ** 2)
     # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930
     assert tables.holds(10000, 0.26, "warehouse_large.map", 140 * 500)
     assert tables.holds(1500, 0.03, "Paris_1_256.map", 256 ** 2)

@@ -3,8 +3,6 @@ oracle written from the statement), ``active=1`` plans as without the option, an
 
 from __future__ import annotations
 
-from collections import deque
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -12,7 +10,7 @@ from hypothesis import strategies as st
 
 from planners.mapf import EPIBT, TurningPIBT
 from planners.mapf.guides.focus import active_count, active_goals
-from test_mapf_turning import apply, random_instance
+from test_mapf_turning import apply, bfs, random_instance
 
 
 def oracle(pos, goals, way, count):
@@ -30,21 +28,6 @@ def test_the_goals_kept_equal_the_oracle(seed, n, count):
     goals = np.where(rng.random(n) < 0.3, pos, rng.integers(0, 100, size=n)).astype(np.int64)
     way = rng.integers(0, 5, size=n).astype(np.int64)  # many ties: the lower index first
     assert active_goals(pos, goals, way, count).tolist() == oracle(pos, goals, way, count)
-
-
-def bfs(grid, goal):
-    h, w = grid.shape
-    dist = {goal: 0}
-    queue = deque([goal])
-    while queue:
-        u = queue.popleft()
-        r, c = divmod(u, w)
-        for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0)):
-            rr, cc = r + dr, c + dc
-            if 0 <= rr < h and 0 <= cc < w and not grid[rr, cc] and rr * w + cc not in dist:
-                dist[rr * w + cc] = dist[u] + 1
-                queue.append(rr * w + cc)
-    return dist
 
 
 @pytest.mark.parametrize("cls, options", [(TurningPIBT, {"guidance": 0}), (EPIBT, {"flow": False})])

@@ -172,9 +172,9 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         inner = make_scheduler(name, seed=seed, chip=chip, **options)
         return inner if busy == 1 else Parked(inner, busy)
     if name == "lorr-greedy":
-        if set(options) - {"way"}:
-            raise ValueError(f"lorr-greedy takes no option {sorted(set(options) - {'way'})[0]!r}; its options: way, "
-                             f"busy")
+        unknown = sorted(set(options) - {"way"})
+        if unknown:
+            raise ValueError(f"lorr-greedy takes no option {unknown[0]!r}; its options: way, busy")
         return _Greedy(**options)
     if name == "lorr-weighted":
         from agents.lorr.weighted import WeightedScheduler

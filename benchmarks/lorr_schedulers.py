@@ -1,10 +1,13 @@
-"""Schedulers at scale: the winner's measure (``lorr-weighted``) against the start kit's greedy, same planner.
+"""Schedulers at scale: the winner's measure (``lorr-weighted``) and the chip's group decisions on it (``lorr-ising``,
+its host-rule twin beside it) against the start kit's greedy, same planner.
 
 On the 2024 main round's large instances (CITY-01 1,500 robots, CITY-02 3,000, SORTATION and WAREHOUSE 10,000),
 the first ``--steps`` steps under the rules' 1 s clock, each run in its own process: ``lorr-greedy`` (the start
 kit's default scheduler), ``lorr-weighted`` with the way weighed by 1 (the package's default) and by 5 (the 2024
-winner's), every one with the default entry's planner for the map (PIBT with turning; lanes off on SORTATION).
-Tasks, the ratio to greedy, timeouts, step p99 and peak memory.  Run nothing else beside it.
+winner's) and with the jam term, ``lorr-ising`` on the jam term and its host-rule twin (``--host-rule
+task_groups``), every one with PIBT with turning (lanes off on SORTATION as in the default entry).  Tasks, the ratio
+to greedy, timeouts, step p99, chip calls per step, energy per task (host and machine apart) and peak memory.  Run
+nothing else beside it.
 
     flock /tmp/mrmt-bench.lock python benchmarks/lorr_schedulers.py --steps 1000 --write
 """
@@ -24,17 +27,20 @@ SECTION = "## League of Robot Runners 2024: schedulers at scale, the winner's me
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
              "WAREHOUSE": "warehouse.domain"}
-#: (label, scheduler, scheduler options)
-SCHEDULERS = (("lorr-greedy", "lorr-greedy", []), ("lorr-weighted (weight 1)", "lorr-weighted", ["weight=1"]),
-              ("lorr-weighted (weight 5)", "lorr-weighted", ["weight=5"]))
+#: (label, scheduler, scheduler options, other arguments)
+SCHEDULERS = (("lorr-greedy", "lorr-greedy", [], []), ("lorr-weighted (weight 1)", "lorr-weighted", ["weight=1"], []),
+              ("lorr-weighted (weight 5)", "lorr-weighted", ["weight=5"], []),
+              ("lorr-weighted (jam 4)", "lorr-weighted", ["jam=4"], []),
+              ("lorr-ising (jam 4)", "lorr-ising", ["jam=4"], []),
+              ("lorr-ising (jam 4), host rule", "lorr-ising", ["jam=4"], ["--host-rule", "task_groups"]))
 
 
-def run(name: str, scheduler: str, options: list[str], steps: int) -> dict:
+def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int) -> dict:
     path = ROOT / INSTANCES[name] / f"{name}.json"
     guidance = ["--guidance", "0"] if name == "SORTATION" else []
     cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler, "--planner", "pibt",
            *guidance, *[a for o in options for a in ("--scheduler-option", o)], "--steps", str(steps),
-           "--step-limit", "rules", "--json", "--no-progress"]
+           "--step-limit", "rules", "--json", "--no-progress", *extra]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
@@ -43,7 +49,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--instances", default=",".join(INSTANCES))
-    parser.add_argument("--rows", default=",".join(label for label, _, _ in SCHEDULERS),
+    parser.add_argument("--rows", default=",".join(label for label, *_ in SCHEDULERS),
                         help="which of the scheduler rows to run (labels, comma-separated)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
@@ -54,8 +60,8 @@ def main(argv=None) -> None:
     rows = []
     for name in names:
         base = None
-        for label, scheduler, options in [row for row in SCHEDULERS if row[0] in args.rows.split(",")]:
-            r = run(name, scheduler, options, args.steps)
+        for label, scheduler, options, extra in [row for row in SCHEDULERS if row[0] in args.rows.split(",")]:
+            r = run(name, scheduler, options, extra, args.steps)
             base = r["tasks_finished"] if base is None else base
             rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))
             print(f"{name} {label}: {r['tasks_finished']} tasks, {r['timeouts']} timeouts", file=sys.stderr)
@@ -64,11 +70,14 @@ def main(argv=None) -> None:
              f"its own process, "
              f"the first {args.steps} steps under the rules' 1 s clock; planner: PIBT with turning, lanes off on "
              "SORTATION as in the default entry).", "",
-             "| instance | scheduler | tasks | x greedy | timeouts | step p50 s | step p99 s | peak MiB |",
-             "|---|---|---:|---:|---:|---:|---:|---:|"]
+             "| instance | scheduler | tasks | x greedy | timeouts | step p50 s | step p99 s | chip calls / step "
+             "| host J / task | machine mJ / task | peak MiB |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, label, r, ratio in rows:
         lines.append(f"| {name} | {label} | {r['tasks_finished']:,} | {ratio:.2f} | {r['timeouts']} | "
-                     f"{r['step_p50_s']:.3f} | {r['step_p99_s']:.3f} | {r['peak_rss_mb']:,.0f} |")
+                     f"{r['step_p50_s']:.3f} | {r['step_p99_s']:.3f} | {r['chip_calls'] / r['decisions']:,.0f} | "
+                     f"{r['host_energy_per_task_j']:.2f} | {1e3 * r['machine_energy_per_task_j']:.3f} | "
+                     f"{r['peak_rss_mb']:,.0f} |")
     finish(SECTION, lines, args.write)
 
 

@@ -2,6 +2,8 @@
 
 * ``lorr-greedy``: the start kit's default (:class:`mrmt_env.lorr.greedy.GreedyScheduler`).
 * ``lorr-weighted``: the 2024 winner's measure at scale (:class:`agents.lorr.weighted.WeightedScheduler`).
+* ``lorr-ising``: the same, the chip deciding who takes which task in contested groups
+  (:class:`agents.lorr.task_groups.IsingWeightedScheduler`).
 * a pipeline spec (``strong``, ``ising``, ``fast``, ``ising-paper`` or ``sharing+tour``): the
   package's sharing and tour layers decide, through the lifelong assigner
   (:class:`agents.lifelong.controllers.PipelineAssigner`: idle robots in Z-order groups, each call a
@@ -40,7 +42,7 @@ __all__ = ["AssignerScheduler", "AssignerOptions", "make_scheduler", "SCHEDULERS
 #: Free tasks each free robot shortlists for a pipeline or learned decision (least makespan first).
 DEFAULT_SHORTLIST = 6
 #: Scheduler names besides pipeline specs and ``ppo:PATH``.
-SCHEDULERS = ("lorr-greedy", "lorr-weighted", "strong", "ising", "fast", "ising-paper")
+SCHEDULERS = ("lorr-greedy", "lorr-weighted", "lorr-ising", "strong", "ising", "fast", "ising-paper")
 
 
 @dataclass(frozen=True)
@@ -180,6 +182,11 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
         from agents.lorr.weighted import WeightedScheduler
 
         return WeightedScheduler(**options)
+    if name == "lorr-ising":
+        from agents.lorr.task_groups import IsingWeightedScheduler
+        from ising_backend import build_machine
+
+        return IsingWeightedScheduler(seed=seed, machine=None if chip is None else build_machine(chip, seed), **options)
     from agents.lifelong.controllers import PIPELINE_LAYERS, PipelineAssigner, _learned
     from planners.registry import UnknownPlannerError
 

@@ -31,7 +31,7 @@ from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
-__all__ = ["WeightedScheduler", "weighted_matching", "Crowd", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
+__all__ = ["WeightedScheduler", "weighted_matching", "Crowd", "Matched", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
 #: Weight of the way to the first errand against the task's legs (the 2024 winner's is 5; 1 measured better here).
 DEFAULT_WEIGHT = 1
@@ -136,6 +136,22 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     return made
 
 
+class Matched(NamedTuple):
+    """One step's matching (:meth:`WeightedScheduler.match`): free ``robots``; the ready free tasks as slots
+    ``ids`` (ordered by first-errand cell, legs, id), cell ``c``'s slots ``cell_start[c]:cell_start[c + 1]``,
+    ``length`` their legs; ``way[i, c]`` robot ``i``'s moves to cell ``c``; ``crowd`` its jam term after the
+    matching; ``out[i]`` the slot robot ``i`` took (-1 none)."""
+
+    robots: np.ndarray
+    ids: np.ndarray
+    way: np.ndarray
+    cell_start: np.ndarray
+    length: np.ndarray
+    weight: int
+    crowd: Crowd
+    out: np.ndarray
+
+
 @dataclass(frozen=True)
 class WeightedOptions(Options):
     """:class:`WeightedScheduler`'s options (``--scheduler-option``)."""
@@ -157,7 +173,7 @@ class WeightedScheduler:
     Options = WeightedOptions
 
     def __init__(self, **options) -> None:
-        self.options = opts = WeightedOptions.from_dict(options, self.name)
+        self.options = opts = self.Options.from_dict(options, self.name)
         self.weight, self.reassign, self.memory_mb = opts.weight, opts.reassign, opts.memory_mb
         self.jam, self.block = opts.jam, opts.block
         self.last_compute = ComputeReport()
@@ -222,6 +238,15 @@ class WeightedScheduler:
 
     def schedule(self, sim, deadline: float | None = None) -> np.ndarray:
         """This step's proposal (module docstring); under ``deadline`` the tables are built until half the time left."""
+        proposal, m = self.match(sim, deadline)
+        if m is not None:
+            got = m.out >= 0
+            proposal[m.robots[got]] = m.ids[m.out[got]]
+        return proposal
+
+    def match(self, sim, deadline: float | None = None):
+        """``(proposal, matched)``: the robots holding opened tasks (the rest -1) and this step's
+        :class:`Matched` (``None`` when no free robot or no ready free task is left)."""
         now = time.perf_counter()
         stop = None if deadline is None else now + (deadline - now) / 2 - STOP_TOLERANCE_S
         if self._sim is not sim:
@@ -232,11 +257,12 @@ class WeightedScheduler:
             for a in np.flatnonzero(proposal >= 0).tolist():
                 if not tasks.is_opened(int(proposal[a])):
                     proposal[a] = -1
+        self.keep(sim, proposal)
         robots = np.flatnonzero(proposal < 0)
         held = set(proposal[proposal >= 0].tolist())
         ids = [k for k in tasks.open if k not in held]
         if len(robots) == 0 or not ids:
-            return proposal
+            return proposal, None
         self._needed = {c for k in ids for c in self._errands(tasks, k)[:-1]}
         first = np.array([self._errands(tasks, k)[0] for k in ids], dtype=np.int64)
         legs = self.legs(tasks, ids, stop)
@@ -244,17 +270,19 @@ class WeightedScheduler:
         ok &= self._ready(first.tolist(), stop)
         ids, first, legs = np.array(ids, dtype=np.int64)[ok], first[ok], legs[ok]
         if len(ids) == 0:
-            return proposal
+            return proposal, None
         order = np.lexsort((ids, legs, first))
         cells, start = np.unique(first[order], return_index=True)
         cell_start = np.append(start, len(order)).astype(np.int64)
         rows = self.fields.rows(cells)
         way = np.ascontiguousarray(self.fields.fields[np.ix_(rows, sim.pos[robots])].T)  # robot by cell, row-wise
         out = np.empty(len(robots), dtype=np.int64)
-        weighted_matching(way, cell_start, legs[order], self.weight, out, self.crowd(sim, proposal, cells))
-        got = out >= 0
-        proposal[robots[got]] = ids[order][out[got]]
-        return proposal
+        crowd = self.crowd(sim, proposal, cells)
+        weighted_matching(way, cell_start, legs[order], self.weight, out, crowd)
+        return proposal, Matched(robots, ids[order], way, cell_start, legs[order], self.weight, crowd, out)
+
+    def keep(self, sim, proposal) -> None:
+        """In place: tasks kept out of this step's matching (none here)."""
 
     def crowd(self, sim, proposal, cells) -> Crowd:
         """The jam term for candidate ``cells``: per block, the robots standing in it and those of ``proposal``

@@ -23,7 +23,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish  # noqa: E402
 
-SECTION = "## League of Robot Runners 2024: schedulers at scale, the winner's measure against greedy (issue 56)"
+SECTION = "## League of Robot Runners 2024: the chip at ten thousand robots, lorr-ising against its host-rule twin (issue 56)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
              "WAREHOUSE": "warehouse.domain"}
@@ -32,7 +32,7 @@ SCHEDULERS = (("lorr-greedy", "lorr-greedy", [], []), ("lorr-weighted (weight 1)
               ("lorr-weighted (weight 5)", "lorr-weighted", ["weight=5"], []),
               ("lorr-weighted (jam 4)", "lorr-weighted", ["jam=4"], []),
               ("lorr-ising (jam 4)", "lorr-ising", ["jam=4"], []),
-              ("lorr-ising (jam 4), host rule", "lorr-ising", ["jam=4"], ["--host-rule", "task_groups"]))
+              ("lorr-ising (jam 4) host rule", "lorr-ising", ["jam=4"], ["--host-rule", "task_groups"]))
 
 
 def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int) -> dict:

@@ -115,7 +115,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
 
 @pytest.mark.parametrize("args, needle", [
     (["run", "no/such.json"], "no/such.json: no such instance file"),
-    (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'; known: lorr-greedy, lorr-weighted, strong, "
+    (["run", str(EXAMPLE), "--scheduler", "telepathy"], "unknown scheduler 'telepathy'; known: lorr-greedy, lorr-weighted, lorr-ising, strong, "
                                                        "ising, fast, ising-paper, a sharing+tour pair or ppo:MODEL.zip"),
     (["run", str(EXAMPLE), "--scheduler", "ssa+telepathy"], "a sharing+tour pair or ppo:MODEL.zip (unknown tour "
                                                            "planner 'telepathy'"),

@@ -266,3 +266,18 @@ def test_cli_runs_lorr_ising_and_its_twin(tmp_path, capsys):
                          "--json", *extra])
         assert code in (0, None)
     assert capsys.readouterr().out.count('"scheduler": "lorr-ising"') == 2
+
+
+def test_audit_records_every_program_with_the_matching_as_its_host_rule(tmp_path):
+    """An open audit changes no proposal, records one program per group posed (class ``task_groups``) and its
+    host rule, the matching kept, as every spin down."""
+    from ising_backend.audit.record import Audit, read_records
+
+    plain = _steps(make_scheduler("lorr-ising", jam=2), steps=20)[0]
+    chip = make_scheduler("lorr-ising", jam=2)
+    with Audit(tmp_path):
+        audited = _steps(chip, steps=20)[0]
+    assert all((a == b).all() for a, b in zip(plain, audited))
+    rows = read_records(tmp_path)
+    assert len(rows) == chip.stats["decisions"] > 0 and {r["class"] for r in rows} == {"task_groups"}
+    assert all(r["host_rule"] == "greedy matching" for r in rows)

@@ -78,9 +78,11 @@ class SharedEnvironment2026(SharedEnvironment):
     """The 2026 kit's (v3.1) fields as far as a one-step planner sees them: no ``plan_start_time`` nor
     ``plan_current_time`` in its binding, and ``curr_timestep`` 0 (the planning snapshot's own start)."""
 
-    def __init__(self, inst) -> None:
+    def __init__(self, inst, window_ticks: int | None = None) -> None:
         super().__init__(inst)
         del self.plan_start_time
+        if window_ticks is not None:  # the kit's rhythm: a call every window_ticks ticks of 100 ms, an action a tick
+            self.min_planner_communication_time, self.action_time, self.max_counter = 100 * window_ticks, 100, 1
 
     plan_current_time = property(lambda self: _absent("plan_current_time"))
 
@@ -94,13 +96,13 @@ def _absent(name):
 
 
 def run_standin(inst, steps: int, scheduler_cls, planner_cls, time_limit_ms: int = 3_600_000, kit: int = 2024,
-                **role) -> LoRRSimulator:
+                window_ticks: int | None = None, **role) -> LoRRSimulator:
     """``steps`` steps of ``inst`` as the kit runs a Python entry: roles built with the env (2026: built bare, the
     env set before ``initialize``), initialized, then per step the scheduler's and the planner's ``plan`` (every
     answer checked to be a list of plain ints; 2026: a one-action window per robot, executed one action a tick)."""
     sim = LoRRSimulator(inst)
     if kit == 2026:
-        env = SharedEnvironment2026(inst)
+        env = SharedEnvironment2026(inst, window_ticks)
         scheduler, planner = scheduler_cls(**role), planner_cls(**role)
         scheduler.env = planner.env = env
     else:
@@ -115,9 +117,16 @@ def run_standin(inst, steps: int, scheduler_cls, planner_cls, time_limit_ms: int
         assert isinstance(proposal, list) and all(type(k) is int for k in proposal)
         env.update_goal_locations(proposal)
         actions = planner.plan(time_limit_ms)
-        if kit == 2026:
-            assert isinstance(actions, list) and all(type(w) is list and len(w) == 1 for w in actions)
-            actions = [w[0] for w in actions]
+        if kit == 2026:  # a window per robot, one action a tick until the next call, the proposal applied at the first
+            assert isinstance(actions, list) and all(type(w) is list and len(w) >= (window_ticks or 1)
+                                                     for w in actions)
+            for j in range(window_ticks or 1):
+                if sim.t == steps:
+                    break
+                tick = [w[j] for w in actions]
+                assert all(type(a) is int and 0 <= a <= 3 for a in tick)
+                sim.step(tick, proposal if j == 0 else [int(k) for k in sim.tasks.assigned.tolist()])
+            continue
         assert isinstance(actions, list) and all(type(a) is int and 0 <= a <= 3 for a in actions)
         sim.step(actions, proposal)
     return sim

@@ -156,3 +156,31 @@ def test_the_startkit_command_names_the_2026_files(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["lorr", "startkit", "--kit", "2025"])
     assert exit_.value.code == 2
+
+
+@pytest.mark.parametrize("scheduler, planner", [("lorr-greedy", "pibt"), ("lorr-weighted", "epibt")])
+def test_the_2026_window_covers_the_ticks_to_the_next_call_and_its_moves_are_valid(tmp_path, scheduler, planner):
+    """Where the kit calls every 5 ticks the planner returns 6 actions a robot (the kit's executor's window), rolled
+    out on the rules' moves: executed a tick at a time until the next call they collide nowhere, and robots finish
+    errands inside a window."""
+    inst = read_instance(example_instance_path())
+    entry = _entry(tmp_path, scheduler, planner)
+    sim = run_standin(inst, 60, KitScheduler, KitPlanner2026, kit=2026, window_ticks=5, entry=str(entry), seed=1)
+    assert sim.t == 60 and len(sim.errors) == 0 and len(sim.tasks.schedule_errors) == 0
+    ticks = [t for t, *_ in sim.tasks.events]
+    assert sim.finished > 0 and any(t % 5 not in (0, 1) for t in ticks)
+
+
+def test_the_2026_window_is_read_from_the_kit_or_set(monkeypatch):
+    planner = KitPlanner2026()
+    planner.env = SharedEnvironment2026(read_instance(example_instance_path()))
+    assert planner.window() == 1  # the kit shows no rhythm: one action
+    planner.env = SharedEnvironment2026(read_instance(example_instance_path()), window_ticks=10)
+    assert planner.window() == 11  # the ticks to the next call and one more, as the kit's executor stages
+    planner.env.max_counter = 3  # an action takes 3 ticks
+    assert planner.window() == 1000 // 300 + 1
+    monkeypatch.setenv("MRMT_LORR_WINDOW", "7")
+    assert planner.window() == 7
+    monkeypatch.setenv("MRMT_LORR_WINDOW", "0")
+    with pytest.raises(ValueError, match="MRMT_LORR_WINDOW = '0' must be an integer in 1..100"):
+        planner.window()

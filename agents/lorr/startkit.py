@@ -29,6 +29,8 @@ TRACK_DIR = Path(__file__).resolve().parent / "startkit_track"
 #: The 2026 kit's (v3.1) modules: it imports ``python/user_planner/pyMAPFPlanner.py`` and
 #: ``python/user_scheduler/pyTaskScheduler.py`` from its own folder, which these replace.
 TRACK_DIR_2026 = Path(__file__).resolve().parent / "startkit_track_2026"
+#: Most actions a robot in one 2026 window.
+MAX_WINDOW = 100
 
 
 class KitInstance:
@@ -75,8 +77,9 @@ class KitTasks:
         self.next_idx: dict[int, int] = {}
         self._cell: dict[int, int] = {}  # task id -> its next errand (a Python int: the loop below reads many)
 
-    def refresh(self, pos: np.ndarray) -> "KitTasks":
-        """This step's pool and schedule from the kit, the robots standing at ``pos``."""
+    def refresh(self, pos: np.ndarray, every: bool = False) -> "KitTasks":
+        """This step's pool and schedule from the kit, the robots standing at ``pos``; ``every``: each held task's
+        errands done read again, not only where its holder stands (robots moved several ticks since the last read)."""
         env, inst = self.env, self.inst
         pool = env.task_pool
         now = set(pool.keys())
@@ -97,7 +100,7 @@ class KitTasks:
         for a, (k, p) in enumerate(zip(schedule, pos.tolist())):
             if k < 0:
                 continue
-            if p == cell[k]:  # it arrived: the kit may have moved the task on
+            if every or p == cell[k]:  # it arrived: the kit may have moved the task on
                 i = next_idx[k] = int(pool[k].idx_next_loc)
                 cell[k] = int(inst.errands[k][i])
             goal[a] = cell[k]
@@ -142,6 +145,7 @@ class KitState:
         self.t = None
         self.tasks = None
         self.fresh = False  # read by the scheduler of this step, not yet used by the planner
+        self.windows = False  # the planner returns several actions a call: read every held task's progress
         self._kit_t = None
         self._reads = 0
 
@@ -162,7 +166,7 @@ class KitState:
             self._reads += 1
             self.tasks = None
         if tasks and self.tasks is None:
-            self.tasks = self._tasks.refresh(self.pos)
+            self.tasks = self._tasks.refresh(self.pos, every=self.windows)
         self.fresh = again
         return self
 
@@ -250,10 +254,59 @@ class KitPlanner(_Role):
 
 
 class KitPlanner2026(KitPlanner):
-    """The 2026 start kit's (v3.1) ``pyMAPFPlanner``, as far as a one-step planner goes there: built without
-    arguments (the kit sets ``env`` before ``initialize``), it plans each robot's next action from the kit's
-    planning snapshot (``curr_states``: the states the kit's executor predicts after its staged actions) and
-    returns it as a window of one action per robot (``plan.actions[i]``); the kit's executor stages and times it."""
+    """The 2026 start kit's (v3.1) ``pyMAPFPlanner``: built without arguments (the kit sets ``env`` before
+    ``initialize``), it plans from the kit's planning snapshot (``curr_states``: the states the kit's executor
+    predicts after its staged actions) a window of actions per robot (``plan.actions[i]``) that the kit's executor
+    stages and times.  The window is the kit's executor's, ``min_planner_communication_time // (action_time x
+    max_counter) + 1`` actions (the ticks to the kit's next call and one more; 1 where the kit shows none of these
+    fields; ``MRMT_LORR_WINDOW`` sets it): the one-step planner rolled out that many steps on the rules' moves, each
+    robot's goal moving on to its task's next errand where it arrives, the call's time shared evenly among the
+    steps.  The kit's executor drops the waits and keeps each cell's order of visits."""
+
+    def window(self) -> int:
+        """Actions a robot per call (class docstring); ``ValueError`` naming a bad ``MRMT_LORR_WINDOW``."""
+        given = os.environ.get("MRMT_LORR_WINDOW")
+        if given is not None:
+            if not given.isdigit() or not 1 <= int(given) <= MAX_WINDOW:
+                raise ValueError(f"MRMT_LORR_WINDOW = {given!r} must be an integer in 1..{MAX_WINDOW}")
+            return int(given)
+        env = self.env
+        try:
+            comm, tick, counter = (int(getattr(env, f)) for f in ("min_planner_communication_time", "action_time",
+                                                                   "max_counter"))
+        except AttributeError:
+            return 1
+        if comm <= 0 or tick <= 0:
+            return 1
+        return min(MAX_WINDOW, comm // (tick * max(counter, 1)) + 1)
+
+    def initialize(self, preprocess_time_limit: int) -> bool:
+        done = super().initialize(preprocess_time_limit)
+        self.state.windows = self.window() > 1
+        return done
 
     def plan(self, time_limit: int) -> list[list[int]]:
-        return [[a] for a in super().plan(time_limit)]
+        from mrmt_env.lorr.rules import next_states
+
+        deadline = deadline_of(self.env, time_limit)
+        k = self.window()
+        self.state.windows = k > 1
+        state = self.state.refresh()
+        schedule = list(self.env.curr_task_schedule)
+        pos, orient = state.pos.copy(), state.orient.copy()
+        goals = state.tasks.goals(schedule, pos)
+        todo = [state.tasks.remaining(k).tolist() if k >= 0 else [] for k in schedule]  # errands left, next first
+        free = np.array([not q for q in todo], dtype=bool)  # no task: its goal is where it stands
+        out = np.empty((len(pos), k), dtype=np.int64)
+        t0 = time.perf_counter()
+        for j in range(k):
+            actions = np.asarray(self.planner.actions(pos, orient, goals, deadline=t0 + (deadline - t0) * (j + 1) / k))
+            out[:, j] = actions
+            pos, orient = next_states(pos, orient, actions, state.width)
+            for i in np.flatnonzero(pos == goals).tolist():  # arrived: on to the task's next errand, if any
+                if todo[i] and todo[i][0] == pos[i]:
+                    todo[i].pop(0)
+                    free[i] = not todo[i]
+                    goals[i] = todo[i][0] if todo[i] else pos[i]
+            goals[free] = pos[free]
+        return out.tolist()

@@ -28,7 +28,7 @@ from agents.lorr.weighted import Matched, WeightedOptions, WeightedScheduler
 from ising_backend import CallLedger, integer_program
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
+from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.options import option
 
@@ -214,18 +214,13 @@ def decode_tasks(m, cell_of, members, a, b, ostart, opt, spins, choice) -> int:
     """The chip's answer to group ``members[a:b]`` (spins as :func:`task_qubo`): its cheapest read that gives no
     slot twice, into ``choice``; a robot with no spin up, or more than one, keeps its task now in that read.
     Returns its cost (-1 when every read gives a slot twice)."""
-    size = b - a
-    starts = ostart[a:b + 1] - ostart[a]
-    ref = np.zeros(size, dtype=np.int64)
-    cur = np.empty(size, dtype=np.int64)
+    reads = read_choices(spins, ostart[a:b + 1] - ostart[a])
     best = -1
-    for rd in range(spins.shape[0]):
-        for i in range(size):
-            cur[i] = max(0, read_option(spins[rd], starts, ref, i))
-        e = group_cost(m, cell_of, members, a, b, ostart, opt, cur)
+    for rd in range(reads.shape[0]):
+        e = group_cost(m, cell_of, members, a, b, ostart, opt, reads[rd])
         if e >= 0 and (best < 0 or e < best):
             best = e
-            choice[:size] = cur
+            choice[:b - a] = reads[rd]
     return best
 
 

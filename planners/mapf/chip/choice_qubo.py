@@ -8,14 +8,16 @@ adds to both spins' fields, and the largest field sets the scale (measured on ``
 docs/design/lifelong_turning.md).  :func:`reduce_to_reference` substitutes each robot's *reference* option
 (the host rule's answer, or the plan now) by ``1 - sum of its other options``: the reference takes no spin,
 the objective changes by a constant on every one-hot assignment, and ``amo`` on each pair of one robot's
-spins keeps at most one up.  :func:`read_option` decodes a robot in a read of the reduced program.
+spins keeps at most one up.  :func:`read_option` decodes a robot in a read of the reduced program,
+:func:`read_choices` every robot in every read with the reference option 0.
 """
 
 from __future__ import annotations
 
 import numba
+import numpy as np
 
-__all__ = ["reduce_to_reference", "reduced_index", "read_option"]
+__all__ = ["reduce_to_reference", "reduced_index", "read_option", "read_choices"]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -109,3 +111,16 @@ def read_option(read, starts, ref, t) -> int:
             cnt += 1
             pick = x - starts[t]
     return -1 if cnt > 1 else pick
+
+
+@numba.njit(cache=True, nogil=True)
+def read_choices(spins, starts):
+    """``(reads, robots)`` local options of the reads ``spins`` of a program whose every robot's reference is its
+    option 0 (robot ``t``'s options ``starts[t]:starts[t + 1]``): a robot with no spin up, or more than one, on 0."""
+    size = starts.shape[0] - 1
+    ref = np.zeros(size, dtype=np.int64)
+    out = np.empty((spins.shape[0], size), dtype=np.int64)
+    for rd in range(spins.shape[0]):
+        for t in range(size):
+            out[rd, t] = max(0, read_option(spins[rd], starts, ref, t))
+    return out

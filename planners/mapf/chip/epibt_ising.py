@@ -31,7 +31,7 @@ import numpy as np
 from ising_backend import CallLedger, integer_program
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.chip.choice_qubo import read_option, reduce_to_reference
+from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, EPIBTOptions
 from planners.mapf.epibt.search import blockers, conflict, reserve
@@ -195,18 +195,13 @@ def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
     """The chip's answer (spins as :func:`group_qubo`): the cheapest collision-free read, into ``choice``; a robot
     with no spin up, or more than one, keeps its operation now (option 0) in that read.  Its cost (-1 when no
     read is collision-free)."""
-    size = b - a
-    starts = ostart[a:b + 1] - ostart[a]
-    ref = np.zeros(size, dtype=np.int64)
-    cur = np.empty(size, dtype=np.int64)
+    reads = read_choices(spins, ostart[a:b + 1] - ostart[a])
     best = -1
-    for rd in range(spins.shape[0]):
-        for i in range(size):
-            cur[i] = max(0, read_option(spins[rd], starts, ref, i))
-        e = _feasible_cost(state, members, a, b, ostart, opt, cur)
+    for rd in range(reads.shape[0]):
+        e = _feasible_cost(state, members, a, b, ostart, opt, reads[rd])
         if e >= 0 and (best < 0 or e < best):
             best = e
-            choice[:size] = cur
+            choice[:b - a] = reads[rd]
     return best
 
 

@@ -32,7 +32,9 @@ SCHEDULERS = (("lorr-greedy", "lorr-greedy", [], []), ("lorr-weighted (weight 1)
               ("lorr-weighted (weight 5)", "lorr-weighted", ["weight=5"], []),
               ("lorr-weighted (jam 4)", "lorr-weighted", ["jam=4"], []),
               ("lorr-ising (jam 4)", "lorr-ising", ["jam=4"], []),
-              ("lorr-ising (jam 4) host rule", "lorr-ising", ["jam=4"], ["--host-rule", "task_groups"]))
+              ("lorr-ising (jam 4) host rule", "lorr-ising", ["jam=4"], ["--host-rule", "task_groups"]),
+              ("lorr-weighted (jam 4 turns)", "lorr-weighted", ["jam=4", "turns=true"], []),
+              ("lorr-ising (jam 4 turns)", "lorr-ising", ["jam=4", "turns=true"], []))
 
 
 def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int) -> dict:
@@ -57,10 +59,14 @@ def main(argv=None) -> None:
     unknown = [n for n in names if n not in INSTANCES]
     if unknown:
         parser.error(f"unknown instance {unknown[0]!r}; known: {', '.join(INSTANCES)}")
+    wanted = [r.strip() for r in args.rows.split(",") if r.strip()]
+    missing = [r for r in wanted if r not in [label for label, *_ in SCHEDULERS]]
+    if missing:
+        parser.error(f"unknown row {missing[0]!r}; known: {', '.join(label for label, *_ in SCHEDULERS)}")
     rows = []
     for name in names:
         base = None
-        for label, scheduler, options, extra in [row for row in SCHEDULERS if row[0] in args.rows.split(",")]:
+        for label, scheduler, options, extra in [row for row in SCHEDULERS if row[0] in wanted]:
             r = run(name, scheduler, options, extra, args.steps)
             base = r["tasks_finished"] if base is None else base
             rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))

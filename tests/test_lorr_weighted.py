@@ -222,3 +222,33 @@ def test_every_planner_plays_the_start_kits_planner_role():
     grid = read_instance(example_instance_path()).grid
     for name in TURNING_EXECUTORS:
         assert isinstance(make_turning_executor(name, grid), Planner), name
+
+
+def test_turns_added_to_the_way_are_the_fewest_before_a_shortest_first_move():
+    """``add_turns`` against a plain count: for every robot cell, orientation and goal of a random map, the way plus
+    the fewest turns (0-2) to face a neighbour one move closer."""
+    from agents.lorr.weighted import add_turns
+    from planners.mapf.common import GoalFields
+
+    rng = np.random.default_rng(4)
+    grid = rng.random((7, 9)) < 0.25
+    free = np.flatnonzero(~grid.reshape(-1))
+    fields = GoalFields(grid, capacity=64)
+    goals = free[:12]
+    rows = fields.rows(goals)
+    pos = np.repeat(free, 4)
+    orient = np.tile(np.arange(4), len(free))
+    way = np.ascontiguousarray(fields.fields[np.ix_(rows, pos)].T)
+    plain = way.astype(np.int64)
+    add_turns(fields.fields, rows, pos, orient, fields.grid, 9, way)
+    step = {0: (0, 1), 1: (1, 0), 2: (0, -1), 3: (-1, 0)}
+    for i, (p, o) in enumerate(zip(pos.tolist(), orient.tolist())):
+        r, c = divmod(p, 9)
+        for j, g in enumerate(goals.tolist()):
+            f = plain[i, j]
+            if f <= 0:
+                assert way[i, j] == f
+                continue
+            closer = [d for d, (dr, dc) in step.items() if 0 <= r + dr < 7 and 0 <= c + dc < 9
+                      and not grid[r + dr, c + dc] and _bfs(grid, g)[(r + dr) * 9 + c + dc] == f - 1]
+            assert way[i, j] == f + min({0: 0, 1: 1, 2: 2, 3: 1}[(d - o) % 4] for d in closer)

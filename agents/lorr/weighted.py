@@ -31,7 +31,7 @@ from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
-__all__ = ["WeightedScheduler", "weighted_matching", "Crowd", "Matched", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
+__all__ = ["WeightedScheduler", "weighted_matching", "add_turns", "Crowd", "Matched", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
 #: Weight of the way to the first errand against the task's legs (the 2024 winner's is 5; 1 measured better here).
 DEFAULT_WEIGHT = 1
@@ -136,6 +136,31 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     return made
 
 
+@numba.njit(cache=True, nogil=True)
+def add_turns(table, rows, pos, orient, blocked, width, way) -> None:
+    """In place: ``way[i, c]`` (moves from robot ``i`` to cell ``c``, read from ``table[rows[c]]``) plus the turns
+    robot ``i`` needs before its first move along a shortest way there (0, 1 or 2: to the nearest direction that
+    a shortest way leaves by); ``orient`` 0 east, 1 south, 2 west, 3 north; ``blocked`` the flat grid."""
+    n, ncell = way.shape
+    nb = np.empty(4, dtype=np.int64)
+    for i in range(n):
+        p, o = pos[i], orient[i]
+        for d in range(4):
+            q = p + (1, width, -1, -width)[d]
+            edge = (d == 0 and p % width == width - 1) or (d == 2 and p % width == 0)
+            nb[d] = q if 0 <= q < blocked.shape[0] and not edge and not blocked[q] else -1
+        for c in range(ncell):
+            f = way[i, c]
+            if f <= 0:
+                continue
+            best = 2
+            for d in range(4):
+                if nb[d] >= 0 and table[rows[c], nb[d]] == f - 1:
+                    k = (d - o) % 4
+                    best = min(best, 2 if k == 2 else (0 if k == 0 else 1))
+            way[i, c] = f + best
+
+
 class Matched(NamedTuple):
     """One step's matching (:meth:`WeightedScheduler.match`): free ``robots``; the ready free tasks as slots
     ``ids`` (ordered by first-errand cell, legs, id), cell ``c``'s slots ``cell_start[c]:cell_start[c + 1]``,
@@ -162,6 +187,7 @@ class WeightedOptions(Options):
     memory_mb: int = option(DEFAULT_MEMORY_MB, int, 1, 1 << 20, meaning="MiB for distance tables")
     jam: int = option(0, int, 0, 1000, meaning="moves per robot in or bound for a task's block (0 = off)")
     block: int = option(DEFAULT_BLOCK, int, 1, 4096, meaning="side of the jam term's blocks, cells")
+    turns: bool = option(False, bool, meaning="the way counts the turns before the robot's first move along it")
 
 
 class WeightedScheduler:
@@ -276,6 +302,9 @@ class WeightedScheduler:
         cell_start = np.append(start, len(order)).astype(np.int64)
         rows = self.fields.rows(cells)
         way = np.ascontiguousarray(self.fields.fields[np.ix_(rows, sim.pos[robots])].T)  # robot by cell, row-wise
+        if self.options.turns:
+            add_turns(self.fields.fields, rows, sim.pos[robots], sim.orient[robots], self.fields.grid,
+                      sim.inst.grid.shape[1], way)
         out = np.empty(len(robots), dtype=np.int64)
         crowd = self.crowd(sim, proposal, cells)
         weighted_matching(way, cell_start, legs[order], self.weight, out, crowd)

@@ -23,7 +23,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish  # noqa: E402
 
-SECTION = "## League of Robot Runners 2024: the chip at ten thousand robots, lorr-ising against its host-rule twin (issue 56)"
+SECTION = ("## League of Robot Runners 2024: the chip at ten thousand robots, lorr-ising against its host-rule twin "
+           "(issue 56)")
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
              "WAREHOUSE": "warehouse.domain"}

@@ -128,8 +128,8 @@ def add_decision_arguments(parser, where: str) -> None:
                         help=f"record every chip decision in DIR (mrmt audit DIR judges it; {where}); plans are unchanged")
     parser.add_argument("--host-rule", default=None, metavar="CLASSES",
                         help="ablation: the host rule answers these decision classes where the chip decided (greedy + "
-                             "descent; joint_moves: PIBT's answer; lns_groups: the search's greedy; task_groups: the greedy "
-                             "matching) "
+                             "descent; joint_moves: PIBT's answer; lns_groups: the search's greedy; task_groups: "
+                             "the greedy matching) "
                              f"({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")
 
 

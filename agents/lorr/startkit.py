@@ -295,7 +295,7 @@ class KitPlanner2026(KitPlanner):
         schedule = list(self.env.curr_task_schedule)
         pos, orient = state.pos.copy(), state.orient.copy()
         goals = state.tasks.goals(schedule, pos)
-        todo = [state.tasks.remaining(k).tolist() if k >= 0 else [] for k in schedule]  # errands left, next first
+        todo = [state.tasks.remaining(task).tolist() if task >= 0 else [] for task in schedule]  # errands left
         free = np.array([not q for q in todo], dtype=bool)  # no task: its goal is where it stands
         out = np.empty((len(pos), k), dtype=np.int64)
         t0 = time.perf_counter()

@@ -31,7 +31,8 @@ from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
-__all__ = ["WeightedScheduler", "weighted_matching", "add_turns", "Crowd", "Matched", "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
+__all__ = ["WeightedScheduler", "weighted_matching", "add_turns", "Crowd", "Matched", "DEFAULT_WEIGHT",
+           "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
 #: Weight of the way to the first errand against the task's legs (the 2024 winner's is 5; 1 measured better here).
 DEFAULT_WEIGHT = 1

@@ -117,7 +117,7 @@ def _select(m: Matched, limits: GroupLimits, seed: int = 0, t: int = 0):
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(0, 10_000), st.integers(1, 8), st.sampled_from([2, 3, 5]), st.sampled_from([2, 3, 4]),
+@given(st.integers(0, 10_000), st.integers(1, 8), st.sampled_from([2, 3, 5, 12]), st.sampled_from([2, 3, 4]),
        st.sampled_from([0, 5, 64]))
 def test_groups_equal_the_oracle(seed, groups, robots, options, gap):
     m = _matching(seed)

@@ -83,7 +83,7 @@ def select_task_groups(m, cell_of, owner, head, limits, seed, t, taken_r, taken_
     ostart[0] = 0
     if n == 0:
         return 0
-    pool = np.empty(4 * limits.max_robots + limits.max_options + 4, dtype=np.int64)
+    pool = np.empty(5 * limits.max_robots, dtype=np.int64)  # at most 2 a joining robot and 3 a member
     pcost = np.empty(pool.shape[0], dtype=np.int64)
     ng, a = 0, 0
     first = np.int64(mix(seed, t, n, 0x7A5) % np.uint64(n))

@@ -453,8 +453,9 @@ def _startkit(args) -> int:
         print(f"from the kit's folder: cp {TRACK_DIR_2026}/pyMAPFPlanner.py python/user_planner/ && "
               f"cp {TRACK_DIR_2026}/pyTaskScheduler.py python/user_scheduler/")
         print("then: ./build/lifelong -i INSTANCE.json -o output.json --plannerPython true --schedulerPython true "
-              "(the kit's own executor stages each one-action plan)")
-        print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; compile first: mrmt warmup")
+              "(the kit's own executor stages each window)")
+        print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; window: "
+              "MRMT_LORR_WINDOW (default: the kit's executor's); compile first: mrmt warmup")
         return 0
     print(f"config.json: {json.dumps({'python_path': str(TRACK_DIR)})}")
     print(f"from the kit's folder (its python/ samples have the same module names; this puts the package's first): "

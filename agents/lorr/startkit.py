@@ -289,8 +289,7 @@ class KitPlanner2026(KitPlanner):
         from mrmt_env.lorr.rules import next_states
 
         deadline = deadline_of(self.env, time_limit)
-        k = self.window()
-        self.state.windows = k > 1
+        k = self.window()  # fixed for the run: the view reads every held task's progress since initialize when > 1
         state = self.state.refresh()
         schedule = list(self.env.curr_task_schedule)
         pos, orient = state.pos.copy(), state.orient.copy()

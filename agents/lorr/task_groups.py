@@ -272,7 +272,6 @@ class IsingWeightedScheduler(WeightedScheduler):
         """This step's proposal: the matching, then the group decisions (skipped when the matching used half the
         time to ``deadline``)."""
         t0 = time.perf_counter()
-        self.last_compute = ComputeReport()
         proposal, m = self.match(sim, deadline)
         call = None
         if m is not None:

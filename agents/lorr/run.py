@@ -120,8 +120,8 @@ def check_chip_use(chip, sched, scheduler: str, executor: str) -> None:
 
     if chip is not None and executor not in MACHINE_PLANNERS and not sched.accelerated:
         raise ValueError(f"--chip or --sampler given, but neither the scheduler {scheduler!r} nor the planner "
-                         f"{executor!r} runs on a machine (chip schedulers: ising, fast, ising-paper or a pair "
-                         f"with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
+                         f"{executor!r} runs on a machine (chip schedulers: lorr-ising, ising, fast, ising-paper or a "
+                         f"pair with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
 
 
 def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):

@@ -112,10 +112,11 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 1)
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
     big = [r for r in entry.rules if not r.conditions][0].choice
-    assert (big.scheduler, big.planner) == ("lorr-greedy", "pibt")
-    assert big.options["executor_options"] == {"congestion": 2}  # GAME: goal fields that price the crowd
+    assert (big.scheduler, big.planner) == ("lorr-greedy", "epibt")
+    # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step
+    assert big.options["executor_options"] == {"flow": False, "congestion": 2, "active": 0.3}
     assert big.options["guidance"] == 8  # along lanes of weight 8
-    assert big.options["scheduler_options"] == {"busy": 0.6, "way": 5}  # 60 % of the team at most, the way x 5
+    assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
     sortation, warehouse, tables = entry.rules[1], entry.rules[2], entry.rules[3]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")

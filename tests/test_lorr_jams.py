@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+from benchmark_modules import load
 
 import numpy as np
 
@@ -11,10 +10,7 @@ from agents.lorr.run import run_lorr
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.output import output_dict
 
-_spec = importlib.util.spec_from_file_location(
-    "bench_jams", Path(__file__).resolve().parents[1] / "benchmarks" / "lorr_jams.py")
-jams = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(jams)
+jams = load("lorr_jams")
 
 
 def test_replay_and_holding_equal_the_simulator_at_every_step():

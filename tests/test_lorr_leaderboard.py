@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
-_spec = importlib.util.spec_from_file_location("bench_lorr", Path(__file__).resolve().parents[1] / "benchmarks" / "lorr.py")
-lorr = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(lorr)
+from benchmark_modules import load
+
+lorr = load("lorr")
 BOARD = json.loads(lorr.LEADERBOARD.read_text())
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "lorr"
 

@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
+from benchmark_modules import load
 from lorr_reference import bfs
 
 from agents.lorr.run import run_lorr
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.output import output_dict
 
-_spec = importlib.util.spec_from_file_location(
-    "bench_task_lengths", Path(__file__).resolve().parents[1] / "benchmarks" / "lorr_task_lengths.py")
-lengths = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(lengths)
+lengths = load("lorr_task_lengths")
 
 
 def test_rows_count_the_runs_tasks_and_their_legs():

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+from benchmark_modules import load
 
-_spec = importlib.util.spec_from_file_location("bench_common", Path(__file__).resolve().parents[1] / "benchmarks" / "_common.py")
-common = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(common)
+common = load("_common")
 
 
 def test_a_rewrite_replaces_the_tables_and_keeps_the_marked_reading(tmp_path):

@@ -47,6 +47,7 @@ def _digest(sim) -> tuple:
     ("lorr-greedy", "pibt", {}),
     ("lorr-weighted", "pibt", {"guidance": 0}),
     ("strong", "epibt", {"replan": True, "planner_options": {"portfolio": 2, "weight_power": 2}}),
+    ("lorr-greedy", "epibt", {"planner_options": {"active": 0.5, "active_by": "task"}}),  # the kit's tasks' rest
 ])
 def test_the_kit_runs_the_packages_roles_as_the_runner_does(tmp_path, scheduler, planner, decisions):
     """Through the kit's fields alone (its task pool in no order, its goal locations from the proposal), the
@@ -118,6 +119,7 @@ def test_the_startkit_command_prints_the_kits_python_path(capsys):
 @pytest.mark.parametrize("scheduler, planner, decisions", [
     ("lorr-greedy", "pibt", {}),
     ("strong", "epibt", {"replan": True, "planner_options": {"portfolio": 2, "weight_power": 2}}),
+    ("lorr-greedy", "epibt", {"planner_options": {"active": 0.5, "active_by": "task"}}),
 ])
 def test_the_2026_kit_runs_the_one_step_planner_as_the_runner_does(tmp_path, scheduler, planner, decisions):
     """The 2026 kit's form (roles built bare, the env set before ``initialize``, no plan start on its clock, a

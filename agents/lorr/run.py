@@ -142,7 +142,7 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
         loop.propose(deadline)
         t1 = time.perf_counter()
         c1 = time.process_time()
-        actions = ex.actions(sim.pos, sim.orient, loop.goal_cells(), deadline=deadline)
+        actions = ex.actions(sim.pos, sim.orient, loop.goal_cells(), deadline=deadline, **loop.rest_for(ex))
         t2 = time.perf_counter()
         busy.append(max(time.process_time() - c1 - (t2 - t1), 0.0))
         c, e = sched.last_compute, ex.last_compute  # an executor with a chip decision charges it too

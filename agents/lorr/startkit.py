@@ -248,8 +248,14 @@ class KitPlanner(_Role):
     def plan(self, time_limit: int) -> list[int]:
         deadline = deadline_of(self.env, time_limit)
         state = self.state.refresh()
-        goals = state.tasks.goals(list(self.env.curr_task_schedule), state.pos)
-        actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline)
+        schedule = list(self.env.curr_task_schedule)
+        goals = state.tasks.goals(schedule, state.pos)
+        extra = {}
+        if getattr(self.planner, "takes_rest", False):  # the tasks beyond the goals (active_by="task")
+            from mrmt_env.lorr.tasks import rest_under
+
+            extra["rest"] = rest_under(state.tasks, self.inst.width, np.asarray(schedule, dtype=np.int64))
+        actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline, **extra)
         return [int(a) for a in np.asarray(actions).tolist()]
 
 
@@ -287,6 +293,7 @@ class KitPlanner2026(KitPlanner):
 
     def plan(self, time_limit: int) -> list[list[int]]:
         from mrmt_env.lorr.rules import next_states
+        from mrmt_env.lorr.tasks import legs
 
         deadline = deadline_of(self.env, time_limit)
         k = self.window()  # fixed for the run: the view reads every held task's progress since initialize when > 1
@@ -298,8 +305,11 @@ class KitPlanner2026(KitPlanner):
         free = np.array([not q for q in todo], dtype=bool)  # no task: its goal is where it stands
         out = np.empty((len(pos), k), dtype=np.int64)
         t0 = time.perf_counter()
+        rest = getattr(self.planner, "takes_rest", False)
         for j in range(k):
-            actions = np.asarray(self.planner.actions(pos, orient, goals, deadline=t0 + (deadline - t0) * (j + 1) / k))
+            extra = {"rest": np.array([legs(q, state.width) for q in todo], dtype=np.int64)} if rest else {}
+            actions = np.asarray(self.planner.actions(pos, orient, goals, deadline=t0 + (deadline - t0) * (j + 1) / k,
+                                                      **extra))
             out[:, j] = actions
             pos, orient = next_states(pos, orient, actions, state.width)
             for i in np.flatnonzero(pos == goals).tolist():  # arrived: on to the task's next errand, if any

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["TaskPool", "RoundRobin", "make_tasks", "goals_under"]
+__all__ = ["TaskPool", "RoundRobin", "make_tasks", "goals_under", "rest_under", "legs"]
 
 
 def _note(table: list, last: np.ndarray, values: np.ndarray, t: int) -> None:
@@ -203,6 +203,27 @@ class RoundRobin:
 
     def task_records(self, width: int) -> list:
         return [[k, self.revealed_at[k], list(divmod(c, width))] for k, c in enumerate(self.cells)]
+
+
+def rest_under(tasks, width: int, proposal=None) -> np.ndarray:
+    """Each robot's task beyond its next errand under ``proposal`` (as :func:`goals_under`): the Manhattan legs
+    from that errand through the task's later ones, in moves; 0 without a task or on its last errand (the 2024
+    winner ranks its robots by the whole task still to go: the way to the next errand plus this).  ``width``: the
+    map's columns (errands are flat cells)."""
+    assigned = tasks.assigned if proposal is None else np.asarray(proposal)
+    rest = np.zeros(len(assigned), dtype=np.int64)
+    if not hasattr(tasks, "remaining"):  # one errand a task (the 2023 rules): nothing beyond the goal
+        return rest
+    for a, k in enumerate(assigned.tolist()):
+        if k < 0 or k not in tasks.open:
+            continue
+        rest[a] = legs(tasks.remaining(k).tolist(), width)
+    return rest
+
+
+def legs(errands: list, width: int) -> int:
+    """The Manhattan legs from the first of ``errands`` (flat cells, in order) through the others, in moves."""
+    return sum(abs(p // width - q // width) + abs(p % width - q % width) for p, q in zip(errands, errands[1:]))
 
 
 def make_tasks(instance):

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 from planners.mapf.guides.flow import guide_work_option, replans_option
 from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.options import LaneOptions, active_option, congestion_options, park_option
+from planners.mapf.pibt.options import (LaneOptions, active_by_option, active_option, congestion_options,
+                                        park_option)
 from planners.options import option
 
 __all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
@@ -60,3 +61,4 @@ class EPIBTOptions(LaneOptions):
     refresh: int = congestion_options()[1]
     park: float = park_option()
     active: float = active_option()
+    active_by: str = active_by_option()

@@ -373,7 +373,7 @@ class EPIBT(TurningPIBT):
         rows = self.guide.update(pc, gc, self.fields.fields, rows, stop)  # first: it may make the fields
         return self.guide.fields, rows
 
-    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
+    def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
         """As :meth:`TurningPIBT.actions <planners.mapf.pibt.turning.TurningPIBT.actions>`; a robot not where the
         last call's plans put it (another executor acted, a new episode) drops every inherited operation.  Under a
         ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as the
@@ -382,7 +382,7 @@ class EPIBT(TurningPIBT):
         deadline and grows by 1.1 (up to 1) after one that leaves a quarter of its time."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
-        goals = self.steer(pos, goals)
+        goals = self.steer(pos, goals, rest)
         r = len(pos)
         if self.auto_op_len:
             self.auto_op_len = False

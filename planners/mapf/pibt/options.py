@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from planners.mapf.guides.guidance import MAX_GUIDANCE
 from planners.options import Options, option
 
-__all__ = ["LaneOptions", "TurningOptions", "commits_option", "congestion_options", "park_option", "DEFAULT_FIELD_BYTES",
-           "DEFAULT_BFS_BUDGET", "DEFAULT_GUIDANCE", "DEFAULT_REFRESH"]
+__all__ = ["LaneOptions", "TurningOptions", "commits_option", "congestion_options", "park_option", "active_option",
+           "active_by_option", "DEFAULT_FIELD_BYTES", "DEFAULT_BFS_BUDGET", "DEFAULT_GUIDANCE", "DEFAULT_REFRESH"]
 
 #: Default memory bound of the goal-field cache (the fields of the goals asked for in one call are always kept).
 DEFAULT_FIELD_BYTES = 1 << 30
@@ -63,6 +63,13 @@ def active_option():
                   "of least way to it (planners.mapf.guides.focus; the others stay and are pushed aside; 1 = all)")
 
 
+def active_by_option():
+    """The ``active_by`` option (:mod:`planners.mapf.guides.focus`)."""
+    return option("goal", str, words=("goal", "task"), meaning="with active < 1, the robots at work are those of "
+                  "least way to their goal (goal) or of least task still to go: that way plus the task's legs beyond "
+                  "its goal, given per step as actions(..., rest=...) (task; the 2024 winner's ranking)")
+
+
 @dataclass(frozen=True)
 class TurningOptions(LaneOptions):
     """:class:`TurningPIBT`'s options."""
@@ -72,3 +79,4 @@ class TurningOptions(LaneOptions):
     refresh: int = congestion_options()[1]
     park: float = park_option()
     active: float = active_option()
+    active_by: str = active_by_option()

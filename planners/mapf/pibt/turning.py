@@ -338,6 +338,8 @@ class TurningPIBT:
         park = getattr(opts, "park", 0.0)
         self.parking = ParkingPlaces(self.nbr, park, seed) if park else None
         self.active = getattr(opts, "active", 1.0)
+        #: whether :meth:`actions` wants ``rest`` (each robot's task beyond its goal: ``active_by="task"``)
+        self.takes_rest = self.active < 1 and getattr(opts, "active_by", "goal") == "task"
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
         self.dead_end = (self.nbr >= 0).sum(axis=1) == 1  # per compact cell
         self.seed = int(seed) & ((1 << 63) - 1)
@@ -398,14 +400,16 @@ class TurningPIBT:
                 raise ValueError(f"robots {who[0]} and {who[1]} share cell {cell}")
         return pos, orient, goals
 
-    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
+    def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
         """``(R,)`` int64 actions (0 F, 1 R, 2 C, 3 W) of robots at flat cells ``pos`` facing ``orient``
         heading to flat ``goals`` (a robot without a task takes its own cell); always a valid joint
         action.  Advances the priorities, assuming the actions are executed.  ``deadline``: the step's
-        ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it."""
+        ``time.perf_counter()`` deadline under a clock, or ``None``; PIBT is one pass and does not need it.
+        ``rest``: each robot's task beyond its goal in moves (:func:`mrmt_env.lorr.tasks.rest_under`), needed
+        when :attr:`takes_rest`, else unused."""
         self.deadline = deadline
         pos, orient, goals = self._check(pos, orient, goals)
-        goals = self.steer(pos, goals)
+        goals = self.steer(pos, goals, rest)
         r = len(pos)
         order = self.order(r)
         pc = self.cid[pos]
@@ -426,10 +430,17 @@ class TurningPIBT:
         self._advance(moved, gc)
         return act
 
-    def steer(self, pos, goals) -> np.ndarray:
+    def steer(self, pos, goals, rest=None) -> np.ndarray:
         """The flat goals a step heads for: under ``active`` < 1 only the robots at work keep theirs, those of least
-        way to it by their goal fields (Manhattan distance without one; :mod:`planners.mapf.guides.focus`); with
-        ``park`` a robot without a goal heads for the nearest parking place."""
+        way to it by their goal fields (Manhattan distance without one; :mod:`planners.mapf.guides.focus`), plus
+        ``rest`` under ``active_by="task"``; with ``park`` a robot without a goal heads for the nearest parking
+        place."""
+        if self.takes_rest:
+            rest = np.asarray(rest) if rest is not None else None
+            if rest is None or rest.shape != pos.shape or rest.dtype.kind not in "iu" or (rest < 0).any():
+                got = "none" if rest is None else f"shape {rest.shape} dtype {rest.dtype}"
+                raise ValueError(f"active_by='task' needs rest: one task length >= 0 per robot, shape {pos.shape} "
+                                 f"integers (mrmt_env.lorr.tasks.rest_under); got {got}")
         if self.active < 1:
             pc, gc = self.cid[pos], self.cid[goals]
             rows = self.fields.rows(gc, self.order(len(pos)))
@@ -439,6 +450,8 @@ class TurningPIBT:
             if len(has):
                 f = self.fields
                 way[has] = f.fields[rows[has], pc[has] * f.per_cell].astype(np.int64)
+            if self.takes_rest:
+                way = way + rest
             goals = active_goals(pos, goals, way, active_count(self.active, len(pos)))
         if self.parking is not None:
             goals = self.parking.goals(pos, goals, self.cid, self.cell_of)

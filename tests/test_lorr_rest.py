@@ -74,7 +74,7 @@ def test_the_robots_at_work_are_those_of_least_way_plus_rest(planner):
 
 
 @pytest.mark.parametrize("rest, got", [(None, "got none"), (np.zeros(3, dtype=np.int64), "shape (3,)"),
-                                       (np.zeros(4), "dtype float64"), (np.array([0, -1, 0, 0]), "dtype int64")])
+                                       (np.zeros(4), "dtype float64"), (np.array([0, -1, 0, 0]), "a negative length")])
 def test_a_planner_ranking_by_task_names_a_missing_or_bad_rest(rest, got):
     grid = _corridor()
     ex = make_turning_executor("epibt", grid, active=0.5, active_by="task")

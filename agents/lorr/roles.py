@@ -30,7 +30,9 @@ class Scheduler(Protocol):
 
 @runtime_checkable
 class Planner(Protocol):
-    """One step of every robot: ``actions`` returns an action per robot (F, R, C, W) towards its goal cell."""
+    """One step of every robot: ``actions`` returns an action per robot (F, R, C, W) towards its goal cell.  A
+    planner whose ``takes_rest`` is true is also given ``rest=`` (each robot's task beyond its goal,
+    :func:`mrmt_env.lorr.tasks.rest_under`); without the attribute it is not."""
 
     guidance: int
     last_compute: object

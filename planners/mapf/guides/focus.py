@@ -4,14 +4,15 @@ Contract: ``active_goals(pos, goals, way, count)`` keeps the goals (flat cells) 
 (goal != own cell) of least ``way`` (ties: the lower index) and gives every other robot its own cell: it has no goal
 this step, stays, and is pushed aside when another needs its cell.  The 2024 winner's disabled agents (its
 ``DISABLE_AGENTS``: every robot holds a task, the planner drives those of least remaining way); the planners'
-option ``active`` is the share, their way the goal field's distance (``planners.mapf.pibt.turning``).
+option ``active`` is the share, their way the goal field's distance (``planners.mapf.pibt.turning``), plus with
+``active_by="task"`` each robot's task beyond its goal (``rest``; the winner's ranking by the task still to go).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["active_goals", "active_count"]
+__all__ = ["active_goals", "active_count", "checked_rest"]
 
 
 def active_count(active: float, n_robots: int) -> int:
@@ -28,3 +29,15 @@ def active_goals(pos: np.ndarray, goals: np.ndarray, way: np.ndarray, count: int
     out = pos.copy()
     out[keep] = goals[keep]
     return out
+
+
+def checked_rest(rest, n_robots: int) -> np.ndarray:
+    """``rest`` (each robot's task beyond its goal, moves) as an int64 array; ``ValueError`` naming what was given
+    unless it is ``n_robots`` integers >= 0."""
+    arr = None if rest is None else np.asarray(rest)
+    if arr is None or arr.shape != (n_robots,) or arr.dtype.kind not in "iu" or (arr < 0).any():
+        got = "none" if arr is None else f"shape {arr.shape} dtype {arr.dtype}" + (
+            ", a negative length" if arr.dtype.kind in "iu" and arr.size and (arr < 0).any() else "")
+        raise ValueError(f"active_by='task' needs rest: one task length >= 0 per robot, shape ({n_robots},) integers "
+                         f"(mrmt_env.lorr.tasks.rest_under); got {got}")
+    return arr.astype(np.int64, copy=False)

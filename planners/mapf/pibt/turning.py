@@ -36,7 +36,7 @@ from planners.compute import ComputeReport
 from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
 from planners.mapf.guides.congestion import Congestion
 from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
-from planners.mapf.guides.focus import active_count, active_goals
+from planners.mapf.guides.focus import active_count, active_goals, checked_rest
 from planners.mapf.guides.parking import ParkingPlaces
 from planners.mapf.pibt.options import (DEFAULT_BFS_BUDGET, DEFAULT_FIELD_BYTES, DEFAULT_GUIDANCE, DEFAULT_REFRESH,
                                        LaneOptions, TurningOptions, commits_option, congestion_options)
@@ -436,11 +436,7 @@ class TurningPIBT:
         ``rest`` under ``active_by="task"``; with ``park`` a robot without a goal heads for the nearest parking
         place."""
         if self.takes_rest:
-            rest = np.asarray(rest) if rest is not None else None
-            if rest is None or rest.shape != pos.shape or rest.dtype.kind not in "iu" or (rest < 0).any():
-                got = "none" if rest is None else f"shape {rest.shape} dtype {rest.dtype}"
-                raise ValueError(f"active_by='task' needs rest: one task length >= 0 per robot, shape {pos.shape} "
-                                 f"integers (mrmt_env.lorr.tasks.rest_under); got {got}")
+            rest = checked_rest(rest, len(pos))
         if self.active < 1:
             pc, gc = self.cid[pos], self.cid[goals]
             rows = self.fields.rows(gc, self.order(len(pos)))

@@ -10,7 +10,9 @@ processes with a progress bar, longest part first.  Each part is a pipeline warm
 (:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
 the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` call :func:`warm`).
 A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
-first use, unannounced.  ``mrmt warmup`` compiles every preset.
+first use, unannounced.  ``mrmt warmup`` compiles every preset.  The notice's seconds are the reference
+machine's (:data:`PART_SECONDS`) scaled by this machine's pace at compiling: :func:`probe_seconds` (a fresh
+interpreter importing numba and compiling one small kernel, about 1.5 s) against :data:`PROBE_REF_S`.
 
 Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,
 else ``~/.cache/...``), keyed by the package, numba and Python versions and the newest source
@@ -23,18 +25,20 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["parts_for", "cold_parts", "warm", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path"]
+__all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path",
+           "probe_seconds", "PROBE_REF_S", "estimate_s"]
 
 #: Cold compile seconds of each part on the reference machine, each alone in a fresh process with an empty
-#: cache (2 cores, AMD EPYC, 2026-11-27, load average below 1; how, and the history: docs/design/cold_start.md).
+#: cache (2 cores, AMD EPYC, 2026-11-29, `python benchmarks/compile_parts.py`; the history: docs/design/cold_start.md).
 #: Parts compiled side by side share the anneal and quantization kernels, so the sum over two workers is an
 #: upper estimate.
-PART_SECONDS = {"ising:sharing": 81, "ising-paper:tour+path": 75, "ising-fleet": 42, "ising:tour+path": 31,
-                "lorr:epibt": 20, "lorr:pibt-flow": 15, "strong": 12, "lorr:windowed": 11, "lorr:pibt": 8,
-                "exact": 7, "fast": 5}
+PART_SECONDS = {"ising:sharing": 56, "ising-paper:tour+path": 48, "ising-fleet": 32, "ising:tour+path": 24,
+                "lorr:epibt": 16, "lorr:pibt-flow": 10, "strong": 9, "lorr:windowed": 8, "lorr:pibt": 6,
+                "exact": 5, "fast": 4}
 
 #: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,
 #: quantization and tour kernels they share compile once per worker (measured: one process compiling
@@ -43,6 +47,32 @@ SHARED_SHARE = 0.67
 
 #: A cold compile shorter than this (all parts together) is not announced nor run apart.
 LONG_S = 10
+
+#: :func:`probe_seconds` on the reference machine of :data:`PART_SECONDS`, measured beside them.
+PROBE_REF_S = 1.49
+
+# The speed probe: a fresh interpreter's seconds to import numba and compile (no cache) one small kernel with a
+# loop, a branch, array arithmetic and a sort -- the compile pipeline every part goes through, at its first use.
+_PROBE = """
+import time
+t0 = time.perf_counter()
+import numba
+import numpy as np
+def probe(a, b):
+    s = 0.0
+    for i in range(a.shape[0]):
+        if a[i] > b:
+            s += np.sqrt(a[i]) * 2.0
+        else:
+            s -= a[i] / (1.0 + b)
+    out = np.empty(3)
+    out[0] = s
+    out[1] = a.sum()
+    out[2] = np.argsort(a)[0]
+    return out
+numba.njit(cache=False)(probe)(np.arange(5.0), 1.0)
+print(time.perf_counter() - t0)
+"""
 
 _ISING = ("ising", "ising-paper")
 _PRESETS = {"fast": ("psa", "nn", "astar"), "strong": ("ssa", "3opt", "astar"), "ising": ("ising", "ising", "field"),
@@ -155,7 +185,9 @@ def cold_parts(controllers, max_targets: int | None = None) -> list[str]:
     return [p for p in parts_for(controllers, max_targets) if p not in done]
 
 
-def _warm_part(part: str, world_kwargs: dict) -> str:
+def compile_part(part: str, world_kwargs: dict | None = None) -> str:
+    """Compile the kernels of warm-up part ``part`` in this process (a pipeline warm-up, or three steps of a LoRR
+    run); returns ``part``."""
     if part.startswith("lorr:"):
         from agents.lorr.run import run_lorr
         from mrmt_env.lorr.instance import example_instance_path
@@ -165,10 +197,30 @@ def _warm_part(part: str, world_kwargs: dict) -> str:
     from mrmt_env.generation import generate_world
     from planners.pipeline import make_pipeline
 
-    world = generate_world(0, **world_kwargs)
+    world = generate_world(0, **(world_kwargs or {}))
     for sharing, tour, path in _layers(part):
         make_pipeline(sharing=sharing, tour=tour, path=path).warmup(world, seed=0)
     return part
+
+
+def estimate_s(parts, jobs: int) -> float:
+    """Seconds ``parts`` take to compile on ``jobs`` workers on the reference machine: their
+    :data:`PART_SECONDS` summed times :data:`SHARED_SHARE` over the workers, at least the longest part."""
+    secs = [PART_SECONDS.get(p, 5) for p in parts]
+    return max(max(secs), SHARED_SHARE * sum(secs) / max(1, jobs))
+
+
+def probe_seconds(timeout_s: float = 120.0) -> float | None:
+    """This machine's pace at compiling: the seconds a fresh interpreter takes to import numba and compile one
+    small kernel without a cache (about 1.5 s; :data:`PROBE_REF_S` on the reference machine), or ``None`` when
+    the probe could not run (the notice then gives the reference machine's seconds and says so)."""
+    try:
+        out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=timeout_s,
+                             check=True)
+        seconds = float(out.stdout.strip().splitlines()[-1])
+    except (OSError, subprocess.SubprocessError, ValueError, IndexError):
+        return None
+    return seconds if seconds > 0 else None
 
 
 def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict | None = None,
@@ -184,11 +236,13 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     if not todo or (not force and sum(PART_SECONDS.get(p, 5) for p in todo) < minimum_s):
         return []  # nothing cold, or a few seconds: compiled on first use, in the process, silently
     stream = sys.stderr if stream is None else stream
-    secs = [PART_SECONDS.get(p, 5) for p in todo]
     jobs = max(1, min(jobs, len(todo)))
-    guess = max(max(secs), SHARED_SHARE * sum(secs) / max(1, jobs))
+    guess = estimate_s(todo, jobs)
+    pace = probe_seconds() if guess >= LONG_S else None  # a few seconds: not worth a probe's 1.5 s
+    how = "the reference machine's pace" if pace is None else f"this machine's pace: {pace / PROBE_REF_S:.1f}x"
+    guess *= 1.0 if pace is None else pace / PROBE_REF_S
     print(f"mrmt: compiling the numba kernels of {', '.join(todo)} (first run after install; cached "
-          f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s)",
+          f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s) ({how})",
           file=stream, flush=True)
     run = RunConfig(backend="inline" if jobs == 1 else "process", jobs=jobs, chunk_size=1, progress=progress)
     kwargs = dict(world_kwargs or {})
@@ -196,7 +250,7 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
         from ising_backend.audit.record import suspended
 
         with suspended():  # compiling decides nothing: an open audit records none of it
-            run_tasks(_warm_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
+            run_tasks(compile_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
     except Exception as exc:  # noqa: BLE001 -- the command itself will meet (and report) the same problem
         print(f"mrmt: warm-up stopped ({type(exc).__name__}: {exc}); compiling on first use instead",
               file=stream)

@@ -87,3 +87,35 @@ def test_lorr_executors_are_warmed_as_parts_of_their_own():
     assert main(["warmup", "--pipelines", "fast", "--lorr", "pibt", "--jobs", "1", "--no-progress"]) == 0
     assert {"fast", "lorr:pibt"} <= set(json.loads(stamp_path().read_text()).popitem()[1])
     assert _lorr_executors("all") == list(TURNING_EXECUTORS) and _lorr_executors(" epibt, pibt ") == ["epibt", "pibt"]
+
+
+def test_the_probe_times_a_fresh_compile_and_says_when_it_cannot(monkeypatch):
+    from agents import warmup
+
+    seconds = warmup.probe_seconds()
+    assert seconds is not None and 0 < seconds < 120  # a fresh interpreter: numba imported, one kernel compiled
+    monkeypatch.setattr(warmup.sys, "executable", "/nonexistent/python")
+    assert warmup.probe_seconds() is None
+
+
+@pytest.mark.parametrize("pace, expected", [(2.0, "roughly 40 s on 1 core(s) (this machine's pace: 2.0x)"),
+                                            (None, "roughly 20 s on 1 core(s) (the reference machine's pace)")])
+def test_the_notice_scales_the_reference_seconds_by_the_machines_pace(pace, expected, monkeypatch, capsys):
+    from agents import warmup
+
+    monkeypatch.setitem(warmup.PART_SECONDS, "fast", 20)  # long enough to be probed
+    monkeypatch.setattr(warmup, "probe_seconds", lambda: None if pace is None else pace * warmup.PROBE_REF_S)
+    assert warmup.estimate_s(["fast"], 1) == 20
+    assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress", "--force"]) == 0
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith(expected)
+
+
+def test_the_estimate_shares_the_parts_over_the_workers_and_is_at_least_the_longest():
+    from agents.warmup import PART_SECONDS, SHARED_SHARE, estimate_s
+
+    parts = ["ising:sharing", "ising-paper:tour+path", "ising:tour+path"]
+    secs = [PART_SECONDS[p] for p in parts]
+    assert estimate_s(parts, 2) == max(max(secs), SHARED_SHARE * sum(secs) / 2)
+    assert estimate_s(["ising:sharing"], 2) == PART_SECONDS["ising:sharing"]
+    assert estimate_s(parts, 1) == SHARED_SHARE * sum(secs)

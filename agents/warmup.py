@@ -12,7 +12,8 @@ the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` ca
 A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
 first use, unannounced.  ``mrmt warmup`` compiles every preset.  The notice's seconds are the reference
 machine's (:data:`PART_SECONDS`) scaled by this machine's pace at compiling: :func:`probe_seconds` (a fresh
-interpreter importing numba and compiling one small kernel, about 1.5 s) against :data:`PROBE_REF_S`.
+interpreter importing numba and compiling one small kernel, about 1.5 s) against :data:`PROBE_REF_S`, and by the
+cores other work kept busy meanwhile (:func:`pace_factor`; Linux's ``/proc/stat``).
 
 Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,
 else ``~/.cache/...``), keyed by the package, numba and Python versions and the newest source
@@ -30,7 +31,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path",
-           "probe_seconds", "PROBE_REF_S", "estimate_s"]
+           "probe_seconds", "PROBE_REF_S", "estimate_s", "pace_factor"]
 
 #: Cold compile seconds of each part on the reference machine, each alone in a fresh process with an empty
 #: cache (2 cores, AMD EPYC, 2026-11-29, `python benchmarks/compile_parts.py`; the history: docs/design/cold_start.md).
@@ -223,6 +224,44 @@ def probe_seconds(timeout_s: float = 120.0) -> float | None:
     return seconds if seconds > 0 else None
 
 
+def busy_cores(before: tuple[int, int, int], after: tuple[int, int, int]) -> float:
+    """Cores busy between two :func:`cpu_times` readings ``(busy, total, cpus)`` (Linux's ``/proc/stat``)."""
+    total = after[1] - before[1]
+    return (after[0] - before[0]) / total * after[2] if total > 0 else 0.0
+
+
+def cpu_times() -> tuple[int, int, int] | None:
+    """``(busy, total, cpus)``: the machine's busy and total CPU ticks since boot and its CPU count, from
+    ``/proc/stat`` (``None`` where there is none: the notice then assumes no other load)."""
+    try:
+        lines = Path("/proc/stat").read_text().splitlines()
+        ticks = [int(x) for x in lines[0].split()[1:]]
+    except (OSError, ValueError, IndexError):
+        return None
+    idle = ticks[3] + (ticks[4] if len(ticks) > 4 else 0)  # idle and waiting for I/O
+    return sum(ticks) - idle, sum(ticks), sum(1 for line in lines if line.startswith("cpu") and line[3:4].isdigit())
+
+
+def pace_factor(probe_s: float, others: float, jobs: int, cores: int) -> float:
+    """How many times the reference machine's seconds ``jobs`` workers take here: the probe's seconds as on an
+    idle machine (it had ``min(1, cores / (1 + others))`` of a core beside ``others`` busy cores) against
+    :data:`PROBE_REF_S`, times the workers' own share of the cores beside that load."""
+    alone = probe_s * min(1.0, cores / (1.0 + others))
+    return alone / PROBE_REF_S * max(1.0, (jobs + others) / cores)
+
+
+def _machine_pace(jobs: int) -> tuple[float, str]:
+    """The notice's factor on the reference seconds and its words (the probe, and the other load beside it)."""
+    before = cpu_times()
+    probe_s = probe_seconds()
+    after = cpu_times()
+    if probe_s is None:
+        return 1.0, "the reference machine's pace"
+    others = 0.0 if before is None or after is None else max(busy_cores(before, after) - 1.0, 0.0)  # less the probe
+    factor = pace_factor(probe_s, others, jobs, after[2] if after else (os.cpu_count() or 1))
+    return factor, f"this machine's pace: {factor:.1f}x, {others:.1f} cores busy with other work"
+
+
 def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict | None = None,
          stream=None, force: bool = False, minimum_s: float = LONG_S) -> list[str]:
     """Compile the cold parts of ``controllers`` (all of them with ``force``) on ``jobs`` processes,
@@ -238,9 +277,8 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     stream = sys.stderr if stream is None else stream
     jobs = max(1, min(jobs, len(todo)))
     guess = estimate_s(todo, jobs)
-    pace = probe_seconds() if guess >= LONG_S else None  # a few seconds: not worth a probe's 1.5 s
-    how = "the reference machine's pace" if pace is None else f"this machine's pace: {pace / PROBE_REF_S:.1f}x"
-    guess *= 1.0 if pace is None else pace / PROBE_REF_S
+    factor, how = _machine_pace(jobs) if guess >= LONG_S else (1.0, "the reference machine's pace")  # a probe: 1.5 s
+    guess *= factor
     print(f"mrmt: compiling the numba kernels of {', '.join(todo)} (first run after install; cached "
           f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s) ({how})",
           file=stream, flush=True)

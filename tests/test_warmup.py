@@ -98,17 +98,44 @@ def test_the_probe_times_a_fresh_compile_and_says_when_it_cannot(monkeypatch):
     assert warmup.probe_seconds() is None
 
 
-@pytest.mark.parametrize("pace, expected", [(2.0, "roughly 40 s on 1 core(s) (this machine's pace: 2.0x)"),
-                                            (None, "roughly 20 s on 1 core(s) (the reference machine's pace)")])
-def test_the_notice_scales_the_reference_seconds_by_the_machines_pace(pace, expected, monkeypatch, capsys):
+@pytest.mark.parametrize("pace, busy, expected", [
+    (2.0, 1.0, "roughly 40 s on 1 core(s) (this machine's pace: 2.0x, 0.0 cores busy with other work)"),
+    (1.0, 2.0, "roughly 20 s on 1 core(s) (this machine's pace: 1.0x, 1.0 cores busy with other work)"),
+    (None, 1.0, "roughly 20 s on 1 core(s) (the reference machine's pace)")])
+def test_the_notice_scales_the_reference_seconds_by_the_machines_pace(pace, busy, expected, monkeypatch, capsys):
     from agents import warmup
 
     monkeypatch.setitem(warmup.PART_SECONDS, "fast", 20)  # long enough to be probed
     monkeypatch.setattr(warmup, "probe_seconds", lambda: None if pace is None else pace * warmup.PROBE_REF_S)
+    readings = iter([(0, 0, 2), (int(50 * busy), 100, 2)])  # 2 cpus, `busy` of them busy during the probe
+    monkeypatch.setattr(warmup, "cpu_times", lambda: next(readings))
     assert warmup.estimate_s(["fast"], 1) == 20
     assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--no-progress", "--force"]) == 0
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line.endswith(expected)
+
+
+@pytest.mark.parametrize("probe, others, jobs, cores, factor", [
+    (1.0, 0.0, 2, 2, 1.0),    # the reference machine, idle: its seconds
+    (1.0, 1.0, 2, 2, 1.5),    # a core busy elsewhere: the probe had a core of its own, the two workers share three ways
+    (2.0, 3.0, 2, 2, 2.5),    # the probe slowed by half by the load beside it: as fast as the reference alone
+    (1.0, 0.0, 1, 2, 1.0),
+    (0.5, 0.0, 4, 2, 1.0),    # twice as fast, four workers on two cores
+])
+def test_the_pace_factor_counts_the_probe_alone_and_the_workers_share_of_the_cores(probe, others, jobs, cores, factor):
+    from agents import warmup
+
+    assert warmup.pace_factor(probe * warmup.PROBE_REF_S, others, jobs, cores) == pytest.approx(factor)
+
+
+def test_busy_cores_are_read_from_the_machines_ticks():
+    from agents.warmup import busy_cores, cpu_times
+
+    assert busy_cores((100, 1000, 2), (150, 1100, 2)) == 1.0 and busy_cores((5, 9, 2), (5, 9, 2)) == 0.0
+    now = cpu_times()
+    if now is not None:  # Linux
+        busy, total, cpus = now
+        assert 0 <= busy <= total and cpus >= 1
 
 
 def test_the_estimate_shares_the_parts_over_the_workers_and_is_at_least_the_longest():

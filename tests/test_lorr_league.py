@@ -113,8 +113,10 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "epibt")
-    # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step
-    assert big.options["executor_options"] == {"flow": False, "congestion": 2, "active": 0.3}
+    # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still
+    # to go, the search weighing the robots by their priority squared
+    assert big.options["executor_options"] == {"flow": False, "congestion": 2, "active": 0.3, "active_by": "task",
+                                               "weight_power": 2}
     assert big.options["guidance"] == 8  # along lanes of weight 8
     assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
     sortation, warehouse, tables = entry.rules[1], entry.rules[2], entry.rules[3]

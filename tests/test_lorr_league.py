@@ -109,8 +109,15 @@ def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 1)
+    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 2)
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
+    assert "active" not in small.options["executor_options"]  # every robot at work where the team is sparse
+    dense = entry.rules[0]  # RANDOM-04 and -05 (85 and 98 % of the free cells): 80 % at work, by the task to go
+    assert dense.holds(700, 0.85, "random-32-32-20.map") and dense.holds(800, 0.98, "random-32-32-20.map")
+    assert not dense.holds(400, 0.49, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
+    assert dense.choice.options["executor_options"] == {"weight_power": 2, "op_len": "auto", "portfolio": 16,
+                                                        "active": 0.8, "active_by": "task"}
+    assert (dense.choice.scheduler, dense.choice.planner, dense.choice.options["replan"]) == ("strong", "epibt", True)
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "epibt")
     # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still
@@ -119,7 +126,7 @@ def test_the_default_entry_chooses_by_team_and_map():
                                                "weight_power": 2}
     assert big.options["guidance"] == 8  # along lanes of weight 8
     assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
-    sortation, warehouse, tables = entry.rules[1], entry.rules[2], entry.rules[3]
+    sortation, warehouse, tables = entry.rules[2], entry.rules[3], entry.rules[4]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
     assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"

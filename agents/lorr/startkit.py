@@ -250,11 +250,9 @@ class KitPlanner(_Role):
         state = self.state.refresh()
         schedule = list(self.env.curr_task_schedule)
         goals = state.tasks.goals(schedule, state.pos)
-        extra = {}
-        if getattr(self.planner, "takes_rest", False):  # the tasks beyond the goals (active_by="task")
-            from mrmt_env.lorr.tasks import rest_under
+        from mrmt_env.lorr.tasks import rest_keywords
 
-            extra["rest"] = rest_under(state.tasks, self.inst.width, np.asarray(schedule, dtype=np.int64))
+        extra = rest_keywords(self.planner, state.tasks, self.inst.width, np.asarray(schedule, dtype=np.int64))
         actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline, **extra)
         return [int(a) for a in np.asarray(actions).tolist()]
 

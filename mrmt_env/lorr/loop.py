@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from mrmt_env.lorr.sim import LoRRSimulator
-from mrmt_env.lorr.tasks import goals_under, rest_under
+from mrmt_env.lorr.tasks import goals_under, rest_keywords
 
 __all__ = ["StepLoop"]
 
@@ -66,9 +66,7 @@ class StepLoop:
         """The keyword ``planner.actions`` takes beyond the goals: ``{"rest": ...}`` (each robot's task beyond its
         goal under the pending proposal, :func:`~mrmt_env.lorr.tasks.rest_under`) for a planner whose
         ``takes_rest`` is set, else nothing."""
-        if not getattr(planner, "takes_rest", False):
-            return {}
-        return {"rest": rest_under(self.sim.tasks, self.sim.width, self.pending)}
+        return rest_keywords(planner, self.sim.tasks, self.sim.width, self.pending)
 
     def advance(self, actions, late: int = 0, steps: int | None = None) -> int:
         """``late`` timeouts, then the move with the pending proposal applied, none of them past ``steps``

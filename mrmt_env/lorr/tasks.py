@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["TaskPool", "RoundRobin", "make_tasks", "goals_under", "rest_under", "legs"]
+__all__ = ["TaskPool", "RoundRobin", "make_tasks", "goals_under", "rest_under", "rest_keywords", "legs"]
 
 
 def _note(table: list, last: np.ndarray, values: np.ndarray, t: int) -> None:
@@ -219,6 +219,12 @@ def rest_under(tasks, width: int, proposal=None) -> np.ndarray:
             continue
         rest[a] = legs(tasks.remaining(k).tolist(), width)
     return rest
+
+
+def rest_keywords(planner, tasks, width: int, proposal=None) -> dict:
+    """The keyword a planner's ``actions`` takes beyond the goals: ``{"rest": rest_under(...)}`` for a planner whose
+    ``takes_rest`` is set (``active_by="task"``), else nothing."""
+    return {"rest": rest_under(tasks, width, proposal)} if getattr(planner, "takes_rest", False) else {}
 
 
 def legs(errands: list, width: int) -> int:

@@ -752,6 +752,79 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
     assert moved > 0
 
 
+def _starts_one_at_a_time(tour, dist, run):
+    """The chip tour's starts as a loop over :meth:`MoveSearch.select`, one start a call (the order of
+    ``MoveSearch.starts``: nearest neighbour, then random orders or kicks of the best route drawn here)."""
+    from planners.ising.tour import TourFailure
+    from planners.ising.tour.selection import KICK_ABOVE, double_bridge, nearest_neighbour_kernel, settle
+
+    cfg = tour.config
+    n = dist.shape[0] - 1
+    kicks = cfg.chip_restart == "kick" or (cfg.chip_restart == "auto" and n > KICK_ABOVE)
+    best, best_cost, failure, charges = None, np.inf, None, []
+    with tour.chip.session(run.charged, decision="tour_moves") as link:
+        try:
+            for s in range(1 if n <= 3 else cfg.n_starts):
+                if s == 0:
+                    route = nearest_neighbour_kernel(dist)
+                elif kicks and best is not None and n >= 4:
+                    route = double_bridge(best, run.rng)
+                else:
+                    route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
+                try:
+                    route = tour.moves.select(dist, route, run, link, charges)
+                except TourFailure as exc:
+                    failure = exc
+                    run.stats["failed_starts"] += 1
+                    continue
+                cost = float(dist[route[:-1], route[1:]].sum())
+                run.stats["start_costs"].append(cost)
+                if cost < best_cost - 1e-9:
+                    best, best_cost = route, cost
+        finally:
+            settle(link, charges)
+    if best is None:
+        raise failure
+    return [int(t) for t in best[1:]]
+
+
+@pytest.mark.parametrize("options, spec", [
+    ({"chip_restart": "random"}, {}), ({"chip_restart": "kick", "n_starts": 5}, {}),
+    ({"chip_restart": "random", "num_reads": 2, "max_retries": 0}, {"readout_flip_prob": 0.2}),
+    ({"chip_restart": "kick", "num_reads": 2, "max_retries": 0}, {"readout_flip_prob": 0.2}),
+])
+def test_compiled_starts_make_the_start_by_start_loop(options, spec):
+    """MoveSearch.starts (every start in one compiled call, planners.ising.tour.selection.search_starts, or one
+    call a kick) against the loop of one start at a time with the random orders and kicks drawn in Python: the
+    same route or failure, start costs, failed starts, statistics, charges and rng state."""
+    from ising_backend import ChipSpec, EmulatedChip
+    from mrmt_env.generation import generate_world
+    from planners.ising.tour import IsingTour, TourFailure
+    from planners.ising.tour.cluster import _Run
+
+    tours = [IsingTour(EmulatedChip(ChipSpec(seed=3, **spec)), backend="chip", **options) for _ in range(2)]
+    failed = 0
+    for s in range(8):
+        dist = np.ascontiguousarray(generate_world(s, n_robots=1, n_targets=3 + 3 * s).distance_matrix,
+                                    dtype=np.float64)
+        runs = [_Run(np.random.default_rng(s), t._empty_stats(), t) for t in tours]
+        out = []
+        for tour, run, step in ((tours[0], runs[0], lambda t, d, r: t.moves.starts(d, r)),
+                                (tours[1], runs[1], _starts_one_at_a_time)):
+            try:
+                out.append(step(tour, dist, run))
+            except TourFailure as exc:
+                out.append(str(exc))
+        assert out[0] == out[1]
+        a, b = runs
+        assert a.stats == b.stats
+        assert (a.charged.physical_calls, a.charged.batches) == (b.charged.physical_calls, b.charged.batches)
+        assert a.rng.integers(1 << 62) == b.rng.integers(1 << 62)
+        failed += a.stats["failed_starts"]
+    if spec:
+        assert failed > 0  # the faulty chip makes starts fail: the failure path is compared too
+
+
 @pytest.mark.parametrize("restart", ["random", "kick"])
 def test_a_move_selection_program_the_quantizer_refuses_fails_the_tour_naming_it(restart):
     """Distances so large that move gains overflow give a non-finite selection program: the chip

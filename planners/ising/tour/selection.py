@@ -11,17 +11,18 @@ from __future__ import annotations
 
 import math
 from functools import cached_property
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from ising_backend import add_counts
 from planners.ising.moves.routes import linked, route_of
-from planners.ising.moves.search import GAVE_UP, REFUSED, SearchLimits, move_search, new_stats, stats_dict
+from planners.ising.moves.search import GAVE_UP, LOCAL_OPTIMUM, REFUSED, SearchLimits, move_search, new_stats, stats_dict
 from planners.ising.moves.selection import REFUSED_MESSAGE, RoundProgram, program_record
 from planners.ising.tour.cluster import TourFailure
 
-__all__ = ["MoveSearch", "double_bridge", "settle", "nearest_neighbour_kernel", "KICK_ABOVE", "ProgramRefused"]
+__all__ = ["MoveSearch", "search_starts", "StartsOut", "double_bridge", "settle", "nearest_neighbour_kernel", "KICK_ABOVE", "ProgramRefused"]
 
 
 
@@ -32,6 +33,21 @@ class ProgramRefused(TourFailure):
 #: ``chip_restart="auto"``: random restarts up to this many targets, kicks of the best route beyond.
 KICK_ABOVE = 16
 _NO_LOG = (np.zeros(0, dtype=np.int64), np.zeros(0), 0)  # an empty submission log (grown, never written)
+_NO_ROUTES = np.zeros((0, 0), dtype=np.int64)  # no given start routes
+
+
+class StartsOut(NamedTuple):
+    """:func:`search_starts`'s result."""
+
+    status: int  # REFUSED when a start's program was refused (the starts end there), else LOCAL_OPTIMUM
+    best: np.ndarray  # the cheapest route of the starts that did not fail (empty when all failed)
+    cost: float  # its cost
+    costs: np.ndarray  # each such start's cost, in order
+    failed: int  # starts the chip gave up with no move applied
+    gave_up: int  # starts that ended by the chip giving up, with or without moves applied
+    calls: np.ndarray  # per submission: its chip calls (the first ``used``)
+    emu: np.ndarray  # and emulation seconds
+    used: int
 
 
 def settle(link, charges: list) -> None:
@@ -57,6 +73,52 @@ def nearest_neighbour_kernel(dist):
         route[t] = best
         seen[best] = True
     return route
+
+
+@numba.njit(cache=True)
+def search_starts(rng, dist, given, nearest, n_random, max_segment, limits, program, machine, stats, per_rule, log):
+    """Starts of the chip tour in order, each :func:`~planners.ising.moves.search.move_search` on the route's
+    2-opt / or-opt moves: the nearest-neighbour route when ``nearest``, then the rows of ``given``, then
+    ``n_random`` random orders (``0`` then ``1 + rng.permutation(n)``).  A start the chip gives up without a move
+    fails; a refused program ends the starts.  ``stats``, ``per_rule`` and ``log`` as ``move_search``'s, summed
+    over the starts.  Returns a :class:`StartsOut`."""
+    n = dist.shape[0] - 1
+    total = int(nearest) + given.shape[0] + n_random
+    costs = np.empty(total)
+    nc, failed, gave_up = 0, 0, 0
+    best, best_cost = np.zeros(0, dtype=np.int64), np.inf
+    calls, emu, used = log
+    st = stats[0]
+    for s in range(total):
+        if nearest and s == 0:
+            route = nearest_neighbour_kernel(dist)
+        elif s - int(nearest) < given.shape[0]:
+            route = given[s - int(nearest)].copy()
+        else:
+            route = np.empty(n + 1, dtype=np.int64)
+            route[0] = 0
+            route[1:] = 1 + rng.permutation(n)
+        nxt, prv = linked(route)
+        before = st.moves_applied
+        out = move_search(rng, dist, nxt, prv, 1, max_segment, None, limits, program, machine, stats, per_rule,
+                          (calls, emu, used))
+        calls, emu, used = out.calls, out.emu, out.used
+        if out.status == GAVE_UP:
+            gave_up += 1
+        if out.status == REFUSED:
+            return StartsOut(REFUSED, best, best_cost, costs[:nc], failed, gave_up, calls, emu, used)
+        if out.status == GAVE_UP and st.moves_applied == before:
+            failed += 1
+            continue
+        route = route_of(nxt)
+        cost = 0.0
+        for i in range(n):
+            cost += dist[route[i], route[i + 1]]
+        costs[nc] = cost
+        nc += 1
+        if cost < best_cost - 1e-9:
+            best, best_cost = route, cost
+    return StartsOut(LOCAL_OPTIMUM, best, best_cost, costs[:nc], failed, gave_up, calls, emu, used)
 
 
 def double_bridge(route: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -94,62 +156,67 @@ class MoveSearch:
 
     def starts(self, dist: np.ndarray, run) -> list[int]:
         """The cheapest route over ``n_starts`` move-selection searches (module docstring); a program the
-        quantizer cannot map ends the search (every later start would meet it too)."""
+        quantizer cannot map ends the search (every later start would meet it too).  Without kicks every start
+        runs in one compiled call (:func:`search_starts`); with kicks one call a start, each kick drawn from
+        the best route so far."""
         n = dist.shape[0] - 1
         starts = 1 if n <= 3 else self.config.n_starts
         kicks = self.config.chip_restart == "kick" or (self.config.chip_restart == "auto" and n > KICK_ABOVE)
         dist = np.ascontiguousarray(dist, dtype=np.float64)
-        best, best_cost, failure = None, math.inf, None
+        best, best_cost = None, math.inf
         charges: list = []
         with self.chip.session(run.charged, decision="tour_moves") as link:  # one session for every start
             try:
-                for s in range(starts):
-                    if s == 0:
-                        route = nearest_neighbour_kernel(dist)
-                    elif kicks and best is not None and n >= 4:
-                        route = double_bridge(best, run.rng)
-                    else:
-                        route = np.concatenate([[0], 1 + run.rng.permutation(n)]).astype(np.int64)
-                    try:
-                        route = self.select(dist, route, run, link, charges)
-                    except ProgramRefused:
-                        raise
-                    except TourFailure as exc:  # this start gave up; other starts may still succeed
-                        failure = exc
-                        run.stats["failed_starts"] += 1
-                        continue
-                    cost = float(dist[route[:-1], route[1:]].sum())
-                    run.stats["start_costs"].append(cost)
-                    if cost < best_cost - 1e-9:
-                        best, best_cost = route, cost
+                if not kicks or n < 4:
+                    best, best_cost = self._run_starts(dist, _NO_ROUTES, True, starts - 1, run, link.args, charges,
+                                                       best, best_cost)
+                else:
+                    for s in range(starts):
+                        given = _NO_ROUTES if s == 0 or best is None else double_bridge(best, run.rng)[None]
+                        best, best_cost = self._run_starts(dist, given, s == 0, int(s > 0 and best is None), run,
+                                                           link.args, charges, best, best_cost)
             finally:  # what ran is charged once, in order, also when a start ends the search
                 settle(link, charges)
         if best is None:
-            raise failure
+            raise TourFailure(self._no_progress)
         return [int(t) for t in best[1:]]
 
     def select(self, dist: np.ndarray, route: np.ndarray, run, link, charges: list) -> np.ndarray:
-        """One start on the session ``link``: ``route`` (float64 ``dist``) improved by chip-selected moves
-        until no move improves it (or the chip selects nothing valid ``max_retries + 1`` times in a row), in
-        one compiled call (:func:`planners.ising.moves.search.move_search` on the route's 2-opt / or-opt
-        neighbourhood); its submissions' calls and emulation seconds are appended to ``charges`` for
+        """One start from ``route`` on the session ``link`` (float64 ``dist``): the route improved by chip-selected
+        moves (:func:`search_starts` with one given route); its submissions are appended to ``charges`` for
         :func:`settle`.  A chip that never selects a valid improving set for a route that has improving moves
         fails the start (:class:`TourFailure`): the route would be the host's, not the chip's."""
+        out = self._search(dist, np.asarray(route, dtype=np.int64)[None], False, 0, run, link.args, charges)
+        if out.status == REFUSED:
+            raise ProgramRefused(REFUSED_MESSAGE)
+        if out.costs.shape[0] == 0:
+            raise TourFailure(self._no_progress)
+        return out.best
+
+    def _run_starts(self, dist, given, nearest: bool, n_random: int, run, link_args, charges: list, best,
+                    best_cost):
+        """Starts of :func:`search_starts` (``charges`` as :meth:`select`'s); the cheapest route of ``best`` and
+        theirs, with its cost."""
+        out = self._search(dist, given, nearest, n_random, run, link_args, charges)
+        run.stats["start_costs"].extend(out.costs.tolist())
+        run.stats["failed_starts"] += out.failed
+        if out.status == REFUSED:
+            raise ProgramRefused(REFUSED_MESSAGE)
+        if out.costs.shape[0] and out.cost < best_cost - 1e-9:
+            return out.best, out.cost
+        return best, best_cost
+
+    def _search(self, dist, given, nearest: bool, n_random: int, run, link_args, charges: list) -> StartsOut:
+        """One compiled call of :func:`search_starts`: its statistics counted in ``run``, its submissions appended to
+        ``charges``; returns its :class:`StartsOut` (the callers raise on a refused program)."""
         k = len(self.config.chip_rules)
         stats = new_stats()
         clean, wins = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
-        nxt, prv = linked(route)
-        out = move_search(run.rng, dist, nxt, prv, 1, self.config.max_segment, None, self._limits, self._move_args,
-                          link.args, stats, (clean, wins), _NO_LOG)
+        out = search_starts(run.rng, dist, given, nearest, n_random, self.config.max_segment, self._limits,
+                            self._move_args, link_args, stats, (clean, wins), _NO_LOG)
         charges.append((out.calls[:out.used], out.emu[:out.used]))
-        st = stats_dict(stats)
-        no_progress = out.status == GAVE_UP and not st["moves_applied"]
-        self._count_start(run, st, clean, wins, out.status == GAVE_UP)
-        if out.status == REFUSED:
-            raise ProgramRefused(REFUSED_MESSAGE)
-        if no_progress:
-            raise TourFailure(self._no_progress)
-        return route_of(nxt)
+        self._count_start(run, stats_dict(stats), clean, wins, out.gave_up)
+        return out
 
     @property
     def _no_progress(self) -> str:
@@ -157,9 +224,9 @@ class MoveSearch:
         return (f"the chip selected no valid improving move set in {cfg.max_retries + 1} "
                 f"submissions of {len(cfg.chip_rules)} programs")
 
-    def _count_start(self, run, st, clean, wins, gave_up: bool) -> None:
-        """The statistics of one start: ``st`` (the search's, :func:`~planners.ising.moves.search.stats_dict`),
-        ``clean`` (valid reads per rule), ``wins`` (best reads per rule), whether the chip gave up."""
+    def _count_start(self, run, st, clean, wins, gave_up: int) -> None:
+        """The statistics of one call's starts: ``st`` (the search's, :func:`~planners.ising.moves.search.stats_dict`),
+        ``clean`` (valid reads per rule), ``wins`` (best reads per rule), how many starts the chip gave up."""
         cfg = self.config
         rounds, retries, applied = st["rounds"], st["retries"], st["moves_applied"]
         valid_rounds, valid_programs = st["valid_rounds"], st["valid_programs"]
@@ -170,5 +237,4 @@ class MoveSearch:
         run.stats["retries"] += retries
         run.stats["moves_applied"] += applied
         run.stats["move_rounds"] += rounds
-        if gave_up:
-            run.stats["unsolved"]["moves"] += 1
+        run.stats["unsolved"]["moves"] += gave_up

@@ -28,6 +28,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
+from mrmt_env.config import EnvConfig
 from mrmt_env.core import N_ACTIONS, check_step_limit, show
 
 __all__ = ["BatchedVectorEnv", "check_joint_moves"]
@@ -60,7 +61,13 @@ class BatchedVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int, max_episode_steps: int | None, autoreset_mode, copy: bool) -> None:
+    def __init__(self, num_envs: int, config, render_mode, autoreset_mode, copy: bool, options: dict) -> None:
+        """The subclasses' common arguments: ``config`` and ``options`` as the single env's (its
+        ``config_options``), read into ``self.config``; no rendering."""
+        if render_mode is not None:
+            raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
+        self.config = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
+        max_episode_steps = self.config.max_episode_steps
         if isinstance(num_envs, bool) or int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         try:

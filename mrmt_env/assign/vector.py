@@ -32,11 +32,8 @@ class MRMTAssignVectorEnv(BatchedVectorEnv):
 
     def __init__(self, num_envs: int = 1, config: EnvConfig | WorldConfig | None = None, *, render_mode=None,
                  autoreset_mode="NextStep", copy: bool = True, **options) -> None:
-        if render_mode is not None:
-            raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
-        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
-        super().__init__(num_envs, cfg.max_episode_steps, autoreset_mode, copy)
-        self.source = cfg.source()
+        super().__init__(num_envs, config, render_mode, autoreset_mode, copy, options)
+        self.source = self.config.source()
         h, w, r = self.source.height, self.source.width, self.source.n_robots
         n = int(self.source.params["n_targets"])
         self.n_robots, self.n_targets = r, n

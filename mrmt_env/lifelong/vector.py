@@ -33,11 +33,8 @@ class MRMTLifelongVectorEnv(BatchedVectorEnv):
 
     def __init__(self, num_envs: int = 1, config: EnvConfig | WorldConfig | None = None, *, render_mode=None,
                  autoreset_mode="NextStep", copy: bool = True, **options) -> None:
-        if render_mode is not None:
-            raise ValueError(f"the vector env does not render (render_mode={render_mode!r}); render a single env")
-        self.config = cfg = EnvConfig.of(config, takes=self.config_options, env=type(self).__name__, **options)
-        super().__init__(num_envs, cfg.max_episode_steps, autoreset_mode, copy)
-        self.setup = LifelongSetup(cfg)
+        super().__init__(num_envs, config, render_mode, autoreset_mode, copy, options)
+        self.setup = LifelongSetup(self.config)
         s = self.setup.source
         self.height, self.width, self.n_robots = s.height, s.width, s.n_robots
         self.single_action_space = spaces.MultiDiscrete([N_ACTIONS] * self.n_robots)

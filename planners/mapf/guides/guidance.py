@@ -124,9 +124,10 @@ def _reach(nbr, start, f, far):
 
 
 @numba.njit(cache=True, nogil=True)
-def spread(nbr, f, far, queue, tail):
+def spread(nbr, f, far, queue, tail, step=1):
     """Breadth-first from the seeds ``queue[:tail]`` (their ``f`` set, every other cell ``far``): a cell
-    reached gets its parent's value + 1, the seeds' order deciding among parents of equal depth."""
+    reached gets its parent's value + ``step`` (1: its depth; 0: its nearest seed's value), the seeds' order
+    deciding among parents of equal depth."""
     head = 0
     while head < tail:
         p = queue[head]
@@ -134,7 +135,7 @@ def spread(nbr, f, far, queue, tail):
         for d in range(4):
             q = nbr[p, d]
             if q >= 0 and f[q] == far:
-                f[q] = f[p] + 1
+                f[q] = f[p] + step
                 queue[tail] = q
                 tail += 1
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from planners.mapf.guides.guidance import spread
+
 __all__ = ["ParkingPlaces", "PARKING_SOURCES"]
 
 #: BFS sources of the through-traffic estimate.
@@ -60,16 +62,7 @@ def _nearest(nbr, park, goal_of):  # pragma: no cover - compiled
             goal_of[c] = c
             queue[tail] = c
             tail += 1
-    head = 0
-    while head < tail:
-        u = queue[head]
-        head += 1
-        for d in range(4):
-            v = nbr[u, d]
-            if v >= 0 and goal_of[v] < 0:
-                goal_of[v] = goal_of[u]
-                queue[tail] = v
-                tail += 1
+    spread(nbr, goal_of, -1, queue, tail, 0)  # each cell the nearest place's cell
 
 
 class ParkingPlaces:

@@ -25,6 +25,7 @@ from _common import cpu_name, finish  # noqa: E402
 
 SECTION = ("## League of Robot Runners 2024: the chip at ten thousand robots, lorr-ising against its host-rule twin "
            "(issue 56)")
+SECTION_ENTRY = "## League of Robot Runners 2024: lorr-ising with the entry's planner (issue 56)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
              "WAREHOUSE": "warehouse.domain"}
@@ -38,11 +39,30 @@ SCHEDULERS = (("lorr-greedy", "lorr-greedy", [], []), ("lorr-weighted (weight 1)
               ("lorr-ising (jam 4 turns)", "lorr-ising", ["jam=4", "turns=true"], []))
 
 
-def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int) -> dict:
+def _value(v) -> str:
+    """An option value as the command line reads it."""
+    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+
+
+def planner_args(name: str, planner: str) -> list[str]:
+    """The planner's arguments: ``pibt`` (lanes off on SORTATION, as the default entry) or ``entry`` (the default
+    entry's planner for the instance, with its options and guidance)."""
+    if planner == "pibt":
+        return ["--planner", "pibt", *(["--guidance", "0"] if name == "SORTATION" else [])]
+    from agents.lorr.entry import load_entry
+    from mrmt_env.lorr.instance import read_instance
+
+    choice = load_entry("default").choose(read_instance(ROOT / INSTANCES[name] / f"{name}.json"))
+    guidance = choice.options.get("guidance")
+    return ["--planner", choice.planner, *([] if guidance is None else ["--guidance", str(guidance)]),
+            *[a for k, v in choice.options.get("executor_options", {}).items()
+              for a in ("--planner-option", f"{k}={_value(v)}")]]
+
+
+def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int, planner: str = "pibt") -> dict:
     path = ROOT / INSTANCES[name] / f"{name}.json"
-    guidance = ["--guidance", "0"] if name == "SORTATION" else []
-    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler, "--planner", "pibt",
-           *guidance, *[a for o in options for a in ("--scheduler-option", o)], "--steps", str(steps),
+    cmd = [sys.executable, "-m", "agents.cli", "lorr", "run", str(path), "--scheduler", scheduler,
+           *planner_args(name, planner), *[a for o in options for a in ("--scheduler-option", o)], "--steps", str(steps),
            "--step-limit", "rules", "--json", "--no-progress", *extra]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -54,6 +74,8 @@ def main(argv=None) -> None:
     parser.add_argument("--instances", default=",".join(INSTANCES))
     parser.add_argument("--rows", default=",".join(label for label, *_ in SCHEDULERS),
                         help="which of the scheduler rows to run (labels, comma-separated)")
+    parser.add_argument("--planner", choices=("pibt", "entry"), default="pibt",
+                        help="pibt (PIBT with turning) or entry (the default entry's planner for each instance)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.instances.split(",") if n.strip()]
@@ -68,15 +90,17 @@ def main(argv=None) -> None:
     for name in names:
         base = None
         for label, scheduler, options, extra in [row for row in SCHEDULERS if row[0] in wanted]:
-            r = run(name, scheduler, options, extra, args.steps)
+            r = run(name, scheduler, options, extra, args.steps, args.planner)
             base = r["tasks_finished"] if base is None else base
             rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))
             print(f"{name} {label}: {r['tasks_finished']} tasks, {r['timeouts']} timeouts", file=sys.stderr)
-    lines = [SECTION, "",
-             f"`python benchmarks/lorr_schedulers.py --steps {args.steps} --rows '{args.rows}'` ({cpu_name()}; each run "
-             f"its own process, "
-             f"the first {args.steps} steps under the rules' 1 s clock; planner: PIBT with turning, lanes off on "
-             "SORTATION as in the default entry).", "",
+    section = SECTION if args.planner == "pibt" else SECTION_ENTRY
+    what = ("PIBT with turning, lanes off on SORTATION as in the default entry" if args.planner == "pibt" else
+            "the default entry's for each instance")
+    lines = [section, "",
+             f"`python benchmarks/lorr_schedulers.py --steps {args.steps} --planner {args.planner} --rows "
+             f"'{args.rows}'` ({cpu_name()}; each run its own process, the first {args.steps} steps under the rules' "
+             f"1 s clock; planner: {what}).", "",
              "| instance | scheduler | tasks | x greedy | timeouts | step p50 s | step p99 s | chip calls / step "
              "| host J / task | machine mJ / task | peak MiB |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
@@ -85,7 +109,7 @@ def main(argv=None) -> None:
                      f"{r['step_p50_s']:.3f} | {r['step_p99_s']:.3f} | {r['chip_calls'] / r['decisions']:,.0f} | "
                      f"{r['host_energy_per_task_j']:.2f} | {1e3 * r['machine_energy_per_task_j']:.3f} | "
                      f"{r['peak_rss_mb']:,.0f} |")
-    finish(SECTION, lines, args.write)
+    finish(section, lines, args.write)
 
 
 if __name__ == "__main__":

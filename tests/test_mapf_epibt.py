@@ -66,9 +66,9 @@ class Oracle:
     """EPIBT as the module docstring states it, recursively: its own priorities, fields and operations."""
 
     def __init__(self, grid, seed, n, guidance=0, op_len=3, revisits=10, lns=0, group=16, weight_power=0, portfolio=1,
-                 anneal=0.0, steady=False, idle_weight=True):
+                 anneal=0.0, steady=False):
         self.grid, self.seed, self.guidance, self.revisits, self.anneal = grid, seed, guidance, revisits, anneal
-        self.steady, self.idle_weight = steady, idle_weight
+        self.steady = steady
         self.lns, self.group, self.weight_power, self.portfolio = lns, group, weight_power, portfolio
         self.ops = oracle_operations(op_len)
         self.t, self.elapsed = 0, [0] * n
@@ -130,8 +130,6 @@ class Oracle:
         weight = [0] * r
         for rank, k in enumerate(order):
             weight[k] = (r + 1 - rank) ** self.weight_power
-            if not self.idle_weight and goals[k] == pos[k]:  # no goal this step: the search may move it freely
-                weight[k] = 0
         best = None
         for j in range(self.portfolio):  # plan j from its own seed; the least weighted cost kept, the first on ties
             s = self.seed if j == 0 else int(mix(self.seed, j, 0x70F7, 0)) & ((1 << 62) - 1)
@@ -269,16 +267,15 @@ class Oracle:
        density=st.floats(0.0, 0.3), fill=st.floats(0.05, 0.9), guidance=st.sampled_from([0, 0, 2]),
        op_len=st.sampled_from([1, 2, 3, 3]), lns=st.sampled_from([0, 5, 40]), group=st.sampled_from([2, 4, 16]),
        weight_power=st.sampled_from([0, 1, 2]), portfolio=st.sampled_from([1, 1, 2, 3]), threads=st.sampled_from([1, 2]),
-       anneal=st.sampled_from([0.0, 0.0, 0.05, 0.5]), steady=st.booleans(), idle_weight=st.booleans())
+       anneal=st.sampled_from([0.0, 0.0, 0.05, 0.5]), steady=st.booleans())
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_len, lns, group, weight_power,
-                                        portfolio, threads, anneal, steady, idle_weight):
+                                        portfolio, threads, anneal, steady):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
-               weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal, steady=steady,
-               idle_weight=idle_weight)
+               weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal, steady=steady)
     oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
-                    portfolio=portfolio, anneal=anneal, steady=steady, idle_weight=idle_weight)
+                    portfolio=portfolio, anneal=anneal, steady=steady)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)

@@ -62,6 +62,3 @@ class EPIBTOptions(LaneOptions):
     park: float = park_option()
     active: float = active_option()
     active_by: str = active_by_option()
-    idle_weight: bool = option(True, bool, meaning="false: a robot without a goal this step (no task, or not at "
-                               "work under active) weighs nothing in the search, which moves it wherever that helps "
-                               "the others (the 2024 winner's disabled robots, of power 0)")

@@ -398,8 +398,6 @@ class EPIBT(TurningPIBT):
         prio = self.elapsed + self.tie
         weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
         weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power
-        if not self.options.idle_weight:
-            weight[gc == pc] = 0
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else self.lns_option
         if deadline is not None:
             self.lns = int(self.lns * self.lns_scale)

@@ -4,7 +4,8 @@ Contract: each start runs :func:`planners.ising.moves.search.move_search` on the
 moves: the chip selects a non-overlapping set (a read selecting overlapping moves is dropped, never
 repaired), so applied moves always give a valid route.  Start 0 is the nearest-neighbour route, later
 starts random orders or double-bridge kicks (``chip_restart``; ``"auto"`` kicks above :data:`KICK_ABOVE`
-targets); the cheapest route wins.  Design notes and measurements: docs/design/ising_tour.md.
+targets); the cheapest route wins.  The starts run in one compiled call (:func:`search_starts`); kicks, drawn by
+numpy from the best route so far, one call a start.  Design notes and measurements: docs/design/ising_tour.md.
 """
 
 from __future__ import annotations

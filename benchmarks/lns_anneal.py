@@ -74,7 +74,8 @@ def main(argv=None) -> None:
                           host_j / max(tasks, 1), (total_j - host_j) / max(tasks, 1)))
             print(f"{name} {row}: {tasks} tasks", file=sys.stderr)
     lines = [SECTION, "",
-             f"`python benchmarks/lns_anneal.py --steps {args.steps} --seeds {args.seeds} --anneals {args.anneals} "
+             f"`python benchmarks/lns_anneal.py --instances {args.instances} --steps {args.steps} --seeds {args.seeds} "
+             f"--anneals {args.anneals} "
              f"--chip-rows {args.chip_rows} --rounds {args.rounds} --reads {args.reads} --portfolio {args.portfolio} "
              f"--step-limit {args.step_limit}` ({cpu_name()}; `strong --replan`, weight_power=2 op_len=auto, "
              f"{args.portfolio} plan(s) a step; the first {args.steps} steps, tasks "

@@ -702,6 +702,16 @@ def test_dist_flags_is_the_numpy_checks(n, seed, p_nan, p_neg, p_inf):
         assert (code, r, c) == (0, -1, -1)
 
 
+def _same_runs(out, runs):
+    """Two tour runs that must agree: their results, statistics, charges and generators' next draw."""
+    assert out[0] == out[1]
+    a, b = runs
+    assert a.stats == b.stats
+    assert (a.charged.physical_calls, a.charged.batches) == (b.charged.physical_calls, b.charged.batches)
+    assert a.rng.integers(1 << 62) == b.rng.integers(1 << 62)
+    return a, b
+
+
 @pytest.mark.parametrize("options, spec", [
     ({}, {}), ({"num_reads": 3, "max_retries": 0}, {}), ({"chip_rules": ("rank",), "max_moves": 6}, {}),
     ({"max_segment": 2, "max_overlap": 0}, {"n_spins": 12}),
@@ -743,11 +753,7 @@ def test_compiled_move_selection_makes_the_reference_decisions(options, spec):
                 out.append(got.tolist())
             except TourFailure as exc:
                 out.append(str(exc))
-        assert out[0] == out[1]
-        a, b = runs
-        assert a.stats == b.stats
-        assert (a.charged.physical_calls, a.charged.batches) == (b.charged.physical_calls, b.charged.batches)
-        assert a.rng.integers(1 << 62) == b.rng.integers(1 << 62)
+        a, b = _same_runs(out, runs)
         moved += a.stats["moves_applied"] * a.charged.physical_calls
     assert moved > 0
 
@@ -815,11 +821,7 @@ def test_compiled_starts_make_the_start_by_start_loop(options, spec):
                 out.append(step(tour, dist, run))
             except TourFailure as exc:
                 out.append(str(exc))
-        assert out[0] == out[1]
-        a, b = runs
-        assert a.stats == b.stats
-        assert (a.charged.physical_calls, a.charged.batches) == (b.charged.physical_calls, b.charged.batches)
-        assert a.rng.integers(1 << 62) == b.rng.integers(1 << 62)
+        a, b = _same_runs(out, runs)
         failed += a.stats["failed_starts"]
     if spec:
         assert failed > 0  # the faulty chip makes starts fail: the failure path is compared too

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from planners.mapf.chip.epibt_ising import EPIBTIsing
 from planners.mapf.chip.joint_executor import JointMovesPIBT
+from planners.mapf.epibt.chain_planner import ChainEPIBT
 from planners.mapf.epibt.plans import EPIBT
 from planners.mapf.guides.flow import FlowPIBT
 from planners.mapf.pibt.grid import PIBT
@@ -29,12 +30,12 @@ from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
            "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT",
-           "EPIBTIsing"]
+           "EPIBTIsing", "ChainEPIBT"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
 TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
-                     "epibt": EPIBT, "epibt-ising": EPIBTIsing,
+                     "epibt": EPIBT, "epibt-chain": ChainEPIBT, "epibt-ising": EPIBTIsing,
                      "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
 #: The turning executors that take an Ising machine (``machine=``; default the paper's emulated chip).
 MACHINE_PLANNERS = ("epibt-ising", "pibt-ising")

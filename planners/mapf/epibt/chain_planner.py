@@ -1,0 +1,166 @@
+"""``epibt-chain``: EPIBT by push chains (:mod:`planners.mapf.epibt.chains`) as a planner with turning.
+
+Contract: as :class:`~planners.mapf.epibt.plans.EPIBT` (``actions(pos, orient, goals, deadline, rest)``, one valid
+joint action a call, deterministic for a seed without a deadline), with the 2024 winner's plan in place of EPIBT's:
+no inherited operations, a construction and a search of push chains scored by ``power x (value of waiting - value
+of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the robot of least task still to go
+(its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
+``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Under a clock the
+search's chains scale as EPIBT's iterations do.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from planners.mapf.epibt.chains import (STEPS, Candidates, ChainStamp, chain_candidates, chain_kernel,
+                                        chain_operations, new_plan, stamp_seed)
+from planners.mapf.epibt.options import MAX_PORTFOLIO
+from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
+from planners.mapf.guides.flow import FlowGuide, guide_work_option, replans_option
+from planners.mapf.guides.focus import checked_rest
+from planners.mapf.guides.guidance import MAX_GUIDANCE
+from planners.mapf.pibt.options import LaneOptions, active_by_option, active_option, congestion_options, park_option
+from planners.mapf.pibt.turning import FORWARD, WAIT, TurningPIBT
+from planners.options import option
+
+__all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
+
+#: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`.
+DEFAULT_CHAINS_PER_ROBOT = 100
+DEFAULT_CHAINS_MAX = 1 << 17
+
+
+@dataclass(frozen=True)
+class ChainOptions(LaneOptions):
+    """:class:`ChainEPIBT`'s options."""
+
+    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
+    flow: bool = option(False, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
+    lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="search chains per plan and call (null: "
+                             f"{DEFAULT_CHAINS_PER_ROBOT} per robot, at most {DEFAULT_CHAINS_MAX:,}; 0 = off)")
+    weight_power: int = option(2, int, 0, 2, meaning="a robot's score counts (R + 1 - rank) ** weight_power times, "
+                               "rank 0 the robot of least task still to go")
+    anneal: float = option(0.001, float, 0.0, 1.0, meaning="the search's starting temperature, a share of the plan's "
+                           "score (cooling by 0.999 a chain; 0 = keep only chains that do not lower the score)")
+    push_built: float = option(0.2, float, 0.0, 1.0, meaning="the chance the construction pushes a robot that has "
+                               "already chosen (one still waiting is always pushed)")
+    skip: float = option(0.2, float, 0.0, 1.0, meaning="the chance a search chain passes over a robot in its way")
+    portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="plans per call from seeds apart, the one of highest "
+                            "score kept (ties: the first)")
+    threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
+                                 "on (null: one per plan, at most the cores this process may use); plans do not "
+                                 "depend on it")
+    replans: int | None = replans_option()
+    guide_work: int | None = guide_work_option()
+    congestion: int = congestion_options()[0]
+    refresh: int = congestion_options()[1]
+    park: float = park_option()
+    active: float = active_option()
+    active_by: str = active_by_option()
+
+
+class ChainEPIBT(EPIBT):
+    """EPIBT by push chains on one grid (module docstring).
+
+    Args:
+        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
+        options: the fields of :class:`ChainOptions`.
+    """
+
+    name = "epibt-chain"
+    Options = ChainOptions
+
+    def __init__(self, grid, seed: int = 0, **options) -> None:
+        TurningPIBT.__init__(self, grid, seed, **options)
+        opts = self.options
+        if opts.congestion and opts.flow:
+            raise ValueError(f"congestion = {opts.congestion} needs flow=false (the guide paths' A* takes the goal "
+                             f"fields for its heuristic, which the crowd's costs would overestimate)")
+        self.takes_rest = opts.active_by == "task"  # the ranking reads the task still to go, at work or not
+        self.portfolio, self.lns_option, self.weight_power = opts.portfolio, opts.lns, opts.weight_power
+        self.threads = min(self.portfolio, _cores()) if opts.threads is None else opts.threads
+        self.deadline: float | None = None
+        self.lns_scale = 1.0
+        self.flow = opts.flow
+        self.ops, depth = chain_operations()
+        self.depth = depth
+        self.idle = op_idle(self.ops)
+        self.quiet = ((self.ops != WAIT) * (STEPS - np.arange(STEPS))).sum(axis=1).astype(np.int64)
+        self.draws = np.arange(3, STEPS + 1, dtype=np.int64)  # the depths a plan draws from
+        n = len(self.cell_of)
+        self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
+        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
+                               self.seed, work=opts.guide_work) if self.flow else None
+        self.portfolio_scores = np.zeros(0, dtype=np.int64)
+        self.kept = 0
+        self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
+
+    def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
+        """As :meth:`EPIBT.actions <planners.mapf.epibt.plans.EPIBT.actions>`, by push chains."""
+        self.deadline = deadline
+        pos, orient, goals = self._check(pos, orient, goals)
+        if self.takes_rest:
+            rest = checked_rest(rest, len(pos))
+        goals = self.steer(pos, goals, rest)
+        r = len(pos)
+        pc, gc = self.cid[pos], self.cid[goals]
+        fields, rows = self._heuristic(pc, gc, self.order(r))
+        grid = (self.nbr, self.cell_of, self.width, self.cost)
+        n_ops = self.ops.shape[0]
+        cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
+                          np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
+                          np.empty((r, STEPS + 1), np.int64), np.empty(r, np.int64), np.empty(r, np.int64),
+                          np.empty(r, np.int64))
+        t0 = time.perf_counter()
+        chain_candidates(grid, (fields, int(np.iinfo(fields.dtype).max)), (pc, orient, gc, rows), self.ops,
+                         (self.idle, self.quiet), cand)
+        depth = self.depth[cand.op]
+        cand = cand._replace(depth=depth)
+        busy = pc != gc
+        way = cand.to_go + (rest if rest is not None else 0)
+        order = np.lexsort((np.arange(r), way, ~busy)).astype(np.int64)  # at work first, least way first
+        rank = np.empty(r, dtype=np.int64)
+        rank[order] = np.arange(r)
+        power = np.where(busy, (r + 1 - rank) ** self.weight_power, 0).astype(np.int64)
+        gain = power[:, None] * (cand.wait_value[:, None] - cand.value)
+        chains = min(r * DEFAULT_CHAINS_PER_ROBOT, DEFAULT_CHAINS_MAX) if self.lns_option is None else self.lns_option
+        if deadline is not None:
+            chains = int(chains * self.lns_scale)
+            started = time.perf_counter()
+        plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k)) for k in range(self.portfolio)]
+        opts = self.options
+
+        def run(k):
+            stamp = ChainStamp(chains, opts.anneal, opts.push_built, opts.skip)
+            chain_kernel(cand, gain, order, self.draws, stamp, plans[k])
+
+        done = self._waves(run, self.portfolio)
+        self.kernel_s = time.perf_counter() - t0
+        self.portfolio_scores = np.array([p.score[0] for p in plans[:done]], dtype=np.int64)
+        self.kept = int(np.argmax(self.portfolio_scores))
+        choice = plans[self.kept].choice
+        on = choice >= 0
+        op = np.where(on, cand.op[np.arange(r), np.maximum(choice, 0)], 0)
+        self.plans = np.where(on[:, None], self.ops[op], WAIT).astype(np.int8)
+        act = np.where(on, self.ops[op, 0], cand.idle_act).astype(np.int64)
+        ahead = self.nbr[pc, orient].astype(np.int64)
+        nxt = np.where(act == FORWARD, ahead, pc)
+        self.targets = self.cell_of[nxt]
+        self._advance(nxt, gc)
+        if deadline is not None:
+            slack = deadline - time.perf_counter()
+            if slack < DEADLINE_MARGIN_S:
+                self.lns_scale *= 0.7
+            elif slack > 0.25 * (deadline - started):
+                self.lns_scale = min(1.0, self.lns_scale * 1.1)
+        return act
+
+
+def _cores() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+

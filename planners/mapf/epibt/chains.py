@@ -1,0 +1,333 @@
+"""EPIBT by push chains: the 2024 League winner's construction and annealed search (issue 57), compiled.
+
+Contract.  Every robot starts a call on the operation that waits five steps (it holds its cell); robots then
+choose, in order of least task still to go, each its first operation (best first) that is free, or that
+collides with exactly one robot, which is pushed and chooses in turn (a *push chain*).  A chain is kept when
+the plan's score does not fall: the score is the sum over robots of ``power x (value of waiting - value of the
+operation)``, an operation's value 50 x the cost-to-go where it ends (or ``-50 x (6 - s)`` when it visits the
+goal at its step ``s``) plus its idle rank.  The search then starts chains from random robots and keeps one
+when the score does not fall or, annealing, with probability ``exp(-(fall / score) / T)``, ``T`` cooling by
+0.999 a chain; a plan's score never ends below the construction's.  Operations are five actions (129: no turn
+after the last forward move, no R and C between two forward moves, no three equal turns, no cell entered twice,
+equal cells and end orientation once), all reserved for five steps; only the first action runs.  Robots
+without a goal weigh nothing and prefer to stay.
+
+Choices (where the winner's code and this one part): chains are drawn from a seeded SplitMix64 stream, not a
+clock; the search runs a fixed number of chains (scaled under a clock by the planner); a robot left waiting
+turns towards its goal only when that strictly lowers its cost-to-go.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from ising_backend import splitmix
+from planners.mapf.common import mix
+from planners.mapf.epibt.plans import _to_go, _walk, op_idle
+from planners.mapf.epibt.search import conflict, reserve
+from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT
+
+__all__ = ["STEPS", "chain_operations", "Candidates", "ChainStamp", "ChainPlan", "new_plan", "chain_candidates",
+           "chain_kernel", "score_of"]
+
+STEPS = 5  # actions per operation
+_VISIT = 50  # value scale of a cost-to-go step
+_MIN_DEPTH = 3  # operations reaching at most this far count as this deep
+_SEARCH_PUSHES = 1000  # a search chain pushing more is refused
+_DEEP_PUSHES = 3000  # beyond this many, the construction pushes no deeper than 6 robots
+_BUILD_PUSHES = 20000  # and a construction chain pushing more is refused
+
+
+def chain_operations() -> tuple[np.ndarray, np.ndarray]:
+    """``(ops, depth)``: the 129 operations (``(129, 5)`` int8, index 0 the five waits) and each one's depth
+    (its last action that is not a wait, at least 3)."""
+    steps = ((0, 1), (1, 0), (0, -1), (-1, 0))  # (row, col) per orientation: east, south, west, north
+    kept: dict = {}
+    for op in itertools.product((FORWARD, CLOCKWISE, COUNTER, WAIT), repeat=STEPS):
+        if _turns_wasted(op):
+            continue
+        r = c = o = 0
+        seen, cells, again = {(0, 0)}, [], False
+        for a in op:
+            if a == FORWARD:
+                r, c = r + steps[o][0], c + steps[o][1]
+                again |= (r, c) in seen
+            elif a != WAIT:
+                o = (o + (1 if a == CLOCKWISE else 3)) & 3
+            seen.add((r, c))
+            cells.append((r, c))
+        if not again:
+            kept.setdefault((tuple(cells), o), op)  # the first of equal moves: turns as early as they go
+    ops = [(WAIT,) * STEPS] + [op for op in kept.values() if any(a != WAIT for a in op)]
+    arr = np.array(ops, dtype=np.int8)
+    last = np.array([max([t + 1 for t in range(STEPS) if op[t] != WAIT], default=0) for op in ops])
+    return arr, np.maximum(last, _MIN_DEPTH).astype(np.int64)
+
+
+def _turns_wasted(op) -> bool:
+    """A turn after the last forward move, R and C between two forward moves, or three equal turns there."""
+    tail = len(op)
+    while tail > 0 and op[tail - 1] != FORWARD:
+        tail -= 1
+    if any(a in (CLOCKWISE, COUNTER) for a in op[tail:]):
+        return True
+    run: list = []
+    for a in op + (FORWARD,):
+        if a != FORWARD:
+            run.append(a)
+            continue
+        if (CLOCKWISE in run and COUNTER in run) or run.count(CLOCKWISE) >= 3 or run.count(COUNTER) >= 3:
+            return True
+        run = []
+    return False
+
+
+class Candidates(NamedTuple):
+    """Each robot's operations, best first (:func:`chain_candidates`); read-only for the plans."""
+
+    cells: np.ndarray  # (R, M, 6) the cells of each candidate (start first)
+    op: np.ndarray     # (R, M) the operation it is
+    value: np.ndarray  # (R, M) its value (lower better)
+    depth: np.ndarray  # (R, M) its depth (3..5; the planner fills it from the operations')
+    n: np.ndarray      # (R,) how many
+    still: np.ndarray  # (R, 6) the cells of waiting (the robot's own, six times)
+    wait_value: np.ndarray  # (R,) the value of waiting
+    idle_act: np.ndarray    # (R,) the first action of a robot left waiting (a turn towards its goal, or W)
+    to_go: np.ndarray       # (R,) the cost-to-go now
+
+
+class ChainStamp(NamedTuple):
+    """One plan's search budget and rules (its random stream is :attr:`ChainPlan.rng`)."""
+
+    iters: int         # search chains
+    temp: float        # the search's starting temperature (0: keep only chains that do not lower the score)
+    push_built: float  # the chance the construction pushes a robot that has already chosen
+    skip: float        # the chance the search passes over a robot in the way
+
+
+class ChainPlan(NamedTuple):
+    """One joint plan: ``choice[k]`` robot ``k``'s candidate (-1: waiting), the table ``res[t, cell]``."""
+
+    choice: np.ndarray  # (R,)
+    res: np.ndarray     # (6, cells)
+    score: np.ndarray   # (1,) int64, the plan's score
+    rng: np.ndarray     # (1,) uint64, the plan's random stream
+
+
+def new_plan(r: int, n_cells: int, seed: int) -> ChainPlan:
+    """An empty :class:`ChainPlan` for ``r`` robots on ``n_cells`` cells."""
+    return ChainPlan(np.full(r, -1, np.int64), np.full((STEPS + 1, n_cells), -1, np.int64), np.zeros(1, np.int64),
+                     np.array([seed], dtype=np.uint64))
+
+
+@numba.njit(cache=True, nogil=True)
+def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
+    """Fill ``out`` (a :class:`Candidates`) for ``robots = (pc, orient, gc, rows)``; ``ranks = (idle, quiet)``:
+    each operation's tie rank for a robot with a goal and its order for one without (least moving first)."""
+    nbr = grid[0]
+    pc, orient, gc, rows = robots
+    idle, quiet = ranks
+    n_ops = ops.shape[0]
+    tmp = np.empty((n_ops, STEPS + 1), np.int64)
+    keys = np.empty(n_ops, np.int64)
+    for k in range(pc.shape[0]):
+        p, o, g, row = pc[k], orient[k], gc[k], rows[k]
+        busy = p != g
+        out.to_go[k] = _to_go(grid, heuristic, g, row, p, o) if busy else 0
+        out.still[k, :] = p
+        out.wait_value[k] = _VISIT * out.to_go[k] + idle[0] if busy else quiet[0]
+        m = 0
+        for i in range(1, n_ops):
+            end = _walk(nbr, p, o, ops[i], tmp[i])
+            if end < 0:
+                continue
+            if busy:
+                v = _VISIT * _to_go(grid, heuristic, g, row, tmp[i, STEPS], end) + idle[i]
+                for s in range(1, STEPS + 1):
+                    if tmp[i, s] == g:
+                        v = -_VISIT * (STEPS + 1 - s) + idle[i]
+                        break
+            else:
+                v = quiet[i]
+            keys[m] = v * 256 + i
+            m += 1
+        srt = np.sort(keys[:m])
+        for j in range(m):
+            i = srt[j] & 255
+            out.cells[k, j] = tmp[i]
+            out.op[k, j] = i
+            out.value[k, j] = srt[j] >> 8
+        out.n[k] = m
+        out.idle_act[k] = WAIT
+        if busy:
+            here = out.to_go[k]
+            right = _to_go(grid, heuristic, g, row, p, (o + 1) & 3)
+            left = _to_go(grid, heuristic, g, row, p, (o + 3) & 3)
+            if min(right, left) < here:
+                out.idle_act[k] = CLOCKWISE if right <= left else COUNTER
+
+
+@numba.njit(cache=True, nogil=True)
+def _draw(rng) -> float:
+    rng[0] += np.uint64(0x9E3779B97F4A7C15)
+    return float(splitmix(rng[0]) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _path(cand, k, c):
+    return cand.still[k] if c < 0 else cand.cells[k, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _gain(gain, k, c) -> int:
+    return 0 if c < 0 else gain[k, c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _keep(score, old, temp, rng) -> bool:
+    if score >= old:
+        return True
+    return temp > 0.0 and old > 0 and _draw(rng) < np.exp(-((old - score) / old) / temp)
+
+
+@numba.njit(cache=True, nogil=True)
+def _move(plan, cand, gain, k, c, on) -> None:
+    """Put robot ``k`` on candidate ``c`` (``on``) or take it off its current one."""
+    if on:
+        plan.choice[k] = c
+        reserve(plan.res, _path(cand, k, c), k, k)
+        plan.score[0] += _gain(gain, k, c)
+    else:
+        c = plan.choice[k]
+        reserve(plan.res, _path(cand, k, c), k, -1)
+        plan.score[0] -= _gain(gain, k, c)
+
+
+@numba.njit(cache=True, nogil=True)
+def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool:
+    """One push chain from ``root`` (module docstring; ``cid`` the chain's number, > 0, marking the robots it
+    pushed; ``search``: the search's rules, else the construction's; ``cap`` the deepest operations tried;
+    ``knobs = (push_built, skip)``); True when kept."""
+    choice, rng = plan.choice, plan.rng
+    st_a, st_j, st_old, st_lo, st_lo_old, mark = stack
+    push_built, skip = knobs
+    old = plan.score[0]
+    _move(plan, cand, gain, root, 0, False)
+    mark[root] = cid
+    top, pushes, ret = 0, 0, -1  # ret: -1 none, 0 nothing found, 1 kept, 2 refused
+    st_a[0], st_j[0], st_old[0], st_lo[0] = root, 0, choice[root], -1
+    while top >= 0:
+        a = st_a[top]
+        if ret >= 0:  # the robot a pushed has answered
+            if ret == 1:
+                top -= 1
+                continue
+            lo = st_lo[top]
+            _move(plan, cand, gain, a, 0, False)
+            choice[a] = st_old[top]
+            _move(plan, cand, gain, lo, st_lo_old[top], True)
+            st_lo[top] = -1
+            if ret == 2:
+                top -= 1
+                continue
+            ret = -1
+        elif st_j[top] == 0 and pushes > (_SEARCH_PUSHES if search else _BUILD_PUSHES):
+            ret = 2
+            top -= 1
+            continue
+        pushed = False
+        while st_j[top] < cand.n[a]:
+            c = st_j[top]
+            st_j[top] += 1
+            if cand.depth[a, c] > cap:
+                continue
+            path = cand.cells[a, c]
+            lo = conflict(plan.res, path, a)
+            if lo == -2:
+                continue
+            if lo == -1:
+                _move(plan, cand, gain, a, c, True)
+                if _keep(plan.score[0], old, temp if search else 0.0, rng):
+                    ret = 1
+                else:
+                    _move(plan, cand, gain, a, 0, False)
+                    choice[a] = st_old[top]
+                    ret = 2
+                break
+            if search:
+                if mark[lo] == cid or _draw(rng) < skip:
+                    continue
+            elif (pushes > _DEEP_PUSHES and top >= 6) or (choice[lo] >= 0 and _draw(rng) >= push_built):
+                continue
+            pushes += 1
+            st_lo[top], st_lo_old[top] = lo, choice[lo]
+            _move(plan, cand, gain, lo, 0, False)
+            _move(plan, cand, gain, a, c, True)
+            top += 1
+            st_a[top], st_j[top], st_old[top], st_lo[top] = lo, 0, choice[lo], -1
+            mark[lo] = cid
+            pushed = True
+            break
+        if pushed:
+            continue
+        if ret < 0:  # a found nothing
+            choice[a] = st_old[top]
+            mark[a] = 0
+            ret = 0
+        top -= 1
+    if ret != 1:
+        _move(plan, cand, gain, root, choice[root], True)
+        return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def chain_kernel(cand, gain, order, depth_draw, stamp, plan) -> None:
+    """One joint plan into ``plan`` (all robots waiting, the table empty on entry): the construction in ``order``,
+    then ``stamp.iters`` search chains; ``depth_draw`` the operation depths a plan draws from (every 128
+    chains)."""
+    r = order.shape[0]
+    for k in range(r):
+        _move(plan, cand, gain, k, -1, True)
+    plan.score[0] = 0
+    deep = r + _DEEP_PUSHES + 8  # a construction chain may push a robot twice
+    stack = (np.empty(deep, np.int64), np.empty(deep, np.int64), np.empty(deep, np.int64),
+             np.full(deep, -1, np.int64), np.empty(deep, np.int64), np.zeros(r, np.int64))
+    knobs = (stamp.push_built, stamp.skip)
+    rng = plan.rng
+    nd = depth_draw.shape[0]
+    cap = depth_draw[int(_draw(rng) * nd)]
+    for idx in range(r):
+        k = order[idx]
+        if plan.choice[k] < 0:
+            _chain(k, idx + 1, False, 0.0, cap, plan, cand, gain, knobs, stack)
+    best = plan.choice.copy()
+    best_score = plan.score[0]
+    temp = stamp.temp
+    for it in range(stamp.iters if r > 0 else 0):
+        if it > 0 and it % 128 == 0:
+            cap = depth_draw[int(_draw(rng) * nd)]
+        k = min(int(_draw(rng) * r), r - 1)
+        _chain(k, r + 1 + it, True, temp, cap, plan, cand, gain, knobs, stack)
+        temp *= 0.999
+    if plan.score[0] < best_score:  # the construction's plan was better: back to it
+        for k in range(r):
+            _move(plan, cand, gain, k, 0, False)
+        for k in range(r):
+            _move(plan, cand, gain, k, best[k], True)
+
+
+def score_of(plan: ChainPlan, gain: np.ndarray) -> int:
+    """A plan's score recounted from its choices (the kernels keep it incrementally)."""
+    c = plan.choice
+    rows = np.flatnonzero(c >= 0)
+    return int(gain[rows, c[rows]].sum())
+
+
+def stamp_seed(seed: int, t: int, k: int) -> int:
+    """Plan ``k``'s random stream at step ``t``."""
+    return int(mix(np.uint64(seed), t, k, 0xC4A1))

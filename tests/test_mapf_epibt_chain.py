@@ -17,7 +17,6 @@ from test_mapf_epibt import plan_conflicts, walk
 from test_mapf_turning import F, R, C, W, apply, bfs, drive, free_neighbours, random_instance, retarget
 
 FAR = 1 << 40
-sys.setrecursionlimit(max(sys.getrecursionlimit(), 30000))  # the oracle's construction chain may push 20,000 deep
 GOLDEN = 0x9E3779B97F4A7C15
 
 
@@ -165,6 +164,7 @@ class Plan:
         return hit
 
     def chain(self, root, cid, search, temp, cap):
+        sys.setrecursionlimit(max(sys.getrecursionlimit(), 30000))  # a construction chain may push 20,000 deep
         self.old, self.cid, self.search, self.temp, self.cap, self.pushes = self.score, cid, search, temp, cap, 0
         self.take(root)
         self.mark[root] = cid
@@ -240,10 +240,11 @@ def test_operations_are_the_pruned_five_action_set():
                                  for op in oracle_operations()]
 
 
+@pytest.mark.filterwarnings("ignore:The recursion limit will not be reset")
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 6), w=st.integers(3, 6), density=st.floats(0.0, 0.3),
        fill=st.floats(0.1, 0.9), lns=st.sampled_from([0, 20, 100]), weight_power=st.sampled_from([0, 1, 2]),
-       anneal=st.sampled_from([0.0, 0.001, 0.3]), push_built=st.sampled_from([0.0, 0.2, 0.5]),
+       anneal=st.sampled_from([0.0, 0.001, 0.3]), push_built=st.sampled_from([0.0, 0.2]),
        skip=st.sampled_from([0.0, 0.2]), portfolio=st.sampled_from([1, 1, 3]), threads=st.sampled_from([1, 2]))
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_power, anneal, push_built, skip,
                                         portfolio, threads):

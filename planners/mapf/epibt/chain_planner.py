@@ -5,8 +5,9 @@ joint action a call, deterministic for a seed without a deadline), with the 2024
 no inherited operations, a construction and a search of push chains scored by ``power x (value of waiting - value
 of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the robot of least task still to go
 (its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
-``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Under a clock the
-search's chains scale as EPIBT's iterations do.
+``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Without a clock a call
+runs ``lns`` search chains per plan (deterministic); under one the search runs in batches and stops when the next
+batch would pass the deadline less :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S`.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.mapf.epibt.chains import (STEPS, Candidates, ChainStamp, chain_candidates, chain_kernel,
-                                        chain_operations, new_plan, stamp_seed)
+from planners.mapf.epibt.chains import (STEPS, Candidates, chain_build, chain_candidates, chain_finish,
+                                        chain_operations, chain_search, new_plan, stamp_seed)
 from planners.mapf.epibt.options import MAX_PORTFOLIO
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
 from planners.mapf.guides.flow import FlowGuide, guide_work_option, replans_option
@@ -30,9 +31,11 @@ from planners.options import option
 
 __all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
 
-#: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`.
+#: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`; under a clock the
+#: search also stops, between two batches of :data:`SEARCH_BATCH` chains, when the next would pass the deadline.
 DEFAULT_CHAINS_PER_ROBOT = 100
 DEFAULT_CHAINS_MAX = 1 << 17
+SEARCH_BATCH = 512
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,6 @@ class ChainEPIBT(EPIBT):
         self.portfolio, self.lns_option, self.weight_power = opts.portfolio, opts.lns, opts.weight_power
         self.threads = min(self.portfolio, _cores()) if opts.threads is None else opts.threads
         self.deadline: float | None = None
-        self.lns_scale = 1.0
         self.flow = opts.flow
         self.ops, depth = chain_operations()
         self.depth = depth
@@ -129,15 +131,26 @@ class ChainEPIBT(EPIBT):
         power = np.where(busy, (r + 1 - rank) ** self.weight_power, 0).astype(np.int64)
         gain = power[:, None] * (cand.wait_value[:, None] - cand.value)
         chains = min(r * DEFAULT_CHAINS_PER_ROBOT, DEFAULT_CHAINS_MAX) if self.lns_option is None else self.lns_option
-        if deadline is not None:
-            chains = int(chains * self.lns_scale)
-            started = time.perf_counter()
-        plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k)) for k in range(self.portfolio)]
         opts = self.options
+        plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
+                 for k in range(self.portfolio)]
+        knobs = (opts.push_built, opts.skip)
+        stop = None if deadline is None else deadline - DEADLINE_MARGIN_S
 
         def run(k):
-            stamp = ChainStamp(chains, opts.anneal, opts.push_built, opts.skip)
-            chain_kernel(cand, gain, order, self.draws, stamp, plans[k])
+            chain_build(cand, gain, order, self.draws, knobs, plans[k])
+            done = 0
+            while done < chains:  # in batches, so that a clock can stop the search between two
+                n = min(SEARCH_BATCH, chains - done)
+                if stop is not None:
+                    t1 = time.perf_counter()
+                    if t1 > stop:
+                        break
+                chain_search(cand, gain, self.draws, knobs, (done, n), plans[k])
+                done += n
+                if stop is not None and time.perf_counter() + (time.perf_counter() - t1) > stop:
+                    break
+            chain_finish(cand, gain, plans[k])
 
         done = self._waves(run, self.portfolio)
         self.kernel_s = time.perf_counter() - t0
@@ -152,12 +165,6 @@ class ChainEPIBT(EPIBT):
         nxt = np.where(act == FORWARD, ahead, pc)
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
-        if deadline is not None:
-            slack = deadline - time.perf_counter()
-            if slack < DEADLINE_MARGIN_S:
-                self.lns_scale *= 0.7
-            elif slack > 0.25 * (deadline - started):
-                self.lns_scale = min(1.0, self.lns_scale * 1.1)
         return act
 
 

@@ -31,8 +31,8 @@ from planners.mapf.epibt.plans import _to_go, _walk, op_idle
 from planners.mapf.epibt.search import conflict, reserve
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT
 
-__all__ = ["STEPS", "chain_operations", "Candidates", "ChainStamp", "ChainPlan", "new_plan", "chain_candidates",
-           "chain_kernel", "score_of"]
+__all__ = ["STEPS", "chain_operations", "Candidates", "ChainPlan", "new_plan", "chain_candidates", "chain_build",
+           "chain_search", "chain_finish", "score_of", "stamp_seed"]
 
 STEPS = 5  # actions per operation
 _VISIT = 50  # value scale of a cost-to-go step
@@ -100,28 +100,24 @@ class Candidates(NamedTuple):
     to_go: np.ndarray       # (R,) the cost-to-go now
 
 
-class ChainStamp(NamedTuple):
-    """One plan's search budget and rules (its random stream is :attr:`ChainPlan.rng`)."""
-
-    iters: int         # search chains
-    temp: float        # the search's starting temperature (0: keep only chains that do not lower the score)
-    push_built: float  # the chance the construction pushes a robot that has already chosen
-    skip: float        # the chance the search passes over a robot in the way
-
-
 class ChainPlan(NamedTuple):
     """One joint plan: ``choice[k]`` robot ``k``'s candidate (-1: waiting), the table ``res[t, cell]``."""
 
-    choice: np.ndarray  # (R,)
-    res: np.ndarray     # (6, cells)
-    score: np.ndarray   # (1,) int64, the plan's score
-    rng: np.ndarray     # (1,) uint64, the plan's random stream
+    choice: np.ndarray      # (R,)
+    res: np.ndarray         # (6, cells)
+    score: np.ndarray       # (1,) int64, the plan's score
+    rng: np.ndarray         # (1,) uint64, the plan's random stream
+    best: np.ndarray        # (R,) the construction's choices
+    best_score: np.ndarray  # (1,) and their score
+    cap: np.ndarray         # (1,) the deepest operations the chains try now
+    temp: np.ndarray        # (1,) float64, the search's temperature now
 
 
-def new_plan(r: int, n_cells: int, seed: int) -> ChainPlan:
-    """An empty :class:`ChainPlan` for ``r`` robots on ``n_cells`` cells."""
+def new_plan(r: int, n_cells: int, seed: int, temp: float) -> ChainPlan:
+    """An empty :class:`ChainPlan` for ``r`` robots on ``n_cells`` cells, its search starting at ``temp``."""
     return ChainPlan(np.full(r, -1, np.int64), np.full((STEPS + 1, n_cells), -1, np.int64), np.zeros(1, np.int64),
-                     np.array([seed], dtype=np.uint64))
+                     np.array([seed], dtype=np.uint64), np.full(r, -1, np.int64), np.zeros(1, np.int64),
+                     np.full(1, STEPS, np.int64), np.array([temp]))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -286,39 +282,54 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
 
 
 @numba.njit(cache=True, nogil=True)
-def chain_kernel(cand, gain, order, depth_draw, stamp, plan) -> None:
-    """One joint plan into ``plan`` (all robots waiting, the table empty on entry): the construction in ``order``,
-    then ``stamp.iters`` search chains; ``depth_draw`` the operation depths a plan draws from (every 128
-    chains)."""
+def chain_build(cand, gain, order, depth_draw, knobs, plan) -> None:
+    """The construction into ``plan`` (all robots waiting, the table empty on entry), in ``order``; ``depth_draw``
+    the operation depths a plan draws from (here and every 128 search chains); ``knobs = (push_built, skip)``."""
     r = order.shape[0]
     for k in range(r):
         _move(plan, cand, gain, k, -1, True)
     plan.score[0] = 0
-    deep = r + _DEEP_PUSHES + 8  # a construction chain may push a robot twice
-    stack = (np.empty(deep, np.int64), np.empty(deep, np.int64), np.empty(deep, np.int64),
-             np.full(deep, -1, np.int64), np.empty(deep, np.int64), np.zeros(r, np.int64))
-    knobs = (stamp.push_built, stamp.skip)
-    rng = plan.rng
-    nd = depth_draw.shape[0]
-    cap = depth_draw[int(_draw(rng) * nd)]
+    stack = _stack(r)
+    plan.cap[0] = depth_draw[int(_draw(plan.rng) * depth_draw.shape[0])]
     for idx in range(r):
         k = order[idx]
         if plan.choice[k] < 0:
-            _chain(k, idx + 1, False, 0.0, cap, plan, cand, gain, knobs, stack)
-    best = plan.choice.copy()
-    best_score = plan.score[0]
-    temp = stamp.temp
-    for it in range(stamp.iters if r > 0 else 0):
+            _chain(k, idx + 1, False, 0.0, plan.cap[0], plan, cand, gain, knobs, stack)
+    plan.best[:] = plan.choice
+    plan.best_score[0] = plan.score[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def chain_search(cand, gain, depth_draw, knobs, chains, plan) -> None:
+    """Search chains ``chains = (first, count)`` (numbered on from the call's earlier ones) on ``plan`` after
+    :func:`chain_build`; the temperature and depth carry over in ``plan``, so batches make the one long search."""
+    r = plan.choice.shape[0]
+    first, count = chains
+    stack = _stack(r)
+    rng = plan.rng
+    for it in range(first, first + count if r > 0 else first):
         if it > 0 and it % 128 == 0:
-            cap = depth_draw[int(_draw(rng) * nd)]
+            plan.cap[0] = depth_draw[int(_draw(rng) * depth_draw.shape[0])]
         k = min(int(_draw(rng) * r), r - 1)
-        _chain(k, r + 1 + it, True, temp, cap, plan, cand, gain, knobs, stack)
-        temp *= 0.999
-    if plan.score[0] < best_score:  # the construction's plan was better: back to it
-        for k in range(r):
+        _chain(k, r + 1 + it, True, plan.temp[0], plan.cap[0], plan, cand, gain, knobs, stack)
+        plan.temp[0] *= 0.999
+
+
+@numba.njit(cache=True, nogil=True)
+def chain_finish(cand, gain, plan) -> None:
+    """Back to the construction's plan when the search ended below it."""
+    if plan.score[0] < plan.best_score[0]:
+        for k in range(plan.choice.shape[0]):
             _move(plan, cand, gain, k, 0, False)
-        for k in range(r):
-            _move(plan, cand, gain, k, best[k], True)
+        for k in range(plan.choice.shape[0]):
+            _move(plan, cand, gain, k, plan.best[k], True)
+
+
+@numba.njit(cache=True, nogil=True)
+def _stack(r):
+    deep = r + _DEEP_PUSHES + 8  # a construction chain may push a robot twice
+    return (np.empty(deep, np.int64), np.empty(deep, np.int64), np.empty(deep, np.int64),
+            np.full(deep, -1, np.int64), np.empty(deep, np.int64), np.zeros(r, np.int64))
 
 
 def score_of(plan: ChainPlan, gain: np.ndarray) -> int:

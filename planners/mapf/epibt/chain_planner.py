@@ -7,7 +7,7 @@ of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the 
 (its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
 ``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Without a clock a call
 runs ``lns`` search chains per plan (deterministic); under one the search runs in batches and stops when the next
-batch would pass the deadline less :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S`.
+batch would pass the deadline less twice :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S`.
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ class ChainEPIBT(EPIBT):
         plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
                  for k in range(self.portfolio)]
         knobs = (opts.push_built, opts.skip)
-        stop = None if deadline is None else deadline - DEADLINE_MARGIN_S
+        stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
 
         def run(k):
             chain_build(cand, gain, order, self.draws, knobs, plans[k])

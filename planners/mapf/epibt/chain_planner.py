@@ -6,8 +6,10 @@ no inherited operations, a construction and a search of push chains scored by ``
 of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the robot of least task still to go
 (its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
 ``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Without a clock a call
-runs ``lns`` search chains per plan (deterministic); under one the search runs in batches and stops when the next
-batch would pass the deadline less twice :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S`.
+runs the whole construction and ``lns`` search chains per plan (deterministic); under one both run in pieces (the
+construction by spans of robots, the search in batches of chains) and stop between two at the deadline less twice
+:data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` (robots the construction did not reach wait; the search does not
+start).
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ __all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
 DEFAULT_CHAINS_PER_ROBOT = 100
 DEFAULT_CHAINS_MAX = 1 << 17
 SEARCH_BATCH = 512
+#: Under a clock the construction runs in spans of this many robots, stopped between two at the deadline.
+BUILD_SPAN = 32
 
 
 @dataclass(frozen=True)
@@ -138,7 +142,13 @@ class ChainEPIBT(EPIBT):
         stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
 
         def run(k):
-            chain_build(cand, gain, order, self.draws, knobs, plans[k])
+            built = 0
+            while built < r or built == 0:  # under a clock in spans, stopped between two (the rest wait)
+                n = r if stop is None else BUILD_SPAN
+                chain_build(cand, gain, order, self.draws, knobs, (built, built + n), plans[k])
+                built += n
+                if stop is not None and time.perf_counter() > stop:
+                    break
             done = 0
             while done < chains:  # in batches, so that a clock can stop the search between two
                 n = min(SEARCH_BATCH, chains - done)

@@ -282,16 +282,18 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
 
 
 @numba.njit(cache=True, nogil=True)
-def chain_build(cand, gain, order, depth_draw, knobs, plan) -> None:
-    """The construction into ``plan`` (all robots waiting, the table empty on entry), in ``order``; ``depth_draw``
+def chain_build(cand, gain, order, depth_draw, knobs, span, plan) -> None:
+    """The construction into ``plan`` for the robots ``order[span[0]:span[1]]`` (from ``span[0] == 0``: every robot
+    put waiting first, the table empty on entry), so that spans in turn make the one construction; ``depth_draw``
     the operation depths a plan draws from (here and every 128 search chains); ``knobs = (push_built, skip)``."""
     r = order.shape[0]
-    for k in range(r):
-        _move(plan, cand, gain, k, -1, True)
-    plan.score[0] = 0
+    if span[0] == 0:
+        for k in range(r):
+            _move(plan, cand, gain, k, -1, True)
+        plan.score[0] = 0
+        plan.cap[0] = depth_draw[int(_draw(plan.rng) * depth_draw.shape[0])]
     stack = _stack(r)
-    plan.cap[0] = depth_draw[int(_draw(plan.rng) * depth_draw.shape[0])]
-    for idx in range(r):
+    for idx in range(span[0], min(span[1], r)):
         k = order[idx]
         if plan.choice[k] < 0:
             _chain(k, idx + 1, False, 0.0, plan.cap[0], plan, cand, gain, knobs, stack)

@@ -39,7 +39,7 @@ DEFAULT_CHAINS_PER_ROBOT = 100
 DEFAULT_CHAINS_MAX = 1 << 17
 SEARCH_BATCH = 512
 #: Under a clock the construction runs in spans of this many robots, stopped between two at the deadline.
-BUILD_SPAN = 32
+BUILD_SPAN = 8
 
 
 @dataclass(frozen=True)

@@ -109,11 +109,16 @@ def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 2)
+    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 3)
     assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
     assert "active" not in small.options["executor_options"]  # every robot at work where the team is sparse
-    dense = entry.rules[0]  # RANDOM-03..05 (49, 85 and 98 % of the free cells): 80 % at work, by the task to go
-    assert all(dense.holds(r, f, "random-32-32-20.map") for r, f in ((400, 0.49), (700, 0.85), (800, 0.98)))
+    crowd = entry.rules[0]  # RANDOM-04, -05 (85 and 98 % of the free cells): push chains, 57 % at work
+    assert all(crowd.holds(r, f, "random-32-32-20.map") for r, f in ((700, 0.85), (800, 0.98)))
+    assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
+    assert (crowd.choice.scheduler, crowd.choice.planner) == ("lorr-greedy", "epibt-chain")
+    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2}
+    dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
+    assert dense.holds(400, 0.49, "random-32-32-20.map")
     assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
     assert dense.choice.options["executor_options"] == {"weight_power": 2, "op_len": "auto", "portfolio": 16,
                                                         "active": 0.8, "active_by": "task"}
@@ -126,7 +131,7 @@ def test_the_default_entry_chooses_by_team_and_map():
                                                "weight_power": 2}
     assert big.options["guidance"] == 8  # along lanes of weight 8
     assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
-    sortation, warehouse, tables = entry.rules[2], entry.rules[3], entry.rules[4]
+    sortation, warehouse, tables = entry.rules[3], entry.rules[4], entry.rules[5]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
     assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"

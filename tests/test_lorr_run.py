@@ -127,7 +127,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power"],
      "--planner-option 'weight_power' must look like KEY=VALUE"),
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "warp=9"],
-     "epibt takes no option 'warp'; its options: guidance, field_bytes, bfs_budget, corridors, flow, op_len"),
+     "epibt takes no option 'warp'; its options: guidance, field_bytes, bfs_budget, corridors, flow, replans"),
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power=3"],
      "--planner-option weight_power = 3 must be an integer in [0, 2]"),
     (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),

@@ -14,7 +14,6 @@ start).
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass
 
@@ -22,12 +21,9 @@ import numpy as np
 
 from planners.mapf.epibt.chains import (STEPS, Candidates, chain_build, chain_candidates, chain_finish,
                                         chain_operations, chain_search, new_plan, stamp_seed)
-from planners.mapf.epibt.options import MAX_PORTFOLIO
+from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
-from planners.mapf.guides.flow import FlowGuide, guide_work_option, replans_option
 from planners.mapf.guides.focus import checked_rest
-from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.options import LaneOptions, active_by_option, active_option, congestion_options, park_option
 from planners.mapf.pibt.turning import FORWARD, WAIT, TurningPIBT
 from planners.options import option
 
@@ -43,10 +39,10 @@ BUILD_SPAN = 8
 
 
 @dataclass(frozen=True)
-class ChainOptions(LaneOptions):
-    """:class:`ChainEPIBT`'s options."""
+class ChainOptions(GuideOptions):
+    """:class:`ChainEPIBT`'s options (:class:`~planners.mapf.epibt.options.GuideOptions`, goal fields by default, then
+    its own)."""
 
-    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
     flow: bool = option(False, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
     lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="search chains per plan and call (null: "
                              f"{DEFAULT_CHAINS_PER_ROBOT} per robot, at most {DEFAULT_CHAINS_MAX:,}; 0 = off)")
@@ -62,13 +58,6 @@ class ChainOptions(LaneOptions):
     threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
                                  "on (null: one per plan, at most the cores this process may use); plans do not "
                                  "depend on it")
-    replans: int | None = replans_option()
-    guide_work: int | None = guide_work_option()
-    congestion: int = congestion_options()[0]
-    refresh: int = congestion_options()[1]
-    park: float = park_option()
-    active: float = active_option()
-    active_by: str = active_by_option()
 
 
 class ChainEPIBT(EPIBT):
@@ -85,23 +74,14 @@ class ChainEPIBT(EPIBT):
     def __init__(self, grid, seed: int = 0, **options) -> None:
         TurningPIBT.__init__(self, grid, seed, **options)
         opts = self.options
-        if opts.congestion and opts.flow:
-            raise ValueError(f"congestion = {opts.congestion} needs flow=false (the guide paths' A* takes the goal "
-                             f"fields for its heuristic, which the crowd's costs would overestimate)")
+        self._guides()
         self.takes_rest = opts.active_by == "task"  # the ranking reads the task still to go, at work or not
-        self.portfolio, self.lns_option, self.weight_power = opts.portfolio, opts.lns, opts.weight_power
-        self.threads = min(self.portfolio, _cores()) if opts.threads is None else opts.threads
-        self.deadline: float | None = None
-        self.flow = opts.flow
+        self.lns_option, self.weight_power = opts.lns, opts.weight_power
         self.ops, depth = chain_operations()
         self.depth = depth
         self.idle = op_idle(self.ops)
         self.quiet = ((self.ops != WAIT) * (STEPS - np.arange(STEPS))).sum(axis=1).astype(np.int64)
         self.draws = np.arange(3, STEPS + 1, dtype=np.int64)  # the depths a plan draws from
-        n = len(self.cell_of)
-        self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
-                               self.seed, work=opts.guide_work) if self.flow else None
         self.portfolio_scores = np.zeros(0, dtype=np.int64)
         self.kept = 0
         self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
@@ -176,8 +156,4 @@ class ChainEPIBT(EPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         return act
-
-
-def _cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 

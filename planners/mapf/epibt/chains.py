@@ -209,7 +209,8 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
     pushed; ``search``: the search's rules, else the construction's; ``cap`` the deepest operations tried;
     ``knobs = (push_built, skip)``); True when kept."""
     choice, rng = plan.choice, plan.rng
-    st_a, st_j, st_old, st_lo, st_lo_old, mark = stack
+    st_a, st_j, st_old, st_lo, st_lo_old, mark = stack.robot, stack.option, stack.old, stack.pushed, stack.pushed_old, \
+        stack.mark
     push_built, skip = knobs
     old = plan.score[0]
     _move(plan, cand, gain, root, 0, False)
@@ -327,11 +328,22 @@ def chain_finish(cand, gain, plan) -> None:
             _move(plan, cand, gain, k, plan.best[k], True)
 
 
+class ChainStack(NamedTuple):
+    """:func:`_chain`'s explicit stack, one level per robot on it, and the robots' marks."""
+
+    robot: np.ndarray       # the robot choosing at this level
+    option: np.ndarray      # its next candidate to try
+    old: np.ndarray         # its choice before the chain
+    pushed: np.ndarray      # the robot its current try pushed (-1: none)
+    pushed_old: np.ndarray  # that robot's choice before the push
+    mark: np.ndarray        # (R,) the chain that last pushed the robot
+
+
 @numba.njit(cache=True, nogil=True)
 def _stack(r):
     deep = r + _DEEP_PUSHES + 8  # a construction chain may push a robot twice
-    return (np.empty(deep, np.int64), np.empty(deep, np.int64), np.empty(deep, np.int64),
-            np.full(deep, -1, np.int64), np.empty(deep, np.int64), np.zeros(r, np.int64))
+    return ChainStack(np.empty(deep, np.int64), np.empty(deep, np.int64), np.empty(deep, np.int64),
+                      np.full(deep, -1, np.int64), np.empty(deep, np.int64), np.zeros(r, np.int64))
 
 
 def score_of(plan: ChainPlan, gain: np.ndarray) -> int:

@@ -10,7 +10,7 @@ from planners.mapf.pibt.options import (LaneOptions, active_by_option, active_op
                                         park_option)
 from planners.options import option
 
-__all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
+__all__ = ["EPIBTOptions", "GuideOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
            "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_GROUP", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
 DEFAULT_OP_LEN = 3
@@ -31,12 +31,26 @@ DEFAULT_WEIGHT_POWER = 0
 MAX_PORTFOLIO = 64
 
 @dataclass(frozen=True)
-class EPIBTOptions(LaneOptions):
-    """:class:`EPIBT`'s options (the goal fields' of :class:`~planners.mapf.pibt.turning.LaneOptions`, lanes off by
-    default; ``replans``, ``guide_work`` as :class:`~planners.mapf.guides.flow.FlowOptions`, for ``flow``)."""
+class GuideOptions(LaneOptions):
+    """The heuristic's and the crowd's options of the EPIBT planners (the goal fields' of
+    :class:`~planners.mapf.pibt.turning.LaneOptions`, lanes off by default; ``replans``, ``guide_work`` as
+    :class:`~planners.mapf.guides.flow.FlowOptions`, for ``flow``)."""
 
     guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
     flow: bool = option(True, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
+    replans: int | None = replans_option()
+    guide_work: int | None = guide_work_option()
+    congestion: int = congestion_options()[0]
+    refresh: int = congestion_options()[1]
+    park: float = park_option()
+    active: float = active_option()
+    active_by: str = active_by_option()
+
+
+@dataclass(frozen=True)
+class EPIBTOptions(GuideOptions):
+    """:class:`EPIBT`'s options (:class:`GuideOptions`, then its own)."""
+
     op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; "
                                "auto: chosen on the first call from the team's share of the free cells "
                                "(AUTO_OP_LEN_FILL)")
@@ -44,7 +58,6 @@ class EPIBTOptions(LaneOptions):
     lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="large-neighbourhood iterations per call "
                              "(null: 50 per robot, at most 32,768; 0 = off)")
     group: int = option(DEFAULT_GROUP, int, 2, 4096, meaning="robots per neighbourhood")
-    replans: int | None = replans_option()
     weight_power: int = option(DEFAULT_WEIGHT_POWER, int, 0, 2, meaning="the search weighs each robot's cost-to-go "
                                "by (R + 1 - rank) ** weight_power, rank 0 the first in priority order")
     portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="joint plans per call from seeds apart "
@@ -56,9 +69,3 @@ class EPIBTOptions(LaneOptions):
                           "turns (a blocked robot keeps facing its way instead of turning to another as good)")
     anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "
                            "neighbourhood's cost (0 = descent)")
-    guide_work: int | None = guide_work_option()
-    congestion: int = congestion_options()[0]
-    refresh: int = congestion_options()[1]
-    park: float = park_option()
-    active: float = active_option()
-    active_by: str = active_by_option()

@@ -331,25 +331,32 @@ class EPIBT(TurningPIBT):
     def __init__(self, grid, seed: int = 0, **options) -> None:
         super().__init__(grid, seed, **options)
         opts = self.options
+        self._guides()
+        self.revisits, self.lns_option, self.group = opts.revisits, opts.lns, opts.group
+        self.weight_power, self.anneal = opts.weight_power, opts.anneal
+        self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
+        self.kept = 0  # and the one kept
+        self.lns_scale = 1.0  # under a clock: the share of the search's iterations the steps leave time for
+        self.auto_op_len = opts.op_len == "auto"
+        self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else opts.op_len)
+        self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
+
+    def _guides(self) -> None:
+        """What the EPIBT planners share of their options (:class:`~planners.mapf.epibt.options.GuideOptions`, plus
+        ``portfolio`` and ``threads``): the forward moves' costs, the guide paths under ``flow``, the portfolio's
+        threads; ``ValueError`` for ``congestion`` with ``flow``."""
+        opts = self.options
         if opts.congestion and opts.flow:
             raise ValueError(f"congestion = {opts.congestion} needs flow=false (the guide paths' A* takes the goal "
                              f"fields for its heuristic, which the crowd's costs would overestimate)")
-        self.revisits, self.lns_option, self.group = opts.revisits, opts.lns, opts.group
-        self.weight_power, self.portfolio, self.anneal = opts.weight_power, opts.portfolio, opts.anneal
+        self.flow, self.portfolio = opts.flow, opts.portfolio
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         self.threads = min(self.portfolio, cores) if opts.threads is None else opts.threads
-        self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
-        self.kept = 0  # and the one kept
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
-        self.lns_scale = 1.0  # under a clock: the share of the search's iterations the steps leave time for
-        self.auto_op_len = opts.op_len == "auto"
-        self.flow = opts.flow
         n = len(self.cell_of)
-        self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else opts.op_len)
         self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
                                self.seed, work=opts.guide_work) if self.flow else None
-        self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
 
     def _set_ops(self, op_len) -> None:
         self.ops = operations(op_len)

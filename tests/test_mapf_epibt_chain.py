@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -135,6 +136,7 @@ class Plan:
         self.on = set(range(len(pos)))
         self.score = 0
         self.mark = [0] * len(pos)
+        self.work = 0  # the search's chains and their pushes
 
     def draw(self):
         self.rng = (self.rng + GOLDEN) & ((1 << 64) - 1)
@@ -197,6 +199,7 @@ class Plan:
             elif (self.pushes > 3000 and depth >= 6) or (self.choice[lo] >= 0 and self.draw() >= self.o.push_built):
                 continue
             self.pushes += 1
+            self.work += self.search
             lo_was = self.choice[lo]
             self.take(lo)
             self.put(a, c)
@@ -228,6 +231,7 @@ class Plan:
             k = min(int(self.draw() * r), r - 1)
             self.chain(k, r + 1 + it, True, temp, cap)
             temp *= 0.999
+            self.work += 1
         if self.score < best_score:
             self.choice, self.score = best, best_score
 
@@ -259,6 +263,7 @@ def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_p
         act = ex.actions(pos, orient, goals)
         assert act.tolist() == expect
         assert int(ex.portfolio_scores[ex.kept]) == plan.score
+        assert int(ex.search_work[ex.kept]) == plan.work
         assert plan_conflicts(grid, pos, orient, ex.plans) == []
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None, err
@@ -281,6 +286,24 @@ def test_dense_crowds_move_conflict_free_and_reach_goals(seed):
 
     moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 40, check)
     assert moved > 0 and reached > 0
+
+
+def test_search_in_clocked_batches_is_the_one_search():
+    """Under a clock far off the search runs in batches cut by work budgets; they continue one another, so the plan,
+    its score and its work equal the work-bounded call's."""
+    rng = np.random.default_rng(11)
+    grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.1, 0.8)
+    free_run, clocked = (ChainEPIBT(grid, seed=2, portfolio=2, lns=3000) for _ in range(2))
+    for _ in range(3):
+        a = free_run.actions(pos, orient, goals)
+        b = clocked.actions(pos, orient, goals, deadline=time.perf_counter() + 600)
+        assert a.tolist() == b.tolist()
+        assert free_run.portfolio_scores.tolist() == clocked.portfolio_scores.tolist()
+        assert free_run.search_work.tolist() == clocked.search_work.tolist()
+        assert clocked.search_batches > free_run.search_batches  # the first batch was cut by its budget
+        pos, orient, err = apply(grid, pos, orient, a)
+        assert err is None, err
+        goals = retarget(rng, free, pos, goals)
 
 
 def test_same_seed_same_actions_on_any_threads():

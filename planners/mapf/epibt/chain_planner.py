@@ -7,7 +7,8 @@ of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the 
 (its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
 ``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Without a clock a call
 runs the whole construction and ``lns`` search chains per plan (deterministic); under one both run in pieces (the
-construction by spans of robots, the search in batches of chains) and stop between two at the deadline less twice
+construction by spans of robots, the search in batches given the work the time left allows at the search's pace,
+its chains and their pushes counted) and stop between two at the deadline less twice
 :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` (robots the construction did not reach wait; the search does not
 start).
 """
@@ -36,6 +37,11 @@ DEFAULT_CHAINS_MAX = 1 << 17
 SEARCH_BATCH = 512
 #: Under a clock the construction runs in spans of this many robots, stopped between two at the deadline.
 BUILD_SPAN = 8
+#: Under a clock the search's first batch stops after this much work (chains and their pushes); each later one after
+#: the work half the time left allows at the pace of the batches before, none with less than :data:`_LAST_S` left.
+FIRST_WORK = 2000
+_LAST_S = 0.002
+_NO_BUDGET = int(np.iinfo(np.int64).max)
 
 
 @dataclass(frozen=True)
@@ -83,6 +89,8 @@ class ChainEPIBT(EPIBT):
         self.quiet = ((self.ops != WAIT) * (STEPS - np.arange(STEPS))).sum(axis=1).astype(np.int64)
         self.draws = np.arange(3, STEPS + 1, dtype=np.int64)  # the depths a plan draws from
         self.portfolio_scores = np.zeros(0, dtype=np.int64)
+        self.search_work = np.zeros(0, dtype=np.int64)  # the last call's search work per plan: chains and pushes
+        self.search_batches = 0  # and its batches over the plans
         self.kept = 0
         self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
 
@@ -120,6 +128,7 @@ class ChainEPIBT(EPIBT):
                  for k in range(self.portfolio)]
         knobs = (opts.push_built, opts.skip)
         stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
+        batches = [0] * self.portfolio
 
         def run(k):
             built = 0
@@ -129,22 +138,28 @@ class ChainEPIBT(EPIBT):
                 built += n
                 if stop is not None and time.perf_counter() > stop:
                     break
-            done = 0
-            while done < chains:  # in batches, so that a clock can stop the search between two
-                n = min(SEARCH_BATCH, chains - done)
+            plan, done, spent, worked = plans[k], 0, 0.0, 0
+            while done < chains:  # in batches; under a clock each given the work half the time left allows
+                budget = _NO_BUDGET
                 if stop is not None:
                     t1 = time.perf_counter()
-                    if t1 > stop:
+                    if stop - t1 < _LAST_S:
                         break
-                chain_search(cand, gain, self.draws, knobs, (done, n), plans[k])
-                done += n
-                if stop is not None and time.perf_counter() + (time.perf_counter() - t1) > stop:
-                    break
-            chain_finish(cand, gain, plans[k])
+                    pace = FIRST_WORK if worked == 0 else int(0.5 * (stop - t1) * worked / max(spent, 1e-9))
+                    budget = int(plan.work[0]) + max(pace, 1)
+                w0 = int(plan.work[0])
+                done += chain_search(cand, gain, self.draws, knobs, (done, min(SEARCH_BATCH, chains - done)), budget,
+                                     plan)
+                batches[k] += 1
+                if stop is not None:
+                    spent, worked = spent + time.perf_counter() - t1, worked + int(plan.work[0]) - w0
+            chain_finish(cand, gain, plan)
 
         done = self._waves(run, self.portfolio)
         self.kernel_s = time.perf_counter() - t0
         self.portfolio_scores = np.array([p.score[0] for p in plans[:done]], dtype=np.int64)
+        self.search_work = np.array([p.work[0] for p in plans[:done]], dtype=np.int64)
+        self.search_batches = sum(batches[:done])
         self.kept = int(np.argmax(self.portfolio_scores))
         choice = plans[self.kept].choice
         on = choice >= 0

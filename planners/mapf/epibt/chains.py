@@ -111,13 +111,14 @@ class ChainPlan(NamedTuple):
     best_score: np.ndarray  # (1,) and their score
     cap: np.ndarray         # (1,) the deepest operations the chains try now
     temp: np.ndarray        # (1,) float64, the search's temperature now
+    work: np.ndarray        # (1,) int64, the search's work so far: its chains and their pushes
 
 
 def new_plan(r: int, n_cells: int, seed: int, temp: float) -> ChainPlan:
     """An empty :class:`ChainPlan` for ``r`` robots on ``n_cells`` cells, its search starting at ``temp``."""
     return ChainPlan(np.full(r, -1, np.int64), np.full((STEPS + 1, n_cells), -1, np.int64), np.zeros(1, np.int64),
                      np.array([seed], dtype=np.uint64), np.full(r, -1, np.int64), np.zeros(1, np.int64),
-                     np.full(1, STEPS, np.int64), np.array([temp]))
+                     np.full(1, STEPS, np.int64), np.array([temp]), np.zeros(1, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -261,6 +262,8 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
             elif (pushes > _DEEP_PUSHES and top >= 6) or (choice[lo] >= 0 and _draw(rng) >= push_built):
                 continue
             pushes += 1
+            if search:
+                plan.work[0] += 1
             st_lo[top], st_lo_old[top] = lo, choice[lo]
             _move(plan, cand, gain, lo, 0, False)
             _move(plan, cand, gain, a, c, True)
@@ -303,19 +306,24 @@ def chain_build(cand, gain, order, depth_draw, knobs, span, plan) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def chain_search(cand, gain, depth_draw, knobs, chains, plan) -> None:
+def chain_search(cand, gain, depth_draw, knobs, chains, budget, plan) -> int:
     """Search chains ``chains = (first, count)`` (numbered on from the call's earlier ones) on ``plan`` after
-    :func:`chain_build`; the temperature and depth carry over in ``plan``, so batches make the one long search."""
+    :func:`chain_build`, none started once ``plan.work`` (chains and pushes so far) reaches ``budget``; returns how
+    many ran.  The temperature, depth and work carry over in ``plan``, so batches make the one long search."""
     r = plan.choice.shape[0]
     first, count = chains
     stack = _stack(r)
     rng = plan.rng
-    for it in range(first, first + count if r > 0 else first):
+    it = first
+    while it < first + count and r > 0 and plan.work[0] < budget:
         if it > 0 and it % 128 == 0:
             plan.cap[0] = depth_draw[int(_draw(rng) * depth_draw.shape[0])]
         k = min(int(_draw(rng) * r), r - 1)
         _chain(k, r + 1 + it, True, plan.temp[0], plan.cap[0], plan, cand, gain, knobs, stack)
         plan.temp[0] *= 0.999
+        plan.work[0] += 1
+        it += 1
+    return it - first
 
 
 @numba.njit(cache=True, nogil=True)

@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish  # noqa: E402
-from planners.mapf.chip.epibt_ising import _collide, _cost, _path  # noqa: E402
+from planners.mapf.chip.group_kernels import collide as _collide, cost_of as _cost, path_of as _path  # noqa: E402
 
 SECTION = "## Neighbourhood groups of EPIBT on the chip (`epibt-ising`, issue 33)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"

@@ -12,6 +12,7 @@ from ising_backend import CallLedger, EmulatedChip
 from planners.mapf import TURNING_EXECUTORS, EPIBT, EPIBTIsing
 from planners.mapf.common import mix
 from planners.mapf.chip.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
+from planners.mapf.chip.group_kernels import GroupShape
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
 
@@ -42,7 +43,8 @@ def groups_of(state, res, seed=0, t=0, limits=(8, 6, 4, 45)):
     r = len(state.ncand)
     members, gstart = np.empty(r, np.int64), np.empty(limits[0] + 1, np.int64)
     ostart, opt = np.empty(r + 1, np.int64), np.empty(r * limits[2], np.int64)
-    ng = select_groups(state, res, limits, (seed, t), np.zeros(r, np.int8), (members, gstart, ostart, opt))
+    ng = select_groups(state, res, GroupShape(*limits), (seed, t), np.zeros(r, np.int8), (members, gstart, ostart, opt),
+                       np.ones(r, np.int8))
     return ng, members, gstart, ostart, opt
 
 
@@ -314,7 +316,7 @@ def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, mo
     a later round's groups are not the ones the first round's seed would pose on the same plan; the chip's calls
     equal the ledger's over every round; the plans stay conflict-free; the cost-to-go of the joint plan never
     rises from one round to the next."""
-    import planners.mapf.chip.epibt_ising as mod
+    import planners.mapf.chip.group_rounds as mod
 
     rng = np.random.default_rng(5)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
@@ -323,28 +325,31 @@ def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, mo
     posed = []
     real = mod.select_groups
 
-    def recording(state, res, limits, stamp, taken, out):
-        ng = real(state, res, limits, stamp, taken, out)
+    def recording(state, res, limits, stamp, taken, out, seeds):
+        ng = real(state, res, limits, stamp, taken, out, seeds)
         posed.append(out[0][:out[1][ng]].tolist())
         return ng
 
     monkeypatch.setattr(mod, "select_groups", recording)
     fresh = []
 
-    class Costs(EPIBTIsing):
-        def _round(self, state, k):
-            if k > 0:
-                same = groups_of(state, self._res.copy(), seed=self.seed, t=self.t,
-                                 limits=(self.n_groups, self.max_robots, self.max_options, self.max_spins))
-                n = len(posed)
-            call = super()._round(state, k)
-            if k > 0:
-                fresh.append(posed[n] != same[1][:same[2][same[0]]].tolist())
-            costs.append((k, sum(cost(state, q, c) for q, c in enumerate(state.src.tolist()))))
-            return call
-
     one = EPIBTIsing(grid, seed=2, machine=EmulatedChip(seed=3), decider=decider, lns=0, groups=4)
-    many = Costs(grid, seed=2, machine=chip, decider=decider, lns=0, groups=4, rounds=6)
+    many = EPIBTIsing(grid, seed=2, machine=chip, decider=decider, lns=0, groups=4, rounds=6)
+    inner = many.rounds_.round
+
+    def costed(state, res, when, seeds):
+        k = when[1]
+        if k > 0:
+            same = groups_of(state, res.copy(), seed=many.seed, t=many.t,
+                             limits=(many.n_groups, many.max_robots, many.max_options, many.max_spins))
+            n = len(posed)
+        call = inner(state, res, when, seeds)
+        if k > 0:
+            fresh.append(posed[n] != same[1][:same[2][same[0]]].tolist())
+        costs.append((k, sum(cost(state, q, c) for q, c in enumerate(state.src.tolist()))))
+        return call
+
+    many.rounds_.round = costed
     for step in range(25):
         first = one.actions(pos, orient, goals)
         before = chip.ledger.physical_calls

@@ -88,7 +88,8 @@ def test_the_options_command_lists_every_planners_options(capsys):
     lines = capsys.readouterr().out.splitlines()
     described = TURNING_EXECUTORS["epibt-ising"].Options.describe()
     assert lines[0] == "epibt-ising:" and len(lines) == 1 + len(described)
-    assert lines[-1].startswith("  rounds = 1  (an integer in [1, 4096]) rounds of decisions per call")
+    assert lines[-2].startswith("  rounds = 1  (an integer in [1, 4096]) rounds of decisions per call")
+    assert lines[-1].startswith("  grow = false  (true or false) groups grow through")
     assert main(["lorr", "options"]) == 0
     out = capsys.readouterr().out
     assert [line[:-1] for line in out.splitlines() if not line.startswith(" ")] == list(TURNING_EXECUTORS)

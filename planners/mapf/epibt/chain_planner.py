@@ -91,6 +91,7 @@ class ChainEPIBT(EPIBT):
         self.portfolio_scores = np.zeros(0, dtype=np.int64)
         self.search_work = np.zeros(0, dtype=np.int64)  # the last call's search work per plan: chains and pushes
         self.search_batches = 0  # and its batches over the plans
+        self.plan_score = 0  # the score of the plan the last call took its actions from
         self.kept = 0
         self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
 
@@ -139,19 +140,20 @@ class ChainEPIBT(EPIBT):
                 if stop is not None and time.perf_counter() > stop:
                     break
             plan, done, spent, worked = plans[k], 0, 0.0, 0
+            halt = None if stop is None else self._search_stop(time.perf_counter(), stop)
             while done < chains:  # in batches; under a clock each given the work half the time left allows
                 budget = _NO_BUDGET
-                if stop is not None:
+                if halt is not None:
                     t1 = time.perf_counter()
-                    if stop - t1 < _LAST_S:
+                    if halt - t1 < _LAST_S:
                         break
-                    pace = FIRST_WORK if worked == 0 else int(0.5 * (stop - t1) * worked / max(spent, 1e-9))
+                    pace = FIRST_WORK if worked == 0 else int(0.5 * (halt - t1) * worked / max(spent, 1e-9))
                     budget = int(plan.work[0]) + max(pace, 1)
                 w0 = int(plan.work[0])
                 done += chain_search(cand, gain, self.draws, knobs, (done, min(SEARCH_BATCH, chains - done)), budget,
                                      plan)
                 batches[k] += 1
-                if stop is not None:
+                if halt is not None:
                     spent, worked = spent + time.perf_counter() - t1, worked + int(plan.work[0]) - w0
             chain_finish(cand, gain, plan)
 
@@ -161,6 +163,8 @@ class ChainEPIBT(EPIBT):
         self.search_work = np.array([p.work[0] for p in plans[:done]], dtype=np.int64)
         self.search_batches = sum(batches[:done])
         self.kept = int(np.argmax(self.portfolio_scores))
+        self._improve_plan(plans[self.kept], cand, gain, busy)
+        self.plan_score = int(plans[self.kept].score[0])
         choice = plans[self.kept].choice
         on = choice >= 0
         op = np.where(on, cand.op[np.arange(r), np.maximum(choice, 0)], 0)
@@ -171,4 +175,12 @@ class ChainEPIBT(EPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         return act
+
+    def _search_stop(self, now: float, stop: float) -> float:
+        """Under a clock, when the search of a plan built by ``now`` stops (here: at ``stop``, the planner's own)."""
+        return stop
+
+    def _improve_plan(self, plan, cand, gain, busy) -> None:
+        """Hook for subclasses: may change the kept ``plan`` (kept conflict-free in its table) before its first
+        actions are taken (here: nothing)."""
 

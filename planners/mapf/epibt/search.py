@@ -20,7 +20,8 @@ import numpy as np
 
 from planners.mapf.common import mix
 
-__all__ = ["Fleet", "SearchStamp", "PlanState", "new_state", "reserve", "conflict", "blockers", "lns_search"]
+__all__ = ["Fleet", "SearchStamp", "PlanState", "new_state", "reserve", "conflict", "blockers", "more_blockers",
+           "lns_search"]
 
 
 class Fleet(NamedTuple):
@@ -99,7 +100,13 @@ def blockers(k, cells, top, res, size, members, mark) -> int:
     ``size`` in all); ``mark`` set for them."""
     members[0] = k
     mark[k] = 1
-    n = 1
+    return more_blockers(k, cells, top, res, size, members, 1, mark)
+
+
+@numba.njit(cache=True, nogil=True)
+def more_blockers(k, cells, top, res, size, members, n, mark) -> int:
+    """After ``members[:n]``, the unmarked robots in the way of robot ``k``'s first ``top`` operations (at most
+    ``size`` in all), marked; returns the new ``n``."""
     for c in range(top):
         path = cells[k, c]
         for s in range(1, path.shape[0]):

@@ -1,0 +1,249 @@
+"""Neighbourhood groups of a joint plan choosing their operations jointly: the programs of decision class ``lns_groups``
+and their host rule (compiled), shared by ``epibt-ising`` and ``epibt-chain-ising``.
+
+Contract, on a :class:`~planners.mapf.epibt.search.PlanState` (``src[k]`` robot ``k``'s candidate, -1 its
+inherited operation; ``costs`` lower better) and its table ``res``: :func:`select_groups` poses a robot not on its
+best operation and the robots in the way of its better ones (up to ``max_robots``; robots of one group in no other),
+each with its operation now (option 0) and its best others that collide with no robot outside the group (up to
+``max_options``; a spin per option besides the operation now, at most the machine's usable spins in all).  The
+program (:func:`group_qubo`): a robot's operation now is all its spins down, another option one spin up; the
+options' costs above the operation now as linear terms; penalties for two spins of one robot up and for each pair
+of options of two robots that collide (vertex or swap at any time).  The host rule (:func:`greedy_choice`): the
+robots in a seeded order, each its cheapest option that collides with no one placed before.  The chip's answer
+(:func:`decode_choice`): its cheapest collision-free read, where a robot with more than one spin up keeps its
+operation now.  :func:`apply_choices`: a group takes the decided choice when it collides with no one and costs at
+least ``min_gain`` less than the group's plan now; groups apply in turn, each checked against the plan as the ones
+before it left it.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
+from planners.mapf.common import mix
+from planners.mapf.epibt.search import blockers, conflict, more_blockers, reserve
+
+__all__ = ["GroupShape", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices", "collide", "path_of",
+           "cost_of"]
+
+
+@numba.njit(cache=True, nogil=True)
+def collide(p, q) -> bool:
+    """Cell sequences ``p`` and ``q`` (same times) meet in a cell or swap cells at some time."""
+    for t in range(1, p.shape[0]):
+        if p[t] == q[t] or (p[t] != p[t - 1] and p[t] == q[t - 1] and q[t] == p[t - 1]):
+            return True
+    return False
+
+
+class GroupShape(NamedTuple):
+    """What a call's groups may hold."""
+
+    groups: int       # groups at most
+    max_robots: int   # robots per group
+    max_options: int  # options per robot (its operation now included)
+    max_spins: int    # spins per program
+    grow: bool = False  # grow through the robots in the way of the members' first options, not the first robot's only
+
+
+@numba.njit(cache=True, nogil=True)
+def select_groups(state, res, limits, stamp, taken, out, seeds) -> int:
+    """This call's groups (module docstring) into ``out = (members, gstart, ostart, opt)``: group ``g`` is
+    ``members[gstart[g]:gstart[g + 1]]``, robot slot ``m``'s options ``opt[ostart[m]:ostart[m + 1]]`` (a
+    candidate index, -1 its inherited operation; option 0 its operation now).  ``limits`` a :class:`GroupShape`,
+    ``stamp = (seed, t)``, ``taken`` (robots) all 0 on entry; only robots with ``seeds[k]`` start a group (any may
+    join one).  A growing group adds, member by member, the robots in the way of each one's first ``max_options``
+    operations (a push chain's robots, decided at once)."""
+    cells, ncand, cur, src = state.cells, state.ncand, state.cur, state.src
+    n_groups, max_robots, max_options, max_spins = limits.groups, limits.max_robots, limits.max_options, \
+        limits.max_spins
+    seed, t = stamp
+    members, gstart, ostart, opt = out
+    r = cur.shape[0]
+    ng = 0
+    m = 0
+    gstart[0] = 0
+    ostart[0] = 0
+    if r == 0:
+        return 0
+    start = np.int64(mix(seed, t, r, 0x6C) % np.uint64(r))
+    for j in range(r):
+        if ng == n_groups:
+            break
+        k = (start + j) % r
+        if src[k] == 0 or ncand[k] == 0 or taken[k] or not seeds[k]:
+            continue
+        a = m
+        size = blockers(k, cells, src[k] if src[k] > 0 else ncand[k], res, max_robots, members[a:], taken)
+        i = 1
+        while limits.grow and i < size < max_robots:
+            q = members[a + i]
+            size = more_blockers(q, cells, min(ncand[q], max_options), res, max_robots, members[a:], size, taken)
+            i += 1
+        m = a + size
+        if size < 2:  # nothing in the way to choose with
+            m = a
+            continue
+        per = min(max_options, max_spins // size + 1)  # a robot's operation now takes no spin
+        for i in range(a, m):
+            reserve(res, cur[members[i]], members[i], -1)
+        for i in range(a, m):
+            q = members[i]
+            x = ostart[i]
+            opt[x] = src[q]
+            x += 1
+            for c in range(ncand[q]):
+                if x - ostart[i] >= per:
+                    break
+                if c != src[q] and conflict(res, cells[q, c], q) == -1:
+                    opt[x] = c
+                    x += 1
+            ostart[i + 1] = x
+        for i in range(a, m):
+            reserve(res, cur[members[i]], members[i], members[i])
+        ng += 1
+        gstart[ng] = m
+    return ng
+
+
+@numba.njit(cache=True, nogil=True)
+def path_of(state, q, c):
+    return state.cells[q, c] if c >= 0 else state.inh[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def cost_of(state, q, c) -> int:
+    return state.costs[q, c] if c >= 0 else state.inh_cost[q]
+
+
+@numba.njit(cache=True, nogil=True)
+def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
+    """Upper-triangular integer QUBO ``q[:n, :n]`` of the group ``members[a:b]``; ``n``, returned, is its options
+    less one per robot: a robot's operation now (option 0) is all its spins down, another option one spin up
+    (:func:`planners.mapf.chip.choice_qubo.reduce_to_reference`).  The objective: each option's cost-to-go, ``P`` on
+    each pair of colliding options; with ``s = 1 +`` the widest gap of one option's cost to its robot's operation
+    now, ``penalty x s`` on each pair of spins of one robot and ``P`` half that.  Among reads with at most one spin
+    up per robot the energy is the cost above the plan now plus ``P`` per colliding pair; the chip's few levels
+    go to the costs, not to a one-hot constraint's fields."""
+    base = ostart[a]
+    n = ostart[b] - base
+    spread = 0
+    for i in range(a, b):
+        c0 = cost_of(state, members[i], opt[ostart[i]])
+        for x in range(ostart[i] + 1, ostart[i + 1]):
+            spread = max(spread, abs(cost_of(state, members[i], opt[x]) - c0))
+    amo = penalty * (spread + 1)
+    pen = (amo + 1) // 2
+    full = np.zeros((n, n), dtype=np.int64)
+    for i in range(a, b):
+        for x in range(ostart[i], ostart[i + 1]):
+            full[x - base, x - base] = cost_of(state, members[i], opt[x])
+            px = path_of(state, members[i], opt[x])
+            for i2 in range(i + 1, b):
+                for y in range(ostart[i2], ostart[i2 + 1]):
+                    if collide(px, path_of(state, members[i2], opt[y])):
+                        full[x - base, y - base] = pen
+    return reduce_to_reference(full, ostart[a:b + 1] - base, np.zeros(b - a, dtype=np.int64), amo, q)
+
+
+@numba.njit(cache=True, nogil=True)
+def _feasible_cost(state, members, a, b, ostart, opt, choice) -> int:
+    """Cost of ``choice`` (an option per robot of the group), or -1 when two chosen options collide."""
+    total = 0
+    for i in range(a, b):
+        p = path_of(state, members[i], opt[ostart[i] + choice[i - a]])
+        for i2 in range(i + 1, b):
+            if collide(p, path_of(state, members[i2], opt[ostart[i2] + choice[i2 - a]])):
+                return -1
+        total += cost_of(state, members[i], opt[ostart[i] + choice[i - a]])
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def greedy_choice(state, members, a, b, ostart, opt, stamp, choice) -> int:
+    """The host rule: robots in the order of ``mix(seed, t, g, robot)``, each its cheapest option colliding with
+    none placed before; returns the cost (-1 when a robot is left without one: the group keeps its plan)."""
+    seed, t, g = stamp
+    size = b - a
+    keys = np.empty(size, dtype=np.uint64)
+    for i in range(size):
+        keys[i] = mix(seed, t, g, members[a + i])
+    order = np.argsort(keys)
+    placed = np.zeros(size, dtype=np.int8)
+    total = 0
+    for i in order:
+        q = members[a + i]
+        best = -1
+        for x in range(ostart[a + i], ostart[a + i + 1]):
+            p = path_of(state, q, opt[x])
+            ok = True
+            for j in range(size):
+                if placed[j] and collide(p, path_of(state, members[a + j], opt[ostart[a + j] + choice[j]])):
+                    ok = False
+                    break
+            if ok and (best < 0 or cost_of(state, q, opt[x]) < cost_of(state, q, opt[best])):
+                best = x
+        if best < 0:
+            return -1
+        choice[i] = best - ostart[a + i]
+        placed[i] = 1
+        total += cost_of(state, q, opt[best])
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
+    """The chip's answer (spins as :func:`group_qubo`): the cheapest collision-free read, into ``choice``; a robot
+    with no spin up, or more than one, keeps its operation now (option 0) in that read.  Its cost (-1 when no
+    read is collision-free)."""
+    reads = read_choices(spins, ostart[a:b + 1] - ostart[a])
+    best = -1
+    for rd in range(reads.shape[0]):
+        e = _feasible_cost(state, members, a, b, ostart, opt, reads[rd])
+        if e >= 0 and (best < 0 or e < best):
+            best = e
+            choice[:b - a] = reads[rd]
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
+    """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
+    when it costs at least ``min_gain`` less than their plan now and collides with nothing left in the plan;
+    returns how many did (``groups`` a :class:`~planners.mapf.common.GroupBatch`)."""
+    cur, src = state.cur, state.src
+    members, gstart, ostart, opt = groups.members, groups.gstart, groups.ostart, groups.opt
+    applied = 0
+    for g in range(groups.ng):
+        a, b = gstart[g], gstart[g + 1]
+        if costs_now[g] < 0:
+            continue
+        before = 0
+        for i in range(a, b):
+            before += cost_of(state, members[i], src[members[i]])
+        if costs_now[g] > before - min_gain:
+            continue
+        for i in range(a, b):
+            reserve(res, cur[members[i]], members[i], -1)
+        ok = True
+        for i in range(a, b):
+            if conflict(res, path_of(state, members[i], opt[ostart[i] + choices[i]]), members[i]) != -1:
+                ok = False
+                break
+            reserve(res, path_of(state, members[i], opt[ostart[i] + choices[i]]), members[i], members[i])
+        for i in range(a, b):
+            q = members[i]
+            reserve(res, path_of(state, q, opt[ostart[i] + choices[i]]), q, -1)
+        if ok:
+            for i in range(a, b):
+                q = members[i]
+                src[q] = opt[ostart[i] + choices[i]]
+                cur[q] = path_of(state, q, src[q])
+            applied += 1
+        for i in range(a, b):
+            reserve(res, cur[members[i]], members[i], members[i])
+    return applied

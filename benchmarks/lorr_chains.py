@@ -5,8 +5,15 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
 * ``entry``: the package's default entry (its rule for the instance);
 * ``epibt-chain``: ``lorr-greedy`` + ``epibt-chain`` with ``--active`` of the team at work (ranked by the task
   still to go), ``--portfolio`` plans on the cores;
+* ``chip annealer`` (``--chip-rows on``): ``epibt-chain-ising``, the same construction with no host search, its
+  plan changed by rounds of neighbourhood programs (``lns_groups``) on the emulated chip until the deadline (host
+  seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads a program;
+* ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
+* ``host chains + chip``: the host search for half the time, then the chip's rounds;
 * ``record holder`` (with ``--record-holder BIN``): the 2024 winner's own start-kit binary (``lifelong``, built from
   its public repository by the user) on the same instance and steps, ``-t 1000``; its tasks from its output.
+
+Host and machine energy per task apart (host CPU seconds x 15 W; 0.45 uJ per chip call).
 
 Run nothing else beside it.
 
@@ -25,7 +32,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish, lorr_run_json  # noqa: E402
 
-SECTION = "## EPIBT by push chains at density, against the record holder's planner (issue 57)"
+SECTION = "## EPIBT by push chains at density: the entry, the host annealer, the chip annealer (issue 57)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
 
 
@@ -37,7 +44,8 @@ def record_holder(binary: str, instance: Path, steps: int) -> dict:
                         "-c", "3", "-l", str(Path(tmp) / "log")], check=True, capture_output=True,
                        cwd=Path(binary).resolve().parent.parent)
         rec = json.loads(out.read_text())
-    return {"tasks_finished": rec["numTaskFinished"], "timeouts": rec["numEntryTimeouts"], "step_p99_s": None}
+    return {"tasks_finished": rec["numTaskFinished"], "timeouts": rec["numEntryTimeouts"], "step_p99_s": None,
+            "host_energy_per_task_j": None}
 
 
 def main(argv=None) -> None:
@@ -46,6 +54,10 @@ def main(argv=None) -> None:
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--active", type=float, default=0.57, help="share of the team at work (epibt-chain rows)")
     parser.add_argument("--portfolio", type=int, default=2)
+    parser.add_argument("--chip-rows", choices=("on", "none"), default="none",
+                        help="the chip annealer, its host-rule twin and host chains + chip")
+    parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
+    parser.add_argument("--entry-row", choices=("on", "none"), default="on", help="the default entry's row")
     parser.add_argument("--record-holder", default=None, help="the winner's start-kit binary (optional)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
@@ -54,20 +66,38 @@ def main(argv=None) -> None:
     table = []
     for name in [n.strip() for n in args.instances.split(",") if n.strip()]:
         inst = ROOT / f"{name}.json"
-        runs = {"entry": lorr_run_json(inst, "--entry", "default", "--steps", str(args.steps)),
-                "epibt-chain": lorr_run_json(inst, *chain, "--steps", str(args.steps), "--step-limit", "rules")}
+        clock = ("--steps", str(args.steps), "--step-limit", "rules")
+        runs = {"entry": lorr_run_json(inst, "--entry", "default", "--steps", str(args.steps))} \
+            if args.entry_row == "on" else {}
+        runs["epibt-chain"] = lorr_run_json(inst, *chain, *clock)
+        if args.chip_rows == "on":
+            chip = (*chain[:3], "epibt-chain-ising", *chain[4:], "--planner-option", f"num_reads={args.reads}")
+            runs["chip annealer"] = lorr_run_json(inst, *chip, *clock)
+            runs["host-rule twin"] = lorr_run_json(inst, *chip, "--planner-option", "decider=host", *clock)
+            runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
         if args.record_holder:
             runs["record holder"] = record_holder(args.record_holder, inst, args.steps)
         for row, rec in runs.items():
-            p99 = rec["step_p99_s"]
-            table.append((name, row, rec["tasks_finished"], rec["timeouts"], "" if p99 is None else f"{p99:.3f}"))
+            table.append((name, row, rec))
             print(f"{name} {row}: {rec['tasks_finished']} tasks", file=sys.stderr)
     lines = [SECTION, "",
              f"`python benchmarks/lorr_chains.py --instances {args.instances} --steps {args.steps} --active "
              f"{args.active} --portfolio {args.portfolio}" + (" --record-holder BIN" if args.record_holder else "")
-             + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed 0)", "",
-             "| instance | planner | tasks | timeouts | step p99 s |", "|---|---|---:|---:|---:|"]
-    lines += [f"| {a} | {b} | {c:,} | {d} | {e} |" for a, b, c, d, e in table]
+             + (f" --chip-rows on --reads {args.reads}" if args.chip_rows == "on" else "")
+             + (" --entry-row none" if args.entry_row == "none" else "")
+             + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed 0; step time: host seconds plus the "
+             "machine's own)", "",
+             "| instance | planner | tasks | x epibt-chain | timeouts | step p99 s | chip calls / step | host J / task | "
+             "machine J / task |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, row, rec in table:
+        tasks, host = rec["tasks_finished"], rec.get("host_energy_per_task_j")
+        ref = next(r for n, w, r in table if n == name and w == "epibt-chain")["tasks_finished"]
+        cells = [f"{rec['step_p99_s']:.3f}" if rec["step_p99_s"] is not None else "",
+                 f"{rec['chip_calls'] / max(rec['decisions'], 1):,.0f}" if "chip_calls" in rec else "",
+                 f"{host:.2f}" if host is not None else "",
+                 f"{rec['machine_energy_per_task_j']:.2e}" if "machine_energy_per_task_j" in rec else ""]
+        lines.append(f"| {name} | {row} | {tasks:,} | {tasks / max(ref, 1):.3f} | {rec['timeouts']} | "
+                     + " | ".join(cells) + " |")
     finish(SECTION, lines, args.write)
 
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.mapf.chip.group_rounds import GroupOptions, build_rounds
+from planners.mapf.chip.group_rounds import GroupOptions, build_rounds, delegated, grow_option, rounds_option
 from planners.mapf.epibt.chain_planner import ChainEPIBT, ChainOptions
 from planners.mapf.epibt.chains import score_of
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S
@@ -38,10 +38,8 @@ class ChainIsingOptions(GroupOptions, ChainOptions):
                              "of the time)")
     host_share: float = option(0.5, float, 0.0, 1.0, meaning="under a clock, the share of the time the construction "
                                "leaves that the host search may take (with lns > 0 or null)")
-    rounds: int = option(64, int, 1, 4096, meaning="rounds of decisions per call, each on fresh groups; under a "
-                         "clock they stop before the deadline on the step's charged time")
-    grow: bool = option(True, bool, meaning="groups grow through the robots in the way of each member's first "
-                        "max_options operations (a push chain's robots decided at once), not only the first robot's")
+    rounds: int = rounds_option(64)
+    grow: bool = grow_option(True)
 
 
 class ChainEPIBTIsing(ChainEPIBT):
@@ -63,20 +61,9 @@ class ChainEPIBTIsing(ChainEPIBT):
         self.rounds_ = build_rounds(machine, self.options, self.seed)
         self.machine = self.rounds_.machine
 
-    @property
-    def ledger(self):
-        """Every machine call's charges."""
-        return self.rounds_.ledger
-
-    @property
-    def last_compute(self):
-        """The last call's machine charges."""
-        return self.rounds_.last_compute
-
-    @property
-    def stats(self) -> dict:
-        """The group decisions' counts (:class:`~planners.mapf.chip.group_rounds.GroupRounds`)."""
-        return self.rounds_.stats
+    ledger = delegated("ledger", "Every machine call's charges.")
+    last_compute = delegated("last_compute", "The last call's machine charges.")
+    stats = delegated("stats", "The group decisions' counts (GroupRounds).")
 
     def _search_stop(self, now: float, stop: float) -> float:
         return now + self.options.host_share * max(stop - now, 0.0)

@@ -16,7 +16,7 @@ import numpy as np
 
 from planners.mapf.chip.group_kernels import (apply_choices, decode_choice, greedy_choice, group_qubo,
                                               select_groups)
-from planners.mapf.chip.group_rounds import DECIDERS, GroupOptions, build_rounds
+from planners.mapf.chip.group_rounds import DECIDERS, GroupOptions, build_rounds, delegated
 from planners.mapf.epibt.plans import EPIBT, EPIBTOptions
 
 __all__ = ["EPIBTIsing", "EPIBTIsingOptions", "select_groups", "group_qubo", "greedy_choice", "decode_choice",
@@ -57,20 +57,9 @@ class EPIBTIsing(EPIBT):
         self.n_groups, self.max_robots, self.max_options, self.max_spins = (lim.groups, lim.max_robots,
                                                                             lim.max_options, lim.max_spins)
 
-    @property
-    def ledger(self):
-        """Every machine call's charges."""
-        return self.rounds_.ledger
-
-    @property
-    def last_compute(self):
-        """The last call's machine charges."""
-        return self.rounds_.last_compute
-
-    @property
-    def stats(self) -> dict:
-        """The group decisions' counts (:class:`~planners.mapf.chip.group_rounds.GroupRounds`)."""
-        return self.rounds_.stats
+    ledger = delegated("ledger", "Every machine call's charges.")
+    last_compute = delegated("last_compute", "The last call's machine charges.")
+    stats = delegated("stats", "The group decisions' counts (GroupRounds).")
 
     def _improve(self, state) -> None:
         """Up to ``rounds`` rounds of group decisions (class docstring), the machine's charges summed."""

@@ -28,7 +28,8 @@ from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S
 from planners.options import Options, option
 
-__all__ = ["GroupRounds", "RoundLimits", "GroupOptions", "build_rounds", "DECIDERS"]
+__all__ = ["GroupRounds", "RoundLimits", "GroupOptions", "build_rounds", "delegated", "rounds_option", "grow_option",
+           "DECIDERS"]
 
 DECIDERS = ("chip", "host")
 
@@ -50,6 +51,24 @@ class RoundLimits:
     grow: bool = False  # groups grow through their members' blockers (GroupShape)
 
 
+def rounds_option(default: int):
+    """The ``rounds`` option (a planner sets its own default)."""
+    return option(default, int, 1, 4096, meaning="rounds of decisions per call, each on fresh groups; under a clock "
+                  "they stop before the deadline on the step's charged time")
+
+
+def grow_option(default: bool):
+    """The ``grow`` option (a planner sets its own default)."""
+    return option(default, bool, meaning="groups grow through the robots in the way of each member's first "
+                  "max_options operations (a push chain's robots decided at once), not only the first robot's")
+
+
+def delegated(name: str, doc: str) -> property:
+    """A planner's read-only view of its :class:`GroupRounds`' attribute ``name`` (the planner holds it as
+    ``rounds_``)."""
+    return property(lambda self: getattr(self.rounds_, name), doc=doc)
+
+
 @dataclass(frozen=True)
 class GroupOptions(Options):
     """The group decisions' options, as a planner with them lists them after its own."""
@@ -65,10 +84,8 @@ class GroupOptions(Options):
                           "option's cost to its robot's operation now; collisions half that")
     min_gain: int = option(1, int, 1, 1000, meaning="a group takes the decided choice when it lowers the group's "
                            "cost-to-go by at least this much")
-    rounds: int = option(1, int, 1, 4096, meaning="rounds of decisions per call, each on fresh groups; under a "
-                         "clock they stop before the deadline on the step's charged time")
-    grow: bool = option(False, bool, meaning="groups grow through the robots in the way of each member's first "
-                        "max_options operations (a push chain's robots decided at once), not only the first robot's")
+    rounds: int = rounds_option(1)
+    grow: bool = grow_option(False)
 
 
 def build_rounds(machine, opts: GroupOptions, seed: int) -> "GroupRounds":

@@ -30,8 +30,8 @@ from planners.options import option
 
 __all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
 
-#: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`; under a clock the
-#: search also stops, between two batches of :data:`SEARCH_BATCH` chains, when the next would pass the deadline.
+#: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`, in batches of at most
+#: :data:`SEARCH_BATCH` chains; under a clock each batch also stops at its work budget (:data:`FIRST_WORK`).
 DEFAULT_CHAINS_PER_ROBOT = 100
 DEFAULT_CHAINS_MAX = 1 << 17
 SEARCH_BATCH = 512

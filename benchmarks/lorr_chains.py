@@ -3,9 +3,11 @@
 Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
 
 * ``entry``: the package's default entry (its rule for the instance);
-* ``epibt-chain``: ``lorr-greedy`` + ``epibt-chain`` with ``--active`` of the team at work (ranked by the task
-  still to go), ``--portfolio`` plans on the cores;
-* ``chip annealer`` (``--chip-rows on``): ``epibt-chain-ising``, the same construction with no host search, its
+* ``epibt-chain (SCHEDULER)``: each of ``--schedulers`` + ``epibt-chain`` on crisscross lanes (``--guidance``) with
+  ``--active`` of the team at work (ranked by the task still to go), ``--portfolio`` plans on the cores; ``strong``
+  and ``ising`` re-plan unopened tasks (``--replan``), ``ising@host`` is ``ising`` with the host rule in the chip's
+  place (``--host-rule all``, its twin); the first is the reference of the ``x`` column;
+* ``chip annealer`` (``--chip-rows on``, with the first scheduler): ``epibt-chain-ising``, the same construction with no host search, its
   plan changed by rounds of neighbourhood programs (``lns_groups``) on the emulated chip until the deadline (host
   seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads a program;
 * ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
@@ -48,12 +50,22 @@ def record_holder(binary: str, instance: Path, steps: int) -> dict:
             "host_energy_per_task_j": None}
 
 
+def scheduler_args(name: str) -> tuple[str, ...]:
+    """The ``mrmt lorr run`` arguments of scheduler row ``name`` (``ising@host``: ``ising``'s host-rule twin)."""
+    base = name.split("@")[0]
+    args = ("--scheduler", base) + (("--replan",) if base in ("strong", "ising") else ())
+    return args + (("--host-rule", "all") if name.endswith("@host") else ())
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--instances", default="RANDOM-04,RANDOM-05")
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--active", type=float, default=0.57, help="share of the team at work (epibt-chain rows)")
     parser.add_argument("--portfolio", type=int, default=2)
+    parser.add_argument("--guidance", type=int, default=2, help="crisscross lanes' cost (epibt-chain rows)")
+    parser.add_argument("--schedulers", default="strong",
+                        help="comma-separated schedulers of the epibt-chain rows: lorr-greedy, strong, ising, ising@host")
     parser.add_argument("--chip-rows", choices=("on", "none"), default="none",
                         help="the chip annealer, its host-rule twin and host chains + chip")
     parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
@@ -61,17 +73,21 @@ def main(argv=None) -> None:
     parser.add_argument("--record-holder", default=None, help="the winner's start-kit binary (optional)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
-    chain = ("--scheduler", "lorr-greedy", "--planner", "epibt-chain", "--planner-option", f"active={args.active}",
+    scheds = [n.strip() for n in args.schedulers.split(",") if n.strip()]
+    chain = ("--planner", "epibt-chain", "--guidance", str(args.guidance), "--planner-option", f"active={args.active}",
              "--planner-option", "active_by=task", "--planner-option", f"portfolio={args.portfolio}")
+    ref_row = f"epibt-chain ({scheds[0]})"
     table = []
     for name in [n.strip() for n in args.instances.split(",") if n.strip()]:
         inst = ROOT / f"{name}.json"
         clock = ("--steps", str(args.steps), "--step-limit", "rules")
         runs = {"entry": lorr_run_json(inst, "--entry", "default", "--steps", str(args.steps))} \
             if args.entry_row == "on" else {}
-        runs["epibt-chain"] = lorr_run_json(inst, *chain, *clock)
+        for sched in scheds:
+            runs[f"epibt-chain ({sched})"] = lorr_run_json(inst, *scheduler_args(sched), *chain, *clock)
         if args.chip_rows == "on":
-            chip = (*chain[:3], "epibt-chain-ising", *chain[4:], "--planner-option", f"num_reads={args.reads}")
+            chip = (*scheduler_args(scheds[0]), chain[0], "epibt-chain-ising", *chain[2:], "--planner-option",
+                    f"num_reads={args.reads}")
             runs["chip annealer"] = lorr_run_json(inst, *chip, *clock)
             runs["host-rule twin"] = lorr_run_json(inst, *chip, "--planner-option", "decider=host", *clock)
             runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
@@ -82,16 +98,16 @@ def main(argv=None) -> None:
             print(f"{name} {row}: {rec['tasks_finished']} tasks", file=sys.stderr)
     lines = [SECTION, "",
              f"`python benchmarks/lorr_chains.py --instances {args.instances} --steps {args.steps} --active "
-             f"{args.active} --portfolio {args.portfolio}" + (" --record-holder BIN" if args.record_holder else "")
+             f"{args.active} --portfolio {args.portfolio} --guidance {args.guidance} --schedulers {args.schedulers}" + (" --record-holder BIN" if args.record_holder else "")
              + (f" --chip-rows on --reads {args.reads}" if args.chip_rows == "on" else "")
              + (" --entry-row none" if args.entry_row == "none" else "")
              + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed 0; step time: host seconds plus the "
              "machine's own)", "",
-             "| instance | planner | tasks | x epibt-chain | timeouts | step p99 s | chip calls / step | host J / task | "
+             "| instance | planner | tasks | x first | timeouts | step p99 s | chip calls / step | host J / task | "
              "machine J / task |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for name, row, rec in table:
         tasks, host = rec["tasks_finished"], rec.get("host_energy_per_task_j")
-        ref = next(r for n, w, r in table if n == name and w == "epibt-chain")["tasks_finished"]
+        ref = next(r for n, w, r in table if n == name and w == ref_row)["tasks_finished"]
         cells = [f"{rec['step_p99_s']:.3f}" if rec["step_p99_s"] is not None else "",
                  f"{rec['chip_calls'] / max(rec['decisions'], 1):,.0f}" if "chip_calls" in rec else "",
                  f"{host:.2f}" if host is not None else "",

@@ -109,20 +109,21 @@ def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt", 3)
-    assert small.options["executor_options"]["portfolio"] == 16 and small.options["replan"] is True
-    assert "active" not in small.options["executor_options"]  # every robot at work where the team is sparse
+    assert (small.scheduler, small.planner, small.rule) == ("strong", "epibt-chain", 3)
+    assert small.options["executor_options"] == {"portfolio": 2} and small.options["replan"] is True
+    assert small.options["guidance"] == 2  # every robot at work where the team is sparse, on crisscross lanes
     crowd = entry.rules[0]  # RANDOM-04, -05 (85 and 98 % of the free cells): push chains, 57 % at work
     assert all(crowd.holds(r, f, "random-32-32-20.map") for r, f in ((700, 0.85), (800, 0.98)))
     assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
-    assert (crowd.choice.scheduler, crowd.choice.planner) == ("lorr-greedy", "epibt-chain")
+    assert (crowd.choice.scheduler, crowd.choice.planner, crowd.choice.options["replan"]) == ("strong", "epibt-chain",
+                                                                                              True)
     assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2}
     dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
     assert dense.holds(400, 0.49, "random-32-32-20.map")
     assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
-    assert dense.choice.options["executor_options"] == {"weight_power": 2, "op_len": "auto", "portfolio": 16,
-                                                        "active": 0.8, "active_by": "task"}
-    assert (dense.choice.scheduler, dense.choice.planner, dense.choice.options["replan"]) == ("strong", "epibt", True)
+    assert dense.choice.options["executor_options"] == {"active": 0.8, "active_by": "task", "portfolio": 2}
+    assert (dense.choice.scheduler, dense.choice.planner, dense.choice.options["replan"]) == ("strong", "epibt-chain",
+                                                                                              True)
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler, big.planner) == ("lorr-greedy", "epibt")
     # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still

@@ -7,9 +7,10 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
   ``--active`` of the team at work (ranked by the task still to go), ``--portfolio`` plans on the cores; ``strong``
   and ``ising`` re-plan unopened tasks (``--replan``), ``ising@host`` is ``ising`` with the host rule in the chip's
   place (``--host-rule all``, its twin); the first is the reference of the ``x`` column;
-* ``chip annealer`` (``--chip-rows on``, with the first scheduler): ``epibt-chain-ising``, the same construction with no host search, its
-  plan changed by rounds of neighbourhood programs (``lns_groups``) on the emulated chip until the deadline (host
-  seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads a program;
+* ``chip annealer`` (``--chip-rows on``, with the first scheduler): ``epibt-chain-ising``, the same construction
+  with no host search, its plan changed by rounds of neighbourhood programs (``lns_groups``) on the emulated chip
+  until the deadline (host seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads
+  a program;
 * ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
 * ``host chains + chip``: the host search for half the time, then the chip's rounds;
 * ``record holder`` (with ``--record-holder BIN``): the 2024 winner's own start-kit binary (``lifelong``, built from
@@ -65,7 +66,8 @@ def main(argv=None) -> None:
     parser.add_argument("--portfolio", type=int, default=2)
     parser.add_argument("--guidance", type=int, default=2, help="crisscross lanes' cost (epibt-chain rows)")
     parser.add_argument("--schedulers", default="strong",
-                        help="comma-separated schedulers of the epibt-chain rows: lorr-greedy, strong, ising, ising@host")
+                        help="comma-separated schedulers of the epibt-chain rows: lorr-greedy, strong, ising, "
+                        "ising@host")
     parser.add_argument("--chip-rows", choices=("on", "none"), default="none",
                         help="the chip annealer, its host-rule twin and host chains + chip")
     parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
@@ -98,7 +100,8 @@ def main(argv=None) -> None:
             print(f"{name} {row}: {rec['tasks_finished']} tasks", file=sys.stderr)
     lines = [SECTION, "",
              f"`python benchmarks/lorr_chains.py --instances {args.instances} --steps {args.steps} --active "
-             f"{args.active} --portfolio {args.portfolio} --guidance {args.guidance} --schedulers {args.schedulers}" + (" --record-holder BIN" if args.record_holder else "")
+             f"{args.active} --portfolio {args.portfolio} --guidance {args.guidance} --schedulers {args.schedulers}"
+             + (" --record-holder BIN" if args.record_holder else "")
              + (f" --chip-rows on --reads {args.reads}" if args.chip_rows == "on" else "")
              + (" --entry-row none" if args.entry_row == "none" else "")
              + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed 0; step time: host seconds plus the "

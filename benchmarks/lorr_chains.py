@@ -4,9 +4,10 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
 
 * ``entry``: the package's default entry (its rule for the instance);
 * ``epibt-chain (SCHEDULER)``: each of ``--schedulers`` + ``epibt-chain`` on crisscross lanes (``--guidance``) with
-  ``--active`` of the team at work (ranked by the task still to go), ``--portfolio`` plans on the cores; ``strong``
-  and ``ising`` re-plan unopened tasks (``--replan``), ``ising@host`` is ``ising`` with the host rule in the chip's
-  place (``--host-rule all``, its twin); the first is the reference of the ``x`` column;
+  ``--active`` of the team at work (ranked by the task still to go), ``--portfolio`` plans on the cores; the
+  pipeline schedulers (every one but ``lorr-*``) re-plan unopened tasks (``--replan``), ``ising@host`` is ``ising``
+  with the host rule in the chip's place (``--host-rule all``, its twin); the first is the reference of the ``x``
+  column;
 * ``chip annealer`` (``--chip-rows on``, with the first scheduler): ``epibt-chain-ising``, the same construction
   with no host search, its plan changed by rounds of neighbourhood programs (``lns_groups``) on the emulated chip
   until the deadline (host seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads
@@ -54,7 +55,7 @@ def record_holder(binary: str, instance: Path, steps: int) -> dict:
 def scheduler_args(name: str) -> tuple[str, ...]:
     """The ``mrmt lorr run`` arguments of scheduler row ``name`` (``ising@host``: ``ising``'s host-rule twin)."""
     base = name.split("@")[0]
-    args = ("--scheduler", base) + (("--replan",) if base in ("strong", "ising") else ())
+    args = ("--scheduler", base) + (() if base.startswith("lorr-") else ("--replan",))  # pipelines re-plan
     return args + (("--host-rule", "all") if name.endswith("@host") else ())
 
 

@@ -102,7 +102,7 @@ def test_only_robots_with_a_goal_start_groups(monkeypatch):
 
     def recording(state, res, limits, stamp, taken, out, seeds):
         ng = real(state, res, limits, stamp, taken, out, seeds)
-        starters.extend(out[0][out[1][:ng]].tolist())
+        starters.extend(out.members[out.gstart[:ng]].tolist())
         return ng
 
     monkeypatch.setattr(mod, "select_groups", recording)

@@ -10,7 +10,7 @@ import pytest
 
 from ising_backend import CallLedger, EmulatedChip
 from planners.mapf import TURNING_EXECUTORS, EPIBT, EPIBTIsing
-from planners.mapf.common import mix
+from planners.mapf.common import GroupBatch, mix
 from planners.mapf.chip.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
 from planners.mapf.chip.group_kernels import GroupShape
 from test_mapf_epibt import plan_conflicts
@@ -43,8 +43,8 @@ def groups_of(state, res, seed=0, t=0, limits=(8, 6, 4, 45)):
     r = len(state.ncand)
     members, gstart = np.empty(r, np.int64), np.empty(limits[0] + 1, np.int64)
     ostart, opt = np.empty(r + 1, np.int64), np.empty(r * limits[2], np.int64)
-    ng = select_groups(state, res, GroupShape(*limits), (seed, t), np.zeros(r, np.int8), (members, gstart, ostart, opt),
-                       np.ones(r, np.int8))
+    ng = select_groups(state, res, GroupShape(*limits), (seed, t), np.zeros(r, np.int8),
+                       GroupBatch(0, gstart, members, ostart, opt), np.ones(r, np.int8))
     return ng, members, gstart, ostart, opt
 
 
@@ -327,7 +327,7 @@ def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, mo
 
     def recording(state, res, limits, stamp, taken, out, seeds):
         ng = real(state, res, limits, stamp, taken, out, seeds)
-        posed.append(out[0][:out[1][ng]].tolist())
+        posed.append(out.members[:out.gstart[ng]].tolist())
         return ng
 
     monkeypatch.setattr(mod, "select_groups", recording)

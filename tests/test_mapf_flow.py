@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from planners.mapf import TURNING_EXECUTORS, FlowPIBT, make_turning_executor
 from planners.mapf.guides.flow import astar_scratch, flow_astar, path_field
-from planners.mapf.pibt.turning import compact_grid
+from planners.mapf.common import compact_grid, move_grid
 from test_mapf_turning import Oracle, apply, random_instance, retarget
 from test_mapf_turning import free_neighbours as neighbours
 
@@ -79,7 +79,8 @@ def test_guide_paths_are_least_cost_and_fields_equal_the_bfs_oracle(seed, h, w, 
     cost = np.ones((n, 4), dtype=np.int64)
     heuristic = (np.zeros((0, n), dtype=np.uint16), -1)  # Manhattan distance
     out = np.zeros(n, dtype=np.int32)
-    length = flow_astar((nbr, cell_of, grid.shape[1], cost), flow, heuristic, start, goal, astar_scratch(n), out)
+    length = flow_astar(move_grid(nbr, cell_of, grid.shape[1], cost), flow, heuristic, start, goal, astar_scratch(n),
+                        out)
     path = [int(cell_of[v]) for v in out[:length]]
     best = least_cost(grid, flat_flow(cell_of, flow), int(cell_of[start]), int(cell_of[goal]))
     if best is None:

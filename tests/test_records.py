@@ -1,7 +1,8 @@
 """The library reads its records by name: the house rules of issue 58, checked on the source itself.
 
 A record (a kernel's inputs or result with more than three fields) is read by field name, not by position:
-no unpacking of five or more names from one call or record, no ``out[6]``-style reads of a result. Every
+no unpacking of five or more names from one call or record, nor of four or more from an input named as a record
+(a kernel's grid, robots, tables handed over as one tuple), no ``out[6]``-style reads of a result. Every
 chip call from the planners goes through a machine session, and the QUBO-to-Ising conversion exists once.
 """
 
@@ -18,6 +19,9 @@ LIBRARY = ("mrmt_env", "ising_backend", "planners", "agents")
 RECORD_NAMES = {"out", "stats", "st", "program", "prog", "state", "result", "res", "record", "rec", "options",
                 "machine", "loop", "pool", "tables", "book", "store", "search", "limits", "last", "groups",
                 "scratch", "solver", "robot"}
+#: Inputs a kernel takes as one tuple (read by name once they hold four or more fields; arrays of the same names,
+#: such as a list of robots, may be indexed).
+INPUT_NAMES = RECORD_NAMES | {"grid", "robots", "heuristic", "knobs", "ranks", "stamp", "step", "weights", "when"}
 #: Reads of a one-row structured statistics record (``stats[0]`` is the record itself, read by field name).
 ALLOWED = {("planners/ising/moves/search.py", "stats[0]"), ("planners/ising/tour/selection.py", "stats[0]")}
 
@@ -35,13 +39,15 @@ def _gym_step(targets) -> bool:
 
 def positional_reads(modules) -> list[str]:
     """Where a record is read by position: five or more names unpacked from one call or record (not a tuple
-    written out, not ``range``, not Gymnasium's step), or an integer index into a record name."""
+    written out, not ``range``, not Gymnasium's step), four or more from a record name, or an integer index into
+    a record name."""
     sites = []
     for where, tree in modules:
         for node in ast.walk(tree):
             if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Tuple):
                 names, value = node.targets[0].elts, node.value
-                if len(names) < 5 or isinstance(value, (ast.Tuple, ast.List, ast.GeneratorExp)) or _gym_step(names):
+                least = 4 if isinstance(value, ast.Name) and value.id in INPUT_NAMES else 5
+                if len(names) < least or isinstance(value, (ast.Tuple, ast.List, ast.GeneratorExp)) or _gym_step(names):
                     continue
                 if isinstance(value, ast.Call) and getattr(value.func, "id", "") == "range":
                     continue
@@ -62,6 +68,8 @@ def test_the_library_reads_its_records_by_name():
 @pytest.mark.parametrize("source, count", [
     ("a, b, c, d, e = run(x)", 1),  # five names from one call
     ("a, b, c, d = run(x)", 0),  # four: a small tuple
+    ("nbr, cell_of, width, cost = grid", 1),  # four from an input named as a record
+    ("fields, rows, far = heuristic", 0),  # three: a small tuple
     ("a, b, c, d, e = 1, 2, 3, 4, 5", 0),  # written out
     ("A, B, C, D, E = range(5)", 0),  # named constants
     ("obs, r, terminated, truncated, info = env.step(a)", 0),  # Gymnasium's step

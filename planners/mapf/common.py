@@ -19,7 +19,32 @@ from ising_backend import splitmix
 from mrmt_env.distances import bfs_flat
 
 __all__ = ["successor_table", "GoalFields", "mix", "moves_to_actions", "compact_grid", "sort_options",
-           "pibt_core", "int_in", "machine_for", "GroupBatch"]
+           "pibt_core", "int_in", "machine_for", "GroupBatch", "MoveGrid", "move_grid", "TurnRobots"]
+
+
+class MoveGrid(NamedTuple):
+    """The compact grid the turning kernels move on (:func:`compact_grid`), handed to them as one record."""
+
+    nbr: np.ndarray      # (n, 4) the compact cell ahead from each cell facing each orientation (-1: none)
+    cell_of: np.ndarray  # (n,) each compact cell's flat cell (row x width + column)
+    width: int           # the map's width
+    cost: np.ndarray     # (n, 4) int64, a forward move's cost from each cell facing each orientation (lanes)
+
+
+def move_grid(nbr: np.ndarray, cell_of: np.ndarray, width: int, cost=None) -> MoveGrid:
+    """A :class:`MoveGrid`; ``cost`` ``None``: every forward move costs 1."""
+    n = nbr.shape[0]
+    cost = np.ones((n, 4), dtype=np.int64) if cost is None else np.asarray(cost, dtype=np.int64)
+    return MoveGrid(nbr, cell_of, int(width), cost)
+
+
+class TurnRobots(NamedTuple):
+    """The robots of one PIBT-with-turning call, in compact cells."""
+
+    pos: np.ndarray     # (R,) each robot's cell
+    orient: np.ndarray  # (R,) its orientation (0 east, 1 south, 2 west, 3 north)
+    goals: np.ndarray   # (R,) its goal's cell (its own cell: no goal)
+    commit: np.ndarray  # (R,) a cell it keeps claiming (-1: none)
 
 
 class GroupBatch(NamedTuple):

@@ -52,7 +52,8 @@ class GroupShape(NamedTuple):
 
 @numba.njit(cache=True, nogil=True)
 def select_groups(state, res, limits, stamp, taken, out, seeds) -> int:
-    """This call's groups (module docstring) into ``out = (members, gstart, ostart, opt)``: group ``g`` is
+    """This call's groups (module docstring) into ``out`` (a :class:`~planners.mapf.common.GroupBatch`, its
+    ``ng`` unread: the count is returned): group ``g`` is
     ``members[gstart[g]:gstart[g + 1]]``, robot slot ``m``'s options ``opt[ostart[m]:ostart[m + 1]]`` (a
     candidate index, -1 its inherited operation; option 0 its operation now).  ``limits`` a :class:`GroupShape`,
     ``stamp = (seed, t)``, ``taken`` (robots) all 0 on entry; only robots with ``seeds[k]`` start a group (any may
@@ -62,7 +63,7 @@ def select_groups(state, res, limits, stamp, taken, out, seeds) -> int:
     n_groups, max_robots, max_options, max_spins = limits.groups, limits.max_robots, limits.max_options, \
         limits.max_spins
     seed, t = stamp
-    members, gstart, ostart, opt = out
+    members, gstart, ostart, opt = out.members, out.gstart, out.ostart, out.opt
     r = cur.shape[0]
     ng = 0
     m = 0

@@ -151,7 +151,7 @@ class GroupRounds:
         opt = np.empty(r * lim.max_options, dtype=np.int64)
         taken = np.zeros(r, dtype=np.int8)
         shape = GroupShape(lim.groups, lim.max_robots, lim.max_options, lim.max_spins, lim.grow)
-        ng = select_groups(state, res, shape, (seed, t), taken, (members, gstart, ostart, opt), seeds)
+        ng = select_groups(state, res, shape, (seed, t), taken, GroupBatch(0, gstart, members, ostart, opt), seeds)
         self.last_groups = ng
         if ng == 0:
             return None

@@ -34,8 +34,8 @@ from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.chip.joint_moves import (
-    CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, build_qubo, claims_to_actions, decode_reads, group_options, group_spread,
-    objective, program_batch, robot_options, select_groups, solve_exact,
+    CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, HostStep, build_qubo, claims_to_actions, decode_reads, group_options,
+    group_spread, objective, program_batch, robot_options, select_groups, solve_exact,
 )
 from planners.mapf.guides.guidance import MAX_GUIDANCE
 from planners.mapf.pibt.options import TurningOptions
@@ -110,11 +110,12 @@ class JointMovesPIBT(TurningPIBT):
         r = len(pc)
         cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
         cost = np.empty((r, MAX_OPTIONS), dtype=np.int64)
-        robot_options(self.nbr, self.cell_of, self.width, self.fields.fields, rows, gc, pc, orient, cand, cost)
+        robot_options(self.move_grid, (self.fields.fields, rows), (pc, orient, gc), cand, cost)
         gid = np.empty(r, dtype=np.int64)
         members = np.empty(r, dtype=np.int64)
         gstart = np.empty(r + 1, dtype=np.int64)
-        ng = select_groups(self.nbr, (pc, nxt, act), (cand, cost), order, (self.max_robots, self.max_spins),
+        step = HostStep(pc, orient, nxt, act)
+        ng = select_groups(self.nbr, step, (cand, cost), order, (self.max_robots, self.max_spins),
                            self._occ_now, (gid, members, gstart))
         rank = np.empty(r, dtype=np.int64)
         rank[order] = np.arange(r)
@@ -123,7 +124,7 @@ class JointMovesPIBT(TurningPIBT):
         opt = np.empty((m * MAX_OPTIONS, 5), dtype=np.int64)
         host = np.empty(m, dtype=np.int64)
         if ng:
-            group_options(self.nbr, (pc, orient, nxt, act), (cand, cost), rank, (gid, members, gstart), ng,
+            group_options(self.nbr, step, (cand, cost), rank, (gid, members, gstart), ng,
                           (self.levels, self.push), (self._claim, self._occ_now), (ostart, opt, host))
         return GroupBatch(ng, gstart, members, ostart, opt), host
 

@@ -35,12 +35,14 @@ The executor that uses these kernels: :mod:`planners.mapf.chip.joint_executor`.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance, vacate_check
 
-__all__ = ["robot_options", "select_groups", "group_options", "group_spread", "build_qubo",
+__all__ = ["HostStep", "robot_options", "select_groups", "group_options", "group_spread", "build_qubo",
            "solve_exact", "decode_reads", "claims_to_actions", "objective", "MAX_OPTIONS", "CELL", "COST", "DEP", "UNREAL", "FWD",
            "NOT_ONE_HOT", "CONFLICT"]
 
@@ -53,10 +55,24 @@ CELL, COST, DEP, UNREAL, FWD = 0, 1, 2, 3, 4
 _BIG = 1 << 40
 
 
+class HostStep(NamedTuple):
+    """The host rule's (PIBT's) step the groups start from, in compact cells."""
+
+    pos: np.ndarray     # (R,) each robot's cell
+    orient: np.ndarray  # (R,) its orientation
+    nxt: np.ndarray     # (R,) the cell PIBT claims for it
+    act: np.ndarray     # (R,) and its action there
+
+
 @numba.njit(cache=True, nogil=True)
-def robot_options(nbr, cell_of, width, fields, rows, goals, pos, orient, cand, cost):
+def robot_options(grid, heuristic, robots, cand, cost):
     """``cand[k, m]`` robot ``k``'s candidate compact cells (own cell first, then free neighbours east,
-    south, west, north; -1 pads), ``cost[k, m]`` its unweighted cost ``2 (d(v) - d(p)) + turns``."""
+    south, west, north; -1 pads), ``cost[k, m]`` its unweighted cost ``2 (d(v) - d(p)) + turns``; ``grid`` a
+    :class:`~planners.mapf.common.MoveGrid` (its costs unread), ``heuristic = (fields, rows)``, ``robots = (pos,
+    orient, goals)``."""
+    nbr, cell_of, width = grid.nbr, grid.cell_of, grid.width
+    fields, rows = heuristic
+    pos, orient, goals = robots
     for k in range(pos.shape[0]):
         p, o = pos[k], orient[k]
         dp = _distance(fields, rows[k], goals[k], p, cell_of, width)
@@ -78,10 +94,10 @@ def robot_options(nbr, cell_of, width, fields, rows, goals, pos, orient, cand, c
 def select_groups(nbr, step, options, order, limits, occ, groups):
     """Groups of this step (module docstring) into ``groups = (gid, members, gstart)``:
     ``members[gstart[g]:gstart[g + 1]]`` robots of group ``g`` (BFS order from its seed), ``gid[k]``
-    robot ``k``'s group or -1; returns the number of groups.  ``step = (pos, nxt, act)`` (the host
+    robot ``k``'s group or -1; returns the number of groups.  ``step`` a :class:`HostStep` (the host
     rule's claims), ``options = (cand, cost)``, ``limits = (max_robots, max_spins)``; ``occ`` is
     compact-cell scratch, all -1 on entry and on return."""
-    pos, nxt, act = step
+    pos, nxt, act = step.pos, step.nxt, step.act
     cand, cost = options
     max_robots, max_spins = limits
     gid, members, gstart = groups
@@ -170,10 +186,10 @@ def group_options(nbr, step, options, rank, groups, ng, weights, scratch, out):
     """Allowed options of every group member (module docstring) into ``out = (ostart, opt, host)``:
     member ``t``'s options are rows ``opt[ostart[t]:ostart[t + 1]]`` (columns :data:`CELL`,
     :data:`COST`, :data:`DEP`, :data:`UNREAL`, :data:`FWD`); ``host[t]`` the index of its host claim
-    among them.  ``step = (pos, orient, nxt, act)``, ``options = (cand, cost)``, ``groups`` as
+    among them.  ``step`` a :class:`HostStep`, ``options = (cand, cost)``, ``groups`` as
     :func:`select_groups`, ``weights = (levels, push)``; ``scratch = (claim, occ)`` compact-cell
     scratch, -1 on entry and on return."""
-    pos, orient, nxt, act = step
+    pos, orient, nxt, act = step.pos, step.orient, step.nxt, step.act
     cand, cost = options
     gid, members, gstart = groups
     levels, push = weights

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planners.mapf.epibt.chains import (STEPS, Candidates, chain_build, chain_candidates, chain_finish,
-                                        chain_operations, chain_search, new_plan, stamp_seed)
+from planners.mapf.epibt.chains import (STEPS, Candidates, ChainKnobs, ChainRobots, chain_build, chain_candidates,
+                                        chain_finish, chain_operations, chain_search, new_plan, stamp_seed)
 from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
 from planners.mapf.guides.focus import checked_rest
@@ -105,14 +105,14 @@ class ChainEPIBT(EPIBT):
         r = len(pos)
         pc, gc = self.cid[pos], self.cid[goals]
         fields, rows = self._heuristic(pc, gc, self.order(r))
-        grid = (self.nbr, self.cell_of, self.width, self.cost)
         n_ops = self.ops.shape[0]
         cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
                           np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
                           np.empty((r, STEPS + 1), np.int64), np.empty(r, np.int64), np.empty(r, np.int64),
                           np.empty(r, np.int64))
         t0 = time.perf_counter()
-        chain_candidates(grid, (fields, int(np.iinfo(fields.dtype).max)), (pc, orient, gc, rows), self.ops,
+        robots = ChainRobots(pc, orient, gc, rows)
+        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max)), robots, self.ops,
                          (self.idle, self.quiet), cand)
         depth = self.depth[cand.op]
         cand = cand._replace(depth=depth)
@@ -127,7 +127,7 @@ class ChainEPIBT(EPIBT):
         opts = self.options
         plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
                  for k in range(self.portfolio)]
-        knobs = (opts.push_built, opts.skip)
+        knobs = ChainKnobs(opts.push_built, opts.skip)
         stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
         batches = [0] * self.portfolio
 

@@ -31,8 +31,8 @@ from planners.mapf.epibt.plans import _to_go, _walk, op_idle
 from planners.mapf.epibt.search import conflict, reserve
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT
 
-__all__ = ["STEPS", "chain_operations", "Candidates", "ChainPlan", "new_plan", "chain_candidates", "chain_build",
-           "chain_search", "chain_finish", "score_of", "stamp_seed"]
+__all__ = ["STEPS", "chain_operations", "Candidates", "ChainPlan", "ChainRobots", "ChainKnobs", "new_plan",
+           "chain_candidates", "chain_build", "chain_search", "chain_finish", "score_of", "stamp_seed"]
 
 STEPS = 5  # actions per operation
 _VISIT = 50  # value scale of a cost-to-go step
@@ -86,6 +86,22 @@ def _turns_wasted(op) -> bool:
     return False
 
 
+class ChainRobots(NamedTuple):
+    """The robots of one call (:func:`chain_candidates`), in compact cells."""
+
+    pos: np.ndarray     # (R,) each robot's cell
+    orient: np.ndarray  # (R,) its orientation
+    goals: np.ndarray   # (R,) its goal's cell (its own cell: no goal)
+    rows: np.ndarray    # (R,) its goal's distance row (-1: Manhattan distance)
+
+
+class ChainKnobs(NamedTuple):
+    """The chains' two chances (:class:`~planners.mapf.epibt.chain_planner.ChainOptions`)."""
+
+    push_built: float  # the construction pushes a robot that has already chosen
+    skip: float        # a search chain passes over a robot in its way
+
+
 class Candidates(NamedTuple):
     """Each robot's operations, best first (:func:`chain_candidates`); read-only for the plans."""
 
@@ -123,10 +139,11 @@ def new_plan(r: int, n_cells: int, seed: int, temp: float) -> ChainPlan:
 
 @numba.njit(cache=True, nogil=True)
 def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
-    """Fill ``out`` (a :class:`Candidates`) for ``robots = (pc, orient, gc, rows)``; ``ranks = (idle, quiet)``:
-    each operation's tie rank for a robot with a goal and its order for one without (least moving first)."""
-    nbr = grid[0]
-    pc, orient, gc, rows = robots
+    """Fill ``out`` (a :class:`Candidates`) for ``robots`` (a :class:`ChainRobots`) on ``grid`` (a
+    :class:`~planners.mapf.common.MoveGrid`), ``heuristic = (fields, far)``; ``ranks = (idle, quiet)``: each
+    operation's tie rank for a robot with a goal and its order for one without (least moving first)."""
+    nbr = grid.nbr
+    pc, orient, gc, rows = robots.pos, robots.orient, robots.goals, robots.rows
     idle, quiet = ranks
     n_ops = ops.shape[0]
     tmp = np.empty((n_ops, STEPS + 1), np.int64)
@@ -208,11 +225,11 @@ def _move(plan, cand, gain, k, c, on) -> None:
 def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool:
     """One push chain from ``root`` (module docstring; ``cid`` the chain's number, > 0, marking the robots it
     pushed; ``search``: the search's rules, else the construction's; ``cap`` the deepest operations tried;
-    ``knobs = (push_built, skip)``); True when kept."""
+    ``knobs`` a :class:`ChainKnobs`); True when kept."""
     choice, rng = plan.choice, plan.rng
     st_a, st_j, st_old, st_lo, st_lo_old, mark = stack.robot, stack.option, stack.old, stack.pushed, stack.pushed_old, \
         stack.mark
-    push_built, skip = knobs
+    push_built, skip = knobs.push_built, knobs.skip
     old = plan.score[0]
     _move(plan, cand, gain, root, 0, False)
     mark[root] = cid
@@ -289,7 +306,7 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
 def chain_build(cand, gain, order, depth_draw, knobs, span, plan) -> None:
     """The construction into ``plan`` for the robots ``order[span[0]:span[1]]`` (from ``span[0] == 0``: every robot
     put waiting first, the table empty on entry), so that spans in turn make the one construction; ``depth_draw``
-    the operation depths a plan draws from (here and every 128 search chains); ``knobs = (push_built, skip)``."""
+    the operation depths a plan draws from (here and every 128 search chains); ``knobs`` a :class:`ChainKnobs`."""
     r = order.shape[0]
     if span[0] == 0:
         for k in range(r):

@@ -55,6 +55,15 @@ class RobotAt(NamedTuple):
     row: int  # its goal's distance row (-1: none)
 
 
+class ChoiceTables(NamedTuple):
+    """What :func:`_choose` works in beside the plan."""
+
+    res: np.ndarray    # (op_len + 1, cells) the reservation table
+    visit: np.ndarray  # (R,) how often each robot has chosen this call
+    hit: np.ndarray    # (R,) int8 scratch marks
+    stack: "ChoiceStack"
+
+
 class ChoiceStack(NamedTuple):
     """:func:`_choose`'s explicit stack of pushes, one level per robot on it."""
 
@@ -114,7 +123,7 @@ def _walk(nbr, p, o, op, cells) -> int:
 def _to_go(grid, heuristic, goal, row, c, o) -> int:
     """Cost-to-go from compact ``c`` facing ``o``: 0 on the goal, else the least ``cost[c, d] + field of the
     neighbour in d + turns to face d``."""
-    nbr, cell_of, width, cost = grid
+    nbr, cell_of, width, cost = grid.nbr, grid.cell_of, grid.width, grid.cost
     fields, far = heuristic
     if c == goal:
         return 0
@@ -140,7 +149,7 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
     """The operations of robot ``robot`` (a :class:`RobotAt`), ranked and without equal cell sequences, into
     ``cand = (cells, which, costs)`` (``cells[i]`` its cells, ``which[i]`` the operation, ``costs[i]`` its
     cost-to-go); returns how many."""
-    nbr = grid[0]
+    nbr = grid.nbr
     k, p, o, goal, row = robot.k, robot.cell, robot.orient, robot.goal, robot.row
     seed, t = stamp
     cells, which, costs = cand
@@ -180,10 +189,10 @@ def _options(grid, heuristic, robot, ops, idle, stamp, cand, scratch) -> int:
 @numba.njit(cache=True, nogil=True)
 def _choose(root, prio, state, tables, revisits) -> bool:
     """Robot ``root``'s choice with pushes, on an explicit stack (module docstring), in ``state`` (a
-    :class:`PlanState`); ``tables = (res, visit, hit, stack)`` (``stack`` a :class:`ChoiceStack`).  On failure
+    :class:`PlanState`); ``tables`` a :class:`ChoiceTables`.  On failure
     ``root`` holds its inherited cells, unreserved."""
     cells, ncand, cur, src, inh = state.cells, state.ncand, state.cur, state.src, state.inh
-    res, visit, hit, stack = tables
+    res, visit, hit, stack = tables.res, tables.visit, tables.hit, tables.stack
     st_a, st_i, st_l = stack.robot, stack.option, stack.pushed
     st_src, saved = stack.pushed_src, stack.pushed_cells
     p = prio[root]
@@ -250,10 +259,10 @@ def _choose(root, prio, state, tables, revisits) -> bool:
 @numba.njit(cache=True, nogil=True)
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, idle, state, res):
     """One joint plan of ``robots`` (a :class:`Fleet`) into ``state`` (a :class:`PlanState`), left reserved in
-    ``res`` (``(op_len + 1, cells)``, all -1 on entry; :func:`epibt_finish` clears it).  ``grid = (nbr, cell_of,
-    width, cost)``; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`; ``idle`` each operation's
+    ``res`` (``(op_len + 1, cells)``, all -1 on entry; :func:`epibt_finish` clears it).  ``grid`` a
+    :class:`~planners.mapf.common.MoveGrid`; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`; ``idle`` each operation's
     tie rank among those of equal cost-to-go (:func:`op_idle`)."""
-    nbr = grid[0]
+    nbr = grid.nbr
     pos, orient, goals, rows = robots.pos, robots.orient, robots.goals, robots.rows
     inherited, weight = robots.inherited, robots.weight
     seed, t = stamp.seed, stamp.t
@@ -284,7 +293,7 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, idle, state, res):
         if visit[k] != 0:
             continue
         reserve(res, cur[k], k, -1)
-        if not _choose(k, robots.prio, state, (res, visit, hit, stack), stamp.revisits):
+        if not _choose(k, robots.prio, state, ChoiceTables(res, visit, hit, stack), stamp.revisits):
             reserve(res, cur[k], k, k)
     if stamp.lns > 0:
         lns_search(state, res, stamp)
@@ -353,8 +362,6 @@ class EPIBT(TurningPIBT):
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         self.threads = min(self.portfolio, cores) if opts.threads is None else opts.threads
         self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
-        n = len(self.cell_of)
-        self.cost = np.ones((n, 4), dtype=np.int64) if self.move_cost is None else self.move_cost.astype(np.int64)
         self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
                                self.seed, work=opts.guide_work) if self.flow else None
 
@@ -401,7 +408,7 @@ class EPIBT(TurningPIBT):
             self.inherited = np.full((r, self.ops.shape[1]), WAIT, dtype=np.int8)
         fields, rows = self._heuristic(pc, gc, order)
         far = int(np.iinfo(fields.dtype).max)
-        grid = (self.nbr, self.cell_of, self.width, self.cost)
+        grid = self.move_grid
         prio = self.elapsed + self.tie
         weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
         weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power

@@ -32,7 +32,7 @@ import numba
 import numpy as np
 
 from planners.mapf.guides.guidance import MAX_GUIDANCE, distance_bound, spread
-from planners.mapf.common import compact_grid
+from planners.mapf.common import compact_grid, move_grid
 from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES, LaneOptions, commits_option
 from planners.mapf.pibt.turning import TurningPIBT, _distance
 from planners.options import option
@@ -139,11 +139,11 @@ def _vertex_flow(flow, v) -> int:
 @numba.njit(cache=True, nogil=True)
 def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
     """Least-flow-cost path from compact ``start`` to ``goal`` into ``out`` (start first); returns its
-    length in cells (1, the start alone, when the goal cannot be reached).  ``grid = (nbr, cell_of,
-    width, cost)``, ``cost[v, d]`` the moves a forward move counts (lane guidance; all 1 without);
+    length in cells (1, the start alone, when the goal cannot be reached).  ``grid`` a
+    :class:`~planners.mapf.common.MoveGrid`, ``cost[v, d]`` the moves a forward move counts (lanes; 1 without);
     ``heuristic = (fields, row)``: the goal's distance field row (-1: Manhattan distance);
     ``scratch`` from :func:`astar_scratch`."""
-    nbr, cell_of, width, cost = grid
+    nbr, cell_of, width, cost = grid.nbr, grid.cell_of, grid.width, grid.cost
     fields, row = heuristic
     g, fc, parent, pdir = scratch.g, scratch.flow_cost, scratch.parent, scratch.pdir
     seen, closed, stamp, heap = scratch.seen, scratch.closed, scratch.stamp, scratch.heap
@@ -231,7 +231,7 @@ def replan_paths(grid, flow, goal_fields, state, who, scratch, work):
     (< 0: no bound), or at a path longer than ``state.paths``' rows or than the fields' ``room`` (that
     robot's path left as it was); returns the robots re-planned (a prefix of ``who``) and the cells of the
     path that did not fit (0: none)."""
-    nbr = grid[0]
+    nbr = grid.nbr
     gf, grow = goal_fields
     pos, goals, paths, lengths = state.pos, state.goals, state.paths, state.lengths
     fields, far = state.fields, state.far
@@ -320,7 +320,7 @@ class FlowGuide:
                  work=DEFAULT_GUIDE_WORK):
         self.nbr, self.cell_of, self.width = nbr, cell_of, int(width)
         n = nbr.shape[0]
-        self.cost = np.ones((n, 4), dtype=np.int64) if cost is None else np.asarray(cost, dtype=np.int64)
+        self.move_grid = move_grid(nbr, cell_of, width, cost)
         self.dtype, self.bound = field_dtype(nbr)
         self.far = self.dtype.type(np.iinfo(self.dtype).max)
         self.replans = replans
@@ -399,7 +399,7 @@ class FlowGuide:
 
     def _replan(self, pc, gc, goal_fields, who, stop) -> int:
         """Run :func:`replan_paths` over ``who`` within the work and the clock; returns the robots done."""
-        grid = (self.nbr, self.cell_of, self.width, self.cost)
+        grid = self.move_grid
         first = int(self.scratch.expanded[0])
         chunk = len(who) if stop is None else 1
         done = 0

@@ -33,7 +33,7 @@ import numba
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.mapf.common import compact_grid, mix, pibt_core, sort_options
+from planners.mapf.common import TurnRobots, compact_grid, mix, move_grid, pibt_core, sort_options
 from planners.mapf.guides.congestion import Congestion
 from planners.mapf.guides.guidance import cost_rows, distance_bound, move_costs
 from planners.mapf.guides.focus import active_count, active_goals, checked_rest
@@ -189,8 +189,8 @@ def _candidates(grid, robots, heuristic, stamp, a, out, buf) -> int:
     """Robot ``a``'s cells from its compact cell (itself first, then the free neighbours) into ``out``,
     sorted by (distance, turns to face the cell, ``mix(seed, t, a, flat cell)``); records as
     :func:`turning_kernel`, ``buf = (keys, turns, ties)`` scratch."""
-    nbr, cell_of, width = grid
-    pos, orient, goals = robots[0], robots[1], robots[2]
+    nbr, cell_of, width = grid.nbr, grid.cell_of, grid.width
+    pos, orient, goals = robots.pos, robots.orient, robots.goals
     fields, rows = heuristic
     seed, t = stamp
     keys, turns, ties = buf
@@ -216,7 +216,7 @@ def _candidates(grid, robots, heuristic, stamp, a, out, buf) -> int:
 def _pibt(grid, robots, heuristic, order, stamp, nxt, occ):
     """PIBT (:func:`~planners.mapf.common.pibt_core`) over every robot's cells of :func:`_candidates`; a
     robot with ``nxt`` set on entry (a commitment) is neither planned nor pushed."""
-    pos = robots[0]
+    pos = robots.pos
     r = pos.shape[0]
     cand = np.empty((r, 5), dtype=np.int64)
     ncand = np.empty(r, dtype=np.int64)
@@ -263,12 +263,12 @@ def vacate_check(pos, nxt, act, occ_now):
 @numba.njit(cache=True, nogil=True)
 def turning_kernel(grid, robots, heuristic, order, stamp, out, occ):
     """One joint action into ``out = (nxt, act)``: ``nxt[k]`` robot ``k``'s PIBT cell, ``act[k]`` its action.
-    ``grid = (nbr, cell_of, width)``; ``robots = (pos, orient, goals, commit)`` in compact cells,
-    ``commit[k]`` a cell robot ``k`` keeps claiming (-1 none); ``heuristic = (fields, rows)``, ``rows[k]``
+    ``grid`` a :class:`~planners.mapf.common.MoveGrid` (its costs unread); ``robots`` a :class:`TurnRobots`;
+    ``heuristic = (fields, rows)``, ``rows[k]``
     the row of ``fields`` robot ``k`` goes by (-1: Manhattan distance to its goal); ``stamp = (seed, t)``;
     ``occ = (occ_now, occ_next)`` scratch over compact cells, all -1 on entry and on return."""
-    nbr = grid[0]
-    pos, orient, commit = robots[0], robots[1], robots[3]
+    nbr = grid.nbr
+    pos, orient, commit = robots.pos, robots.orient, robots.commit
     nxt, act = out
     occ_now, occ_next = occ
     r = pos.shape[0]
@@ -329,6 +329,7 @@ class TurningPIBT:
         self.cid, self.cell_of, self.nbr = compact_grid(self.grid)
         self.guidance, self.corridors, self.commits = opts.guidance, opts.corridors, getattr(opts, "commits", False)
         self.move_cost = move_costs(self.nbr, self.cell_of, self.width, self.guidance, self.corridors)
+        self.move_grid = move_grid(self.nbr, self.cell_of, self.width, self.move_cost)
         self.congestion, field_cost = None, self.move_cost
         if getattr(opts, "congestion", 0):
             base = np.ones((len(self.cell_of), 4), np.int64) if self.move_cost is None else self.move_cost
@@ -414,15 +415,15 @@ class TurningPIBT:
         order = self.order(r)
         pc = self.cid[pos]
         gc = self.cid[goals]
-        heuristic = self._heuristic(pc, gc, order)
+        fields, rows = self._heuristic(pc, gc, order)
         nxt = np.empty(r, dtype=np.int64)
         act = np.empty(r, dtype=np.int64)
         commit = self.commit if self.commits else np.full(r, -1, dtype=np.int64)
         t0 = time.perf_counter()
-        turning_kernel((self.nbr, self.cell_of, self.width), (pc, orient, gc, commit), heuristic, order,
+        turning_kernel(self.move_grid, TurnRobots(pc, orient, gc, commit), (fields, rows), order,
                        (self.seed, self.t), (nxt, act), (self._occ_now, self._occ_next))
         self.kernel_s = time.perf_counter() - t0  # the host rule's own seconds (a refinement's audit compares them)
-        self._refine(pc, orient, gc, heuristic[1], order, nxt, act)
+        self._refine(pc, orient, gc, rows, order, nxt, act)
         self.targets = self.cell_of[nxt]
         moved = np.where(act == FORWARD, nxt, pc)
         if self.commits:  # a robot keeps claiming its cell until it stands on it

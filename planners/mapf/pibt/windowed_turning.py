@@ -14,16 +14,18 @@ is a valid joint action; every call re-plans.  Jam guards, measurements:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from planners.mapf.guides.guidance import MAX_GUIDANCE, orient_cost_rows
 from planners.mapf.pibt.options import LaneOptions
+from planners.mapf.common import TurnRobots
 from planners.mapf.pibt.turning import (CLOCKWISE, COUNTER, DEAD_END_BONUS, FORWARD, WAIT, TurnFields, TurningPIBT,
                                    turning_kernel)
 from planners.options import option
-from planners.mapf.pibt.windowed import _pop_unseen, _push, new_heap
+from planners.mapf.pibt.windowed import SearchHeap, _pop_unseen, _push, new_heap
 
 __all__ = ["WindowedTurningPlanner", "WindowedOptions", "OrientFields", "windowed_turning_kernel", "repair_kernel", "plan_cost",
            "DEFAULT_WINDOW", "MAX_WINDOW", "DEFAULT_EXPANSIONS", "DEFAULT_PATIENCE", "DEFAULT_ROLLOUTS",
@@ -73,6 +75,15 @@ def _orient_bfs_rows(nbr, goals, rows, fields, far):
                     tail += 1
 
 
+class WindowScratch(NamedTuple):
+    """:func:`windowed_turning_kernel`'s work arrays."""
+
+    occ: np.ndarray     # ((W + 1) * n) the window's reservations
+    seen: np.ndarray    # ((W + 1) * 4n) A*'s visit stamps
+    parent: np.ndarray  # ((W + 1) * 4n) and parents
+    heap: SearchHeap    # A*'s heap
+
+
 class OrientFields(TurnFields):
     """:class:`~planners.mapf.pibt.turning.TurnFields` over (free cell, orientation): ``fields[row, v * 4 + o]``
     = fewest actions from compact ``v`` facing ``o`` to the goal, facing any way, or their least cost
@@ -84,19 +95,22 @@ class OrientFields(TurnFields):
 
 
 @numba.njit(cache=True, nogil=True)
-def _h(fields, row, far, v, o, goal, cell_of, width):
-    """Cost to go from compact ``v`` facing ``o``: its field, Manhattan distance without one."""
+def _h(grid, heuristic, row, v, o, goal):
+    """Cost to go from compact ``v`` facing ``o``: its field (``row`` of ``heuristic = (fields, rows, far)``),
+    Manhattan distance without one."""
+    fields, _, far = heuristic
     if row >= 0:
         d = fields[row, v * 4 + o]
         return _UNREACHABLE if d == far else np.int64(d)
-    a, b = cell_of[v], cell_of[goal]
+    a, b, width = grid.cell_of[v], grid.cell_of[goal], grid.width
     return abs(a // width - b // width) + abs(a % width - b % width)
 
 
 @numba.njit(cache=True, nogil=True)
-def _cost(paths, k, w, goal, fields, row, far, cell_of, width, move):
+def _cost(grid, heuristic, paths, k, w, goal):
     """Robot ``k``'s plan cost: its steps not spent on the goal (a forward move from ``v`` facing ``o``
-    costs ``move[v, o]``, anything else 1) + the cost to go from its last state."""
+    costs ``grid.cost[v, o]``, anything else 1) + the cost to go from its last state."""
+    move = grid.cost
     c = 0
     for t in range(w):
         s, s2 = paths[k, t], paths[k, t + 1]
@@ -105,16 +119,18 @@ def _cost(paths, k, w, goal, fields, row, far, cell_of, width, move):
         elif s >> 2 != goal:
             c += 1
     last = paths[k, w]
-    return c + _h(fields, row, far, last >> 2, last & 3, goal, cell_of, width)
+    _, rows, _ = heuristic
+    return c + _h(grid, heuristic, rows[k], last >> 2, last & 3, goal)
 
 
 @numba.njit(cache=True, nogil=True)
-def plan_cost(paths, goals, fields, rows, far, cell_of, width, move) -> int:
-    """Sum over robots of the plan cost (steps off the goal + cost to go from the last state)."""
+def plan_cost(grid, heuristic, paths, goals) -> int:
+    """Sum over robots of the plan cost (steps off the goal + cost to go from the last state); ``grid`` a
+    :class:`~planners.mapf.common.MoveGrid`, ``heuristic = (fields, rows, far)``."""
     w = paths.shape[1] - 1
     total = 0
     for k in range(paths.shape[0]):
-        total += _cost(paths, k, w, goals[k], fields, rows[k], far, cell_of, width, move)
+        total += _cost(grid, heuristic, paths, k, w, goals[k])
     return total
 
 
@@ -130,15 +146,15 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
     ``paths[k, t]`` = robot ``k``'s ``v * 4 + o`` at step ``t``, a conflict-free joint plan on entry and
     on return; a robot with ``keep[k]`` keeps its plan, another takes the plan A* finds within
     ``expansions`` when it costs no more (and does not stand still off the goal where the old plan
-    moved).  ``grid = (nbr, cell_of, width, move)``; ``heuristic = (fields, rows, far)``, the
-    (cell, orientation) fields; ``limits = (window, expansions)``; ``scratch = (occ, seen, parent,
-    heap)``: ``occ ((W+1)*n)`` -1 on entry and return; ``seen`` / ``parent`` A* scratch over
+    moved).  ``grid`` a :class:`~planners.mapf.common.MoveGrid`; ``heuristic = (fields, rows, far)``, the
+    (cell, orientation) fields; ``limits = (window, expansions)``; ``scratch`` a :class:`WindowScratch`:
+    ``occ ((W+1)*n)`` -1 on entry and return; ``seen`` / ``parent`` A* scratch over
     ``(W+1)*4n`` states, ``stamp`` their last stamp.  Returns ``(stamp, plans improved, searches out
     of budget)``."""
-    nbr, cell_of, width, move = grid
-    fields, rows, far = heuristic
+    nbr, move = grid.nbr, grid.cost
+    _, rows, _ = heuristic
     window, expansions = limits
-    occ, seen, parent, heap = scratch
+    occ, seen, parent, heap = scratch.occ, scratch.seen, scratch.parent, scratch.heap
     n = nbr.shape[0]
     ns = 4 * n
     w = window
@@ -149,13 +165,13 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
     for idx in range(r):
         k = order[idx]
         goal, row = goals[k], rows[k]
-        bound = _cost(paths, k, w, goal, fields, row, far, cell_of, width, move)
+        bound = _cost(grid, heuristic, paths, k, w, goal)
         if bound == 0 or keep[k]:
             continue
         _reserve(occ, paths, k, n, w, -1)
         stamp += 1
         s0 = paths[k, 0]
-        size = _push(heap, 0, _h(fields, row, far, s0 >> 2, s0 & 3, goal, cell_of, width) * _TURNS, 0, s0, -1)
+        size = _push(heap, 0, _h(grid, heuristic, row, s0 >> 2, s0 & 3, goal) * _TURNS, 0, s0, -1)
         best = -1
         popped = 0
         while size > 0 and popped < expansions:
@@ -187,7 +203,7 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
                     if j != -1 and occ[t * n + v2] == j:  # ... from the cell I go to: a swap
                         continue
                 g2 = g + (move[v, o] if v2 != v else (0 if v == goal else 1))
-                f2 = g2 + _h(fields, row, far, v2, o2, goal, cell_of, width)
+                f2 = g2 + _h(grid, heuristic, row, v2, o2, goal)
                 if f2 <= bound:  # key: cost, then turns (no turn where a wait does as well)
                     turns = f % _TURNS + (1 if a == CLOCKWISE or a == COUNTER else 0)
                     size = _push(heap, size, f2 * _TURNS + min(turns, _TURNS - 1), g2, s2, s)
@@ -198,7 +214,7 @@ def windowed_turning_kernel(grid, goals, heuristic, order, limits, keep, paths, 
             while s != -1:
                 paths[k, s // ns] = s % ns
                 s = parent[s]
-            if _cost(paths, k, w, goal, fields, row, far, cell_of, width, move) < bound:
+            if _cost(grid, heuristic, paths, k, w, goal) < bound:
                 improved += 1
         _reserve(occ, paths, k, n, w, k)
     for k in range(r):
@@ -293,13 +309,11 @@ class WindowedTurningPlanner(TurningPIBT):
         self.window, self.expansions, self.passes = opts.window, opts.expansions, opts.passes
         self.rollouts, self.patience, self.work = opts.rollouts, opts.patience, opts.work
         self.ofields = OrientFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
-        self.move = self.move_cost if self.move_cost is not None else np.ones((len(self.cell_of), 4), np.int64)
         n = len(self.cell_of)
         states = (self.window + 1) * 4 * n
-        self._occ = np.full((self.window + 1) * n, -1, dtype=np.int64)
-        self._seen = np.zeros(states, dtype=np.int64)
-        self._parent = np.zeros(states, dtype=np.int64)
-        self._heap = new_heap(4 * self.expansions + 1)
+        self._scratch = WindowScratch(np.full((self.window + 1) * n, -1, dtype=np.int64),
+                                      np.zeros(states, dtype=np.int64), np.zeros(states, dtype=np.int64),
+                                      new_heap(4 * self.expansions + 1))
         self._stamp = 0
         self.still, self._prev = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         self.paths = np.zeros((0, self.window + 1), dtype=np.int64)
@@ -328,7 +342,7 @@ class WindowedTurningPlanner(TurningPIBT):
         none = np.full(r, -1, dtype=np.int64)  # no commitments in a rollout
         paths[:, 0] = pos * 4 + ori
         for i in range(window):
-            turning_kernel((self.nbr, self.cell_of, self.width), (pos, ori, gc, none), (self.fields.fields, rows),
+            turning_kernel(self.move_grid, TurnRobots(pos, ori, gc, none), (self.fields.fields, rows),
                            order, (seed, self.t + i), (nxt, act), (self._occ_now, self._occ_next))
             pos = np.where(act == FORWARD, nxt, pos)
             ori = (ori + np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))) % 4
@@ -350,10 +364,10 @@ class WindowedTurningPlanner(TurningPIBT):
         rows = self.ofields.rows(gc, order)
         far = self.ofields.dtype.type(self.ofields.far)
         if rollouts > 1:
-            best = plan_cost(paths, gc, self.ofields.fields, rows, far, self.cell_of, self.width, self.move)
+            best = plan_cost(self.move_grid, (self.ofields.fields, rows, far), paths, gc)
             for k in range(1, rollouts):
                 other = self._rollout(pc, orient, gc, order, window, k)
-                cost = plan_cost(other, gc, self.ofields.fields, rows, far, self.cell_of, self.width, self.move)
+                cost = plan_cost(self.move_grid, (self.ofields.fields, rows, far), other, gc)
                 if cost < best:
                     paths, best = other, cost
         self.improved = self.failed = 0
@@ -364,8 +378,8 @@ class WindowedTurningPlanner(TurningPIBT):
         keep = self.still > self.patience
         for _ in range(self.passes):
             self._stamp, improved, failed = windowed_turning_kernel(
-                (self.nbr, self.cell_of, self.width, self.move), gc, (self.ofields.fields, rows, far), order,
-                (window, self.expansions), keep, paths, (self._occ, self._seen, self._parent, self._heap), self._stamp)
+                self.move_grid, gc, (self.ofields.fields, rows, far), order,
+                (window, self.expansions), keep, paths, self._scratch, self._stamp)
             self.improved += improved
             self.failed += failed
         p0, p1 = paths[:, 0], paths[:, 1]

@@ -260,8 +260,8 @@ def _choose(root, prio, state, tables, revisits) -> bool:
 def epibt_kernel(grid, robots, heuristic, order, stamp, ops, idle, state, res):
     """One joint plan of ``robots`` (a :class:`Fleet`) into ``state`` (a :class:`PlanState`), left reserved in
     ``res`` (``(op_len + 1, cells)``, all -1 on entry; :func:`epibt_finish` clears it).  ``grid`` a
-    :class:`~planners.mapf.common.MoveGrid`; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`; ``idle`` each operation's
-    tie rank among those of equal cost-to-go (:func:`op_idle`)."""
+    :class:`~planners.mapf.common.MoveGrid`; ``heuristic = (fields, far)``; ``stamp`` a :class:`SearchStamp`;
+    ``idle`` each operation's tie rank among those of equal cost-to-go (:func:`op_idle`)."""
     nbr = grid.nbr
     pos, orient, goals, rows = robots.pos, robots.orient, robots.goals, robots.rows
     inherited, weight = robots.inherited, robots.weight
@@ -288,12 +288,13 @@ def epibt_kernel(grid, robots, heuristic, order, stamp, ops, idle, state, res):
     hit = np.zeros(r, dtype=np.int8)
     stack = ChoiceStack(np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64), np.empty(r, dtype=np.int64),
                         np.empty(r, dtype=np.int64), np.empty((r, length + 1), dtype=np.int64))
+    tables = ChoiceTables(res, visit, hit, stack)
     for idx in range(r):
         k = order[idx]
         if visit[k] != 0:
             continue
         reserve(res, cur[k], k, -1)
-        if not _choose(k, robots.prio, state, ChoiceTables(res, visit, hit, stack), stamp.revisits):
+        if not _choose(k, robots.prio, state, tables, stamp.revisits):
             reserve(res, cur[k], k, k)
     if stamp.lns > 0:
         lns_search(state, res, stamp)

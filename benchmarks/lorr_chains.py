@@ -1,6 +1,6 @@
 """EPIBT by push chains against the entry's EPIBT and the record holder's own planner, at density (issue 57).
 
-Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
+Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed ``--seed`` (0):
 
 * ``entry``: the package's default entry (its rule for the instance);
 * ``epibt-chain (SCHEDULER)``: each of ``--schedulers`` + ``epibt-chain`` on crisscross lanes (``--guidance``) with
@@ -14,6 +14,10 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed 0:
   a program;
 * ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
 * ``host chains + chip``: the host search for half the time, then the chip's rounds;
+* ``work set on the chip`` (``--work-rows on``, with the first scheduler): ``epibt-chain-work``, the first
+  ``epibt-chain`` row whose robots at work the chip then thins where they meet (class ``work_set``,
+  ``--work-options``), and ``work set, host rule``, its twin (every robot the host rule keeps at work stays: the
+  plans of the ``epibt-chain`` row);
 * ``record holder`` (with ``--record-holder BIN``): the 2024 winner's own start-kit binary (``lifelong``, built from
   its public repository by the user) on the same instance and steps, ``-t 1000``; its tasks from its output.
 
@@ -63,6 +67,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--instances", default="RANDOM-04,RANDOM-05")
     parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--seed", type=int, default=0, help="every row's seed (the record holder's code: its own)")
     parser.add_argument("--active", type=float, default=0.57, help="share of the team at work (epibt-chain rows)")
     parser.add_argument("--portfolio", type=int, default=2)
     parser.add_argument("--guidance", type=int, default=2, help="crisscross lanes' cost (epibt-chain rows)")
@@ -72,6 +77,10 @@ def main(argv=None) -> None:
     parser.add_argument("--chip-rows", choices=("on", "none"), default="none",
                         help="the chip annealer, its host-rule twin and host chains + chip")
     parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
+    parser.add_argument("--work-rows", choices=("on", "none"), default="none",
+                        help="the chip choosing who of the robots at work stays, and its host-rule twin")
+    parser.add_argument("--work-options", default="", help="comma-separated options of the work-set rows, e.g. "
+                        "head_on=8,shared=0")
     parser.add_argument("--entry-row", choices=("on", "none"), default="on", help="the default entry's row")
     parser.add_argument("--record-holder", default=None, help="the winner's start-kit binary (optional)")
     parser.add_argument("--write", action="store_true")
@@ -83,8 +92,9 @@ def main(argv=None) -> None:
     table = []
     for name in [n.strip() for n in args.instances.split(",") if n.strip()]:
         inst = ROOT / f"{name}.json"
-        clock = ("--steps", str(args.steps), "--step-limit", "rules")
-        runs = {"entry": lorr_run_json(inst, "--entry", "default", "--steps", str(args.steps))} \
+        clock = ("--steps", str(args.steps), "--step-limit", "rules", "--seed", str(args.seed))
+        runs = {"entry": lorr_run_json(inst, "--entry", "default", "--steps", str(args.steps), "--seed",
+                                       str(args.seed))} \
             if args.entry_row == "on" else {}
         for sched in scheds:
             runs[f"epibt-chain ({sched})"] = lorr_run_json(inst, *scheduler_args(sched), *chain, *clock)
@@ -94,6 +104,12 @@ def main(argv=None) -> None:
             runs["chip annealer"] = lorr_run_json(inst, *chip, *clock)
             runs["host-rule twin"] = lorr_run_json(inst, *chip, "--planner-option", "decider=host", *clock)
             runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
+        if args.work_rows == "on":
+            work = (*scheduler_args(scheds[0]), chain[0], "epibt-chain-work", *chain[2:], "--planner-option",
+                    f"num_reads={args.reads}", *[a for o in args.work_options.split(",") if o.strip()
+                                                 for a in ("--planner-option", o.strip())])
+            runs["work set on the chip"] = lorr_run_json(inst, *work, *clock)
+            runs["work set, host rule"] = lorr_run_json(inst, *work, "--planner-option", "decider=host", *clock)
         if args.record_holder:
             runs["record holder"] = record_holder(args.record_holder, inst, args.steps)
         for row, rec in runs.items():
@@ -102,10 +118,12 @@ def main(argv=None) -> None:
     lines = [SECTION, "",
              f"`python benchmarks/lorr_chains.py --instances {args.instances} --steps {args.steps} --active "
              f"{args.active} --portfolio {args.portfolio} --guidance {args.guidance} --schedulers {args.schedulers}"
+             + (f" --seed {args.seed}" if args.seed else "")
              + (" --record-holder BIN" if args.record_holder else "")
              + (f" --chip-rows on --reads {args.reads}" if args.chip_rows == "on" else "")
              + (" --entry-row none" if args.entry_row == "none" else "")
-             + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed 0; step time: host seconds plus the "
+             + (f" --work-rows on --work-options '{args.work_options}'" if args.work_rows == "on" else "")
+             + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed {args.seed}; step time: host seconds plus the "
              "machine's own)", "",
              "| instance | planner | tasks | x first | timeouts | step p99 s | chip calls / step | host J / task | "
              "machine J / task |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]

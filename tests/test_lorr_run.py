@@ -225,8 +225,10 @@ def test_an_executor_that_cannot_take_the_team_is_refused_before_the_run():
                                 "500,000,000") in lines[0]
 
 
-def test_run_help_names_every_turning_executor(capsys):
+def test_run_help_names_every_turning_executor(capsys, monkeypatch):
     import argparse
+
+    monkeypatch.setenv("COLUMNS", "2000")  # argparse wraps at hyphens too: a name split over two lines is not a word
 
     from agents.commands.lorr import add_arguments
     from planners.mapf import TURNING_EXECUTORS

@@ -111,33 +111,37 @@ def test_only_robots_with_a_goal_start_groups(monkeypatch):
     assert starters and all(pos[k] != goals[k] for k in starters)
 
 
-def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
+def audited_twice(make, instance, audit_dir, decision: str, steps: int = 8) -> None:
+    """A planner built by ``make(grid)`` run ``steps`` steps on ``instance`` without and with a decision audit in
+    ``audit_dir``: the same actions, decisions and calls, and one record of class ``decision`` per decision whose
+    calls sum to the machine's."""
+    from contextlib import nullcontext
+
     from ising_backend.audit.record import Audit, read_records
 
-    rng, (grid, free, pos, orient, goals) = world(4)
+    grid, free, pos, orient, goals = instance
     runs = []
-    for audit in (None, tmp_path / "audit"):
-        ex = ChainEPIBTIsing(grid, seed=3, groups=6, rounds=2)
+    for audit in (None, audit_dir):
+        ex = make(grid)
         p, o, g, acts = pos.copy(), orient.copy(), goals.copy(), []
         r2 = np.random.default_rng(1)
-        with Audit(audit) if audit else _null():
-            for _ in range(8):
+        with Audit(audit) if audit else nullcontext():
+            for _ in range(steps):
                 a = ex.actions(p, o, g)
                 acts.append(a.tolist())
                 p, o, _ = apply(grid, p, o, a)
                 g = retarget(r2, free, p, g)
         runs.append((acts, ex.stats["decisions"], ex.ledger.physical_calls))
     assert runs[0] == runs[1]
-    records = read_records(tmp_path / "audit")
-    assert {r["class"] for r in records} == {"lns_groups"}
+    records = read_records(audit_dir)
+    assert {r["class"] for r in records} == {decision}
     assert len(records) == runs[1][1] > 0
     assert sum(r["calls"] for r in records) == runs[1][2]
 
 
-def _null():
-    from contextlib import nullcontext
-
-    return nullcontext()
+def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
+    audited_twice(lambda grid: ChainEPIBTIsing(grid, seed=3, groups=6, rounds=2), world(4)[1], tmp_path / "audit",
+                  "lns_groups")
 
 
 def test_same_seed_same_plans_and_bad_options_are_named():

@@ -95,7 +95,8 @@ def add_plan_arguments(run) -> None:
                           "pibt-flow (PIBT along traffic-flow guide paths, the start kit's default planner), epibt (PIBT "
                           "over 3-action operations with large-neighbourhood search), epibt-chain (EPIBT by push chains, "
                           "the 2024 winner's plan: the best at density), epibt-chain-ising (epibt-chain with the chip "
-                          "choosing neighbourhood groups of its plan), epibt-ising (epibt with the chip choosing "
+                          "choosing neighbourhood groups of its plan), epibt-chain-work (epibt-chain "
+                          "with the chip choosing who of the robots at work stay), epibt-ising (epibt with the chip choosing "
                           "neighbourhood groups), windowed, pibt-ising")
     run.add_argument("--executor", default=None, help="deprecated: the old name of --planner")
     run.add_argument("--guidance", type=int, default=None, metavar="N",

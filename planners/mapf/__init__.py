@@ -21,6 +21,7 @@ from __future__ import annotations
 from planners.mapf.chip.chain_ising import ChainEPIBTIsing
 from planners.mapf.chip.epibt_ising import EPIBTIsing
 from planners.mapf.chip.joint_executor import JointMovesPIBT
+from planners.mapf.chip.work_set import WorkChainEPIBT
 from planners.mapf.epibt.chain_planner import ChainEPIBT
 from planners.mapf.epibt.plans import EPIBT
 from planners.mapf.guides.flow import FlowPIBT
@@ -31,16 +32,17 @@ from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
 
 __all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
            "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT",
-           "EPIBTIsing", "ChainEPIBT", "ChainEPIBTIsing"]
+           "EPIBTIsing", "ChainEPIBT", "ChainEPIBTIsing", "WorkChainEPIBT"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
 #: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
 TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
                      "epibt": EPIBT, "epibt-chain": ChainEPIBT, "epibt-ising": EPIBTIsing,
                      "epibt-chain-ising": ChainEPIBTIsing,  # epibt-chain + the chip's joint group choices
+                     "epibt-chain-work": WorkChainEPIBT,  # epibt-chain + the chip's choice of who stays at work
                      "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
 #: The turning executors that take an Ising machine (``machine=``; default the paper's emulated chip).
-MACHINE_PLANNERS = ("epibt-ising", "epibt-chain-ising", "pibt-ising")
+MACHINE_PLANNERS = ("epibt-ising", "epibt-chain-ising", "epibt-chain-work", "pibt-ising")
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planners.compute import ComputeReport
 from planners.mapf.epibt.chains import (STEPS, Candidates, ChainKnobs, ChainRobots, chain_build, chain_candidates,
                                         chain_finish, chain_operations, chain_search, new_plan, stamp_seed)
 from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
@@ -76,6 +77,8 @@ class ChainEPIBT(EPIBT):
 
     name = "epibt-chain"
     Options = ChainOptions
+    #: the machine's charges of :meth:`steer` this call (none here; a subclass deciding who is at work sets them)
+    steer_compute = ComputeReport()
 
     def __init__(self, grid, seed: int = 0, **options) -> None:
         TurningPIBT.__init__(self, grid, seed, **options)
@@ -102,6 +105,9 @@ class ChainEPIBT(EPIBT):
         if self.takes_rest:
             rest = checked_rest(rest, len(pos))
         goals = self.steer(pos, goals, rest)
+        if deadline is not None:  # a machine's decision in steer: its emulation is not the step's time, its own is
+            c = self.steer_compute
+            deadline = self.deadline = deadline + c.emulation_s - c.chip_time_parallel_s
         r = len(pos)
         pc, gc = self.cid[pos], self.cid[goals]
         fields, rows = self._heuristic(pc, gc, self.order(r))

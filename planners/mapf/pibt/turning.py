@@ -319,6 +319,8 @@ class TurningPIBT:
     #: the chip charge of the latest step (none here; a subclass that decides on a chip sets it)
     last_compute = ComputeReport()
     kernel_s = 0.0
+    #: whether :meth:`steer` hands the robots at work to ``keep_at_work(pos, goals, pc, rows, way)`` (a subclass's)
+    decides_work = False
 
     def __init__(self, grid: np.ndarray, seed: int = 0, **options) -> None:
         self.options = opts = type(self).Options.from_dict(options, self.name)
@@ -438,21 +440,24 @@ class TurningPIBT:
         place."""
         if self.takes_rest:
             rest = checked_rest(rest, len(pos))
-        if self.active < 1:
+        if self.active < 1 or self.decides_work:
             pc, gc = self.cid[pos], self.cid[goals]
             rows = self.fields.rows(gc, self.order(len(pos)))
-            a, b = self.cell_of[pc], self.cell_of[gc]
-            way = np.abs(a // self.width - b // self.width) + np.abs(a % self.width - b % self.width)
-            has = np.flatnonzero(rows >= 0)
-            if len(has):
-                f = self.fields
-                way[has] = f.fields[rows[has], pc[has] * f.per_cell].astype(np.int64)
-            if self.takes_rest:
-                way = way + rest
+            way = self.field_distance(pc, gc, rows) + (rest if self.takes_rest else 0)
             goals = active_goals(pos, goals, way, active_count(self.active, len(pos)))
+            if self.decides_work:
+                goals = self.keep_at_work(pos, goals, pc, rows, way)
         if self.parking is not None:
             goals = self.parking.goals(pos, goals, self.cid, self.cell_of)
         return goals
+
+    def field_distance(self, pc, gc, rows) -> np.ndarray:
+        """Each robot's way from compact ``pc`` to ``gc`` by its goal field's row (Manhattan distance for row -1)."""
+        a, b = self.cell_of[pc], self.cell_of[gc]
+        way = np.abs(a // self.width - b // self.width) + np.abs(a % self.width - b % self.width)
+        has = np.flatnonzero(rows >= 0)
+        way[has] = self.fields.fields[rows[has], pc[has] * self.fields.per_cell].astype(np.int64)
+        return way
 
     def _advance(self, moved, gc) -> None:
         """Priorities after the robots reach compact cells ``moved`` (goals ``gc``); the next call's step."""

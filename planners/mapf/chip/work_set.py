@@ -169,7 +169,7 @@ class WorkSet:
         call = CallLedger()
         seed = int(mix(self.seed, t, _SALT, 0)) & ((1 << 63) - 1)
         with self.machine.session(call, decision="work_set") as link:
-            host = None if link.audit is None else self._host_rule(H, J, programs, time.perf_counter() - t0)
+            host = None if link.audit is None else self._host_rule(H, J, programs)
             spins, _ = link.anneal(H, J, num_reads=self.opts.num_reads, seed=seed, host=host)
         self.ledger = self.ledger + call
         x = (np.asarray(spins) > 0).astype(np.int64)  # (ng, reads, n)
@@ -189,15 +189,16 @@ class WorkSet:
         return stay
 
     @staticmethod
-    def _host_rule(H, J, programs, seconds) -> tuple:
+    def _host_rule(H, J, programs) -> tuple:
         """The host rule beside the programs in an open decision audit: every robot's spin up (padding down), its
-        energies, and its seconds per program."""
+        energies, and its seconds per program (none: the rank that made the set is the rule, run before any
+        program)."""
         from ising_backend.faults.health import program_energy
 
         hs = -np.ones(H.shape, dtype=np.int8)
         for g, p in enumerate(programs):
             hs[g, :len(p)] = 1
-        return program_energy(H.astype(np.float64), J.astype(np.float64), hs), seconds / len(programs), "rank"
+        return program_energy(H.astype(np.float64), J.astype(np.float64), hs), 0.0, "rank"
 
 
 @dataclass(frozen=True)

@@ -49,8 +49,8 @@ class WorkOptions(Options):
 
 def conflict_pairs(nbr, pc, down, head_on: int, shared: int):
     """``(a, b, c)`` (``a < b`` indices into ``pc``, their weight) of the robots at compact cells ``pc`` whose moves
-    ``down`` (``(m, 4)`` bool: robot ``k``'s way falls by moving to ``nbr[pc[k], d]``) meet: ``head_on`` for each
-    that falls through the other's cell, ``shared`` for each cell both fall through; a pair's weights summed, pairs
+    ``down`` (``(m, 4)`` bool: robot ``k``'s way falls by moving to ``nbr[pc[k], d]``) meet: ``head_on`` when each
+    falls through the other's cell, ``shared`` for each cell both fall through; a pair's weights summed, pairs
     of weight 0 left out, sorted by ``(a, b)``."""
     m = len(pc)
     cells = nbr[pc]

@@ -63,10 +63,10 @@ def grow_option(default: bool):
                   "max_options operations (a push chain's robots decided at once), not only the first robot's")
 
 
-def delegated(name: str, doc: str) -> property:
-    """A planner's read-only view of its :class:`GroupRounds`' attribute ``name`` (the planner holds it as
-    ``rounds_``)."""
-    return property(lambda self: getattr(self.rounds_, name), doc=doc)
+def delegated(name: str, doc: str, holder: str = "rounds_") -> property:
+    """A planner's read-only view of attribute ``name`` of the component it holds as ``holder`` (default its
+    :class:`GroupRounds`, ``rounds_``)."""
+    return property(lambda self: getattr(getattr(self, holder), name), doc=doc)
 
 
 @dataclass(frozen=True)

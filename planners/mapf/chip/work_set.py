@@ -25,6 +25,7 @@ import numpy as np
 from ising_backend import CallLedger, integer_program
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
+from planners.mapf.chip.group_rounds import delegated
 from planners.mapf.common import machine_for, mix
 from planners.mapf.epibt.chain_planner import ChainEPIBT, ChainOptions
 from planners.options import Options, option
@@ -230,25 +231,10 @@ class WorkChainEPIBT(ChainEPIBT):
                             45 if shape is None else int(shape.usable_spins))
         self.machine = self.work.machine
 
-    @property
-    def ledger(self) -> CallLedger:
-        """Every machine call's charges."""
-        return self.work.ledger
-
-    @property
-    def last_compute(self) -> ComputeReport:
-        """The last call's machine charges."""
-        return self.work.last_compute
-
-    @property
-    def steer_compute(self) -> ComputeReport:
-        """The machine's charges of this call's :meth:`steer`: the work set's."""
-        return self.work.last_compute
-
-    @property
-    def stats(self) -> dict:
-        """The work-set decisions' counts (:class:`WorkSet`)."""
-        return self.work.stats
+    ledger = delegated("ledger", "Every machine call's charges.", "work")
+    last_compute = delegated("last_compute", "The last call's machine charges.", "work")
+    steer_compute = delegated("last_compute", "The machine's charges of this call's steer: the work set's.", "work")
+    stats = delegated("stats", "The work-set decisions' counts (WorkSet).", "work")
 
     def keep_at_work(self, pos, goals, pc, rows, way) -> np.ndarray:
         """``goals`` with the robots the machine takes off the host rule's set given their own cells."""

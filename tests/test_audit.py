@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from agents.lorr.run import MEASURED_KEYS
 from ising_backend import CallLedger, ChipSpec, EmulatedChip
 from ising_backend.audit.record import Audit, active_audit, program_arrays, read_records
 from ising_backend.audit.judge import exact_ground, greedy_descent, judge, load_benchmark, table
@@ -147,9 +148,9 @@ def test_lorr_run_and_compare_record_an_audit_without_changing_results(tmp_path)
     audited = _mrmt(*base, "--audit", str(tmp_path / "l"))
     assert plain.returncode == audited.returncode == 0, audited.stderr
 
-    def strip(out):  # timings differ run to run; counts and tasks do not
+    def strip(out):  # timings, energy and memory differ run to run; counts and tasks do not
         row = json.loads(out.splitlines()[-1])
-        return {k: v for k, v in row.items() if not k.endswith("_s") and "energy" not in k}
+        return {k: v for k, v in row.items() if k not in MEASURED_KEYS}
 
     assert strip(plain.stdout) == strip(audited.stdout)
     assert {r["class"] for r in read_records(tmp_path / "l")} == {"sharing_split"}

@@ -28,7 +28,7 @@ from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
 
-__all__ = ["run_lorr", "best_known", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "Loop"]
+__all__ = ["run_lorr", "best_known", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "MEASURED_KEYS", "Loop"]
 
 RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "scheduler_options", "seed", "robots",
             "steps", "tasks_finished", "best_known",
@@ -36,6 +36,8 @@ RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options",
             "scheduler_p99_s", "executor_p99_s", "chip_calls", "host_s", "host_cpu_s", "chip_s", "paper_energy_per_task_j",
             "total_energy_per_task_j", "host_energy_per_task_j", "machine_energy_per_task_j", "clock", "timeouts",
             "decisions", "preprocess_s", "preprocess_timeout", "peak_rss_mb")
+# what a run measures of the machine it ran on (seconds, joules, memory): differs run to run; the rest does not
+MEASURED_KEYS = tuple(k for k in RUN_KEYS if k.endswith("_s") or "energy" in k or k == "peak_rss_mb")
 _WARM: set = set()
 
 

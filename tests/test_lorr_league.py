@@ -111,7 +111,8 @@ def test_the_default_entry_chooses_by_team_and_map():
     small = entry.choose(inst)
     assert (small.scheduler, small.planner, small.rule) == ("lorr-weighted", "epibt-chain", 3)
     assert small.options["executor_options"] == {"portfolio": 2}
-    assert small.options["scheduler_options"] == {"weight": 10, "turns": True}  # the way x 10, its turns counted
+    # the way x 10, its turns counted, the matching of least total cost
+    assert small.options["scheduler_options"] == {"weight": 10, "turns": True, "optimal": True}
     assert small.options["guidance"] == 2  # every robot at work where the team is sparse, on crisscross lanes
     crowd = entry.rules[0]  # RANDOM-04, -05 (85 and 98 % of the free cells): push chains, 57 % at work
     assert all(crowd.holds(r, f, "random-32-32-20.map") for r, f in ((700, 0.85), (800, 0.98)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -13,7 +14,7 @@ from lorr_reference import bfs as _bfs
 from mrmt_env.lorr.output import check_output, output_dict
 from agents.lorr.run import run_lorr
 from agents.lorr.schedulers import make_scheduler
-from agents.lorr.weighted import Crowd, WeightedScheduler, weighted_matching
+from agents.lorr.weighted import Crowd, WeightedScheduler, optimal_matching, weighted_matching
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.sim import LoRRSimulator
 
@@ -71,6 +72,50 @@ def test_the_matching_is_the_global_greedy_of_the_oracle(seed, weight, jam, side
                    dict(enumerate(load.tolist())))
     got = {i: int(order[s]) for i, s in enumerate(out.tolist()) if s >= 0}
     assert got == want and made == len(want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 12))
+def test_the_optimal_matching_is_the_least_total_of_every_matching(seed, weight):
+    """Every injective choice of slots (or none) per robot enumerated: most reachable pairs, then least total."""
+    rng = np.random.default_rng(seed)
+    n, cells = int(rng.integers(1, 5)), int(rng.integers(1, 4))
+    per_cell = rng.integers(1, 3, cells)
+    cell_start = np.append(0, np.cumsum(per_cell)).astype(np.int64)
+    slots = int(cell_start[-1])
+    length = np.concatenate([np.sort(rng.integers(0, 9, k)) for k in per_cell]).astype(np.int64)
+    way = rng.integers(0, 12, (n, cells)).astype(np.int32)
+    way[rng.random((n, cells)) < 0.25] = -1  # cut off
+    cell_of = np.repeat(np.arange(cells), per_cell)
+    best = None
+    for choice in itertools.product(range(-1, slots), repeat=n):
+        taken = [c for c in choice if c >= 0]
+        if len(taken) != len(set(taken)) or any(c >= 0 and way[i, cell_of[c]] < 0 for i, c in enumerate(choice)):
+            continue
+        key = (-len(taken), sum(weight * int(way[i, cell_of[c]]) + int(length[c]) for i, c in enumerate(choice)
+                                if c >= 0))
+        best = key if best is None or key < best else best
+    out = np.empty(n, dtype=np.int64)
+    made = optimal_matching(way, cell_start, length, weight, out)
+    got = [int(c) for c in out]
+    assert len(set(c for c in got if c >= 0)) == made == -best[0]
+    assert all(way[i, cell_of[c]] >= 0 for i, c in enumerate(got) if c >= 0)
+    assert sum(weight * int(way[i, cell_of[c]]) + int(length[c]) for i, c in enumerate(got) if c >= 0) == best[1]
+
+
+def test_the_optimal_matching_beats_the_greedy_where_the_greedy_takes_the_shared_best():
+    # robot 0 is 1 from cell A and 2 from B; robot 1 is 2 from A and 9 from B: greedy 1 + 9, optimal 2 + 2
+    way = np.array([[1, 2], [2, 9]], dtype=np.int32)
+    cell_start, length = np.array([0, 1, 2], dtype=np.int64), np.zeros(2, dtype=np.int64)
+    greedy, best = np.empty(2, dtype=np.int64), np.empty(2, dtype=np.int64)
+    weighted_matching(way, cell_start, length, 1, greedy, Crowd(np.zeros(2, np.int64), np.zeros(1, np.int64), 0))
+    optimal_matching(way, cell_start, length, 1, best)
+    assert greedy.tolist() == [0, 1] and best.tolist() == [1, 0]
+    sim = LoRRSimulator(read_instance(example_instance_path()))
+    proposal = WeightedScheduler(weight=10, optimal=True).schedule(sim)
+    assert sim.tasks.check(proposal, 1) is None and (proposal >= 0).all()
+    with pytest.raises(ValueError, match=r"optimal=true takes no jam term \(jam=2"):
+        WeightedScheduler(optimal=True, jam=2)
 
 
 def test_a_robot_whose_task_is_not_opened_gives_it_to_a_closer_robot():

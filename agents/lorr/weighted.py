@@ -6,7 +6,8 @@ every map, with its own planner; with this package's PIBT a weight of 1 finished
 SORTATION (the default; docs/lorr.md).  Robots whose task is not opened yet are free again every step (``reassign``, the rules allow
 it), so a robot that a better-placed one overtakes gives its task up.  The choice is the global greedy
 matching: the pair of least cost first, ties to the lower robot, a cell's tasks shortest first, then the
-lower id -- exact by lazy re-evaluation, as a pair's cost only grows when its cell's best task is taken.
+lower id -- exact by lazy re-evaluation, as a pair's cost only grows when its cell's best task is taken.  With
+``optimal`` the matching of least total cost instead (scipy's ``linear_sum_assignment``; the sparse RANDOM maps).
 With ``jam`` > 0 a task's cost adds ``jam`` moves per robot standing in, or bound for, the ``block`` x ``block``
 square of its first errand, the robots the matching sends counted as it goes (docs/lorr.md, "Jams on the
 warehouse maps").
@@ -31,8 +32,8 @@ from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
-__all__ = ["WeightedScheduler", "weighted_matching", "add_turns", "Crowd", "Matched", "DEFAULT_WEIGHT",
-           "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
+__all__ = ["WeightedScheduler", "weighted_matching", "optimal_matching", "add_turns", "Crowd", "Matched",
+           "DEFAULT_WEIGHT", "DEFAULT_MEMORY_MB", "DEFAULT_BLOCK"]
 
 #: Weight of the way to the first errand against the task's legs (the 2024 winner's is 5; 1 measured better here).
 DEFAULT_WEIGHT = 1
@@ -137,6 +138,26 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     return made
 
 
+def optimal_matching(way, cell_start, length, weight, out) -> int:
+    """As :func:`weighted_matching` (same arguments but the jam term), the matching of least total cost: as many
+    pairs as the reachable pairs allow, then the least sum of ``weight x way + legs`` (scipy's
+    ``linear_sum_assignment`` on robots by slots)."""
+    from scipy.optimize import linear_sum_assignment
+
+    out[:] = -1
+    n, slots = way.shape[0], len(length)
+    if n == 0 or slots == 0:
+        return 0
+    w = way[:, np.repeat(np.arange(len(cell_start) - 1), np.diff(cell_start))].astype(np.int64)
+    cost = weight * w + np.asarray(length, dtype=np.int64)[None, :]
+    big = int(cost.max(initial=0)) * min(n, slots) + 1  # a cut-off pair costs more than any matching of reachable ones
+    cost = np.where(w >= 0, cost, big)
+    rows, cols = linear_sum_assignment(cost)
+    ok = cost[rows, cols] < big
+    out[rows[ok]] = cols[ok]
+    return int(ok.sum())
+
+
 @numba.njit(cache=True, nogil=True)
 def add_turns(table, rows, pos, orient, blocked, width, way) -> None:
     """In place: ``way[i, c]`` (moves from robot ``i`` to cell ``c``, read from ``table[rows[c]]``) plus the turns
@@ -189,6 +210,8 @@ class WeightedOptions(Options):
     jam: int = option(0, int, 0, 1000, meaning="moves per robot in or bound for a task's block (0 = off)")
     block: int = option(DEFAULT_BLOCK, int, 1, 4096, meaning="side of the jam term's blocks, cells")
     turns: bool = option(False, bool, meaning="the way counts the turns before the robot's first move along it")
+    optimal: bool = option(False, bool, meaning="the matching of least total cost (scipy's linear_sum_assignment) "
+                           "instead of the greedy one; takes no jam term")
 
 
 class WeightedScheduler:
@@ -203,6 +226,9 @@ class WeightedScheduler:
         self.options = opts = self.Options.from_dict(options, self.name)
         self.weight, self.reassign, self.memory_mb = opts.weight, opts.reassign, opts.memory_mb
         self.jam, self.block = opts.jam, opts.block
+        if opts.optimal and opts.jam:
+            raise ValueError(f"{self.name}: optimal=true takes no jam term (jam={opts.jam}; the jam term grows as the "
+                             "greedy matching sends robots): give jam=0 or optimal=false")
         self.last_compute = ComputeReport()
         self._sim = None
 
@@ -308,7 +334,10 @@ class WeightedScheduler:
                       sim.inst.grid.shape[1], way)
         out = np.empty(len(robots), dtype=np.int64)
         crowd = self.crowd(sim, proposal, cells)
-        weighted_matching(way, cell_start, legs[order], self.weight, out, crowd)
+        if self.options.optimal:
+            optimal_matching(way, cell_start, legs[order], self.weight, out)
+        else:
+            weighted_matching(way, cell_start, legs[order], self.weight, out, crowd)
         return proposal, Matched(robots, ids[order], way, cell_start, legs[order], self.weight, crowd, out)
 
     def keep(self, sim, proposal) -> None:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pytest
 
+from agents.lorr.schedulers import SCHEDULERS, make_scheduler, scheduler_options
 from planners.mapf import TURNING_EXECUTORS
 from planners.options import Bound, Options, option
 
@@ -92,7 +93,24 @@ def test_the_options_command_lists_every_planners_options(capsys):
     assert lines[-1].startswith("  grow = false  (true or false) groups grow through")
     assert main(["lorr", "options"]) == 0
     out = capsys.readouterr().out
-    assert [line[:-1] for line in out.splitlines() if not line.startswith(" ")] == list(TURNING_EXECUTORS)
+    heads = [line[:-1] for line in out.splitlines() if not line.startswith(" ")]
+    assert heads == list(TURNING_EXECUTORS) + [f"{n} (scheduler)" for n in SCHEDULERS]
     assert main(["lorr", "options", "cbs"]) == 2
     assert capsys.readouterr().err.strip() == ("mrmt lorr: error: unknown planner 'cbs'; known: "
-                                               + ", ".join(TURNING_EXECUTORS))
+                                               + ", ".join(TURNING_EXECUTORS) + "; schedulers: " + ", ".join(SCHEDULERS))
+
+
+def test_the_options_command_lists_a_schedulers_options_and_each_is_taken(capsys):
+    from agents.cli import main
+    from agents.lorr.weighted import WeightedOptions
+
+    assert main(["lorr", "options", "lorr-weighted"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "lorr-weighted (scheduler):" and len(lines) == 1 + len(WeightedOptions.describe()) + 1
+    assert "  optimal = false  (true or false) the matching of least total cost" in "\n".join(lines)
+    assert lines[-1].startswith("  busy = 1.0  (a number in (0, 1])")
+    for name in SCHEDULERS:  # every option listed is one the scheduler takes, at its listed default
+        keys = {key: default for key, default, _, _ in scheduler_options(name)}
+        make_scheduler(name, **keys)
+        with pytest.raises(ValueError, match="nonsense"):
+            make_scheduler(name, nonsense=1)

@@ -77,9 +77,9 @@ def add_arguments(parser) -> None:
     kit = sub.add_parser("startkit", help="print how the start kit runs the package's entry (2024: its python_path; "
                                           "2026: the files to put in place)")
     kit.add_argument("--kit", type=int, choices=(2024, 2026), default=2024, help="the start kit's year (default 2024)")
-    opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE): name, default, "
-                                          "what it takes, what it does")
-    opts.add_argument("planner", nargs="?", default=None, help="a planner (default: every one)")
+    opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE) or a scheduler's "
+                                          "(--scheduler-option): name, default, what it takes, what it does")
+    opts.add_argument("planner", nargs="?", default=None, help="a planner or a scheduler (default: every one)")
 
 
 def add_plan_arguments(run) -> None:
@@ -468,14 +468,21 @@ def _startkit(args) -> int:
 
 
 def _options(args) -> int:
+    from agents.lorr.schedulers import SCHEDULERS, scheduler_options
     from planners.mapf import TURNING_EXECUTORS
 
-    if args.planner is not None and args.planner not in TURNING_EXECUTORS:
-        return _fail(f"unknown planner {args.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
-    for name in [args.planner] if args.planner else list(TURNING_EXECUTORS):
-        print(f"{name}:")
-        for key, default, allowed, meaning in TURNING_EXECUTORS[name].Options.describe():
-            print(f"  {key} = {json.dumps(default)}  ({allowed}) {meaning}")
+    name = args.planner
+    if name is not None and name not in TURNING_EXECUTORS and name not in SCHEDULERS:
+        return _fail(f"unknown planner {name!r}; known: {', '.join(TURNING_EXECUTORS)}; schedulers: "
+                     f"{', '.join(SCHEDULERS)}")
+    planners = [name] if name in TURNING_EXECUTORS else [] if name else list(TURNING_EXECUTORS)
+    schedulers = [name] if name in SCHEDULERS else [] if name else list(SCHEDULERS)
+    for kind, names, rows in (("", planners, lambda n: TURNING_EXECUTORS[n].Options.describe()),
+                              (" (scheduler)", schedulers, scheduler_options)):
+        for n in names:
+            print(f"{n}{kind}:")
+            for key, default, allowed, meaning in rows(n):
+                print(f"  {key} = {json.dumps(default)}  ({allowed}) {meaning}")
     return 0
 
 

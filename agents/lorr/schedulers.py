@@ -37,7 +37,7 @@ from mrmt_env.lorr.greedy import FAR, GreedyScheduler
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
-__all__ = ["AssignerScheduler", "AssignerOptions", "make_scheduler", "SCHEDULERS"]
+__all__ = ["AssignerScheduler", "AssignerOptions", "make_scheduler", "scheduler_options", "SCHEDULERS"]
 
 #: Free tasks each free robot shortlists for a pipeline or learned decision (least makespan first).
 DEFAULT_SHORTLIST = 6
@@ -162,6 +162,35 @@ class _Greedy(GreedyScheduler):
     last_compute = ComputeReport()
 
 
+def scheduler_options(name: str) -> list[tuple[str, object, str, str]]:
+    """``(key, default, allowed, meaning)`` of each of a named scheduler's own options (``--scheduler-option``),
+    ``busy`` last; ``ValueError`` naming an unknown scheduler."""
+    if name == "lorr-greedy":
+        from mrmt_env.lorr.greedy import MAX_WAY
+
+        rows = [("way", 1, f"an integer in [1, {MAX_WAY}]", "the way to a task's first errand weighed against its "
+                 "errand legs (1 = the start kit's)")]
+    elif name == "lorr-weighted":
+        from agents.lorr.weighted import WeightedOptions
+
+        rows = WeightedOptions.describe()
+    elif name == "lorr-ising":
+        from agents.lorr.task_groups import TaskGroupOptions
+
+        rows = TaskGroupOptions.describe()
+    elif name in SCHEDULERS:
+        from agents.lifelong.controllers import DEFAULT_CANDIDATES, DEFAULT_GROUP_SIZE
+
+        rows = AssignerOptions.describe() + [
+            ("group_size", DEFAULT_GROUP_SIZE, "an integer >= 1", "free robots per decision (Z-order groups)"),
+            ("commit", 1, "an integer >= 1 or null", "tasks of each route committed (null: the whole route)"),
+            ("candidates", DEFAULT_CANDIDATES, "an integer >= 1 or null", "free tasks per decision (null: every one)"),
+            ("fill", True, "true or false", "robots the decision leaves without a task take the nearest free one")]
+    else:
+        raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}")
+    return rows + [("busy", 1.0, "a number in (0, 1]", "the share of the team that may hold tasks; the others park")]
+
+
 def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one.  ``options`` may hold
     ``scheduler_options`` (a dict: ``--scheduler-option``, an entry's table), merged with the others; ``busy``
@@ -198,6 +227,10 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     known = f"known: {', '.join(SCHEDULERS)}, a sharing+tour pair or ppo:MODEL.zip"
     if name not in PIPELINE_LAYERS and not (name.count("+") == 1 and all(name.split("+"))):
         raise ValueError(f"unknown scheduler {name!r}; {known}")
+    unknown = sorted(set(options) - {"group_size", "commit", "candidates", "fill"})
+    if unknown:
+        raise ValueError(f"{name} takes no option {unknown[0]!r}; its options: "
+                         f"{', '.join(row[0] for row in scheduler_options('strong'))}")
     options.setdefault("fill", True)
     try:  # an option's own error passes as it is; only an unknown half of a pair is an unknown scheduler
         assigner = PipelineAssigner(name, chip=chip, **options)

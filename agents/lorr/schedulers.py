@@ -227,10 +227,10 @@ def make_scheduler(name: str, seed: int = 0, chip=None, **options):
     known = f"known: {', '.join(SCHEDULERS)}, a sharing+tour pair or ppo:MODEL.zip"
     if name not in PIPELINE_LAYERS and not (name.count("+") == 1 and all(name.split("+"))):
         raise ValueError(f"unknown scheduler {name!r}; {known}")
-    unknown = sorted(set(options) - {"group_size", "commit", "candidates", "fill"})
+    listed = [row[0] for row in scheduler_options("strong")]  # the pipeline's, as `mrmt lorr options` lists them
+    unknown = sorted(set(options) - set(listed))
     if unknown:
-        raise ValueError(f"{name} takes no option {unknown[0]!r}; its options: "
-                         f"{', '.join(row[0] for row in scheduler_options('strong'))}")
+        raise ValueError(f"{name} takes no option {unknown[0]!r}; its options: {', '.join(listed)}")
     options.setdefault("fill", True)
     try:  # an option's own error passes as it is; only an unknown half of a pair is an unknown scheduler
         assigner = PipelineAssigner(name, chip=chip, **options)

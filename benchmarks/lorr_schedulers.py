@@ -26,6 +26,11 @@ from _common import cpu_name, finish  # noqa: E402
 SECTION = ("## League of Robot Runners 2024: the chip at ten thousand robots, lorr-ising against its host-rule twin "
            "(issue 56)")
 SECTION_ENTRY = "## League of Robot Runners 2024: lorr-ising with the entry's planner (issue 56)"
+SECTION_FLOW = "## League of Robot Runners 2024: lorr-ising with the start kit's default planner (issue 56)"
+#: planner choice -> (its section, what the table says it is)
+PLANNERS = {"pibt": (SECTION, "PIBT with turning, lanes off on SORTATION as in the default entry"),
+            "pibt-flow": (SECTION_FLOW, "the start kit's default, PIBT along traffic-flow guide paths (`pibt-flow`)"),
+            "entry": (SECTION_ENTRY, "the default entry's for each instance")}
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 INSTANCES = {"CITY-01": "city.domain", "CITY-02": "city.domain", "SORTATION": "warehouse.domain",
              "WAREHOUSE": "warehouse.domain"}
@@ -45,8 +50,11 @@ def _value(v) -> str:
 
 
 def planner_args(name: str, planner: str) -> list[str]:
-    """The planner's arguments: ``pibt`` (lanes off on SORTATION, as the default entry) or ``entry`` (the default
-    entry's planner for the instance, with its options and guidance)."""
+    """The planner's arguments: ``pibt`` (lanes off on SORTATION, as the default entry), ``pibt-flow`` (the start
+    kit's default planner: PIBT along traffic-flow guide paths, no lanes) or ``entry`` (the default entry's planner for
+    the instance, with its options and guidance)."""
+    if planner == "pibt-flow":
+        return ["--planner", "pibt-flow"]
     if planner == "pibt":
         return ["--planner", "pibt", *(["--guidance", "0"] if name == "SORTATION" else [])]
     from agents.lorr.entry import load_entry
@@ -74,8 +82,9 @@ def main(argv=None) -> None:
     parser.add_argument("--instances", default=",".join(INSTANCES))
     parser.add_argument("--rows", default=",".join(label for label, *_ in SCHEDULERS),
                         help="which of the scheduler rows to run (labels, comma-separated)")
-    parser.add_argument("--planner", choices=("pibt", "entry"), default="pibt",
-                        help="pibt (PIBT with turning) or entry (the default entry's planner for each instance)")
+    parser.add_argument("--planner", choices=tuple(PLANNERS), default="pibt",
+                        help="pibt (PIBT with turning), pibt-flow (the start kit's default planner) or entry (the "
+                        "default entry's planner for each instance)")
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
     names = [n.strip() for n in args.instances.split(",") if n.strip()]
@@ -94,9 +103,7 @@ def main(argv=None) -> None:
             base = r["tasks_finished"] if base is None else base
             rows.append((name, label, r, r["tasks_finished"] / max(base, 1)))
             print(f"{name} {label}: {r['tasks_finished']} tasks, {r['timeouts']} timeouts", file=sys.stderr)
-    section = SECTION if args.planner == "pibt" else SECTION_ENTRY
-    what = ("PIBT with turning, lanes off on SORTATION as in the default entry" if args.planner == "pibt" else
-            "the default entry's for each instance")
+    section, what = PLANNERS[args.planner]
     lines = [section, "",
              f"`python benchmarks/lorr_schedulers.py --steps {args.steps} --planner {args.planner} --rows "
              f"'{args.rows}'` ({cpu_name()}; each run its own process, the first {args.steps} steps under the rules' "

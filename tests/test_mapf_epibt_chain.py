@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import sys
+from collections import deque
 import time
 
 import numpy as np
@@ -56,18 +57,37 @@ def oracle_operations():
     return keep
 
 
+def oriented_bfs(grid, goal):
+    """Fewest actions from each (flat cell, orientation) to ``goal`` (facing any way): BFS backwards, a forward move
+    entering (v, o) from the cell behind v, a turn from (v, o -+ 1)."""
+    dist = {(goal, o): 0 for o in range(4)}
+    queue = deque(dist)
+    while queue:
+        v, o = queue.popleft()
+        behind = [u for d, u in free_neighbours(grid, v) if d == (o + 2) % 4]
+        for state in [(u, o) for u in behind] + [(v, (o + 1) % 4), (v, (o + 3) % 4)]:
+            if state not in dist:
+                dist[state] = dist[(v, o)] + 1
+                queue.append(state)
+    return dist
+
+
 class Oracle:
     """The planner as its module docstrings state it, recursively."""
 
-    def __init__(self, grid, seed, lns, weight_power=2, anneal=0.001, push_built=0.2, skip=0.2, portfolio=1):
+    def __init__(self, grid, seed, lns, weight_power=2, anneal=0.001, push_built=0.2, skip=0.2, portfolio=1,
+                 oriented=False):
         self.grid, self.seed, self.lns, self.p = grid, seed, lns, weight_power
         self.anneal, self.push_built, self.skip, self.portfolio = anneal, push_built, skip, portfolio
+        self.oriented = oriented
         self.ops = oracle_operations()
         self.t = 0
 
     def to_go(self, dist, goal, c, o):
         if c == goal:
             return 0
+        if self.oriented:  # every turn on the way counted: the distance over (cell, orientation)
+            return dist.get((c, o), FAR)
         vals = [1 + dist[v] + (0 if d == o else (2 if d == (o + 2) % 4 else 1))
                 for d, v in free_neighbours(self.grid, c) if v in dist]
         return min(vals) if vals else dist.get(c, FAR)
@@ -97,7 +117,7 @@ class Oracle:
     def actions(self, pos, orient, goals):
         pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
         r = len(pos)
-        dist = {g: bfs(self.grid, g) for g in set(goals)}
+        dist = {g: (oriented_bfs if self.oriented else bfs)(self.grid, g) for g in set(goals)}
         cands, waits = zip(*[self.candidates(pos[k], orient[k], goals[k], dist[goals[k]]) for k in range(r)]) \
             if r else ((), ())
         way = [self.to_go(dist[goals[k]], goals[k], pos[k], orient[k]) if pos[k] != goals[k] else 0 for k in range(r)]
@@ -249,13 +269,14 @@ def test_operations_are_the_pruned_five_action_set():
 @given(seed=st.integers(0, 10**6), h=st.integers(3, 6), w=st.integers(3, 6), density=st.floats(0.0, 0.3),
        fill=st.floats(0.1, 0.9), lns=st.sampled_from([0, 20, 100]), weight_power=st.sampled_from([0, 1, 2]),
        anneal=st.sampled_from([0.0, 0.001, 0.3]), push_built=st.sampled_from([0.0, 0.2]),
-       skip=st.sampled_from([0.0, 0.2]), portfolio=st.sampled_from([1, 1, 3]), threads=st.sampled_from([1, 2]))
+       skip=st.sampled_from([0.0, 0.2]), portfolio=st.sampled_from([1, 1, 3]), threads=st.sampled_from([1, 2]),
+       oriented=st.booleans())
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_power, anneal, push_built, skip,
-                                        portfolio, threads):
+                                        portfolio, threads, oriented):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     opts = dict(lns=lns, weight_power=weight_power, anneal=anneal, push_built=push_built, skip=skip,
-                portfolio=portfolio)
+                portfolio=portfolio, oriented=oriented)
     ex = ChainEPIBT(grid, seed=seed, threads=threads, **opts)
     oracle = Oracle(grid, ex.seed, **opts)
     for _ in range(6):
@@ -322,5 +343,28 @@ def test_registered_and_bad_options_name_the_value():
         ChainEPIBT(np.zeros((4, 4), bool), skip=1.5)
     with pytest.raises(ValueError, match="revisits"):
         ChainEPIBT(np.zeros((4, 4), bool), revisits=3)
+    with pytest.raises(ValueError, match="oriented=true needs flow=false and congestion=0.*congestion=2"):
+        ChainEPIBT(np.zeros((4, 4), bool), oriented=True, congestion=2)
     with pytest.raises(ValueError, match="rest"):
         ChainEPIBT(np.zeros((4, 4), bool), active_by="task").actions(np.array([0]), np.array([0]), np.array([5]))
+
+
+def test_oriented_cost_counts_every_turn_on_the_way():
+    """A lone robot from (0, 5) facing west to (3, 2): ranked by the first turn's cost-to-go it takes a way of two more
+    turns than it needs; over (cell, orientation) it arrives in the fewest actions there are."""
+    grid = np.zeros((5, 6), bool)
+    grid[1, 3] = grid[2, 5] = grid[4, 2] = grid[4, 5] = True
+    start, goal = 5, 20
+
+    def trip(**options):
+        ex = ChainEPIBT(grid, lns=0, **options)
+        pos, orient, goals = np.array([start]), np.array([2]), np.array([goal])
+        for n in range(1, 30):
+            pos, orient = ex.step(pos, orient, goals)
+            if pos[0] == goal:
+                return n
+        return None
+
+    assert oriented_bfs(grid, goal)[(start, 2)] == 7
+    assert trip(oriented=True) == 7
+    assert trip() == 8

@@ -27,6 +27,7 @@ from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
 from planners.mapf.guides.focus import checked_rest
 from planners.mapf.pibt.turning import FORWARD, WAIT, TurningPIBT
+from planners.mapf.pibt.windowed_turning import OrientFields
 from planners.options import option
 
 __all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
@@ -65,6 +66,9 @@ class ChainOptions(GuideOptions):
     threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
                                  "on (null: one per plan, at most the cores this process may use); plans do not "
                                  "depend on it")
+    oriented: bool = option(False, bool, meaning="the cost-to-go over (cell, orientation): every turn on the way "
+                            "counted, not only the first (fields of four entries a cell; needs flow=false and "
+                            "congestion=0)")
 
 
 class ChainEPIBT(EPIBT):
@@ -97,6 +101,12 @@ class ChainEPIBT(EPIBT):
         self.plan_score = 0  # the score of the plan the last call took its actions from
         self.kept = 0
         self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
+        self.ofields = None  # under ``oriented``: the fields over (cell, orientation) the cost-to-go reads
+        if opts.oriented:
+            if opts.flow or opts.congestion:
+                raise ValueError(f"oriented=true needs flow=false and congestion=0 (its fields take neither the guide "
+                                 f"paths nor the crowd's costs), got flow={opts.flow}, congestion={opts.congestion}")
+            self.ofields = OrientFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
 
     def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
         """As :meth:`EPIBT.actions <planners.mapf.epibt.plans.EPIBT.actions>`, by push chains."""
@@ -111,6 +121,9 @@ class ChainEPIBT(EPIBT):
         r = len(pos)
         pc, gc = self.cid[pos], self.cid[goals]
         fields, rows = self._heuristic(pc, gc, self.order(r))
+        if self.ofields is not None:
+            rows = self.ofields.rows(gc, self.order(r))
+            fields = self.ofields.fields
         n_ops = self.ops.shape[0]
         cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
                           np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
@@ -118,7 +131,8 @@ class ChainEPIBT(EPIBT):
                           np.empty(r, np.int64))
         t0 = time.perf_counter()
         robots = ChainRobots(pc, orient, gc, rows)
-        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max)), robots, self.ops,
+        per_cell = fields.shape[1] // max(len(self.cell_of), 1)
+        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max), per_cell), robots, self.ops,
                          (self.idle, self.quiet), cand)
         depth = self.depth[cand.op]
         cand = cand._replace(depth=depth)

@@ -138,10 +138,21 @@ def new_plan(r: int, n_cells: int, seed: int, temp: float) -> ChainPlan:
 
 
 @numba.njit(cache=True, nogil=True)
+def _cost_to_go(grid, heuristic, goal, row, c, o) -> int:
+    """Cost-to-go from compact ``c`` facing ``o``: read from a field over (cell, orientation) when ``heuristic =
+    (fields, far, per_cell)`` has four entries a cell and the robot a row, else :func:`_to_go`'s first turn."""
+    fields, far, per_cell = heuristic
+    if per_cell == 4 and row >= 0:
+        return 0 if c == goal else np.int64(fields[row, c * 4 + o])
+    return _to_go(grid, (fields, far), goal, row, c, o)
+
+
+@numba.njit(cache=True, nogil=True)
 def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
     """Fill ``out`` (a :class:`Candidates`) for ``robots`` (a :class:`ChainRobots`) on ``grid`` (a
-    :class:`~planners.mapf.common.MoveGrid`), ``heuristic = (fields, far)``; ``ranks = (idle, quiet)``: each
-    operation's tie rank for a robot with a goal and its order for one without (least moving first)."""
+    :class:`~planners.mapf.common.MoveGrid`), ``heuristic = (fields, far, per_cell)`` (:func:`_cost_to_go`);
+    ``ranks = (idle, quiet)``: each operation's tie rank for a robot with a goal and its order for one without (least
+    moving first)."""
     nbr = grid.nbr
     pc, orient, gc, rows = robots.pos, robots.orient, robots.goals, robots.rows
     idle, quiet = ranks
@@ -151,7 +162,7 @@ def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
     for k in range(pc.shape[0]):
         p, o, g, row = pc[k], orient[k], gc[k], rows[k]
         busy = p != g
-        out.to_go[k] = _to_go(grid, heuristic, g, row, p, o) if busy else 0
+        out.to_go[k] = _cost_to_go(grid, heuristic, g, row, p, o) if busy else 0
         out.still[k, :] = p
         out.wait_value[k] = _VISIT * out.to_go[k] + idle[0] if busy else quiet[0]
         m = 0
@@ -160,7 +171,7 @@ def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
             if end < 0:
                 continue
             if busy:
-                v = _VISIT * _to_go(grid, heuristic, g, row, tmp[i, STEPS], end) + idle[i]
+                v = _VISIT * _cost_to_go(grid, heuristic, g, row, tmp[i, STEPS], end) + idle[i]
                 for s in range(1, STEPS + 1):
                     if tmp[i, s] == g:
                         v = -_VISIT * (STEPS + 1 - s) + idle[i]
@@ -179,8 +190,8 @@ def chain_candidates(grid, heuristic, robots, ops, ranks, out) -> None:
         out.idle_act[k] = WAIT
         if busy:
             here = out.to_go[k]
-            right = _to_go(grid, heuristic, g, row, p, (o + 1) & 3)
-            left = _to_go(grid, heuristic, g, row, p, (o + 3) & 3)
+            right = _cost_to_go(grid, heuristic, g, row, p, (o + 1) & 3)
+            left = _cost_to_go(grid, heuristic, g, row, p, (o + 3) & 3)
             if min(right, left) < here:
                 out.idle_act[k] = CLOCKWISE if right <= left else COUNTER
 

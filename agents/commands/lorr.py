@@ -30,7 +30,7 @@ HELP = "League of Robot Runners instances: run a scheduler + executor, or check 
 def add_arguments(parser) -> None:
     from agents.commands.options import add_chip_argument, add_decision_arguments, add_runner_arguments
 
-    from agents.commands import lorr_sweep
+    from agents.commands import lorr_info, lorr_sweep
 
     sub = parser.add_subparsers(dest="lorr_command", required=True,
                                 metavar="{run,round,sweep,check,startkit,options}")
@@ -70,16 +70,7 @@ def add_arguments(parser) -> None:
                      help="local: each instance in a fresh process here (default); ray: Ray tasks (--address)")
     rnd.add_argument("--address", default=None, help="a running Ray cluster's address (implies --backend ray)")
     rnd.add_argument("--no-progress", action="store_true", help="print nothing while instances run")
-    check = sub.add_parser("check", help="re-simulate an output file on its instance")
-    check.add_argument("instance", metavar="INSTANCE.json")
-    check.add_argument("output", metavar="OUTPUT.json", help="an output file (or a .zip holding one)")
-    check.add_argument("--json", action="store_true", help="one JSON object: numTaskFinished, errors, steps")
-    kit = sub.add_parser("startkit", help="print how the start kit runs the package's entry (2024: its python_path; "
-                                          "2026: the files to put in place)")
-    kit.add_argument("--kit", type=int, choices=(2024, 2026), default=2024, help="the start kit's year (default 2024)")
-    opts = sub.add_parser("options", help="list a planner's options (--planner-option KEY=VALUE) or a scheduler's "
-                                          "(--scheduler-option): name, default, what it takes, what it does")
-    opts.add_argument("planner", nargs="?", default=None, help="a planner or a scheduler (default: every one)")
+    lorr_info.add_parsers(sub)
 
 
 def add_plan_arguments(run) -> None:
@@ -427,72 +418,13 @@ def _round(args) -> int:
     return 0
 
 
-def _check(args) -> int:
-    from mrmt_env.lorr.output import OutputError, check_output, read_output
-    from mrmt_env.lorr.instance import LoRRFormatError, read_instance
-
-    try:
-        inst = read_instance(args.instance)
-        result = check_output(inst, read_output(args.output), path=args.output)
-    except (LoRRFormatError, OutputError) as exc:
-        return _fail(str(exc))
-    if args.json:
-        print(json.dumps(result.to_json()))
-        return 0
-    tasks = "unknown (the file holds no schedule)" if result.tasks_finished is None else result.tasks_finished
-    print(f"{inst.name}: {result.steps} steps, tasks finished {tasks}, errors {result.errors}, "
-          f"schedule errors {result.schedule_errors}, timeouts {result.timeouts}")
-    if result.events_agree is False:
-        print("the file's events are not the re-simulated ones (a step, robot, task or errand differs)")
-    if result.claimed is not None and result.tasks_finished is not None and result.claimed != result.tasks_finished:
-        print(f"the file claims {result.claimed} tasks finished; re-simulated: {result.tasks_finished}")
-    return 0
-
-
-def _startkit(args) -> int:
-    from agents.lorr.startkit import TRACK_DIR, TRACK_DIR_2026
-
-    if args.kit == 2026:
-        print(f"from the kit's folder: cp {TRACK_DIR_2026}/pyMAPFPlanner.py python/user_planner/ && "
-              f"cp {TRACK_DIR_2026}/pyTaskScheduler.py python/user_scheduler/")
-        print("then: ./build/lifelong -i INSTANCE.json -o output.json --plannerPython true --schedulerPython true "
-              "(the kit's own executor stages each window)")
-        print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; window: "
-              "MRMT_LORR_WINDOW (default: the kit's executor's); compile first: mrmt warmup")
-        return 0
-    print(f"config.json: {json.dumps({'python_path': str(TRACK_DIR)})}")
-    print(f"from the kit's folder (its python/ samples have the same module names; this puts the package's first): "
-          f"PYTHONPATH={TRACK_DIR}:$PYTHONPATH ./build/lifelong -i INSTANCE.json -o output.json")
-    print("entry: MRMT_LORR_ENTRY=default (a name or a .toml file); seed: MRMT_LORR_SEED=0; compile first: mrmt warmup")
-    return 0
-
-
-def _options(args) -> int:
-    from agents.lorr.schedulers import SCHEDULERS, scheduler_options
-    from planners.mapf import TURNING_EXECUTORS
-
-    name = args.planner
-    if name is not None and name not in TURNING_EXECUTORS and name not in SCHEDULERS:
-        return _fail(f"unknown planner {name!r}; known: {', '.join(TURNING_EXECUTORS)}; schedulers: "
-                     f"{', '.join(SCHEDULERS)}")
-    planners = [name] if name in TURNING_EXECUTORS else [] if name else list(TURNING_EXECUTORS)
-    schedulers = [name] if name in SCHEDULERS else [] if name else list(SCHEDULERS)
-    for kind, names, rows in (("", planners, lambda n: TURNING_EXECUTORS[n].Options.describe()),
-                              (" (scheduler)", schedulers, scheduler_options)):
-        for n in names:
-            print(f"{n}{kind}:")
-            for key, default, allowed, meaning in rows(n):
-                print(f"  {key} = {json.dumps(default)}  ({allowed}) {meaning}")
-    return 0
-
-
 def _fail(message: str) -> int:
     print(f"mrmt lorr: error: {message}", file=sys.stderr)
     return 2
 
 
 def run(args) -> int:
-    from agents.commands import lorr_sweep
+    from agents.commands import lorr_info, lorr_sweep
 
-    return {"run": _run, "round": _round, "sweep": lorr_sweep.run, "check": _check, "startkit": _startkit,
-            "options": _options}[args.lorr_command](args)
+    return {"run": _run, "round": _round, "sweep": lorr_sweep.run, "check": lorr_info.check,
+            "startkit": lorr_info.startkit, "options": lorr_info.options}[args.lorr_command](args)

@@ -76,10 +76,10 @@ class Oracle:
     """The planner as its module docstrings state it, recursively."""
 
     def __init__(self, grid, seed, lns, weight_power=2, anneal=0.001, push_built=0.2, skip=0.2, portfolio=1,
-                 oriented=False):
+                 oriented=False, pushes=1000):
         self.grid, self.seed, self.lns, self.p = grid, seed, lns, weight_power
         self.anneal, self.push_built, self.skip, self.portfolio = anneal, push_built, skip, portfolio
-        self.oriented = oriented
+        self.oriented, self.pushes = oriented, pushes
         self.ops = oracle_operations()
         self.t = 0
 
@@ -195,7 +195,7 @@ class Plan:
             self.put(root, self.choice[root])
 
     def visit(self, a, depth):
-        if self.pushes > (1000 if self.search else 20000):
+        if self.pushes > (self.o.pushes if self.search else 20000):
             return 2
         was = self.choice[a]
         for c, (_, _, cells, d) in enumerate(self.cands[a]):
@@ -270,13 +270,13 @@ def test_operations_are_the_pruned_five_action_set():
        fill=st.floats(0.1, 0.9), lns=st.sampled_from([0, 20, 100]), weight_power=st.sampled_from([0, 1, 2]),
        anneal=st.sampled_from([0.0, 0.001, 0.3]), push_built=st.sampled_from([0.0, 0.2]),
        skip=st.sampled_from([0.0, 0.2]), portfolio=st.sampled_from([1, 1, 3]), threads=st.sampled_from([1, 2]),
-       oriented=st.booleans())
+       oriented=st.booleans(), pushes=st.sampled_from([1000, 1000, 3]))
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_power, anneal, push_built, skip,
-                                        portfolio, threads, oriented):
+                                        portfolio, threads, oriented, pushes):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     opts = dict(lns=lns, weight_power=weight_power, anneal=anneal, push_built=push_built, skip=skip,
-                portfolio=portfolio, oriented=oriented)
+                portfolio=portfolio, oriented=oriented, pushes=pushes)
     ex = ChainEPIBT(grid, seed=seed, threads=threads, **opts)
     oracle = Oracle(grid, ex.seed, **opts)
     for _ in range(6):

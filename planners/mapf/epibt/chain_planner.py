@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from planners.compute import ComputeReport
-from planners.mapf.epibt.chains import (STEPS, Candidates, ChainKnobs, ChainRobots, chain_build, chain_candidates,
-                                        chain_finish, chain_operations, chain_search, new_plan, stamp_seed)
+from planners.mapf.epibt.chains import (SEARCH_PUSHES, STEPS, Candidates, ChainKnobs, ChainRobots, chain_build,
+                                        chain_candidates, chain_finish, chain_operations, chain_search, new_plan,
+                                        stamp_seed)
 from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
 from planners.mapf.guides.focus import checked_rest
@@ -61,6 +62,8 @@ class ChainOptions(GuideOptions):
     push_built: float = option(0.2, float, 0.0, 1.0, meaning="the chance the construction pushes a robot that has "
                                "already chosen (one still waiting is always pushed)")
     skip: float = option(0.2, float, 0.0, 1.0, meaning="the chance a search chain passes over a robot in its way")
+    pushes: int = option(SEARCH_PUSHES, int, 1, 1 << 20, meaning="a search chain pushing more robots than this is "
+                         "refused (the winner's cap: 1,000)")
     portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="plans per call from seeds apart, the one of highest "
                             "score kept (ties: the first)")
     threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
@@ -147,7 +150,7 @@ class ChainEPIBT(EPIBT):
         opts = self.options
         plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
                  for k in range(self.portfolio)]
-        knobs = ChainKnobs(opts.push_built, opts.skip)
+        knobs = ChainKnobs(opts.push_built, opts.skip, opts.pushes)
         stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
         batches = [0] * self.portfolio
 

@@ -31,13 +31,13 @@ from planners.mapf.epibt.plans import _to_go, _walk, op_idle
 from planners.mapf.epibt.search import conflict, reserve
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT
 
-__all__ = ["STEPS", "chain_operations", "Candidates", "ChainPlan", "ChainRobots", "ChainKnobs", "new_plan",
-           "chain_candidates", "chain_build", "chain_search", "chain_finish", "score_of", "stamp_seed"]
+__all__ = ["STEPS", "SEARCH_PUSHES", "chain_operations", "Candidates", "ChainPlan", "ChainRobots", "ChainKnobs",
+           "new_plan", "chain_candidates", "chain_build", "chain_search", "chain_finish", "score_of", "stamp_seed"]
 
 STEPS = 5  # actions per operation
 _VISIT = 50  # value scale of a cost-to-go step
 _MIN_DEPTH = 3  # operations reaching at most this far count as this deep
-_SEARCH_PUSHES = 1000  # a search chain pushing more is refused
+SEARCH_PUSHES = 1000  # by default a search chain pushing more is refused (the winner's cap)
 _DEEP_PUSHES = 3000  # beyond this many, the construction pushes no deeper than 6 robots
 _BUILD_PUSHES = 20000  # and a construction chain pushing more is refused
 
@@ -96,10 +96,12 @@ class ChainRobots(NamedTuple):
 
 
 class ChainKnobs(NamedTuple):
-    """The chains' two chances (:class:`~planners.mapf.epibt.chain_planner.ChainOptions`)."""
+    """The chains' two chances and the search chain's push cap (:class:`~planners.mapf.epibt.chain_planner.ChainOptions`
+    ``push_built``, ``skip``, ``pushes``)."""
 
     push_built: float  # the construction pushes a robot that has already chosen
     skip: float        # a search chain passes over a robot in its way
+    pushes: int = SEARCH_PUSHES  # a search chain pushing more is refused
 
 
 class Candidates(NamedTuple):
@@ -261,7 +263,7 @@ def _chain(root, cid, search, temp, cap, plan, cand, gain, knobs, stack) -> bool
                 top -= 1
                 continue
             ret = -1
-        elif st_j[top] == 0 and pushes > (_SEARCH_PUSHES if search else _BUILD_PUSHES):
+        elif st_j[top] == 0 and pushes > (knobs.pushes if search else _BUILD_PUSHES):
             ret = 2
             top -= 1
             continue

@@ -27,6 +27,8 @@ SECTION = ("## League of Robot Runners 2024: the chip at ten thousand robots, lo
            "(issue 56)")
 SECTION_ENTRY = "## League of Robot Runners 2024: lorr-ising with the entry's planner (issue 56)"
 SECTION_FLOW = "## League of Robot Runners 2024: lorr-ising with the start kit's default planner (issue 56)"
+#: ``pibt-flow``'s memory bound for its fields (2 GiB: SORTATION's 10,000 robots x 54,320 free cells need 1.1 GB)
+FLOW_FIELD_BYTES = 2 << 30
 #: planner choice -> (its section, what the table says it is)
 PLANNERS = {"pibt": (SECTION, "PIBT with turning, lanes off on SORTATION as in the default entry"),
             "pibt-flow": (SECTION_FLOW, "the start kit's default, PIBT along traffic-flow guide paths (`pibt-flow`)"),
@@ -53,8 +55,8 @@ def planner_args(name: str, planner: str) -> list[str]:
     """The planner's arguments: ``pibt`` (lanes off on SORTATION, as the default entry), ``pibt-flow`` (the start
     kit's default planner: PIBT along traffic-flow guide paths, no lanes) or ``entry`` (the default entry's planner for
     the instance, with its options and guidance)."""
-    if planner == "pibt-flow":
-        return ["--planner", "pibt-flow"]
+    if planner == "pibt-flow":  # a field and a guide path per robot: SORTATION's need 1.1 GB, over the default bound
+        return ["--planner", "pibt-flow", "--planner-option", f"field_bytes={FLOW_FIELD_BYTES}"]
     if planner == "pibt":
         return ["--planner", "pibt", *(["--guidance", "0"] if name == "SORTATION" else [])]
     from agents.lorr.entry import load_entry

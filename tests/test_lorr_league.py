@@ -119,7 +119,8 @@ def test_the_default_entry_chooses_by_team_and_map():
     assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
     assert (crowd.choice.scheduler, crowd.choice.planner, crowd.choice.options["replan"]) == ("strong", "epibt-chain",
                                                                                               True)
-    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2}
+    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2,
+                                                         "pushes": 100}
     dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
     assert dense.holds(400, 0.49, "random-32-32-20.map")
     assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")

@@ -127,25 +127,8 @@ class ChainEPIBT(EPIBT):
         if self.ofields is not None:
             rows = self.ofields.rows(gc, self.order(r))
             fields = self.ofields.fields
-        n_ops = self.ops.shape[0]
-        cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
-                          np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
-                          np.empty((r, STEPS + 1), np.int64), np.empty(r, np.int64), np.empty(r, np.int64),
-                          np.empty(r, np.int64))
         t0 = time.perf_counter()
-        robots = ChainRobots(pc, orient, gc, rows)
-        per_cell = fields.shape[1] // max(len(self.cell_of), 1)
-        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max), per_cell), robots, self.ops,
-                         (self.idle, self.quiet), cand)
-        depth = self.depth[cand.op]
-        cand = cand._replace(depth=depth)
-        busy = pc != gc
-        way = cand.to_go + (rest if rest is not None else 0)
-        order = np.lexsort((np.arange(r), way, ~busy)).astype(np.int64)  # at work first, least way first
-        rank = np.empty(r, dtype=np.int64)
-        rank[order] = np.arange(r)
-        power = np.where(busy, (r + 1 - rank) ** self.weight_power, 0).astype(np.int64)
-        gain = power[:, None] * (cand.wait_value[:, None] - cand.value)
+        cand, gain, order, busy = self.ranked(ChainRobots(pc, orient, gc, rows), fields, rest)
         chains = min(r * DEFAULT_CHAINS_PER_ROBOT, DEFAULT_CHAINS_MAX) if self.lns_option is None else self.lns_option
         opts = self.options
         plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
@@ -198,6 +181,29 @@ class ChainEPIBT(EPIBT):
         self.targets = self.cell_of[nxt]
         self._advance(nxt, gc)
         return act
+
+    def ranked(self, robots: ChainRobots, fields: np.ndarray, rest=None) -> tuple:
+        """What the plans of one call work on: ``(cand, gain, order, busy)``, each robot's operations best first (a
+        :class:`~planners.mapf.epibt.chains.Candidates`), their gains ``(R, M)`` over waiting weighed by the robot's
+        power, the robots in rank order (at work first, least task still to go first) and which are at work;
+        ``robots`` in compact cells with their rows of ``fields`` (the goal fields, or the oriented ones)."""
+        r, n_ops = len(robots.pos), self.ops.shape[0]
+        cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
+                          np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
+                          np.empty((r, STEPS + 1), np.int64), np.empty(r, np.int64), np.empty(r, np.int64),
+                          np.empty(r, np.int64))
+        per_cell = fields.shape[1] // max(len(self.cell_of), 1)
+        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max), per_cell), robots, self.ops,
+                         (self.idle, self.quiet), cand)
+        cand = cand._replace(depth=self.depth[cand.op])
+        busy = robots.pos != robots.goals
+        way = cand.to_go + (rest if rest is not None else 0)
+        order = np.lexsort((np.arange(r), way, ~busy)).astype(np.int64)  # at work first, least way first
+        rank = np.empty(r, dtype=np.int64)
+        rank[order] = np.arange(r)
+        power = np.where(busy, (r + 1 - rank) ** self.weight_power, 0).astype(np.int64)
+        gain = power[:, None] * (cand.wait_value[:, None] - cand.value)
+        return cand, gain, order, busy
 
     def _search_stop(self, now: float, stop: float) -> float:
         """Under a clock, when the search of a plan built by ``now`` stops (here: at ``stop``, the planner's own)."""

@@ -63,7 +63,8 @@ def main(argv=None) -> None:
     pc, gc = ex.cid[pos], ex.cid[goals]
     rows = ex.goal_rows(pc, gc, ex.order(len(pos)))
     fields = ex.fields.fields
-    cand, gain, order, _ = ex.ranked(ChainRobots(pc, orient, gc, rows), fields)
+    ranked = ex.ranked(ChainRobots(pc, orient, gc, rows), fields)
+    cand, gain, order = ranked.cand, ranked.gain, ranked.order
     opts, r, cells = ex.options, len(pos), len(ex.cell_of)
 
     def built(seed, knobs):

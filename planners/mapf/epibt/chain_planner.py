@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from planners.mapf.pibt.turning import FORWARD, WAIT, TurningPIBT
 from planners.mapf.pibt.windowed_turning import OrientFields
 from planners.options import option
 
-__all__ = ["ChainEPIBT", "ChainOptions", "DEFAULT_CHAINS_PER_ROBOT"]
+__all__ = ["ChainEPIBT", "ChainOptions", "Ranked", "DEFAULT_CHAINS_PER_ROBOT"]
 
 #: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`, in batches of at most
 #: :data:`SEARCH_BATCH` chains; under a clock each batch also stops at its work budget (:data:`FIRST_WORK`).
@@ -45,6 +46,15 @@ BUILD_SPAN = 8
 FIRST_WORK = 2000
 _LAST_S = 0.002
 _NO_BUDGET = int(np.iinfo(np.int64).max)
+
+
+class Ranked(NamedTuple):
+    """One call's robots as the plans read them (:meth:`ChainEPIBT.ranked`)."""
+
+    cand: Candidates   # each robot's operations, best first
+    gain: np.ndarray   # (R, M) each operation's gain over waiting, weighed by the robot's power
+    order: np.ndarray  # the robots in rank order: at work first, least task still to go first
+    busy: np.ndarray   # (R,) which are at work
 
 
 @dataclass(frozen=True)
@@ -182,11 +192,9 @@ class ChainEPIBT(EPIBT):
         self._advance(nxt, gc)
         return act
 
-    def ranked(self, robots: ChainRobots, fields: np.ndarray, rest=None) -> tuple:
-        """What the plans of one call work on: ``(cand, gain, order, busy)``, each robot's operations best first (a
-        :class:`~planners.mapf.epibt.chains.Candidates`), their gains ``(R, M)`` over waiting weighed by the robot's
-        power, the robots in rank order (at work first, least task still to go first) and which are at work;
-        ``robots`` in compact cells with their rows of ``fields`` (the goal fields, or the oriented ones)."""
+    def ranked(self, robots: ChainRobots, fields: np.ndarray, rest=None) -> Ranked:
+        """What the plans of one call work on (a :class:`Ranked`) for ``robots`` in compact cells with their rows of
+        ``fields`` (the goal fields, or the oriented ones)."""
         r, n_ops = len(robots.pos), self.ops.shape[0]
         cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
                           np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
@@ -203,7 +211,7 @@ class ChainEPIBT(EPIBT):
         rank[order] = np.arange(r)
         power = np.where(busy, (r + 1 - rank) ** self.weight_power, 0).astype(np.int64)
         gain = power[:, None] * (cand.wait_value[:, None] - cand.value)
-        return cand, gain, order, busy
+        return Ranked(cand, gain, order, busy)
 
     def _search_stop(self, now: float, stop: float) -> float:
         """Under a clock, when the search of a plan built by ``now`` stops (here: at ``stop``, the planner's own)."""

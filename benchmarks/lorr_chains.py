@@ -13,7 +13,7 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed ``--s
   until the deadline (host seconds plus the machine's own; the emulation's are not the step's), ``--reads`` reads
   a program;
 * ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
-* ``host chains + chip``: the host search for half the time, then the chip's rounds;
+* ``host chains + chip`` (not with ``--chip-rows twins``): the host search for half the time, then the chip's rounds;
 * ``work set on the chip`` (``--work-rows on``, with the first scheduler): ``epibt-chain-work``, the first
   ``epibt-chain`` row whose robots at work the chip then thins where they meet (class ``work_set``,
   ``--work-options``), and ``work set, host rule``, its twin (every robot the host rule keeps at work stays: the
@@ -75,8 +75,8 @@ def main(argv=None) -> None:
     parser.add_argument("--schedulers", default="strong",
                         help="comma-separated schedulers of the epibt-chain rows: lorr-greedy, strong, ising, "
                         "ising@host")
-    parser.add_argument("--chip-rows", choices=("on", "none"), default="none",
-                        help="the chip annealer, its host-rule twin and host chains + chip")
+    parser.add_argument("--chip-rows", choices=("on", "twins", "none"), default="none",
+                        help="the chip annealer, its host-rule twin and host chains + chip (twins: the first two)")
     parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
     parser.add_argument("--work-rows", choices=("on", "none"), default="none",
                         help="the chip choosing who of the robots at work stays, and its host-rule twin")
@@ -99,12 +99,13 @@ def main(argv=None) -> None:
             if args.entry_row == "on" else {}
         for sched in scheds:
             runs[f"epibt-chain ({sched})"] = lorr_run_json(inst, *scheduler_args(sched), *chain, *clock)
-        if args.chip_rows == "on":
+        if args.chip_rows != "none":
             chip = (*scheduler_args(scheds[0]), chain[0], "epibt-chain-ising", *chain[2:], "--planner-option",
                     f"num_reads={args.reads}")
             runs["chip annealer"] = lorr_run_json(inst, *chip, *clock)
             runs["host-rule twin"] = lorr_run_json(inst, *chip, "--planner-option", "decider=host", *clock)
-            runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
+            if args.chip_rows == "on":
+                runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
         if args.work_rows == "on":
             work = (*scheduler_args(scheds[0]), chain[0], "epibt-chain-work", *chain[2:], "--planner-option",
                     f"num_reads={args.reads}", *[a for o in args.work_options.split(",") if o.strip()
@@ -121,7 +122,7 @@ def main(argv=None) -> None:
              f"{args.active} --portfolio {args.portfolio} --guidance {args.guidance} --schedulers {args.schedulers}"
              + (f" --seed {args.seed}" if args.seed else "")
              + (" --record-holder BIN" if args.record_holder else "")
-             + (f" --chip-rows on --reads {args.reads}" if args.chip_rows == "on" else "")
+             + (f" --chip-rows {args.chip_rows} --reads {args.reads}" if args.chip_rows != "none" else "")
              + (" --entry-row none" if args.entry_row == "none" else "")
              + (f" --work-rows on --work-options '{args.work_options}'" if args.work_rows == "on" else "")
              + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed {args.seed}; step time: host seconds plus the "

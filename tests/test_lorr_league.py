@@ -109,19 +109,22 @@ def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("lorr-weighted", "epibt-chain", 3)
+    assert (small.scheduler, small.planner, small.rule) == ("lorr-weighted", "epibt-chain", 4)
     assert small.options["executor_options"] == {"portfolio": 2}
     # the way x 10, its turns counted, the matching of least total cost
     assert small.options["scheduler_options"] == {"weight": 10, "turns": True, "optimal": True}
     assert small.options["guidance"] == 2  # every robot at work where the team is sparse, on crisscross lanes
-    crowd = entry.rules[0]  # RANDOM-04, -05 (85 and 98 % of the free cells): push chains, 57 % at work
-    assert all(crowd.holds(r, f, "random-32-32-20.map") for r, f in ((700, 0.85), (800, 0.98)))
+    packed, crowd = entry.rules[0], entry.rules[1]  # RANDOM-05, -04 (98 and 85 % of the free cells): 57 % at work
+    assert packed.holds(800, 0.98, "random-32-32-20.map") and not packed.holds(700, 0.85, "random-32-32-20.map")
+    assert crowd.holds(700, 0.85, "random-32-32-20.map")
     assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
-    assert (crowd.choice.scheduler, crowd.choice.planner, crowd.choice.options["replan"]) == ("strong", "epibt-chain",
-                                                                                              True)
-    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2,
-                                                         "pushes": 100}
-    dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
+    for rule in (packed, crowd):  # push chains under the pipeline scheduler re-planning unopened tasks
+        assert (rule.choice.scheduler, rule.choice.planner, rule.choice.options["replan"]) == ("strong", "epibt-chain",
+                                                                                                True)
+    assert packed.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2,
+                                                          "pushes": 100}  # search chains capped at 100 pushes
+    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2}
+    dense = entry.rules[2]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
     assert dense.holds(400, 0.49, "random-32-32-20.map")
     assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
     assert dense.choice.options["executor_options"] == {"active": 0.8, "active_by": "task", "portfolio": 2}
@@ -135,7 +138,7 @@ def test_the_default_entry_chooses_by_team_and_map():
                                                "weight_power": 2}
     assert big.options["guidance"] == 8  # along lanes of weight 8
     assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
-    sortation, warehouse, tables = entry.rules[3], entry.rules[4], entry.rules[5]
+    sortation, warehouse, tables = entry.rules[4], entry.rules[5], entry.rules[6]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
     assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"

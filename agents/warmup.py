@@ -38,7 +38,7 @@ __all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART
 #: Parts compiled side by side share the anneal and quantization kernels, so the sum over two workers is an
 #: upper estimate.
 PART_SECONDS = {"ising:sharing": 56, "ising-paper:tour+path": 48, "ising-fleet": 32, "ising:tour+path": 24,
-                "lorr:epibt-chain-ising": 19, "lorr:epibt": 16, "lorr:pibt-flow": 10, "lorr:epibt-chain": 10,
+                "lorr:epibt-chain-ising": 23, "lorr:epibt": 16, "lorr:epibt-chain": 13, "lorr:pibt-flow": 10,
                 "strong": 9, "lorr:windowed": 8, "lorr:pibt": 6, "exact": 5, "fast": 4}
 
 #: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,

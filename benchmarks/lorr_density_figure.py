@@ -5,10 +5,11 @@ Three panels:
 * the share of the best-known on RANDOM-01..05: the default entry in full under the clock (three seeds' mean, the
   seeds' range as whiskers; section :data:`SEEDS`), beside the 2024 start kit's default entry and the 2024 winner's
   Combined entry (``benchmarks/data/lorr2024_main_round.json``);
-* tasks summed over three seeds, first 300 steps of RANDOM-04 / -05: the host annealer (``epibt-chain``), the chip
-  annealer (``epibt-chain-ising``), its host-rule twin, host chains + chip (section :data:`ANNEALERS`);
-* energy per finished task of the same rows, the host's (CPU seconds x 15 W) and the machine's (0.45 uJ a call)
-  apart, on a log scale.
+* the chip annealer (``epibt-chain-ising``) and its host-rule twin against the host annealer (``epibt-chain``),
+  tasks summed over three seeds on RANDOM-01..05 (the third table of section :data:`SEEDS`);
+* energy per finished task on RANDOM-04 / -05 (first 300 steps, three seeds' mean) of the host annealer, the chip
+  annealer, its twin and host chains + chip, the host's (CPU seconds x 15 W) and the machine's (0.45 uJ a call)
+  apart, on a log scale (section :data:`ANNEALERS`).
 
     python benchmarks/lorr_density_figure.py --out docs/lorr_density.png
 """
@@ -34,24 +35,25 @@ INSTANCES = [f"RANDOM-0{i}" for i in range(1, 6)]
 TEAMS = {"Default_Entry": "2024 start kit's default entry", "No_Man's_Sky": "2024 winner (Combined entry)"}
 
 
-def section_table(name: str, text: str) -> list[dict]:
-    """The rows of the first Markdown table under heading ``name`` in ``text``, as ``{column: cell}``."""
+def section_table(name: str, text: str, which: int = 0) -> list[dict]:
+    """The rows of Markdown table number ``which`` (0: the first) under heading ``name`` in ``text``, as
+    ``{column: cell}``."""
     start = text.find(name + "\n")
     if start < 0:
         raise ValueError(f"RESULTS.md has no section {name!r}")
-    lines = text[start:].splitlines()[1:]
-    table = []
-    for line in lines:
+    tables, table = [], []
+    for line in text[start:].splitlines()[1:] + [""]:
         if line.startswith("## "):
             break
         if line.startswith("|"):
             table.append([c.strip() for c in line.strip().strip("|").split("|")])
         elif table:
-            break
-    if len(table) < 3:
-        raise ValueError(f"section {name!r} has no table")
-    head = table[0]
-    return [dict(zip(head, row)) for row in table[2:]]
+            tables.append(table)
+            table = []
+    if len(tables) <= which or len(tables[which]) < 3:
+        raise ValueError(f"section {name!r} has no table {which + 1}")
+    head = tables[which][0]
+    return [dict(zip(head, row)) for row in tables[which][2:]]
 
 
 def number(cell: str) -> float:
@@ -88,17 +90,29 @@ def figure(text: str, leaderboard: dict, out: Path) -> None:
     err = [[m - min(r) for m, r in zip(mean, runs)], [max(r) - m for m, r in zip(mean, runs)]]
     ax.bar([i + width for i in x], mean, width, yerr=err, capsize=3, label="the entry (3 seeds, 2 cores)",
            color="#1f77b4")
-    ax.set_xticks(list(x), INSTANCES)
+    short = [name.replace("RANDOM", "R") for name in INSTANCES]
+    ax.set_xticks(list(x), short)
     ax.set_ylabel("% of the best-known")
+    ax.set_ylim(0, 115)
     ax.set_title(f"In full under the 1 s clock: RANDOM mean {sum(mean) / 5:.1f} %")
     ax.axhline(90, color="k", lw=0.6, ls="--")
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=7, loc="upper center", ncol=2)
+    ratios = {row["instance"]: row for row in section_table(SEEDS, text, which=2)}
+    chip = [number(ratios[name]["chip / host annealer"]) for name in INSTANCES]
+    twin = [c / number(ratios[name]["chip / twin"]) for c, name in zip(chip, INSTANCES)]
+    axes[1].bar([i - 0.2 for i in x], chip, 0.4, color="#2ca02c", label="chip annealer (epibt-chain-ising)")
+    axes[1].bar([i + 0.2 for i in x], twin, 0.4, color="#9467bd", label="its host-rule twin (the search's greedy)")
+    axes[1].axhline(1.0, color="#1f77b4", lw=1.5, label="host annealer (epibt-chain)")
+    axes[1].axhline(1.05, color="k", lw=0.6, ls="--", label="issue 57's target, 1.05x")
+    axes[1].set_xticks(list(x), short)
+    axes[1].set_ylim(0, 1.3)
+    axes[1].set_ylabel("tasks against the host annealer (3 seeds summed)")
+    axes[1].set_title("The chip as EPIBT's annealer (100 / 300 steps)")
+    axes[1].legend(fontsize=7, loc="upper center", ncol=2)
     names = ["host annealer", "chip annealer", "host-rule twin", "host chains + chip"]
     colors = ["#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"]
     for j, inst in enumerate(("RANDOM-04", "RANDOM-05")):
-        rows = [r for r in chips if r["instance"] == inst]
-        for k, row in enumerate(rows):
-            axes[1].bar(j + (k - 1.5) * 0.2, number(row["sum"]), 0.2, color=colors[k], label=names[k] if j == 0 else None)
+        for k, row in enumerate(r for r in chips if r["instance"] == inst):
             host = sum(numbers(row["host J / task (0 / 1 / 2)"])) / 3
             machine = numbers(row["machine J / task"])
             m = sum(machine) / len(machine)
@@ -106,15 +120,12 @@ def figure(text: str, leaderboard: dict, out: Path) -> None:
             if m > 0:
                 axes[2].bar(j * 2 + k * 0.4 - 0.4, m, 0.2, color=colors[k], hatch="//", alpha=0.5,
                             label="the machine's (hatched)" if (j, k) == (0, 1) else None)
-    axes[1].set_xticks([0, 1], ["RANDOM-04", "RANDOM-05"])
-    axes[1].set_ylabel("tasks, first 300 steps, seeds 0-2 summed")
-    axes[1].set_title("EPIBT's search: the host's against the chip's")
-    axes[1].legend(fontsize=8)
     axes[2].set_xticks([0, 2], ["RANDOM-04", "RANDOM-05"])
     axes[2].set_yscale("log")
+    axes[2].set_ylim(2e-3, 1e3)
     axes[2].set_ylabel("J per finished task (host; machine hatched)")
-    axes[2].set_title("Energy: host CPU s x 15 W, machine 0.45 uJ a call")
-    axes[2].legend(fontsize=7)
+    axes[2].set_title("Energy per task (host CPU s x 15 W; 0.45 uJ a call)")
+    axes[2].legend(fontsize=7, loc="upper center", ncol=2)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)

@@ -67,11 +67,11 @@ def main(argv=None) -> None:
             recs = [lorr_run_json(ROOT / f"{name}.json", *BASE, *opts, *common, "--seed", str(s))
                     for s in range(args.seeds)]
             tasks = sum(r["tasks_finished"] for r in recs)
-            host_j = sum(r["host_cpu_s"] for r in recs) * 15.0
-            total_j = sum(r["total_energy_per_task_j"] * max(r["tasks_finished"], 1) for r in recs)
+            host_j = sum(r["host_energy_per_task_j"] * max(r["tasks_finished"], 1) for r in recs)
+            machine_j = sum(r["machine_energy_per_task_j"] * max(r["tasks_finished"], 1) for r in recs)
             table.append((name, row, tasks, sum(r["timeouts"] for r in recs), max(r["step_p99_s"] for r in recs),
                           sum(r["chip_calls"] for r in recs) / sum(r["decisions"] for r in recs),
-                          host_j / max(tasks, 1), (total_j - host_j) / max(tasks, 1)))
+                          host_j / max(tasks, 1), machine_j / max(tasks, 1)))
             print(f"{name} {row}: {tasks} tasks", file=sys.stderr)
     lines = [SECTION, "",
              f"`python benchmarks/lns_anneal.py --instances {args.instances} --steps {args.steps} --seeds {args.seeds} "

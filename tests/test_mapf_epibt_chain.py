@@ -361,6 +361,11 @@ def test_oriented_cost_counts_every_turn_on_the_way():
         pos, orient, goals = np.array([start]), np.array([2]), np.array([goal])
         for n in range(1, 30):
             pos, orient = ex.step(pos, orient, goals)
+            # the goal's field over cells computed only where the plan reads it (once; none under ``oriented``),
+            # the field over (cell, orientation) only under it
+            oriented = options.get("oriented", False)
+            assert ex.fields.computed == (0 if oriented else 1)
+            assert (ex.ofields.computed if oriented else ex.ofields) == (1 if oriented else None)
             if pos[0] == goal:
                 return n
         return None

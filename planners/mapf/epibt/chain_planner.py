@@ -133,10 +133,11 @@ class ChainEPIBT(EPIBT):
             deadline = self.deadline = deadline + c.emulation_s - c.chip_time_parallel_s
         r = len(pos)
         pc, gc = self.cid[pos], self.cid[goals]
-        fields, rows = self._heuristic(pc, gc, self.order(r))
-        if self.ofields is not None:
-            rows = self.ofields.rows(gc, self.order(r))
+        if self.ofields is not None:  # every robot reads the fields over (cell, orientation): no goal fields
+            rows = self.ofields.rows(gc, self.order(r))  # first: it may grow the cache (a new array)
             fields = self.ofields.fields
+        else:
+            fields, rows = self._heuristic(pc, gc, self.order(r))
         t0 = time.perf_counter()
         cand, gain, order, busy = self.ranked(ChainRobots(pc, orient, gc, rows), fields, rest)
         chains = min(r * DEFAULT_CHAINS_PER_ROBOT, DEFAULT_CHAINS_MAX) if self.lns_option is None else self.lns_option

@@ -83,7 +83,8 @@ def figure(text: str, leaderboard: dict, out: Path) -> None:
     x = range(len(INSTANCES))
     width = 0.27
     for k, (team, label) in enumerate(TEAMS.items()):
-        shares = [100 * leaderboard["teams"][team][i] / best[name].tasks for i, name in enumerate(INSTANCES)]
+        shares = [100 * leaderboard["teams"][team][leaderboard["columns"].index(name)] / best[name].tasks
+                  for name in INSTANCES]
         ax.bar([i + (k - 1) * width for i in x], shares, width, label=label, color=("#bbbbbb", "#d62728")[k])
     runs = [[100 * t / best[name].tasks for t in seeds[name]] for name in INSTANCES]
     mean = [sum(r) / 3 for r in runs]

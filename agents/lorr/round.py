@@ -16,48 +16,11 @@ import json
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import NamedTuple
 
-import mrmt_env
+from agents.lorr.scores import BEST_KNOWN_FILE, BestKnown, best_known_table
 
 __all__ = ["round_instances", "best_known_table", "run_round", "round_task", "RoundSummary", "BestKnown",
            "BEST_KNOWN_FILE"]
-
-#: The archive's published best-known scores (2023 and 2024, main and test rounds).
-BEST_KNOWN_FILE = Path(mrmt_env.__file__).resolve().parent / "data" / "lorr_best_known.json"
-
-
-class BestKnown(NamedTuple):
-    """One instance's row of the archive's table."""
-
-    agents: int
-    steps: int
-    tasks: int
-
-
-def best_known_table(path=None) -> dict[str, BestKnown]:
-    """``{instance name: BestKnown}`` from ``path`` (``{"<round>": {"NAME": [agents, steps, tasks]}}``, the format of
-    the package's table) or the package's table; ``ValueError`` naming a malformed file or row."""
-    path = Path(path) if path is not None else BEST_KNOWN_FILE
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such best-known file") from None
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path}: not a JSON best-known table ({str(exc).splitlines()[0][:100]})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: a best-known table is a JSON object of rounds")
-    table: dict[str, BestKnown] = {}
-    for section, rows in data.items():
-        if not isinstance(rows, dict) or section in ("source", "columns"):
-            continue
-        for name, row in rows.items():
-            if not (isinstance(row, list) and len(row) == 3 and all(isinstance(x, int) and x > 0 for x in row)):
-                raise ValueError(f"{path}: {section}/{name} must be [agents, steps, tasks], whole numbers > 0, "
-                                 f"got {row!r}")
-            table[name] = BestKnown(*row)
-    return table
-
 
 def round_instances(folder) -> list[Path]:
     """The instance files of a round folder (JSON files naming a ``mapFile``), sorted by name."""

@@ -27,6 +27,7 @@ from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_ins
 from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
+from agents.lorr.scores import best_known
 
 __all__ = ["run_lorr", "best_known", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "MEASURED_KEYS", "Loop"]
 
@@ -54,26 +55,6 @@ class Loop(NamedTuple):
     accel_j: float
     calls: int
     preprocess_s: float
-
-
-def best_known(instance: LoRRInstance) -> int | None:
-    """The best-known tasks finished of ``instance`` from a ``best_known.json`` in its folder or up
-    to three above (``{"<year>": {"NAME": [agents, steps, tasks]}}``), else from the package's table of the
-    archive's published scores (:data:`agents.lorr.round.BEST_KNOWN_FILE`), else ``None``."""
-    from agents.lorr.round import best_known_table
-
-    folder = instance.path.parent
-    for d in [folder, *list(folder.parents)[:3]]:
-        f = d / "best_known.json"
-        if f.is_file():
-            try:
-                row = best_known_table(f).get(instance.name)
-            except ValueError:
-                continue
-            if row is not None:
-                return row.tasks
-    row = best_known_table().get(instance.name)
-    return None if row is None else row.tasks
 
 
 def _warm(scheduler: str, executor: str, chip, options) -> None:

@@ -124,7 +124,7 @@ def read_map(path) -> np.ndarray:
         return read_movingai_map(path)
     except WorldError as first:
         if "unknown cell letter" not in str(first):
-            raise GenerateError(f"map {str(path)!r}: {first}") from None
+            raise GenerateError(str(first)) from None  # it names the file
     try:
         return read_lorr_map(path)
     except LoRRFormatError as exc:
@@ -132,7 +132,8 @@ def read_map(path) -> np.ndarray:
 
 
 def _whole(name: str, value, lo: int, hi: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo or (hi is not None and value > hi):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo \
+            or (hi is not None and value > hi):
         bound = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
         raise GenerateError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)

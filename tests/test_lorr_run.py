@@ -81,7 +81,8 @@ def test_check_command_on_the_2023_record(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == {"numTaskFinished": 1741, "errors": 0, "steps": 500, "errands": 1741,
                                        "scheduleErrors": 0, "claimedTaskFinished": 1741,
-                                       "eventsAgree": None, "numEntryTimeouts": 0}
+                                       "eventsAgree": None, "numEntryTimeouts": 0,
+                                       "firstErrorStep": None}
 
 
 def test_executor_options_reach_the_executor_and_the_record(tmp_path):
@@ -174,10 +175,27 @@ def test_a_portfolio_on_threads_runs_as_on_one_and_is_charged_its_cpu_seconds():
         assert record["total_energy_per_task_j"] == pytest.approx(record["host_cpu_s"] * 15.0 / done)
 
 
-def test_ising_scheduler_charges_the_chip_per_step():
+def test_ising_scheduler_charges_the_chip_per_step(monkeypatch):
+    """The record's chip calls, chip seconds and chip joules (summed per decision by the runner) are the machine's
+    own ledger over the run (counted by the machine as it is called)."""
+    import agents.lorr.run as run
+
+    built, real = [], run.make_roles
+
+    def keep(*args, **kwargs):
+        built.append(real(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(run, "make_roles", keep)
     record, sim, _ = run_lorr(EXAMPLE, "ising", "pibt", steps=40, seed=0)
-    assert record["errors"] == 0 and record["chip_calls"] > 0 and record["chip_s"] > 0
-    assert record["paper_energy_per_task_j"] <= record["total_energy_per_task_j"]
+    ledger = built[-1][0].assigner.pipeline.sharing.chip.ledger  # the run's machine (the tour layer shares it)
+    assert built[-1][0].assigner.pipeline.tour.chip is built[-1][0].assigner.pipeline.sharing.chip
+    assert ledger.physical_calls > 0 and record["errors"] == 0
+    assert record["chip_calls"] == ledger.physical_calls + ledger.logical_calls
+    assert record["chip_s"] == pytest.approx(ledger.chip_time_parallel_s, rel=1e-12)
+    done = max(sim.finished, 1)
+    assert record["machine_energy_per_task_j"] == pytest.approx(ledger.energy_j / done, rel=1e-12)
+    assert record["paper_energy_per_task_j"] == record["machine_energy_per_task_j"]  # an Ising scheduler: the chip's
 
 
 def test_shortlist_keeps_each_free_robots_least_makespan_tasks():

@@ -83,8 +83,9 @@ def write_output(sim: LoRRSimulator, path, planner_times=None) -> Path:
 @dataclass(frozen=True)
 class CheckResult:
     """What a re-simulation found: tasks finished (``None`` without a schedule), errands reached,
-    invalid joint actions, rejected schedules, steps, the file's own claim, and whether the file's ``events``
-    are the re-simulated ones (``None`` when it has none or no schedule)."""
+    invalid joint actions, rejected schedules, steps, the file's own claim, whether the file's ``events``
+    are the re-simulated ones (``None`` when it has none or no schedule), the timeouts, and the step of the first
+    invalid joint action (counted from 1, as the file's ``errors`` give it; ``None`` without one)."""
 
     tasks_finished: int | None
     errands: int | None
@@ -94,11 +95,13 @@ class CheckResult:
     claimed: int | None
     events_agree: bool | None = None
     timeouts: int = 0
+    first_error_step: int | None = None
 
     def to_json(self) -> dict:
         return {"numTaskFinished": self.tasks_finished, "errors": self.errors, "steps": self.steps,
                 "errands": self.errands, "scheduleErrors": self.schedule_errors, "claimedTaskFinished": self.claimed,
-                "eventsAgree": self.events_agree, "numEntryTimeouts": self.timeouts}
+                "eventsAgree": self.events_agree, "numEntryTimeouts": self.timeouts,
+                "firstErrorStep": self.first_error_step}
 
 
 def read_output(path) -> dict:
@@ -203,4 +206,4 @@ def check_output(instance, data: dict, path="output") -> CheckResult:
                        errands=sim.tasks.errands_done if counted else None, errors=len(sim.errors),
                        schedule_errors=len(sim.tasks.schedule_errors), steps=steps,
                        claimed=int(claimed) if isinstance(claimed, int) else None, events_agree=agree,
-                       timeouts=sim.timeouts)
+                       timeouts=sim.timeouts, first_error_step=sim.errors[0][3] if sim.errors else None)

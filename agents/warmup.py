@@ -6,7 +6,9 @@ under a second.  That first compile takes minutes on two cores, most of it in th
 kernels, so a command that is about to pay it prints one line first
 (what, why, roughly how long, once per install) and then compiles the *parts* it needs -- the
 sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
-processes with a progress bar, longest part first.  Each part is a pipeline warm-up
+processes, longest part first, with a progress bar per part counting the kernels numba compiles in it (numba's
+``numba:compile`` events, :func:`count_compiles`; the totals are :data:`PART_KERNELS`), so the bars move while
+a part compiles for minutes.  Each part is a pipeline warm-up
 (:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
 the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` call :func:`warm`).
 A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
@@ -30,8 +32,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART_SECONDS", "LONG_S", "stamp_path",
-           "probe_seconds", "PROBE_REF_S", "estimate_s", "pace_factor"]
+__all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART_SECONDS", "PART_KERNELS", "LONG_S",
+           "stamp_path", "probe_seconds", "PROBE_REF_S", "estimate_s", "pace_factor", "count_compiles"]
 
 #: Cold compile seconds of each part on the reference machine, each alone in a fresh process with an empty
 #: cache (2 cores, AMD EPYC, 2026-11-29, `python benchmarks/compile_parts.py`; the history: docs/design/cold_start.md).
@@ -40,6 +42,13 @@ __all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART
 PART_SECONDS = {"ising:sharing": 56, "ising-paper:tour+path": 48, "ising-fleet": 32, "ising:tour+path": 24,
                 "lorr:epibt-chain-ising": 23, "lorr:epibt": 16, "lorr:epibt-chain": 13, "lorr:pibt-flow": 10,
                 "strong": 9, "lorr:windowed": 8, "lorr:pibt": 6, "exact": 5, "fast": 4}
+
+#: Kernels (numba dispatcher specializations) each part compiles alone with an empty cache, measured beside
+#: :data:`PART_SECONDS` (`python benchmarks/compile_parts.py`): the totals of the per-part progress bars.  A part
+#: compiled after another in the same worker, or after the other worker cached kernels they share, compiles fewer
+#: (its bar is filled when it ends); a part missing here shows a count without a total.
+PART_KERNELS = {"ising:sharing": 310, "ising-paper:tour+path": 241, "ising:tour+path": 217, "ising-fleet": 217,
+                "strong": 86, "fast": 30}  # 2026-12-07, numba 0.68.1
 
 #: The share of the parts' summed seconds a worker spends when it compiles several: the anneal,
 #: quantization and tour kernels they share compile once per worker (measured: one process compiling
@@ -267,8 +276,6 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     """Compile the cold parts of ``controllers`` (all of them with ``force``) on ``jobs`` processes,
     after one line on ``stream`` (default stderr) saying what and why, when they are expected to
     take at least ``minimum_s`` seconds; returns the parts compiled."""
-    from agents.runner import RunConfig, run_tasks
-
     targets = (world_kwargs or {}).get("n_targets")  # worlds of known size: no part they never run
     targets = targets if isinstance(targets, int) and not isinstance(targets, bool) else None
     todo = parts_for(controllers, targets) if force else cold_parts(controllers, targets)
@@ -282,16 +289,121 @@ def warm(controllers, jobs: int = 2, progress: bool = True, world_kwargs: dict |
     print(f"mrmt: compiling the numba kernels of {', '.join(todo)} (first run after install; cached "
           f"afterwards, `mrmt warmup` does it up front): roughly {guess:.0f} s on {jobs} core(s) ({how})",
           file=stream, flush=True)
-    run = RunConfig(backend="inline" if jobs == 1 else "process", jobs=jobs, chunk_size=1, progress=progress)
     kwargs = dict(world_kwargs or {})
     try:
         from ising_backend.audit.record import suspended
 
         with suspended():  # compiling decides nothing: an open audit records none of it
-            run_tasks(compile_part, [(p, kwargs) for p in todo], run, desc="compiling", unit="part")
+            _compile_parts(todo, kwargs, jobs, progress, stream)
     except Exception as exc:  # noqa: BLE001 -- the command itself will meet (and report) the same problem
         print(f"mrmt: warm-up stopped ({type(exc).__name__}: {exc}); compiling on first use instead",
               file=stream)
         return []
     _write_stamp(todo)
     return todo
+
+
+def count_compiles(report):
+    """A context manager calling ``report(qualname)`` each time numba compiles a kernel in this process (a
+    dispatcher's specialization; loads from numba's on-disk cache are not compiles and are not reported)."""
+    from numba.core import event
+
+    class _Compiled(event.Listener):
+        def on_start(self, ev):
+            pass
+
+        def on_end(self, ev):
+            func = getattr(ev.data.get("dispatcher"), "py_func", None)
+            report(getattr(func, "__qualname__", "?"))
+
+    return event.install_listener("numba:compile", _Compiled())
+
+
+def _bars(parts, progress: bool, stream) -> dict:
+    """One bar per part (its kernels compiled, out of :data:`PART_KERNELS`), longest part first."""
+    from tqdm.auto import tqdm
+
+    width = max(len(p) for p in parts)
+    return {p: tqdm(total=PART_KERNELS.get(p), desc=f"compiling {p:<{width}}", unit="kernel", position=k,
+                    disable=not progress, file=stream, leave=True, dynamic_ncols=True)
+            for k, p in enumerate(parts)}
+
+
+def _advance(bar, n: int = 1) -> None:
+    if bar.total is not None and bar.n + n > bar.total:  # more than alone (another order, another numba)
+        bar.total = bar.n + n
+    bar.update(n)
+
+
+def _finish(bar) -> None:
+    """A part's bar once the part is compiled: full (kernels it loaded from the other worker's cache count as done)."""
+    if bar.total is None:
+        bar.total = bar.n
+    bar.update(bar.total - bar.n)
+    bar.set_postfix_str("done", refresh=True)
+
+
+_REPORTS = None  # a worker's queue to the parent's bars (set by _start_worker)
+
+
+def _start_worker(queue) -> None:
+    global _REPORTS
+    _REPORTS = queue
+
+
+def _compile_reported(part: str, world_kwargs: dict) -> str:
+    """:func:`compile_part` in a worker, each kernel compiled reported to the parent as ``part``."""
+    with count_compiles(lambda _name: _REPORTS.put(part)):
+        return compile_part(part, world_kwargs)
+
+
+def _compile_parts(todo, world_kwargs: dict, jobs: int, progress: bool, stream) -> None:
+    """Compile ``todo`` on ``jobs`` processes (in this one for a single job), with :func:`_bars`."""
+    bars = _bars(todo, progress, stream)
+    try:
+        if jobs == 1:
+            for part in todo:
+                with count_compiles(lambda _name, bar=bars[part]: _advance(bar)):
+                    compile_part(part, world_kwargs)
+                _finish(bars[part])
+            return
+        _compile_in_workers(todo, world_kwargs, jobs, bars)
+    finally:
+        for bar in reversed(list(bars.values())):
+            bar.close()
+
+
+def _compile_in_workers(todo, world_kwargs: dict, jobs: int, bars: dict) -> None:
+    import multiprocessing
+    import queue as queues
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    # as agents.runner: workers from a clean forkserver once Ray's threads run in this process
+    context = multiprocessing.get_context("forkserver") if "ray" in sys.modules else multiprocessing.get_context()
+    reports = context.Queue()
+    finished: set[str] = set()
+
+    def drain() -> None:
+        while True:
+            try:
+                part = reports.get_nowait()
+            except queues.Empty:
+                return
+            if part not in finished:  # a late report of a part already shown full
+                _advance(bars[part])
+
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_start_worker,
+                             initargs=(reports,)) as pool:
+        futures = {pool.submit(_compile_reported, p, world_kwargs): p for p in todo}
+        pending = set(futures)
+        try:
+            while pending:
+                done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                drain()
+                for future in done:
+                    future.result()  # a worker's error stops the warm-up (warm reports it)
+                    finished.add(futures[future])
+                    _finish(bars[futures[future]])
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise

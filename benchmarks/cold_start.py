@@ -7,7 +7,11 @@ the clone's ``__pycache__`` folders), then times, one after the other: ``make .v
 (the pip install of the base package), ``make demo`` (cold: every kernel compiled) and ``make demo``
 again (warm: kernels loaded from the cache).  Reports wall seconds, user + sys CPU seconds of the
 child processes and their peak RSS.  The warm-up stamp goes to the clone's own ``XDG_CACHE_HOME``,
-so the first run announces its compile as a new install would.
+so the first run announces its compile as a new install would.  From the cold demo's progress bars (one per
+compiled part, counting its kernels): the longest wait with no bar moving, and when the first moved.
+
+To load the other core meanwhile (the "loaded" figure): ``python -c "while True: pass" &`` before, ``kill`` its
+pid after.
 """
 
 from __future__ import annotations
@@ -38,6 +42,29 @@ def timed(cmd: list[str], cwd: Path, env: dict) -> dict:
     if proc.returncode:
         sys.exit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{stdout[-2000:]}\n{stderr[-2000:]}")
     return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "peak_mb": ru.ru_maxrss / 1024, "stderr": stderr}
+
+
+_BAR = re.compile(r"^compiling ?(\S*?)\s*:.*?(\d+)(?:/\d+| ?kernels?| ?parts?)\s*\[(\d+):(\d\d)")
+
+
+def stalls(stderr: str) -> tuple[float, float] | None:
+    """From the compile bars' lines in ``stderr``: the longest stretch (s) in which no bar's count moved, and the
+    seconds before the first moved (tqdm's elapsed field, whole seconds; every bar starts together); ``None`` without
+    bars."""
+    last: dict[str, int] = {}
+    moves = [0.0]
+    for line in stderr.replace("\r", "\n").splitlines():
+        found = _BAR.search(line.strip())
+        if not found:
+            continue
+        part, n, t = found.group(1), int(found.group(2)), 60 * int(found.group(3)) + int(found.group(4))
+        if n != last.get(part, 0):
+            moves.append(float(t))
+        last[part] = n
+    if len(moves) == 1:
+        return None
+    moves.sort()
+    return max(b - a for a, b in zip(moves, moves[1:])), moves[1]
 
 
 def main(argv=None) -> int:
@@ -73,6 +100,10 @@ def measure(repo: str, ref: str, keep: bool) -> None:
                 notice = [line for line in r["stderr"].replace("\r", "\n").splitlines() if line.startswith("mrmt:")]
                 print("  " + (notice[0] if notice else "(no compile notice)"))
                 said = re.search(r"roughly (\d+) s", notice[0]) if notice else None
+                stall = stalls(r["stderr"])
+                if stall:
+                    print(f"  progress: the longest wait with no compile bar moving {stall[0]:.0f} s, the first move "
+                          f"at {stall[1]:.0f} s")
         if said:  # the compile's own wall: the cold demo's less the warm one's
             compile_s = walls["cold demo"] - walls["warm demo"]
             print(f"the notice said {said.group(1)} s; the compile took {compile_s:.1f} s (cold - warm demo): "

@@ -146,3 +146,27 @@ def test_the_estimate_shares_the_parts_over_the_workers_and_is_at_least_the_long
     assert estimate_s(parts, 2) == max(max(secs), SHARED_SHARE * sum(secs) / 2)
     assert estimate_s(["ising:sharing"], 2) == PART_SECONDS["ising:sharing"]
     assert estimate_s(parts, 1) == SHARED_SHARE * sum(secs)
+
+
+def test_compiles_are_counted_not_cache_loads():
+    """The bars count numba's compiles (``numba:compile`` events) in the process that compiles."""
+    import numba
+
+    from agents.warmup import count_compiles
+
+    names = []
+    with count_compiles(names.append):
+        numba.njit(cache=False)(lambda x: x + 1)(1)
+    assert len(names) == 1
+    with count_compiles(names.append):
+        pass  # nothing compiled: nothing counted
+    assert len(names) == 1
+
+
+def test_each_part_has_a_bar_of_its_kernels_filled_when_done(monkeypatch, capsys):
+    from agents import warmup
+
+    monkeypatch.setitem(warmup.PART_KERNELS, "fast", 7)
+    assert main(["warmup", "--pipelines", "fast", "--jobs", "1", "--force"]) == 0
+    err = capsys.readouterr().err.replace("\r", "\n")
+    assert "compiling fast" in err and "7/7" in err and "done" in err

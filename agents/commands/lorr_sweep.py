@@ -15,7 +15,7 @@ import sys
 
 
 def add_parser(sub) -> None:
-    from agents.commands.lorr import _add_clock_arguments, add_plan_arguments
+    from agents.commands.lorr_args import add_clock_arguments, add_plan_arguments
     from agents.commands.options import add_chip_argument, add_runner_arguments
 
     p = sub.add_parser("sweep", help="run a scheduler and planner over a grid of Ising machines, each beside its "
@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
     p.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
                    help="fixed ChipSpec fields under the grid; repeatable")
     add_chip_argument(p, "every machine of the grid", chip=False)
-    _add_clock_arguments(p, "default: none (work-bounded, deterministic)")
+    add_clock_arguments(p, "default: none (work-bounded, deterministic)")
     p.add_argument("--out", required=True, help="directory for sweep.csv, sweep.json, summary.md, sweep.png")
     add_runner_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -35,7 +35,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from agents.commands.lorr import _bad_counts, _fail, _memory, _plans, _warm_parts
+    from agents.commands.lorr_args import (bad_counts, best_row, fail, memory_options, plans_from_args, steps_for,
+                                           warm_parts)
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.lorr.sweep import DECIDERS, sweep_rows, sweep_task, write_sweep
     from agents.runner import run_tasks
@@ -43,23 +44,26 @@ def run(args) -> int:
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
     from planners.mapf import TURNING_EXECUTORS
 
-    bad = _bad_counts(args, "--steps", "--seeds")
+    bad = bad_counts(args, "--steps", "--seeds")
     if bad:
-        return _fail(bad)
+        return fail(bad)
     if args.scheduler and "," in args.scheduler:
-        return _fail(f"--scheduler {args.scheduler}: a sweep runs one scheduler (its axes are the machines); give one")
+        return fail(f"--scheduler {args.scheduler}: a sweep runs one scheduler (its axes are the machines); give one")
     try:
         grid = chip_grid(parse_axes(args.chip), chip_from_args(args, key="base_chip"))
-        plans, limit = _plans(args, grid[0][1])  # names and options checked, and that a machine decides something
-        for path, _, executor, options in plans:  # whether the planner takes the instance's team
+        # names and options checked, and that a machine decides something
+        plans, limit = plans_from_args(args, grid[0][1])
+        steps = {}
+        for path, _, executor, options in plans:  # its steps (as run's), and whether the planner takes its team
             inst = read_instance(path)
-            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **_memory(options))
+            steps[path] = steps_for(path, inst, args.steps, best_row(inst))
+            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **memory_options(options))
         run_cfg = runner_from_args(args)
         if limit is not None and run_cfg.backend != "inline" and args.jobs > 1:
             raise ValueError(f"--step-limit with --jobs {args.jobs}: runs under a clock want the cores to themselves; "
                              f"give --jobs 1")
     except (LoRRFormatError, ValueError, OSError) as exc:
-        return _fail(str(exc))
+        return fail(str(exc))
     labels, tasks = [], []
     for inst, s, ex, options in plans:
         for spec_id, (axis, chip) in enumerate(grid):
@@ -67,13 +71,13 @@ def run(args) -> int:
             for seed in range(args.seed, args.seed + args.seeds):
                 for decider in DECIDERS:
                     labels.append((spec_id, name, decider))
-                    tasks.append((inst, s, ex, args.steps, seed, chip, options, decider, limit))
+                    tasks.append((inst, s, ex, steps[inst], seed, chip, options, decider, limit))
     if not args.address:
-        _warm_parts([(s, ex) for _, s, ex, _ in plans], not args.no_progress)
+        warm_parts([(s, ex) for _, s, ex, _ in plans], not args.no_progress)
     try:
         records = run_tasks(sweep_task, tasks, run_cfg, desc="lorr sweep", unit="run")
     except ValueError as exc:  # a spec of the grid the planner refuses (e.g. fewer spins than a group needs)
-        return _fail(str(exc))
+        return fail(str(exc))
     title = f"{plans[0][1]} + {plans[0][2]} over {len(grid)} machine(s)"
     summary = write_sweep(sweep_rows(records, labels), args.out, title)
     for s in summary:

@@ -291,6 +291,28 @@ def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_p
         goals = retarget(rng, free, pos, goals)
 
 
+@pytest.mark.filterwarnings("ignore:The recursion limit will not be reset")
+def test_a_cap_of_one_push_binds_on_a_crowd_exactly_as_the_oracle_says():
+    """The property test above draws a small cap only now and then; here it certainly binds: 26 robots on 36 cells,
+    where the uncapped search (no chain can push more than the 26 robots, so 1,000 is no cap) finds a better plan
+    with more work.  With ``pushes=1`` the kernel gives the oracle's capped plan, score and work, and differs from
+    its uncapped self by exactly the oracle's difference (a kernel ignoring the cap would give the uncapped plan)."""
+    rng = np.random.default_rng(0)
+    grid, free, pos, orient, goals = random_instance(rng, 6, 6, 0.1, 0.85)
+    assert len(pos) == 26
+    got = {}
+    for cap in (1, 1000):
+        ex = ChainEPIBT(grid, seed=0, lns=100, pushes=cap)
+        expect, plan = Oracle(grid, ex.seed, lns=100, pushes=cap).actions(pos, orient, goals)
+        act = ex.actions(pos, orient, goals)
+        assert act.tolist() == expect
+        got[cap] = (int(ex.portfolio_scores[ex.kept]), int(ex.search_work[ex.kept]), plan.score, plan.work)
+    (score1, work1, oscore1, owork1), (score, work, oscore, owork) = got[1], got[1000]
+    assert (score1, work1) == (oscore1, owork1) and (score, work) == (oscore, owork)
+    assert (score - score1, work - work1) == (oscore - oscore1, owork - owork1)
+    assert score - score1 > 0 and work - work1 > 0  # the cap binds: a worse plan for less search
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_dense_crowds_move_conflict_free_and_reach_goals(seed):
     rng = np.random.default_rng(700 + seed)

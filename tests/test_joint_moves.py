@@ -10,13 +10,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ising_backend import integer_program
-from planners.mapf import TURNING_EXECUTORS, make_turning_executor
-from planners.mapf.chip.joint_executor import JointMovesPIBT
+from planners.mapf import TURNING_PLANNERS, make_turning_planner
+from planners.mapf.chip.joint_executor import JointMovesStep
 from planners.mapf.chip.joint_moves import CELL, COST, DEP, FWD, UNREAL, build_qubo, decode_reads, objective, \
     solve_exact
 
 F, R, C, W = 0, 1, 2, 3
 DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)
+
+
+def JointMovesPIBT(grid, seed=0, machine=None, **options):
+    """``pibt-ising`` (PIBT + the chip's joint next moves) on ``grid`` (``machine`` default: the emulated chip)."""
+    return make_turning_planner("pibt-ising", grid, seed=seed, machine=machine, **options)
 
 
 def crowd(seed, size=10, fill=0.6, obstacles=0.15):
@@ -51,11 +56,11 @@ def sampled_groups(seeds=range(4), steps=6, **options):
     for s in seeds:
         grid, pos, orient, goals = crowd(s)
         ex = JointMovesPIBT(grid, seed=s, accept="host", **options)
-        ex.sample = []
+        ex.machine_step.sample = []
         for _ in range(steps):
             act = ex.actions(pos, orient, goals)
             pos, orient = check_valid(grid, pos, orient, act)
-        out += ex.sample
+        out += ex.machine_step.sample
     return out
 
 
@@ -183,24 +188,24 @@ def test_executor_joint_actions_always_valid(machine):
         for _ in range(25):
             act = ex.actions(pos, orient, goals)
             pos, orient = check_valid(grid, pos, orient, act)
-        assert ex.decisions > 0
+        assert ex.machine_step.decisions > 0
 
 
 def test_deterministic_and_charged():
     runs = []
     for _ in range(2):
         grid, pos, orient, goals = crowd(3, fill=0.7)
-        ex = make_turning_executor("pibt-ising", grid, seed=5)
+        ex = make_turning_planner("pibt-ising", grid, seed=5)
         acts = []
         for _ in range(15):
             act = ex.actions(pos, orient, goals)
             acts.append(act)
             pos, orient = check_valid(grid, pos, orient, act)
         runs.append(np.array(acts))
-        assert ex.ledger.physical_calls == ex.machine.ledger.physical_calls > 0
+        assert ex.machine_step.ledger.physical_calls == ex.machine.ledger.physical_calls > 0
         assert ex.last_compute.chip_calls in (0, ex.machine.last_call.physical_calls)
     assert np.array_equal(runs[0], runs[1])
-    assert TURNING_EXECUTORS["pibt-ising"] is JointMovesPIBT
+    assert ex.kind is TURNING_PLANNERS["pibt-ising"] and isinstance(ex.machine_step, JointMovesStep)
 
 
 @pytest.mark.parametrize("kw, word", [({"max_robots": 0}, "max_robots"), ({"levels": 9}, "levels"),
@@ -226,5 +231,6 @@ def test_host_rule_flag_keeps_pibts_answer_without_a_chip_call():
         assert np.array_equal(a1, a2)
         pos, orient = check_valid(grid, pos, orient, a1)
         p2, o2 = check_valid(grid, p2, o2, a2)
-    assert host.ledger.physical_calls > 0 and host.decisions > 0
-    assert flagged.machine.ledger.physical_calls == flagged.ledger.physical_calls == flagged.decisions == 0
+    assert host.machine_step.ledger.physical_calls > 0 and host.machine_step.decisions > 0
+    step = flagged.machine_step
+    assert flagged.machine.ledger.physical_calls == step.ledger.physical_calls == step.decisions == 0

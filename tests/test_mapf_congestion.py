@@ -12,8 +12,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planners.mapf import EPIBT, TurningPIBT, make_turning_executor
+from planners.mapf import make_turning_planner
 from test_mapf_turning import apply, guided, random_instance, retarget
+
+
+def TurningPIBT(grid, seed=0, **options):
+    """PIBT with turning (the planner ``pibt``) on ``grid``."""
+    return make_turning_planner("pibt", grid, seed=seed, **options)
 
 
 @settings(max_examples=30, deadline=None)
@@ -26,12 +31,12 @@ def test_fields_computed_in_a_call_equal_the_crowd_oracle(seed, h, w, density, f
     for _ in range(4):
         at = set(pos.tolist())
         act = ex.actions(pos, orient, goals)
-        f = ex.fields
+        f = ex.source.fields
         fresh = np.flatnonzero(f.filled[:f.used] == f.calls)
         assert len(fresh) == len(np.unique(goals))  # every goal of the call: new, or refreshed
         for row in fresh.tolist():
-            want = guided(grid, int(ex.cell_of[f.goal_of[row]]), lanes, crowd=weight, occupied=at)
-            assert [int(x) for x in f.fields[row]] == [want.get(int(c), f.far) for c in ex.cell_of]
+            want = guided(grid, int(ex.site.cell_of[f.goal_of[row]]), lanes, crowd=weight, occupied=at)
+            assert [int(x) for x in f.fields[row]] == [want.get(int(c), f.far) for c in ex.site.cell_of]
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
@@ -44,14 +49,15 @@ def test_refresh_takes_robots_times_staleness_first_and_no_more():
     goals = np.array([35] * 5 + [30] * 4 + [24] * 2 + [18], dtype=np.int64)  # 5, 4, 2 and 1 robots per goal
     ex = TurningPIBT(grid, seed=1, congestion=3, refresh=2)
     ex.actions(pos, orient, goals)  # four new fields, none stale: no refresh
-    assert ex.fields.computed == 4 and ex.congestion.refreshed == 0
+    assert ex.source.fields.computed == 4 and ex.source.congestion.refreshed == 0
     ex.actions(pos, orient, goals)
-    f = ex.fields
+    f = ex.source.fields
     refreshed = sorted(int(f.goal_of[r]) for r in np.flatnonzero(f.filled[:f.used] == f.calls))
-    assert f.computed == 6 and ex.congestion.refreshed == 2 and refreshed == sorted(ex.cid[[35, 30]].tolist())
+    assert f.computed == 6 and ex.source.congestion.refreshed == 2
+    assert refreshed == sorted(ex.site.cid[[35, 30]].tolist())
     ex.actions(pos, orient, goals)  # robots x calls since computed: 35 5 x 1, 30 4 x 1, 24 2 x 2, 18 1 x 2
     refreshed = sorted(int(f.goal_of[r]) for r in np.flatnonzero(f.filled[:f.used] == f.calls))
-    assert f.computed == 8 and refreshed == sorted(ex.cid[[35, 24]].tolist())  # 30 and 24 tie: the older first
+    assert f.computed == 8 and refreshed == sorted(ex.site.cid[[35, 24]].tolist())  # 30 and 24 tie: the older first
 
 
 def test_no_congestion_changes_nothing_and_a_past_deadline_refreshes_nothing():
@@ -67,22 +73,22 @@ def test_no_congestion_changes_nothing_and_a_past_deadline_refreshes_nothing():
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert changed and zero.congestion is None and crowd.congestion.refreshed > 0
+    assert changed and zero.source.congestion is None and crowd.source.congestion.refreshed > 0
     late = TurningPIBT(grid, seed=2, congestion=4)
     late.actions(pos, orient, goals)
     act = late.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
-    assert late.congestion.refreshed == 0 and apply(grid, pos, orient, act)[2] is None
+    assert late.source.congestion.refreshed == 0 and apply(grid, pos, orient, act)[2] is None
 
 
 def test_epibt_takes_the_crowd_on_its_goal_fields_only():
     rng = np.random.default_rng(6)
     grid, free, pos, orient, goals = random_instance(rng, 8, 8, 0.1, 0.6)
-    ex = make_turning_executor("epibt", grid, seed=1, flow=False, congestion=3, lns=20)
+    ex = make_turning_planner("epibt", grid, seed=1, flow=False, congestion=3, lns=20)
     for _ in range(10):
         act = ex.actions(pos, orient, goals)
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert ex.congestion.refreshed > 0
+    assert ex.source.congestion.refreshed > 0
     with pytest.raises(ValueError, match=r"^congestion = 3 needs flow=false"):
-        EPIBT(grid, congestion=3)
+        make_turning_planner("epibt", grid, congestion=3)

@@ -10,12 +10,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planners.mapf import TURNING_EXECUTORS, EPIBT, make_turning_executor
+from planners.mapf import TURNING_PLANNERS, make_turning_planner
 from planners.mapf.epibt.plans import AUTO_OP_LEN_FILL, DEFAULT_OP_LEN
 from planners.mapf.common import mix
 from test_mapf_turning import DR, DC, F, R, C, W, apply, bfs, drive, free_neighbours, guided, random_instance, retarget
 
 FAR = 1 << 40
+
+
+def EPIBT(grid, seed=0, **options):
+    """EPIBT (the planner ``epibt``) on ``grid``."""
+    return make_turning_planner("epibt", grid, seed=seed, **options)
 
 
 def walk(grid, p, o, op):
@@ -274,13 +279,13 @@ def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, op_
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = EPIBT(grid, seed=seed, guidance=guidance, flow=False, op_len=op_len, lns=lns, group=group,
                weight_power=weight_power, portfolio=portfolio, threads=threads, anneal=anneal, steady=steady)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
+    oracle = Oracle(grid, ex.prio.seed, len(pos), guidance, op_len, lns=lns, group=group, weight_power=weight_power,
                     portfolio=portfolio, anneal=anneal, steady=steady)
     for _ in range(10):
         expect, ops = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
         assert act.tolist() == expect
-        assert [tuple(op) for op in ex.plans.tolist()] == ops
+        assert [tuple(op) for op in ex.decider.plans.tolist()] == ops
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None, err
         goals = retarget(rng, free, pos, goals)
@@ -299,11 +304,11 @@ def test_dense_crowds_get_conflict_free_plans_at_every_time(seed):
     rng = np.random.default_rng(300 + seed)
     h, w = int(rng.integers(8, 17)), int(rng.integers(8, 17))
     grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.03 * seed, 0.5 + 0.07 * seed)
-    ex = make_turning_executor("epibt", grid, seed=seed, flow=seed % 2 == 0)
+    ex = make_turning_planner("epibt", grid, seed=seed, flow=seed % 2 == 0)
 
     def check(step, pos, orient, act):
-        assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
-        assert act.tolist() == ex.plans[:, 0].tolist()
+        assert plan_conflicts(grid, pos, orient, ex.decider.plans) == [], f"step {step}"
+        assert act.tolist() == ex.decider.plans[:, 0].tolist()
 
     moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 120, check)
     assert moved > 0 and reached > 0
@@ -340,7 +345,7 @@ def test_same_seed_same_actions_and_robots_reach_goals():
 
 
 def test_registered_and_bad_options_name_the_value():
-    assert TURNING_EXECUTORS["epibt"] is EPIBT
+    assert EPIBT(np.zeros((2, 2), dtype=bool)).kind is TURNING_PLANNERS["epibt"]
     grid = np.zeros((4, 4), dtype=bool)
     for opts, word in (({"op_len": 0}, "op_len"), ({"op_len": 6}, "op_len"),
                        ({"op_len": "fast"}, r"op_len = 'fast' must be an integer in \[1, 5\] or 'auto'"),
@@ -353,9 +358,11 @@ def test_registered_and_bad_options_name_the_value():
                        ({"anneal": "hot"}, r"anneal = 'hot' must be a number in \[0, 1\]$")):
         with pytest.raises(ValueError, match=word):
             EPIBT(grid, **opts)
+    kind = TURNING_PLANNERS["epibt"]
     with pytest.raises(ValueError, match="pibt-flow keeps a field and a path"):
-        EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6)
-    EPIBT.check_team(np.zeros((100, 100), dtype=bool), 10**6, flow=False)  # goal fields: the cache makes room
+        kind.check_team(np.zeros((100, 100), dtype=bool), 10**6, kind.Options.from_dict({}, "epibt"))
+    goal_fields = kind.Options.from_dict({"flow": False}, "epibt")
+    kind.check_team(np.zeros((100, 100), dtype=bool), 10**6, goal_fields)  # goal fields: the cache makes room
 
 
 def test_the_run_command_takes_a_big_team_on_epibts_goal_fields(tmp_path):
@@ -379,9 +386,9 @@ def test_auto_op_len_follows_the_teams_share_of_free_cells(robots, op_len):
     pos, goals = free[:robots], free[::-1][:robots].copy()
     auto, fixed = EPIBT(grid, seed=3, op_len="auto"), EPIBT(grid, seed=3, op_len=op_len)
     orient = np.zeros(robots, np.int64)
-    assert auto.ops.shape[1] == DEFAULT_OP_LEN  # chosen on the first call, from its team
+    assert auto.decider.ops.shape[1] == DEFAULT_OP_LEN  # chosen on the first call, from its team
     assert auto.actions(pos, orient, goals).tolist() == fixed.actions(pos, orient, goals).tolist()
-    assert auto.ops.shape[1] == op_len and np.array_equal(auto.plans, fixed.plans)
+    assert auto.decider.ops.shape[1] == op_len and np.array_equal(auto.decider.plans, fixed.decider.plans)
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -393,9 +400,9 @@ def test_a_portfolio_keeps_its_cheapest_plan_on_any_number_of_threads(seed):
         ex = EPIBT(grid, seed=seed, portfolio=4, threads=threads, weight_power=2, lns=50)
 
         def check(step, pos, orient, act, ex=ex):
-            costs = ex.portfolio_costs
-            assert costs.shape == (4,) and int(np.argmin(costs)) == ex.kept
-            assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
+            costs = ex.decider.portfolio_costs
+            assert costs.shape == (4,) and int(np.argmin(costs)) == ex.decider.kept
+            assert plan_conflicts(grid, pos, orient, ex.decider.plans) == [], f"step {step}"
 
         acts = []
         drive(ex, grid, free, (pos, orient, goals), np.random.default_rng(seed),
@@ -405,7 +412,7 @@ def test_a_portfolio_keeps_its_cheapest_plan_on_any_number_of_threads(seed):
     single, four = EPIBT(grid, seed=seed, weight_power=2, lns=50), EPIBT(grid, seed=seed, portfolio=4, weight_power=2, lns=50)
     single.actions(pos, orient, goals)
     four.actions(pos, orient, goals)  # the same first call: plan 0 is the single plan, the kept one costs no more
-    assert four.portfolio_costs[0] == single.portfolio_costs[0] >= four.portfolio_costs.min()
+    assert four.decider.portfolio_costs[0] == single.decider.portfolio_costs[0] >= four.decider.portfolio_costs.min()
 
 
 def test_no_robots_no_actions():
@@ -426,8 +433,13 @@ def test_annealing_leaves_the_best_plan_it_met_conflict_free(anneal):
     for lns in (0, 400):
         ex = EPIBT(grid, seed=3, flow=False, lns=lns, weight_power=2, anneal=anneal)
         captured = []
-        ex._improve = captured.append  # the kept plan's state before its first actions are taken
+
+        class Capture:  # a machine step's hook: the kept plan's state before its first actions are taken
+            def improve(self, step, state, deadline):
+                captured.append(state)
+
+        ex.decider.machine_step = Capture()
         ex.actions(pos, orient, goals)
         costs[lns] = plan_cost(captured[0])
-        assert plan_conflicts(grid, pos, orient, ex.plans) == []
+        assert plan_conflicts(grid, pos, orient, ex.decider.plans) == []
     assert costs[400] <= costs[0]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import itertools
 import sys
-from collections import deque
 import time
 
 import numpy as np
@@ -13,13 +12,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ising_backend import splitmix
-from planners.mapf import TURNING_EXECUTORS, ChainEPIBT, make_turning_executor
+from planners.mapf import TURNING_PLANNERS, make_turning_planner
 from planners.mapf.common import mix
 from test_mapf_epibt import plan_conflicts, walk
 from test_mapf_turning import F, R, C, W, apply, bfs, drive, free_neighbours, random_instance, retarget
 
 FAR = 1 << 40
 GOLDEN = 0x9E3779B97F4A7C15
+
+
+def ChainEPIBT(grid, seed=0, **options):
+    """EPIBT by push chains (the planner ``epibt-chain``) on ``grid``."""
+    return make_turning_planner("epibt-chain", grid, seed=seed, **options)
 
 
 def oracle_operations():
@@ -57,37 +61,20 @@ def oracle_operations():
     return keep
 
 
-def oriented_bfs(grid, goal):
-    """Fewest actions from each (flat cell, orientation) to ``goal`` (facing any way): BFS backwards, a forward move
-    entering (v, o) from the cell behind v, a turn from (v, o -+ 1)."""
-    dist = {(goal, o): 0 for o in range(4)}
-    queue = deque(dist)
-    while queue:
-        v, o = queue.popleft()
-        behind = [u for d, u in free_neighbours(grid, v) if d == (o + 2) % 4]
-        for state in [(u, o) for u in behind] + [(v, (o + 1) % 4), (v, (o + 3) % 4)]:
-            if state not in dist:
-                dist[state] = dist[(v, o)] + 1
-                queue.append(state)
-    return dist
-
-
 class Oracle:
     """The planner as its module docstrings state it, recursively."""
 
     def __init__(self, grid, seed, lns, weight_power=2, anneal=0.001, push_built=0.2, skip=0.2, portfolio=1,
-                 oriented=False, pushes=1000):
+                 pushes=1000):
         self.grid, self.seed, self.lns, self.p = grid, seed, lns, weight_power
         self.anneal, self.push_built, self.skip, self.portfolio = anneal, push_built, skip, portfolio
-        self.oriented, self.pushes = oriented, pushes
+        self.pushes = pushes
         self.ops = oracle_operations()
         self.t = 0
 
     def to_go(self, dist, goal, c, o):
         if c == goal:
             return 0
-        if self.oriented:  # every turn on the way counted: the distance over (cell, orientation)
-            return dist.get((c, o), FAR)
         vals = [1 + dist[v] + (0 if d == o else (2 if d == (o + 2) % 4 else 1))
                 for d, v in free_neighbours(self.grid, c) if v in dist]
         return min(vals) if vals else dist.get(c, FAR)
@@ -117,7 +104,7 @@ class Oracle:
     def actions(self, pos, orient, goals):
         pos, orient, goals = pos.tolist(), orient.tolist(), goals.tolist()
         r = len(pos)
-        dist = {g: (oriented_bfs if self.oriented else bfs)(self.grid, g) for g in set(goals)}
+        dist = {g: bfs(self.grid, g) for g in set(goals)}
         cands, waits = zip(*[self.candidates(pos[k], orient[k], goals[k], dist[goals[k]]) for k in range(r)]) \
             if r else ((), ())
         way = [self.to_go(dist[goals[k]], goals[k], pos[k], orient[k]) if pos[k] != goals[k] else 0 for k in range(r)]
@@ -258,9 +245,9 @@ class Plan:
 
 def test_operations_are_the_pruned_five_action_set():
     ex = ChainEPIBT(np.zeros((3, 3), bool))
-    assert [tuple(op) for op in ex.ops.tolist()] == oracle_operations()
-    assert len(ex.ops) == 129
-    assert ex.depth.tolist() == [max(3, max((s + 1 for s, a in enumerate(op) if a != W), default=0))
+    assert [tuple(op) for op in ex.decider.ops.tolist()] == oracle_operations()
+    assert len(ex.decider.ops) == 129
+    assert ex.decider.depth.tolist() == [max(3, max((s + 1 for s, a in enumerate(op) if a != W), default=0))
                                  for op in oracle_operations()]
 
 
@@ -270,22 +257,22 @@ def test_operations_are_the_pruned_five_action_set():
        fill=st.floats(0.1, 0.9), lns=st.sampled_from([0, 20, 100]), weight_power=st.sampled_from([0, 1, 2]),
        anneal=st.sampled_from([0.0, 0.001, 0.3]), push_built=st.sampled_from([0.0, 0.2]),
        skip=st.sampled_from([0.0, 0.2]), portfolio=st.sampled_from([1, 1, 3]), threads=st.sampled_from([1, 2]),
-       oriented=st.booleans(), pushes=st.sampled_from([1000, 1000, 3]))
+       pushes=st.sampled_from([1000, 1000, 3]))
 def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, lns, weight_power, anneal, push_built, skip,
-                                        portfolio, threads, oriented, pushes):
+                                        portfolio, threads, pushes):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     opts = dict(lns=lns, weight_power=weight_power, anneal=anneal, push_built=push_built, skip=skip,
-                portfolio=portfolio, oriented=oriented, pushes=pushes)
+                portfolio=portfolio, pushes=pushes)
     ex = ChainEPIBT(grid, seed=seed, threads=threads, **opts)
-    oracle = Oracle(grid, ex.seed, **opts)
+    oracle = Oracle(grid, ex.prio.seed, **opts)
     for _ in range(6):
         expect, plan = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
         assert act.tolist() == expect
-        assert int(ex.portfolio_scores[ex.kept]) == plan.score
-        assert int(ex.search_work[ex.kept]) == plan.work
-        assert plan_conflicts(grid, pos, orient, ex.plans) == []
+        assert int(ex.decider.portfolio_scores[ex.decider.kept]) == plan.score
+        assert int(ex.decider.search_work[ex.decider.kept]) == plan.work
+        assert plan_conflicts(grid, pos, orient, ex.decider.plans) == []
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None, err
         goals = retarget(rng, free, pos, goals)
@@ -303,10 +290,11 @@ def test_a_cap_of_one_push_binds_on_a_crowd_exactly_as_the_oracle_says():
     got = {}
     for cap in (1, 1000):
         ex = ChainEPIBT(grid, seed=0, lns=100, pushes=cap)
-        expect, plan = Oracle(grid, ex.seed, lns=100, pushes=cap).actions(pos, orient, goals)
+        expect, plan = Oracle(grid, ex.prio.seed, lns=100, pushes=cap).actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
         assert act.tolist() == expect
-        got[cap] = (int(ex.portfolio_scores[ex.kept]), int(ex.search_work[ex.kept]), plan.score, plan.work)
+        d = ex.decider
+        got[cap] = (int(d.portfolio_scores[d.kept]), int(d.search_work[d.kept]), plan.score, plan.work)
     (score1, work1, oscore1, owork1), (score, work, oscore, owork) = got[1], got[1000]
     assert (score1, work1) == (oscore1, owork1) and (score, work) == (oscore, owork)
     assert (score - score1, work - work1) == (oscore - oscore1, owork - owork1)
@@ -325,7 +313,7 @@ def test_dense_crowds_move_conflict_free_and_reach_goals(seed):
     ex = ChainEPIBT(grid, seed=seed, lns=500)
 
     def check(step, p, o, act):
-        assert plan_conflicts(grid, p, o, ex.plans) == []
+        assert plan_conflicts(grid, p, o, ex.decider.plans) == []
 
     moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 40, check)
     assert moved > 0 and reached > 0
@@ -341,9 +329,9 @@ def test_search_in_clocked_batches_is_the_one_search():
         a = free_run.actions(pos, orient, goals)
         b = clocked.actions(pos, orient, goals, deadline=time.perf_counter() + 600)
         assert a.tolist() == b.tolist()
-        assert free_run.portfolio_scores.tolist() == clocked.portfolio_scores.tolist()
-        assert free_run.search_work.tolist() == clocked.search_work.tolist()
-        assert clocked.search_batches > free_run.search_batches  # the first batch was cut by its budget
+        assert free_run.decider.portfolio_scores.tolist() == clocked.decider.portfolio_scores.tolist()
+        assert free_run.decider.search_work.tolist() == clocked.decider.search_work.tolist()
+        assert clocked.decider.search_batches > free_run.decider.search_batches  # the first batch was cut by its budget
         pos, orient, err = apply(grid, pos, orient, a)
         assert err is None, err
         goals = retarget(rng, free, pos, goals)
@@ -358,40 +346,12 @@ def test_same_seed_same_actions_on_any_threads():
 
 
 def test_registered_and_bad_options_name_the_value():
-    assert TURNING_EXECUTORS["epibt-chain"] is ChainEPIBT
-    ex = make_turning_executor("epibt-chain", np.zeros((4, 4), bool), seed=1, lns=5)
+    assert ChainEPIBT(np.zeros((2, 2), bool)).kind is TURNING_PLANNERS["epibt-chain"]
+    ex = make_turning_planner("epibt-chain", np.zeros((4, 4), bool), seed=1, lns=5)
     assert ex.options.lns == 5
     with pytest.raises(ValueError, match="skip"):
         ChainEPIBT(np.zeros((4, 4), bool), skip=1.5)
     with pytest.raises(ValueError, match="revisits"):
         ChainEPIBT(np.zeros((4, 4), bool), revisits=3)
-    with pytest.raises(ValueError, match="oriented=true needs flow=false and congestion=0.*congestion=2"):
-        ChainEPIBT(np.zeros((4, 4), bool), oriented=True, congestion=2)
     with pytest.raises(ValueError, match="rest"):
         ChainEPIBT(np.zeros((4, 4), bool), active_by="task").actions(np.array([0]), np.array([0]), np.array([5]))
-
-
-def test_oriented_cost_counts_every_turn_on_the_way():
-    """A lone robot from (0, 5) facing west to (3, 2): ranked by the first turn's cost-to-go it takes a way of two more
-    turns than it needs; over (cell, orientation) it arrives in the fewest actions there are."""
-    grid = np.zeros((5, 6), bool)
-    grid[1, 3] = grid[2, 5] = grid[4, 2] = grid[4, 5] = True
-    start, goal = 5, 20
-
-    def trip(**options):
-        ex = ChainEPIBT(grid, lns=0, **options)
-        pos, orient, goals = np.array([start]), np.array([2]), np.array([goal])
-        for n in range(1, 30):
-            pos, orient = ex.step(pos, orient, goals)
-            # the goal's field over cells computed only where the plan reads it (once; none under ``oriented``),
-            # the field over (cell, orientation) only under it
-            oriented = options.get("oriented", False)
-            assert ex.fields.computed == (0 if oriented else 1)
-            assert (ex.ofields.computed if oriented else ex.ofields) == (1 if oriented else None)
-            if pos[0] == goal:
-                return n
-        return None
-
-    assert oriented_bfs(grid, goal)[(start, 2)] == 7
-    assert trip(oriented=True) == 7
-    assert trip() == 8

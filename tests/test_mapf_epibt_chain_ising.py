@@ -7,9 +7,19 @@ import numpy as np
 import pytest
 
 from ising_backend import CallLedger, EmulatedChip
-from planners.mapf import TURNING_EXECUTORS, ChainEPIBT, ChainEPIBTIsing
+from planners.mapf import make_turning_planner
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
+
+
+def ChainEPIBT(grid, seed=0, **options):
+    """EPIBT by push chains (the planner ``epibt-chain``) on ``grid``."""
+    return make_turning_planner("epibt-chain", grid, seed=seed, **options)
+
+
+def ChainEPIBTIsing(grid, seed=0, machine=None, **options):
+    """``epibt-chain-ising`` on ``grid`` (``machine`` default: the paper's emulated chip)."""
+    return make_turning_planner("epibt-chain-ising", grid, seed=seed, machine=machine, **options)
 
 
 def world(seed, size=10, fill=0.75):
@@ -24,27 +34,27 @@ def test_rounds_raise_the_chain_plan_conflict_free_and_charges_equal_the_ledger(
     rng, (grid, free, pos, orient, goals) = world(5)
     chip = EmulatedChip(seed=3)
     base = ChainEPIBT(grid, seed=2, lns=0)
-    ex = TURNING_EXECUTORS["epibt-chain-ising"](grid, seed=2, machine=chip, decider=decider, groups=8, rounds=4)
+    ex = make_turning_planner("epibt-chain-ising", grid, seed=2, machine=chip, decider=decider, groups=8, rounds=4)
     calls = 0
     rose = 0
     for step in range(25):
         before = chip.ledger.physical_calls
         act = ex.actions(pos, orient, goals)
         base.actions(pos, orient, goals)
-        assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
-        assert ex.portfolio_scores.tolist() == base.portfolio_scores.tolist()  # the same construction
-        assert ex.plan_score >= base.plan_score
-        rose += ex.plan_score > base.plan_score
+        assert plan_conflicts(grid, pos, orient, ex.decider.plans) == [], f"step {step}"
+        assert ex.decider.portfolio_scores.tolist() == base.decider.portfolio_scores.tolist()  # the same construction
+        assert ex.decider.plan_score >= base.decider.plan_score
+        rose += ex.decider.plan_score > base.decider.plan_score
         calls += ex.last_compute.chip_calls
         assert ex.last_compute.chip_calls == chip.ledger.physical_calls - before
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert ex.stats["decisions"] > 0 and ex.stats["applied"] > 0 and rose > 0
+    assert ex.machine_step.stats["decisions"] > 0 and ex.machine_step.stats["applied"] > 0 and rose > 0
     if decider == "chip":
-        assert calls == ex.ledger.physical_calls == chip.ledger.physical_calls > 0
+        assert calls == ex.machine_step.ledger.physical_calls == chip.ledger.physical_calls > 0
     else:
-        assert ex.machine is None and ex.ledger == CallLedger() and chip.ledger.physical_calls == 0
+        assert ex.machine is None and ex.machine_step.ledger == CallLedger() and chip.ledger.physical_calls == 0
 
 
 def test_the_score_is_the_recount_of_the_choices():
@@ -54,18 +64,22 @@ def test_the_score_is_the_recount_of_the_choices():
     ex = ChainEPIBTIsing(grid, seed=4, decider="host", groups=16, rounds=8)
     seen = []
 
-    def recount(plan, cand, gain, busy):
-        ChainEPIBTIsing._improve_plan(ex, plan, cand, gain, busy)
+    rounds = ex.machine_step.improve
+
+    def recount(decider, plan, ranked, deadline):
+        rounds(decider, plan, ranked, deadline)
+        cand, gain = ranked.cand, ranked.gain
         ops = np.where(plan.choice >= 0, cand.op[np.arange(len(plan.choice)), np.maximum(plan.choice, 0)], -1)
         seen.append((int(plan.score[0]), int(sum(gain[k, c] for k, c in enumerate(plan.choice) if c >= 0)),
                      ops.tolist()))
 
-    ex._improve_plan = recount
+    ex.machine_step.improve = recount
     for _ in range(6):
         act = ex.actions(pos, orient, goals)
         score, counted, ops = seen[-1]
-        assert score == counted == ex.plan_score
-        assert [tuple(ex.ops[o]) if o >= 0 else (3,) * 5 for o in ops] == [tuple(p) for p in ex.plans.tolist()]
+        assert score == counted == ex.decider.plan_score
+        d = ex.decider
+        assert [tuple(d.ops[o]) if o >= 0 else (3,) * 5 for o in ops] == [tuple(p) for p in d.plans.tolist()]
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
@@ -86,9 +100,9 @@ def test_host_rule_flag_is_the_host_twin_without_a_chip_call():
         pos, orient, err = apply(grid, pos, orient, a1)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert flagged.stats["decisions"] == host.stats["decisions"] > 0
-    assert flagged.stats["applied"] == host.stats["applied"]
-    assert chip.ledger.physical_calls == flagged.ledger.physical_calls == 0
+    assert flagged.machine_step.stats["decisions"] == host.machine_step.stats["decisions"] > 0
+    assert flagged.machine_step.stats["applied"] == host.machine_step.stats["applied"]
+    assert chip.ledger.physical_calls == flagged.machine_step.ledger.physical_calls == 0
 
 
 def test_only_robots_with_a_goal_start_groups(monkeypatch):
@@ -131,7 +145,7 @@ def audited_twice(make, instance, audit_dir, decision: str, steps: int = 8) -> N
                 acts.append(a.tolist())
                 p, o, _ = apply(grid, p, o, a)
                 g = retarget(r2, free, p, g)
-        runs.append((acts, ex.stats["decisions"], ex.ledger.physical_calls))
+        runs.append((acts, ex.machine_step.stats["decisions"], ex.machine_step.ledger.physical_calls))
     assert runs[0] == runs[1]
     records = read_records(audit_dir)
     assert {r["class"] for r in records} == {decision}

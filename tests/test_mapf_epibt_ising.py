@@ -9,19 +9,28 @@ import numpy as np
 import pytest
 
 from ising_backend import CallLedger, EmulatedChip
-from planners.mapf import TURNING_EXECUTORS, EPIBT, EPIBTIsing
+from planners.mapf import make_turning_planner
 from planners.mapf.common import GroupBatch, mix
-from planners.mapf.chip.epibt_ising import decode_choice, greedy_choice, group_qubo, select_groups
-from planners.mapf.chip.group_kernels import GroupShape
+from planners.mapf.chip.group_kernels import GroupShape, decode_choice, greedy_choice, group_qubo, select_groups
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
 
 
-class Capture(EPIBT):
-    """EPIBT that keeps a copy of each call's plan state and reservation table."""
+def EPIBT(grid, seed=0, **options):
+    """EPIBT (the planner ``epibt``) on ``grid``."""
+    return make_turning_planner("epibt", grid, seed=seed, **options)
 
-    def _improve(self, state):
-        self.captured = (type(state)(*(a.copy() for a in state)), self._res.copy())
+
+def EPIBTIsing(grid, seed=0, machine=None, **options):
+    """``epibt-ising`` on ``grid`` (``machine`` default: the paper's emulated chip)."""
+    return make_turning_planner("epibt-ising", grid, seed=seed, machine=machine, **options)
+
+
+class Capture:
+    """A machine step that keeps a copy of each call's plan state and reservation table (and changes nothing)."""
+
+    def improve(self, decider, state, deadline):
+        self.captured = (type(state)(*(a.copy() for a in state)), decider.res.copy())
 
 
 def collide(p, q):
@@ -31,10 +40,11 @@ def collide(p, q):
 def captured_states(seed, steps=8):
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.12, 0.7)
-    ex = Capture(grid, seed=seed, lns=0)
+    ex = EPIBT(grid, seed=seed, lns=0)
+    capture = ex.decider.machine_step = Capture()
     for _ in range(steps):
         act = ex.actions(pos, orient, goals)
-        yield ex.captured
+        yield capture.captured
         pos, orient, _ = apply(grid, pos, orient, act)
         goals = retarget(rng, free, pos, goals)
 
@@ -179,23 +189,23 @@ def test_plans_stay_conflict_free_and_charges_equal_the_ledger(decider):
     rng = np.random.default_rng(5)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
     chip = EmulatedChip(seed=3)
-    ex = TURNING_EXECUTORS["epibt-ising"](grid, seed=2, machine=chip, decider=decider, lns=0, groups=8)
+    ex = make_turning_planner("epibt-ising", grid, seed=2, machine=chip, decider=decider, lns=0, groups=8)
     calls = 0
     for step in range(40):
         before = chip.ledger.physical_calls if decider == "chip" else 0
         act = ex.actions(pos, orient, goals)
-        assert plan_conflicts(grid, pos, orient, ex.plans) == [], f"step {step}"
+        assert plan_conflicts(grid, pos, orient, ex.decider.plans) == [], f"step {step}"
         if decider == "chip":
             assert ex.last_compute.chip_calls == chip.ledger.physical_calls - before
             calls += ex.last_compute.chip_calls
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert ex.stats["decisions"] > 0
+    assert ex.machine_step.stats["decisions"] > 0
     if decider == "chip":
-        assert calls == ex.ledger.physical_calls == chip.ledger.physical_calls > 0
+        assert calls == ex.machine_step.ledger.physical_calls == chip.ledger.physical_calls > 0
     else:
-        assert ex.machine is None and ex.ledger == CallLedger()
+        assert ex.machine is None and ex.machine_step.ledger == CallLedger()
 
 
 @pytest.mark.parametrize("name", ["epibt-ising", "pibt-ising"])
@@ -216,7 +226,7 @@ def test_programs_take_the_machines_own_coefficient_range(name, limit):
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
     chip = Recording(spec=ChipSpec(h_range=(-limit, limit), j_range=(-limit, limit)), seed=3)
     opts = {"lns": 0, "groups": 8} if name == "epibt-ising" else {}
-    ex = TURNING_EXECUTORS[name](grid, seed=2, machine=chip, **opts)
+    ex = make_turning_planner(name, grid, seed=2, machine=chip, **opts)
     for _ in range(15):
         act = ex.actions(pos, orient, goals)
         pos, orient, err = apply(grid, pos, orient, act)
@@ -241,7 +251,8 @@ def test_min_gain_holds_back_small_gains(decider):
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert held.stats["decisions"] > 0 and held.stats["applied"] == 0 and free_.stats["applied"] > 0
+    held_stats = held.machine_step.stats
+    assert held_stats["decisions"] > 0 and held_stats["applied"] == 0 and free_.machine_step.stats["applied"] > 0
 
 
 def test_same_seed_same_plans_and_bad_options():
@@ -279,7 +290,7 @@ def test_the_audit_records_every_decision_and_changes_no_action(tmp_path):
         finally:
             if ctx:
                 ctx.__exit__(None, None, None)
-        runs.append((acts, ex.stats["decisions"], ex.ledger.physical_calls))
+        runs.append((acts, ex.machine_step.stats["decisions"], ex.machine_step.ledger.physical_calls))
     assert runs[0] == runs[1]
     records = read_records(tmp_path / "audit")
     assert {r["class"] for r in records} == {"lns_groups"}
@@ -305,9 +316,9 @@ def test_host_rule_flag_takes_the_searchs_greedy_without_a_chip_call():
         pos, orient, err = apply(grid, pos, orient, a1)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert flagged.stats["decisions"] == host.stats["decisions"] > 0
-    assert flagged.stats["applied"] == host.stats["applied"] > 0
-    assert chip.ledger.physical_calls == flagged.ledger.physical_calls == 0
+    assert flagged.machine_step.stats["decisions"] == host.machine_step.stats["decisions"] > 0
+    assert flagged.machine_step.stats["applied"] == host.machine_step.stats["applied"] > 0
+    assert chip.ledger.physical_calls == flagged.machine_step.ledger.physical_calls == 0
 
 
 @pytest.mark.parametrize("decider", ["chip", "host"])
@@ -335,13 +346,15 @@ def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, mo
 
     one = EPIBTIsing(grid, seed=2, machine=EmulatedChip(seed=3), decider=decider, lns=0, groups=4)
     many = EPIBTIsing(grid, seed=2, machine=chip, decider=decider, lns=0, groups=4, rounds=6)
-    inner = many.rounds_.round
+    rounds = many.machine_step.rounds_
+    inner = rounds.round
 
     def costed(state, res, when, seeds):
         k = when[1]
         if k > 0:
-            same = groups_of(state, res.copy(), seed=many.seed, t=many.t,
-                             limits=(many.n_groups, many.max_robots, many.max_options, many.max_spins))
+            lim = rounds.limits
+            same = groups_of(state, res.copy(), seed=many.prio.seed, t=many.prio.t,
+                             limits=(lim.groups, lim.max_robots, lim.max_options, lim.max_spins))
             n = len(posed)
         call = inner(state, res, when, seeds)
         if k > 0:
@@ -349,31 +362,32 @@ def test_rounds_pose_fresh_groups_on_the_plan_the_rounds_before_left(decider, mo
         costs.append((k, sum(cost(state, q, c) for q, c in enumerate(state.src.tolist()))))
         return call
 
-    many.rounds_.round = costed
+    rounds.round = costed
     for step in range(25):
         first = one.actions(pos, orient, goals)
         before = chip.ledger.physical_calls
         act = many.actions(pos, orient, goals)
-        assert plan_conflicts(grid, pos, orient, many.plans) == [], f"step {step}"
+        assert plan_conflicts(grid, pos, orient, many.decider.plans) == [], f"step {step}"
         if decider == "chip":
             assert many.last_compute.chip_calls == chip.ledger.physical_calls - before
         if step == 0:
-            assert costs[0][0] == 0 and many.stats["decisions"] >= one.stats["decisions"]
+            assert costs[0][0] == 0 and many.machine_step.stats["decisions"] >= one.machine_step.stats["decisions"]
         pos, orient, err = apply(grid, pos, orient, first)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-        many.inherited[:] = 3  # both start each step from the same state: the single round's walk
-        many._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-        one._expect = many._expect
+        many.decider.inherited[:] = 3  # both start each step from the same state: the single round's walk
+        many.decider._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        one.decider._expect = many.decider._expect
     run = [c for k, c in costs]
     ks = [k for k, c in costs]
-    assert many.stats["rounds"] == len(costs) > 25 and max(ks) == 5
+    assert many.machine_step.stats["rounds"] == len(costs) > 25 and max(ks) == 5
     for i in range(1, len(costs)):
         if ks[i] > 0:
             assert run[i] <= run[i - 1], (i, run[i - 1], run[i])
-    assert many.stats["applied"] > one.stats["applied"] and any(fresh)
+    assert many.machine_step.stats["applied"] > one.machine_step.stats["applied"] and any(fresh)
     if decider == "chip":
-        assert many.ledger.physical_calls == chip.ledger.physical_calls > one.ledger.physical_calls
+        assert many.machine_step.ledger.physical_calls == chip.ledger.physical_calls \
+            > one.machine_step.ledger.physical_calls
 
 
 def test_rounds_stop_at_the_deadline_and_bad_rounds_are_named():
@@ -383,9 +397,9 @@ def test_rounds_stop_at_the_deadline_and_bad_rounds_are_named():
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
     ex = EPIBTIsing(grid, seed=2, lns=0, groups=4, rounds=50, decider="host")
     ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
-    assert ex.stats["rounds"] == 1  # the first round always runs
+    assert ex.machine_step.stats["rounds"] == 1  # the first round always runs
     ex.actions(pos, orient, goals)
-    assert ex.stats["rounds"] > 2
+    assert ex.machine_step.stats["rounds"] > 2
     for bad in (0, 4097, 1.5, True):
         with pytest.raises(ValueError, match=f"rounds .*{bad!r}"):
             EPIBTIsing(grid, rounds=bad)

@@ -12,11 +12,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planners.mapf import TURNING_EXECUTORS, FlowPIBT, make_turning_executor
+from planners.mapf import TURNING_PLANNERS, make_turning_planner
 from planners.mapf.guides.flow import astar_scratch, flow_astar, path_field
 from planners.mapf.common import compact_grid, move_grid
 from test_mapf_turning import Oracle, apply, random_instance, retarget
 from test_mapf_turning import free_neighbours as neighbours
+
+
+def FlowPIBT(grid, seed=0, **options):
+    """PIBT with turning along traffic-flow guide paths (the planner ``pibt-flow``) on ``grid``."""
+    return make_turning_planner("pibt-flow", grid, seed=seed, **options)
 
 
 def move_weight(grid, flow, u, d, v):
@@ -116,11 +121,11 @@ def test_pibt_follows_the_guide_fields_and_the_flow_is_the_paths(seed, h, w, den
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = FlowPIBT(grid, seed=seed, replans=replans, commits=commits)
-    oracle = FlowOracle(grid, ex.seed, len(pos), commits=commits)
-    cell_of = ex.cell_of
+    oracle = FlowOracle(grid, ex.prio.seed, len(pos), commits=commits)
+    cell_of = ex.site.cell_of
     for _ in range(10):
         act = ex.actions(pos, orient, goals)
-        g = ex.guide
+        g = ex.source.guide
         oracle.fields = []
         for k in range(len(pos)):
             path = [int(cell_of[v]) for v in g.paths[k, :g.lengths[k]]]
@@ -129,10 +134,10 @@ def test_pibt_follows_the_guide_fields_and_the_flow_is_the_paths(seed, h, w, den
         recount = np.zeros_like(g.flow)
         for k in range(len(pos)):
             for u, v in zip(g.paths[k, :g.lengths[k] - 1], g.paths[k, 1:g.lengths[k]]):
-                recount[u, list(ex.nbr[u]).index(v)] += 1
+                recount[u, list(ex.site.nbr[u]).index(v)] += 1
         assert np.array_equal(recount, g.flow)
         expect, targets = oracle.actions(pos, orient, goals)
-        assert act.tolist() == expect and ex.targets.tolist() == targets
+        assert act.tolist() == expect and ex.decider.targets.tolist() == targets
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None, err
         goals = retarget(rng, free, pos, goals)
@@ -144,11 +149,11 @@ def test_new_goals_replan_first_and_replans_bounds_the_rest():
     goals = np.array([35, 30, 5, 0])
     ex = FlowPIBT(grid, seed=1, replans=1)
     ex.actions(pos, orient, goals)
-    assert ex.guide.replanned == 4  # four new goals, none left to re-plan
+    assert ex.source.guide.replanned == 4  # four new goals, none left to re-plan
     ex.actions(pos, orient, goals)
-    assert ex.guide.replanned == 5  # no new goal: one more
+    assert ex.source.guide.replanned == 5  # no new goal: one more
     ex.actions(pos, orient, np.array([35, 30, 5, 1]))
-    assert ex.guide.replanned == 7  # robot 3's new goal, then one more
+    assert ex.source.guide.replanned == 7  # robot 3's new goal, then one more
 
 
 def _trace(ex, grid, state, steps, redraw=None):
@@ -175,12 +180,12 @@ def test_robots_reach_their_goals_and_same_seed_same_run():
     runs = []
     for _ in range(2):
         pos, goals, orient = cells[:12], cells[12:], np.zeros(12, dtype=np.int64)
-        ex = make_turning_executor("pibt-flow", grid, seed=5)
+        ex = make_turning_planner("pibt-flow", grid, seed=5)
         trace, pos = _trace(ex, grid, (pos, orient, goals), 120)
         assert np.array_equal(pos, goals)
         runs.append(trace)
     assert runs[0] == runs[1]
-    assert TURNING_EXECUTORS["pibt-flow"] is FlowPIBT and ex.name == "pibt-flow"
+    assert ex.kind is TURNING_PLANNERS["pibt-flow"] and ex.name == "pibt-flow"
 
 
 def test_dense_crowds_only_get_valid_joint_actions():
@@ -202,9 +207,10 @@ def test_bad_options_name_the_value():
     ex = FlowPIBT(grid, field_bytes=100)
     with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
         ex.actions(np.array([0, 1, 2]), np.zeros(3, dtype=np.int64), np.array([5, 6, 7]))
+    kind = TURNING_PLANNERS["pibt-flow"]
     with pytest.raises(ValueError, match=r"3 robots x 16 free cells need 288 bytes, over field_bytes = 100"):
-        FlowPIBT.check_team(grid, 3, field_bytes=100)
-    FlowPIBT.check_team(grid, 3)  # fits the default bound
+        kind.check_team(grid, 3, kind.Options.from_dict({"field_bytes": 100}, "pibt-flow"))
+    kind.check_team(grid, 3, kind.Options.from_dict({}, "pibt-flow"))  # fits the default bound
 
 
 def _goal_field(grid, goal):
@@ -220,18 +226,18 @@ def test_guide_work_bounds_the_searches_and_robots_waiting_follow_their_goal_fie
     goals = free[[30, 28, 26, 24, 22, 20]].astype(np.int64)
     orient = np.zeros(6, dtype=np.int64)
     ex = FlowPIBT(grid, seed=4, replans=0, guide_work=1)  # one search per call: the check comes before a robot
-    g = ex.guide
+    g = ex.source.guide
     for call in range(1, 4):
         ex.actions(pos, orient, goals)
         assert g.replanned == call and np.flatnonzero(g.fresh).tolist() == list(range(call))
         for k in range(6):
-            path = [int(ex.cell_of[v]) for v in g.paths[k, :g.lengths[k]]]
+            path = [int(ex.site.cell_of[v]) for v in g.paths[k, :g.lengths[k]]]
             want = guide_field(grid, path) if g.fresh[k] else _goal_field(grid, goals[k])  # a waiting robot: its goal's field
-            assert {int(ex.cell_of[v]): int(g.fields[k, v]) for v in range(len(ex.cell_of))} == want
+            assert {int(ex.site.cell_of[v]): int(g.fields[k, v]) for v in range(len(ex.site.cell_of))} == want
         recount = np.zeros_like(g.flow)
         for k in range(6):
             for u, v in zip(g.paths[k, :g.lengths[k] - 1], g.paths[k, 1:g.lengths[k]]):
-                recount[u, list(ex.nbr[u]).index(v)] += 1
+                recount[u, list(ex.site.nbr[u]).index(v)] += 1
         assert np.array_equal(recount, g.flow)
     assert g.late == 5 + 4 + 3  # robot-calls spent waiting
     goals = goals.copy()
@@ -246,15 +252,15 @@ def test_goal_fields_not_computed_yet_leave_a_waiting_robot_on_manhattan_distanc
     goals = np.array([24, 12, 2])
     ex = FlowPIBT(grid, seed=0, replans=0, guide_work=1, bfs_budget=1)  # one goal field and one search per call
     heuristic_rows = []
-    real = ex.guide.update
-    ex.guide.update = lambda *a: heuristic_rows.append(real(*a)) or heuristic_rows[-1]
+    real = ex.source.guide.update
+    ex.source.guide.update = lambda *a: heuristic_rows.append(real(*a)) or heuristic_rows[-1]
     for call in range(3):
         ex.actions(pos, orient, goals)
-        has_field = ex.fields.row_of[ex.cid[goals]] >= 0
+        has_field = ex.source.fields.row_of[ex.site.cid[goals]] >= 0
         assert has_field.sum() == call + 1  # one new goal field a call
-        expect = [k if ex.guide.fresh[k] or has_field[k] else -1 for k in range(3)]
+        expect = [k if ex.source.guide.fresh[k] or has_field[k] else -1 for k in range(3)]
         assert heuristic_rows[call].tolist() == expect
-        assert ex.guide.fresh.tolist() == [k <= call for k in range(3)]
+        assert ex.source.guide.fresh.tolist() == [k <= call for k in range(3)]
         if call == 0:
             assert -1 in expect  # a waiting robot whose goal has no field yet: Manhattan distance
 
@@ -266,7 +272,7 @@ def test_longer_paths_grow_the_rows_and_wider_values_the_dtype_with_the_same_run
         rng = np.random.default_rng(8)
         grid, free, pos, orient, goals = random_instance(rng, h, w, 0.2, 0.3)
         ex = FlowPIBT(grid, seed=3)
-        return _trace(ex, grid, (pos, orient, goals), 25, (rng, free))[0], ex.guide
+        return _trace(ex, grid, (pos, orient, goals), 25, (rng, free))[0], ex.source.guide
 
     plain, guide = run()
     assert guide.paths.shape[1] == min(flow.FIRST_PATH_CELLS, len(guide.cell_of)) and guide.dtype == np.uint16
@@ -285,14 +291,14 @@ def test_under_a_clock_past_its_stop_no_path_is_planned_and_the_actions_stay_val
     rng = np.random.default_rng(2)
     grid, free, pos, orient, goals = random_instance(rng, 9, 9, 0.1, 0.4)
     for name in ("pibt-flow", "epibt"):  # EPIBT ranks by the same guide paths and keeps the same stop
-        ex = make_turning_executor(name, grid, seed=1)
+        ex = make_turning_planner(name, grid, seed=1)
         act = ex.actions(pos, orient, goals, deadline=time.perf_counter() - 1.0)
-        assert ex.guide.replanned == 0 and not ex.guide.fresh.any(), name
+        assert ex.source.guide.replanned == 0 and not ex.source.guide.fresh.any(), name
         _pos, _orient, err = apply(grid, pos, orient, act)
         assert err is None, name
-        late = make_turning_executor(name, grid, seed=1)
+        late = make_turning_planner(name, grid, seed=1)
         late.actions(pos, orient, goals, deadline=time.perf_counter() + 60.0)  # far off: every path planned
-        assert late.guide.fresh.all(), name
+        assert late.source.guide.fresh.all(), name
 
 
 @pytest.mark.parametrize("bad", [0, -3, 1.5, True, "many"])
@@ -301,4 +307,4 @@ def test_bad_guide_work_names_the_value(bad):
     with pytest.raises(ValueError, match=rf"guide_work = {re.escape(repr(bad))} must be an integer in \[1, 1099511627776\] or null$"):
         FlowPIBT(grid, guide_work=bad)
     with pytest.raises(ValueError, match="guide_work = "):
-        make_turning_executor("epibt", grid, guide_work=bad)
+        make_turning_planner("epibt", grid, guide_work=bad)

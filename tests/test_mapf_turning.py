@@ -12,12 +12,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lanes_reference import corridor_cost, lane_cost
-from planners.mapf import TURNING_EXECUTORS, TurningPIBT, make_turning_executor
+from planners.mapf import TURNING_PLANNERS, TurningPlanner, make_turning_planner
 from planners.mapf.common import mix
 
 F, R, C, W = 0, 1, 2, 3
 DR, DC = (0, 1, 0, -1), (1, 0, -1, 0)  # east, south, west, north
 FAR = 1 << 40
+
+
+def TurningPIBT(grid, seed=0, **options):
+    """PIBT with turning (the planner ``pibt``) on ``grid``."""
+    return make_turning_planner("pibt", grid, seed=seed, **options)
 
 
 # ---------------------------------------------------------------- independent rules of the action model
@@ -222,12 +227,12 @@ def test_kernel_equals_recursive_oracle(seed, h, w, density, fill, guidance, com
     rng = np.random.default_rng(seed)
     grid, free, pos, orient, goals = random_instance(rng, h, w, density, fill)
     ex = TurningPIBT(grid, seed=seed, guidance=guidance, commits=commits)
-    oracle = Oracle(grid, ex.seed, len(pos), guidance, commits)
+    oracle = Oracle(grid, ex.prio.seed, len(pos), guidance, commits)
     for _ in range(12):
         expect, targets = oracle.actions(pos, orient, goals)
         act = ex.actions(pos, orient, goals)
         assert act.tolist() == expect
-        assert ex.targets.tolist() == targets
+        assert ex.decider.targets.tolist() == targets
         pos, orient, err = apply(grid, pos, orient, act)
         assert err is None, err
         goals = retarget(rng, free, pos, goals)
@@ -239,7 +244,7 @@ def test_dense_crowds_only_get_valid_joint_actions(seed):
     h, w = int(rng.integers(10, 21)), int(rng.integers(10, 21))
     grid, free, pos, orient, goals = random_instance(rng, h, w, 0.1 + 0.04 * seed, 0.6)
     budget = {"bfs_budget": 1} if seed % 2 else {}  # odd seeds: one new goal field per call, Manhattan meanwhile
-    ex = make_turning_executor("pibt", grid, seed=seed, **budget)
+    ex = make_turning_planner("pibt", grid, seed=seed, **budget)
     moved, reached = drive(ex, grid, free, (pos, orient, goals), rng, 150)
     assert moved > 0 and reached > 0
 
@@ -257,8 +262,8 @@ def test_a_robot_leaving_a_dead_end_overtakes_one_waiting_to_enter():
     grid = np.array([[1, 1, 0, 1, 1], [0, 0, 0, 0, 0]], dtype=bool)  # cell 2 is a dead end above cell 7
     pos, orient, goals = np.array([2, 7]), np.array([1, 3]), np.array([9, 2])  # X out to 9, Y into 2
     ex = TurningPIBT(grid, seed=0, guidance=0)  # X's way east runs against row 1's lane: plain distances here
-    ex.order(2)
-    ex.elapsed[:] = [0, 50]  # Y first: it cannot push X out (X's only way out is Y's cell)
+    ex.prio.order(2)
+    ex.prio.elapsed[:] = [0, 50]  # Y first: it cannot push X out (X's only way out is Y's cell)
     for _ in range(20):
         pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
         assert err is None
@@ -281,7 +286,7 @@ def test_robots_reach_their_goals_on_an_open_map(bfs_budget):
         if np.array_equal(pos, goals):
             break
     assert np.array_equal(pos, goals)
-    assert ex.fields.computed == 12 and (ex.fields.per_call == 1) == (bfs_budget == 1)
+    assert ex.source.fields.computed == 12 and (ex.source.fields.per_call == 1) == (bfs_budget == 1)
 
 
 def test_same_seed_same_actions_and_a_small_field_cache_changes_nothing():
@@ -299,14 +304,14 @@ def test_same_seed_same_actions_and_a_small_field_cache_changes_nothing():
             goals = retarget(r, free, pos, goals)
         runs.append(seq)
     assert runs[0] == runs[1] == runs[2]
-    assert ex.fields.computed > len(np.unique(goals0))  # fields were evicted and recomputed
+    assert ex.source.fields.computed > len(np.unique(goals0))  # fields were evicted and recomputed
 
 
 def test_maps_of_65535_free_cells_or_more_use_uint32_fields():
     grid = np.zeros((256, 256), dtype=bool)
     pos, orient, goals = np.array([0, 300, 65535]), np.array([0, 1, 2]), np.array([5, 300 + 256 * 4, 65535 - 3])
     ex = TurningPIBT(grid, guidance=0)  # plain BFS: a distance may reach the cell count
-    assert ex.fields.dtype == np.uint32
+    assert ex.source.fields.dtype == np.uint32
     for _ in range(12):
         pos, orient, err = apply(grid, pos, orient, ex.actions(pos, orient, goals))
         assert err is None
@@ -334,9 +339,9 @@ def test_bad_input_names_the_value():
     for bad in (-1, 17, 2.5, True, "3"):
         with pytest.raises(ValueError, match=rf"guidance = {re.escape(repr(bad))} must be an integer in \[0, 16\]$"):
             TurningPIBT(grid, guidance=bad)
-    with pytest.raises(ValueError, match="unknown turning executor 'cbs'; known: pibt"):
-        make_turning_executor("cbs", grid)
-    assert TURNING_EXECUTORS["pibt"] is TurningPIBT and ex.name == "pibt"
+    with pytest.raises(ValueError, match="unknown planner 'cbs'; known: pibt"):
+        make_turning_planner("cbs", grid)
+    assert TURNING_PLANNERS["pibt"] is ex.kind and isinstance(ex, TurningPlanner) and ex.name == "pibt"
 
 
 @pytest.mark.parametrize("guidance", [1, 4])
@@ -345,18 +350,18 @@ def test_guided_fields_equal_the_lane_cost_oracle(guidance):
     grid = rng.random((7, 9)) < 0.25
     grid[0, 0] = False
     ex = TurningPIBT(grid, guidance=guidance)
-    goals = np.arange(len(ex.cell_of))
-    rows = ex.fields.rows(goals, goals)
+    goals = np.arange(len(ex.site.cell_of))
+    rows = ex.source.fields.rows(goals, goals)
     for gc, row in zip(goals.tolist(), rows.tolist()):
-        want = guided(grid, int(ex.cell_of[gc]), guidance)
-        got = ex.fields.fields[row]
-        assert [int(x) for x in got] == [want.get(int(cell), ex.fields.far) for cell in ex.cell_of]
+        want = guided(grid, int(ex.site.cell_of[gc]), guidance)
+        got = ex.source.fields.fields[row]
+        assert [int(x) for x in got] == [want.get(int(cell), ex.source.fields.far) for cell in ex.site.cell_of]
 
 
 def test_no_guidance_is_plain_bfs_and_lanes_change_the_route():
     grid = np.zeros((4, 6), dtype=bool)
     plain, lanes = TurningPIBT(grid, guidance=0), TurningPIBT(grid, guidance=3)
-    assert plain.fields.cost is None and plain.guidance == 0
+    assert plain.source.fields.cost is None and plain.guidance == 0
     # row 1 runs west: going east from (1, 0) to (1, 5) the guided robot leaves its row for row 0 or 2
     pos, orient, goals = np.array([6]), np.array([0]), np.array([11])
     assert plain.actions(pos, orient, goals).tolist() == [F]
@@ -367,15 +372,15 @@ def test_a_one_cell_corridor_has_no_lane_and_big_maps_keep_uint16_guided_fields(
     grid = np.ones((3, 8), dtype=bool)
     grid[1, :] = False  # one corridor, on an odd row (whose lane would run west)
     ex = TurningPIBT(grid, guidance=4)
-    assert (ex.move_cost[:, [0, 2]] == 1).all()  # east and west alike
-    goals = np.array([ex.cid[8 + 7]])
-    row = ex.fields.rows(goals, np.zeros(1, dtype=np.int64))[0]
-    assert ex.fields.fields[row, ex.cid[8]] == 7  # east along the corridor: 7 moves of cost 1
+    assert (ex.source.move_cost[:, [0, 2]] == 1).all()  # east and west alike
+    goals = np.array([ex.site.cid[8 + 7]])
+    row = ex.source.fields.rows(goals, np.zeros(1, dtype=np.int64))[0]
+    assert ex.source.fields.fields[row, ex.site.cid[8]] == 7  # east along the corridor: 7 moves of cost 1
     big = TurningPIBT(np.zeros((300, 300), dtype=bool), guidance=2)
-    assert big.fields.dtype == np.uint16 and TurningPIBT(np.zeros((300, 300), dtype=bool), guidance=0).fields.dtype \
-        == np.uint32
-    row = big.fields.rows(np.array([0]), np.zeros(1, dtype=np.int64))[0]
-    assert big.fields.fields[row].max() < big.fields.far  # every cell reached, within the dtype
+    plain = TurningPIBT(np.zeros((300, 300), dtype=bool), guidance=0)
+    assert big.source.fields.dtype == np.uint16 and plain.source.fields.dtype == np.uint32
+    row = big.source.fields.rows(np.array([0]), np.zeros(1, dtype=np.int64))[0]
+    assert big.source.fields.fields[row].max() < big.source.fields.far  # every cell reached, within the dtype
 
 
 def shelves(rows=2, bays=5):
@@ -416,11 +421,12 @@ def test_one_way_corridors_equal_their_statement(seed):
 def test_corridor_fields_equal_the_dijkstra_oracle_and_robots_keep_the_way(lanes, corridors):
     grid = shelves(2, 5)
     ex = TurningPIBT(grid, guidance=lanes, corridors=corridors)
-    goals = np.arange(len(ex.cell_of))
-    rows = ex.fields.rows(goals, goals)
+    goals = np.arange(len(ex.site.cell_of))
+    rows = ex.source.fields.rows(goals, goals)
     for gc, row in zip(goals.tolist(), rows.tolist()):
-        want = guided(grid, int(ex.cell_of[gc]), lanes, corridors)
-        assert [int(x) for x in ex.fields.fields[row]] == [want.get(int(cell), ex.fields.far) for cell in ex.cell_of]
+        want = guided(grid, int(ex.site.cell_of[gc]), lanes, corridors)
+        f = ex.source.fields
+        assert [int(x) for x in f.fields[row]] == [want.get(int(cell), f.far) for cell in ex.site.cell_of]
     for bad in (-1, 17, 1.5, True):
         with pytest.raises(ValueError, match=rf"corridors = {re.escape(repr(bad))} must be an integer in \[0, 16\]$"):
             TurningPIBT(grid, corridors=bad)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from agents.lorr.schedulers import SCHEDULERS, make_scheduler, scheduler_options
-from planners.mapf import TURNING_EXECUTORS
-from planners.options import Bound, Options, option
+from planners.mapf import TURNING_PLANNERS, make_turning_planner
+from planners.options import Bound, Options, option, record
 
 GRID = np.zeros((5, 5), dtype=bool)
 
@@ -36,29 +36,29 @@ def bad_values(b: Bound) -> list:
 
 
 def cases():
-    for name, cls in TURNING_EXECUTORS.items():
-        for f in fields(cls.Options):
+    for name, kind in TURNING_PLANNERS.items():
+        for f in fields(kind.Options):
             for bad in bad_values(f.metadata["bound"]):
                 yield pytest.param(name, f.name, bad, id=f"{name}-{f.name}-{bad!r}")
 
 
 @pytest.mark.parametrize("planner, key, bad", list(cases()))
 def test_every_bad_option_value_names_the_option_the_value_and_the_limit(planner, key, bad):
-    cls = TURNING_EXECUTORS[planner]
-    allowed = next(f.metadata["bound"] for f in fields(cls.Options) if f.name == key).allowed()
+    kind = TURNING_PLANNERS[planner]
+    allowed = next(f.metadata["bound"] for f in fields(kind.Options) if f.name == key).allowed()
     with pytest.raises(ValueError) as err:
-        cls(GRID, **{key: bad})
+        make_turning_planner(planner, GRID, **{key: bad})
     assert str(err.value) == f"{key} = {bad!r} must be {allowed}"
 
 
-@pytest.mark.parametrize("planner", list(TURNING_EXECUTORS))
+@pytest.mark.parametrize("planner", list(TURNING_PLANNERS))
 def test_defaults_are_valid_and_the_record_is_the_planners(planner):
-    cls = TURNING_EXECUTORS[planner]
-    ex = cls(GRID, seed=3)
-    assert ex.options == cls.Options() and isinstance(ex.options, Options)
+    kind = TURNING_PLANNERS[planner]
+    ex = make_turning_planner(planner, GRID, seed=3)
+    assert ex.options == kind.Options() and isinstance(ex.options, Options)
     with pytest.raises(ValueError) as err:
-        cls(GRID, speed=2)
-    names = ", ".join(f.name for f in fields(cls.Options))
+        make_turning_planner(planner, GRID, speed=2)
+    names = ", ".join(f.name for f in fields(kind.Options))
     assert str(err.value) == f"{planner} takes no option 'speed'; its options: {names}"
 
 
@@ -87,17 +87,17 @@ def test_the_options_command_lists_every_planners_options(capsys):
 
     assert main(["lorr", "options", "epibt-ising"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    described = TURNING_EXECUTORS["epibt-ising"].Options.describe()
+    described = TURNING_PLANNERS["epibt-ising"].Options.describe()
     assert lines[0] == "epibt-ising:" and len(lines) == 1 + len(described)
     assert lines[-2].startswith("  rounds = 1  (an integer in [1, 4096]) rounds of decisions per call")
     assert lines[-1].startswith("  grow = false  (true or false) groups grow through")
     assert main(["lorr", "options"]) == 0
     out = capsys.readouterr().out
     heads = [line[:-1] for line in out.splitlines() if not line.startswith(" ")]
-    assert heads == list(TURNING_EXECUTORS) + [f"{n} (scheduler)" for n in SCHEDULERS]
+    assert heads == list(TURNING_PLANNERS) + [f"{n} (scheduler)" for n in SCHEDULERS]
     assert main(["lorr", "options", "cbs"]) == 2
     assert capsys.readouterr().err.strip() == ("mrmt lorr: error: unknown planner 'cbs'; known: "
-                                               + ", ".join(TURNING_EXECUTORS) + "; schedulers: " + ", ".join(SCHEDULERS))
+                                               + ", ".join(TURNING_PLANNERS) + "; schedulers: " + ", ".join(SCHEDULERS))
 
 
 def test_the_options_command_lists_a_schedulers_options_and_each_is_taken(capsys):
@@ -106,11 +106,75 @@ def test_the_options_command_lists_a_schedulers_options_and_each_is_taken(capsys
 
     assert main(["lorr", "options", "lorr-weighted"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "lorr-weighted (scheduler):" and len(lines) == 1 + len(WeightedOptions.describe()) + 1
+    assert lines[0] == "lorr-weighted (scheduler):" and len(lines) == 1 + len(WeightedOptions.describe())
     assert "  optimal = false  (true or false) the matching of least total cost" in "\n".join(lines)
-    assert lines[-1].startswith("  busy = 1.0  (a number in (0, 1])")
     for name in SCHEDULERS:  # every option listed is one the scheduler takes, at its listed default
         keys = {key: default for key, default, _, _ in scheduler_options(name)}
         make_scheduler(name, **keys)
         with pytest.raises(ValueError, match="nonsense"):
             make_scheduler(name, nonsense=1)
+
+
+@dataclass(frozen=True)
+class _Speed(Options):
+    speed: int = option(3, int, 1, 9, meaning="how fast")
+    mode: str = option("a", str, words=("a", "b"))
+
+
+@dataclass(frozen=True)
+class _Care(Options):
+    care: float = option(0.5, float, 0.0, 1.0)
+    log: bool = option(False, bool)
+
+
+def test_a_record_is_the_union_of_its_parts_fields_with_defaults_replaced():
+    Both = record("Both", "speed and care.", _Speed, _Care, defaults={"speed": 7, "log": True})
+    assert [f.name for f in fields(Both)] == ["speed", "mode", "care", "log"]  # the parts' fields, in order
+    assert issubclass(Both, Options) and Both.__name__ == "Both" and Both.__doc__ == "speed and care."
+    assert [(name, default, allowed) for name, default, allowed, _ in Both.describe()] == [
+        ("speed", 7, "an integer in [1, 9]"), ("mode", "a", "one of a, b"), ("care", 0.5, "a number in [0, 1]"),
+        ("log", True, "true or false")]
+    assert Both.describe()[0][3] == "how fast"  # a part's meaning kept
+    b = Both()
+    assert (b.speed, b.mode, b.care, b.log) == (7, "a", 0.5, True)
+    assert record("Plain", "", _Speed, _Care)().speed == 3  # without defaults=, the parts' own
+    with pytest.raises(ValueError, match=r"^speed = 10 must be an integer in \[1, 9\]$"):
+        Both(speed=10)  # a part's bound holds in the record
+    with pytest.raises(ValueError, match=r"^both takes no option 'x'; its options: speed, mode, care, log$"):
+        Both.from_dict({"x": 1}, "both")
+    # .part(cls): the part's own record, of the composed values (a replaced default included)
+    c = Both.from_dict({"mode": "b", "care": 0.25}, "both")
+    assert c.part(_Speed) == _Speed(speed=7, mode="b") and type(c.part(_Speed)) is _Speed
+    assert c.part(_Care) == _Care(care=0.25, log=True) and type(c.part(_Care)) is _Care
+
+
+def test_a_record_refuses_a_field_declared_twice_and_a_default_of_no_field():
+    @dataclass(frozen=True)
+    class _Fast(Options):
+        speed: int = option(1, int, 0, 5)
+
+    with pytest.raises(ValueError, match=r"^Twice: option 'speed' declared by both _Speed and _Fast$"):
+        record("Twice", "", _Speed, _Fast)
+    with pytest.raises(ValueError, match=r"^Stray: a default for 'colour', which none of its parts declares$"):
+        record("Stray", "", _Speed, _Care, defaults={"speed": 2, "colour": 1})
+
+
+def test_a_composed_record_bound_in_its_module_pickles():
+    import pickle
+
+    import planners.mapf as mapf
+    from planners.mapf.epibt.chain_planner import ChainOptions
+    from planners.mapf.guides.fields import FieldOptions
+    from planners.mapf.guides.focus import FocusOptions
+
+    assert TURNING_PLANNERS["epibt-chain"].Options is mapf.ChainRecord
+    assert mapf.ChainRecord.__module__ == "planners.mapf"
+    rec = mapf.ChainRecord.from_dict({"lns": 5, "active": 0.5, "corridors": 2}, "epibt-chain")
+    back = pickle.loads(pickle.dumps(rec))
+    assert back == rec and type(back) is mapf.ChainRecord
+    assert rec.part(FocusOptions) == FocusOptions(active=0.5)
+    assert rec.part(ChainOptions).lns == 5
+    assert rec.part(FieldOptions) == FieldOptions(guidance=0, corridors=2)  # the planner's default guidance, 0
+    for name, kind in TURNING_PLANNERS.items():  # every planner's record: bound where it is made, pickles
+        rec = kind.Options()
+        assert pickle.loads(pickle.dumps(rec)) == rec, name

@@ -36,7 +36,7 @@ demo: $(BASE_STAMP)
 # the kernels are compiled once, on two processes, before the suite (its two workers would otherwise each
 # compile the same kernels side by side on first use); a warm install skips it in about a second
 test: $(FULL_STAMP)
-	$(VENV)/bin/mrmt warmup --no-progress --lorr pibt,pibt-flow,epibt,windowed
+	$(VENV)/bin/mrmt warmup --no-progress --lorr pibt,pibt-flow,epibt,epibt-chain
 	$(PY) -m pytest -q -n 2 --durations=15
 
 reproduce: $(BASE_STAMP)

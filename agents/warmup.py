@@ -41,7 +41,7 @@ __all__ = ["parts_for", "cold_parts", "warm", "compile_part", "mark_warm", "PART
 #: upper estimate.
 PART_SECONDS = {"ising:sharing": 56, "ising-paper:tour+path": 48, "ising-fleet": 32, "ising:tour+path": 24,
                 "lorr:epibt-chain-ising": 23, "lorr:epibt": 16, "lorr:epibt-chain": 13, "lorr:pibt-flow": 10,
-                "strong": 9, "lorr:windowed": 8, "lorr:pibt": 6, "exact": 5, "fast": 4}
+                "strong": 9, "lorr:pibt": 6, "exact": 5, "fast": 4}
 
 #: Kernels (numba dispatcher specializations) each part compiles alone with an empty cache, measured beside
 #: :data:`PART_SECONDS` (`python benchmarks/compile_parts.py`): the totals of the per-part progress bars.  A part

@@ -13,7 +13,7 @@ import gymnasium as gym
 
 import mrmt_env  # noqa: F401  (registers the ids)
 from mrmt_env.lorr.output import write_output
-from planners.mapf import make_turning_executor
+from planners.mapf import make_turning_planner
 
 
 def main() -> None:
@@ -24,7 +24,7 @@ def main() -> None:
     args = p.parse_args()
     env = gym.make("mrmt_env/LoRR-v0", instance=args.instance, steps=args.steps)  # scheduler: the start kit's greedy
     obs, info = env.reset(seed=0)
-    executor = make_turning_executor("pibt", env.unwrapped.instance.grid, seed=0)
+    executor = make_turning_planner("pibt", env.unwrapped.instance.grid, seed=0)
     done = False
     while not done:
         goals = obs["goal"].copy()

@@ -11,11 +11,14 @@ messages are the package's own one-liners, and a record is a plain frozen value 
 
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields, make_dataclass
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-__all__ = ["Options", "option", "Bound"]
+__all__ = ["Options", "option", "Bound", "record"]
+
+P = TypeVar("P", bound="Options")
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,13 @@ class Options:
                 raise ValueError(f"{owner} takes no option {key!r}; its options: {', '.join(names)}")
         return cls(**values)
 
+    def part(self, cls: type[P]) -> P:
+        """The record ``cls`` of this record's values of its fields (a composed record handing a part its own)."""
+        return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
+
+    if TYPE_CHECKING:  # a record composed by :func:`record` has the fields of its parts
+        def __getattr__(self, name: str) -> Any: ...
+
     @classmethod
     def describe(cls) -> list[tuple[str, object, str, str]]:
         """``(name, default, allowed, meaning)`` of every option, in declaration order."""
@@ -106,3 +116,27 @@ class Options:
             b = f.metadata["bound"]
             out.append((f.name, None if f.default is MISSING else f.default, b.allowed(), b.meaning))
         return out
+
+
+def record(name: str, doc: str, *parts: type[Options], defaults: dict | None = None,
+           module: str = __name__) -> type[Options]:
+    """An options record named ``name`` whose fields are those of ``parts`` (each an :class:`Options` record, in
+    order), ``defaults`` replacing some of their defaults: a composition's record (a part takes its own back with
+    :meth:`Options.part`).  Bind it to ``name`` in ``module`` (pickling finds it there).  ``ValueError`` for a field
+    two parts declare or a default of no field."""
+    defaults = dict(defaults or {})
+    spec, seen = [], {}
+    for part in parts:
+        for f in fields(part):
+            if f.name in seen:
+                raise ValueError(f"{name}: option {f.name!r} declared by both {seen[f.name]} and {part.__name__}")
+            seen[f.name] = part.__name__
+            b = f.metadata["bound"]
+            default = defaults.pop(f.name, f.default)
+            spec.append((f.name, f.type, option(default, b.kind, b.lo, b.hi, words=b.words, none=b.none,
+                                                meaning=b.meaning)))
+    if defaults:
+        raise ValueError(f"{name}: a default for {sorted(defaults)[0]!r}, which none of its parts declares")
+    cls = make_dataclass(name, spec, bases=(Options,), frozen=True, namespace={"__doc__": doc})
+    cls.__module__ = module
+    return cls

@@ -38,7 +38,7 @@ def test_classes_parse_and_nest():
     assert parse_classes("all") == frozenset(HOST_RULE_CLASSES)
     assert parse_classes("sharing_split, path_query") == {"sharing_split", "path_query"}
     assert parse_classes("joint_moves,lns_groups") == {"joint_moves", "lns_groups"}
-    with pytest.raises(ValueError, match=r"unknown host-rule class\(es\) \['joint'\]; known: path_query.*lns_groups, task_groups, work_set or all"):
+    with pytest.raises(ValueError, match=r"unknown host-rule class\(es\) \['joint'\]; known: path_query.*lns_groups, task_groups or all"):
         parse_classes("joint")
     assert host_rule_classes() == frozenset()
     with HostRule("tour_moves"):

@@ -59,11 +59,10 @@ class _Slow:
 def test_a_late_decision_is_every_robot_waiting_counted_and_written(monkeypatch):
     """A planner taking 0.23 s under a 0.1 s limit: each decision costs two timeouts (T for every robot, no task
     update), then runs; the output's timeouts are exactly its all-T steps and re-check to the count."""
-    import planners.mapf as mapf
+    from planners.mapf import make_turning_planner
 
-    real = mapf.make_turning_executor
-    monkeypatch.setattr(mapf, "make_turning_executor", lambda *a, **k: _Slow(real(*a, **k), 0.23))
-    record, sim, step_s = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=20, seed=0, limit=StepLimit(0.1))
+    slow = _Slow(make_turning_planner("pibt", read_instance(EXAMPLE).grid, seed=0), 0.23)  # a planner object, as a user's
+    record, sim, step_s = run_lorr(EXAMPLE, "lorr-greedy", slow, steps=20, seed=0, limit=StepLimit(0.1))
     assert record["clock"] == "0.1 s per step" and len(step_s) == record["decisions"] == 7
     assert record["timeouts"] == sim.timeouts == 14 and sim.t == 20  # 6 x (2 + 1) steps, then 2 timeouts end it
     data = json.loads(json.dumps(output_dict(sim, step_s)))
@@ -84,72 +83,79 @@ def test_without_a_limit_a_run_is_work_bounded_and_says_so():
 
 
 def test_epibt_cuts_its_portfolio_at_the_deadline_and_runs_all_of_it_without_one():
-    from planners.mapf import EPIBT
+    from planners.mapf import make_turning_planner
 
     inst = read_instance(EXAMPLE)
     goals = np.roll(inst.starts, 1)
     orient = np.zeros(inst.team_size, dtype=np.int64)
-    full = EPIBT(inst.grid, seed=0, portfolio=6, threads=1)
-    full.actions(inst.starts, orient, goals)
+    planner = make_turning_planner("epibt", inst.grid, seed=0, portfolio=6, threads=1)
+    full = planner.decider
+    planner.actions(inst.starts, orient, goals)
     assert len(full.portfolio_costs) == 6
-    cut = EPIBT(inst.grid, seed=0, portfolio=6, threads=1)
-    act = cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)  # already late
+    cutting = make_turning_planner("epibt", inst.grid, seed=0, portfolio=6, threads=1)
+    cut = cutting.decider
+    act = cutting.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)  # already late
     assert len(cut.portfolio_costs) == 1 and act.shape == (inst.team_size,)
     # a call that ended past its deadline shrinks the next calls' search; one that left time enough grows it back
     assert full.lns_scale == 1.0 and cut.lns_scale == pytest.approx(0.7)
     assert full.lns == cut.lns == 8 * 50  # 50 iterations per robot
-    cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)
+    cutting.actions(inst.starts, orient, goals, deadline=time.perf_counter() - 1.0)
     assert cut.lns == int(400 * 0.7) and cut.lns_scale == pytest.approx(0.49)
-    cut.actions(inst.starts, orient, goals, deadline=time.perf_counter() + 60.0)
+    cutting.actions(inst.starts, orient, goals, deadline=time.perf_counter() + 60.0)
     assert cut.lns == int(400 * (0.7 * 0.7)) and cut.lns_scale == pytest.approx(0.539)
 
 
 # ---------------------------------------------------------------- the entry
+def _own(choice) -> dict:
+    """A choice's planner options given (beside its defaults), without guidance."""
+    return {k: v for k, v in choice.planner.given.items() if k != "guidance"}
+
+
 def test_the_default_entry_chooses_by_team_and_map():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler, small.planner, small.rule) == ("lorr-weighted", "epibt-chain", 4)
-    assert small.options["executor_options"] == {"portfolio": 2}
+    assert (small.scheduler.name, small.planner.name, small.rule) == ("lorr-weighted", "epibt-chain", 4)
+    assert _own(small) == {"portfolio": 2}
     # the way x 10, its turns counted, the matching of least total cost
-    assert small.options["scheduler_options"] == {"weight": 10, "turns": True, "optimal": True}
-    assert small.options["guidance"] == 2  # every robot at work where the team is sparse, on crisscross lanes
+    assert small.scheduler.options == {"weight": 10, "turns": True, "optimal": True}
+    assert small.planner.options.guidance == 2  # every robot at work where the team is sparse, on crisscross lanes
     packed, crowd = entry.rules[0], entry.rules[1]  # RANDOM-05, -04 (98 and 85 % of the free cells): 57 % at work
     assert packed.holds(800, 0.98, "random-32-32-20.map") and not packed.holds(700, 0.85, "random-32-32-20.map")
     assert crowd.holds(700, 0.85, "random-32-32-20.map")
     assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
     for rule in (packed, crowd):  # push chains under the pipeline scheduler re-planning unopened tasks
-        assert (rule.choice.scheduler, rule.choice.planner, rule.choice.options["replan"]) == ("strong", "epibt-chain",
+        assert (rule.choice.scheduler.name, rule.choice.planner.name, rule.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
                                                                                                 True)
-    assert packed.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2,
+    assert _own(packed.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2,
                                                           "pushes": 100}  # search chains capped at 100 pushes
-    assert crowd.choice.options["executor_options"] == {"active": 0.57, "active_by": "task", "portfolio": 2}
+    assert _own(crowd.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2}
     dense = entry.rules[2]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
     assert dense.holds(400, 0.49, "random-32-32-20.map")
     assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
-    assert dense.choice.options["executor_options"] == {"active": 0.8, "active_by": "task", "portfolio": 2}
-    assert (dense.choice.scheduler, dense.choice.planner, dense.choice.options["replan"]) == ("strong", "epibt-chain",
+    assert _own(dense.choice) == {"active": 0.8, "active_by": "task", "portfolio": 2}
+    assert (dense.choice.scheduler.name, dense.choice.planner.name, dense.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
                                                                                               True)
     big = [r for r in entry.rules if not r.conditions][0].choice
-    assert (big.scheduler, big.planner) == ("lorr-greedy", "epibt")
+    assert (big.scheduler.name, big.planner.name) == ("lorr-greedy", "epibt")
     # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still
     # to go, the search weighing the robots by their priority squared
-    assert big.options["executor_options"] == {"flow": False, "congestion": 2, "active": 0.3, "active_by": "task",
+    assert _own(big) == {"flow": False, "congestion": 2, "active": 0.3, "active_by": "task",
                                                "weight_power": 2}
-    assert big.options["guidance"] == 8  # along lanes of weight 8
-    assert big.options["scheduler_options"] == {"way": 5}  # every robot holds a task, the way x 5
+    assert big.planner.options.guidance == 8  # along lanes of weight 8
+    assert big.scheduler.options == {"way": 5}  # every robot holds a task, the way x 5
     sortation, warehouse, tables = entry.rules[4], entry.rules[5], entry.rules[6]
     assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
     assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
-    assert sortation.choice.scheduler == warehouse.choice.scheduler == tables.choice.scheduler == "lorr-weighted"
+    assert sortation.choice.scheduler.name == warehouse.choice.scheduler.name == tables.choice.scheduler.name == "lorr-weighted"
     for rule in (sortation, warehouse):  # the jam term and one-way corridors on the warehouse maps
-        assert rule.choice.options["scheduler_options"] == {"jam": 4}
-    assert sortation.choice.options["executor_options"] == {"flow": False, "corridors": 8}
-    assert sortation.choice.planner == warehouse.choice.planner == "epibt"  # on goal fields, not along guide paths
-    assert warehouse.choice.options["executor_options"] == {"flow": False, "corridors": 8, "congestion": 2}
+        assert rule.choice.scheduler.options == {"jam": 4}
+    assert _own(sortation.choice) == {"flow": False, "corridors": 8}
+    assert sortation.choice.planner.name == warehouse.choice.planner.name == "epibt"  # on goal fields, not along guide paths
+    assert _own(warehouse.choice) == {"flow": False, "corridors": 8, "congestion": 2}
     # the city (CITY-01 and CITY-02): EPIBT on goal fields that price the crowd
-    assert (tables.choice.scheduler, tables.choice.planner) == ("lorr-weighted", "epibt")
-    assert tables.choice.options["executor_options"] == {"flow": False, "congestion": 2}
+    assert (tables.choice.scheduler.name, tables.choice.planner.name) == ("lorr-weighted", "epibt")
+    assert _own(tables.choice) == {"flow": False, "congestion": 2}
     assert tables.holds(3000, 0.06, "Paris_1_256.map", 256 ** 2)
     # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930
     assert tables.holds(10000, 0.26, "warehouse_large.map", 140 * 500)
@@ -161,7 +167,10 @@ def test_the_default_entry_chooses_by_team_and_map():
     ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nmax_robots = 5\n', "last rule must have no condition"),
     ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nspeed = 3\n', "unknown key 'speed'"),
     ('[[rule]]\nplanner = "pibt"\n', "scheduler must name a scheduler"),
-    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nreplan = "yes"\n', "replan = 'yes' must be true or false"),
+    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nreplan = "yes"\n', "replan is a scheduler option: write "
+     'scheduler_options = { replan = "yes" }'),
+    ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nscheduler_options = { replan = "yes" }\n',
+     "replan = 'yes' must be true or false"),
     ('[[rule]]\nmax_robots = -3\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "s"\nplanner = "p"\n',
      "max_robots = -3 must be a whole number >= 0"),
     ('rule = 3\n', "non-empty list of rules"),

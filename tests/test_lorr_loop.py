@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from agents.lorr.run import make_roles, run_lorr
+from agents.lorr.spec import PlannerSpec, SchedulerSpec
 from mrmt_env.lorr.env import LoRREnv
 from mrmt_env.lorr.greedy import GreedyScheduler
 from mrmt_env.lorr.instance import example_instance_path, read_instance
@@ -37,7 +38,7 @@ def test_the_env_and_a_hand_loop_with_the_runners_planner_step_alike():
     """The env, given the runner's planner's actions towards its observed goals, writes the runner's output."""
     inst = read_instance(example_instance_path())
     record, sim, _ = run_lorr(inst, "lorr-greedy", "pibt", steps=40, seed=0)
-    sched, ex = make_roles(inst.grid, "lorr-greedy", "pibt", seed=0)
+    sched, ex = make_roles(inst.grid, SchedulerSpec("lorr-greedy"), PlannerSpec.of("pibt"), seed=0)
     env = LoRREnv(instance=inst, steps=40, scheduler=sched)
     obs, _ = env.reset(seed=0)
     for _ in range(40):

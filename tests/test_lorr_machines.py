@@ -18,7 +18,8 @@ from ising_backend.audit.host_rule import HostRule
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
-from planners.mapf import EPIBTIsing
+from agents.lorr.spec import PlannerSpec, SchedulerSpec
+from planners.mapf import make_turning_planner
 from test_mapf_turning import apply, random_instance, retarget
 
 EXAMPLE = example_instance_path()
@@ -33,20 +34,27 @@ def test_group_size_follows_the_machines_spins_unless_given(spins, robots):
     rng = np.random.default_rng(1)
     grid = random_instance(rng, 8, 8, 0.1, 0.5)[0]
     chip = EmulatedChip(ChipSpec(n_spins=spins), seed=0)
-    assert EPIBTIsing(grid, machine=chip).max_robots == robots
-    assert EPIBTIsing(grid, machine=chip, max_robots=2).max_robots == 2
-    twin = EPIBTIsing(grid, machine=chip, decider="host")  # shaped by the machine, never calling it
-    assert (twin.max_robots, twin.max_spins, twin.machine) == (robots, spins, None)
-    assert EPIBTIsing(grid).max_robots == 11  # the paper's chip: as before the option followed the machine
+
+    def limits(**options):
+        return make_turning_planner("epibt-ising", grid, machine=options.pop("machine", None),
+                                    **options).machine_step.rounds_.limits
+
+    assert limits(machine=chip).max_robots == robots
+    assert limits(machine=chip, max_robots=2).max_robots == 2
+    twin = make_turning_planner("epibt-ising", grid, machine=chip, decider="host")  # shaped by it, never calling it
+    lim = twin.machine_step.rounds_.limits
+    assert (lim.max_robots, lim.max_spins, twin.machine) == (robots, spins, None)
+    assert limits().max_robots == 11  # the paper's chip: as before the option followed the machine
 
 
 def test_the_twin_of_a_larger_machine_poses_its_groups_and_answers_as_the_host_rule():
     rng = np.random.default_rng(8)
     grid, free, pos, orient, goals = random_instance(rng, 10, 10, 0.12, 0.6)
     spec = ChipSpec(n_spins=64)
-    twin = EPIBTIsing(grid, seed=2, machine=EmulatedChip(spec, seed=3), decider="host", lns=0, groups=8)
+    twin = make_turning_planner("epibt-ising", grid, seed=2, machine=EmulatedChip(spec, seed=3), decider="host", lns=0,
+                                groups=8)
     chip = EmulatedChip(spec, seed=3)
-    flagged = EPIBTIsing(grid, seed=2, machine=chip, lns=0, groups=8)
+    flagged = make_turning_planner("epibt-ising", grid, seed=2, machine=chip, lns=0, groups=8)
     for _ in range(12):
         a1 = twin.actions(pos, orient, goals)
         with HostRule("all"):
@@ -55,15 +63,15 @@ def test_the_twin_of_a_larger_machine_poses_its_groups_and_answers_as_the_host_r
         pos, orient, err = apply(grid, pos, orient, a1)
         assert err is None
         goals = retarget(rng, free, pos, goals)
-    assert flagged.stats["decisions"] == twin.stats["decisions"] > 0
+    assert flagged.machine_step.stats["decisions"] == twin.machine_step.stats["decisions"] > 0
     assert chip.ledger.physical_calls == 0
 
 
 def _drive(chip, planner="epibt-ising", steps=6, options=None):
     """A League run by hand: the roles ``make_roles`` builds for ``chip``, the chip calls each step reports."""
     inst = read_instance(EXAMPLE)
-    sched, ex = make_roles(inst.grid, "lorr-greedy", planner, seed=0, chip=chip,
-                           options={"executor_options": options or {}})
+    sched, ex = make_roles(inst.grid, SchedulerSpec("lorr-greedy"), PlannerSpec.of(planner, options), seed=0,
+                           chip=chip)
     loop = StepLoop(LoRRSimulator(inst), sched)
     sim = loop.sim
     calls = 0
@@ -84,22 +92,22 @@ def test_the_run_gives_the_chip_planner_the_machine_it_names(chip, kind):
     ex, calls = _drive(chip, options={"lns": 0, "groups": 8})
     spec = chip if isinstance(chip, ChipSpec) else chip.spec
     assert isinstance(ex.machine, kind) and ex.machine.spec.n_spins == spec.n_spins
-    assert ex.max_spins == ex.machine.usable_spins
+    assert ex.machine_step.rounds_.limits.max_spins == ex.machine.usable_spins
     ledger = ex.machine.ledger  # each step's report against the machine's own ledger (a faulty chip's probe apart)
     assert calls == ledger.physical_calls - ledger.probe_calls > 0
 
 
 def test_pibt_ising_takes_the_machine_too():
     ex, calls = _drive(ChipSpec(n_spins=32), planner="pibt-ising", steps=8)
-    assert ex.machine.spec.n_spins == 32 and ex.max_spins == 32
+    assert ex.machine.spec.n_spins == 32 and ex.machine_step.max_spins == 32
     assert calls == ex.machine.ledger.physical_calls
 
 
 def test_a_machine_nothing_runs_on_is_refused_not_dropped():
     inst = read_instance(EXAMPLE)
     with pytest.raises(ValueError, match="neither the scheduler 'lorr-greedy' nor the planner 'pibt'"):
-        make_roles(inst.grid, "lorr-greedy", "pibt", chip=ChipSpec(n_spins=64))
-    make_roles(inst.grid, "ising", "pibt", chip=ChipSpec(n_spins=64))  # the scheduler runs on it
+        make_roles(inst.grid, SchedulerSpec("lorr-greedy"), PlannerSpec.of("pibt"), chip=ChipSpec(n_spins=64))
+    make_roles(inst.grid, SchedulerSpec("ising"), PlannerSpec.of("pibt"), chip=ChipSpec(n_spins=64))  # it runs on it
     proc = _mrmt("lorr", "run", str(EXAMPLE), "--planner", "epibt", "--chip", "n_spins=64", "--no-progress")
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()

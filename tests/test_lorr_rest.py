@@ -1,6 +1,6 @@
 """Robots at work by the task still to go (``active_by="task"``): each robot's task beyond its goal
 (:func:`mrmt_env.lorr.tasks.rest_under`), handed by the step loop to a planner that takes it, and the at-work choice
-it feeds (:meth:`planners.mapf.pibt.turning.TurningPIBT.steer`)."""
+it feeds (:meth:`planners.mapf.planner.TurningPlanner.steer`)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from agents.lorr.run import make_roles, run_lorr
+from agents.lorr.spec import PlannerSpec, SchedulerSpec
 from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from mrmt_env.lorr.tasks import rest_under
-from planners.mapf import make_turning_executor
+from planners.mapf import make_turning_planner
 
 
 def _legs_by_coordinates(inst, line: int, done: int) -> int:
@@ -64,20 +65,20 @@ def test_the_robots_at_work_are_those_of_least_way_plus_rest(planner):
     pos = np.array([w + 1, w + 3, w + 5, w + 7], dtype=np.int64)
     goals = pos + np.array([-1, 1, -1, 1])  # every robot one move from its goal
     rest = np.array([9, 0, 4, 2], dtype=np.int64)
-    by_task = make_turning_executor(planner, grid, active=0.5, active_by="task")
+    by_task = make_turning_planner(planner, grid, active=0.5, active_by="task")
     assert by_task.takes_rest
     steered = by_task.steer(pos, goals, rest)
     assert (steered != pos).tolist() == [False, True, False, True]  # the two of least rest keep their goals
-    by_goal = make_turning_executor(planner, grid, active=0.5)
+    by_goal = make_turning_planner(planner, grid, active=0.5)
     assert not by_goal.takes_rest and (by_goal.steer(pos, goals) != pos).tolist() == [True, True, False, False]
-    assert not make_turning_executor(planner, grid, active_by="task").takes_rest  # everyone at work: nothing to rank
+    assert not make_turning_planner(planner, grid, active_by="task").takes_rest  # everyone at work: nothing to rank
 
 
 @pytest.mark.parametrize("rest, got", [(None, "got none"), (np.zeros(3, dtype=np.int64), "shape (3,)"),
                                        (np.zeros(4), "dtype float64"), (np.array([0, -1, 0, 0]), "a negative length")])
 def test_a_planner_ranking_by_task_names_a_missing_or_bad_rest(rest, got):
     grid = _corridor()
-    ex = make_turning_executor("epibt", grid, active=0.5, active_by="task")
+    ex = make_turning_planner("epibt", grid, active=0.5, active_by="task")
     pos = np.array([10, 12, 14, 16], dtype=np.int64)
     with pytest.raises(ValueError, match="active_by='task' needs rest") as err:
         ex.actions(pos, np.zeros(4, dtype=np.int64), pos + 1, rest=rest)
@@ -94,5 +95,5 @@ def test_a_run_ranking_by_task_is_deterministic_and_differs_from_ranking_by_goal
     paths = [np.array(s.actual).tolist() for s in (sim_a, sim_b, sim_c)]
     assert paths[0] == paths[1] and paths[0] != paths[2]
     assert a["tasks_finished"] == sim_a.finished
-    _sched, ex = make_roles(inst.grid, "lorr-greedy", "epibt", options=opts)
+    _sched, ex = make_roles(inst.grid, SchedulerSpec("lorr-greedy"), PlannerSpec.of("epibt", opts["executor_options"]))
     assert ex.takes_rest

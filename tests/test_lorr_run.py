@@ -58,7 +58,7 @@ def test_guidance_reaches_the_executor_and_the_record():
     assert [x.tolist() for x in sim_plain.actual] != [x.tolist() for x in sim_lanes.actual]
     again, sim_again, _ = run_lorr(EXAMPLE, "lorr-greedy", "pibt", steps=60, seed=1, options={"guidance": 2})
     assert [x.tolist() for x in sim_again.actual] == [x.tolist() for x in sim_lanes.actual]
-    assert run_lorr(EXAMPLE, "lorr-greedy", "windowed", steps=5, seed=1)[0]["guidance"] == 0
+    assert run_lorr(EXAMPLE, "lorr-greedy", "epibt", steps=5, seed=1)[0]["guidance"] == 0
 
 
 def test_check_counts_a_tampered_file_not_its_claim():
@@ -128,7 +128,7 @@ def test_run_command_writes_a_file_that_check_reads_back(tmp_path):
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power"],
      "--planner-option 'weight_power' must look like KEY=VALUE"),
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "warp=9"],
-     "epibt takes no option 'warp'; its options: guidance, field_bytes, bfs_budget, corridors, flow, replans"),
+     "epibt takes no option 'warp'; its options: guidance, corridors, congestion, refresh, flow, replans"),
     (["run", str(EXAMPLE), "--planner", "epibt", "--planner-option", "weight_power=3"],
      "--planner-option weight_power = 3 must be an integer in [0, 2]"),
     (["check", str(EXAMPLE), "/no/such/output.json"], "no such output file"),
@@ -249,14 +249,14 @@ def test_run_help_names_every_turning_executor(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "2000")  # argparse wraps at hyphens too: a name split over two lines is not a word
 
     from agents.commands.lorr import add_arguments
-    from planners.mapf import TURNING_EXECUTORS
+    from planners.mapf import TURNING_PLANNERS
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     with pytest.raises(SystemExit):
         parser.parse_args(["run", "--help"])
     words = set(capsys.readouterr().out.replace(",", " ").replace("(", " ").split())
-    assert [name for name in TURNING_EXECUTORS if name not in words] == []
+    assert [name for name in TURNING_PLANNERS if name not in words] == []
 
 
 def test_a_replanned_robot_keeps_its_task_unless_given_a_shorter_one_or_its_task_goes_to_another():

@@ -27,6 +27,9 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "lorr"
 
 def _entry(tmp_path, scheduler: str, planner: str, **decisions) -> Path:
     lines = ['name = "one"', "[[rule]]", f'scheduler = "{scheduler}"', f'planner = "{planner}"']
+    for key, into in (("replan", "scheduler_options"), ("guidance", "planner_options")):  # their tables' own
+        if key in decisions:
+            decisions[into] = {key: decisions.pop(key), **decisions.get(into, {})}
     for key, value in decisions.items():
         if isinstance(value, dict):
             value = "{ " + ", ".join(f"{k} = {json.dumps(v)}" for k, v in value.items()) + " }"
@@ -56,7 +59,7 @@ def test_the_kit_runs_the_packages_roles_as_the_runner_does(tmp_path, scheduler,
     entry = _entry(tmp_path, scheduler, planner, **decisions)
     choice = load_entry(entry).choose(inst)
     sim = run_standin(inst, 40, KitScheduler, KitPlanner, entry=str(entry), seed=3)
-    record, own, _ = run_lorr(inst, scheduler, planner, steps=40, seed=3, options=choice.options)
+    record, own, _ = run_lorr(inst, choice.scheduler, choice.planner, steps=40, seed=3)
     assert _digest(sim) == _digest(own)
     assert sim.finished == record["tasks_finished"] > 0 and not sim.tasks.schedule_errors
 
@@ -67,7 +70,7 @@ def test_the_default_entry_inside_the_kit_on_a_round_instance():
     inst = read_instance(SHARED / "2024-main" / "random.domain" / "RANDOM-01.json")
     choice = load_entry("default").choose(inst)
     sim = run_standin(inst, 15, KitScheduler, KitPlanner, entry="default")
-    _record, own, _ = run_lorr(inst, choice.scheduler, choice.planner, steps=15, options=choice.options)
+    _record, own, _ = run_lorr(inst, choice.scheduler, choice.planner, steps=15)
     assert _digest(sim) == _digest(own)
 
 
@@ -129,7 +132,7 @@ def test_the_2026_kit_runs_the_one_step_planner_as_the_runner_does(tmp_path, sch
     entry = _entry(tmp_path, scheduler, planner, **decisions)
     choice = load_entry(entry).choose(inst)
     sim = run_standin(inst, 40, KitScheduler, KitPlanner2026, kit=2026, entry=str(entry), seed=3)
-    record, own, _ = run_lorr(inst, scheduler, planner, steps=40, seed=3, options=choice.options)
+    record, own, _ = run_lorr(inst, choice.scheduler, choice.planner, steps=40, seed=3)
     assert _digest(sim) == _digest(own) and sim.finished == record["tasks_finished"] > 0
 
 

@@ -18,7 +18,7 @@ from mrmt_env.lorr.instance import example_instance_path, read_instance
 from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.mapf.common import GroupBatch, mix
-from planners.mapf.pibt.turning import TurningPIBT
+from planners.mapf import make_turning_planner
 
 NONE = 1 << 50
 
@@ -203,7 +203,7 @@ def _steps(scheduler, steps: int = 40):
     inst = read_instance(example_instance_path())
     sim = LoRRSimulator(inst)
     loop = StepLoop(sim, scheduler)
-    planner = TurningPIBT(inst.grid, seed=0)
+    planner = make_turning_planner("pibt", inst.grid, seed=0)
     proposals = []
     while sim.t < steps:
         loop.propose(None)

@@ -228,7 +228,7 @@ def test_an_entry_gives_its_scheduler_options(tmp_path):
     f = tmp_path / "e.toml"
     f.write_text('[[rule]]\nscheduler = "lorr-weighted"\nplanner = "pibt"\nscheduler_options = { weight = 2 }\n')
     choice = load_entry(f).choose(read_instance(example_instance_path()))
-    assert choice.options["scheduler_options"] == {"weight": 2}
+    assert choice.scheduler.options == {"weight": 2}
     f.write_text('[[rule]]\nscheduler = "lorr-weighted"\nplanner = "pibt"\nscheduler_options = 3\n')
     with pytest.raises(ValueError, match="scheduler_options must be a table of the scheduler's options"):
         load_entry(f)
@@ -262,11 +262,11 @@ def test_every_scheduler_plays_the_start_kits_scheduler_role(name):
 
 def test_every_planner_plays_the_start_kits_planner_role():
     from agents.lorr.roles import Planner
-    from planners.mapf import TURNING_EXECUTORS, make_turning_executor
+    from planners.mapf import TURNING_PLANNERS, make_turning_planner
 
     grid = read_instance(example_instance_path()).grid
-    for name in TURNING_EXECUTORS:
-        assert isinstance(make_turning_executor(name, grid), Planner), name
+    for name in TURNING_PLANNERS:
+        assert isinstance(make_turning_planner(name, grid), Planner), name
 
 
 def test_turns_added_to_the_way_are_the_fewest_before_a_shortest_first_move():

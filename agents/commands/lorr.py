@@ -29,9 +29,8 @@ from pathlib import Path
 
 from agents.commands import lorr_generate, lorr_info, lorr_sweep
 from agents.commands.lorr_args import (STEPS_HELP, add_clock_arguments, add_plan_arguments, bad_counts, best_row,
-                                       check_entry, clock_from_args, fail, full_steps, memory_options,
+                                       check_entry, clock_from_args, fail, full_steps,
                                        plans_from_args, score_prefix, share_cell, steps_cell, steps_for, warm_parts)
-from agents.commands.lorr_args import executor_options  # noqa: F401  (benchmarks/lorr.py imports it from here)
 
 NAME = "lorr"
 HELP = ("League of Robot Runners instances: run a scheduler + executor or a round, generate an instance, or check an "
@@ -81,16 +80,16 @@ def add_arguments(parser) -> None:
     lorr_info.add_parsers(sub)
 
 
-def lorr_task(instance: str, scheduler: str, executor: str, steps, seed: int, chip, options: dict, out: str | None,
-              out_name: str | None, limit=None, full: int | None = None, progress: bool = False) -> dict:
+def lorr_task(instance: str, scheduler, planner, steps, seed: int, chip, out: str | None, out_name: str | None,
+              limit=None, full: int | None = None, progress: bool = False) -> dict:
     """One run (module level, for the task runner; ``progress``: a bar over its steps, for a run in this process);
     writes its output file when ``out`` is given; ``full``: the instance's full steps, for its share
     (:func:`~agents.commands.lorr_args.score_prefix`)."""
     from mrmt_env.lorr.output import write_output
     from agents.lorr.run import run_lorr
 
-    record, sim, step_s = run_lorr(instance, scheduler, executor, steps=steps, seed=seed, chip=chip, options=options,
-                                   limit=limit, progress=progress)
+    record, sim, step_s = run_lorr(instance, scheduler, planner, steps=steps, seed=seed, chip=chip, limit=limit,
+                                   progress=progress)
     if out:
         write_output(sim, Path(out) / out_name, planner_times=step_s)
         record["output"] = str(Path(out) / out_name)
@@ -120,7 +119,6 @@ def _run(args) -> int:
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.runner import run_tasks
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
-    from planners.mapf import TURNING_EXECUTORS
 
     bad = bad_counts(args, "--steps", "--seeds")
     if bad:
@@ -129,11 +127,11 @@ def _run(args) -> int:
         chip = chip_from_args(args)
         plans, limit = plans_from_args(args, chip)
         steps = {}
-        for path, _, executor, options in plans:  # its steps, and whether the executor takes the instance's team
+        for path, _, planner in plans:  # its steps, and whether the planner takes the instance's team
             inst = read_instance(path)
             row = best_row(inst)
             steps[path] = (steps_for(path, inst, args.steps, row), full_steps(inst, row))
-            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **memory_options(options))
+            planner.check_team(inst.grid, inst.team_size)
         run = runner_from_args(args)
     except (LoRRFormatError, ValueError, OSError) as exc:
         return fail(str(exc))
@@ -151,13 +149,13 @@ def _run(args) -> int:
         host_rule = host_rule_from_args(args)
     except ValueError as exc:
         return fail(f"--host-rule: {exc}")
-    tasks = [(inst, s, ex, steps[inst][0], seed, chip, options, args.out,
-              "output.json" if single else f"{Path(inst).stem}-{s.replace(':', '_').replace('/', '_')}-{seed}.json",
+    tasks = [(inst, s, ex, steps[inst][0], seed, chip, args.out,
+              "output.json" if single else f"{Path(inst).stem}-{s.name.replace(':', '_').replace('/', '_')}-{seed}.json",
               limit, steps[inst][1])
-             for inst, s, ex, options, seed in jobs]
+             for inst, s, ex, seed in jobs]
     progress = not args.no_progress
     if not args.address:  # one notice and a parallel compile on a new install (agents/warmup.py)
-        warm_parts([(s, ex) for _, s, ex, _ in plans], progress)
+        warm_parts([(s.name, ex.name) for _, s, ex in plans], progress)
     from contextlib import nullcontext
 
     from ising_backend.audit.record import Audit
@@ -184,7 +182,6 @@ def _round(args) -> int:
     from agents.lorr.entry import load_entry
     from agents.lorr.round import best_known_table, round_instances, run_round, summary_table
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
-    from planners.mapf import TURNING_EXECUTORS
 
     bad = bad_counts(args, "--steps", "--jobs")
     if bad:
@@ -200,8 +197,8 @@ def _round(args) -> int:
             inst = read_instance(path)
             steps_for(path, inst, args.steps, best_row(inst, best))  # the round's steps known
             c = entry.choose(inst)
-            TURNING_EXECUTORS[c.planner].check_team(inst.grid, inst.team_size, **memory_options(c.options))
-            pairs.add((c.scheduler, c.planner))
+            c.planner.check_team(inst.grid, inst.team_size)
+            pairs.add((c.scheduler.name, c.planner.name))
         backend = "ray" if args.address else args.backend
         if backend == "ray":
             from agents.runner import _ray

@@ -27,13 +27,13 @@ def add_plan_arguments(run) -> None:
                           "pibt-flow (PIBT along traffic-flow guide paths, the start kit's default planner), epibt (PIBT "
                           "over 3-action operations with large-neighbourhood search), epibt-chain (EPIBT by push chains, "
                           "the 2024 winner's plan: the best at density), epibt-chain-ising (epibt-chain with the chip "
-                          "choosing neighbourhood groups of its plan), epibt-chain-work (epibt-chain "
-                          "with the chip choosing who of the robots at work stay), epibt-ising (epibt with the chip choosing "
-                          "neighbourhood groups), windowed, pibt-ising")
+                          "choosing neighbourhood groups of its plan), epibt-ising (epibt with the chip choosing "
+                          "neighbourhood groups), pibt-ising (pibt with the chip's joint moves), or a planner of your "
+                          "own as package.module:Class (agents.lorr.roles)")
     run.add_argument("--executor", default=None, help="deprecated: the old name of --planner")
     run.add_argument("--guidance", type=int, default=None, metavar="N",
-                     help="extra cost of a move against its lane (crisscross guidance, 0..16; 0 = off; "
-                          "default: the executor's own, pibt 2, the others 0)")
+                     help="the planner option guidance: extra cost of a move against its lane (crisscross guidance, "
+                          "0..16; 0 = off; default: the planner's own, pibt 2, the others 0)")
     run.add_argument("--scheduler-option", action="append", default=[], metavar="KEY=VALUE",
                      help="an option of the scheduler's own, repeatable (e.g. lorr-weighted's weight=1, reassign=false; "
                           "values as --planner-option's)")
@@ -93,67 +93,34 @@ def planner_aliases(args) -> None:
         setattr(args, value, given)
 
 
-def executor_options(executor: str, items: list[str], grid) -> dict:
-    """``--planner-option`` items (:func:`~agents.keyvalues.key_values`) checked by :func:`check_executor_options`."""
+def planner_options(planner: str, items: list[str]) -> dict:
+    """``--planner-option`` items (:func:`~agents.keyvalues.key_values`) as a dict (checked by the spec)."""
     from agents.keyvalues import key_values
 
-    return check_executor_options(executor, key_values(items, "--planner-option", "weight_power=2"), grid)
-
-
-def check_executor_options(executor: str, options: dict, grid) -> dict:
-    """``options`` when ``executor`` takes them all (its typed options record, then built once on ``grid``);
-    ``ValueError`` naming an option the executor does not take (and those it takes) or a value it refuses."""
-    from planners.mapf import TURNING_EXECUTORS
-
-    cls = TURNING_EXECUTORS[executor]
-    try:
-        cls.Options.from_dict(options, executor)
-        cls(grid, **options)
-    except ValueError as exc:
-        raise ValueError(f"--planner-option {exc}") from None
-    return dict(options)
-
-
-def scheduler_own(options: dict) -> dict:
-    """The scheduler's part of an entry rule's ``options``."""
-    return {k: v for k, v in options.items() if k in ("replan", "keep", "scheduler_options")}
+    return key_values(items, "--planner-option", "weight_power=2") if items else {}
 
 
 def check_entry(entry, chip=None) -> None:
-    """Every rule of ``entry`` buildable: its scheduler by name, its planner and options on the example map;
+    """Every rule of ``entry`` buildable: its scheduler (built once) and its planner on the example map;
     ``ValueError`` naming the entry's file and rule."""
-    from agents.lorr.run import split_options
-    from agents.lorr.schedulers import make_scheduler
     from mrmt_env.lorr.instance import example_instance_path, read_instance
-    from planners.mapf import TURNING_EXECUTORS
 
     grid = read_instance(example_instance_path()).grid
     for rule in entry.rules:
         c = rule.choice
-        where = f"{entry.source} rule {c.rule}"
         try:
-            if c.planner not in TURNING_EXECUTORS:
-                raise ValueError(f"unknown planner {c.planner!r}; known: {', '.join(TURNING_EXECUTORS)}")
-            make_scheduler(c.scheduler, chip=chip, **scheduler_own(c.options))
-            check_executor_options(c.planner, split_options(c.options)[1], grid)  # guidance there too
+            c.scheduler.build(0, chip)
+            c.planner.build(grid)
         except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
-
-
-def memory_options(options: dict) -> dict:
-    """The planner's own memory bound among a run's ``options`` (``field_bytes``, and EPIBT's ``flow``), for its
-    ``check_team``."""
-    own = options.get("executor_options") or {}
-    return {key: own[key] for key in ("field_bytes", "flow") if key in own}
+            raise ValueError(f"{entry.source} rule {c.rule}: {exc}") from None
 
 
 def plans_from_args(args, chip) -> tuple[list[tuple], object]:
-    """``[(instance, scheduler, executor, options)]`` the flags or the entry ask for, every name and option checked,
-    and the clock; ``ValueError`` naming what is wrong."""
+    """``[(instance, SchedulerSpec, PlannerSpec)]`` the flags or the entry ask for, every name and option checked
+    (:mod:`agents.lorr.spec`), and the clock; ``ValueError`` naming what is wrong."""
     from agents.lorr.run import check_chip_use
-    from agents.lorr.schedulers import make_scheduler
+    from agents.lorr.spec import PlannerSpec, SchedulerSpec
     from mrmt_env.lorr.instance import read_instance
-    from planners.mapf import TURNING_EXECUTORS
 
     planner_aliases(args)
     insts = {path: read_instance(path) for path in args.instances}
@@ -168,19 +135,15 @@ def plans_from_args(args, chip) -> tuple[list[tuple], object]:
             raise ValueError(f"--entry decides the scheduler, the planner and their options: drop {', '.join(given)}")
         entry = load_entry(args.entry)
         check_entry(entry, chip)
-        plans = [(path, c.scheduler, c.planner, dict(c.options)) for path, inst in insts.items()
-                 for c in [entry.choose(inst)]]
+        plans = [(path, c.scheduler, c.planner) for path, inst in insts.items() for c in [entry.choose(inst)]]
         if chip is not None:  # the machine runs under each instance's rule
-            for path, s, planner, opts in plans:
-                check_chip_use(chip, make_scheduler(s, chip=chip, **scheduler_own(opts)), s, planner)
+            for _path, s, planner in plans:
+                check_chip_use(chip, s.build(0, chip), s.name, planner)
         return plans, clock_from_args(args, "rules")
     schedulers = [s.strip() for s in (args.scheduler or "lorr-greedy").split(",") if s.strip()]
     if not schedulers:
         raise ValueError("--scheduler names no scheduler")
-    executor = args.planner or "pibt"
-    if executor not in TURNING_EXECUTORS:
-        raise ValueError(f"unknown planner {executor!r}; known: {', '.join(TURNING_EXECUTORS)}")
-    options = {"replan": True} if args.replan else {}
+    options: dict = {"replan": True} if args.replan else {}
     if args.no_keep:
         if not args.replan:
             raise ValueError("--no-keep acts on --replan: add --replan")
@@ -188,23 +151,29 @@ def plans_from_args(args, chip) -> tuple[list[tuple], object]:
     if args.scheduler_option:
         from agents.keyvalues import key_values
 
-        options["scheduler_options"] = key_values(args.scheduler_option, "--scheduler-option", "weight=1")
-    for s in schedulers:  # names, model files and options checked before anything starts
-        try:
-            check_chip_use(chip, make_scheduler(s, chip=chip, **options), s, executor)
-        except TypeError as exc:
-            raise ValueError(f"--scheduler-option: {exc}") from None
+        options.update(key_values(args.scheduler_option, "--scheduler-option", "weight=1"))
+    own = planner_options(args.planner or "pibt", args.planner_option)
     if args.guidance is not None:
-        from planners.mapf import TURNING_EXECUTORS
-
-        try:  # the planner's own record checks it, as every planner option
-            options["guidance"] = TURNING_EXECUTORS[executor].Options(guidance=args.guidance).guidance
+        if "guidance" in own:
+            raise ValueError("guidance given twice (--guidance and --planner-option guidance=...): give it once")
+        own["guidance"] = args.guidance
+    name = args.planner or "pibt"
+    PlannerSpec.of(name)  # the name first: its own error
+    if args.guidance is not None:
+        try:
+            PlannerSpec.of(name, {"guidance": args.guidance})
         except ValueError as exc:
             raise ValueError(f"--guidance: {exc}") from None
-    if args.planner_option:
-        grid = next(iter(insts.values())).grid
-        options["executor_options"] = executor_options(executor, args.planner_option, grid)
-    return [(path, s, executor, options) for path in insts for s in schedulers], clock_from_args(args, None)
+    try:
+        planner = PlannerSpec.of(name, own)
+    except ValueError as exc:
+        raise ValueError(f"--planner-option {exc}") from None
+    specs = []
+    for name in schedulers:  # names, model files and options checked before anything starts
+        spec = SchedulerSpec.of(name, options, chip)
+        check_chip_use(chip, spec.build(0, chip), name, planner)
+        specs.append(spec)
+    return [(path, s, planner) for path in insts for s in specs], clock_from_args(args, None)
 
 
 def bad_counts(args, *flags) -> str | None:
@@ -217,12 +186,14 @@ def bad_counts(args, *flags) -> str | None:
 
 
 def warm_parts(pairs, progress: bool) -> None:
-    """Compile the kernels of ``(scheduler, executor)`` pairs now, on the cores, with one notice (agents/warmup.py)."""
+    """Compile the kernels of ``(scheduler, planner)`` name pairs now, on the cores, with one notice
+    (agents/warmup.py); a user's own ``package.module:Class`` compiles nothing of ours."""
     import os
 
     from agents.warmup import warm
 
-    parts = {f"lorr:{ex}" for _, ex in pairs} | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:")}
+    parts = ({f"lorr:{ex}" for _, ex in pairs if ":" not in ex}
+             | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:") and ":" not in s})
     warm(sorted(parts), jobs=min(2, os.cpu_count() or 1), progress=progress)
 
 

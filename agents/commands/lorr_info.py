@@ -69,15 +69,15 @@ def startkit(args) -> int:
 
 def options(args) -> int:
     from agents.lorr.schedulers import SCHEDULERS, scheduler_options
-    from planners.mapf import TURNING_EXECUTORS
+    from planners.mapf import TURNING_PLANNERS
 
     name = args.planner
-    if name is not None and name not in TURNING_EXECUTORS and name not in SCHEDULERS:
-        return _fail(f"unknown planner {name!r}; known: {', '.join(TURNING_EXECUTORS)}; schedulers: "
+    if name is not None and name not in TURNING_PLANNERS and name not in SCHEDULERS:
+        return _fail(f"unknown planner {name!r}; known: {', '.join(TURNING_PLANNERS)}; schedulers: "
                      f"{', '.join(SCHEDULERS)}")
-    planners = [name] if name in TURNING_EXECUTORS else [] if name else list(TURNING_EXECUTORS)
+    planners = [name] if name in TURNING_PLANNERS else [] if name else list(TURNING_PLANNERS)
     schedulers = [name] if name in SCHEDULERS else [] if name else list(SCHEDULERS)
-    for kind, names, rows in (("", planners, lambda n: TURNING_EXECUTORS[n].Options.describe()),
+    for kind, names, rows in (("", planners, lambda n: TURNING_PLANNERS[n].Options.describe()),
                               (" (scheduler)", schedulers, scheduler_options)):
         for n in names:
             print(f"{n}{kind}:")

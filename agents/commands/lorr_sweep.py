@@ -35,14 +35,12 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from agents.commands.lorr_args import (bad_counts, best_row, fail, memory_options, plans_from_args, steps_for,
-                                           warm_parts)
+    from agents.commands.lorr_args import bad_counts, best_row, fail, plans_from_args, steps_for, warm_parts
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.lorr.sweep import DECIDERS, sweep_rows, sweep_task, write_sweep
     from agents.runner import run_tasks
     from agents.sweep import chip_grid, parse_axes
     from mrmt_env.lorr.instance import LoRRFormatError, read_instance
-    from planners.mapf import TURNING_EXECUTORS
 
     bad = bad_counts(args, "--steps", "--seeds")
     if bad:
@@ -54,10 +52,10 @@ def run(args) -> int:
         # names and options checked, and that a machine decides something
         plans, limit = plans_from_args(args, grid[0][1])
         steps = {}
-        for path, _, executor, options in plans:  # its steps (as run's), and whether the planner takes its team
+        for path, _, planner in plans:  # its steps (as run's), and whether the planner takes its team
             inst = read_instance(path)
             steps[path] = steps_for(path, inst, args.steps, best_row(inst))
-            TURNING_EXECUTORS[executor].check_team(inst.grid, inst.team_size, **memory_options(options))
+            planner.check_team(inst.grid, inst.team_size)
         run_cfg = runner_from_args(args)
         if limit is not None and run_cfg.backend != "inline" and args.jobs > 1:
             raise ValueError(f"--step-limit with --jobs {args.jobs}: runs under a clock want the cores to themselves; "
@@ -65,20 +63,20 @@ def run(args) -> int:
     except (LoRRFormatError, ValueError, OSError) as exc:
         return fail(str(exc))
     labels, tasks = [], []
-    for inst, s, ex, options in plans:
+    for inst, s, ex in plans:
         for spec_id, (axis, chip) in enumerate(grid):
             name = ",".join(f"{k}={v}" for k, v in axis.items())
             for seed in range(args.seed, args.seed + args.seeds):
                 for decider in DECIDERS:
                     labels.append((spec_id, name, decider))
-                    tasks.append((inst, s, ex, steps[inst], seed, chip, options, decider, limit))
+                    tasks.append((inst, s, ex, steps[inst], seed, chip, decider, limit))
     if not args.address:
-        warm_parts([(s, ex) for _, s, ex, _ in plans], not args.no_progress)
+        warm_parts([(s.name, ex.name) for _, s, ex in plans], not args.no_progress)
     try:
         records = run_tasks(sweep_task, tasks, run_cfg, desc="lorr sweep", unit="run")
     except ValueError as exc:  # a spec of the grid the planner refuses (e.g. fewer spins than a group needs)
         return fail(str(exc))
-    title = f"{plans[0][1]} + {plans[0][2]} over {len(grid)} machine(s)"
+    title = f"{plans[0][1].name} + {plans[0][2].name} over {len(grid)} machine(s)"
     summary = write_sweep(sweep_rows(records, labels), args.out, title)
     for s in summary:
         ratio = "-" if s["ratio"] is None else f"{s['ratio']:.3f}"

@@ -129,7 +129,7 @@ def add_decision_arguments(parser, where: str) -> None:
     parser.add_argument("--host-rule", default=None, metavar="CLASSES",
                         help="ablation: the host rule answers these decision classes where the chip decided (greedy + "
                              "descent; joint_moves: PIBT's answer; lns_groups: the search's greedy; task_groups: "
-                             "the greedy matching; work_set: the robots of least way all at work) "
+                             "the greedy matching) "
                              f"({', '.join(HOST_RULE_CLASSES)}, or all; this process only)")
 
 

@@ -65,13 +65,13 @@ def run(args) -> int:
 def _lorr_executors(text: str) -> list[str]:
     """The LoRR executor names of ``--lorr`` (``all``: every registered one); ``ValueError`` naming an
     unknown one and the known ones."""
-    from planners.mapf import TURNING_EXECUTORS
+    from planners.mapf import TURNING_PLANNERS
 
     names = [n.strip() for n in text.split(",") if n.strip()]
     if names == ["all"]:
-        return list(TURNING_EXECUTORS)
-    unknown = [n for n in names if n not in TURNING_EXECUTORS]
+        return list(TURNING_PLANNERS)
+    unknown = [n for n in names if n not in TURNING_PLANNERS]
     if unknown:
         raise ValueError(f"--lorr: unknown executor {unknown[0]!r}; expected `all` or some of "
-                         f"{', '.join(TURNING_EXECUTORS)}")
+                         f"{', '.join(TURNING_PLANNERS)}")
     return names

@@ -5,9 +5,10 @@ file (TOML, or JSON of the same shape) holds ``name``, an optional ``description
 first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
 preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_cells`` /
 ``min_cells`` (the map's cells, blocked ones too), ``max_fill`` /
-``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions:
-``scheduler`` (as ``mrmt lorr run --scheduler``), ``planner`` (``--executor``), ``replan``, ``keep``,
-``guidance``, ``scheduler_options`` (``--scheduler-option``), ``planner_options`` (``--executor-option``).  The last rule must have no condition, so every
+``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions: ``scheduler`` (as
+``mrmt lorr run --scheduler``) and its ``scheduler_options`` (``replan``, ``keep`` and its own), ``planner``
+(``--planner``) and its ``planner_options`` (``guidance`` and its own), read once into the specs of
+:mod:`agents.lorr.spec` that the run receives as they are.  The last rule must have no condition, so every
 instance gets a choice.  ``--entry default`` is the package's own (``agents/lorr/entries/default.toml``).
 """
 
@@ -15,15 +16,19 @@ from __future__ import annotations
 
 import fnmatch
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+
+from agents.lorr.spec import PlannerSpec, SchedulerSpec
 
 __all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
 
 #: Entries shipped with the package, by name (``<name>.toml``).
 ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
 _CONDITIONS = ("max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill", "maps")
-_DECISIONS = ("scheduler", "planner", "replan", "keep", "guidance", "scheduler_options", "planner_options")
+_DECISIONS = ("scheduler", "planner", "scheduler_options", "planner_options")
+#: Keys of earlier entry files and where they now live.
+_MOVED = {"replan": "scheduler_options", "keep": "scheduler_options", "guidance": "planner_options"}
 
 
 class EntryError(ValueError):
@@ -32,11 +37,10 @@ class EntryError(ValueError):
 
 @dataclass(frozen=True)
 class Choice:
-    """What an entry runs on one instance: the scheduler, the planner and their options (``run_lorr``'s)."""
+    """What an entry runs on one instance: the scheduler's and the planner's specs, and the rule's number."""
 
-    scheduler: str
-    planner: str
-    options: dict = field(default_factory=dict)
+    scheduler: SchedulerSpec
+    planner: PlannerSpec
     rule: int = 0
 
 
@@ -75,8 +79,9 @@ class Entry:
 
     def to_json(self) -> dict:
         return {"name": self.name, "description": self.description, "source": self.source,
-                "rules": [{**r.conditions, "scheduler": r.choice.scheduler, "planner": r.choice.planner,
-                           **r.choice.options} for r in self.rules]}
+                "rules": [{**r.conditions, "scheduler": r.choice.scheduler.name,
+                           "scheduler_options": r.choice.scheduler.options, "planner": r.choice.planner.name,
+                           "planner_options": r.choice.planner.given} for r in self.rules]}
 
 
 def _read(path: Path) -> dict:
@@ -106,6 +111,10 @@ def _number(where: str, key: str, value, integer: bool):
 def _rule(where: str, raw, last: bool) -> Rule:
     if not isinstance(raw, dict):
         raise EntryError(f"{where}: a rule is a table of conditions and decisions, got {type(raw).__name__}")
+    moved = sorted(set(raw) & set(_MOVED))
+    if moved:
+        raise EntryError(f"{where}: {moved[0]} is a {_MOVED[moved[0]].split('_')[0]} option: write "
+                         f"{_MOVED[moved[0]]} = {{ {moved[0]} = {json.dumps(raw[moved[0]])} }}")
     unknown = sorted(set(raw) - set(_CONDITIONS) - set(_DECISIONS))
     if unknown:
         raise EntryError(f"{where}: unknown key {unknown[0]!r}; conditions: {', '.join(_CONDITIONS)}; decisions: "
@@ -127,27 +136,23 @@ def _rule(where: str, raw, last: bool) -> Rule:
     for key in ("scheduler", "planner"):
         if not isinstance(raw.get(key), str) or not raw[key]:
             raise EntryError(f"{where}: {key} must name a {key} (as mrmt lorr run takes it), got {raw.get(key)!r}")
-    options: dict = {}
-    for key in ("replan", "keep"):
-        if key in raw:
-            if not isinstance(raw[key], bool):
-                raise EntryError(f"{where}: {key} = {raw[key]!r} must be true or false")
-            options[key] = raw[key]
-    if "guidance" in raw:
-        options["guidance"] = _number(where, "guidance", raw["guidance"], True)
-    for key, into in (("scheduler_options", "scheduler_options"), ("planner_options", "executor_options")):
+    tables = {}
+    for key in ("scheduler_options", "planner_options"):
         table = raw.get(key, {})
         if not isinstance(table, dict):
             raise EntryError(f"{where}: {key} must be a table of the {key.split('_')[0]}'s options")
-        if table:
-            options[into] = dict(table)
-    return Rule(conditions, Choice(raw["scheduler"], raw["planner"], options))
+        tables[key] = dict(table)
+    try:
+        sched = SchedulerSpec.of(raw["scheduler"], tables["scheduler_options"])
+        planner = PlannerSpec.of(raw["planner"], tables["planner_options"])
+    except ValueError as exc:
+        raise EntryError(f"{where}: {exc}") from None
+    return Rule(conditions, Choice(sched, planner))
 
 
 def load_entry(spec) -> Entry:
     """An entry by name (shipped in :data:`ENTRIES_DIR`) or path (``.toml`` / ``.json``); :class:`EntryError`
-    naming the file, the rule and the key of anything wrong (schedulers and planners are checked where they
-    are built: :func:`check_entry`)."""
+    naming the file, the rule and the key of anything wrong, an unknown scheduler, planner or option included."""
     spec = str(spec)
     path = Path(spec)
     if not path.suffix:
@@ -167,7 +172,6 @@ def load_entry(spec) -> Entry:
     rules = []
     for i, raw in enumerate(data["rule"]):
         rule = _rule(f"{path} rule {i + 1}", raw, i == n - 1)
-        rules.append(Rule(rule.conditions, Choice(rule.choice.scheduler, rule.choice.planner, rule.choice.options,
-                                                  rule=i + 1)))
+        rules.append(Rule(rule.conditions, Choice(rule.choice.scheduler, rule.choice.planner, rule=i + 1)))
     return Entry(name=str(data.get("name", path.stem)), rules=tuple(rules),
                  description=str(data.get("description", "")), source=str(path))

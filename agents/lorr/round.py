@@ -81,7 +81,7 @@ def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str
     if full is None and steps is None:
         raise ValueError(f"{instance}: no simulation time (no simulation_time.json, no best-known row): give --steps")
     n = int(steps) if steps is not None else int(full)
-    record, sim, step_s = run_lorr(inst, choice.scheduler, choice.planner, steps=n, seed=seed, options=choice.options,
+    record, sim, step_s = run_lorr(inst, choice.scheduler, choice.planner, steps=n, seed=seed,
                                    limit=limit)
     folder = Path(out) / inst.name
     write_output(sim, folder / "output.json", planner_times=step_s)

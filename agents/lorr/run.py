@@ -27,9 +27,11 @@ from mrmt_env.lorr.instance import LoRRInstance, example_instance_path, read_ins
 from mrmt_env.lorr.loop import StepLoop
 from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
+from agents.lorr.roles import Planner, Scheduler, charge
 from agents.lorr.scores import best_known
+from agents.lorr.spec import PlannerSpec, SchedulerSpec, specs_from_options
 
-__all__ = ["run_lorr", "best_known", "make_roles", "split_options", "peak_rss_mb", "RUN_KEYS", "MEASURED_KEYS", "Loop"]
+__all__ = ["run_lorr", "best_known", "make_roles", "peak_rss_mb", "RUN_KEYS", "MEASURED_KEYS", "Loop"]
 
 RUN_KEYS = ("instance", "scheduler", "executor", "guidance", "executor_options", "scheduler_options", "seed", "robots",
             "steps", "tasks_finished", "best_known",
@@ -57,66 +59,53 @@ class Loop(NamedTuple):
     preprocess_s: float
 
 
-def _warm(scheduler: str, executor: str, chip, options) -> None:
-    if (scheduler, executor) in _WARM:
+def _warm(sched: SchedulerSpec, planner: PlannerSpec, chip) -> None:
+    key = (sched.name, planner.name)
+    if key in _WARM or ":" in sched.name or ":" in planner.name:  # a user's own role compiles nothing of ours
         return
-    _WARM.add((scheduler, executor))
+    _WARM.add(key)
     from ising_backend.audit.record import suspended
 
     with suspended():  # compiling decides nothing of the run: an open audit records none of it
-        _loop(read_instance(example_instance_path()), scheduler, executor, 3, 0, chip, dict(options), None)
+        _loop(read_instance(example_instance_path()), sched, planner, 3, 0, chip, None)
 
 
-def split_options(options: dict | None) -> tuple[dict, dict]:
-    """:func:`run_lorr`'s ``options`` as ``(scheduler's, planner's)``: ``guidance`` and ``executor_options`` go to
-    the planner, the rest to :func:`~agents.lorr.schedulers.make_scheduler`."""
-    options = dict(options or {})
-    planner = dict(options.pop("executor_options", None) or {})
-    if "guidance" in options:
-        if "guidance" in planner:
-            raise ValueError(f"guidance given twice ({options['guidance']!r} and the planner option's "
-                             f"{planner['guidance']!r}); give it once")
-        planner["guidance"] = options.pop("guidance")
-    return options, planner
-
-
-def make_roles(grid, scheduler: str, executor: str, seed: int = 0, chip=None, options: dict | None = None):
-    """The scheduler and the one-step planner of a run on ``grid`` (``options`` as :func:`run_lorr`'s), as the
-    runner and the start kit's adapter (:mod:`agents.lorr.startkit`, one role each) build them."""
-    from agents.lorr.schedulers import make_scheduler
-    from planners.mapf import MACHINE_PLANNERS, make_turning_executor
-
-    sched_options, planner_options = split_options(options)
-    sched = make_scheduler(scheduler, seed=seed, chip=chip, **sched_options)
-    check_chip_use(chip, sched, scheduler, executor)
-    if chip is not None and executor in MACHINE_PLANNERS:  # the same machine recipe, a machine of the planner's own
+def make_roles(grid, scheduler: SchedulerSpec, planner: PlannerSpec, seed: int = 0, chip=None):
+    """The scheduler and the one-step planner of a run on ``grid``, as the runner and the start kit's adapter
+    (:mod:`agents.lorr.startkit`, one role each) build them from their specs; ``chip`` (a machine recipe) for the
+    chip scheduler and the chip planners, each a machine of its own."""
+    sched = scheduler.build(seed, chip)
+    check_chip_use(chip, sched, scheduler.name, planner)
+    machine = None
+    if chip is not None and planner.machine:  # the same machine recipe, a machine of the planner's own
         from ising_backend import build_machine
 
-        planner_options["machine"] = build_machine(chip, seed)
-    return sched, make_turning_executor(executor, grid, seed=seed, **planner_options)
+        machine = build_machine(chip, seed)
+    return sched, planner.build(grid, seed, machine)
 
 
-def check_chip_use(chip, sched, scheduler: str, executor: str) -> None:
+def check_chip_use(chip, sched, scheduler: str, planner: PlannerSpec) -> None:
     """``ValueError`` when a machine is given (``chip``: ``--chip`` / ``--sampler``) but neither the scheduler
-    ``sched`` (named ``scheduler``) nor the planner ``executor`` runs on one: nothing given is dropped unsaid."""
+    ``sched`` (named ``scheduler``) nor the ``planner`` runs on one: nothing given is dropped unsaid."""
     from planners.mapf import MACHINE_PLANNERS
 
-    if chip is not None and executor not in MACHINE_PLANNERS and not sched.accelerated:
+    if chip is not None and not planner.machine and not getattr(sched, "accelerated", False):
         raise ValueError(f"--chip or --sampler given, but neither the scheduler {scheduler!r} nor the planner "
-                         f"{executor!r} runs on a machine (chip schedulers: lorr-ising, ising, fast, ising-paper or a "
-                         f"pair with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
+                         f"{planner.name!r} runs on a machine (chip schedulers: lorr-ising, ising, fast, ising-paper or "
+                         f"a pair with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
 
 
-def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None):
-    """The run: per decision, ``(scheduler host, executor host, chip)`` seconds and the CPU seconds beyond the wall;
-    under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first."""
+def _loop(inst, scheduler, planner, steps, seed, chip, bar, limit=None):
+    """The run: per decision, ``(scheduler host, planner host, chip)`` seconds and the CPU seconds beyond the wall;
+    under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first.
+    ``scheduler`` / ``planner``: specs, or objects meeting the roles (used as they are)."""
     t0 = time.perf_counter()
-    sched, ex = make_roles(inst.grid, scheduler, executor, seed, chip, options)
+    sched, ex = _roles(inst.grid, scheduler, planner, seed, chip)
     sim = LoRRSimulator(inst)
     loop = StepLoop(sim, sched)
     prep_s = time.perf_counter() - t0
-    n = []  # per decision: scheduler host, executor host, chip seconds
-    busy = []  # CPU seconds beyond the wall (an executor's plans on several threads)
+    n = []  # per decision: scheduler host, planner host, chip seconds
+    busy = []  # CPU seconds beyond the wall (a planner's plans on several threads)
     accel_j = 0.0
     calls = 0
     while sim.t < steps:
@@ -128,7 +117,7 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
         actions = ex.actions(sim.pos, sim.orient, loop.goal_cells(), deadline=deadline, **loop.rest_for(ex))
         t2 = time.perf_counter()
         busy.append(max(time.process_time() - c1 - (t2 - t1), 0.0))
-        c, e = sched.last_compute, ex.last_compute  # an executor with a chip decision charges it too
+        c, e = charge(sched), charge(ex)  # a planner with a chip decision charges it too
         n.append((max(t1 - t0 - c.emulation_s, 0.0), max(t2 - t1 - e.emulation_s, 0.0),
                   c.chip_time_parallel_s + e.chip_time_parallel_s))
         accel_j += c.accelerator_energy_j + e.accelerator_energy_j
@@ -140,26 +129,59 @@ def _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit=None
     return Loop(sim, sched, ex, np.array(n).reshape(-1, 3), np.array(busy), accel_j, calls, prep_s)
 
 
-def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", steps: int | None = None,
+def _roles(grid, scheduler, planner, seed, chip):
+    """The two roles of a run: built from their specs, or objects meeting the roles used as they are."""
+    if isinstance(scheduler, SchedulerSpec) and isinstance(planner, PlannerSpec):
+        return make_roles(grid, scheduler, planner, seed, chip)
+    sched = scheduler.build(seed, chip) if isinstance(scheduler, SchedulerSpec) else scheduler
+    ex = planner.build(grid, seed) if isinstance(planner, PlannerSpec) else planner
+    return sched, ex
+
+
+def _as_roles(scheduler, planner, options):
+    """``(scheduler, planner)`` as specs (names with the dict ``options``, or specs) or role objects; ``ValueError``
+    for an object that does not meet its role."""
+    from agents.lorr.spec import _check_role
+
+    if isinstance(scheduler, str) and isinstance(planner, str):
+        return specs_from_options(scheduler, planner, options)
+    if options:
+        raise ValueError("options= goes with a scheduler and a planner named by strings; give specs "
+                         "(agents.lorr.spec) or objects instead")
+    if isinstance(scheduler, str):
+        scheduler = SchedulerSpec(scheduler)
+    if isinstance(planner, str):
+        planner = PlannerSpec.of(planner)
+    if not isinstance(scheduler, SchedulerSpec):
+        _check_role(scheduler, Scheduler, f"scheduler {type(scheduler).__name__}")
+    if not isinstance(planner, PlannerSpec):
+        _check_role(planner, Planner, f"planner {type(planner).__name__}")
+    return scheduler, planner
+
+
+def run_lorr(instance, scheduler="lorr-greedy", executor="pibt", steps: int | None = None,
              seed: int = 0, chip=None, progress: bool = False, options: dict | None = None, limit=None):
     """Run ``instance`` (a path or :class:`LoRRInstance`) for ``steps`` (default: its simulation
-    time); returns ``(record, sim, decision_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``options``:
-    the scheduler's (:func:`agents.lorr.schedulers.make_scheduler`), ``guidance`` for the executor
-    (:mod:`planners.mapf.guides.guidance`; default: the executor's own) and ``executor_options``, a dict of the
-    executor's own keyword options (e.g. ``{"weight_power": 2}`` for ``epibt``).  ``limit``: a
+    time); returns ``(record, sim, decision_seconds)`` -- the record's keys are :data:`RUN_KEYS`.  ``scheduler`` and
+    ``executor`` (the planner): names (with ``options``, the dict form of :func:`agents.lorr.spec.specs_from_options`:
+    ``replan``, ``keep``, ``scheduler_options``, ``guidance``, ``planner_options``), specs
+    (:class:`~agents.lorr.spec.SchedulerSpec`, :class:`~agents.lorr.spec.PlannerSpec`), or objects that meet the
+    roles (:mod:`agents.lorr.roles`: a user's own, used as they are).  ``limit``: a
     :class:`~mrmt_env.lorr.clock.StepLimit` runs under the start kit's clock (a late decision costs timeouts; the
     record's ``clock`` says so); ``None`` (default) is work-bounded and deterministic."""
     inst = instance if isinstance(instance, LoRRInstance) else read_instance(Path(instance))
     steps = int(steps or inst.steps or DEFAULT_STEPS)
-    options = dict(options or {})
-    _warm(scheduler, executor, chip, options)
+    scheduler, executor = _as_roles(scheduler, executor, options)
+    if isinstance(scheduler, SchedulerSpec) and isinstance(executor, PlannerSpec):
+        _warm(scheduler, executor, chip)
+    s_name, p_name = _name(scheduler), _name(executor)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=steps, desc=f"{inst.name} {scheduler}+{executor}", file=sys.stderr, leave=False)
+        bar = tqdm(total=steps, desc=f"{inst.name} {s_name}+{p_name}", file=sys.stderr, leave=False)
     try:
-        run = _loop(inst, scheduler, executor, steps, seed, chip, options, bar, limit)
+        run = _loop(inst, scheduler, executor, steps, seed, chip, bar, limit)
     finally:
         if bar is not None:
             bar.close()
@@ -171,9 +193,8 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
     host_j = host_cpu_s * CPU_WATTS_PER_CORE  # each busy core's seconds: a portfolio's threads too
     best = best_known(inst)
     record = {
-        "instance": inst.name, "scheduler": scheduler, "executor": executor, "guidance": run.ex.guidance,
-        "executor_options": dict(options.get("executor_options") or {}),
-        "scheduler_options": dict(options.get("scheduler_options") or {}), "seed": int(seed),
+        "instance": inst.name, "scheduler": s_name, "executor": p_name, "guidance": getattr(run.ex, "guidance", None),
+        "executor_options": _given(executor), "scheduler_options": _given(scheduler), "seed": int(seed),
         "robots": inst.team_size, "steps": steps, "tasks_finished": sim.finished, "best_known": best,
         # the best-known is over the instance's full simulation time: a share only for a full run
         "share_of_best": (sim.finished / best) if best and steps == inst.steps else None,
@@ -186,11 +207,24 @@ def run_lorr(instance, scheduler: str = "lorr-greedy", executor: str = "pibt", s
         "step_max_s": float(step_s.max()), "scheduler_p99_s": float(np.percentile(n[:, 0] + n[:, 2], 99)),
         "executor_p99_s": float(np.percentile(n[:, 1], 99)), "chip_calls": int(run.calls), "host_s": host_s,
         "host_cpu_s": host_cpu_s,
-        "chip_s": chip_s, "paper_energy_per_task_j": (run.accel_j if run.sched.accelerated else host_j) / done,
+        "chip_s": chip_s, "paper_energy_per_task_j": (run.accel_j if getattr(run.sched, "accelerated", False) else host_j)
+        / done,
         "total_energy_per_task_j": (host_j + run.accel_j) / done, "host_energy_per_task_j": host_j / done,
         "machine_energy_per_task_j": run.accel_j / done, "peak_rss_mb": peak_rss_mb(),
     }
     return record, sim, step_s
+
+
+def _name(role) -> str:
+    """A role's name: its spec's, else its own ``name``, else its class's."""
+    return role.name if isinstance(role, (SchedulerSpec, PlannerSpec)) else getattr(role, "name", type(role).__name__)
+
+
+def _given(role) -> dict:
+    """The options a spec was given (a planner's without ``guidance``, recorded apart); none for an object."""
+    if isinstance(role, PlannerSpec):
+        return {k: v for k, v in role.given.items() if k != "guidance"}
+    return dict(role.options) if isinstance(role, SchedulerSpec) else {}
 
 
 def peak_rss_mb() -> float:

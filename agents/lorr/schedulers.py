@@ -33,7 +33,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from mrmt_env.lorr.greedy import FAR, GreedyScheduler
+from mrmt_env.lorr.greedy import FAR, MAX_WAY, GreedyScheduler
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
@@ -162,14 +162,19 @@ class _Greedy(GreedyScheduler):
     last_compute = ComputeReport()
 
 
-def scheduler_options(name: str) -> list[tuple[str, object, str, str]]:
-    """``(key, default, allowed, meaning)`` of each of a named scheduler's own options (``--scheduler-option``),
-    ``busy`` last; ``ValueError`` naming an unknown scheduler."""
-    if name == "lorr-greedy":
-        from mrmt_env.lorr.greedy import MAX_WAY
+@dataclass(frozen=True)
+class GreedyOptions(Options):
+    """``lorr-greedy``'s option."""
 
-        rows = [("way", 1, f"an integer in [1, {MAX_WAY}]", "the way to a task's first errand weighed against its "
-                 "errand legs (1 = the start kit's)")]
+    way: int = option(1, int, 1, MAX_WAY, meaning="the way to a task's first errand weighed against its errand legs "
+                      "(1 = the start kit's)")
+
+
+def scheduler_options(name: str) -> list[tuple[str, object, str, str]]:
+    """``(key, default, allowed, meaning)`` of each of a named scheduler's own options (``--scheduler-option``);
+    ``ValueError`` naming an unknown scheduler."""
+    if name == "lorr-greedy":
+        rows = GreedyOptions.describe()
     elif name == "lorr-weighted":
         from agents.lorr.weighted import WeightedOptions
 
@@ -188,25 +193,14 @@ def scheduler_options(name: str) -> list[tuple[str, object, str, str]]:
             ("fill", True, "true or false", "robots the decision leaves without a task take the nearest free one")]
     else:
         raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}")
-    return rows + [("busy", 1.0, "a number in (0, 1]", "the share of the team that may hold tasks; the others park")]
+    return rows
 
 
 def make_scheduler(name: str, seed: int = 0, chip=None, **options):
-    """A scheduler by name (see the module docstring); ``ValueError`` naming an unknown one.  ``options`` may hold
-    ``scheduler_options`` (a dict: ``--scheduler-option``, an entry's table), merged with the others; ``busy``
-    (any scheduler) parks robots beyond that share of the team (:mod:`agents.lorr.parking`)."""
-    options.update(options.pop("scheduler_options", None) or {})
-    if "busy" in options:
-        from agents.lorr.parking import Parked, check_busy
-
-        busy = check_busy(options.pop("busy"))
-        inner = make_scheduler(name, seed=seed, chip=chip, **options)
-        return inner if busy == 1 else Parked(inner, busy)
+    """A scheduler by name (see the module docstring) with its ``options``; ``ValueError`` naming an unknown one or
+    an option it does not take."""
     if name == "lorr-greedy":
-        unknown = sorted(set(options) - {"way"})
-        if unknown:
-            raise ValueError(f"lorr-greedy takes no option {unknown[0]!r}; its options: way, busy")
-        return _Greedy(**options)
+        return _Greedy(way=GreedyOptions.from_dict(options, name).way)
     if name == "lorr-weighted":
         from agents.lorr.weighted import WeightedScheduler
 

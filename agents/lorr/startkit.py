@@ -201,25 +201,21 @@ class _Role:
         self.inst = None
         self.choice = None
 
-    def _choose(self) -> tuple[dict, dict]:
-        """The entry's choice on the kit's instance; returns its ``(scheduler's, planner's)`` options."""
+    def _choose(self):
+        """The entry's choice on the kit's instance (an :class:`~agents.lorr.entry.Choice`: the two specs)."""
         from agents.lorr.entry import load_entry
-        from agents.lorr.run import split_options
 
         self.state = view_of(self.env)
         self.inst = self.state.inst
         self.choice = load_entry(self.entry).choose(self.inst)
-        return split_options(self.choice.options)
+        return self.choice
 
 
 class KitScheduler(_Role):
     """The start kit's ``pyTaskScheduler`` (module docstring)."""
 
     def initialize(self, preprocess_time_limit: int) -> bool:
-        from agents.lorr.schedulers import make_scheduler
-
-        options, _planner = self._choose()
-        self.scheduler = make_scheduler(self.choice.scheduler, seed=self.seed, **options)
+        self.scheduler = self._choose().scheduler.build(self.seed)
         self.started = False
         return True
 
@@ -239,10 +235,7 @@ class KitPlanner(_Role):
     kit's goal list is a Python list a robot a step), or stays without one."""
 
     def initialize(self, preprocess_time_limit: int) -> bool:
-        from planners.mapf import make_turning_executor
-
-        _scheduler, options = self._choose()
-        self.planner = make_turning_executor(self.choice.planner, self.inst.grid, seed=self.seed, **options)
+        self.planner = self._choose().planner.build(self.inst.grid, self.seed)
         return True
 
     def plan(self, time_limit: int) -> list[int]:

@@ -24,18 +24,17 @@ COLUMNS = ("instance", "spec_id", "spec", "decider", "seed", "steps", "clock", "
            "host_energy_per_task_j", "machine_energy_per_task_j")
 
 
-def sweep_task(instance: str, scheduler: str, planner: str, steps, seed: int, chip, options: dict, decider: str,
-               limit=None) -> dict:
-    """One run (module level, for the task runner): :func:`~agents.lorr.run.run_lorr` with the machine ``chip``,
-    inside the host rule for ``decider == "host rule"``."""
+def sweep_task(instance: str, scheduler, planner, steps, seed: int, chip, decider: str, limit=None) -> dict:
+    """One run (module level, for the task runner) of the specs ``scheduler`` and ``planner``
+    (:mod:`agents.lorr.spec`): :func:`~agents.lorr.run.run_lorr` with the machine ``chip``, inside the host rule for
+    ``decider == "host rule"``."""
     from agents.lorr.run import run_lorr
     from ising_backend.audit.host_rule import HostRule
 
     if decider not in DECIDERS:
         raise ValueError(f"decider = {decider!r} must be one of {', '.join(DECIDERS)}")
     with HostRule("all") if decider == "host rule" else nullcontext():
-        record, _, _ = run_lorr(instance, scheduler, planner, steps=steps, seed=seed, chip=chip, options=options,
-                                limit=limit)
+        record, _, _ = run_lorr(instance, scheduler, planner, steps=steps, seed=seed, chip=chip, limit=limit)
     return record
 
 

@@ -30,7 +30,7 @@ from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
 from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
 from planners.mapf.common import GroupBatch, machine_for, mix
-from planners.options import option
+from planners.options import Options, option, record
 
 __all__ = ["IsingWeightedScheduler", "TaskGroupOptions", "GroupLimits", "select_task_groups", "task_qubo",
            "group_cost", "decode_tasks"]
@@ -225,8 +225,8 @@ def decode_tasks(m, cell_of, members, a, b, ostart, opt, spins, choice) -> int:
 
 
 @dataclass(frozen=True)
-class TaskGroupOptions(WeightedOptions):
-    """:class:`IsingWeightedScheduler`'s options: :class:`~agents.lorr.weighted.WeightedOptions` and its decisions'."""
+class TaskDecisionOptions(Options):
+    """The group decisions' options."""
 
     groups: int = option(64, int, 0, 1 << 16, meaning="decisions per step")
     max_robots: int = option(6, int, 2, 22, meaning="robots per group")
@@ -238,6 +238,11 @@ class TaskGroupOptions(WeightedOptions):
                           "a task taken twice half that")
     min_gain: int = option(1, int, 1, 1 << 20, meaning="a group takes the decided choice when it lowers the "
                            "group's cost by at least this much")
+
+
+TaskGroupOptions = record("TaskGroupOptions", "lorr-ising's options: the winner's measure's "
+                          "(:class:`~agents.lorr.weighted.WeightedOptions`) and its decisions'.", WeightedOptions,
+                          TaskDecisionOptions, module=__name__)
 
 
 class IsingWeightedScheduler(WeightedScheduler):

@@ -2,7 +2,7 @@
 
 Contract: inside ``with HostRule({"sharing_split"}):`` (or ``HostRule("all")``) every submission of a named
 decision class takes :func:`ising_backend.audit.judge.greedy_descent`'s answer on the host, the same for
-every read and charged nothing to the machine; ``joint_moves``, ``lns_groups``, ``task_groups`` and ``work_set``
+every read and charged nothing to the machine; ``joint_moves``, ``lns_groups`` and ``task_groups``
 take their planners' and scheduler's own host rules.  Closed, nothing changes.  Usage: docs/audit.md; design:
 docs/design/machine_link.md.
 """
@@ -16,7 +16,7 @@ __all__ = ["HostRule", "host_rule_classes", "host_answer", "HOST_RULE_CLASSES", 
 #: The decision classes whose programs the generic host rule answers.
 GENERIC_CLASSES = ("path_query", "sharing_split", "tour_split", "tour_order", "tour_moves", "fleet_moves")
 #: Every class a host rule can take: the generic ones, then the executors' classes with host rules of their own.
-HOST_RULE_CLASSES = GENERIC_CLASSES + ("joint_moves", "lns_groups", "task_groups", "work_set")
+HOST_RULE_CLASSES = GENERIC_CLASSES + ("joint_moves", "lns_groups", "task_groups")
 _ACTIVE: list[frozenset] = []
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mrmt_env.lorr.roles import Scheduler
 from mrmt_env.lorr.sim import LoRRSimulator
 from mrmt_env.lorr.tasks import goals_under, rest_keywords
 
@@ -18,11 +19,11 @@ __all__ = ["StepLoop"]
 
 
 class StepLoop:
-    """One run's steps on ``sim`` with ``scheduler`` (an object with ``schedule(sim[, deadline])`` and optionally
-    ``reset(sim)``, or ``None``: only proposals given to :meth:`hold`).  :attr:`pending` is the proposal the
-    coming step applies (``None``: none)."""
+    """One run's steps on ``sim`` with ``scheduler`` (a :class:`~mrmt_env.lorr.roles.Scheduler`, its optional
+    ``reset(sim)`` called first; or ``None``: only proposals given to :meth:`hold`).  :attr:`pending` is the proposal
+    the coming step applies (``None``: none)."""
 
-    def __init__(self, sim: LoRRSimulator, scheduler=None) -> None:
+    def __init__(self, sim: LoRRSimulator, scheduler: Scheduler | None = None) -> None:
         self.sim = sim
         self.scheduler = scheduler
         self.pending: np.ndarray | None = None

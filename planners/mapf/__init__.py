@@ -1,61 +1,92 @@
 """Collision-free execution for lifelong operation: one conflict-free joint move per step.
 
-:class:`PIBT` (priority inheritance with backtracking, compiled) and
-:class:`WindowedPlanner` (prioritized space-time A* over a short window,
-compiled); both take flat robot cells and goal cells and return next cells or
-env actions.  :func:`make_executor` builds one by name (:data:`EXECUTORS`).
-:class:`TurningPIBT` is PIBT for the League of Robot Runners' action model with
-turning (flat cells and orientations -> actions F, R, C, W);
-:class:`WindowedTurningPlanner` is windowed prioritized space-time A* over (cell,
-orientation, time) for the same rules; :func:`make_turning_executor` builds either by name
-(:data:`TURNING_EXECUTORS`); :class:`FlowPIBT` is PIBT with turning along traffic-flow guide paths;
-:class:`EPIBT` is PIBT over multi-action operations along the same guide paths.
+:class:`PIBT` (priority inheritance with backtracking, compiled) and :class:`WindowedPlanner` (prioritized
+space-time A* over a short window, compiled) take flat robot cells and goal cells (:func:`make_executor`,
+:data:`EXECUTORS`).  The League of Robot Runners' planners with turning (flat cells and orientations -> actions F,
+R, C, W) are compositions of parts (:mod:`planners.mapf.planner`), one :class:`PlannerKind` each in
+:data:`TURNING_PLANNERS`, built by :func:`make_turning_planner`.
 
-Rooms: ``pibt/`` (the PIBT family and windowed A*), ``guides/`` (lane guidance, traffic-flow guide paths),
-``epibt/`` (EPIBT's plans and search), ``chip/`` (the planners that leave a decision to an Ising machine),
-``common`` (what they share: successor tables, goal fields, seeds, the groups record).
+Rooms: ``site`` (the map as compact cells, PIBT's priorities), ``guides/`` (the cost-to-go: goal fields, lanes, the
+crowd, traffic-flow guide paths; the focus), ``pibt/`` (PIBT and windowed A* on the grid, PIBT with turning),
+``epibt/`` (EPIBT's operations, push chains), ``chip/`` (the machine steps that leave a decision to an Ising
+machine), ``common`` (successor tables, goal fields, seeds, the groups record).
 """
 
 from __future__ import annotations
 
-from planners.mapf.chip.chain_ising import ChainEPIBTIsing
-from planners.mapf.chip.epibt_ising import EPIBTIsing
-from planners.mapf.chip.joint_executor import JointMovesPIBT
-from planners.mapf.chip.work_set import WorkChainEPIBT
-from planners.mapf.epibt.chain_planner import ChainEPIBT
-from planners.mapf.epibt.plans import EPIBT
-from planners.mapf.guides.flow import FlowPIBT
+from planners.mapf.chip.chain_ising import ChainGroupStep, ChainShareOptions
+from planners.mapf.chip.epibt_ising import GroupStep
+from planners.mapf.chip.group_rounds import GroupOptions
+from planners.mapf.chip.joint_executor import JointMovesOptions, JointMovesStep
+from planners.mapf.epibt.chain_planner import ChainOptions, ChainStep
+from planners.mapf.epibt.options import EPIBTOptions
+from planners.mapf.epibt.plans import EPIBTStep
+from planners.mapf.guides.fields import FieldOptions
+from planners.mapf.guides.focus import FocusOptions
 from planners.mapf.pibt.grid import PIBT
-from planners.mapf.pibt.turning import TurningPIBT
+from planners.mapf.pibt.turning import PIBTOptions, PIBTStep
 from planners.mapf.pibt.windowed import WindowedPlanner
-from planners.mapf.pibt.windowed_turning import WindowedTurningPlanner
+from planners.mapf.planner import PlannerKind, TurningPlanner
+from planners.options import record
 
-__all__ = ["PIBT", "WindowedPlanner", "TurningPIBT", "WindowedTurningPlanner", "EXECUTORS", "make_executor",
-           "TURNING_EXECUTORS", "MACHINE_PLANNERS", "make_turning_executor", "JointMovesPIBT", "FlowPIBT", "EPIBT",
-           "EPIBTIsing", "ChainEPIBT", "ChainEPIBTIsing", "WorkChainEPIBT"]
+__all__ = ["PIBT", "WindowedPlanner", "EXECUTORS", "make_executor", "TurningPlanner", "PlannerKind",
+           "TURNING_PLANNERS", "MACHINE_PLANNERS", "make_turning_planner"]
 
 EXECUTORS = {"pibt": PIBT, "windowed": WindowedPlanner}
-#: Executors of the action model with turning (``actions(pos, orient, goals)`` -> F, R, C, W).
-TURNING_EXECUTORS = {"pibt": TurningPIBT, "windowed": WindowedTurningPlanner, "pibt-flow": FlowPIBT,
-                     "epibt": EPIBT, "epibt-chain": ChainEPIBT, "epibt-ising": EPIBTIsing,
-                     "epibt-chain-ising": ChainEPIBTIsing,  # epibt-chain + the chip's joint group choices
-                     "epibt-chain-work": WorkChainEPIBT,  # epibt-chain + the chip's choice of who stays at work
-                     "pibt-ising": JointMovesPIBT}  # TurningPIBT + the chip's joint moves in congested groups
-#: The turning executors that take an Ising machine (``machine=``; default the paper's emulated chip).
-MACHINE_PLANNERS = ("epibt-ising", "epibt-chain-ising", "epibt-chain-work", "pibt-ising")
+
+_M = __name__
+PIBTRecord = record("PIBTRecord", "``pibt``'s options.", FieldOptions, FocusOptions, PIBTOptions, module=_M)
+FlowRecord = record("FlowRecord", "``pibt-flow``'s options: lanes off, guide paths and commitments on.", FieldOptions,
+                    FocusOptions, PIBTOptions, defaults={"guidance": 0, "flow": True, "commits": True}, module=_M)
+EPIBTRecord = record("EPIBTRecord", "``epibt``'s options: lanes off, guide paths on.", FieldOptions, FocusOptions,
+                     EPIBTOptions, defaults={"guidance": 0, "flow": True}, module=_M)
+ChainRecord = record("ChainRecord", "``epibt-chain``'s options: lanes off, goal fields.", FieldOptions, FocusOptions,
+                     ChainOptions, defaults={"guidance": 0}, module=_M)
+EPIBTIsingRecord = record("EPIBTIsingRecord", "``epibt-ising``'s options: ``epibt``'s and the group decisions'.",
+                          FieldOptions, FocusOptions, EPIBTOptions, GroupOptions,
+                          defaults={"guidance": 0, "flow": True}, module=_M)
+ChainIsingRecord = record("ChainIsingRecord", "``epibt-chain-ising``'s options: ``epibt-chain``'s (host chains off) "
+                          "and the group decisions' (64 rounds, growing groups).", FieldOptions, FocusOptions,
+                          ChainOptions, GroupOptions, ChainShareOptions,
+                          defaults={"guidance": 0, "lns": 0, "rounds": 64, "grow": True}, module=_M)
+JointRecord = record("JointRecord", "``pibt-ising``'s options: ``pibt``'s, lanes off, and the joint moves'.",
+                     FieldOptions, FocusOptions, PIBTOptions, JointMovesOptions, defaults={"guidance": 0}, module=_M)
+
+#: The planners with turning by name: each a choice of parts (:mod:`planners.mapf.planner`).
+TURNING_PLANNERS = {k.name: k for k in (
+    PlannerKind("pibt", PIBTRecord, PIBTStep, summary="PIBT with turning on goal fields along crisscross lanes"),
+    PlannerKind("pibt-flow", FlowRecord, PIBTStep, summary="the start kit's default: PIBT along traffic-flow guide "
+                "paths, committed moves"),
+    PlannerKind("epibt", EPIBTRecord, EPIBTStep, summary="EPIBT: PIBT over multi-action operations with a "
+                "large-neighbourhood search"),
+    PlannerKind("epibt-chain", ChainRecord, ChainStep, summary="EPIBT by push chains (the 2024 winner's "
+                "construction and annealed search)"),
+    PlannerKind("epibt-ising", EPIBTIsingRecord, EPIBTStep,
+                lambda o, machine, seed, site: GroupStep(o.part(GroupOptions), machine, seed),
+                summary="epibt + the chip's joint choices of neighbourhood groups"),
+    PlannerKind("epibt-chain-ising", ChainIsingRecord, ChainStep,
+                lambda o, machine, seed, site: ChainGroupStep(o.part(GroupOptions), o.part(ChainShareOptions),
+                                                              machine, seed),
+                summary="epibt-chain + the chip as the plan's annealer"),
+    PlannerKind("pibt-ising", JointRecord, PIBTStep,
+                lambda o, machine, seed, site: JointMovesStep(o.part(JointMovesOptions), machine, seed,
+                                                              len(site.cell_of)),
+                summary="pibt + the chip's joint next moves in congested groups"),
+)}
+#: The planners with turning that take an Ising machine (``machine=``; default the paper's emulated chip).
+MACHINE_PLANNERS = tuple(k.name for k in TURNING_PLANNERS.values() if k.machine_step is not None)
 
 
 def make_executor(name: str, grid, seed: int = 0, **options):
     """The executor ``name`` (``pibt`` or ``windowed``) on ``grid``; ``ValueError`` naming the known ones."""
-    return _make(EXECUTORS, "executor", name, grid, seed, options)
+    if name not in EXECUTORS:
+        raise ValueError(f"unknown executor {name!r}; known: {', '.join(EXECUTORS)}")
+    return EXECUTORS[name](grid, seed=seed, **options)
 
 
-def make_turning_executor(name: str, grid, seed: int = 0, **options):
-    """The turning executor ``name`` (:data:`TURNING_EXECUTORS`) on ``grid``; ``ValueError`` naming the known ones."""
-    return _make(TURNING_EXECUTORS, "turning executor", name, grid, seed, options)
-
-
-def _make(table: dict, kind: str, name: str, grid, seed: int, options: dict):
-    if name not in table:
-        raise ValueError(f"unknown {kind} {name!r}; known: {', '.join(table)}")
-    return table[name](grid, seed=seed, **options)
+def make_turning_planner(name: str, grid, seed: int = 0, machine=None, **options) -> TurningPlanner:
+    """The planner with turning ``name`` (:data:`TURNING_PLANNERS`) on ``grid``, ``options`` its own (checked);
+    ``ValueError`` naming an unknown planner or option."""
+    if name not in TURNING_PLANNERS:
+        raise ValueError(f"unknown planner {name!r}; known: {', '.join(TURNING_PLANNERS)}")
+    return TurningPlanner(TURNING_PLANNERS[name], grid, seed, options, machine)

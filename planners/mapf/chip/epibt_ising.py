@@ -1,66 +1,48 @@
-"""EPIBT whose neighbourhood groups choose their operations jointly on an Ising machine (``epibt-ising``).
+"""The machine step of ``epibt-ising``: EPIBT's neighbourhood groups choose their operations jointly on an Ising
+machine.
 
-After :class:`~planners.mapf.epibt.plans.EPIBT`'s plan and search, each call runs up to ``rounds`` rounds of up to
-``groups`` decisions of class ``lns_groups`` on the kept plan, every robot free to start a group
+After :class:`~planners.mapf.epibt.plans.EPIBTStep`'s plan and search, each call runs up to ``rounds`` rounds of up
+to ``groups`` decisions of class ``lns_groups`` on the kept plan, every robot free to start a group
 (:class:`~planners.mapf.chip.group_rounds.GroupRounds`; the groups, their programs, the host rule and the decoding:
 :mod:`planners.mapf.chip.group_kernels`).  ``decider="host"`` puts the host rule in the chip's place (no machine
-call).  Charges as :class:`~planners.mapf.chip.joint_executor.JointMovesPIBT` (:attr:`ledger`,
-:attr:`last_compute`).  Measurements: ``docs/design/lifelong_turning.md``.
+call).  ``penalty`` 2 was chosen on RANDOM-03 and -05; ``rounds`` > 1 with ``lns=0`` makes the chip the search's
+annealer: each round poses fresh groups on the plan the rounds before it left; under a clock the rounds stop when
+the next, as long as the longest so far, would end past the deadline less
+:data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time (host seconds, not the emulation's,
+plus the machine's own).  Charges: :attr:`GroupStep.ledger`, :attr:`GroupStep.last_compute`.  Measurements:
+``docs/design/lifelong_turning.md``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from planners.mapf.chip.group_kernels import (apply_choices, decode_choice, greedy_choice, group_qubo,
-                                              select_groups)
-from planners.mapf.chip.group_rounds import DECIDERS, GroupOptions, build_rounds, delegated
-from planners.mapf.epibt.plans import EPIBT, EPIBTOptions
+from planners.mapf.chip.group_rounds import GroupOptions, build_rounds, delegated
 
-__all__ = ["EPIBTIsing", "EPIBTIsingOptions", "select_groups", "group_qubo", "greedy_choice", "decode_choice",
-           "apply_choices", "DECIDERS"]
+__all__ = ["GroupStep"]
 
 
-@dataclass(frozen=True)
-class EPIBTIsingOptions(GroupOptions, EPIBTOptions):
-    """:class:`EPIBTIsing`'s options: :class:`~planners.mapf.epibt.plans.EPIBTOptions`, then its decisions'
-    (:class:`~planners.mapf.chip.group_rounds.GroupOptions`)."""
-
-
-class EPIBTIsing(EPIBT):
-    """EPIBT plus the joint choice of operations of neighbourhood groups (module docstring).
+class GroupStep:
+    """Rounds of joint group choices on EPIBT's kept plan (module docstring).
 
     Args:
-        grid, seed: as :class:`~planners.mapf.epibt.plans.EPIBT`.
+        opts: :class:`~planners.mapf.chip.group_rounds.GroupOptions`.
         machine: any Ising machine; default ``ising_backend.EmulatedChip(seed=seed)`` (not built with
             ``decider="host"``; a machine given there shapes the groups, as it would for the chip, and is not called).
-        options: the fields of :class:`EPIBTIsingOptions`.  ``penalty`` 2 was chosen on RANDOM-03 and -05
-            (docs/design/lifelong_turning.md).  ``rounds`` > 1 with ``lns=0`` makes the chip the search's
-            annealer: each round poses fresh groups on the plan the rounds before it left; under a clock the
-            rounds stop when the next, as long as the longest so far, would end past the deadline less
-            :data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time (host seconds, not
-            the emulation's, plus the machine's own).
+        seed: the machine's and the rounds' seed.
     """
 
-    name = "epibt-ising"
-    Options = EPIBTIsingOptions
+    Options = GroupOptions
 
-    def __init__(self, grid, seed: int = 0, machine=None, **options) -> None:
-        super().__init__(grid, seed=seed, **options)
-        opts = self.options
-        self.decider = opts.decider
-        self.rounds_ = build_rounds(machine, opts, self.seed)
+    def __init__(self, opts: GroupOptions, machine, seed: int) -> None:
+        self.rounds_ = build_rounds(machine, opts, seed)
         self.machine = self.rounds_.machine
-        lim = self.rounds_.limits
-        self.n_groups, self.max_robots, self.max_options, self.max_spins = (lim.groups, lim.max_robots,
-                                                                            lim.max_options, lim.max_spins)
 
     ledger = delegated("ledger", "Every machine call's charges.")
     last_compute = delegated("last_compute", "The last call's machine charges.")
     stats = delegated("stats", "The group decisions' counts (GroupRounds).")
 
-    def _improve(self, state) -> None:
-        """Up to ``rounds`` rounds of group decisions (class docstring), the machine's charges summed."""
-        self.rounds_.improve(state, self._res, self.t, self.deadline, np.ones(len(state.ncand), dtype=np.int8))
+    def improve(self, decider, state, deadline: float | None) -> None:
+        """Up to ``rounds`` rounds of group decisions on ``decider``'s kept plan ``state``, the machine's charges
+        summed."""
+        self.rounds_.improve(state, decider.res, decider.prio.t, deadline, np.ones(len(state.ncand), dtype=np.int8))

@@ -1,6 +1,6 @@
-"""TurningPIBT whose congested groups re-choose their next cells on an Ising machine (``pibt-ising``).
+"""The machine step of ``pibt-ising``: PIBT's congested groups re-choose their next cells on an Ising machine.
 
-:class:`JointMovesPIBT` runs the host rule (:class:`~planners.mapf.pibt.turning.TurningPIBT`), then the
+After the host rule (:class:`~planners.mapf.pibt.turning.PIBTStep`'s pass), :class:`JointMovesStep` runs the
 decision class ``joint-moves`` of :mod:`planners.mapf.chip.joint_moves`: every group of the step is one
 program of one submission through the machine's session (any :class:`ising_backend.IsingMachine`; programs padded
 with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
@@ -37,23 +37,19 @@ from planners.mapf.chip.joint_moves import (
     CELL, CONFLICT, MAX_OPTIONS, NOT_ONE_HOT, HostStep, build_qubo, claims_to_actions, decode_reads, group_options,
     group_spread, objective, program_batch, robot_options, select_groups, solve_exact,
 )
-from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.options import TurningOptions
-from planners.mapf.pibt.turning import TurningPIBT
-from planners.options import option
+from planners.options import Options, option
 
-__all__ = ["JointMovesPIBT", "JointMovesOptions", "ACCEPT"]
+__all__ = ["JointMovesStep", "JointMovesOptions", "ACCEPT"]
 
 ACCEPT = ("better", "chip", "host")
 
 
 
 @dataclass(frozen=True)
-class JointMovesOptions(TurningOptions):
-    """:class:`JointMovesPIBT`'s options: :class:`~planners.mapf.pibt.turning.TurningOptions` with lanes off by default
-    (the option costs and the QUBO's weights were tuned on plain distances) and its decisions'."""
+class JointMovesOptions(Options):
+    """The joint moves' decisions' options (the planner ``pibt-ising`` turns lanes off by default: the option costs
+    and the QUBO's weights were tuned on plain distances)."""
 
-    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
     max_robots: int = option(11, int, 1, 45, meaning="robots per group")
     max_spins: int | None = option(None, int, MAX_OPTIONS, 1 << 16, none=True, meaning="options per group (null: the "
                                    "machine's usable spins, also the upper limit)")
@@ -68,23 +64,20 @@ class JointMovesOptions(TurningOptions):
     audit: bool = option(False, bool, meaning="record every decision with its exact optimum (slow: benchmarks, tests)")
 
 
-class JointMovesPIBT(TurningPIBT):
-    """PIBT with turning plus the chip's joint next moves for congested groups (module docstring).
+class JointMovesStep:
+    """The chip's joint next moves for PIBT's congested groups (module docstring).
 
     Args:
-        grid, seed: as :class:`TurningPIBT`.
+        opts: :class:`JointMovesOptions`.
         machine: any Ising machine (``session``, ``spec``, ``usable_spins``); default
             ``ising_backend.EmulatedChip(seed=seed)``.
-        options: the fields of :class:`JointMovesOptions`.
+        seed: the machine's seed; ``cells``: the map's free cells.
     """
 
-    name = "pibt-ising"
     Options = JointMovesOptions
 
-    def __init__(self, grid, seed: int = 0, machine=None, **options) -> None:
-        super().__init__(grid, seed=seed, **options)
-        opts = self.options
-        self.machine = machine_for(machine, self.seed)
+    def __init__(self, opts: JointMovesOptions, machine, seed: int, cells: int) -> None:
+        self.machine = machine_for(machine, seed)
         usable = int(self.machine.usable_spins)
         if opts.max_spins is not None and opts.max_spins > usable:
             raise ValueError(f"max_spins = {opts.max_spins} must be an integer in [{MAX_OPTIONS}, {usable}] (the "
@@ -100,23 +93,24 @@ class JointMovesPIBT(TurningPIBT):
         self.changed = 0  # groups whose chip answer was applied and differs from the host rule's
         self.repaired = np.zeros(2, dtype=np.int64)  # reads not one-hot, reads with a conflict repaired
         self.host_s = 0.0  # host seconds of the decision class (group building, mapping, decode; no emulation)
-        self._claim = np.full(len(self.cell_of), -1, dtype=np.int64)
+        self._claim = np.full(cells, -1, dtype=np.int64)
         #: a list to collect every group as ``(pos, ostart, opt, host)`` instead of deciding (benchmarks)
         self.sample = None
 
-    def groups(self, pc, orient, gc, rows, order, nxt, act):
+    def groups(self, decider, pc, orient, gc, rows, order, nxt, act):
         """This step's groups (a :class:`~planners.mapf.common.GroupBatch`, kernels of
-        :mod:`planners.mapf.chip.joint_moves`; compact cells) and PIBT's choice per slot."""
+        :mod:`planners.mapf.chip.joint_moves`; compact cells) and ``decider``'s (PIBT's) choice per slot."""
         r = len(pc)
+        nbr, occ_now = decider.site.nbr, decider.occ_now
         cand = np.empty((r, MAX_OPTIONS), dtype=np.int64)
         cost = np.empty((r, MAX_OPTIONS), dtype=np.int64)
-        robot_options(self.move_grid, (self.fields.fields, rows), (pc, orient, gc), cand, cost)
+        robot_options(decider.source.move_grid, (decider.source.fields.fields, rows), (pc, orient, gc), cand, cost)
         gid = np.empty(r, dtype=np.int64)
         members = np.empty(r, dtype=np.int64)
         gstart = np.empty(r + 1, dtype=np.int64)
         step = HostStep(pc, orient, nxt, act)
-        ng = select_groups(self.nbr, step, (cand, cost), order, (self.max_robots, self.max_spins),
-                           self._occ_now, (gid, members, gstart))
+        ng = select_groups(nbr, step, (cand, cost), order, (self.max_robots, self.max_spins), occ_now,
+                           (gid, members, gstart))
         rank = np.empty(r, dtype=np.int64)
         rank[order] = np.arange(r)
         m = gstart[ng]
@@ -124,16 +118,19 @@ class JointMovesPIBT(TurningPIBT):
         opt = np.empty((m * MAX_OPTIONS, 5), dtype=np.int64)
         host = np.empty(m, dtype=np.int64)
         if ng:
-            group_options(self.nbr, step, (cand, cost), rank, (gid, members, gstart), ng,
-                          (self.levels, self.push), (self._claim, self._occ_now), (ostart, opt, host))
+            group_options(nbr, step, (cand, cost), rank, (gid, members, gstart), ng,
+                          (self.levels, self.push), (self._claim, occ_now), (ostart, opt, host))
         return GroupBatch(ng, gstart, members, ostart, opt), host
 
-    def _refine(self, pc, orient, gc, rows, order, nxt, act) -> None:
+    def refine(self, decider, pc, orient, gc, rows, order, nxt, act) -> None:
+        """The step's groups decided on the machine, ``decider``'s claims ``nxt`` and actions ``act`` changed in
+        place where a group takes the chip's answer (module docstring)."""
         t0 = time.perf_counter()
         self.last_compute = ComputeReport()
         if "joint_moves" in host_rule_classes():  # the ablation: PIBT's answer stands
             return
-        batch, host = self.groups(pc, orient, gc, rows, order, nxt, act)
+        t = decider.prio.t
+        batch, host = self.groups(decider, pc, orient, gc, rows, order, nxt, act)
         ng, gstart, members, ostart, opt = batch.ng, batch.gstart, batch.members, batch.ostart, batch.opt
         if self.sample is not None:  # a benchmark collecting decisions on the host rule's trajectory
             for g in range(ng):
@@ -150,11 +147,11 @@ class JointMovesPIBT(TurningPIBT):
             pen = 1 + group_spread(a, b, ostart, opt) if self.penalty is None else self.penalty
             k = build_qubo(pc, members, a, b, ostart, opt, pen, pen, q)
             integer_program(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
-        seed = int(mix(self.seed, self.t, 0x15, 0)) & ((1 << 63) - 1)
+        seed = int(mix(decider.prio.seed, t, 0x15, 0)) & ((1 << 63) - 1)
         t1 = time.perf_counter()
         call = CallLedger()
         with self.machine.session(call, decision="joint_moves") as link:
-            host_rule = None if link.audit is None else self._host_rule(H, J, batch, host, len(pc))
+            host_rule = None if link.audit is None else self._host_rule(H, J, batch, host, decider.kernel_s / len(pc))
             spins, energies = link.anneal(H, J, num_reads=self.num_reads, seed=seed, host=host_rule)
         t2 = time.perf_counter()
         self.ledger = self.ledger + call
@@ -176,24 +173,25 @@ class JointMovesPIBT(TurningPIBT):
             if self.audit is not None:
                 ta = time.perf_counter()
                 e_opt = solve_exact(pc, members, a, b, ostart, opt, exact)
-                self.audit.append({"t": self.t, "robots": int(b - a), "spins": int(sizes[g]), "host": int(e_host),
+                self.audit.append({"t": t, "robots": int(b - a), "spins": int(sizes[g]), "host": int(e_host),
                                    "chip": int(e_chip), "exact": int(e_opt),
                                    "not_one_hot": int(stats[NOT_ONE_HOT] - before[NOT_ONE_HOT]),
                                    "conflict": int(stats[CONFLICT] - before[CONFLICT])})
                 audit_s += time.perf_counter() - ta
         self.decisions += ng
         self.repaired += stats
-        claims_to_actions(self.nbr, pc, orient, nxt, act, self._occ_now)
+        claims_to_actions(decider.site.nbr, pc, orient, nxt, act, decider.occ_now)
         t3 = time.perf_counter() - audit_s
         emul = float(call.emulation_s)
         self.host_s += (t3 - t0) - emul
         self.last_compute = replace(ComputeReport.from_ledger(call), cpu_s=t3 - t0)
         self.last_times = (t1 - t0, t2 - t1, t3 - t2, emul, ng)  # build, anneal, decode + apply, emulation, groups
 
-    def _host_rule(self, H, J, batch, host, robots) -> tuple:
+    @staticmethod
+    def _host_rule(H, J, batch, host, robot_s: float) -> tuple:
         """The host rule beside this step's programs in an open decision audit (class ``joint_moves``): PIBT's
-        cells as spins of the same programs, their energies, and its seconds (this step's PIBT kernel time, a
-        group's share by its robots)."""
+        cells as spins of the same programs, their energies, and its seconds (this step's PIBT kernel time per
+        robot, ``robot_s``, times a group's robots)."""
         from ising_backend.faults.health import program_energy
 
         gstart, ostart = batch.gstart, batch.ostart
@@ -202,5 +200,5 @@ class JointMovesPIBT(TurningPIBT):
         for g in range(batch.ng):
             a, b = gstart[g], gstart[g + 1]
             hs[g, ostart[a:b] - ostart[a] + host[a:b]] = 1
-            secs[g] = self.kernel_s * (b - a) / robots
+            secs[g] = robot_s * (b - a)
         return program_energy(H.astype(np.float64), J.astype(np.float64), hs), float(secs.mean()), "pibt"

@@ -1,9 +1,9 @@
 """Joint next moves of congested robot groups as an Ising-chip decision (issue 33, item 3).
 
-The decision class ``joint-moves``: after :class:`~planners.mapf.pibt.turning.TurningPIBT` has picked
+The decision class ``joint-moves``: after :class:`~planners.mapf.pibt.turning.PIBTStep` has picked
 every robot's next cell (its *claim*), groups of up to ``max_robots`` robots in congested regions
 re-choose their claims jointly; everyone else keeps the host rule's claim.  Actions come from the
-claims as in TurningPIBT (ahead -> F, side / behind -> turn, own cell -> W, then the vacate check),
+claims as in PIBTStep (ahead -> F, side / behind -> turn, own cell -> W, then the vacate check),
 so the joint action is valid whatever the group decides, as long as claims stay distinct and
 swap-free -- both pairwise conditions.
 
@@ -435,7 +435,7 @@ def decode_reads(pos, members, a, b, ostart, opt, host, spins, choice, stats) ->
 
 @numba.njit(cache=True, nogil=True)
 def claims_to_actions(nbr, pos, orient, nxt, act, occ_now):
-    """Actions of distinct, swap-free claims ``nxt`` (TurningPIBT's rule: ahead F, side C / R, behind R,
+    """Actions of distinct, swap-free claims ``nxt`` (PIBTStep's rule: ahead F, side C / R, behind R,
     own cell W; then the vacate check).  ``occ_now`` compact-cell scratch, -1 on entry and return."""
     r = pos.shape[0]
     for k in range(r):

@@ -1,6 +1,6 @@
 """``epibt-chain``: EPIBT by push chains (:mod:`planners.mapf.epibt.chains`) as a planner with turning.
 
-Contract: as :class:`~planners.mapf.epibt.plans.EPIBT` (``actions(pos, orient, goals, deadline, rest)``, one valid
+Contract: as :class:`~planners.mapf.epibt.plans.EPIBTStep` (``decide(pos, orient, goals, deadline, rest)``, one valid
 joint action a call, deterministic for a seed without a deadline), with the 2024 winner's plan in place of EPIBT's:
 no inherited operations, a construction and a search of push chains scored by ``power x (value of waiting - value
 of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the robot of least task still to go
@@ -21,18 +21,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from planners.compute import ComputeReport
 from planners.mapf.epibt.chains import (SEARCH_PUSHES, STEPS, Candidates, ChainKnobs, ChainRobots, chain_build,
                                         chain_candidates, chain_finish, chain_operations, chain_search, new_plan,
                                         stamp_seed)
-from planners.mapf.epibt.options import MAX_PORTFOLIO, GuideOptions
-from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, EPIBT, op_idle
+from planners.mapf.epibt.options import MAX_PORTFOLIO
+from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, op_idle, portfolio_threads, run_waves
 from planners.mapf.guides.focus import checked_rest
-from planners.mapf.pibt.turning import FORWARD, WAIT, TurningPIBT
-from planners.mapf.pibt.windowed_turning import OrientFields
-from planners.options import option
+from planners.mapf.pibt.turning import FORWARD, WAIT
+from planners.options import Options, option
 
-__all__ = ["ChainEPIBT", "ChainOptions", "Ranked", "DEFAULT_CHAINS_PER_ROBOT"]
+__all__ = ["ChainStep", "ChainOptions", "Ranked", "DEFAULT_CHAINS_PER_ROBOT"]
 
 #: Search chains per call and robot (option ``lns``: null), at most :data:`DEFAULT_CHAINS_MAX`, in batches of at most
 #: :data:`SEARCH_BATCH` chains; under a clock each batch also stops at its work budget (:data:`FIRST_WORK`).
@@ -49,7 +47,7 @@ _NO_BUDGET = int(np.iinfo(np.int64).max)
 
 
 class Ranked(NamedTuple):
-    """One call's robots as the plans read them (:meth:`ChainEPIBT.ranked`)."""
+    """One call's robots as the plans read them (:meth:`ChainStep.ranked`)."""
 
     cand: Candidates   # each robot's operations, best first
     gain: np.ndarray   # (R, M) each operation's gain over waiting, weighed by the robot's power
@@ -58,11 +56,9 @@ class Ranked(NamedTuple):
 
 
 @dataclass(frozen=True)
-class ChainOptions(GuideOptions):
-    """:class:`ChainEPIBT`'s options (:class:`~planners.mapf.epibt.options.GuideOptions`, goal fields by default, then
-    its own)."""
+class ChainOptions(Options):
+    """The push chains' own options (:class:`ChainStep`; the cost-to-go's and the focus' are their parts')."""
 
-    flow: bool = option(False, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
     lns: int | None = option(None, int, 0, 1 << 24, none=True, meaning="search chains per plan and call (null: "
                              f"{DEFAULT_CHAINS_PER_ROBOT} per robot, at most {DEFAULT_CHAINS_MAX:,}; 0 = off)")
     weight_power: int = option(2, int, 0, 2, meaning="a robot's score counts (R + 1 - rank) ** weight_power times, "
@@ -79,30 +75,25 @@ class ChainOptions(GuideOptions):
     threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
                                  "on (null: one per plan, at most the cores this process may use); plans do not "
                                  "depend on it")
-    oriented: bool = option(False, bool, meaning="the cost-to-go over (cell, orientation): every turn on the way "
-                            "counted, not only the first (fields of four entries a cell; needs flow=false and "
-                            "congestion=0)")
 
 
-class ChainEPIBT(EPIBT):
-    """EPIBT by push chains on one grid (module docstring).
+class ChainStep:
+    """EPIBT by push chains as a planner's decider (module docstring) over the cost-to-go of ``source`` (a
+    :class:`~planners.mapf.guides.fields.FieldSource`); with a ``machine_step``, its ``search_stop(now, stop)`` says
+    under a clock when the host search of a plan stops, and ``improve(self, plan, ranked, deadline)`` may change the
+    kept plan before its first actions are taken (its :attr:`last_compute` the step's machine charge)."""
 
-    Args:
-        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
-        options: the fields of :class:`ChainOptions`.
-    """
-
-    name = "epibt-chain"
     Options = ChainOptions
-    #: the machine's charges of :meth:`steer` this call (none here; a subclass deciding who is at work sets them)
-    steer_compute = ComputeReport()
+    uses_rest = True  # the ranking reads each robot's task beyond its goal when given
 
-    def __init__(self, grid, seed: int = 0, **options) -> None:
-        TurningPIBT.__init__(self, grid, seed, **options)
-        opts = self.options
-        self._guides()
-        self.takes_rest = opts.active_by == "task"  # the ranking reads the task still to go, at work or not
+    def __init__(self, site, source, priorities, opts: ChainOptions, machine_step=None) -> None:
+        self.site, self.source, self.prio = site, source, priorities
+        self.machine_step = machine_step
+        self.options = opts
+        self.portfolio = opts.portfolio
+        self.threads = portfolio_threads(opts.portfolio, opts.threads)
         self.lns_option, self.weight_power = opts.lns, opts.weight_power
+        self.kernel_s = 0.0
         self.ops, depth = chain_operations()
         self.depth = depth
         self.idle = op_idle(self.ops)
@@ -114,35 +105,23 @@ class ChainEPIBT(EPIBT):
         self.plan_score = 0  # the score of the plan the last call took its actions from
         self.kept = 0
         self.plans = np.zeros((0, STEPS), dtype=np.int8)  # the last call's operations (-1 rows: waiting)
-        self.ofields = None  # under ``oriented``: the fields over (cell, orientation) the cost-to-go reads
-        if opts.oriented:
-            if opts.flow or opts.congestion:
-                raise ValueError(f"oriented=true needs flow=false and congestion=0 (its fields take neither the guide "
-                                 f"paths nor the crowd's costs), got flow={opts.flow}, congestion={opts.congestion}")
-            self.ofields = OrientFields(self.nbr, opts.field_bytes, opts.bfs_budget, cost=self.move_cost)
+        self.targets = np.zeros(0, dtype=np.int64)
 
-    def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
-        """As :meth:`EPIBT.actions <planners.mapf.epibt.plans.EPIBT.actions>`, by push chains."""
-        self.deadline = deadline
-        pos, orient, goals = self._check(pos, orient, goals)
-        if self.takes_rest:
+    def decide(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
+        """The joint action (as :meth:`PIBTStep.decide <planners.mapf.pibt.turning.PIBTStep.decide>`), by push
+        chains; ``rest`` (checked), when given, joins each robot's way in the ranking."""
+        if rest is not None:
             rest = checked_rest(rest, len(pos))
-        goals = self.steer(pos, goals, rest)
-        if deadline is not None:  # a machine's decision in steer: its emulation is not the step's time, its own is
-            c = self.steer_compute
-            deadline = self.deadline = deadline + c.emulation_s - c.chip_time_parallel_s
         r = len(pos)
-        pc, gc = self.cid[pos], self.cid[goals]
-        if self.ofields is not None:  # every robot reads the fields over (cell, orientation): no goal fields
-            rows = self.ofields.rows(gc, self.order(r))  # first: it may grow the cache (a new array)
-            fields = self.ofields.fields
-        else:
-            fields, rows = self._heuristic(pc, gc, self.order(r))
+        site, prio = self.site, self.prio
+        pc, gc = site.cid[pos], site.cid[goals]
+        fields, rows = self.source.heuristic(pc, gc, prio.order(r), deadline, self.kernel_s)
         t0 = time.perf_counter()
-        cand, gain, order, busy = self.ranked(ChainRobots(pc, orient, gc, rows), fields, rest)
+        ranked = self.ranked(ChainRobots(pc, orient, gc, rows), fields, rest)
+        cand, gain, order = ranked.cand, ranked.gain, ranked.order
         chains = min(r * DEFAULT_CHAINS_PER_ROBOT, DEFAULT_CHAINS_MAX) if self.lns_option is None else self.lns_option
         opts = self.options
-        plans = [new_plan(r, len(self.cell_of), stamp_seed(self.seed, self.t, k), opts.anneal)
+        plans = [new_plan(r, len(site.cell_of), stamp_seed(prio.seed, prio.t, k), opts.anneal)
                  for k in range(self.portfolio)]
         knobs = ChainKnobs(opts.push_built, opts.skip, opts.pushes)
         stop = None if deadline is None else deadline - 2 * DEADLINE_MARGIN_S
@@ -174,35 +153,36 @@ class ChainEPIBT(EPIBT):
                     spent, worked = spent + time.perf_counter() - t1, worked + int(plan.work[0]) - w0
             chain_finish(cand, gain, plan)
 
-        done = self._waves(run, self.portfolio)
+        done = run_waves(run, self.portfolio, self.threads, deadline)
         self.kernel_s = time.perf_counter() - t0
         self.portfolio_scores = np.array([p.score[0] for p in plans[:done]], dtype=np.int64)
         self.search_work = np.array([p.work[0] for p in plans[:done]], dtype=np.int64)
         self.search_batches = sum(batches[:done])
         self.kept = int(np.argmax(self.portfolio_scores))
-        self._improve_plan(plans[self.kept], cand, gain, busy)
+        if self.machine_step is not None:
+            self.machine_step.improve(self, plans[self.kept], ranked, deadline)
         self.plan_score = int(plans[self.kept].score[0])
         choice = plans[self.kept].choice
         on = choice >= 0
         op = np.where(on, cand.op[np.arange(r), np.maximum(choice, 0)], 0)
         self.plans = np.where(on[:, None], self.ops[op], WAIT).astype(np.int8)
         act = np.where(on, self.ops[op, 0], cand.idle_act).astype(np.int64)
-        ahead = self.nbr[pc, orient].astype(np.int64)
+        ahead = site.nbr[pc, orient].astype(np.int64)
         nxt = np.where(act == FORWARD, ahead, pc)
-        self.targets = self.cell_of[nxt]
-        self._advance(nxt, gc)
+        self.targets = site.cell_of[nxt]
+        prio.advance(nxt, gc)
         return act
 
     def ranked(self, robots: ChainRobots, fields: np.ndarray, rest=None) -> Ranked:
         """What the plans of one call work on (a :class:`Ranked`) for ``robots`` in compact cells with their rows of
-        ``fields`` (the goal fields, or the oriented ones)."""
+        ``fields``."""
         r, n_ops = len(robots.pos), self.ops.shape[0]
         cand = Candidates(np.empty((r, n_ops, STEPS + 1), np.int64), np.zeros((r, n_ops), np.int64),
                           np.zeros((r, n_ops), np.int64), np.empty((r, n_ops), np.int64), np.empty(r, np.int64),
                           np.empty((r, STEPS + 1), np.int64), np.empty(r, np.int64), np.empty(r, np.int64),
                           np.empty(r, np.int64))
-        per_cell = fields.shape[1] // max(len(self.cell_of), 1)
-        chain_candidates(self.move_grid, (fields, int(np.iinfo(fields.dtype).max), per_cell), robots, self.ops,
+        per_cell = fields.shape[1] // max(len(self.site.cell_of), 1)
+        chain_candidates(self.source.move_grid, (fields, int(np.iinfo(fields.dtype).max), per_cell), robots, self.ops,
                          (self.idle, self.quiet), cand)
         cand = cand._replace(depth=self.depth[cand.op])
         busy = robots.pos != robots.goals
@@ -215,10 +195,6 @@ class ChainEPIBT(EPIBT):
         return Ranked(cand, gain, order, busy)
 
     def _search_stop(self, now: float, stop: float) -> float:
-        """Under a clock, when the search of a plan built by ``now`` stops (here: at ``stop``, the planner's own)."""
-        return stop
-
-    def _improve_plan(self, plan, cand, gain, busy) -> None:
-        """Hook for subclasses: may change the kept ``plan`` (kept conflict-free in its table) before its first
-        actions are taken (here: nothing)."""
-
+        """Under a clock, when the search of a plan built by ``now`` stops: at ``stop``, the planner's own, or where
+        the machine step says."""
+        return stop if self.machine_step is None else self.machine_step.search_stop(now, stop)

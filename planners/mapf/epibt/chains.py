@@ -27,7 +27,7 @@ import numpy as np
 
 from ising_backend import splitmix
 from planners.mapf.common import mix
-from planners.mapf.epibt.plans import _to_go, _walk, op_idle
+from planners.mapf.epibt.plans import _to_go, _walk
 from planners.mapf.epibt.search import conflict, reserve
 from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT
 

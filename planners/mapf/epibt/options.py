@@ -1,16 +1,12 @@
-"""EPIBT's options record (:mod:`planners.options`) and the defaults it declares."""
+"""EPIBT's own options record (:mod:`planners.options`) and the defaults it declares."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from planners.mapf.guides.flow import guide_work_option, replans_option
-from planners.mapf.guides.guidance import MAX_GUIDANCE
-from planners.mapf.pibt.options import (LaneOptions, active_by_option, active_option, congestion_options,
-                                        park_option)
-from planners.options import option
+from planners.options import Options, option
 
-__all__ = ["EPIBTOptions", "GuideOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
+__all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
            "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_GROUP", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
 DEFAULT_OP_LEN = 3
@@ -31,25 +27,9 @@ DEFAULT_WEIGHT_POWER = 0
 MAX_PORTFOLIO = 64
 
 @dataclass(frozen=True)
-class GuideOptions(LaneOptions):
-    """The heuristic's and the crowd's options of the EPIBT planners (the goal fields' of
-    :class:`~planners.mapf.pibt.turning.LaneOptions`, lanes off by default; ``replans``, ``guide_work`` as
-    :class:`~planners.mapf.guides.flow.FlowOptions`, for ``flow``)."""
-
-    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane (0 = off)")
-    flow: bool = option(True, bool, meaning="rank by traffic-flow guide paths (FlowGuide) instead of the goal fields")
-    replans: int | None = replans_option()
-    guide_work: int | None = guide_work_option()
-    congestion: int = congestion_options()[0]
-    refresh: int = congestion_options()[1]
-    park: float = park_option()
-    active: float = active_option()
-    active_by: str = active_by_option()
-
-
-@dataclass(frozen=True)
-class EPIBTOptions(GuideOptions):
-    """:class:`EPIBT`'s options (:class:`GuideOptions`, then its own)."""
+class EPIBTOptions(Options):
+    """EPIBT's own options (:class:`~planners.mapf.epibt.plans.EPIBTStep`; the cost-to-go's and the focus' are their
+    parts')."""
 
     op_len: int | str = option(DEFAULT_OP_LEN, int, 1, MAX_OP_LEN, words=("auto",), meaning="actions per operation; "
                                "auto: chosen on the first call from the team's share of the free cells "

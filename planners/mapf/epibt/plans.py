@@ -26,14 +26,12 @@ import numpy as np
 
 from planners.mapf.common import mix
 from planners.mapf.epibt.search import Fleet, PlanState, SearchStamp, conflict, lns_search, new_state, reserve
-from planners.mapf.guides.flow import GUIDE_MARGIN_S, FlowGuide, FlowPIBT
 from planners.mapf.epibt.options import (AUTO_OP_LEN_FILL, DEFAULT_GROUP, DEFAULT_LNS_MAX, DEFAULT_LNS_PER_ROBOT,
                                         DEFAULT_OP_LEN, DEFAULT_REVISITS, DEFAULT_WEIGHT_POWER, MAX_OP_LEN,
                                         MAX_PORTFOLIO, EPIBTOptions)
-from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, TurningPIBT, _distance
-from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES
+from planners.mapf.pibt.turning import CLOCKWISE, COUNTER, FORWARD, WAIT, _distance
 
-__all__ = ["EPIBT", "EPIBTOptions", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet",
+__all__ = ["EPIBTStep", "EPIBTOptions", "portfolio_threads", "run_waves", "operations", "epibt_kernel", "epibt_finish", "new_state", "PlanState", "Fleet",
            "SearchStamp",
            "plan_cost", "portfolio_seed",
            "DEFAULT_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS", "DEFAULT_GROUP", "DEFAULT_LNS_PER_ROBOT",
@@ -327,90 +325,88 @@ def portfolio_seed(seed: int, k: int) -> int:
     return int(seed) if k == 0 else int(mix(np.uint64(seed), k, _PORTFOLIO_SALT, 0)) & ((1 << 62) - 1)
 
 
-class EPIBT(TurningPIBT):
-    """EPIBT on one grid (module docstring).
+def portfolio_threads(portfolio: int, threads: int | None) -> int:
+    """Threads a portfolio of ``portfolio`` plans runs on: ``threads``, or (``None``) one per plan, at most the cores
+    this process may use."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return min(portfolio, cores) if threads is None else threads
 
-    Args:
-        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
-        options: the fields of :class:`EPIBTOptions`.
-    """
 
-    name = "epibt"
+def run_waves(run, k_plans: int, threads: int, deadline: float | None) -> int:
+    """Runs plans ``0..k-1`` (``run(k)``) in waves of ``threads`` (side by side: the kernels release the GIL), all of
+    them without a ``deadline``, else while the next wave should end before it (the first always runs); returns
+    ``k``."""
+    width = min(threads, k_plans)
+    done = 0
+    pool = ThreadPoolExecutor(width) if width > 1 else None
+    try:
+        while done < k_plans:
+            t0 = time.perf_counter()
+            wave = range(done, min(done + width, k_plans))
+            list(pool.map(run, wave)) if pool is not None else [run(k) for k in wave]
+            done = wave.stop
+            now = time.perf_counter()
+            if deadline is not None and now + (now - t0) > deadline - DEADLINE_MARGIN_S:
+                break
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    return done
+
+
+class EPIBTStep:
+    """EPIBT as a planner's decider (module docstring) over the cost-to-go of ``source`` (a
+    :class:`~planners.mapf.guides.fields.FieldSource`) in the order of ``priorities``; ``machine_step.improve(self,
+    state, deadline)``, when a machine decides part of the step, may change the kept plan ``state`` (conflict-free in
+    :attr:`res`) before its first actions are taken; its :attr:`last_compute` is the step's machine charge."""
+
     Options = EPIBTOptions
+    uses_rest = False
 
-    def __init__(self, grid, seed: int = 0, **options) -> None:
-        super().__init__(grid, seed, **options)
-        opts = self.options
-        self._guides()
+    def __init__(self, site, source, priorities, opts: EPIBTOptions, machine_step=None) -> None:
+        self.site, self.source, self.prio = site, source, priorities
+        self.machine_step = machine_step
+        self.options = opts
         self.revisits, self.lns_option, self.group = opts.revisits, opts.lns, opts.group
         self.weight_power, self.anneal = opts.weight_power, opts.anneal
+        self.portfolio = opts.portfolio
+        self.threads = portfolio_threads(opts.portfolio, opts.threads)
+        self.kernel_s = 0.0
+        self.lns = 0
         self.portfolio_costs = np.zeros(0, dtype=np.int64)  # the last call's plans' weighted costs
         self.kept = 0  # and the one kept
         self.lns_scale = 1.0  # under a clock: the share of the search's iterations the steps leave time for
         self.auto_op_len = opts.op_len == "auto"
+        self.targets = np.zeros(0, dtype=np.int64)
         self._set_ops(DEFAULT_OP_LEN if self.auto_op_len else opts.op_len)
         self._expect = (np.zeros(0, np.int64), np.zeros(0, np.int64))  # where the plans put the robots
-
-    def _guides(self) -> None:
-        """What the EPIBT planners share of their options (:class:`~planners.mapf.epibt.options.GuideOptions`, plus
-        ``portfolio`` and ``threads``): the forward moves' costs, the guide paths under ``flow``, the portfolio's
-        threads; ``ValueError`` for ``congestion`` with ``flow``."""
-        opts = self.options
-        if opts.congestion and opts.flow:
-            raise ValueError(f"congestion = {opts.congestion} needs flow=false (the guide paths' A* takes the goal "
-                             f"fields for its heuristic, which the crowd's costs would overestimate)")
-        self.flow, self.portfolio = opts.flow, opts.portfolio
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        self.threads = min(self.portfolio, cores) if opts.threads is None else opts.threads
-        self.deadline: float | None = None  # the step's deadline under a clock (perf_counter seconds)
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
-                               self.seed, work=opts.guide_work) if self.flow else None
 
     def _set_ops(self, op_len) -> None:
         self.ops = operations(op_len)
         self.idle = op_idle(self.ops, self.options.steady)
         self.inherited = np.zeros((0, self.ops.shape[1]), dtype=np.int8)
-        self._res = np.full((self.ops.shape[1] + 1, len(self.cell_of)), -1, dtype=np.int64)
+        self.res = np.full((self.ops.shape[1] + 1, len(self.site.cell_of)), -1, dtype=np.int64)
         self.plans = np.zeros((0, self.ops.shape[1]), dtype=np.int8)  # the last call's operations
 
-    @staticmethod
-    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES, flow: bool = True) -> None:
-        """As :meth:`FlowPIBT.check_team <planners.mapf.guides.flow.FlowPIBT.check_team>` along guide paths (a path
-        and a field per robot); on the goal fields (``flow=False``) any team: their cache makes room."""
-        if flow:
-            FlowPIBT.check_team(grid, n_robots, field_bytes)
-
-    def _heuristic(self, pc, gc, order):
-        rows = self.goal_rows(pc, gc, order)  # first: it may grow the cache (a new array)
-        if self.guide is None:
-            return self.fields.fields, rows
-        stop = None if self.deadline is None else self.deadline - GUIDE_MARGIN_S - 2 * self.kernel_s
-        rows = self.guide.update(pc, gc, self.fields.fields, rows, stop)  # first: it may make the fields
-        return self.guide.fields, rows
-
-    def actions(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
-        """As :meth:`TurningPIBT.actions <planners.mapf.pibt.turning.TurningPIBT.actions>`; a robot not where the
-        last call's plans put it (another executor acted, a new episode) drops every inherited operation.  Under a
-        ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as the
-        last, ends before it (the first wave always runs), and the search's iterations are scaled by
+    def decide(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray:
+        """The joint action (as :meth:`PIBTStep.decide <planners.mapf.pibt.turning.PIBTStep.decide>`); a robot not
+        where the last call's plans put it (another planner acted, a new episode) drops every inherited operation.
+        Under a ``deadline`` the portfolio's plans run in waves of :attr:`threads` while the next wave, as long as
+        the last, ends before it (the first wave always runs), and the search's iterations are scaled by
         :attr:`lns_scale`, which falls by 0.7 after a call that ends within :data:`DEADLINE_MARGIN_S` of its
         deadline and grows by 1.1 (up to 1) after one that leaves a quarter of its time."""
-        self.deadline = deadline
-        pos, orient, goals = self._check(pos, orient, goals)
-        goals = self.steer(pos, goals, rest)
         r = len(pos)
+        site, prio = self.site, self.prio
         if self.auto_op_len:
             self.auto_op_len = False
-            self._set_ops(4 if r <= AUTO_OP_LEN_FILL * len(self.cell_of) else DEFAULT_OP_LEN)
-        order = self.order(r)
-        pc, gc = self.cid[pos], self.cid[goals]
+            self._set_ops(4 if r <= AUTO_OP_LEN_FILL * len(site.cell_of) else DEFAULT_OP_LEN)
+        order = prio.order(r)
+        pc, gc = site.cid[pos], site.cid[goals]
         if len(self.inherited) != r or not (np.array_equal(self._expect[0], pc)
                                             and np.array_equal(self._expect[1], orient)):
             self.inherited = np.full((r, self.ops.shape[1]), WAIT, dtype=np.int8)
-        fields, rows = self._heuristic(pc, gc, order)
+        fields, rows = self.source.heuristic(pc, gc, order, deadline, self.kernel_s)
         far = int(np.iinfo(fields.dtype).max)
-        grid = self.move_grid
-        prio = self.elapsed + self.tie
         weight = np.empty(r, dtype=np.int64)  # (r + 1 - rank) ** weight_power, rank 0 the first in order
         weight[order] = np.arange(r + 1, 1, -1, dtype=np.int64) ** self.weight_power
         self.lns = min(r * DEFAULT_LNS_PER_ROBOT, DEFAULT_LNS_MAX) if self.lns_option is None else self.lns_option
@@ -420,20 +416,23 @@ class EPIBT(TurningPIBT):
         chosen = np.empty((r, self.ops.shape[1]), dtype=np.int8)
         act = np.empty(r, dtype=np.int64)
         t0 = time.perf_counter()
-        state = self._plans(grid, Fleet(pc, orient, gc, rows, prio, self.inherited, weight), (fields, far), order)
+        robots = Fleet(pc, orient, gc, rows, prio.elapsed + prio.tie, self.inherited, weight)
+        state = self._plans(self.source.move_grid, robots, (fields, far), order, deadline)
         self.kernel_s = time.perf_counter() - t0
-        self._improve(state)
-        epibt_finish(self.ops, self.inherited, state, (chosen, act), self._res)
+        if self.machine_step is not None:
+            self.machine_step.improve(self, state, deadline)
+        epibt_finish(self.ops, self.inherited, state, (chosen, act), self.res)
         self.plans = chosen
-        ahead = self.nbr[pc, orient].astype(np.int64)
+        ahead = site.nbr[pc, orient].astype(np.int64)
         nxt = np.where(act == FORWARD, ahead, pc)
         turn = np.where(act == CLOCKWISE, 1, np.where(act == COUNTER, 3, 0))
         self.inherited = np.concatenate([chosen[:, 1:], np.full((r, 1), WAIT, dtype=np.int8)], axis=1)
         self._expect = (nxt, (orient + turn) % 4)
-        self.targets = self.cell_of[nxt]
-        self._advance(nxt, gc)
+        self.targets = site.cell_of[nxt]
+        prio.advance(nxt, gc)
         if deadline is not None:  # the search's share of the next steps: less when this one ended late
-            charged = self.last_compute.chip_time_parallel_s - self.last_compute.emulation_s  # a machine's, if any
+            c = self.machine_step.last_compute if self.machine_step is not None else None
+            charged = 0.0 if c is None else c.chip_time_parallel_s - c.emulation_s  # a machine's, if any
             slack = deadline - time.perf_counter() - charged
             if slack < DEADLINE_MARGIN_S:
                 self.lns_scale *= 0.7
@@ -441,44 +440,21 @@ class EPIBT(TurningPIBT):
                 self.lns_scale = min(1.0, self.lns_scale * 1.1)
         return act
 
-    def _plans(self, grid, robots, heuristic, order):
+    def _plans(self, grid, robots, heuristic, order, deadline):
         """The portfolio's joint plans (one by default), the kept one's state returned and left reserved in
-        :attr:`_res`; :attr:`portfolio_costs` holds each plan's weighted cost-to-go."""
+        :attr:`res`; :attr:`portfolio_costs` holds each plan's weighted cost-to-go."""
         r, k_plans = robots.pos.shape[0], self.portfolio
         states = [new_state(r, self.ops) for _ in range(k_plans)]
-        tables = [self._res] + [np.full_like(self._res, -1) for _ in range(k_plans - 1)]
+        tables = [self.res] + [np.full_like(self.res, -1) for _ in range(k_plans - 1)]
+        seed, t = self.prio.seed, self.prio.t
 
         def run(k):
-            stamp = SearchStamp(portfolio_seed(self.seed, k), self.t, self.revisits, self.lns, self.group, self.anneal)
+            stamp = SearchStamp(portfolio_seed(seed, k), t, self.revisits, self.lns, self.group, self.anneal)
             epibt_kernel(grid, robots, heuristic, order, stamp, self.ops, self.idle, states[k], tables[k])
 
-        k_plans = self._waves(run, k_plans)
+        k_plans = run_waves(run, k_plans, self.threads, deadline)
         states = states[:k_plans]
         self.portfolio_costs = np.array([plan_cost(st) for st in states], dtype=np.int64)
         self.kept = int(np.argmin(self.portfolio_costs))  # the first of least cost
-        self._res = tables[self.kept]  # the others are dropped with their reservations
+        self.res = tables[self.kept]  # the others are dropped with their reservations
         return states[self.kept]
-
-    def _waves(self, run, k_plans: int) -> int:
-        """Runs plans ``0..k-1`` in waves of :attr:`threads` (side by side: the kernel releases the GIL), all of
-        them without a deadline, else while the next wave should end before it; returns ``k``."""
-        width = min(self.threads, k_plans)
-        done = 0
-        pool = ThreadPoolExecutor(width) if width > 1 else None
-        try:
-            while done < k_plans:
-                t0 = time.perf_counter()
-                wave = range(done, min(done + width, k_plans))
-                list(pool.map(run, wave)) if pool is not None else [run(k) for k in wave]
-                done = wave.stop
-                now = time.perf_counter()
-                if self.deadline is not None and now + (now - t0) > self.deadline - DEADLINE_MARGIN_S:
-                    break
-        finally:
-            if pool is not None:
-                pool.shutdown()
-        return done
-
-    def _improve(self, state) -> None:
-        """Hook for subclasses: may change the plan ``state`` (kept conflict-free in :attr:`_res`) before its
-        first actions are taken (here: nothing)."""

@@ -1,4 +1,4 @@
-"""Traffic-flow guide paths for PIBT with turning (``pibt-flow``), compiled.
+"""Traffic-flow guide paths for the planners with turning (option ``flow``; ``pibt-flow``), compiled.
 
 Each robot keeps a guide path to its goal: A* over the free cells whose cost adds, to each move,
 the traffic the other robots' guide paths already route (Chen, Harabor, Li and Stuckey, "Traffic
@@ -26,18 +26,15 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import time
-from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-from planners.mapf.guides.guidance import MAX_GUIDANCE, distance_bound, spread
-from planners.mapf.common import compact_grid, move_grid
-from planners.mapf.pibt.options import DEFAULT_FIELD_BYTES, LaneOptions, commits_option
-from planners.mapf.pibt.turning import TurningPIBT, _distance
-from planners.options import option
+from planners.mapf.guides.guidance import distance_bound, spread
+from planners.mapf.common import move_grid
+from planners.mapf.pibt.turning import _distance
 
-__all__ = ["FlowPIBT", "FlowOptions", "replans_option", "guide_work_option", "FlowGuide", "AStarScratch", "GuideState",
+__all__ = ["FlowGuide", "AStarScratch", "GuideState",
            "flow_astar", "path_field", "replan_paths", "guide_bytes", "field_dtype", "check_team",
            "DEFAULT_REPLAN_WORK", "DEFAULT_GUIDE_WORK"]
 
@@ -307,7 +304,7 @@ class FlowGuide:
     """The robots' guide paths, their flow and each robot's PIBT field (module docstring).
 
     Args:
-        nbr, cell_of, width: the compact grid (:func:`~planners.mapf.pibt.turning.compact_grid`).
+        nbr, cell_of, width: the compact grid (:func:`~planners.mapf.common.compact_grid`).
         cost: ``(n, 4)`` moves counted per forward move (lane guidance), ``None``: 1 each.
         replans: guide paths re-planned per call beyond those of new goals (``None``: one per robot, at
             most :data:`DEFAULT_REPLAN_WORK` // free cells).
@@ -316,7 +313,7 @@ class FlowGuide:
         work: A* expansions per call (:data:`DEFAULT_GUIDE_WORK`; ``None``: no bound).
     """
 
-    def __init__(self, nbr, cell_of, width, cost=None, replans=None, max_bytes=DEFAULT_FIELD_BYTES, seed=0,
+    def __init__(self, nbr, cell_of, width, cost=None, replans=None, max_bytes=1 << 30, seed=0,
                  work=DEFAULT_GUIDE_WORK):
         self.nbr, self.cell_of, self.width = nbr, cell_of, int(width)
         n = nbr.shape[0]
@@ -431,64 +428,3 @@ class FlowGuide:
             self.copied[copy] = gc[copy]
             rows[wait[~has]] = -1
         return rows
-
-
-def replans_option():
-    """The ``replans`` option of the planners along guide paths."""
-    return option(None, int, 0, 1 << 24, none=True, meaning="guide paths re-planned per call beyond those of new "
-                  "goals (null: one per robot, at most DEFAULT_REPLAN_WORK // free cells)")
-
-
-def guide_work_option():
-    """The ``guide_work`` option of the planners along guide paths."""
-    return option(DEFAULT_GUIDE_WORK, int, 1, 1 << 40, none=True, meaning="A* expansions per call for guide paths "
-                  "(null: no bound); under a clock they also stop GUIDE_MARGIN_S + twice the last pass before the "
-                  "deadline")
-
-
-@dataclass(frozen=True)
-class FlowOptions(LaneOptions):
-    """:class:`FlowPIBT`'s options: the goal fields' (:class:`~planners.mapf.pibt.options.LaneOptions`) with lanes off
-    and commitments on by default (as in the start kit), and the guide paths' bounds (``field_bytes`` bounds the
-    robots' fields and first paths too)."""
-
-    guidance: int = option(0, int, 0, MAX_GUIDANCE, meaning="extra cost of a forward move against its lane, added "
-                           "to the guide paths' moves (0 = off)")
-    commits: bool = commits_option(True)
-    replans: int | None = replans_option()
-    guide_work: int | None = guide_work_option()
-
-
-class FlowPIBT(TurningPIBT):
-    """PIBT with turning that follows traffic-flow guide paths (module docstring).
-
-    Args:
-        grid, seed: as :class:`~planners.mapf.pibt.turning.TurningPIBT`.
-        options: the fields of :class:`FlowOptions`.
-    """
-
-    name = "pibt-flow"
-    Options = FlowOptions
-
-    def __init__(self, grid, seed: int = 0, **options) -> None:
-        super().__init__(grid, seed, **options)
-        opts = self.options
-        self.guide = FlowGuide(self.nbr, self.cell_of, self.width, self.move_cost, opts.replans, opts.field_bytes,
-                               self.seed, work=opts.guide_work)
-        self.guide_stop: float | None = None
-
-    def actions(self, pos, orient, goals, deadline: float | None = None) -> np.ndarray:
-        """:meth:`TurningPIBT.actions`; under a clock the guide paths stop in time for PIBT's pass."""
-        self.guide_stop = None if deadline is None else deadline - GUIDE_MARGIN_S - 2 * self.kernel_s
-        return super().actions(pos, orient, goals, deadline)
-
-    @staticmethod
-    def check_team(grid, n_robots: int, field_bytes: int = DEFAULT_FIELD_BYTES) -> None:
-        """``ValueError`` when ``n_robots`` robots' paths and fields on ``grid`` exceed ``field_bytes``."""
-        nbr = compact_grid(np.asarray(grid, dtype=bool))[2]
-        check_team(nbr.shape[0], int(n_robots), int(field_bytes), field_dtype(nbr)[0].itemsize)
-
-    def _heuristic(self, pc, gc, order):
-        rows = self.fields.rows(gc, order)
-        rows = self.guide.update(pc, gc, self.fields.fields, rows, self.guide_stop)  # first: it may grow the fields
-        return self.guide.fields, rows

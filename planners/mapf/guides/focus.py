@@ -10,9 +10,47 @@ option ``active`` is the share, their way the goal field's distance (``planners.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["active_goals", "active_count", "checked_rest"]
+from planners.options import Options, option
+
+__all__ = ["Focus", "FocusOptions", "active_goals", "active_count", "checked_rest"]
+
+
+@dataclass(frozen=True)
+class FocusOptions(Options):
+    """Who is at work each step (module docstring)."""
+
+    active: float = option(1.0, float, 0.001, 1, meaning="the share of the team that heads for its goal each step, "
+                           "the robots of least way to it (planners.mapf.guides.focus; the others stay and are pushed "
+                           "aside; 1 = all)")
+    active_by: str = option("goal", str, words=("goal", "task"), meaning="with active < 1, the robots at work are "
+                            "those of least way to their goal (goal) or of least task still to go: that way plus the "
+                            "task's legs beyond its goal, given per step as actions(..., rest=...) (task; the 2024 "
+                            "winner's ranking)")
+
+
+class Focus:
+    """The robots at work of one planner under ``opts`` (:class:`FocusOptions`): :meth:`steer` gives the others
+    their own cell as goal.  :attr:`by_task`: the way counts each robot's task beyond its goal (``rest``)."""
+
+    def __init__(self, opts: FocusOptions) -> None:
+        self.active = opts.active
+        self.by_task = opts.active_by == "task"
+
+    def steer(self, pos, goals, rest, source, priorities) -> np.ndarray:
+        """The flat goals a step heads for: under ``active`` < 1 only the robots at work keep theirs, those of least
+        way by ``source``'s goal fields (:class:`~planners.mapf.guides.fields.FieldSource`; fields for the goals of
+        the robots first in ``priorities``' order), plus ``rest`` when :attr:`by_task`."""
+        if self.active >= 1:
+            return goals
+        cid = source.site.cid
+        pc, gc = cid[pos], cid[goals]
+        rows = source.fields.rows(gc, priorities.order(len(pos)))
+        way = source.distance(pc, gc, rows) + (rest if self.by_task else 0)  # rest: checked by the planner
+        return active_goals(pos, goals, way, active_count(self.active, len(pos)))
 
 
 def active_count(active: float, n_robots: int) -> int:

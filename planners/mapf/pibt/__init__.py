@@ -1,2 +1,3 @@
 """The PIBT family: grid PIBT (``grid``), PIBT with turning for the League's action model (``turning``), and
-windowed prioritized space-time A* without and with turning (``windowed``, ``windowed_turning``)."""
+windowed prioritized space-time A* on the grid (``windowed``)."""
+

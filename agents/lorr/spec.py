@@ -57,7 +57,8 @@ class PlannerSpec:
         from planners.mapf import TURNING_PLANNERS
 
         if ":" in name:
-            user_class(name)
+            if not callable(getattr(user_class(name), "actions", None)):
+                raise ValueError(f"{name} does not meet the Planner role: a Planner has actions (agents.lorr.roles)")
             return cls(name, dict(options or {}))
         if name not in TURNING_PLANNERS:
             raise ValueError(f"unknown planner {name!r}; known: {', '.join(TURNING_PLANNERS)}, or "

@@ -250,7 +250,7 @@ class KitPlanner(_Role):
         return [int(a) for a in np.asarray(actions).tolist()]
 
 
-class KitPlanner2026(KitPlanner):
+class KitPlanner2026(_Role):
     """The 2026 start kit's (v3.1) ``pyMAPFPlanner``: built without arguments (the kit sets ``env`` before
     ``initialize``), it plans from the kit's planning snapshot (``curr_states``: the states the kit's executor
     predicts after its staged actions) a window of actions per robot (``plan.actions[i]``) that the kit's executor
@@ -278,9 +278,9 @@ class KitPlanner2026(KitPlanner):
         return min(MAX_WINDOW, comm // (tick * max(counter, 1)) + 1)
 
     def initialize(self, preprocess_time_limit: int) -> bool:
-        done = super().initialize(preprocess_time_limit)
+        self.planner = self._choose().planner.build(self.inst.grid, self.seed)
         self.state.windows = self.window() > 1
-        return done
+        return True
 
     def plan(self, time_limit: int) -> list[list[int]]:
         from mrmt_env.lorr.rules import next_states

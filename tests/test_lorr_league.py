@@ -111,31 +111,35 @@ def _own(choice) -> dict:
     return {k: v for k, v in choice.planner.given.items() if k != "guidance"}
 
 
-def test_the_default_entry_chooses_by_team_and_map():
+def test_the_default_entry_chooses_by_team_fill_cells_and_corridors():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler.name, small.planner.name, small.rule) == ("lorr-weighted", "epibt-chain", 4)
+    assert (small.scheduler.name, small.planner.name, small.rule) == ("lorr-weighted", "epibt-chain", 3)
     assert _own(small) == {"portfolio": 2}
     # the way x 10, its turns counted, the matching of least total cost
     assert small.scheduler.options == {"weight": 10, "turns": True, "optimal": True}
     assert small.planner.options.guidance == 2  # every robot at work where the team is sparse, on crisscross lanes
-    packed, crowd = entry.rules[0], entry.rules[1]  # RANDOM-05, -04 (98 and 85 % of the free cells): 57 % at work
-    assert packed.holds(800, 0.98, "random-32-32-20.map") and not packed.holds(700, 0.85, "random-32-32-20.map")
-    assert crowd.holds(700, 0.85, "random-32-32-20.map")
-    assert not crowd.holds(400, 0.49, "random-32-32-20.map") and not crowd.holds(1500, 0.9, "random-32-32-20.map")
-    for rule in (packed, crowd):  # push chains under the pipeline scheduler re-planning unopened tasks
-        assert (rule.choice.scheduler.name, rule.choice.planner.name, rule.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
-                                                                                                True)
-    assert _own(packed.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2,
-                                                          "pushes": 100}  # search chains capped at 100 pushes
-    assert _own(crowd.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2}
-    dense = entry.rules[2]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
-    assert dense.holds(400, 0.49, "random-32-32-20.map")
-    assert not dense.holds(200, 0.24, "random-32-32-20.map") and not dense.holds(1500, 0.9, "random-32-32-20.map")
+    # no rule keys on a map's name; every condition is one of what an instance shows at preprocessing
+    for rule in entry.rules:
+        assert set(rule.conditions) <= {"max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill",
+                                        "max_corridors", "min_corridors"}
+    # holds(robots, fill, cells, corridors); the 2024 maps: RANDOM 1,024 cells, corridors 0.088
+    crowd = entry.rules[0]  # RANDOM-04 and -05 (85 and 98 % of the free cells): one rule, 57 % at work, 100 pushes
+    assert crowd.holds(800, 0.98, 1024, 0.088) and crowd.holds(700, 0.85, 1024, 0.088)
+    assert not crowd.holds(400, 0.49, 1024, 0.088) and not crowd.holds(1500, 0.9, 1024, 0.088)
+    assert (crowd.choice.scheduler.name, crowd.choice.planner.name, crowd.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
+                                                                                              True)
+    assert _own(crowd.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2,
+                                                         "pushes": 100}  # search chains capped at 100 pushes
+    dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
+    assert dense.holds(400, 0.49, 1024, 0.088)
+    assert not dense.holds(200, 0.24, 1024, 0.088) and not dense.holds(1500, 0.9, 1024, 0.088)
     assert _own(dense.choice) == {"active": 0.8, "active_by": "task", "portfolio": 2}
     assert (dense.choice.scheduler.name, dense.choice.planner.name, dense.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
                                                                                               True)
+    sparse = entry.rules[2]  # RANDOM-01, -02
+    assert sparse.holds(100, 0.12, 1024, 0.088) and sparse.holds(200, 0.24, 1024, 0.088)
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler.name, big.planner.name) == ("lorr-greedy", "epibt")
     # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still
@@ -144,26 +148,67 @@ def test_the_default_entry_chooses_by_team_and_map():
                                                "weight_power": 2}
     assert big.planner.options.guidance == 8  # along lanes of weight 8
     assert big.scheduler.options == {"way": 5}  # every robot holds a task, the way x 5
-    sortation, warehouse, tables = entry.rules[4], entry.rules[5], entry.rules[6]
-    assert sortation.holds(10000, 0.1, "sortation_large.map") and not sortation.holds(10000, 0.1, "warehouse_large.map")
-    assert warehouse.holds(10000, 0.26, "warehouse_large.map") and not warehouse.holds(1500, 0.03, "Paris_1_256.map")
-    assert sortation.choice.scheduler.name == warehouse.choice.scheduler.name == tables.choice.scheduler.name == "lorr-weighted"
-    for rule in (sortation, warehouse):  # the jam term and one-way corridors on the warehouse maps
-        assert rule.choice.scheduler.options == {"jam": 4}
-    assert _own(sortation.choice) == {"flow": False, "corridors": 8}
-    assert sortation.choice.planner.name == warehouse.choice.planner.name == "epibt"  # on goal fields, not along guide paths
-    assert _own(warehouse.choice) == {"flow": False, "corridors": 8, "congestion": 2}
+    aisles, tables = entry.rules[3], entry.rules[4]
+    # SORTATION (0.569) and WAREHOUSE (0.631) by their corridors, not CITY (0.001) nor GAME (0.003)
+    assert aisles.holds(10000, 0.18, 140 * 500, 0.569) and aisles.holds(10000, 0.26, 140 * 500, 0.631)
+    assert not aisles.holds(3000, 0.06, 256 ** 2, 0.001) and not aisles.holds(6500, 0.15, 481 * 530, 0.003)
+    assert aisles.choice.scheduler.name == tables.choice.scheduler.name == "lorr-weighted"
+    assert aisles.choice.scheduler.options == {"jam": 4}  # the jam term and one-way corridors
+    assert aisles.choice.planner.name == "epibt"  # on goal fields, not along guide paths
+    assert _own(aisles.choice) == {"flow": False, "corridors": 8}
+    assert aisles.choice.planner.options.guidance == 0
     # the city (CITY-01 and CITY-02): EPIBT on goal fields that price the crowd
     assert (tables.choice.scheduler.name, tables.choice.planner.name) == ("lorr-weighted", "epibt")
     assert _own(tables.choice) == {"flow": False, "congestion": 2}
-    assert tables.holds(3000, 0.06, "Paris_1_256.map", 256 ** 2)
-    # the weighted scheduler where its tables fit: warehouse and city (70,000 and 65,536 cells), not GAME's 254,930
-    assert tables.holds(10000, 0.26, "warehouse_large.map", 140 * 500)
-    assert tables.holds(1500, 0.03, "Paris_1_256.map", 256 ** 2)
-    assert not tables.holds(6500, 0.07, "brc202d.map", 481 * 530)
+    assert tables.holds(3000, 0.06, 256 ** 2, 0.001) and tables.holds(1500, 0.03, 256 ** 2, 0.001)
+    # the weighted scheduler where its tables fit: the city's 65,536 cells, not GAME's 254,930
+    assert not tables.holds(6500, 0.15, 481 * 530, 0.003)
+
+
+def _generated(tmp_path, spec: str, robots: int):
+    from mrmt_env.lorr.generate import generate_instance
+
+    path = tmp_path / f"X-{robots}-{len(list(tmp_path.glob('*.json')))}.json"
+    return read_instance(generate_instance(spec, robots, path, seed=0, tasks=50).instance)
+
+
+def test_the_corridor_share_counts_free_cells_between_two_opposite_free_neighbours():
+    from mrmt_env.lorr.shape import corridor_share
+
+    grid = np.zeros((5, 5), dtype=bool)  # two shelf rows of three cells: aisles one cell wide around them
+    grid[1, 1:4] = grid[3, 1:4] = True
+    # rows 0, 2, 4: the three cells above, between, below the shelves; rows 1, 3: the two ends beside them
+    assert corridor_share(grid) == 13 / 19
+    assert corridor_share(np.zeros((1, 6), dtype=bool)) == 4 / 6  # the ends have one free neighbour
+    assert corridor_share(np.zeros((4, 4), dtype=bool)) == 0.0  # an open floor
+    assert corridor_share(np.ones((3, 3), dtype=bool)) == 0.0  # no free cell
+    with pytest.raises(ValueError, match="two-dimensional"):
+        corridor_share(np.zeros(5, dtype=bool))
+
+
+def test_the_entry_reads_the_corridors_off_the_grid_whatever_the_map_is_called(tmp_path):
+    from mrmt_env.lorr.shape import corridor_share
+
+    entry = load_entry("default")
+    # 1,100 robots (beyond the small-team rules) on a warehouse of one-cell aisles: the aisles' rule; on a uniform
+    # map the city's; the maps are called X-*.map, so nothing but the grid can tell them apart
+    aisles = _generated(tmp_path, "family:warehouse:64x64:aisle_width=1", 1100)
+    flat = _generated(tmp_path, "family:uniform:64x64", 1100)
+    assert aisles.map_name.startswith("X-") and flat.map_name.startswith("X-")
+    assert corridor_share(aisles.grid) > 0.4 > 0.1 > corridor_share(flat.grid)
+    assert entry.choose(aisles).rule == 4 and entry.choose(flat).rule == 5
+    assert entry.rules[3].conditions == {"min_corridors": 0.4}
 
 
 @pytest.mark.parametrize("text, needle", [
+    ('[[rule]]\nmaps = ["warehouse*"]\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
+     "unknown key 'maps'"),
+    ('[[rule]]\nmin_corridors = 1.5\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
+     r"min_corridors = 1.5 must be a share of the free cells, in \[0, 1\]"),
+    ('[[rule]]\nmax_corridors = "wide"\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
+     "max_corridors = 'wide' must be a number >= 0"),
+    ('[[rule]]\nmin_corridors = 0.6\nmax_corridors = 0.3\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
+     "min_corridors = 0.6 exceeds max_corridors = 0.3"),
     ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nmax_robots = 5\n', "last rule must have no condition"),
     ('[[rule]]\nscheduler = "strong"\nplanner = "pibt"\nspeed = 3\n', "unknown key 'speed'"),
     ('[[rule]]\nplanner = "pibt"\n', "scheduler must name a scheduler"),

@@ -5,7 +5,9 @@ file (TOML, or JSON of the same shape) holds ``name``, an optional ``description
 first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
 preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_cells`` /
 ``min_cells`` (the map's cells, blocked ones too), ``max_fill`` /
-``min_fill`` (robots per free cell), ``maps`` (glob patterns on the map file's name).  Decisions: ``scheduler`` (as
+``min_fill`` (robots per free cell), ``max_corridors`` / ``min_corridors`` (the share of free cells in corridors one
+cell wide: :func:`mrmt_env.lorr.shape.corridor_share`, a number in [0, 1]).  Never the map's name: a rule keys on
+what the instance shows.  Decisions: ``scheduler`` (as
 ``mrmt lorr run --scheduler``) and its ``scheduler_options`` (``replan``, ``keep`` and its own), ``planner``
 (``--planner``) and its ``planner_options`` (``guidance`` and its own), read once into the specs of
 :mod:`agents.lorr.spec` that the run receives as they are.  The last rule must have no condition, so every
@@ -14,7 +16,6 @@ instance gets a choice.  ``--entry default`` is the package's own (``agents/lorr
 
 from __future__ import annotations
 
-import fnmatch
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +26,8 @@ __all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
 
 #: Entries shipped with the package, by name (``<name>.toml``).
 ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
-_CONDITIONS = ("max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill", "maps")
+_CONDITIONS = ("max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill", "max_corridors",
+               "min_corridors")
 _DECISIONS = ("scheduler", "planner", "scheduler_options", "planner_options")
 #: Keys of earlier entry files and where they now live.
 _MOVED = {"replan": "scheduler_options", "keep": "scheduler_options", "guidance": "planner_options"}
@@ -51,12 +53,12 @@ class Rule:
     conditions: dict
     choice: Choice
 
-    def holds(self, robots: int, fill: float, map_name: str, cells: int = 0) -> bool:
+    def holds(self, robots: int, fill: float, cells: int = 0, corridors: float = 0.0) -> bool:
         c = self.conditions
         return (robots <= c.get("max_robots", robots) and robots >= c.get("min_robots", robots)
                 and cells <= c.get("max_cells", cells) and cells >= c.get("min_cells", cells)
                 and fill <= c.get("max_fill", fill) and fill >= c.get("min_fill", fill)
-                and ("maps" not in c or any(fnmatch.fnmatch(map_name, p) for p in c["maps"])))
+                and corridors <= c.get("max_corridors", corridors) and corridors >= c.get("min_corridors", corridors))
 
 
 @dataclass(frozen=True)
@@ -70,10 +72,14 @@ class Entry:
 
     def choose(self, instance) -> Choice:
         """The first rule's choice that holds for ``instance`` (a :class:`~mrmt_env.lorr.instance.LoRRInstance`)."""
+        from mrmt_env.lorr.shape import corridor_share
+
         robots = instance.team_size
         fill = robots / max(int((~instance.grid).sum()), 1)
+        corridors = corridor_share(instance.grid) if any(
+            "max_corridors" in r.conditions or "min_corridors" in r.conditions for r in self.rules) else 0.0
         for rule in self.rules:
-            if rule.holds(robots, fill, instance.map_name, int(instance.grid.size)):
+            if rule.holds(robots, fill, int(instance.grid.size), corridors):
                 return rule.choice
         raise EntryError(f"{self.source}: no rule holds for {instance.name}")  # unreachable: the last has none
 
@@ -94,7 +100,7 @@ def _read(path: Path) -> dict:
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib
+        import tomli as tomllib  # type: ignore[no-redef]  # the same module under its 3.10 name
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -126,11 +132,17 @@ def _rule(where: str, raw, last: bool) -> Rule:
     for key in ("max_fill", "min_fill"):
         if key in raw:
             conditions[key] = _number(where, key, raw[key], False)
-    if "maps" in raw:
-        maps = raw["maps"]
-        if not isinstance(maps, list) or not maps or not all(isinstance(m, str) and m for m in maps):
-            raise EntryError(f"{where}: maps = {maps!r} must be a list of glob patterns (e.g. [\"random-*\"])")
-        conditions["maps"] = tuple(maps)
+    for key in ("max_corridors", "min_corridors"):
+        if key in raw:
+            value = _number(where, key, raw[key], False)
+            if value > 1:
+                raise EntryError(f"{where}: {key} = {value!r} must be a share of the free cells, in [0, 1]")
+            conditions[key] = value
+    for low, high in (("min_robots", "max_robots"), ("min_cells", "max_cells"), ("min_fill", "max_fill"),
+                      ("min_corridors", "max_corridors")):
+        if low in conditions and high in conditions and conditions[low] > conditions[high]:
+            raise EntryError(f"{where}: {low} = {conditions[low]!r} exceeds {high} = {conditions[high]!r}: "
+                             "no instance meets the rule")
     if last and conditions:
         raise EntryError(f"{where}: the last rule must have no condition (it decides every other instance)")
     for key in ("scheduler", "planner"):

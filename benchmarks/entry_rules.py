@@ -1,0 +1,156 @@
+"""The LoRR entry's rules on generated instances: shape table, instances, and entry-vs-start-kit runs.
+
+    python benchmarks/entry_rules.py shapes                       # the corridor share of the 2024 maps and families
+    python benchmarks/entry_rules.py generate --out DIR           # 4 families x 4 densities, 64x64, seed 0
+    python benchmarks/entry_rules.py run --out DIR [--entry E] [--steps 200] [--only NAME,...] [--config C,...]
+    python benchmarks/entry_rules.py table --out DIR [--entry E]
+
+``--only`` runs the instances named, in that order.  ``run`` appends one JSON line per (instance, configuration) to ``DIR/runs.jsonl`` and skips those already there.
+Configurations: ``entry`` (``--entry``, default: the package's ``default``), ``default`` (the start kit's default
+entry: ``lorr-greedy`` + ``pibt-flow``, no options), ``rule:FILE.toml#N`` (rule N's choice of an entry file, forced).
+Every run is work-bounded (no clock: deterministic), seed 0, one process; a portfolio's plans run on one thread
+(``threads = 1``: plans do not depend on it).  Generated maps are named ``G-<family>-<pct>`` so that no glob on a
+map's name (``warehouse*``) matches them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mrmt_env.lorr.generate import family_grid, generate_instance  # noqa: E402
+from mrmt_env.lorr.instance import read_instance, read_lorr_map  # noqa: E402
+from mrmt_env.lorr.shape import corridor_share  # noqa: E402
+
+MAIN_2024 = Path("/work/shared/lorr/2024-main")
+FAMILIES = {"uniform": "family:uniform:64x64", "warehouse": "family:warehouse:64x64:aisle_width=1",
+            "rooms": "family:rooms:64x64", "maze": "family:maze:64x64"}
+DENSITIES = (5, 20, 45, 75)  # robots, per cent of the free cells
+
+
+def shapes() -> None:
+    rows = []
+    for m in sorted(MAIN_2024.glob("*/*.json")):
+        inst = read_instance(m)
+        t = time.perf_counter()
+        c = corridor_share(inst.grid)
+        dt = time.perf_counter() - t
+        free = int((~inst.grid).sum())
+        rows.append((inst.name, inst.map_name, inst.grid.shape, inst.grid.size, free, inst.team_size,
+                     inst.team_size / free, c, dt))
+    for fam in ("uniform", "warehouse", "warehouse:aisle_width=1", "rooms", "maze"):
+        name, _, opts = fam.partition(":")
+        for size in (32, 64, 128):
+            g = family_grid(f"family:{name}:{size}x{size}" + (f":{opts}" if opts else ""), np.random.default_rng(0))
+            rows.append((f"{fam} {size}x{size}", "-", g.shape, g.size, int((~g).sum()), None, None,
+                         corridor_share(g), None))
+    print(f"{'map':34s} {'file':22s} {'cells':>7s} {'free':>6s} {'team':>6s} {'fill':>6s} {'corridors':>9s} {'ms':>6s}")
+    for name, mp, shape, cells, free, team, fill, c, dt in rows:
+        print(f"{name:34s} {mp:22s} {cells:7d} {free:6d} {'-' if team is None else team:>6} "
+              f"{'-' if fill is None else f'{fill:.3f}':>6s} {c:9.3f} {'-' if dt is None else f'{dt * 1e3:.1f}':>6s}")
+
+
+def generate(out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    for fam, spec in FAMILIES.items():
+        g = family_grid(spec, np.random.default_rng(0))  # generate_instance draws the same map from the seed first
+        free = int((~g).sum())
+        for pct in DENSITIES:
+            n = round(free * pct / 100)
+            path = out / f"G-{fam}-{pct:02d}.json"
+            if not path.exists():
+                generate_instance(spec, n, path, seed=0)
+            print(path, n, "robots")
+
+
+def _config(name: str, entry, inst):
+    if name == "entry":
+        c = entry.choose(inst)
+        return c.scheduler, c.planner, dict(c.options), c.rule
+    if name == "default":
+        return "lorr-greedy", "pibt-flow", {}, None
+    if name.startswith("rule:"):
+        from agents.lorr.entry import load_entry
+        path, _, n = name[5:].partition("#")
+        c = load_entry(path).rules[int(n) - 1].choice
+        return c.scheduler, c.planner, dict(c.options), int(n)
+    raise SystemExit(f"unknown configuration {name!r}")
+
+
+def run(out: Path, entry_spec: str, steps: int, only, configs) -> None:
+    from agents.lorr.entry import load_entry
+    from agents.lorr.run import run_lorr
+
+    entry = load_entry(entry_spec)
+    log = out / "runs.jsonl"
+    done = set()
+    if log.exists():
+        for line in log.read_text().splitlines():
+            r = json.loads(line)
+            done.add((r["instance"], r["config"], r["steps"]))
+    paths = [out / f"{name}.json" for name in only] if only else sorted(out.glob("G-*.json"))
+    for path in paths:
+        inst = read_instance(path)
+        for cfg in configs:
+            if (inst.name, cfg, steps) in done:
+                continue
+            scheduler, planner, options, rule = _config(cfg, entry, inst)
+            if planner.startswith("epibt"):
+                options["executor_options"] = {**options.get("executor_options", {}), "threads": 1}
+            t = time.perf_counter()
+            rec, _, _ = run_lorr(inst, scheduler, planner, steps=steps, seed=0, options=options)
+            row = {"instance": inst.name, "config": cfg, "entry": entry_spec if cfg == "entry" else None,
+                   "rule": rule, "scheduler": scheduler, "planner": planner,
+                   "options": {k: v for k, v in options.items()}, "steps": steps, "robots": inst.team_size,
+                   "fill": inst.team_size / int((~inst.grid).sum()), "corridors": corridor_share(inst.grid),
+                   "tasks": rec["tasks_finished"], "errors": rec["errors"], "clock": rec["clock"],
+                   "seconds": time.perf_counter() - t}
+            with log.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+            print(json.dumps(row), flush=True)
+
+
+def table(out: Path, config: str) -> None:
+    rows = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
+    by = {(r["instance"], r["config"]): r for r in rows}
+    print(f"| instance | family | robots | fill | corridors | rule ({config}) | {config} tasks | default tasks | ratio |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name in sorted({r["instance"] for r in rows}):
+        e, d = by.get((name, config)), by.get((name, "default"))
+        if not e or not d:
+            continue
+        ratio = e["tasks"] / d["tasks"] if d["tasks"] else float("inf")
+        print(f"| {name} | {name.split('-')[1]} | {e['robots']} | {e['fill']:.2f} | {e['corridors']:.3f} | "
+              f"{e['rule']} | {e['tasks']} | {d['tasks']} | {ratio:.2f} |")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("what", choices=("shapes", "generate", "run", "table"))
+    ap.add_argument("--out", type=Path, default=Path("entry-rules"))
+    ap.add_argument("--entry", default="default")
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--only", default="")
+    ap.add_argument("--config", default="entry,default")
+    a = ap.parse_args(argv)
+    if a.what == "shapes":
+        shapes()
+    elif a.what == "generate":
+        generate(a.out)
+    elif a.what == "run":
+        run(a.out, a.entry, a.steps, list(filter(None, a.only.split(","))), a.config.split(","))
+    else:
+        table(a.out, a.config.split(",")[0])
+
+
+if __name__ == "__main__":
+    main()

@@ -304,6 +304,19 @@ def test_a_round_runs_every_instance_scores_the_sum_of_shares_and_resumes(tmp_pa
     assert again.returncode == 0, again.stderr
     assert (out / "EXAMPLE-01" / "output.json").stat().st_mtime_ns == stamp
     assert json.loads((out / "summary.json").read_text())["score"] == pytest.approx(summary["score"])
+    # the summary names the commit every row ran at and the machine; a row of another commit is run again
+    from agents.lorr.round import code_version, machine_name
+
+    assert summary["code"] == code_version() == rows["EXAMPLE-01"]["code"] != "mixed"
+    assert summary["machine"] == machine_name() and f"at commit {summary['code']}" in (out / "summary.md").read_text()
+    row = json.loads((out / "EXAMPLE-01" / "run.json").read_text())
+    (out / "EXAMPLE-01" / "run.json").write_text(json.dumps({**row, "code": "another"}))
+    stamp2 = (out / "EXAMPLE-02" / "output.json").stat().st_mtime_ns
+    third = _mrmt(*args, "--steps", "30", "--resume")
+    assert third.returncode == 0, third.stderr
+    assert (out / "EXAMPLE-01" / "output.json").stat().st_mtime_ns != stamp
+    assert (out / "EXAMPLE-02" / "output.json").stat().st_mtime_ns == stamp2
+    assert json.loads((out / "EXAMPLE-01" / "run.json").read_text())["code"] == code_version()
 
 
 def test_round_folders_and_best_known_tables(tmp_path):

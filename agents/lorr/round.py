@@ -7,7 +7,8 @@ a fresh process (so its peak memory is its own) or as Ray tasks, writes ``OUT/<N
 file) and ``OUT/<NAME>/run.json``, and returns the :class:`RoundSummary` (also ``OUT/summary.json`` and
 ``OUT/summary.md``).  The score is the sum over instances of tasks / best-known; a run of the first ``steps`` steps
 (a prefix) is scored against the best-known pro rata and marked so.  ``resume`` keeps an instance whose
-``run.json`` was made by the same entry, steps, clock and seed.
+``run.json`` was made by the same entry, steps, clock, seed and commit of the package (a round resumed at another
+commit runs its instances again: a round's score is one commit's); the summary names the commit and the machine.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import json
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+import mrmt_env
 
 from agents.lorr.scores import BEST_KNOWN_FILE, BestKnown, best_known_table
 
@@ -50,19 +53,53 @@ class RoundSummary:
     instances: int
     entry: str
     clock: str
+    code: str = "unknown"  # the package's commit every row was run at ("mixed" when they differ)
+    machine: str = ""      # the CPU model and cores the rows were run on
 
     def to_json(self) -> dict:
         return asdict(self)
 
 
+def code_version() -> str:
+    """The package's commit (``git rev-parse HEAD`` of the checkout it runs from, ``+dirty`` when a tracked file of the
+    library differs from it), or ``unknown`` outside a git checkout."""
+    import subprocess
+
+    root = Path(mrmt_env.__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--",
+                                "mrmt_env", "ising_backend", "planners", "agents"], capture_output=True, text=True,
+                               timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head + ("+dirty" if dirty else "")) if head else "unknown"
+
+
+def machine_name() -> str:
+    """The CPU model and the cores this process may use."""
+    import os
+    import platform
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                   if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return f"{cpu}, {cores} cores"
+
+
 def _key(entry, steps, limit, seed) -> dict:
     """What makes two runs of an instance the same run: the entry (its name and rules, wherever its file is), the
-    steps, the clock and the seed."""
+    steps, the clock, the seed and the package's commit (:func:`code_version`)."""
     import hashlib
 
     rules = json.dumps(entry.to_json()["rules"], sort_keys=True)
     return {"entry": entry.name, "entry_rules": hashlib.sha1(rules.encode()).hexdigest()[:12], "steps": steps,
-            "clock": "work-bounded" if limit is None else limit.label(), "seed": int(seed)}
+            "clock": "work-bounded" if limit is None else limit.label(), "seed": int(seed), "code": code_version()}
 
 
 def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str, best: dict) -> dict:
@@ -78,9 +115,12 @@ def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str
     choice = entry.choose(inst)
     known = best.get(inst.name)
     full = inst.steps or (known[1] if known else None)
-    if full is None and steps is None:
+    if steps is not None:
+        n = int(steps)
+    elif full is not None:
+        n = int(full)
+    else:
         raise ValueError(f"{instance}: no simulation time (no simulation_time.json, no best-known row): give --steps")
-    n = int(steps) if steps is not None else int(full)
     record, sim, step_s = run_lorr(inst, choice.scheduler, choice.planner, steps=n, seed=seed,
                                    limit=limit)
     folder = Path(out) / inst.name
@@ -91,7 +131,7 @@ def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str
            "best_known": known[2] if known else None, "best_known_pro_rata": target,
            "share_of_best": (sim.finished / target) if target else None,
            "scored_share": 0.0 if record["preprocess_timeout"] else ((sim.finished / target) if target else None),
-           "output": str(folder / "output.json")}
+           "output": str(folder / "output.json"), "machine": machine_name()}
     (folder / "run.json").write_text(json.dumps(row, indent=1))
     return row
 
@@ -151,8 +191,11 @@ def run_round(folder, entry, out, steps=None, seed: int = 0, limit=None, best=No
     rows = {**kept, **{r["instance"]: r for r in done}}
     ordered = [rows[p.stem] for p in paths]
     scored = [r["scored_share"] for r in ordered if r["scored_share"] is not None]
+    codes = {r.get("code", "unknown") for r in ordered}
+    machines = sorted({r.get("machine", "") for r in ordered})
     summary = RoundSummary(rows=ordered, score=float(sum(scored)), scored=len(scored), instances=len(ordered),
-                           entry=entry.name, clock="work-bounded" if limit is None else limit.label())
+                           entry=entry.name, clock="work-bounded" if limit is None else limit.label(),
+                           code=codes.pop() if len(codes) == 1 else "mixed", machine="; ".join(machines))
     (out / "summary.json").write_text(json.dumps(summary.to_json(), indent=1))
     (out / "summary.md").write_text(summary_table(summary) + "\n")
     return summary
@@ -164,7 +207,7 @@ def summary_table(summary: RoundSummary) -> str:
     def f(x, spec):
         return "-" if x is None else format(x, spec)
 
-    lines = [f"entry `{summary.entry}`, {summary.clock}", "",
+    lines = [f"entry `{summary.entry}`, {summary.clock}, at commit {summary.code}, on {summary.machine}", "",
              "| instance | robots | steps | planner | tasks | best-known | share | timeouts | step p50 s | step p99 s "
              "| peak MiB | J / task (paper / total) |",
              "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]

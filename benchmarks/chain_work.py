@@ -30,12 +30,12 @@ BANDS = ((0, 10), (10, 100), (100, 1000), (1000, None))
 def dense_state(args):
     """The planner (``epibt-chain``, lanes of weight 2, one plan) and a state after ``args.warm`` steps."""
     from mrmt_env.lorr.instance import read_instance
-    from planners.mapf import ChainEPIBT
+    from planners.mapf import make_turning_planner
 
     grid = read_instance(ROOT / f"{args.instance}.json").grid
     free = np.flatnonzero(~grid.reshape(-1))
     rng = np.random.default_rng(args.seed)
-    ex = ChainEPIBT(grid, seed=args.seed, guidance=2, threads=1, lns=2000)
+    ex = make_turning_planner("epibt-chain", grid, seed=args.seed, guidance=2, threads=1, lns=2000)
     pos = rng.choice(free, args.robots, replace=False).astype(np.int64)
     orient = rng.integers(0, 4, args.robots).astype(np.int64)
     goals = rng.choice(free, args.robots).astype(np.int64)
@@ -60,16 +60,16 @@ def main(argv=None) -> None:
     parser.add_argument("--write", action="store_true")
     args = parser.parse_args(argv)
     ex, pos, orient, goals = dense_state(args)
-    pc, gc = ex.cid[pos], ex.cid[goals]
-    rows = ex.goal_rows(pc, gc, ex.order(len(pos)))
-    fields = ex.fields.fields
-    ranked = ex.ranked(ChainRobots(pc, orient, gc, rows), fields)
+    chain = ex.decider  # the push chains' decider (ChainStep)
+    pc, gc = ex.site.cid[pos], ex.site.cid[goals]
+    fields, rows = ex.source.heuristic(pc, gc, ex.prio.order(len(pos)))  # the goal fields (epibt-chain: flow off)
+    ranked = chain.ranked(ChainRobots(pc, orient, gc, rows), fields)
     cand, gain, order = ranked.cand, ranked.gain, ranked.order
-    opts, r, cells = ex.options, len(pos), len(ex.cell_of)
+    opts, r, cells = ex.options, len(pos), len(ex.site.cell_of)
 
     def built(seed, knobs):
         plan = new_plan(r, cells, seed, opts.anneal)
-        chain_build(cand, gain, order, ex.draws, knobs, (0, r), plan)
+        chain_build(cand, gain, order, chain.draws, knobs, (0, r), plan)
         return plan
 
     knobs = ChainKnobs(opts.push_built, opts.skip)
@@ -77,7 +77,7 @@ def main(argv=None) -> None:
     work, changed = np.zeros(args.chains, np.int64), np.zeros(args.chains, bool)
     for i in range(args.chains):
         before, w0 = plan.choice.copy(), int(plan.work[0])
-        chain_search(cand, gain, ex.draws, knobs, (i, 1), 1 << 62, plan)
+        chain_search(cand, gain, chain.draws, knobs, (i, 1), 1 << 62, plan)
         work[i], changed[i] = int(plan.work[0]) - w0, not np.array_equal(before, plan.choice)
     total = max(int(work.sum()), 1)
     lines = [SECTION, "", f"`python benchmarks/chain_work.py --instance {args.instance} --robots {args.robots} --warm "
@@ -97,7 +97,7 @@ def main(argv=None) -> None:
             plan = built(seed, knobs)
             s0, done, t0 = int(plan.score[0]), 0, time.perf_counter()
             while time.perf_counter() - t0 < args.seconds:
-                done += chain_search(cand, gain, ex.draws, knobs, (done, 512), 1 << 62, plan)
+                done += chain_search(cand, gain, chain.draws, knobs, (done, 512), 1 << 62, plan)
             gains.append(int(plan.score[0]) - s0)
             counts.append(done)
         lines.append(f"| {cap:,} | {int(np.mean(counts)):,} | {' / '.join(f'{g:.3g}' for g in gains)} | "

@@ -1,7 +1,7 @@
 """Joint next moves on the Ising chip vs PIBT's priority order (issue 33, item 3), measured.
 
 ``decisions``: groups sampled from LoRR runs driven by the host rule (start kit greedy scheduler,
-TurningPIBT), each solved three ways under one objective (planners/mapf/chip/joint_moves.py): the host
+``pibt``), each solved three ways under one objective (planners/mapf/chip/joint_moves.py): the host
 rule's answer, the chip's (best decoded read, repaired), the exact optimum (branch and bound).
 ``e2e``: the same run loop with ``pibt`` and with ``pibt-ising`` as the executor, same seeds and the
 same lane guidance (``--guidance``, default 0).
@@ -29,15 +29,15 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
     from mrmt_env.lorr.instance import read_instance
     from mrmt_env.lorr.loop import StepLoop
     from mrmt_env.lorr.sim import LoRRSimulator
-    from planners.mapf.chip.joint_executor import JointMovesPIBT
-    from planners.mapf.pibt.turning import TurningPIBT
+    from planners.mapf import make_turning_planner
 
     inst = read_instance(path)
     loop = StepLoop(LoRRSimulator(inst, record=False), make_scheduler("lorr-greedy", seed=seed))
     sim = loop.sim
-    ex = JointMovesPIBT(inst.grid, seed=seed, accept="host", **options)
-    ref = TurningPIBT(inst.grid, seed=seed, guidance=0)  # the host rule alone, timed on the same states
-    ex.sample = []
+    ex = make_turning_planner("pibt-ising", inst.grid, seed=seed, accept="host", **options)
+    ref = make_turning_planner("pibt", inst.grid, seed=seed, guidance=0)  # the host rule alone, on the same states
+    chip = ex.machine_step  # the joint moves' step (JointMovesStep): collects the groups instead of deciding
+    chip.sample = []
     host_s, group_s, groups = [], [], []
     for _ in range(steps):
         loop.propose()
@@ -45,17 +45,17 @@ def sample_decisions(path, steps, seed=0, per_instance=400, **options):
         t0 = time.perf_counter()
         a_ref = ref.actions(sim.pos, sim.orient, goals)
         t1 = time.perf_counter()
-        n0 = len(ex.sample)
+        n0 = len(chip.sample)
         act = ex.actions(sim.pos, sim.orient, goals)
         t2 = time.perf_counter()
         assert np.array_equal(act, a_ref)
         host_s.append(t1 - t0)
         group_s.append(max((t2 - t1) - (t1 - t0), 0.0))
-        groups.append(len(ex.sample) - n0)
+        groups.append(len(chip.sample) - n0)
         loop.advance(act)
     rng = np.random.default_rng(seed)
-    pick = np.sort(rng.choice(len(ex.sample), min(per_instance, len(ex.sample)), replace=False))
-    return [ex.sample[i] for i in pick], np.array(host_s), np.array(group_s), np.array(groups), sim.finished
+    pick = np.sort(rng.choice(len(chip.sample), min(per_instance, len(chip.sample)), replace=False))
+    return [chip.sample[i] for i in pick], np.array(host_s), np.array(group_s), np.array(groups), sim.finished
 
 
 def solve_problems(problems, machine, num_reads=8, penalty=None, chunk=64, seed=0):
@@ -143,24 +143,28 @@ def main(argv=None):
         print(json.dumps({"instance": "all", **summary(np.concatenate(allres))}), flush=True)
     else:
         from agents.lorr.run import run_lorr
-        from planners.mapf import TURNING_EXECUTORS
-        from planners.mapf.chip.joint_executor import JointMovesPIBT
+        from agents.lorr.spec import PlannerSpec
+        from planners.mapf import TURNING_PLANNERS
+        from planners.mapf.chip.joint_executor import JointMovesOptions, JointMovesStep
 
-        made = []
+        made = []  # the variant's machine steps, the last one the latest run's
 
-        class Variant(JointMovesPIBT):
-            def __init__(self, grid, seed=0):
-                super().__init__(grid, seed=seed, levels=args.levels, push=args.push, penalty=args.penalty,
-                                 num_reads=args.reads, max_robots=args.max_robots, accept=args.accept,
-                                 guidance=args.guidance)
-                made.append(self)
+        def machine_step(o, machine, seed, site):
+            step = JointMovesStep(o.part(JointMovesOptions), machine, seed, len(site.cell_of))
+            made.append(step)
+            return step
 
-        TURNING_EXECUTORS["pibt-ising-bench"] = Variant
+        # the variant: pibt-ising's parts with a machine step of its own, which keeps each run's step for its counts
+        variant = TURNING_PLANNERS["pibt-ising"]._replace(name="pibt-ising-bench", machine_step=machine_step)
+        TURNING_PLANNERS[variant.name] = variant
+        own = dict(levels=args.levels, push=args.push, penalty=args.penalty, num_reads=args.reads,
+                   max_robots=args.max_robots, accept=args.accept, guidance=args.guidance)
         for name in names:
             for seed in range(args.seeds):
                 for ex in ("pibt", "pibt-ising-bench"):
-                    rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", ex, steps=args.steps, seed=seed,
-                                                options={"guidance": args.guidance} if ex == "pibt" else None)
+                    planner = PlannerSpec.of(ex, {"guidance": args.guidance} if ex == "pibt" else own)
+                    rec, sim, step_s = run_lorr(ROOT / f"{name}.json", "lorr-greedy", planner, steps=args.steps,
+                                                seed=seed)
                     row = {k: rec[k] for k in ("instance", "executor", "seed", "tasks_finished", "errors",
                                                "step_p50_s", "step_p99_s")}
                     if ex != "pibt":

@@ -70,8 +70,8 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
     from mrmt_env.lorr.instance import read_instance
     from mrmt_env.lorr.loop import StepLoop
     from mrmt_env.lorr.sim import LoRRSimulator
-    from planners.mapf import make_turning_executor
-    from planners.mapf import epibt_ising as E
+    from planners.mapf import make_turning_planner
+    from planners.mapf.chip import group_rounds as E  # the group rounds: the host rule's and the chip's decisions
 
     inst = read_instance(ROOT / f"{instance}.json")
     loop = StepLoop(LoRRSimulator(inst, record=False), make_scheduler("lorr-greedy", seed=seed))
@@ -81,7 +81,7 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
 
         lv = options.pop("levels")
         options["machine"] = EmulatedChip(spec=ChipSpec(h_range=(-lv, lv), j_range=(-lv, lv)), seed=seed)
-    ex = make_turning_executor(executor, inst.grid, seed=seed, **options)
+    ex = make_turning_planner(executor, inst.grid, seed=seed, **options)
     gaps = []  # per decision: host cost, chip cost, optimum, the group's plan now
     fill = [0]
     judged = [0.0]  # seconds spent judging (exact solve, plan cost): not the executor's, taken off its times
@@ -116,7 +116,7 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
     finally:
         if exact:
             E.greedy_choice, E.decode_choice = greedy, decode
-    stats = dict(getattr(ex, "stats", {}))
+    stats = dict(getattr(ex.machine_step, "stats", {}))  # the group decisions' counts (epibt-ising)
     if "host_s" in stats:
         stats["host_s"] -= judged[0]
     return {"tasks": sim.finished, "errors": len(sim.errors), "p99": float(np.percentile(step_s, 99)),

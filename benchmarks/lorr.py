@@ -32,7 +32,7 @@ SECTION = "## League of Robot Runners 2024 (issue 32)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main"
 RANDOM = [f"RANDOM-0{i}" for i in range(1, 6)]
 SCALE = ["CITY-01", "CITY-02", "GAME", "WAREHOUSE", "SORTATION"]
-ORDER = ["pibt", "pibt-flow", "epibt", "windowed", "pibt-ising"]  # executors in the table
+ORDER = ["pibt", "pibt-flow", "epibt", "pibt-ising"]  # executors in the table
 LEADERBOARD = Path(__file__).resolve().parent / "data" / "lorr2024_main_round.json"
 
 
@@ -52,19 +52,27 @@ def _path(name: str) -> Path:
 
 def _executor_spec(spec: str, name: str) -> tuple[str, dict]:
     """``NAME[:KEY=VALUE[:KEY=VALUE...]]`` (e.g. ``epibt:weight_power=2``) as the executor and its own options,
-    parsed and checked on instance ``name`` as ``mrmt lorr run --planner-option KEY=VALUE`` does."""
-    from agents.commands.lorr import executor_options
+    parsed as ``mrmt lorr run --planner-option KEY=VALUE`` does and checked (the planner's spec, then the planner
+    built once on instance ``name``'s map); ``ValueError`` naming a bad option."""
+    from agents.commands.lorr_args import planner_options
+    from agents.lorr.spec import PlannerSpec
     from mrmt_env.lorr.instance import read_instance
 
     executor, *items = spec.split(":")
-    return executor, (executor_options(executor, items, read_instance(_path(name)).grid) if items else {})
+    own = planner_options(executor, items)
+    if own:
+        try:
+            PlannerSpec.of(executor, own).build(read_instance(_path(name)).grid)
+        except ValueError as exc:
+            raise ValueError(f"--planner-option {exc}") from None
+    return executor, own
 
 
 def _one(name: str, scheduler: str, spec: str, steps: int | None, options: dict, seed: int = 0) -> dict:
     """One run with ``seed`` in a fresh process (peak memory is the run's own); the row's executor is ``spec``."""
     executor, own = _executor_spec(spec, name)
     if own:
-        options = {**options, "executor_options": own}
+        options = {**options, "planner_options": own}
     code = ("import json, resource, sys; from agents.lorr.run import run_lorr; "
             f"r, sim, s = run_lorr({str(_path(name))!r}, {scheduler!r}, {executor!r}, steps={steps!r}, seed={seed!r}, "
             f"options={options!r}); r['peak_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024; "
@@ -113,7 +121,7 @@ def _fmt_row(r: dict) -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--schedulers", default="lorr-greedy,strong,ising")
-    parser.add_argument("--executors", default="pibt,pibt-flow,epibt,windowed",
+    parser.add_argument("--executors", default="pibt,pibt-flow,epibt",
                         help="each runs every scheduler; NAME:KEY=VALUE passes the executor an option of its own "
                              "(e.g. epibt:weight_power=2)")
     parser.add_argument("--instances", default=",".join(RANDOM))

@@ -14,14 +14,13 @@ Per instance, the first ``--steps`` steps under the rules' 1 s clock, seed ``--s
   a program;
 * ``host-rule twin``: the same rounds with the host rule (the search's greedy) in the chip's place;
 * ``host chains + chip`` (not with ``--chip-rows twins``): the host search for half the time, then the chip's rounds;
-* ``work set on the chip`` (``--work-rows on``, with the first scheduler): ``epibt-chain-work``, the first
-  ``epibt-chain`` row whose robots at work the chip then thins where they meet (class ``work_set``,
-  ``--work-options``), and ``work set, host rule``, its twin (every robot the host rule keeps at work stays: the
-  plans of the ``epibt-chain`` row);
 * ``record holder`` (with ``--record-holder BIN``): the 2024 winner's own start-kit binary (``lifelong``, built from
   its public repository by the user) on the same instance and steps, ``-t 1000``; its tasks from its output.
 
 Host and machine energy per task apart (host CPU seconds x 15 W; 0.45 uJ per chip call).
+
+The rows of the work set on the chip (``--work-rows``, the planner ``epibt-chain-work``) are gone with that planner;
+their measured numbers stay in RESULTS.md ("Who stays at work, on the chip") and history/2026-11-28-lorr-density.md.
 
 Run nothing else beside it.
 
@@ -41,7 +40,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish, lorr_run_json  # noqa: E402
 
 SECTION = "## EPIBT by push chains at density: the entry, the host annealer, the chip annealer (issue 57)"
-SECTION_WORK = "## Who stays at work, on the chip (issue 57)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
 
 
@@ -78,10 +76,6 @@ def main(argv=None) -> None:
     parser.add_argument("--chip-rows", choices=("on", "twins", "none"), default="none",
                         help="the chip annealer, its host-rule twin and host chains + chip (twins: the first two)")
     parser.add_argument("--reads", type=int, default=16, help="reads per chip program")
-    parser.add_argument("--work-rows", choices=("on", "none"), default="none",
-                        help="the chip choosing who of the robots at work stays, and its host-rule twin")
-    parser.add_argument("--work-options", default="", help="comma-separated options of the work-set rows, e.g. "
-                        "head_on=8,shared=0")
     parser.add_argument("--entry-row", choices=("on", "none"), default="on", help="the default entry's row")
     parser.add_argument("--record-holder", default=None, help="the winner's start-kit binary (optional)")
     parser.add_argument("--write", action="store_true")
@@ -106,12 +100,6 @@ def main(argv=None) -> None:
             runs["host-rule twin"] = lorr_run_json(inst, *chip, "--planner-option", "decider=host", *clock)
             if args.chip_rows == "on":
                 runs["host chains + chip"] = lorr_run_json(inst, *chip, "--planner-option", "lns=null", *clock)
-        if args.work_rows == "on":
-            work = (*scheduler_args(scheds[0]), chain[0], "epibt-chain-work", *chain[2:], "--planner-option",
-                    f"num_reads={args.reads}", *[a for o in args.work_options.split(",") if o.strip()
-                                                 for a in ("--planner-option", o.strip())])
-            runs["work set on the chip"] = lorr_run_json(inst, *work, *clock)
-            runs["work set, host rule"] = lorr_run_json(inst, *work, "--planner-option", "decider=host", *clock)
         if args.record_holder:
             runs["record holder"] = record_holder(args.record_holder, inst, args.steps)
         for row, rec in runs.items():
@@ -124,7 +112,6 @@ def main(argv=None) -> None:
              + (" --record-holder BIN" if args.record_holder else "")
              + (f" --chip-rows {args.chip_rows} --reads {args.reads}" if args.chip_rows != "none" else "")
              + (" --entry-row none" if args.entry_row == "none" else "")
-             + (f" --work-rows on --work-options '{args.work_options}'" if args.work_rows == "on" else "")
              + f"` ({cpu_name()}; first {args.steps} steps, 1 s clock, seed {args.seed}; step time: host seconds plus the "
              "machine's own)", "",
              "| instance | planner | tasks | x first | timeouts | step p99 s | chip calls / step | host J / task | "
@@ -138,9 +125,7 @@ def main(argv=None) -> None:
                  f"{rec['machine_energy_per_task_j']:.2e}" if "machine_energy_per_task_j" in rec else ""]
         lines.append(f"| {name} | {row} | {tasks:,} | {tasks / max(ref, 1):.3f} | {rec['timeouts']} | "
                      + " | ".join(cells) + " |")
-    section = SECTION_WORK if args.work_rows == "on" and args.chip_rows == "none" else SECTION
-    lines[0] = section
-    finish(section, lines, args.write)
+    finish(SECTION, lines, args.write)
 
 
 if __name__ == "__main__":

@@ -47,8 +47,8 @@ SCHEDULERS = (("lorr-greedy", "lorr-greedy", [], []), ("lorr-weighted (weight 1)
 
 
 def _value(v) -> str:
-    """An option value as the command line reads it."""
-    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+    """An option value as the command line reads it (JSON: numbers, true / false, null; text as it is)."""
+    return v if isinstance(v, str) else json.dumps(v)
 
 
 def planner_args(name: str, planner: str) -> list[str]:
@@ -63,10 +63,9 @@ def planner_args(name: str, planner: str) -> list[str]:
     from mrmt_env.lorr.instance import read_instance
 
     choice = load_entry("default").choose(read_instance(ROOT / INSTANCES[name] / f"{name}.json"))
-    guidance = choice.options.get("guidance")
-    return ["--planner", choice.planner, *([] if guidance is None else ["--guidance", str(guidance)]),
-            *[a for k, v in choice.options.get("executor_options", {}).items()
-              for a in ("--planner-option", f"{k}={_value(v)}")]]
+    # the entry's planner with the options it gives that differ from the planner's defaults (guidance among them)
+    return ["--planner", choice.planner.name, *[a for k, v in choice.planner.given.items()
+                                                 for a in ("--planner-option", f"{k}={_value(v)}")]]
 
 
 def run(name: str, scheduler: str, options: list[str], extra: list[str], steps: int, planner: str = "pibt") -> dict:

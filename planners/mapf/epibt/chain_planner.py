@@ -24,7 +24,7 @@ import numpy as np
 from planners.mapf.epibt.chains import (SEARCH_PUSHES, STEPS, Candidates, ChainKnobs, ChainRobots, chain_build,
                                         chain_candidates, chain_finish, chain_operations, chain_search, new_plan,
                                         stamp_seed)
-from planners.mapf.epibt.options import MAX_PORTFOLIO
+from planners.mapf.epibt.options import portfolio_option, threads_option
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S, op_idle, portfolio_threads, run_waves
 from planners.mapf.guides.focus import checked_rest
 from planners.mapf.pibt.turning import FORWARD, WAIT
@@ -70,11 +70,8 @@ class ChainOptions(Options):
     skip: float = option(0.2, float, 0.0, 1.0, meaning="the chance a search chain passes over a robot in its way")
     pushes: int = option(SEARCH_PUSHES, int, 1, 1 << 20, meaning="a search chain pushing more robots than this is "
                          "refused (the winner's cap: 1,000)")
-    portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="plans per call from seeds apart, the one of highest "
-                            "score kept (ties: the first)")
-    threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
-                                 "on (null: one per plan, at most the cores this process may use); plans do not "
-                                 "depend on it")
+    portfolio: int = portfolio_option("highest score")
+    threads: int | None = threads_option()
 
 
 class ChainStep:

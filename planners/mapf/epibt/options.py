@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from planners.options import Options, option
 
-__all__ = ["EPIBTOptions", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
+__all__ = ["EPIBTOptions", "portfolio_option", "threads_option", "DEFAULT_OP_LEN", "MAX_OP_LEN", "AUTO_OP_LEN_FILL", "DEFAULT_REVISITS",
            "DEFAULT_LNS_PER_ROBOT", "DEFAULT_LNS_MAX", "DEFAULT_GROUP", "DEFAULT_WEIGHT_POWER", "MAX_PORTFOLIO"]
 
 DEFAULT_OP_LEN = 3
@@ -26,6 +26,18 @@ DEFAULT_WEIGHT_POWER = 0
 #: Joint plans per call at most (option ``portfolio``).
 MAX_PORTFOLIO = 64
 
+def portfolio_option(kept: str):
+    """The ``portfolio`` option of a planner whose plans are ranked by ``kept`` (EPIBT's and the push chains')."""
+    return option(1, int, 1, MAX_PORTFOLIO, meaning=f"joint plans per call from seeds apart (portfolio_seed), the one "
+                  f"of {kept} kept (ties: the first)")
+
+
+def threads_option():
+    """The ``threads`` option beside ``portfolio``."""
+    return option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run on (null: one "
+                  "per plan, at most the cores this process may use); plans do not depend on it")
+
+
 @dataclass(frozen=True)
 class EPIBTOptions(Options):
     """EPIBT's own options (:class:`~planners.mapf.epibt.plans.EPIBTStep`; the cost-to-go's and the focus' are their
@@ -40,11 +52,8 @@ class EPIBTOptions(Options):
     group: int = option(DEFAULT_GROUP, int, 2, 4096, meaning="robots per neighbourhood")
     weight_power: int = option(DEFAULT_WEIGHT_POWER, int, 0, 2, meaning="the search weighs each robot's cost-to-go "
                                "by (R + 1 - rank) ** weight_power, rank 0 the first in priority order")
-    portfolio: int = option(1, int, 1, MAX_PORTFOLIO, meaning="joint plans per call from seeds apart "
-                            "(portfolio_seed), the one of least weighted cost-to-go kept (ties: the first)")
-    threads: int | None = option(None, int, 1, MAX_PORTFOLIO, none=True, meaning="threads the portfolio's plans run "
-                                 "on (null: one per plan, at most the cores this process may use); plans do not "
-                                 "depend on it")
+    portfolio: int = portfolio_option("least weighted cost-to-go")
+    threads: int | None = threads_option()
     steady: bool = option(False, bool, meaning="of operations of equal cost-to-go, one that waits beats one that "
                           "turns (a blocked robot keeps facing its way instead of turning to another as good)")
     anneal: float = option(0.0, float, 0.0, 1.0, meaning="the search's starting temperature, a share of a "

@@ -1,6 +1,7 @@
 # Two commands do everything on a fresh clone (see README):
 #   make demo   - set up .venv with the base package only (no torch), then run the planner comparison
-#   make test   - add torch, stable-baselines3, Ray and the test tools, then run the test suite
+#   make test   - add torch, stable-baselines3, Ray and the test tools, then type-check the League code (mypy,
+#                 [tool.mypy] in pyproject.toml) and run the test suite
 # torch==2.13.0 is installed *before* stable-baselines3, from wherever pip finds it: a local CPU wheel
 # where the machine has one, else plain PyPI, which on Linux serves the multi-GB CUDA build.  For the
 # CPU build from PyTorch's own index: make test TORCH_INDEX=https://download.pytorch.org/whl/cpu
@@ -37,6 +38,7 @@ demo: $(BASE_STAMP)
 # compile the same kernels side by side on first use); a warm install skips it in about a second
 test: $(FULL_STAMP)
 	$(VENV)/bin/mrmt warmup --no-progress --lorr pibt,pibt-flow,epibt,epibt-chain
+	$(PY) -m mypy
 	$(PY) -m pytest -q -n 2 --durations=15
 
 reproduce: $(BASE_STAMP)

@@ -47,7 +47,7 @@ __all__ = ["LAYOUTS", "LAYOUT_OPTIONS", "Layout", "build_layout", "check_layout"
 LAYOUTS = ("uniform", "warehouse", "rooms", "maze")
 
 #: Options of each family and their defaults (``uniform`` has ``obstacle_density`` instead).
-LAYOUT_OPTIONS = {
+LAYOUT_OPTIONS: dict[str, dict[str, float]] = {
     "uniform": {},
     "warehouse": {"shelf_length": 10, "shelf_depth": 2, "aisle_width": 2, "cross_aisle_width": 2, "margin": 2},
     "rooms": {"room_size": 7, "door_width": 1, "extra_doors": 0.5},

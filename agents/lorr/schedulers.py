@@ -97,11 +97,11 @@ class AssignerScheduler:
             held = proposal >= 0
         free_robots = np.flatnonzero(~held)
         taken = set(proposal[held].tolist())
-        ids = [k for k in tasks.open if k not in taken]
-        if len(free_robots) == 0 or not ids:
+        free_ids = [k for k in tasks.open if k not in taken]
+        if len(free_robots) == 0 or not free_ids:
             return proposal
-        cells = np.array([tasks.remaining(k)[0] for k in ids], dtype=np.int64)
-        ids = np.asarray(ids, dtype=np.int64)
+        cells = np.array([tasks.remaining(k)[0] for k in free_ids], dtype=np.int64)
+        ids = np.asarray(free_ids, dtype=np.int64)
         pos = sim.pos
         rank = ids
         if self.shortlist is not None and len(ids) > self.shortlist:
@@ -124,7 +124,7 @@ class AssignerScheduler:
             self._keep(tasks, pos, before, proposal)
         return proposal
 
-    def makespan(self, tasks, task: int, cell: int) -> int:
+    def makespan(self, tasks, task: int, cell: int) -> int | np.int64:
         """The start kit's makespan of unopened ``task`` from ``cell``: the way to its first errand, then through
         every errand (:data:`~mrmt_env.lorr.greedy.FAR` when cut off)."""
         way = int(self.fields.fields[self.fields.rows(np.array([tasks.remaining(task)[0]]))[0], cell])

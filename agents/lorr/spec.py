@@ -13,8 +13,12 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
 
 from agents.lorr.roles import Planner, Scheduler
+
+if TYPE_CHECKING:
+    from planners.options import Options
 
 __all__ = ["PlannerSpec", "SchedulerSpec", "user_class", "specs_from_options"]
 
@@ -45,10 +49,11 @@ def _check_role(obj, role: type, what: str):
 @dataclass(frozen=True)
 class PlannerSpec:
     """A planner by name with its options: for a built-in planner its typed options record (checked when the spec
-    is made), for a user's class (``package.module:Class``) the keyword options its constructor takes."""
+    is made), for a user's class (``package.module:Class``) the keyword options its constructor takes; ``None``: the
+    built-in planner's defaults."""
 
     name: str
-    options: object = None
+    options: Options | dict | None = None
 
     @classmethod
     def of(cls, name: str, options: dict | None = None) -> "PlannerSpec":
@@ -70,6 +75,8 @@ class PlannerSpec:
         """The options that differ from the planner's defaults (a user class: all given)."""
         if isinstance(self.options, dict):
             return dict(self.options)
+        if self.options is None:
+            return {}
         default = type(self.options)()
         return {f.name: getattr(self.options, f.name) for f in fields(self.options)
                 if getattr(self.options, f.name) != getattr(default, f.name)}
@@ -94,7 +101,8 @@ class PlannerSpec:
         if not isinstance(self.options, dict):
             from planners.mapf import TURNING_PLANNERS
 
-            TURNING_PLANNERS[self.name].check_team(grid, n_robots, self.options)
+            kind = TURNING_PLANNERS[self.name]
+            kind.check_team(grid, n_robots, kind.Options() if self.options is None else self.options)
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ class KitInstance:
         self.name = Path(self.map_name).stem
         self.errands: dict[int, np.ndarray] = {}  # task id -> its errand cells (a task's errands never change)
         self.env = env
-        self.target = None
+        self.target: int | None = None
 
     def task_errands(self, task: int) -> np.ndarray:
         return self.errands[task]
@@ -142,11 +142,11 @@ class KitState:
         self.width = inst.width
         self.n_robots = inst.team_size
         self._tasks = KitTasks(env, inst)
-        self.t = None
-        self.tasks = None
+        self.t: int | None = None
+        self.tasks: KitTasks | None = None
         self.fresh = False  # read by the scheduler of this step, not yet used by the planner
         self.windows = False  # the planner returns several actions a call: read every held task's progress
-        self._kit_t = None
+        self._kit_t: int | None = None
         self._reads = 0
 
     def refresh(self, tasks: bool = True, again: bool = False) -> "KitState":
@@ -198,7 +198,7 @@ class _Role:
         self.env = env
         self.entry = entry if entry is not None else os.environ.get("MRMT_LORR_ENTRY", "default")
         self.seed = int(seed if seed is not None else os.environ.get("MRMT_LORR_SEED", "0"))
-        self.inst = None
+        self.inst: KitInstance | None = None  # with the choice and the state, set by _choose
         self.choice = None
 
     def _choose(self):
@@ -235,7 +235,7 @@ class KitPlanner(_Role):
     kit's goal list is a Python list a robot a step), or stays without one."""
 
     def initialize(self, preprocess_time_limit: int) -> bool:
-        self.planner = self._choose().planner.build(self.inst.grid, self.seed)
+        self.planner = self._choose().planner.build(self.state.inst.grid, self.seed)
         return True
 
     def plan(self, time_limit: int) -> list[int]:
@@ -245,7 +245,7 @@ class KitPlanner(_Role):
         goals = state.tasks.goals(schedule, state.pos)
         from mrmt_env.lorr.tasks import rest_keywords
 
-        extra = rest_keywords(self.planner, state.tasks, self.inst.width, np.asarray(schedule, dtype=np.int64))
+        extra = rest_keywords(self.planner, state.tasks, state.inst.width, np.asarray(schedule, dtype=np.int64))
         actions = self.planner.actions(state.pos, state.orient, goals, deadline=deadline, **extra)
         return [int(a) for a in np.asarray(actions).tolist()]
 
@@ -278,7 +278,7 @@ class KitPlanner2026(_Role):
         return min(MAX_WINDOW, comm // (tick * max(counter, 1)) + 1)
 
     def initialize(self, preprocess_time_limit: int) -> bool:
-        self.planner = self._choose().planner.build(self.inst.grid, self.seed)
+        self.planner = self._choose().planner.build(self.state.inst.grid, self.seed)
         self.state.windows = self.window() > 1
         return True
 

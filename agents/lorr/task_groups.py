@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numba
 import numpy as np
@@ -35,7 +35,8 @@ from planners.options import Options, option, record
 __all__ = ["IsingWeightedScheduler", "TaskGroupOptions", "GroupLimits", "select_task_groups", "task_qubo",
            "group_cost", "decode_tasks"]
 
-_NONE = np.int64(1) << 50  # cost of a cut-off option
+# cost of a cut-off option; an np.int64 for the kernels, typed int (cast: no change) as numba's int64 is their int
+_NONE = cast(int, np.int64(1) << 50)
 
 
 class GroupLimits(NamedTuple):

@@ -43,6 +43,7 @@ DEFAULT_MEMORY_MB = 2048
 CHUNK = 32
 #: Side of the square blocks the jam term counts robots in.
 DEFAULT_BLOCK = 16
+OptionsRecord = Options  # within a scheduler class the name ``Options`` is its record
 
 
 @numba.njit(cache=True, nogil=True)
@@ -220,7 +221,7 @@ class WeightedScheduler:
 
     name = "lorr-weighted"
     accelerated = False
-    Options = WeightedOptions
+    Options: type[OptionsRecord] = WeightedOptions  # a subclass's may be a composed record (planners.options.record)
 
     def __init__(self, **options) -> None:
         self.options = opts = self.Options.from_dict(options, self.name)
@@ -313,15 +314,15 @@ class WeightedScheduler:
         self.keep(sim, proposal)
         robots = np.flatnonzero(proposal < 0)
         held = set(proposal[proposal >= 0].tolist())
-        ids = [k for k in tasks.open if k not in held]
-        if len(robots) == 0 or not ids:
+        free_ids = [k for k in tasks.open if k not in held]
+        if len(robots) == 0 or not free_ids:
             return proposal, None
-        self._needed = {c for k in ids for c in self._errands(tasks, k)[:-1]}
-        first = np.array([self._errands(tasks, k)[0] for k in ids], dtype=np.int64)
-        legs = self.legs(tasks, ids, stop)
+        self._needed = {c for k in free_ids for c in self._errands(tasks, k)[:-1]}
+        first = np.array([self._errands(tasks, k)[0] for k in free_ids], dtype=np.int64)
+        legs = self.legs(tasks, free_ids, stop)
         ok = (legs >= 0) & (legs < 1 << 40)
         ok &= self._ready(first.tolist(), stop)
-        ids, first, legs = np.array(ids, dtype=np.int64)[ok], first[ok], legs[ok]
+        ids, first, legs = np.array(free_ids, dtype=np.int64)[ok], first[ok], legs[ok]
         if len(ids) == 0:
             return proposal, None
         order = np.lexsort((ids, legs, first))

@@ -90,23 +90,31 @@ class LoRRSetup:
         """The proposal the coming step applies (``None``: none)."""
         return None if self.loop is None else self.loop.pending
 
+    def running(self) -> tuple[LoRRSimulator, StepLoop]:
+        """The simulation and its step loop; ``RuntimeError`` before :meth:`reset`."""
+        if self.sim is None or self.loop is None:
+            raise RuntimeError("call reset() before step()")
+        return self.sim, self.loop
+
     def propose(self, schedule) -> None:
-        self.loop.hold(schedule)
+        self.running()[1].hold(schedule)
 
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
         """``(task, goal)`` per robot under the pending schedule: the task it is to serve and that
         task's next errand (-1 without one)."""
-        pending = self.loop.pending
-        task = self.sim.tasks.assigned.copy() if pending is None else pending.copy()
-        return task, self.loop.goals()
+        sim, loop = self.running()
+        pending = loop.pending
+        task = sim.tasks.assigned.copy() if pending is None else pending.copy()
+        return task, loop.goals()
 
     def step(self, actions) -> int:
-        done = self.loop.advance(actions)
-        self.loop.propose()
+        loop = self.running()[1]
+        done = loop.advance(actions)
+        loop.propose()
         return done
 
     def info(self) -> dict:
-        sim = self.sim
+        sim = self.running()[0]
         return {"step": sim.t, "tasks_finished": sim.finished, "errands_reached": sim.tasks.errands_done,
                 "errors": len(sim.errors), "schedule_errors": len(sim.tasks.schedule_errors)}
 
@@ -124,6 +132,8 @@ class LoRREnv(gym.Env):
     """
 
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 8}
+    setup: LoRRSetup  # set by LoRRSetup.attach
+    config: EnvConfig
 
     def __init__(self, config: EnvConfig | None = None, *, render_mode: str | None = None, **options) -> None:
         inst = LoRRSetup.attach(self, config, render_mode, options)
@@ -134,7 +144,8 @@ class LoRREnv(gym.Env):
         self.observation_space = self.setup.observation_space((r,))
 
     @property
-    def sim(self) -> LoRRSimulator:
+    def sim(self) -> LoRRSimulator | None:
+        """The simulation (``None`` before :meth:`reset`)."""
         return self.setup.sim
 
     def propose(self, schedule) -> None:
@@ -144,7 +155,8 @@ class LoRREnv(gym.Env):
 
     def _obs(self) -> dict:
         task, goal = self.setup.goals()
-        return {"position": self.sim.pos.copy(), "orientation": self.sim.orient.copy(), "task": task, "goal": goal}
+        sim = self.setup.running()[0]
+        return {"position": sim.pos.copy(), "orientation": sim.orient.copy(), "task": task, "goal": goal}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -152,10 +164,9 @@ class LoRREnv(gym.Env):
         return self._obs(), self.setup.info()
 
     def step(self, action):
-        if self.sim is None:
-            raise RuntimeError("call reset() before step()")
+        sim = self.setup.running()[0]  # RuntimeError before reset()
         done = self.setup.step(action)
-        truncated = self.sim.t >= self.setup.steps
+        truncated = sim.t >= self.setup.steps
         return self._obs(), float(done), False, truncated, self.setup.info()
 
     def render(self):
@@ -168,7 +179,7 @@ class LoRREnv(gym.Env):
 def render_lorr(setup: LoRRSetup, mode: str):
     """``ansi``: the map with robots as arrows (``>v<^``), goals ``*``; ``rgb_array``: the same as
     an ``(H, W, 3)`` uint8 image (obstacles dark, goals yellow, robots blue)."""
-    inst, sim = setup.instance, setup.sim
+    inst, sim = setup.instance, setup.running()[0]
     h, w = inst.grid.shape
     _, goal = setup.goals()
     if mode == "rgb_array":

@@ -189,7 +189,7 @@ def _read_agents(path: Path, team: int, grid: np.ndarray) -> np.ndarray:
     starts = []
     seen: dict[int, int] = {}
     for n, text in body[:team]:
-        (loc,) = _cells(path, n, text.split(",")[0], grid, "start") if text else (None,)
+        (loc,) = _cells(path, n, text.split(",")[0], grid, "start")  # body lines are never empty
         if loc in seen:
             raise LoRRFormatError(f"{path} line {n}: start {loc} is also the start on line {seen[loc]} "
                                   "(two robots in one cell)")

@@ -20,7 +20,7 @@ deterministic for a seed without a deadline.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple, Protocol
 
 import numpy as np
 
@@ -34,6 +34,21 @@ from planners.options import Options
 __all__ = ["TurningPlanner", "PlannerKind"]
 
 _NO_CHARGE = ComputeReport()
+OptionsRecord = Options  # within PlannerKind the name ``Options`` is its field
+
+
+class Decider(Protocol):
+    """A decider as the shell uses it: its options record, whether it reads ``rest``, its step and its cells."""
+
+    # its options record class; Any, as mypy takes a class body's ``Options = PIBTOptions`` for an alias, which
+    # matches no protocol member typed type[Options]
+    Options: Any
+    uses_rest: bool
+    targets: np.ndarray  # the last call's PIBT cells (flat)
+
+    def __init__(self, site, source, priorities, opts, machine_step=None) -> None: ...
+
+    def decide(self, pos, orient, goals, deadline: float | None = None, rest=None) -> np.ndarray: ...
 
 
 class PlannerKind(NamedTuple):
@@ -41,12 +56,12 @@ class PlannerKind(NamedTuple):
     ``machine_step(options, machine, seed, site)`` building its machine step (``None``: no machine decides)."""
 
     name: str
-    Options: type[Options]
-    decider: type
+    Options: type[OptionsRecord]
+    decider: type[Decider]
     machine_step: Callable | None = None
     summary: str = ""
 
-    def check_team(self, grid, n_robots: int, options: Options) -> None:
+    def check_team(self, grid, n_robots: int, options: OptionsRecord) -> None:
         """``ValueError`` when the planner cannot take ``n_robots`` robots on ``grid`` within its memory bound."""
         FieldSource.check_team(grid, n_robots, options.part(FieldOptions))
 

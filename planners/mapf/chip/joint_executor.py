@@ -86,7 +86,7 @@ class JointMovesStep:
         self.max_spins = usable if opts.max_spins is None else opts.max_spins
         self.levels, self.push, self.penalty = opts.levels, opts.push, opts.penalty
         self.num_reads, self.accept = opts.num_reads, opts.accept
-        self.audit = [] if opts.audit else None
+        self.audit: list[dict[str, int]] | None = [] if opts.audit else None
         self.ledger = CallLedger()
         self.last_compute = ComputeReport()
         self.decisions = 0

@@ -140,7 +140,7 @@ def new_plan(r: int, n_cells: int, seed: int, temp: float) -> ChainPlan:
 
 
 @numba.njit(cache=True, nogil=True)
-def _cost_to_go(grid, heuristic, goal, row, c, o) -> int:
+def _cost_to_go(grid, heuristic, goal, row, c, o) -> int | np.int64:
     """Cost-to-go from compact ``c`` facing ``o``: read from a field over (cell, orientation) when ``heuristic =
     (fields, far, per_cell)`` has four entries a cell and the robot a row, else :func:`_to_go`'s first turn."""
     fields, far, per_cell = heuristic

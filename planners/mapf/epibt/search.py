@@ -145,6 +145,10 @@ def lns_search(state, res, stamp) -> None:
     anneal = temp0 > 0.0
     best_src = src.copy()  # the best plan met, saved when the search leaves it for a worse one
     best_cur = cur.copy()
+    # numba's int64 throughout; mypy tells numpy's int64 from int (local annotations make no bytecode)
+    after: int | np.int64
+    total: int | np.int64
+    best: int | np.int64
     total, best, at_best = 0, 0, True
     for it in range(iters):
         k = (start + it) % r

@@ -110,7 +110,7 @@ class TurnFields:
         n = nbr.shape[0]
         size = n * self.per_cell
         top = size if cost is None else distance_bound(nbr, cost, self.per_cell)  # above any finite distance
-        self.dtype = np.dtype(np.uint16 if top < 65535 else np.uint32)
+        self.dtype: np.dtype = np.dtype(np.uint16 if top < 65535 else np.uint32)
         self.far = int(np.iinfo(self.dtype).max)
         self.capacity = max(min(int(max_bytes) // (max(size, 1) * self.dtype.itemsize), n), 1)
         self.per_call = max(int(bfs_budget) // (max(size, 1) * (1 if cost is None else GUIDED_WORK)), 1)

@@ -191,7 +191,8 @@ def astar_scratch(n: int):
     """Scratch of :func:`flow_astar` for a map of ``n`` free cells (heap entries: at most 4 per cell)."""
     m = 4 * n + 1
     heap = np.zeros((m, 5), dtype=np.int64)
-    return AStarScratch(*(np.zeros(n, np.int64) for _ in range(6)), stamp=np.zeros(1, np.int64), heap=heap,
+    g, flow_cost, parent, pdir, seen, closed = (np.zeros(n, np.int64) for _ in range(6))
+    return AStarScratch(g, flow_cost, parent, pdir, seen, closed, stamp=np.zeros(1, np.int64), heap=heap,
                         expanded=np.zeros(1, np.int64), path=np.zeros(n, np.int64))
 
 

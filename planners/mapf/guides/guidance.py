@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 
-__all__ = ["check_guidance", "crisscross_costs", "corridor_costs", "move_costs", "distance_bound", "cost_rows", "orient_cost_rows", "spread",
+__all__ = ["check_guidance", "crisscross_costs", "corridor_costs", "move_costs", "distance_bound", "cost_rows", "spread",
            "MAX_GUIDANCE"]
 
 #: Largest extra cost of a move against its lane.
@@ -185,43 +185,3 @@ def cost_rows(nbr, cost, goals, rows, fields, far):
         f = fields[rows[i]]
         for v in range(n):
             f[v] = min(dist[v], far)
-
-
-@numba.njit(cache=True, nogil=True)
-def orient_cost_rows(nbr, cost, goals, rows, fields, far):
-    """``fields[rows[i], v * 4 + o]`` = least cost from compact ``v`` facing ``o`` to ``goals[i]`` (any
-    orientation): F from the cell behind costs ``cost[behind, o]``, a turn 1 (Dijkstra backwards,
-    buckets as :func:`cost_rows`)."""
-    n = nbr.shape[0]
-    span = cost.max() + 1
-    dist = np.empty(4 * n, dtype=np.int64)
-    ent_node, ent_next = np.empty(12 * n + 4, dtype=np.int64), np.empty(12 * n + 4, dtype=np.int64)
-    head = np.empty(span, dtype=np.int64)
-    for i in range(goals.shape[0]):
-        dist[:] = far
-        head[:] = -1
-        for o in range(4):
-            dist[goals[i] * 4 + o] = 0
-            _push(goals[i] * 4 + o, 0, ent_node, ent_next, head, o)
-        m, pending, d = 4, 4, 0
-        while pending > 0:
-            e = head[d % span]
-            head[d % span] = -1
-            while e != -1:
-                s, e = ent_node[e], ent_next[e]
-                pending -= 1
-                if dist[s] != d:
-                    continue
-                v, o = s >> 2, s & 3
-                u = nbr[v, (o + 2) & 3]
-                for q, c in ((u * 4 + o if u >= 0 else -1, cost[u, o] if u >= 0 else 0),
-                             (v * 4 + ((o + 3) & 3), 1), (v * 4 + ((o + 1) & 3), 1)):
-                    if q >= 0 and d + c < dist[q]:
-                        dist[q] = d + c
-                        _push(q, (d + c) % span, ent_node, ent_next, head, m)
-                        m += 1
-                        pending += 1
-            d += 1
-        f = fields[rows[i]]
-        for s in range(4 * n):
-            f[s] = min(dist[s], far)

@@ -70,12 +70,15 @@ def _warm(sched: SchedulerSpec, planner: PlannerSpec, chip) -> None:
         _loop(read_instance(example_instance_path()), sched, planner, 3, 0, chip, None)
 
 
-def make_roles(grid, scheduler: SchedulerSpec, planner: PlannerSpec, seed: int = 0, chip=None):
+def make_roles(grid, scheduler, planner, seed: int = 0, chip=None):
     """The scheduler and the one-step planner of a run on ``grid``, as the runner and the start kit's adapter
-    (:mod:`agents.lorr.startkit`, one role each) build them from their specs; ``chip`` (a machine recipe) for the
-    chip scheduler and the chip planners, each a machine of its own."""
-    sched = scheduler.build(seed, chip)
-    check_chip_use(chip, sched, scheduler.name, planner)
+    (:mod:`agents.lorr.startkit`, one role each) build them: from their specs (:mod:`agents.lorr.spec`), an object
+    meeting its role used as it is; ``chip`` (a machine recipe) for the chip scheduler and the chip planners, each a
+    machine of its own."""
+    sched = scheduler.build(seed, chip) if isinstance(scheduler, SchedulerSpec) else scheduler
+    check_chip_use(chip, sched, _name(scheduler), planner)
+    if not isinstance(planner, PlannerSpec):
+        return sched, planner
     machine = None
     if chip is not None and planner.machine:  # the same machine recipe, a machine of the planner's own
         from ising_backend import build_machine
@@ -84,15 +87,16 @@ def make_roles(grid, scheduler: SchedulerSpec, planner: PlannerSpec, seed: int =
     return sched, planner.build(grid, seed, machine)
 
 
-def check_chip_use(chip, sched, scheduler: str, planner: PlannerSpec) -> None:
+def check_chip_use(chip, sched, scheduler: str, planner) -> None:
     """``ValueError`` when a machine is given (``chip``: ``--chip`` / ``--sampler``) but neither the scheduler
-    ``sched`` (named ``scheduler``) nor the ``planner`` runs on one: nothing given is dropped unsaid."""
+    ``sched`` (named ``scheduler``) nor the ``planner`` (a spec) runs on one: nothing given is dropped unsaid."""
     from planners.mapf import MACHINE_PLANNERS
 
-    if chip is not None and not planner.machine and not getattr(sched, "accelerated", False):
+    takes = isinstance(planner, PlannerSpec) and planner.machine
+    if chip is not None and not takes and not getattr(sched, "accelerated", False):
         raise ValueError(f"--chip or --sampler given, but neither the scheduler {scheduler!r} nor the planner "
-                         f"{planner.name!r} runs on a machine (chip schedulers: lorr-ising, ising, fast, ising-paper or "
-                         f"a pair with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
+                         f"{_name(planner)!r} runs on a machine (chip schedulers: lorr-ising, ising, fast, ising-paper "
+                         f"or a pair with an ising layer; chip planners: {', '.join(MACHINE_PLANNERS)})")
 
 
 def _loop(inst, scheduler, planner, steps, seed, chip, bar, limit=None):
@@ -100,7 +104,7 @@ def _loop(inst, scheduler, planner, steps, seed, chip, bar, limit=None):
     under ``limit`` (a :class:`~mrmt_env.lorr.clock.StepLimit`) a late decision costs its timeouts first.
     ``scheduler`` / ``planner``: specs, or objects meeting the roles (used as they are)."""
     t0 = time.perf_counter()
-    sched, ex = _roles(inst.grid, scheduler, planner, seed, chip)
+    sched, ex = make_roles(inst.grid, scheduler, planner, seed, chip)
     sim = LoRRSimulator(inst)
     loop = StepLoop(sim, sched)
     prep_s = time.perf_counter() - t0
@@ -127,15 +131,6 @@ def _loop(inst, scheduler, planner, steps, seed, chip, bar, limit=None):
         if bar is not None:
             bar.update(sim.t - before)
     return Loop(sim, sched, ex, np.array(n).reshape(-1, 3), np.array(busy), accel_j, calls, prep_s)
-
-
-def _roles(grid, scheduler, planner, seed, chip):
-    """The two roles of a run: built from their specs, or objects meeting the roles used as they are."""
-    if isinstance(scheduler, SchedulerSpec) and isinstance(planner, PlannerSpec):
-        return make_roles(grid, scheduler, planner, seed, chip)
-    sched = scheduler.build(seed, chip) if isinstance(scheduler, SchedulerSpec) else scheduler
-    ex = planner.build(grid, seed) if isinstance(planner, PlannerSpec) else planner
-    return sched, ex
 
 
 def _as_roles(scheduler, planner, options):

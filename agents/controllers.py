@@ -112,7 +112,7 @@ def planner_pipeline(spec: str, chip):
         kw = dict(preset=spec)
     try:
         return make_pipeline(**kw, **shared)
-    except TypeError as exc:
+    except ValueError as exc:
         if shared and "accepted by no layer" in str(exc):  # a classical controller: no chip to use
             return make_pipeline(**kw)
         raise

@@ -445,9 +445,9 @@ def make_pipeline(
             (e.g. ``chip=``); one no factory accepts is an error.
 
     Raises:
-        ValueError: unknown preset, missing layer, options given with a layer object.
-        registry.UnknownPlannerError: unknown or unavailable layer name.
-        TypeError: an option a factory does not take.
+        ValueError: unknown preset, missing layer, options given with a layer object, an option a factory
+            does not take or a bad option value, a shared keyword no factory accepts.
+        registry.UnknownPlannerError: unknown or unavailable layer name (a ``ValueError``).
     """
     chosen = {"sharing": sharing, "tour": tour, "path": path}
     if preset is not None:
@@ -486,7 +486,7 @@ def make_pipeline(
             layers[layer] = spec
     unused = sorted(set(shared) - used)
     if unused:
-        raise TypeError(
+        raise ValueError(
             f"make_pipeline option(s) {unused} are accepted by no layer factory of "
             f"{'+'.join(str(chosen[k]) for k in ('sharing', 'tour', 'path'))}"
         )

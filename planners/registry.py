@@ -200,7 +200,8 @@ def create(layer: str, name: str, options: dict | None = None, shared: dict | No
     """Build the ``layer`` planner registered as ``name``.
 
     ``options`` are passed to the factory as keywords (an option it does not
-    take raises ``TypeError`` naming the option and the accepted ones);
+    take raises ``ValueError`` naming the option and the accepted ones, as
+    :meth:`planners.options.Options.from_dict` does);
     ``shared`` keywords (e.g. ``chip``) are passed only if the factory takes them.
     """
     factory = get_factory(layer, name)
@@ -208,7 +209,7 @@ def create(layer: str, name: str, options: dict | None = None, shared: dict | No
     for key in options:
         if not accepts(factory, key):
             allowed = _option_names(factory)
-            raise TypeError(
+            raise ValueError(
                 f"{layer} planner {name!r} takes no option {key!r}; its options: {', '.join(allowed) or 'none'}"
             )
     for key, value in (shared or {}).items():

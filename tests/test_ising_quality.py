@@ -4,6 +4,7 @@ boundary refinement of sharing, and the ``ising`` / ``ising-paper`` presets."""
 from __future__ import annotations
 
 import itertools
+from dataclasses import fields
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from ising_backend import ChipSpec, EmulatedChip
 from mrmt_env.generation import generate_world
 from planners import registry
 from planners.fallback import answer
+from planners.ising.fleet import FleetConfig
 from planners.ising.path import IsingPath, PaperIsingPath, PathConfig
 from planners.ising.sharing import IsingSharing, PaperIsingSharing, SharingConfig
 from sharing_search_reference import neighbour_pairs
@@ -23,6 +25,7 @@ from planners.ising.moves.route_moves import route_moves as candidate_moves
 from planners.ising.tour.selection import double_bridge
 from tour_reference import apply_moves, nearest_neighbour_route
 from planners.pipeline import make_pipeline
+from planners.options import Options
 from planners.plan import validate_plan
 from planners.tours_classical import BruteTour, exact_route_cost
 
@@ -362,14 +365,40 @@ def test_bad_pair_options_are_refused():
         SharingConfig(pair_rounds=-1)
     with pytest.raises(ValueError, match="pair_shifts"):
         SharingConfig(pair_shifts=())
-    with pytest.raises(ValueError, match="pair_shifts entry"):
+    with pytest.raises(ValueError, match=r"pair_shifts = \(0.5, nan\) must be a non-empty tuple of finite numbers"):
         SharingConfig(pair_shifts=(0.5, float("nan")))
-    with pytest.raises(ValueError, match="chip_rules entry"):
+    with pytest.raises(ValueError, match=r"chip_rules = \('linear', 'cubic'\) must be a non-empty tuple of linear"):
         TourConfig(chip_rules=("linear", "cubic"))
     with pytest.raises(ValueError, match=r"chip_rules = \('rank', 'rank'\) names a rule twice"):
         TourConfig(chip_rules=("rank", "rank"))
     with pytest.raises(ValueError, match="max_moves"):
         TourConfig(max_moves=0)
+
+
+@pytest.mark.parametrize("cls", [PathConfig, TourConfig, SharingConfig, FleetConfig])
+def test_ising_configs_are_options_records(cls):
+    """One option system: each config an Options record, every option described, an unknown one a ValueError
+    naming it and those the record takes (replace, the planner's keywords and the pipeline's layer options)."""
+    names = [f.name for f in fields(cls)]
+    assert issubclass(cls, Options) and [row[0] for row in cls.describe()] == names
+    assert all(row[3] for row in cls.describe())  # a meaning each
+    listed = f"{cls.__name__} takes no option 'bogus'; its options: {', '.join(names)}"
+    with pytest.raises(ValueError) as err:
+        cls().replace(bogus=1)
+    assert str(err.value) == listed
+    with pytest.raises(ValueError, match=f"config must be a {cls.__name__}, got dict"):
+        cls.resolve({})
+    assert cls.resolve(None, {}) == cls() and cls().replace() == cls()
+    key = "num_reads" if "num_reads" in names else "reads"  # the validator's line: option, value, limit
+    with pytest.raises(ValueError, match=f"^{key} = 0 must be an integer >= 1$"):
+        cls(**{key: 0})
+
+
+def test_unknown_planner_options_are_value_errors():
+    with pytest.raises(ValueError, match="^PathConfig takes no option 'patchsize'; its options: patch_size, form"):
+        IsingPath(patchsize=3)
+    with pytest.raises(ValueError, match="tour planner 'ising' takes no option 'startz'; its options: chip, config"):
+        make_pipeline("ising", tour="ising", tour_options={"startz": 2})
 
 
 # ------------------------------------------------------------------ presets

@@ -82,6 +82,37 @@ def test_bounds_read_values_to_their_plain_type_and_say_what_they_allow():
         Demo.from_dict({"m": 2}, "demo")
 
 
+def test_tuples_mappings_open_bounds_replace_and_resolve():
+    @dataclass(frozen=True)
+    class Kinds(Options):
+        rules: tuple = option(("a",), tuple, words=("a", "b"), none=True)
+        shifts: tuple = option((0.5,), tuple)
+        table: dict | None = option(None, dict, none=True)
+        thing: object = option("x", object)
+        gain: float = option(1.0, float, 0, lo_open=True)
+
+    k = Kinds(rules=["a", "b"], shifts=[1, np.float32(0.5)], table={"q": 1}, thing=print, gain=1e-9)
+    assert (k.rules, k.shifts, k.table, k.thing) == (("a", "b"), (1.0, 0.5), {"q": 1}, print)
+    assert Kinds(rules="b").rules == ("b",) and Kinds(rules=None).rules is None  # one word: a tuple of one
+    assert [row[2] for row in Kinds.describe()] == ["a non-empty tuple of a, b or null",
+                                                    "a non-empty tuple of finite numbers", "a mapping or null",
+                                                    "any value", "a number > 0"]
+    for key, bad in (("rules", ("a", "c")), ("rules", ()), ("shifts", (0.5, float("nan"))), ("shifts", (True,)),
+                     ("table", [("q", 1)]), ("gain", 0)):
+        allowed = next(row[2] for row in Kinds.describe() if row[0] == key)
+        with pytest.raises(ValueError) as err:
+            Kinds(**{key: bad})
+        assert str(err.value) == f"{key} = {bad!r} must be {allowed}"
+    assert k.replace(gain=2).gain == 2.0 and k.replace(gain=2).rules == ("a", "b")
+    with pytest.raises(ValueError, match=r"^Kinds takes no option 'gian'; its options: rules, shifts, table, thing, "
+                                         r"gain$"):
+        k.replace(gian=2)
+    assert Kinds.resolve() == Kinds() and Kinds.resolve(k, {"gain": 3}) == k.replace(gain=3)
+    assert Kinds.resolve(None, None, k) is k
+    with pytest.raises(ValueError, match="^config must be a Kinds, got dict$"):
+        Kinds.resolve({"gain": 3})
+
+
 def test_the_options_command_lists_every_planners_options(capsys):
     from agents.cli import main
 

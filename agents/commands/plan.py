@@ -122,7 +122,7 @@ def build_pipeline(args):
             path_options=options["path"],
             **shared,
         )
-    except TypeError as exc:
+    except ValueError as exc:
         if shared and "accepted by no layer" in str(exc):
             raise ValueError("--chip or --sampler given, but no layer of this pipeline runs on a chip (use --pipeline ising "
                              "or an ising layer)") from None

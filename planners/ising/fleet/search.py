@@ -13,72 +13,57 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ising_backend import CallLedger, ChipUnavailableError, as_machine, mapping_record
+from ising_backend import QUANTIZE_RULES, CallLedger, ChipUnavailableError, as_machine, mapping_record
 from planners.base import SharingResult
 from planners.compute import ComputeReport
-from planners.ising.config import IsingConfig, check_choice, check_int, check_real, check_rules, resolve_config
 from planners.fallback import FALLBACK_MODES, flagged, unavailable_message
 from planners.ising.fleet.local_search import FleetBest, iterated_search
 from planners.ising.moves.routes import route_cost
 from planners.ising.moves.search import FLEET_FIELDS, REFUSED, SearchLimits, new_stats, stats_dict
 from planners.ising.moves.selection import REFUSED_MESSAGE, program_record
+from planners.options import Options, option
 from planners.sharing_classical import SSASharing
 
 __all__ = ["FleetConfig", "IsingFleetSharing"]
 
 
 @dataclass(frozen=True)
-class FleetConfig(IsingConfig):
-    """Options of :class:`IsingFleetSharing` (module docstring).
+class FleetConfig(Options):
+    """Options of :class:`IsingFleetSharing` (module docstring; :meth:`~planners.options.Options.describe` lists
+    them)."""
 
-    Attributes:
-        neighbours: nearest nodes per target whose moves are listed (granular neighbourhood).
-        max_moves: most candidate moves per selection program (capped by the chip's spins).
-        max_overlap: a candidate clashes with at most this many better-gain candidates of its program.
-        chip_rules: quantization rules, one selection program each per round.
-        num_reads: reads per program.
-        max_retries: rounds in a row without a valid read before a local search ends.
-        kicks: ruin-and-recreate steps of the iterated local search (0: local search only;
-            ``None``: ``kicks_per_target x N``, but at least ``min_kicks`` and at most three times
-            that, so the search grows with the fleet's work and small fleets are not under-searched).
-        kicks_per_target: kicks per target when ``kicks`` is None.
-        min_kicks: the floor of that budget (measured in docs/design/ising_fleet.md).
-        ruin: most targets removed per kick, drawn in ``2..ruin`` (``None``: two routes' worth,
-            ``max(5, 2 N // R)``; docs/design/ising_fleet.md).
-        slack: a kicked solution replaces the current one when it costs at most the best one
-            times ``1 + slack`` (record-to-record travel; 0: equal or better).
-        fallback: a chip that cannot answer (:mod:`planners.fallback`): ``"never"`` fails the
-            call; otherwise the routes found so far (SSA's, with the moves the chip made) are kept,
-            flagged as a fallback; with ``"failure"`` the pipeline also hands a refused search to SSA.
-        selection: who picks the compatible set among the offered moves: ``"chip"`` (the method), or
-            ``"greedy"`` (the host, by gain, skipping clashes; no chip call), the ablation that
-            measures what the chip's decisions are worth (docs/design/ising_fleet.md).
-    """
-
-    neighbours: int = 10
-    max_moves: int = 16
-    max_overlap: int = 4
-    chip_rules: tuple = ("linear", "rank")
-    num_reads: int = 1
-    max_retries: int = 2
-    kicks: int | None = None
-    kicks_per_target: int = 5
-    min_kicks: int = 1500
-    ruin: int | None = None
-    slack: float = 0.005
-    fallback: str = "unavailable"
-    selection: str = "chip"
+    neighbours: int = option(10, int, 1, meaning="nearest nodes per target whose moves are listed (granular "
+                                                 "neighbourhood)")
+    max_moves: int = option(16, int, 1, meaning="most candidate moves per selection program (capped by the chip's "
+                                                "spins)")
+    max_overlap: int = option(4, int, 0, meaning="a candidate clashes with at most this many better-gain candidates "
+                                                 "of its program")
+    chip_rules: tuple = option(("linear", "rank"), tuple, words=QUANTIZE_RULES,
+                               meaning="quantization rules, one selection program each per round (distinct)")
+    num_reads: int = option(1, int, 1, meaning="reads per program")
+    max_retries: int = option(2, int, 0, meaning="rounds in a row without a valid read before a local search ends")
+    kicks: int | None = option(None, int, 0, none=True,
+                               meaning="ruin-and-recreate steps of the iterated local search (0: local search only; "
+                                       "None: kicks_per_target x N, at least min_kicks, at most three times that)")
+    kicks_per_target: int = option(5, int, 0, meaning="kicks per target when kicks is None")
+    min_kicks: int = option(1500, int, 0, meaning="the floor of that budget (measured in docs/design/ising_fleet.md)")
+    ruin: int | None = option(None, int, 2, none=True,
+                              meaning="most targets removed per kick, drawn in 2..ruin (None: two routes' worth, "
+                                      "max(5, 2 N // R))")
+    slack: float = option(0.005, float, 0, meaning="a kicked solution replaces the current one when it costs at most "
+                                                   "the best one times 1 + slack (record-to-record travel)")
+    fallback: str = option("unavailable", str, words=FALLBACK_MODES,
+                           meaning="a chip that cannot answer: 'never' fails the call; otherwise the routes found so "
+                                   "far are kept, flagged; with 'failure' a refused search also goes to SSA")
+    selection: str = option("chip", str, words=("chip", "greedy"),
+                            meaning="who picks the compatible set among the offered moves: 'chip' (the method) or "
+                                    "'greedy' (the host, by gain; no chip call: the ablation)")
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "chip_rules", check_rules("chip_rules", self.chip_rules))
-        for name, lo in (("neighbours", 1), ("max_moves", 1), ("max_overlap", 0), ("num_reads", 1),
-                         ("max_retries", 0), ("kicks_per_target", 0), ("min_kicks", 0)):
-            check_int(name, getattr(self, name), lo)
-        check_int("kicks", self.kicks, 0, none=True)
-        check_int("ruin", self.ruin, 2, none=True)
-        check_real("slack", self.slack, lo=0.0)
-        check_choice("fallback", self.fallback, FALLBACK_MODES)
-        check_choice("selection", self.selection, ("chip", "greedy"))
+        super().__post_init__()
+        if len(set(self.chip_rules)) != len(self.chip_rules):  # each rule is one program: named twice, counts merge
+            raise ValueError(f"chip_rules = {self.chip_rules} names a rule twice (each rule is one program of every "
+                             "round)")
 
 
 class IsingFleetSharing:
@@ -89,7 +74,7 @@ class IsingFleetSharing:
     config_class = FleetConfig
 
     def __init__(self, chip=None, config: FleetConfig | None = None, **options) -> None:
-        self.config = resolve_config(FleetConfig, config, options)
+        self.config = FleetConfig.resolve(config, options)
         self.chip = as_machine(chip)  # the paper's emulated chip for None
 
     def assign(self, dist, n_robots: int, tour=None, rng=None) -> SharingResult:

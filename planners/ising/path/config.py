@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from planners.ising.config import IsingConfig, check_choice, check_int, check_real
+import numpy as np
+
 from planners.fallback import FALLBACK_MODES
+from planners.options import Options, option
 
 __all__ = ["PathConfig", "FORMS", "TARGET_ORDERS", "TARGET_KEYS", "DEFAULT_SCALE", "DEFAULT_WEIGHTS"]
 
@@ -26,84 +28,50 @@ _MERGE_STYLES = ("overload", "max_coeff", "high_degree", "balanced")  # ising_ba
 
 
 @dataclass(frozen=True)
-class PathConfig(IsingConfig):
-    """Options of :class:`~planners.ising.path.IsingPath`.
+class PathConfig(Options):
+    """Options of :class:`~planners.ising.path.IsingPath` (:meth:`~planners.options.Options.describe` lists them)."""
 
-    Attributes:
-        patch_size: side of the square patch centred on the robot (odd, >= 3).
-        form: patch QUBO, ``"pair"`` (default) or ``"degree"``.
-        weights: overrides of :data:`DEFAULT_WEIGHTS` ``[form]`` (all of them: :attr:`full_weights`).
-        styles: spin-merging styles of the portfolio (default all four).
-        num_reads: reads per mapped program (each read is one chip call).
-        targets_per_call: ranked local targets whose programs share one submission.
-        interior_targets: after the boundary cells, fall back to interior patch cells.
-        backtrack: when no local target is left, step back along the committed walk.
-        cut_loops: remove loops from the committed walk.
-        max_attempts: local-target attempts per query (``None``: ``max(64, free cells)``).
-        max_chip_calls: physical calls per query (``None``: attempts x styles x reads).
-        target_order: ``"boundary_first"`` or ``"merged"``.
-        target_key: what ranks local targets: ``"bfs"``, the world's obstacle-aware BFS distance
-            to the goal (the field the world computes for its distance matrix anyway; the
-            default), or ``"manhattan"`` distance to the goal (the paper's rule;
-            docs/design/ising_path.md).
-        scale: chip units per QUBO weight unit before merging (``None``: :data:`DEFAULT_SCALE`
-            ``[form]``; the value used: :attr:`chip_scale`).
-        pack: block-pack the portfolio's programs into shared chip programs.
-        fallback: when the pipeline hands a query to A* (:data:`~planners.fallback.FALLBACK_MODES`):
-            ``"unavailable"`` (the chip cannot answer), ``"failure"`` (also a failed search), ``"never"``.
-    """
-
-    patch_size: int = 5
-    form: str = "pair"
-    weights: dict | None = field(default=None, compare=True)
-    styles: tuple = _MERGE_STYLES
-    num_reads: int = 1
-    targets_per_call: int = 1
-    interior_targets: bool = True
-    backtrack: bool = True
-    cut_loops: bool = True
-    max_attempts: int | None = None
-    max_chip_calls: int | None = None
-    target_order: str = "boundary_first"
-    target_key: str = "bfs"
-    scale: float | None = None
-    pack: bool = False
-    fallback: str = "unavailable"
+    patch_size: int = option(5, int, 3, meaning="side of the square patch centred on the robot (odd, >= 3)")
+    form: str = option("pair", str, words=FORMS, meaning="patch QUBO, 'pair' (default) or 'degree'")
+    weights: dict | None = option(None, dict, none=True,
+                                  meaning="overrides of DEFAULT_WEIGHTS[form] (all of them: full_weights)")
+    styles: tuple = option(_MERGE_STYLES, tuple, words=_MERGE_STYLES, none=True,
+                           meaning="spin-merging styles of the portfolio (None: all four)")
+    num_reads: int = option(1, int, 1, meaning="reads per mapped program (each read is one chip call)")
+    targets_per_call: int = option(1, int, 1, meaning="ranked local targets whose programs share one submission")
+    interior_targets: bool = option(True, bool, meaning="after the boundary cells, fall back to interior patch cells")
+    backtrack: bool = option(True, bool, meaning="when no local target is left, step back along the committed walk")
+    cut_loops: bool = option(True, bool, meaning="remove loops from the committed walk")
+    max_attempts: int | None = option(None, int, 1, none=True,
+                                      meaning="local-target attempts per query (None: max(64, free cells))")
+    max_chip_calls: int | None = option(None, int, 1, none=True,
+                                        meaning="physical calls per query (None: attempts x styles x reads)")
+    target_order: str = option("boundary_first", str, words=TARGET_ORDERS, meaning="'boundary_first' or 'merged'")
+    target_key: str = option("bfs", str, words=TARGET_KEYS,
+                             meaning="what ranks local targets: 'bfs', the world's obstacle-aware distance to the goal "
+                                     "(default), or 'manhattan' distance (the paper's rule; docs/design/ising_path.md)")
+    scale: float | None = option(None, float, 0, none=True, lo_open=True,
+                                 meaning="chip units per QUBO weight unit before merging (None: DEFAULT_SCALE[form]; "
+                                         "the value used: chip_scale)")
+    pack: bool = option(False, bool, meaning="block-pack the portfolio's programs into shared chip programs")
+    fallback: str = option("unavailable", str, words=FALLBACK_MODES,
+                           meaning="when the pipeline hands a query to A*: 'unavailable' (the chip cannot answer), "
+                                   "'failure' (also a failed search), 'never'")
 
     def __post_init__(self) -> None:
-        check_choice("form", self.form, FORMS)
-        check_choice("fallback", self.fallback, FALLBACK_MODES)
-        check_choice("target_order", self.target_order, TARGET_ORDERS)
-        check_choice("target_key", self.target_key, TARGET_KEYS)
-        if isinstance(self.patch_size, bool) or int(self.patch_size) != self.patch_size \
-                or self.patch_size < 3 or self.patch_size % 2 == 0:
-            raise ValueError(f"patch_size must be an odd integer >= 3, got {self.patch_size!r}")
-        known = DEFAULT_WEIGHTS[self.form]
-        if self.weights:
-            unknown = set(self.weights) - set(known)
-            if unknown:
-                raise ValueError(f"unknown weights {sorted(unknown)} for form {self.form!r} (known: {sorted(known)})")
-            for k, v in self.weights.items():
-                check_real(f"weight {k}", v)
+        super().__post_init__()
+        if self.patch_size % 2 == 0:
+            raise ValueError(f"patch_size = {self.patch_size!r} must be an odd integer >= 3")
+        if self.styles is None:
+            object.__setattr__(self, "styles", _MERGE_STYLES)
+        if self.weights:  # the weights a form takes: a constraint between two options
+            known = DEFAULT_WEIGHTS[self.form]
+            bad = [k for k, v in self.weights.items() if k not in known or isinstance(v, (bool, np.bool_))
+                   or not isinstance(v, (int, float, np.integer, np.floating)) or not np.isfinite(v)]
+            if bad:
+                raise ValueError(f"weights = {self.weights!r} must map some of {', '.join(known)} (form "
+                                 f"{self.form!r}) to finite numbers")
             object.__setattr__(self, "weights", {k: float(v) for k, v in self.weights.items()})
-        styles = tuple(self.styles) if self.styles is not None else _MERGE_STYLES
-        bad = [s for s in styles if s not in _MERGE_STYLES]
-        if not styles or bad:
-            raise ValueError(f"styles must be a non-empty subset of {_MERGE_STYLES}, got {self.styles!r}")
-        object.__setattr__(self, "styles", styles)
-        for name in ("num_reads", "targets_per_call"):
-            check_int(name, getattr(self, name), 1)
-        for name in ("max_attempts", "max_chip_calls"):
-            check_int(name, getattr(self, name), 1, none=True)
-        if self.scale is not None:
-            try:
-                check_real("scale", self.scale, lo=0.0, lo_open=True)
-            except ValueError:
-                raise ValueError(f"scale must be a positive finite number, got {self.scale!r}") from None
-            object.__setattr__(self, "scale", float(self.scale))
-        object.__setattr__(self, "patch_size", int(self.patch_size))
-        for name in ("interior_targets", "backtrack", "cut_loops", "pack"):
-            object.__setattr__(self, name, bool(getattr(self, name)))
 
     @classmethod
     def paper(cls, **options) -> "PathConfig":

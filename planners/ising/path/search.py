@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from planners.ising.config import resolve_config
 from planners.ising.path.batch import LegBatch, plan_legs
 from planners.ising.path.config import PathConfig
 from planners.ising.path.qubo import patch_frame
@@ -42,7 +41,7 @@ class IsingPath:
         from ising_backend import as_machine
 
         self.chip = as_machine(chip)  # the paper's emulated chip for None
-        cfg = resolve_config(PathConfig, config, options, self.defaults)
+        cfg = PathConfig.resolve(config, options, self.defaults)
         # a patch not given explicitly shrinks to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.chip.spec.n_spins, keep=set(options))
         self.frame = patch_frame(cfg.patch_size)

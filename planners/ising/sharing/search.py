@@ -16,7 +16,6 @@ import numpy as np
 from ising_backend import ChipProgramError, ChipUnavailableError, MeteredSolver, SolverOutputError, mapping_record, record_of_reads
 from planners.base import SharingResult, TourSolver
 from planners.compute import ComputeReport
-from planners.ising.config import resolve_config
 from planners.fallback import unavailable_message
 from planners.ising.sharing.bundles import BundlePricer, SharingFailure
 from planners.ising.sharing.components import assign_components
@@ -61,7 +60,7 @@ class IsingSharing:
     def __init__(self, chip=None, config: SharingConfig | None = None, **options) -> None:
         from ising_backend import as_machine
 
-        self.config = resolve_config(SharingConfig, config, options, self.defaults)
+        self.config = SharingConfig.resolve(config, options, self.defaults)
         self.chip = as_machine(chip)  # the paper's emulated chip for None
         self._powered_for = None  # (dist, dist ** weight_power, its mean) of the running call
         self.stages = StageSolver(self.config, self.chip)

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
-from planners.ising.config import IsingConfig, check_choice, check_int, check_real, check_rules
 from planners.fallback import FALLBACK_MODES
+from planners.options import Options, option
 
 __all__ = ["TourConfig", "REFINE_RULES", "CLUSTER_DISTANCES", "EXIT_COSTS", "BACKENDS", "DEFAULT_SOLVER_OPTIONS"]
 
@@ -23,93 +22,59 @@ DEFAULT_SOLVER_OPTIONS = {"max_tenure": 10}
 
 
 @dataclass(frozen=True)
-class TourConfig(IsingConfig):
-    """Options of :class:`~planners.ising.tour.IsingTour`.
+class TourConfig(Options):
+    """Options of :class:`~planners.ising.tour.IsingTour` (:meth:`~planners.options.Options.describe` lists them)."""
 
-    Attributes:
-        backend: ``"logical"`` (the paper's clustered one-hot construction on the logical solver),
-            ``"chip"`` (move-selection local search on the physical chip, :mod:`.selection`) or
-            ``"chip-onehot"`` (the paper's one-hot programs quantized for the physical chip: the
-            paper's negative finding, kept to measure it).
-        local_limit: largest cluster solved as one local TSP (7).
-        max_clusters: ordering limit ``K`` (8).
-        refine: which cluster a refinement split takes (``"largest"`` or ``"spare_first"``).
-        cluster_distance: ``"min"`` (default), ``"mean"`` or ``"medoid"``.
-        exit_cost: ``"min"`` or ``"mean"``; ``exit_weight`` scales it.
-        patch_size: most targets in a refinement patch (6).
-        patience: consecutive non-improving patches before stopping (``None``: windows + 1).
-        num_reads: reads per program.
-        max_retries: re-issues of a program that gave no valid candidate.
-        penalty_factor: one-hot penalty ``A = penalty_factor * w_max + 1`` (>= 1).
-        max_branch_bits: most frozen spins for spin-budget branching (4 -> 16 programs).
-        chip_quantize: quantization rule for ``backend="chip-onehot"``.
-        chip_rules: mapping portfolio of the move-selection programs (``backend="chip"``).
-        max_moves: most candidate moves per selection program (capped by the chip's spins).
-        max_segment: longest segment an or-opt move relocates.
-        max_overlap: a candidate move overlaps at most this many better-gain candidates of its program.
-        max_rounds: most selection rounds per start.
-        chip_restart: later starts of ``backend="chip"``: ``"random"`` orders, ``"kick"``s of the
-            best route, or ``"auto"`` (random up to 16 targets, kicks beyond).
-        n_starts: independent constructions, the cheapest final tour kept (4).
-        start_patience: stop after this many non-improving starts in a row (``None``: all).
-        accept_equal: also accept equal-cost patch reorders (not the paper's rule).
-        share_clusters: reuse the first start's clustering in later starts.
-        solver_options: keyword options of the default logical solver.
-        fallback: when the pipeline hands a solve to 3-opt (:data:`~planners.fallback.FALLBACK_MODES`).
-    """
-
-    backend: str = "chip"
-    local_limit: int = 7
-    max_clusters: int = 8
-    refine: str = "largest"
-    cluster_distance: str = "min"
-    exit_cost: str = "min"
-    exit_weight: float = 1.0
-    patch_size: int = 6
-    patience: int | None = None
-    num_reads: int = 1
-    max_retries: int = 3
-    penalty_factor: float = 1.0
-    max_branch_bits: int = 4
-    chip_quantize: str = "linear"
-    chip_rules: tuple = ("linear", "rank")
-    max_moves: int = 8
-    max_segment: int = 3
-    max_overlap: int = 4
-    max_rounds: int = 500
-    chip_restart: str = "auto"
-    n_starts: int = 4
-    start_patience: int | None = None
-    accept_equal: bool = False
-    share_clusters: bool = False
-    solver_options: dict | None = None
-    fallback: str = "unavailable"
+    backend: str = option("chip", str, words=BACKENDS,
+                          meaning="'logical' (the paper's clustered one-hot construction on the logical solver), "
+                                  "'chip' (move-selection local search on the physical chip, .selection) or "
+                                  "'chip-onehot' (the paper's one-hot programs quantized for the chip, kept to "
+                                  "measure its negative finding)")
+    local_limit: int = option(7, int, 1, meaning="largest cluster solved as one local TSP")
+    max_clusters: int = option(8, int, 1, meaning="ordering limit K")
+    refine: str = option("largest", str, words=REFINE_RULES, meaning="which cluster a refinement split takes")
+    cluster_distance: str = option("min", str, words=CLUSTER_DISTANCES, meaning="linkage between clusters")
+    exit_cost: str = option("min", str, words=EXIT_COSTS, meaning="a cluster's exit cost; exit_weight scales it")
+    exit_weight: float = option(1.0, float, 0, meaning="weight of the exit cost")
+    patch_size: int = option(6, int, 1, meaning="most targets in a refinement patch")
+    patience: int | None = option(None, int, 0, none=True,
+                                  meaning="consecutive non-improving patches before stopping (None: windows + 1)")
+    num_reads: int = option(1, int, 1, meaning="reads per program")
+    max_retries: int = option(3, int, 0, meaning="re-issues of a program that gave no valid candidate")
+    penalty_factor: float = option(1.0, float, 1,
+                                   meaning="one-hot penalty A = penalty_factor * w_max + 1 (A > w_max keeps ground "
+                                           "states valid)")
+    max_branch_bits: int = option(4, int, 0, meaning="most frozen spins for spin-budget branching (4 -> 16 programs)")
+    chip_quantize: str = option("linear", str, words=_QUANTIZE_RULES,
+                                meaning="quantization rule for backend='chip-onehot'")
+    chip_rules: tuple = option(("linear", "rank"), tuple, words=_QUANTIZE_RULES,
+                               meaning="mapping portfolio of the move-selection programs (backend='chip'; distinct)")
+    max_moves: int = option(8, int, 1,
+                            meaning="most candidate moves per selection program (capped by the chip's spins)")
+    max_segment: int = option(3, int, 1, meaning="longest segment an or-opt move relocates")
+    max_overlap: int = option(4, int, 0, meaning="a candidate move overlaps at most this many better-gain "
+                                                 "candidates of its program")
+    max_rounds: int = option(500, int, 1, meaning="most selection rounds per start")
+    chip_restart: str = option("auto", str, words=CHIP_RESTARTS,
+                               meaning="later starts of backend='chip': 'random' orders, 'kick's of the best route, "
+                                       "or 'auto' (random up to 16 targets, kicks beyond)")
+    n_starts: int = option(4, int, 1, meaning="independent constructions, the cheapest final tour kept")
+    start_patience: int | None = option(None, int, 1, none=True,
+                                        meaning="stop after this many non-improving starts in a row (None: all)")
+    accept_equal: bool = option(False, bool, meaning="also accept equal-cost patch reorders (not the paper's rule)")
+    share_clusters: bool = option(False, bool, meaning="reuse the first start's clustering in later starts")
+    solver_options: dict | None = option(None, dict, none=True,
+                                         meaning="keyword options of the default logical solver (over "
+                                                 "DEFAULT_SOLVER_OPTIONS)")
+    fallback: str = option("unavailable", str, words=FALLBACK_MODES,
+                           meaning="when the pipeline hands a solve to 3-opt (planners.fallback.FALLBACK_MODES)")
 
     def __post_init__(self) -> None:
-        check_choice("backend", self.backend, BACKENDS)
-        check_choice("fallback", self.fallback, FALLBACK_MODES)
-        check_choice("refine", self.refine, REFINE_RULES)
-        check_choice("cluster_distance", self.cluster_distance, CLUSTER_DISTANCES)
-        check_choice("chip_quantize", self.chip_quantize, _QUANTIZE_RULES)
-        check_choice("exit_cost", self.exit_cost, EXIT_COSTS)
-        check_choice("chip_restart", self.chip_restart, CHIP_RESTARTS)
-        object.__setattr__(self, "chip_rules", check_rules("chip_rules", self.chip_rules, _QUANTIZE_RULES))
-        for nm, lo in (("local_limit", 1), ("max_clusters", 1), ("patch_size", 1), ("num_reads", 1),
-                       ("max_retries", 0), ("max_branch_bits", 0), ("n_starts", 1),
-                       ("max_moves", 1), ("max_segment", 1), ("max_rounds", 1), ("max_overlap", 0)):
-            check_int(nm, getattr(self, nm), lo)
-        check_int("patience", self.patience, 0, none=True)
-        check_int("start_patience", self.start_patience, 1, none=True)
-        check_real("penalty_factor", self.penalty_factor)
-        if self.penalty_factor < 1.0:
-            raise ValueError(f"penalty_factor = {self.penalty_factor!r} must be >= 1 "
-                             "(A > w_max keeps ground states valid)")
-        check_real("exit_weight", self.exit_weight, lo=0.0)
+        super().__post_init__()
+        if len(set(self.chip_rules)) != len(self.chip_rules):  # each rule is one program: named twice, counts merge
+            raise ValueError(f"chip_rules = {self.chip_rules} names a rule twice (each rule is one program of every "
+                             "round)")
         object.__setattr__(self, "solver_options", {**DEFAULT_SOLVER_OPTIONS, **(self.solver_options or {})})
-        for nm in ("penalty_factor", "exit_weight"):
-            object.__setattr__(self, nm, float(getattr(self, nm)))
-        for nm in ("accept_equal", "share_clusters"):
-            object.__setattr__(self, nm, bool(getattr(self, nm)))
 
     @property
     def choices(self) -> tuple:

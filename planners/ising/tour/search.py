@@ -16,7 +16,6 @@ import numpy as np
 from ising_backend import ChipUnavailableError, SolverOutputError, mapping_record
 from planners.base import TourResult
 from planners.compute import ComputeReport
-from planners.ising.config import resolve_config
 from planners.fallback import unavailable_message
 from planners.ising.tour.cluster import Clusters, TourFailure, _Run
 from planners.ising.tour.config import TourConfig
@@ -51,7 +50,7 @@ class IsingTour:
 
         self.chip = as_machine(chip)  # the paper's emulated chip for None
         self.spec = self.chip.spec
-        cfg = resolve_config(TourConfig, config, options, self.defaults)
+        cfg = TourConfig.resolve(config, options, self.defaults)
         # sizes not given explicitly shrink to a smaller chip (an explicit config is taken as it is)
         self.config = cfg = cfg if config is not None else cfg.fit_spins(self.spec.n_spins, keep=set(options))
         self.onehot = OneHotSolver(cfg, self.chip, solver)

@@ -25,8 +25,14 @@ def run_example(name: str, *args: str) -> str:
 
 def test_every_example_is_tested():
     tested = {"quickstart.py", "planner_vs_ppo.py", "custom_chip.py", "movingai_map.py", "watch_episode.py",
-              "map_families.py", "socket_chip.py", "lifelong_warehouse.py", "lorr_instance.py"}
+              "map_families.py", "socket_chip.py", "lifelong_warehouse.py", "lorr_instance.py",
+              "lorr_own_planner.py"}
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
+
+
+def test_lorr_own_planner():
+    out = run_example("lorr_own_planner.py")
+    assert "EXAMPLE-01, 100 steps: forward" in out and "(0 errors)" in out
 
 
 def test_quickstart_ising():

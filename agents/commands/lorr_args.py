@@ -192,8 +192,10 @@ def warm_parts(pairs, progress: bool) -> None:
 
     from agents.warmup import warm
 
-    parts = ({f"lorr:{ex}" for _, ex in pairs if ":" not in ex}
-             | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:") and ":" not in s})
+    from agents.lorr.spec import is_class_path
+
+    parts = ({f"lorr:{ex}" for _, ex in pairs if not is_class_path(ex)}
+             | {s for s, _ in pairs if s != "lorr-greedy" and not s.startswith("ppo:") and not is_class_path(s)})
     warm(sorted(parts), jobs=min(2, os.cpu_count() or 1), progress=progress)
 
 

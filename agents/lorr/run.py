@@ -29,7 +29,7 @@ from mrmt_env.lorr.sim import LoRRSimulator
 from planners.compute import CPU_WATTS_PER_CORE
 from agents.lorr.roles import Planner, Scheduler, charge
 from agents.lorr.scores import best_known
-from agents.lorr.spec import PlannerSpec, SchedulerSpec, specs_from_options
+from agents.lorr.spec import PlannerSpec, SchedulerSpec, is_class_path, specs_from_options
 
 __all__ = ["run_lorr", "best_known", "make_roles", "peak_rss_mb", "RUN_KEYS", "MEASURED_KEYS", "Loop"]
 
@@ -61,7 +61,7 @@ class Loop(NamedTuple):
 
 def _warm(sched: SchedulerSpec, planner: PlannerSpec, chip) -> None:
     key = (sched.name, planner.name)
-    if key in _WARM or ":" in sched.name or ":" in planner.name:  # a user's own role compiles nothing of ours
+    if key in _WARM or is_class_path(sched.name) or is_class_path(planner.name):  # a user's role: none of ours
         return
     _WARM.add(key)
     from ising_backend.audit.record import suspended

@@ -12,6 +12,7 @@ of :func:`agents.lorr.schedulers.make_scheduler`'s names, or ``package.module:Cl
 from __future__ import annotations
 
 import importlib
+import re
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING
 
@@ -20,7 +21,15 @@ from agents.lorr.roles import Planner, Scheduler
 if TYPE_CHECKING:
     from planners.options import Options
 
-__all__ = ["PlannerSpec", "SchedulerSpec", "user_class", "specs_from_options"]
+__all__ = ["PlannerSpec", "SchedulerSpec", "user_class", "is_class_path", "specs_from_options"]
+
+
+_CLASS_PATH = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
+
+
+def is_class_path(name: str) -> bool:
+    """Whether ``name`` names a user's class, ``package.module:Class`` (not ``ppo:MODEL.zip``)."""
+    return bool(_CLASS_PATH.fullmatch(name)) and not name.startswith("ppo:")
 
 
 def user_class(path: str) -> type:
@@ -61,7 +70,7 @@ class PlannerSpec:
         naming an unknown planner or option."""
         from planners.mapf import TURNING_PLANNERS
 
-        if ":" in name:
+        if is_class_path(name):
             if not callable(getattr(user_class(name), "actions", None)):
                 raise ValueError(f"{name} does not meet the Planner role: a Planner has actions (agents.lorr.roles)")
             return cls(name, dict(options or {}))
@@ -122,7 +131,7 @@ class SchedulerSpec:
 
     def build(self, seed: int = 0, chip=None):
         """The scheduler (``chip``: the machine recipe of a chip scheduler)."""
-        if ":" in self.name:
+        if is_class_path(self.name):
             return _check_role(user_class(self.name)(seed=seed, **self.options), Scheduler, self.name)
         from agents.lorr.schedulers import make_scheduler
 

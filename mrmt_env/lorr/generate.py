@@ -139,7 +139,17 @@ def _whole(name: str, value, lo: int, hi: int | None = None) -> int:
     return int(value)
 
 
-def _check(agents, tasks, reveal, seed, errands) -> tuple[int, int, float, int, tuple[int, int]]:
+class Draw(NamedTuple):
+    """What an instance is drawn with, checked."""
+
+    agents: int
+    tasks: int
+    reveal: float
+    seed: int
+    errands: tuple[int, int]  # errands per task, least and most
+
+
+def _check(agents, tasks, reveal, seed, errands) -> Draw:
     agents = _whole("agents", agents, 1)
     tasks = default_tasks(agents) if tasks is None else _whole("tasks", tasks, 1, MAX_TASKS)
     seed = _whole("seed", seed, 0)
@@ -152,13 +162,15 @@ def _check(agents, tasks, reveal, seed, errands) -> tuple[int, int, float, int, 
         raise GenerateError(f"errands must be (min, max), got {errands!r}")
     lo = _whole("errands min", errands[0], 1, MAX_ERRANDS)
     hi = _whole("errands max", errands[1], lo, MAX_ERRANDS)
-    return agents, tasks, float(reveal), seed, (lo, hi)
+    return Draw(agents, tasks, float(reveal), seed, (lo, hi))
 
 
 def generate_instance(source, agents: int, out, seed: int = 0, tasks: int | None = None,
                       reveal: float = DEFAULT_REVEAL, errands=DEFAULT_ERRANDS) -> InstanceFiles:
     """Write a LoRR 2024 instance at ``out`` (see the module docstring); returns the paths written."""
-    agents, tasks, reveal, seed, (lo, hi) = _check(agents, tasks, reveal, seed, errands)
+    draw = _check(agents, tasks, reveal, seed, errands)
+    agents, tasks, reveal, seed = draw.agents, draw.tasks, draw.reveal, draw.seed
+    lo, hi = draw.errands
     out = Path(out)
     if out.suffix != ".json" or not out.stem:
         raise GenerateError(f"out {str(out)!r}: the instance file must be NAME.json")

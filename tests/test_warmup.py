@@ -82,11 +82,11 @@ def test_other_installs_keep_their_stamps():
 def test_lorr_executors_are_warmed_as_parts_of_their_own():
     """``--lorr`` adds the named executors' parts (``all``: every registered one) to the presets'."""
     from agents.commands.warmup import _lorr_executors
-    from planners.mapf import TURNING_EXECUTORS
+    from planners.mapf import TURNING_PLANNERS
 
     assert main(["warmup", "--pipelines", "fast", "--lorr", "pibt", "--jobs", "1", "--no-progress"]) == 0
     assert {"fast", "lorr:pibt"} <= set(json.loads(stamp_path().read_text()).popitem()[1])
-    assert _lorr_executors("all") == list(TURNING_EXECUTORS) and _lorr_executors(" epibt, pibt ") == ["epibt", "pibt"]
+    assert _lorr_executors("all") == list(TURNING_PLANNERS) and _lorr_executors(" epibt, pibt ") == ["epibt", "pibt"]
 
 
 def test_the_probe_times_a_fresh_compile_and_says_when_it_cannot(monkeypatch):

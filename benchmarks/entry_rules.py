@@ -2,21 +2,25 @@
 
     python benchmarks/entry_rules.py shapes                       # the corridor share of the 2024 maps and families
     python benchmarks/entry_rules.py generate --out DIR           # 4 families x 4 densities, 64x64, seed 0
+    python benchmarks/entry_rules.py generate --out DIR --families maze,maze32 --densities 20,45,75
     python benchmarks/entry_rules.py run --out DIR [--entry E] [--steps 200] [--only NAME,...] [--config C,...]
+                                         [--clock rules]
     python benchmarks/entry_rules.py table --out DIR [--entry E]
 
 ``--only`` runs the instances named, in that order.  ``run`` appends one JSON line per (instance, configuration) to ``DIR/runs.jsonl`` and skips those already there.
 Configurations: ``entry`` (``--entry``, default: the package's ``default``), ``default`` (the start kit's default
-entry: ``lorr-greedy`` + ``pibt-flow``, no options), ``rule:FILE.toml#N`` (rule N's choice of an entry file, forced).
-Every run is work-bounded (no clock: deterministic), seed 0, one process; a portfolio's plans run on one thread
-(``threads = 1``: plans do not depend on it).  Generated maps are named ``G-<family>-<pct>`` so that no glob on a
+entry: ``lorr-greedy`` + ``pibt-flow``, no options), ``rule:FILE.toml#N`` (rule N's choice of an entry file, forced), ``cand:NAME`` (a choice of :data:`CANDIDATES`,
+given by options: the maze's candidates).
+Every run is work-bounded (no clock: deterministic) unless ``--clock rules`` (the start kit's clock, 1 s a step: a
+late decision costs timeouts; how results are judged, but it depends on the machine's load, recorded as ``load``),
+seed 0, one process; a portfolio's plans run on one thread (``threads = 1``: plans do not depend on it).
+``maze32`` and the like are the family at 32x32 (names ``G-maze32-<pct>``).  Generated maps are named ``G-<family>-<pct>`` so that no glob on a
 map's name (``warehouse*``) matches them.
 """
 
 from __future__ import annotations
 
 import argparse
-import glob
 import json
 import sys
 import time
@@ -28,13 +32,37 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from mrmt_env.lorr.generate import family_grid, generate_instance  # noqa: E402
-from mrmt_env.lorr.instance import read_instance, read_lorr_map  # noqa: E402
-from mrmt_env.lorr.shape import corridor_share  # noqa: E402
+from mrmt_env.lorr.instance import read_instance  # noqa: E402
+from mrmt_env.lorr.shape import corridor_share, narrow_share  # noqa: E402
 
-MAIN_2024 = Path("/work/shared/lorr/2024-main")
+MAIN_2024 = ROOT.parent / "shared" / "lorr" / "2024-main"  # ../shared beside the checkout
 FAMILIES = {"uniform": "family:uniform:64x64", "warehouse": "family:warehouse:64x64:aisle_width=1",
             "rooms": "family:rooms:64x64", "maze": "family:maze:64x64"}
+FAMILIES.update({f"{k}32": v.replace("64x64", "32x32") for k, v in list(FAMILIES.items())})
 DENSITIES = (5, 20, 45, 75)  # robots, per cent of the free cells
+
+#: Choices given by options (``cand:NAME``): (scheduler, planner, run_lorr options).  The dense maze's candidates.
+CANDIDATES = {
+    # the corridors rule's choice (default.toml's min_corridors = 0.4)
+    "B": ("lorr-weighted", "epibt", {"guidance": 0, "scheduler_options": {"jam": 4},
+                                      "executor_options": {"flow": False, "corridors": 8}}),
+    # the city's rule
+    "C": ("lorr-weighted", "epibt", {"executor_options": {"flow": False, "congestion": 2}}),
+    # B with 30 % of the team at work, those of least task still to go
+    "B-active": ("lorr-weighted", "epibt", {"guidance": 0, "scheduler_options": {"jam": 4},
+                                             "executor_options": {"flow": False, "corridors": 8, "active": 0.3,
+                                                                  "active_by": "task"}}),
+    # the GAME rule (the last, unconditioned)
+    "game": ("lorr-greedy", "epibt", {"guidance": 8, "scheduler_options": {"way": 5},
+                                       "executor_options": {"flow": False, "congestion": 2, "active": 0.3,
+                                                            "active_by": "task", "weight_power": 2}}),
+    # PIBT on goal fields keeping its claims (the start kit's commits) without the flow guide paths
+    "pibt-commits": ("lorr-greedy", "pibt", {"guidance": 0, "executor_options": {"commits": True}}),
+    # (the start kit's default with a share of the team holding tasks, option busy: measured at c199dab on the dense
+    # mazes, 13 / 8 tasks with busy=0.5 against the default's 13 / 2; the option left the library at a346b00)
+    # the winner's push chains on plain distances, every robot at work (no lanes: a maze has no room for them)
+    "chain": ("lorr-weighted", "epibt-chain", {"guidance": 0, "executor_options": {"portfolio": 2}}),
+}
 
 
 def shapes() -> None:
@@ -59,12 +87,13 @@ def shapes() -> None:
               f"{'-' if fill is None else f'{fill:.3f}':>6s} {c:9.3f} {'-' if dt is None else f'{dt * 1e3:.1f}':>6s}")
 
 
-def generate(out: Path) -> None:
+def generate(out: Path, families=None, densities=DENSITIES) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    for fam, spec in FAMILIES.items():
+    for fam in families or [f for f in FAMILIES if not f.endswith("32")]:
+        spec = FAMILIES[fam]
         g = family_grid(spec, np.random.default_rng(0))  # generate_instance draws the same map from the seed first
         free = int((~g).sum())
-        for pct in DENSITIES:
+        for pct in densities:
             n = round(free * pct / 100)
             path = out / f"G-{fam}-{pct:02d}.json"
             if not path.exists():
@@ -83,12 +112,21 @@ def _config(name: str, entry, inst):
         path, _, n = name[5:].partition("#")
         c = load_entry(path).rules[int(n) - 1].choice
         return c.scheduler, c.planner, dict(c.options), int(n)
+    if name.startswith("cand:"):
+        scheduler, planner, options = CANDIDATES[name[5:]]
+        return scheduler, planner, json.loads(json.dumps(options)), None
     raise SystemExit(f"unknown configuration {name!r}")
 
 
-def run(out: Path, entry_spec: str, steps: int, only, configs) -> None:
+def run(out: Path, entry_spec: str, steps: int, only, configs, clock: str = "") -> None:
+    import os
+
     from agents.lorr.entry import load_entry
     from agents.lorr.run import run_lorr
+    from mrmt_env.lorr.clock import step_limit
+
+    limit = step_limit(clock) if clock else None
+    label = limit.label() if limit else "work-bounded"
 
     entry = load_entry(entry_spec)
     log = out / "runs.jsonl"
@@ -96,23 +134,25 @@ def run(out: Path, entry_spec: str, steps: int, only, configs) -> None:
     if log.exists():
         for line in log.read_text().splitlines():
             r = json.loads(line)
-            done.add((r["instance"], r["config"], r["steps"]))
+            done.add((r["instance"], r["config"], r["steps"], r.get("clock", "work-bounded")))
     paths = [out / f"{name}.json" for name in only] if only else sorted(out.glob("G-*.json"))
     for path in paths:
         inst = read_instance(path)
         for cfg in configs:
-            if (inst.name, cfg, steps) in done:
+            if (inst.name, cfg, steps, label) in done:
                 continue
             scheduler, planner, options, rule = _config(cfg, entry, inst)
             if planner.startswith("epibt"):
                 options["executor_options"] = {**options.get("executor_options", {}), "threads": 1}
+            load = os.getloadavg()[0]
             t = time.perf_counter()
-            rec, _, _ = run_lorr(inst, scheduler, planner, steps=steps, seed=0, options=options)
+            rec, _, _ = run_lorr(inst, scheduler, planner, steps=steps, seed=0, options=options, limit=limit)
             row = {"instance": inst.name, "config": cfg, "entry": entry_spec if cfg == "entry" else None,
                    "rule": rule, "scheduler": scheduler, "planner": planner,
                    "options": {k: v for k, v in options.items()}, "steps": steps, "robots": inst.team_size,
                    "fill": inst.team_size / int((~inst.grid).sum()), "corridors": corridor_share(inst.grid),
-                   "tasks": rec["tasks_finished"], "errors": rec["errors"], "clock": rec["clock"],
+                   "narrow": narrow_share(inst.grid), "tasks": rec["tasks_finished"], "errors": rec["errors"],
+                   "clock": rec["clock"], "timeouts": rec["timeouts"], "load": load,
                    "seconds": time.perf_counter() - t}
             with log.open("a") as f:
                 f.write(json.dumps(row) + "\n")
@@ -141,13 +181,17 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--only", default="")
     ap.add_argument("--config", default="entry,default")
+    ap.add_argument("--clock", default="", help="'rules' (the start kit's 1 s a step); default: work-bounded")
+    ap.add_argument("--families", default="", help="generate: families of FAMILIES (default: the four at 64x64)")
+    ap.add_argument("--densities", default="", help="generate: per cent of the free cells (default: 5,20,45,75)")
     a = ap.parse_args(argv)
     if a.what == "shapes":
         shapes()
     elif a.what == "generate":
-        generate(a.out)
+        generate(a.out, list(filter(None, a.families.split(","))),
+                 tuple(int(x) for x in a.densities.split(",")) if a.densities else DENSITIES)
     elif a.what == "run":
-        run(a.out, a.entry, a.steps, list(filter(None, a.only.split(","))), a.config.split(","))
+        run(a.out, a.entry, a.steps, list(filter(None, a.only.split(","))), a.config.split(","), a.clock)
     else:
         table(a.out, a.config.split(",")[0])
 

@@ -18,6 +18,7 @@ from agents.lorr.round import best_known_table, round_instances
 from agents.lorr.run import run_lorr
 from mrmt_env.lorr.clock import StepLimit, step_limit
 from mrmt_env.lorr.instance import example_instance_path, read_instance
+from mrmt_env.lorr.shape import Shape
 
 EXAMPLE = example_instance_path()
 
@@ -115,31 +116,35 @@ def test_the_default_entry_chooses_by_team_fill_cells_and_corridors():
     entry = load_entry("default")
     inst = read_instance(EXAMPLE)
     small = entry.choose(inst)
-    assert (small.scheduler.name, small.planner.name, small.rule) == ("lorr-weighted", "epibt-chain", 3)
+    assert (small.scheduler.name, small.planner.name, small.rule) == ("lorr-weighted", "epibt-chain", 4)
     assert _own(small) == {"portfolio": 2}
     # the way x 10, its turns counted, the matching of least total cost
     assert small.scheduler.options == {"weight": 10, "turns": True, "optimal": True}
     assert small.planner.options.guidance == 2  # every robot at work where the team is sparse, on crisscross lanes
     # no rule keys on a map's name; every condition is one of what an instance shows at preprocessing
     for rule in entry.rules:
-        assert set(rule.conditions) <= {"max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill",
-                                        "max_corridors", "min_corridors"}
-    # holds(robots, fill, cells, corridors); the 2024 maps: RANDOM 1,024 cells, corridors 0.088
-    crowd = entry.rules[0]  # RANDOM-04 and -05 (85 and 98 % of the free cells): one rule, 57 % at work, 100 pushes
-    assert crowd.holds(800, 0.98, 1024, 0.088) and crowd.holds(700, 0.85, 1024, 0.088)
-    assert not crowd.holds(400, 0.49, 1024, 0.088) and not crowd.holds(1500, 0.9, 1024, 0.088)
+        assert set(rule.conditions) <= {f"{end}_{m}" for end in ("min", "max")
+                                        for m in ("robots", "cells", "fill", "corridors", "narrow")}
+    # Shape(robots, cells, fill, corridors, narrow); the 2024 maps: RANDOM 1,024 cells, corridors 0.088, narrow 0.221
+    maze = entry.rules[0]  # mazes 70 % full: the start kit's default configuration
+    assert maze.holds(Shape(383, 1024, 0.75, 0.658, 0.949)) and not maze.holds(Shape(307, 1024, 0.6, 0.658, 0.949))
+    assert not maze.holds(Shape(800, 1024, 0.98, 0.088, 0.221)) and not maze.holds(Shape(10000, 70000, 0.75, 0.631, 0.641))
+    assert (maze.choice.scheduler.name, maze.choice.planner.name, _own(maze.choice)) == ("lorr-greedy", "pibt-flow", {})
+    crowd = entry.rules[1]  # RANDOM-04 and -05 (85 and 98 % of the free cells): one rule, 57 % at work, 100 pushes
+    assert crowd.holds(Shape(800, 1024, 0.98, 0.088, 0.221)) and crowd.holds(Shape(700, 1024, 0.85, 0.088, 0.221))
+    assert not crowd.holds(Shape(400, 1024, 0.49, 0.088, 0.221)) and not crowd.holds(Shape(1500, 1024, 0.9, 0.088, 0.221))
     assert (crowd.choice.scheduler.name, crowd.choice.planner.name, crowd.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
                                                                                               True)
     assert _own(crowd.choice) == {"active": 0.57, "active_by": "task", "portfolio": 2,
                                                          "pushes": 100}  # search chains capped at 100 pushes
-    dense = entry.rules[1]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
-    assert dense.holds(400, 0.49, 1024, 0.088)
-    assert not dense.holds(200, 0.24, 1024, 0.088) and not dense.holds(1500, 0.9, 1024, 0.088)
+    dense = entry.rules[2]  # RANDOM-03 (49 % of the free cells): 80 % at work, by the task to go
+    assert dense.holds(Shape(400, 1024, 0.49, 0.088, 0.221))
+    assert not dense.holds(Shape(200, 1024, 0.24, 0.088, 0.221)) and not dense.holds(Shape(1500, 1024, 0.9, 0.088, 0.221))
     assert _own(dense.choice) == {"active": 0.8, "active_by": "task", "portfolio": 2}
     assert (dense.choice.scheduler.name, dense.choice.planner.name, dense.choice.scheduler.options["replan"]) == ("strong", "epibt-chain",
                                                                                               True)
-    sparse = entry.rules[2]  # RANDOM-01, -02
-    assert sparse.holds(100, 0.12, 1024, 0.088) and sparse.holds(200, 0.24, 1024, 0.088)
+    sparse = entry.rules[3]  # RANDOM-01, -02
+    assert sparse.holds(Shape(100, 1024, 0.12, 0.088, 0.221)) and sparse.holds(Shape(200, 1024, 0.24, 0.088, 0.221))
     big = [r for r in entry.rules if not r.conditions][0].choice
     assert (big.scheduler.name, big.planner.name) == ("lorr-greedy", "epibt")
     # GAME: EPIBT on goal fields that price the crowd, 30 % of the team at work each step, those of least task still
@@ -148,10 +153,10 @@ def test_the_default_entry_chooses_by_team_fill_cells_and_corridors():
                                                "weight_power": 2}
     assert big.planner.options.guidance == 8  # along lanes of weight 8
     assert big.scheduler.options == {"way": 5}  # every robot holds a task, the way x 5
-    aisles, tables = entry.rules[3], entry.rules[4]
+    aisles, tables = entry.rules[4], entry.rules[5]
     # SORTATION (0.569) and WAREHOUSE (0.631) by their corridors, not CITY (0.001) nor GAME (0.003)
-    assert aisles.holds(10000, 0.18, 140 * 500, 0.569) and aisles.holds(10000, 0.26, 140 * 500, 0.631)
-    assert not aisles.holds(3000, 0.06, 256 ** 2, 0.001) and not aisles.holds(6500, 0.15, 481 * 530, 0.003)
+    assert aisles.holds(Shape(10000, 140 * 500, 0.18, 0.569, 0.569)) and aisles.holds(Shape(10000, 140 * 500, 0.26, 0.631, 0.641))
+    assert not aisles.holds(Shape(3000, 256 ** 2, 0.06, 0.001, 0.054)) and not aisles.holds(Shape(6500, 481 * 530, 0.15, 0.003, 0.042))
     assert aisles.choice.scheduler.name == tables.choice.scheduler.name == "lorr-weighted"
     assert aisles.choice.scheduler.options == {"jam": 4}  # the jam term and one-way corridors
     assert aisles.choice.planner.name == "epibt"  # on goal fields, not along guide paths
@@ -160,9 +165,9 @@ def test_the_default_entry_chooses_by_team_fill_cells_and_corridors():
     # the city (CITY-01 and CITY-02): EPIBT on goal fields that price the crowd
     assert (tables.choice.scheduler.name, tables.choice.planner.name) == ("lorr-weighted", "epibt")
     assert _own(tables.choice) == {"flow": False, "congestion": 2}
-    assert tables.holds(3000, 0.06, 256 ** 2, 0.001) and tables.holds(1500, 0.03, 256 ** 2, 0.001)
+    assert tables.holds(Shape(3000, 256 ** 2, 0.06, 0.001, 0.054)) and tables.holds(Shape(1500, 256 ** 2, 0.03, 0.001, 0.054))
     # the weighted scheduler where its tables fit: the city's 65,536 cells, not GAME's 254,930
-    assert not tables.holds(6500, 0.15, 481 * 530, 0.003)
+    assert not tables.holds(Shape(6500, 481 * 530, 0.15, 0.003, 0.042))
 
 
 def _generated(tmp_path, spec: str, robots: int):
@@ -186,6 +191,21 @@ def test_the_corridor_share_counts_free_cells_between_two_opposite_free_neighbou
         corridor_share(np.zeros(5, dtype=bool))
 
 
+def test_the_narrow_share_counts_free_cells_of_at_most_two_free_neighbours():
+    from mrmt_env.lorr.shape import narrow_share, shape_of
+
+    grid = np.zeros((5, 5), dtype=bool)  # two shelf rows of three cells, as in the corridors' test
+    grid[1, 1:4] = grid[3, 1:4] = True
+    # 19 free cells: rows 0 and 4 (corners and the cells beside a shelf: 2 free neighbours), the four cells beside the
+    # shelves' ends (2) and the three between the shelves (2) are narrow; the middle row's two ends have 3
+    assert narrow_share(grid) == 17 / 19
+    assert narrow_share(np.zeros((4, 4), dtype=bool)) == 4 / 16  # an open floor: its corners only
+    assert narrow_share(np.ones((2, 2), dtype=bool)) == 0.0
+    inst = read_instance(EXAMPLE)
+    shape = shape_of(inst)
+    assert (shape.robots, shape.cells, shape.narrow) == (inst.team_size, inst.grid.size, narrow_share(inst.grid))
+
+
 def test_the_entry_reads_the_corridors_off_the_grid_whatever_the_map_is_called(tmp_path):
     from mrmt_env.lorr.shape import corridor_share
 
@@ -196,11 +216,13 @@ def test_the_entry_reads_the_corridors_off_the_grid_whatever_the_map_is_called(t
     flat = _generated(tmp_path, "family:uniform:64x64", 1100)
     assert aisles.map_name.startswith("X-") and flat.map_name.startswith("X-")
     assert corridor_share(aisles.grid) > 0.4 > 0.1 > corridor_share(flat.grid)
-    assert entry.choose(aisles).rule == 4 and entry.choose(flat).rule == 5
-    assert entry.rules[3].conditions == {"min_corridors": 0.4}
+    assert entry.choose(aisles).rule == 5 and entry.choose(flat).rule == 6
+    assert entry.rules[4].conditions == {"min_corridors": 0.4}
 
 
 @pytest.mark.parametrize("text, needle", [
+    ('[[rule]]\nmin_narrow = 0.9\nmax_narrow = 0.8\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
+     "min_narrow = 0.9 exceeds max_narrow = 0.8"),
     ('[[rule]]\nmaps = ["warehouse*"]\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',
      "unknown key 'maps'"),
     ('[[rule]]\nmin_corridors = 1.5\nscheduler = "strong"\nplanner = "pibt"\n[[rule]]\nscheduler = "lorr-greedy"\nplanner = "pibt"\n',

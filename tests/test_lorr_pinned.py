@@ -47,9 +47,9 @@ def _capture_fill(monkeypatch) -> list:
     seen = []
     real = Rule.holds
 
-    def holds(self, robots, fill, cells=0, corridors=0.0):
-        seen.append((robots, fill, cells, corridors))
-        return real(self, robots, fill, cells, corridors)
+    def holds(self, shape):
+        seen.append((shape.robots, shape.fill, shape.cells, shape.corridors))
+        return real(self, shape)
 
     monkeypatch.setattr(Rule, "holds", holds)
     return seen
@@ -59,8 +59,8 @@ def _capture_fill(monkeypatch) -> list:
 @needs_random
 def test_the_default_entry_gives_each_random_instance_its_rule(monkeypatch):
     """random-32-32-20 has 819 free cells of 1,024: robots per free cell 0.122, 0.244, 0.488, 0.855, 0.977 pick rules
-    3, 3, 2 (min_fill 0.4), 1 (min_fill 0.8), 1.  Over all 1,024 cells RANDOM-04 (0.684) and RANDOM-05 (0.781) would
-    both fall to rule 2."""
+    4, 4, 3 (min_fill 0.4), 2 (min_fill 0.8), 2 (rule 1 is the dense mazes').  Over all 1,024 cells RANDOM-04 (0.684) and
+    RANDOM-05 (0.781) would both fall to rule 3."""
     entry = load_entry("default")
     seen = _capture_fill(monkeypatch)
     rules, fills, teams = {}, {}, {}
@@ -70,7 +70,7 @@ def test_the_default_entry_gives_each_random_instance_its_rule(monkeypatch):
         seen.clear()
         rules[inst.name] = entry.choose(inst).rule
         fills[inst.name], teams[inst.name] = {s[1] for s in seen}, inst.team_size
-    assert rules == {"RANDOM-01": 3, "RANDOM-02": 3, "RANDOM-03": 2, "RANDOM-04": 1, "RANDOM-05": 1}
+    assert rules == {"RANDOM-01": 4, "RANDOM-02": 4, "RANDOM-03": 3, "RANDOM-04": 2, "RANDOM-05": 2}
     assert teams == {"RANDOM-01": 100, "RANDOM-02": 200, "RANDOM-03": 400, "RANDOM-04": 700, "RANDOM-05": 800}
     assert fills == {name: {team / 819} for name, team in teams.items()}
 

@@ -3,11 +3,10 @@
 Contract: :func:`load_entry` ``(name or path) -> Entry``; :meth:`Entry.choose` ``(instance) -> Choice``.  An entry
 file (TOML, or JSON of the same shape) holds ``name``, an optional ``description`` and a list ``rule``; the
 first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
-preprocessing.  Conditions (all optional): ``max_robots`` / ``min_robots`` (team size), ``max_cells`` /
-``min_cells`` (the map's cells, blocked ones too), ``max_fill`` /
-``min_fill`` (robots per free cell), ``max_corridors`` / ``min_corridors`` (the share of free cells in corridors one
-cell wide: :func:`mrmt_env.lorr.shape.corridor_share`, a number in [0, 1]).  Never the map's name: a rule keys on
-what the instance shows.  Decisions: ``scheduler`` (as
+preprocessing.  Conditions (all optional): ``min_<measure>`` / ``max_<measure>`` bounds on what the instance shows
+(:class:`mrmt_env.lorr.shape.Shape`): ``robots`` (team size), ``cells`` (the map's cells, blocked ones too), ``fill``
+(robots per free cell), ``corridors`` (the share of free cells in corridors one cell wide) and ``narrow`` (the share
+of free cells with at most two free 4-neighbours), the last two shares in [0, 1].  Never the map's name.  Decisions: ``scheduler`` (as
 ``mrmt lorr run --scheduler``) and its ``scheduler_options`` (``replan``, ``keep`` and its own), ``planner``
 (``--planner``) and its ``planner_options`` (``guidance`` and its own), read once into the specs of
 :mod:`agents.lorr.spec` that the run receives as they are.  The last rule must have no condition, so every
@@ -21,13 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from agents.lorr.spec import PlannerSpec, SchedulerSpec
+from mrmt_env.lorr.shape import MEASURES, Shape, shape_of
 
 __all__ = ["Entry", "Rule", "Choice", "load_entry", "ENTRIES_DIR", "EntryError"]
 
 #: Entries shipped with the package, by name (``<name>.toml``).
 ENTRIES_DIR = Path(__file__).resolve().parent / "entries"
-_CONDITIONS = ("max_robots", "min_robots", "max_cells", "min_cells", "max_fill", "min_fill", "max_corridors",
-               "min_corridors")
+_CONDITIONS = tuple(f"{end}_{m}" for m in MEASURES for end in ("max", "min"))
 _DECISIONS = ("scheduler", "planner", "scheduler_options", "planner_options")
 #: Keys of earlier entry files and where they now live.
 _MOVED = {"replan": "scheduler_options", "keep": "scheduler_options", "guidance": "planner_options"}
@@ -53,12 +52,14 @@ class Rule:
     conditions: dict
     choice: Choice
 
-    def holds(self, robots: int, fill: float, cells: int = 0, corridors: float = 0.0) -> bool:
-        c = self.conditions
-        return (robots <= c.get("max_robots", robots) and robots >= c.get("min_robots", robots)
-                and cells <= c.get("max_cells", cells) and cells >= c.get("min_cells", cells)
-                and fill <= c.get("max_fill", fill) and fill >= c.get("min_fill", fill)
-                and corridors <= c.get("max_corridors", corridors) and corridors >= c.get("min_corridors", corridors))
+    def holds(self, shape: Shape) -> bool:
+        """Whether the instance of :class:`~mrmt_env.lorr.shape.Shape` ``shape`` meets every bound of the rule."""
+        for key, bound in self.conditions.items():
+            end, measure = key.split("_", 1)
+            value = getattr(shape, measure)
+            if (value < bound) if end == "min" else (value > bound):
+                return False
+        return True
 
 
 @dataclass(frozen=True)
@@ -72,14 +73,9 @@ class Entry:
 
     def choose(self, instance) -> Choice:
         """The first rule's choice that holds for ``instance`` (a :class:`~mrmt_env.lorr.instance.LoRRInstance`)."""
-        from mrmt_env.lorr.shape import corridor_share
-
-        robots = instance.team_size
-        fill = robots / max(int((~instance.grid).sum()), 1)
-        corridors = corridor_share(instance.grid) if any(
-            "max_corridors" in r.conditions or "min_corridors" in r.conditions for r in self.rules) else 0.0
+        shape = shape_of(instance)
         for rule in self.rules:
-            if rule.holds(robots, fill, int(instance.grid.size), corridors):
+            if rule.holds(shape):
                 return rule.choice
         raise EntryError(f"{self.source}: no rule holds for {instance.name}")  # unreachable: the last has none
 
@@ -126,23 +122,18 @@ def _rule(where: str, raw, last: bool) -> Rule:
         raise EntryError(f"{where}: unknown key {unknown[0]!r}; conditions: {', '.join(_CONDITIONS)}; decisions: "
                          f"{', '.join(_DECISIONS)}")
     conditions = {}
-    for key in ("max_robots", "min_robots", "max_cells", "min_cells"):
+    for key in _CONDITIONS:
         if key in raw:
-            conditions[key] = _number(where, key, raw[key], True)
-    for key in ("max_fill", "min_fill"):
-        if key in raw:
-            conditions[key] = _number(where, key, raw[key], False)
-    for key in ("max_corridors", "min_corridors"):
-        if key in raw:
-            value = _number(where, key, raw[key], False)
-            if value > 1:
+            measure = key.split("_", 1)[1]
+            value = _number(where, key, raw[key], measure in ("robots", "cells"))
+            if measure in ("corridors", "narrow") and value > 1:
                 raise EntryError(f"{where}: {key} = {value!r} must be a share of the free cells, in [0, 1]")
             conditions[key] = value
-    for low, high in (("min_robots", "max_robots"), ("min_cells", "max_cells"), ("min_fill", "max_fill"),
-                      ("min_corridors", "max_corridors")):
-        if low in conditions and high in conditions and conditions[low] > conditions[high]:
-            raise EntryError(f"{where}: {low} = {conditions[low]!r} exceeds {high} = {conditions[high]!r}: "
-                             "no instance meets the rule")
+    for measure in MEASURES:
+        low, high = conditions.get(f"min_{measure}"), conditions.get(f"max_{measure}")
+        if low is not None and high is not None and low > high:
+            raise EntryError(f"{where}: min_{measure} = {low!r} exceeds max_{measure} = {high!r}: no instance meets "
+                             "the rule")
     if last and conditions:
         raise EntryError(f"{where}: the last rule must have no condition (it decides every other instance)")
     for key in ("scheduler", "planner"):

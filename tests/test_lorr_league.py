@@ -339,6 +339,17 @@ def test_a_round_runs_every_instance_scores_the_sum_of_shares_and_resumes(tmp_pa
     assert (out / "EXAMPLE-01" / "output.json").stat().st_mtime_ns != stamp
     assert (out / "EXAMPLE-02" / "output.json").stat().st_mtime_ns == stamp2
     assert json.loads((out / "EXAMPLE-01" / "run.json").read_text())["code"] == code_version()
+    # a row whose output file is not kept stays; one whose output file changed is run again
+    (out / "EXAMPLE-02" / "output.json").unlink()
+    (out / "EXAMPLE-01" / "output.json").write_text("{}")
+    stamp2 = (out / "EXAMPLE-02" / "run.json").stat().st_mtime_ns
+    fourth = _mrmt(*args, "--steps", "30", "--resume")
+    assert fourth.returncode == 0, fourth.stderr
+    assert (out / "EXAMPLE-02" / "run.json").stat().st_mtime_ns == stamp2 and not (out / "EXAMPLE-02" / "output.json").exists()
+    import hashlib
+
+    rerun = json.loads((out / "EXAMPLE-01" / "run.json").read_text())  # run again: its record names its new file
+    assert rerun["output_sha1"] == hashlib.sha1((out / "EXAMPLE-01" / "output.json").read_bytes()).hexdigest()
 
 
 def test_round_folders_and_best_known_tables(tmp_path):

@@ -8,7 +8,9 @@ file) and ``OUT/<NAME>/run.json``, and returns the :class:`RoundSummary` (also `
 ``OUT/summary.md``).  The score is the sum over instances of tasks / best-known; a run of the first ``steps`` steps
 (a prefix) is scored against the best-known pro rata and marked so.  ``resume`` keeps an instance whose
 ``run.json`` was made by the same entry, steps, clock, seed and commit of the package (a round resumed at another
-commit runs its instances again: a round's score is one commit's); the summary names the commit and the machine.
+commit runs its instances again: a round's score is one commit's) and whose output file is the one it wrote (its
+sha1) or absent (a committed round keeps its rows, not its output files); the summary names the commit and the
+machine.
 """
 
 from __future__ import annotations
@@ -131,17 +133,27 @@ def round_task(instance: str, entry_spec: str, steps, seed: int, limit, out: str
            "best_known": known[2] if known else None, "best_known_pro_rata": target,
            "share_of_best": (sim.finished / target) if target else None,
            "scored_share": 0.0 if record["preprocess_timeout"] else ((sim.finished / target) if target else None),
-           "output": str(folder / "output.json"), "machine": machine_name()}
+           "output": str(folder / "output.json"), "output_sha1": _sha1(folder / "output.json"),
+           "machine": machine_name()}
     (folder / "run.json").write_text(json.dumps(row, indent=1))
     return row
 
 
+def _sha1(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha1(path.read_bytes()).hexdigest()
+
+
 def _kept(path: Path, key: dict) -> dict | None:
+    """The row of ``path/run.json`` when it was made by the same run (``key``) and its output file is the one it
+    wrote (its sha1) or not kept beside it (a committed round keeps its rows, not its large output files)."""
     try:
         row = json.loads((path / "run.json").read_text())
     except (OSError, ValueError):
         return None
-    if all(row.get(k) == v for k, v in key.items()) and (path / "output.json").is_file():
+    out = path / "output.json"
+    if all(row.get(k) == v for k, v in key.items()) and (not out.is_file() or _sha1(out) == row.get("output_sha1")):
         return row
     return None
 

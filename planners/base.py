@@ -1,18 +1,9 @@
 """The three planning-layer interfaces and their result types.
 
-Every planning method (classical or Ising) implements exactly one of these
-protocols, so a pipeline can combine any sharing, tour and path method
-(paper section 2.3: target sharing -> tour construction -> pathfinding).
-
-Node conventions (see :mod:`mrmt_env.world`): ``world.distance_matrix`` is
-``(R+N, R+N)`` over robots then targets.  A tour solver sees a local matrix
-``dist`` of shape ``(n+1, n+1)`` whose node 0 is the robot start and nodes
-``1..n`` are its assigned targets; it returns an open route (no return).
-
-Each result carries a :class:`~planners.compute.ComputeReport` with the
-*accelerator* counts of that layer (chip calls, batches, logical calls, chip
-time, accelerator energy).  ``cpu_s`` is measured by the pipeline around each
-layer call, so a layer never needs to time itself.
+Every planning method (classical or Ising) implements exactly one of these protocols (sharing, tour or path), so a
+pipeline can combine any three (paper section 2.3). Each result carries a :class:`~planners.compute.ComputeReport`
+of the layer's accelerator counts; the pipeline measures ``cpu_s`` around each call.
+Design notes (node conventions): docs/design/pipeline.md#the-layer-interfaces.
 """
 
 from __future__ import annotations

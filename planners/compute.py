@@ -1,38 +1,9 @@
 """Compute accounting for one planning call (paper section 6.1, plus the honest total).
 
-Rules:
-
-* classical / host work: measured CPU wall seconds x 15 W per core
-  (:data:`CPU_WATTS_PER_CORE`, the paper's i7-12700 TDP normalised per core);
-* physical chip: calls x 50 us and calls x 0.45 uJ (the chip spec's numbers,
-  carried in from the :mod:`ising_backend` call ledger); with parallel dispatch
-  latency is counted per batch of up to 8 programs;
-* logical Ising (tour layer): each logical call is projected as one chip call.
-
-The paper reports accelerator energy only for the Ising methods; this report
-also carries the host CPU time and energy of the classical glue (decomposition,
-mapping, decode, scoring) so the system total is never hidden:
-``total_energy_j = accelerator_energy_j + host_energy_j``.
-
-Emulation time.  Here the chip (and the logical solver standing in for it) is
-emulated on the host, so the measured ``cpu_s`` of an Ising planning call also
-contains the emulator's own run time.  That work belongs to the accelerator,
-which is already charged its 50 us / 0.45 uJ per call; charging it again as
-host CPU would count it twice.  The emulator's wall seconds are therefore
-reported as ``emulation_s`` and the host's own work is
-``host_cpu_s = cpu_s - emulation_s``; ``host_energy_j`` is ``host_cpu_s`` x 15 W.
-For classical planners ``emulation_s`` is 0, so ``host_cpu_s == cpu_s``.
-
-Warm-up.  Compiling (or loading from numba's cache) the kernels a planner needs happens
-once per process and is start-up, not planning: ``warmup_s`` carries those wall seconds
-apart (a pipeline's first plan, :meth:`planners.pipeline.Pipeline.warmup`); they are in
-neither ``cpu_s`` nor any energy figure.
-
-Faults (docs/design/faults.md).  ``retries`` counts chip calls re-dispatched after a
-detectable failure (write error, timeout; each failed call is charged like any
-call); ``fallbacks`` counts layer calls that the Ising layer handed to its classical
-counterpart because the chip could not answer (or, when configured, the Ising search
-failed).  Both are 0 on a fault-free chip.
+:class:`ComputeReport`: host CPU seconds x 15 W per core (:data:`CPU_WATTS_PER_CORE`), chip calls x 50 us and
+x 0.45 uJ, the emulator's own seconds apart (``emulation_s``; ``host_cpu_s = cpu_s - emulation_s``), the one-off
+warm-up apart (``warmup_s``) and the fault counts (``retries``, ``fallbacks``);
+``total_energy_j = accelerator_energy_j + host_energy_j``. Design notes: docs/design/pipeline.md#compute-accounting.
 """
 
 from __future__ import annotations

@@ -1,21 +1,9 @@
 """The classical fallback of a planning layer: the last resort of graceful degradation, in one place.
 
-Contract: :func:`answer` (or :func:`fall_back` on a result in hand) is how the pipeline calls a
-layer.  A layer that offers a fallback has a ``fallback`` mode in its ``config``
-(:data:`FALLBACK_MODES`); when its result fails and the mode asks for it, the call goes to the
-classical layer of the ``strong`` pipeline -- path: A*, tour: 3-opt, sharing: SSA -- with the
-same arguments, and never silently: the result's stats get ``stats["fallback"][layer] += 1`` and a
-line in ``stats["fallback_reasons"]``, its compute report ``fallbacks += 1``, and the chip calls
-spent before the fallback stay charged.  A failure the classical layer shares (an unreachable goal)
-stays the layer's own failure.  The modes:
-
-* ``"never"``: no fallback; an unavailable chip is a failure result, as any failure;
-* ``"unavailable"`` (default): only when the chip could not answer (the layer's result says so
-  with ``stats["chip_unavailable"]``);
-* ``"failure"``: also when the layer's own search fails (no valid decode within its budgets).
-
-Layers themselves never fall back: an Ising layer called on its own returns its failure.
-Design notes: docs/design/faults.md.
+:func:`answer` (or :func:`fall_back` on a result in hand) is how the pipeline calls a layer: a failed call of a
+layer whose ``config`` has a ``fallback`` mode (:data:`FALLBACK_MODES`: ``"never"``, ``"unavailable"`` by default,
+``"failure"``) goes to the ``strong`` pipeline's classical layer, flagged and counted, never silently. Layers
+themselves never fall back. Design notes: docs/design/faults.md#fallbacks-plannersfallbackpy.
 """
 
 from __future__ import annotations

@@ -1,15 +1,8 @@
-"""Joint routing: a sharing layer that also orders each robot's targets, and the tour layer
-that keeps that order.
+"""Joint routing: a sharing layer that also orders each robot's targets, and the tour layer that keeps that order.
 
-A routing solver that assigns and sequences targets in one search (a vehicle routing
-solver such as PyVRP, :mod:`planners.peers.pyvrp_routing`) is a *sharing* layer whose groups
-come in visiting order; it says so with the class attribute ``orders_routes = True``.  The
-pipeline then calls it even for a one-robot world (it otherwise skips sharing there), and the
-tour layer ``keep`` (:class:`KeepOrderTour`) hands the given order on unchanged, so the
-routes are the solver's and the tour layer costs nothing.
-
-``keep`` after a sharing layer that does not order its groups keeps whatever order that layer
-lists them in (target index order for PSA, insertion order for SSA): legal, rarely good.
+A sharing layer with ``orders_routes = True`` (a vehicle routing solver, :mod:`planners.peers.pyvrp_routing`)
+gives its groups in visiting order; the tour layer ``keep`` (:class:`KeepOrderTour`) hands that order on
+unchanged. Design notes: docs/design/pyvrp.md#joint-routing.
 """
 
 from __future__ import annotations

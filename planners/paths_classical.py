@@ -1,34 +1,9 @@
 """Classical grid pathfinding baselines (paper section 6.1): BFS, A*, GBFS.
 
-All three search the 4-neighbour grid of ``world.grid`` (unit move cost, the
-paper's motion model) from ``start`` to ``goal`` and return the cell-by-cell
-path, start and goal included.
-
-``BFSPath``
-    breadth-first search; returns a shortest path.
-``AStarPath``
-    A* (Hart, Nilsson and Raphael 1968) with the Manhattan-distance heuristic,
-    which is admissible and consistent on a unit-cost 4-neighbour grid, so the
-    path is shortest and no node is re-expanded.
-``GreedyBestFirstPath``
-    greedy best-first search: expands the open node of smallest Manhattan
-    distance to the goal; complete on a finite grid but not optimal.
-
-Choices the paper leaves open (stated here, the same for all three):
-
-* neighbours are generated in the action order of :data:`mrmt_env.distances.MOVES`
-  (up, down, left, right);
-* A* breaks ties on ``f`` by preferring the larger ``g`` (deeper node), then
-  first-in order; GBFS breaks ties on ``h`` first-in;
-* the search stops when the goal is *expanded* (A*, GBFS) or *discovered*
-  (BFS, where discovery order is distance order);
-* the priority queue is a binary heap (numba-compiled ``heapq``), the open/closed
-  bookkeeping flat arrays of ``H * W`` cells: one search on a 10x10 grid costs a
-  few microseconds, so the measured CPU time is the algorithm's, not Python's.
-
-An unreachable goal, or a start/goal off the grid or on an obstacle, gives a
-failure :class:`~planners.base.PathResult` (``path=None`` and a message naming
-the cells), never an invalid path.  ``stats["expanded"]`` counts expanded cells.
+:class:`BFSPath`, :class:`AStarPath` (Manhattan heuristic: shortest paths) and :class:`GreedyBestFirstPath` (not
+optimal) search the 4-neighbour grid from ``start`` to ``goal`` and return the path, both ends included; an
+unreachable or invalid goal is a failure :class:`~planners.base.PathResult`, never an invalid path.
+Design notes (tie-breaking, stopping): docs/design/classical_baselines.md#grid-pathfinding.
 """
 
 from __future__ import annotations

@@ -1,19 +1,8 @@
 """Path layer ``field``: a leg is a descent of the goal's BFS distance field, which the host holds.
 
-The sharing and tour layers need the world's distance matrix, and the world computes it from one
-BFS distance field per target (:attr:`mrmt_env.world.World.target_fields`).  So before any leg is
-planned the host already knows, for every cell, its distance to every target: the shortest path
-of a leg ``a -> target t`` is the walk from ``a`` that steps, each time, to a neighbour one closer
-to ``t``.  That descent is this layer: host work (measured and charged as CPU like any classical
-layer), no search and no chip call.  It is what the ``ising`` preset uses for its legs
-(issue 24, docs/design/field_paths.md): a chip path call there would only reconnect waypoints
-the host picked on that same field.
-
-Choices: among neighbours one step closer, the first in :data:`mrmt_env.distances.MOVES` order
-(up, down, left, right) is taken, so a leg is deterministic and needs no random draw.  A goal that
-is not a target of the world (a caller's own query) gets its field by one BFS
-(``world.distance_field``), counted in ``stats["field_bfs"]``.  An unreachable goal, or a start or
-goal off the grid or on an obstacle, is a failure result naming the cells, never an invalid path.
+Host work with no search and no chip call (the ``ising`` preset's legs): from each cell, the first neighbour one
+step closer in :data:`mrmt_env.distances.MOVES` order. A goal that is not a target gets its field by one BFS
+(``stats["field_bfs"]``). Design notes: docs/design/field_paths.md#the-field-layers-contract.
 """
 
 from __future__ import annotations

@@ -1,93 +1,9 @@
 """Composable planning pipelines: target sharing -> tour construction -> pathfinding.
 
-The paper's decomposition (section 2.3, evaluated end to end in 6.2):
-
-1. **sharing** splits the targets among the robots
-   (``sharing.assign(world.distance_matrix, R, tour, rng)``);
-2. **tour** orders each robot's targets into an open route from its start
-   (``tour.solve(local_dist, rng)``, local node 0 = the robot's start);
-3. **path** joins consecutive stops with 4-neighbour paths
-   (``path.find_path(world, a, b, rng)``), concatenated into the robot's route
-   (start cell first).
-
-Presets (:data:`PRESETS`): ``fast`` = PSA + nearest neighbour + A*, ``strong`` =
-SSA + 3-opt + A* (the paper's two classical pipelines), ``ising`` = the Ising
-sharing and tour with this package's defaults (boundary-refined sharing, the
-move-selection tour on the physical chip) and legs as descents of the host's BFS
-fields (path layer ``field``: no chip call for a path the host already holds), and above
-:data:`FLEET_ABOVE` targets the ``ising-fleet`` pipeline (when built without layer options), ``ising-paper`` = the three Ising methods exactly as the paper configures them,
-chip paths included (what ``mrmt reproduce`` runs), ``pyvrp`` = PyVRP's joint sharing and tours + A* (the
-classical peer; extra ``peers``; ``ortools`` likewise with OR-Tools), ``ising-fleet`` = SSA routes improved by chip-selected
-moves between robots in an iterated local search (:mod:`planners.ising.fleet`) + field legs,
-``exact`` = exact min-sum sharing + Held-Karp
-tours + BFS paths (the optimum; small worlds only).  Any other triple is built by name from :mod:`planners.registry`
-or from layer objects::
-
-    make_pipeline("strong")
-    make_pipeline(sharing="exact", tour="brute", path="bfs")
-    make_pipeline("ising", chip=my_chip, tour_options={"num_reads": 2})
-    make_pipeline("strong", tour=ThreeOptTour(moves="7"))
-
-Options: ``sharing_options`` / ``tour_options`` / ``path_options`` go to that
-layer's factory (an option it does not take is an error); any other keyword
-(e.g. ``chip``) is *shared*: passed to every layer factory that takes it (so
-the three Ising layers can share one chip), and an error if none does.
-
-Accounting.  Each layer call is timed with the clock of
-:func:`~planners.compute.stopwatch` (``time.perf_counter``);
-its measured wall seconds become that call's ``cpu_s`` (replacing whatever the
-layer reported) and are added, with the layer's accelerator counts, to that
-layer's :class:`~planners.compute.ComputeReport` in ``plan.stats["layers"]``
-(``"sharing"``, ``"tour"``, ``"path"``).  The remaining host time of the call
-(reading the distance matrix -- computed on first use, one BFS per node --,
-slicing it, concatenating legs) is ``plan.stats["glue_cpu_s"]``.
-``plan.compute`` = the three layer reports + the glue time, so its ``cpu_s``
-is the whole :meth:`Pipeline.plan` call.
-
-Layer statistics (``result.stats``) are merged into ``plan.stats`` over all
-calls: numbers add, booleans or, dicts merge recursively, lists concatenate,
-anything else keeps the last value (so Ising layers' ``"mapping"`` counts
-accumulate).  A ``"failure"`` entry is not merged; it fails the plan.
-
-Batched legs.  A path layer with ``find_paths(world, cells, rng)`` (the Ising path layer) plans
-a robot's legs in one call, with one compute report and one statistics dict for them; the leg it
-stops at comes back as its own result (``LegBatch.failed``) and any legs after it go through
-``find_path`` one by one, so the plan, its statistics and its failures are those of the per-leg calls
-(``Pipeline(..., batch_paths=False)`` makes every leg a ``find_path`` call).
-
-Shortcuts (so a layer is charged only for work it really does): with one
-robot the sharing layer is not called (every target goes to robot 0) unless it orders the
-routes itself (``orders_routes``, :mod:`planners.joint_routing`); a robot
-with fewer than two targets does not call the tour layer.  So a world with one
-robot and one target exercises the path layer alone; one robot and N targets,
-tour and path.
-
-Failures.  A layer that gives up (``failure`` on its result, or a sharing /
-tour result that is not a valid assignment / permutation, or a path that is
-not a legal 4-neighbour path between the requested cells) never raises and
-never yields an invalid plan: the plan gets ``success=False`` and
-``failure="robot k leg j: ..."`` (or ``"sharing: ..."``, ``"robot k tour:
-..."``; several are joined with ``"; "``), and each robot's route keeps the
-legs planned before its failure, listing only the targets it reaches.  The
-other robots are still planned.  Before that, a layer with a ``fallback`` mode in its config (the
-Ising layers) gets its classical fallback: its failed call goes to the ``strong`` pipeline's layer,
-flagged and counted (:mod:`planners.fallback`).  Exceptions a layer raises (for example
-``brute`` refusing 14 targets) propagate: they are configuration errors.
-
-Randomness: ``plan(world, seed)`` builds one ``np.random.default_rng(seed)``
-and hands it to every layer call in a fixed order, so a seed fixes the plan.
-
-Warm-up (compile time is not planning time).  The first call of a compiled kernel in a
-process compiles it (or loads it from numba's on-disk cache); that is start-up, not
-planning.  So before its first plan a pipeline warms itself (:meth:`Pipeline.warmup`):
-it plans the same world with the same seed on a deep copy of its layers (their own chip,
-ledger and memos), so exactly the kernels the plan needs are compiled and nothing of the
-real layers -- ledger, health monitor, random state, caches -- is touched; the plan is the
-same with or without it.  Its wall seconds are ``plan.compute.warmup_s`` of that first plan
-(a timing, so not in ``plan.stats``, which compares equal across runs), never part of ``cpu_s``;
-later plans report 0.  ``Pipeline(..., warmup_first=False)`` turns this off (then a first plan's ``cpu_s`` includes
-whatever compiling it triggers); layers that cannot be deep-copied are not warmed
-(``plan.stats["warmup_skipped"]`` says why).
+:func:`make_pipeline` builds a :class:`Pipeline` from a preset (:data:`PRESETS`), from layer names
+(:mod:`planners.registry`) or from layer objects, e.g. ``make_pipeline("strong", tour=ThreeOptTour(moves="7"))``.
+``Pipeline.plan(world, seed)`` charges every layer call to the plan's compute; a layer that gives up fails the
+plan (``success=False``) instead of raising. Design notes: docs/design/pipeline.md#composable-pipelines.
 """
 
 from __future__ import annotations

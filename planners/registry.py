@@ -1,23 +1,9 @@
-"""Planning-method registry: layer name -> factory.
+"""Planning-method registry: layer name -> factory, one namespace per layer (sharing, tour, path).
 
-Three layers (paper section 2.3), each with its own namespace:
-
-=========== ==========================================================
-``sharing`` ``round_robin``, ``psa``, ``ssa``, ``exact``, ``ising``, ``ising-paper``, ``pyvrp``, ``ortools``, ``ising-fleet``
-``tour``    ``nn``, ``2opt``, ``3opt``, ``brute``, ``ising``, ``ising-paper``, ``keep``
-``path``    ``bfs``, ``astar``, ``gbfs``, ``ising``, ``ising-paper``, ``field``
-=========== ==========================================================
-
-A factory is any callable returning a layer object (a class, a function), or
-a ``"module:attr"`` string imported on first use, so registering the Ising
-methods costs nothing until they are asked for (and ``mrmt plan --pipeline
-fast`` never imports the chip).  Add your own with :func:`register_path`,
-:func:`register_tour` or :func:`register_sharing`; then it works everywhere a
-name is accepted (``make_pipeline``, ``mrmt plan --tour NAME``, ...).
-
-An unknown name, or a registered one whose module cannot be imported, raises
-:class:`UnknownPlannerError` (a ``ValueError``) naming the layer, the name and
-every valid name.
+A factory is a callable or a ``"module:attr"`` string imported on first use; :func:`register_sharing`,
+:func:`register_tour` and :func:`register_path` add a user's own, which then works wherever a name is accepted.
+An unknown name raises :class:`UnknownPlannerError` listing the valid ones.
+Design notes (the names): docs/design/pipeline.md#the-layer-registry.
 """
 
 from __future__ import annotations

@@ -1,49 +1,9 @@
 """Classical target-sharing baselines (paper section 6.1, sharing layer).
 
-Every method splits the ``N`` targets among ``R`` robots given the world's
-``(R+N, R+N)`` BFS distance matrix (robots first, then targets); the tour
-layer then orders each robot's targets.  Each target is assigned exactly once.
-
-``RoundRobinSharing``
-    targets in index order dealt to robots ``0, 1, 2, ...`` (target ``t`` to
-    robot ``t mod R``); distances are ignored.
-``PSASharing``
-    parallel single-item auction (Koenig et al. 2006): every robot bids on
-    every target at once, its bid being its distance from its start cell to
-    the target; each target goes to its lowest bidder (ties: lowest robot
-    index).  Bids ignore synergies between targets, so one robot may win
-    many far-apart targets.
-``SSASharing``
-    sequential single-item auction (Lagoudakis et al. 2005; Koenig et al.
-    2006) with MiniSum bids.  Each robot keeps an ordered path over the
-    targets it has won.  In each of ``N`` rounds every robot bids on every
-    unallocated target; the lowest bid over all (robot, target) pairs wins
-    (ties: lowest robot, then lowest target index), and the target joins
-    that robot's path.  Bids (``bid=``):
-
-    * ``"insertion"`` (default): the cheapest insertion cost of the target
-      into the robot's current path (between two consecutive stops, or
-      appended at the end; the start stays first), and the target is
-      inserted at that position (ties: appending at the end, then the
-      earliest position);
-    * ``"tour"``: the marginal cost of the robot's optimal-by-``tour`` route,
-      ``cost(tour(T + t)) - cost(tour(T))``, with the downstream tour solver
-      (as in the first author's course project: with ``tour = brute`` this is
-      the exact marginal route cost).  Costs ``R * N^2 / 2`` tour solves.
-``ExactSharing``
-    the min-sum optimum: the assignment minimising the sum over robots of the
-    *optimal* open-route cost of its targets.  For each robot a Held-Karp
-    dynamic program gives the optimal route cost over every subset of the
-    targets (``O(R 2^N N^2)``); a second dynamic program over subsets then
-    combines robots (``F_k(S) = min_{T in S} F_{k-1}(S \\ T) + C_k(T)``,
-    ``O(R 3^N)``).  3 robots x 10 targets take about a millisecond.  Refuses
-    ``N > 16`` (:data:`MAX_EXACT_TARGETS`).  With ``tour = brute`` downstream
-    its total is the optimum, so every other method can be read as a gap to it.
-
-All hot loops are numba-compiled (``cache=True``).  A target unreachable from
-a robot has an infinite distance: PSA, SSA and exact never give it to that
-robot when another can reach it; round robin ignores distances, and the path
-layer then reports the unreachable leg.
+Each splits the ``N`` targets among ``R`` robots from the world's ``(R+N, R+N)`` BFS distance matrix, every target
+once: :class:`RoundRobinSharing`, :class:`PSASharing` (parallel auction), :class:`SSASharing` (sequential auction,
+``bid="insertion"`` or ``"tour"``) and :class:`ExactSharing` (the min-sum optimum, at most
+:data:`MAX_EXACT_TARGETS` targets). Design notes: docs/design/classical_baselines.md#target-sharing.
 """
 
 from __future__ import annotations

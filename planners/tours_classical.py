@@ -1,58 +1,9 @@
 """Classical tour construction baselines (paper section 6.1, tour layer).
 
-A tour here is an *open route*: it starts at the robot (local node 0), visits
-each assigned target (local nodes ``1..n``) exactly once and does not return.
-Costs are the entries of the ``(n+1, n+1)`` matrix the solver is given (the
-world's BFS distances, which are symmetric).
-
-``NearestNeighbourTour``
-    from node 0, repeatedly move to the nearest unvisited node (ties: lowest
-    index).
-``TwoOptTour(free_end=False)``
-    nearest neighbour, then 2-opt (Croes 1958): reverse a segment
-    ``route[i..j]`` when that shortens the route; first improvement in
-    lexicographic ``(i, j)`` order, passes repeated until none improves.
-    ``free_end=False`` (default) is the common textbook path 2-opt, whose
-    reversals keep both route ends in place (``1 <= i < j < n``); it
-    reproduces the paper's mean gap of 4.62%.  ``free_end=True`` also
-    reverses suffixes (``j = n``), using the open route's free end: stronger.
-``ThreeOptTour(moves="4")``
-    nearest neighbour, then 3-opt (Lin 1965).  The open route is closed into
-    a cycle with a dummy end node ``D`` (``d(D, 0) = 0``, ``d(D, x) = M`` for
-    every target ``x``, with ``M`` larger than any open route) so that ``D``
-    always sits between the last target and node 0 and the cycle cost is the
-    route cost plus the constant ``M``; the textbook cycle 3-opt then runs
-    unchanged.  Removing three edges splits the cycle into ``A | B | C``
-    (``B = t[i:j]``, ``C = t[j:k]``, segments of one node or more):
-
-    * ``moves="4"`` (default): the common 4-move variant (as in the
-      ``reverse_segment_if_better`` routine of the Wikipedia 3-opt article):
-      for each ``(i, j, k)`` the first improving move among *reverse B*,
-      *reverse C*, *reverse BC* (three 2-opt type moves) and *swap B and C*
-      (the one pure 3-opt reconnection without reversal) is applied at once;
-      passes repeat until none improves.  It reproduces the paper's mean gap
-      of 1.31% (1.35% on 500 of our worlds; with two-node minimum segments,
-      as in the article's enumeration, the gap is 2.5%).
-    * ``moves="7"``: all seven reconnections of the three removed edges
-      (reverse B, reverse C, reverse BC, B'C', CB, CB', C'B), the best of the
-      seven applied for each ``(i, j, k)``.  Mean gap about 0.5%.
-
-``BruteTour``
-    the exact optimum by Held-Karp dynamic programming over subsets
-    (``O(2^n n^2)``).  Refuses ``n > 13`` (:data:`MAX_BRUTE_TARGETS`) with a
-    :class:`ValueError`: the table would have over 100 000 states per target.
-
-Choices the paper leaves open: 2-opt and 3-opt both start from the nearest
-neighbour route (the paper lists them as improvements of a construction);
-ties everywhere go to the lowest index; improvements must shorten the route by
-more than ``1e-9``.  The hot loops are numba-compiled (``cache=True``), so one
-10-target solve costs microseconds and the measured CPU time is the
-algorithm's.
-
-A matrix with ``inf`` entries (a target in another component than the robot)
-has no finite route: every solver then returns the nearest neighbour order
-with ``cost = inf`` and ``stats["infeasible"] = True``; the path layer reports
-the unreachable leg.
+Open routes from the robot (local node 0) through its targets: :class:`NearestNeighbourTour`, :class:`TwoOptTour`
+(``free_end``), :class:`ThreeOptTour` (``moves="4"`` or ``"7"``) and :class:`BruteTour` (Held-Karp, at most
+:data:`MAX_BRUTE_TARGETS` targets). A matrix with ``inf`` entries gives the nearest neighbour order with
+``cost = inf`` and ``stats["infeasible"]``. Design notes: docs/design/classical_baselines.md#tour-construction.
 """
 
 from __future__ import annotations

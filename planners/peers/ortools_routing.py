@@ -1,18 +1,8 @@
 """Sharing and tours solved jointly by OR-Tools' vehicle routing solver, the second classical peer.
 
-The model is PyVRP's (:mod:`planners.peers.pyvrp_routing`, docs/design/pyvrp.md): one vehicle per
-robot starting at the robot's cell, one shared dummy end node reached at cost 0 (open routes),
-every target a node that must be visited, arc costs the world's BFS distances as integers
-(registered as one transit matrix, not a Python callback).  Arcs between cells of different
-connected components cost :data:`FORBIDDEN`; a target no robot reaches is a failure before any
-search, a best solution that still uses a forbidden arc is a failure.
-
-Search: first solution by ``PATH_CHEAPEST_ARC``, then guided local search (OR-Tools' recommended
-metaheuristic for routing).  Budget: ``seconds`` (default 1 s) and/or ``solutions`` (OR-Tools'
-``solution_limit``: solutions found, first included); whichever comes first stops it.  Stopped
-by solutions, the plan is the same on any machine; stopped by the clock it depends on the
-machine's speed.  OR-Tools' search is deterministic and takes no seed.  ``stats["solver"]`` says
-which budget stopped it (the clock, when the solve ran for the whole time budget).  Accounting: a classical layer (CPU x 15 W), one thread.
+PyVRP's model (:mod:`planners.peers.pyvrp_routing`), the arc costs one transit matrix; a first solution by
+``PATH_CHEAPEST_ARC``, then guided local search, within ``seconds`` and/or ``solutions``. A classical layer
+(CPU x 15 W, one thread). Design notes: docs/design/pyvrp.md#the-or-tools-layers-contract.
 """
 
 from __future__ import annotations

@@ -1,22 +1,9 @@
 """Sharing and tours solved jointly by PyVRP, the vehicle routing solver a user would pick.
 
-The model (docs/design/pyvrp.md): one vehicle type per robot, one vehicle each, whose start
-depot is the robot's cell; one shared dummy end depot reached at cost 0 from every location
-(open routes: a robot stops at its last target); every target a client; edges the world's BFS
-distances as integers (``world.distance_matrix``).  Forbidden arcs cost PyVRP's
-``MAX_VALUE`` (its own "missing edge" value): out of the dummy depot, into any start depot, and
-between cells of different connected components.  A target that no robot reaches is a
-failure before any search; a best solution that still uses a forbidden arc is a failure.
-
-Budget: ``seconds`` (default 1 s, PyVRP's ``MaxRuntime``) and/or ``iterations``
-(``MaxIterations``); with both, whichever comes first stops the search.  PyVRP's seed is drawn
-from the pipeline's generator, so a plan stopped by iterations is the same for the same seed on
-any machine; one stopped by the clock depends on the machine's speed.  ``stats["solver"]``
-says which stopped it (``stopped_by``: ``"iterations"`` or ``"time"``), with the iteration
-count and PyVRP's cost; ``mrmt plan`` writes it as the plan's ``solver`` object.
-
-Accounting: a classical layer (no accelerator call); the pipeline charges its measured wall
-seconds as CPU x 15 W.  PyVRP's search runs on one thread.
+One vehicle per robot starting at its cell, a shared dummy end depot (open routes), the world's BFS distances as
+integer edges; a budget of ``seconds`` and/or ``iterations`` (stopped by iterations, a plan is the same on any
+machine), the one that stopped the search in ``stats["solver"]``. A classical layer (CPU x 15 W, one thread).
+Design notes: docs/design/pyvrp.md#the-pyvrp-layers-contract.
 """
 
 from __future__ import annotations

@@ -1,15 +1,9 @@
 """Typed, validated options: one record per planner or scheduler, one validator for them all.
 
 A class's options are the fields of a frozen dataclass derived from :class:`Options`, each declared with
-:func:`option` (its default, its kind, its range or its words, one line of meaning).  Building the record checks
-every field; :meth:`Options.from_dict` and :meth:`Options.replace` also refuse an option the class does not take,
-listing those it takes.  An error is one ``ValueError`` line naming the option, the bad value and what is allowed.
-Besides numbers, flags and words, an option may be a tuple (of words, or of numbers), a mapping or any value; what
-the validator cannot express (a tuple's entries named twice, a constraint between two options) a record checks in
-its own ``__post_init__`` after ``super().__post_init__()``, in the same one-line ``ValueError``.
-
-Choice: stdlib dataclasses with this one validator rather than pydantic: no new dependency of the core, the
-messages are the package's own one-liners, and a record is a plain frozen value (hashable, ``==``, ``replace``).
+:func:`option` (default, kind, range or words, one line of meaning); building a record, :meth:`Options.from_dict`
+and :meth:`Options.replace` check every field and refuse unknown ones, in one ``ValueError`` line.
+Design notes: docs/design/league_parts.md#options-records.
 """
 
 from __future__ import annotations

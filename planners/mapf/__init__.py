@@ -1,15 +1,8 @@
 """Collision-free execution for lifelong operation: one conflict-free joint move per step.
 
-:class:`PIBT` (priority inheritance with backtracking, compiled) and :class:`WindowedPlanner` (prioritized
-space-time A* over a short window, compiled) take flat robot cells and goal cells (:func:`make_executor`,
-:data:`EXECUTORS`).  The League of Robot Runners' planners with turning (flat cells and orientations -> actions F,
-R, C, W) are compositions of parts (:mod:`planners.mapf.planner`), one :class:`PlannerKind` each in
-:data:`TURNING_PLANNERS`, built by :func:`make_turning_planner`.
-
-Rooms: ``site`` (the map as compact cells, PIBT's priorities), ``guides/`` (the cost-to-go: goal fields, lanes, the
-crowd, traffic-flow guide paths; the focus), ``pibt/`` (PIBT and windowed A* on the grid, PIBT with turning),
-``epibt/`` (EPIBT's operations, push chains), ``chip/`` (the machine steps that leave a decision to an Ising
-machine), ``common`` (successor tables, goal fields, seeds, the groups record).
+Grid executors :class:`PIBT` and :class:`WindowedPlanner` (:func:`make_executor`, :data:`EXECUTORS`); the League's
+planners with turning, one :class:`PlannerKind` each in :data:`TURNING_PLANNERS`, built by
+:func:`make_turning_planner`. Design notes (the rooms): docs/design/league_parts.md#the-rooms-of-plannersmapf.
 """
 
 from __future__ import annotations

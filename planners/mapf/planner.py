@@ -1,21 +1,9 @@
 """A one-step planner with turning as a composition of parts (the start kit's ``MAPFPlanner`` role).
 
-A planner is a named choice of parts (a :class:`PlannerKind`), each with one job and its own options record:
-
-* the site (:class:`~planners.mapf.site.TurnSite`: the map as compact cells, the check of a call's robots) and PIBT's
-  priorities (:class:`~planners.mapf.site.Priorities`);
-* a field source (:class:`~planners.mapf.guides.fields.FieldSource`: goal fields, lanes, corridors, the crowd's
-  costs, or traffic-flow guide paths), where the cost-to-go comes from;
-* a focus (:class:`~planners.mapf.guides.focus.Focus`): who is at work this step;
-* a decider (:class:`~planners.mapf.pibt.turning.PIBTStep`, :class:`~planners.mapf.epibt.plans.EPIBTStep`,
-  :class:`~planners.mapf.epibt.chain_planner.ChainStep`): how the step is decided;
-* where a machine decides part of the step, a machine step (:mod:`planners.mapf.chip`) that the decider calls and
-  that charges the machine through its session.
-
-The planner's options record is the union of its parts' (:func:`planners.options.record`); each part is handed its
-own record (:meth:`~planners.options.Options.part`) and reads no other.  Contract: :meth:`TurningPlanner.actions`
-``(pos, orient, goals, deadline=None, rest=None) -> (R,)`` actions F 0, R 1, C 2, W 3, always a valid joint action,
-deterministic for a seed without a deadline.
+A planner is a named choice of parts (a :class:`PlannerKind`), each with its own options record. Contract:
+:meth:`TurningPlanner.actions` ``(pos, orient, goals, deadline=None, rest=None) -> (R,)`` actions F 0, R 1, C 2,
+W 3, always a valid joint action, deterministic for a seed without a deadline.
+Design notes (the parts): docs/design/league_parts.md#the-shell-turningplanner.
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
 """The machine step of ``epibt-chain-ising`` (issue 57): the chip as the annealer of the 2024 winner's plan.
 
-After :class:`~planners.mapf.epibt.chain_planner.ChainStep`'s construction (a portfolio of plans) and its host
-search (``lns`` chains; the planner's default 0: the chip alone anneals after the construction), the kept plan is
-changed by rounds of group decisions of class ``lns_groups`` (:class:`~planners.mapf.chip.group_rounds.GroupRounds`):
-a robot's options are its candidate operations and waiting, their costs the plan's own score terms (``-power x (value
-of waiting - value)``; waiting 0), so a group taken raises the plan's score by its fall in cost.  Only robots with a
-goal start groups; any robot joins one (to be moved aside).  Under a clock the host search stops at ``host_share`` of
-the time the construction leaves and the rounds run to the deadline on the step's charged time (host seconds, not the
-emulation's, plus the machine's own).  ``decider="host"`` is the twin: the same groups decided by the host rule, no
-machine call.
+After :class:`~planners.mapf.epibt.chain_planner.ChainStep`'s construction and host search, rounds of group
+decisions of class ``lns_groups`` (:class:`~planners.mapf.chip.group_rounds.GroupRounds`) change the kept plan,
+scored with the plan's own terms; ``decider="host"`` is the twin without machine calls.
+Design notes: docs/design/lifelong_turning.md#the-epibt-chain-ising-machine-step.
 """
 
 from __future__ import annotations

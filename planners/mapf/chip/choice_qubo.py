@@ -1,15 +1,9 @@
 """One choice per robot on an Ising chip: a reference option as all spins down (at-most-one encoding).
 
-A group decision in which each robot takes one of its options is written first as a QUBO over one binary
-per option with no constraint: its energy on a one-hot assignment is the decision's objective.  With one
-spin per option and a one-hot penalty, a chip of few levels spends them on the constraint: in Ising form the
-penalty over ``k`` options puts a field of ``(k - 2)`` times its coupling on every spin, every pairwise term
-adds to both spins' fields, and the largest field sets the scale (measured on ``lns_groups``:
-docs/design/lifelong_turning.md).  :func:`reduce_to_reference` substitutes each robot's *reference* option
-(the host rule's answer, or the plan now) by ``1 - sum of its other options``: the reference takes no spin,
-the objective changes by a constant on every one-hot assignment, and ``amo`` on each pair of one robot's
-spins keeps at most one up.  :func:`read_option` decodes a robot in a read of the reduced program,
-:func:`read_choices` every robot in every read with the reference option 0.
+:func:`reduce_to_reference` substitutes each robot's reference option by ``1 - sum of its other options`` (the
+reference takes no spin; ``amo`` keeps at most one spin up); :func:`read_option` and :func:`read_choices` decode
+reads of the reduced program.
+Design notes: docs/design/lifelong_turning.md#one-choice-per-robot-the-reference-reduction.
 """
 
 from __future__ import annotations

@@ -2,15 +2,9 @@
 machine.
 
 After :class:`~planners.mapf.epibt.plans.EPIBTStep`'s plan and search, each call runs up to ``rounds`` rounds of up
-to ``groups`` decisions of class ``lns_groups`` on the kept plan, every robot free to start a group
-(:class:`~planners.mapf.chip.group_rounds.GroupRounds`; the groups, their programs, the host rule and the decoding:
-:mod:`planners.mapf.chip.group_kernels`).  ``decider="host"`` puts the host rule in the chip's place (no machine
-call).  ``penalty`` 2 was chosen on RANDOM-03 and -05; ``rounds`` > 1 with ``lns=0`` makes the chip the search's
-annealer: each round poses fresh groups on the plan the rounds before it left; under a clock the rounds stop when
-the next, as long as the longest so far, would end past the deadline less
-:data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time (host seconds, not the emulation's,
-plus the machine's own).  Charges: :attr:`GroupStep.ledger`, :attr:`GroupStep.last_compute`.  Measurements:
-``docs/design/lifelong_turning.md``.
+to ``groups`` decisions of class ``lns_groups`` (:class:`~planners.mapf.chip.group_rounds.GroupRounds`);
+``decider="host"`` puts the host rule in the chip's place. Charges: :attr:`GroupStep.ledger`,
+:attr:`GroupStep.last_compute`. Design notes: docs/design/lifelong_turning.md#the-epibt-ising-machine-step.
 """
 
 from __future__ import annotations

@@ -1,25 +1,9 @@
 """The machine step of ``pibt-ising``: PIBT's congested groups re-choose their next cells on an Ising machine.
 
-After the host rule (:class:`~planners.mapf.pibt.turning.PIBTStep`'s pass), :class:`JointMovesStep` runs the
-decision class ``joint-moves`` of :mod:`planners.mapf.chip.joint_moves`: every group of the step is one
-program of one submission through the machine's session (any :class:`ising_backend.IsingMachine`; programs padded
-with free spins to the step's largest), decoded and repaired on the host.  ``accept`` says which
-answer a group keeps: ``"better"`` the chip's when its objective is strictly lower than the host
-rule's (the host scores both; the default), ``"chip"`` always the chip's, ``"host"`` always the host
-rule's (the chip still runs: for audits on the host rule's own trajectory).  While an open
-:class:`ising_backend.audit.host_rule.HostRule` names ``joint_moves``, no group is posed: PIBT's answer stands and
-no chip call is made (the ablation flag ``--host-rule joint_moves``).
-
-Charges: :attr:`ledger` (this executor's calls) and :attr:`last_compute`, a
-:class:`~planners.compute.ComputeReport` of the latest step (chip calls, chip time with parallel
-dispatch, accelerator energy, emulation seconds).  With ``audit=True`` every decision appends a
-record to :attr:`audit` (robots, spins, host / chip / exact objective, reads repaired, host seconds).
-
-Measured (``benchmarks/joint_moves.py``, RANDOM-01..05, 300 steps, start kit greedy scheduler): the
-chip improves this one-step objective over PIBT in about a fifth of the decisions, but the pipeline
-finishes *fewer* tasks than with plain ``pibt`` on every instance tried (one-step progress is not
-throughput: PIBT's priority order keeps robots live).  Kept as a measured negative result and as the
-harness for a better objective; ``pibt`` stays the default executor.
+:class:`JointMovesStep` runs decision class ``joint-moves`` (:mod:`planners.mapf.chip.joint_moves`) after PIBT's
+pass, one submission per step; ``accept`` says whose answer a group keeps. Measured: fewer tasks than plain
+``pibt`` on every instance tried, so it stays a negative result and a harness; ``pibt`` is the default executor.
+Design notes: docs/design/lifelong_turning.md#the-joint-moves-executor.
 """
 
 from __future__ import annotations

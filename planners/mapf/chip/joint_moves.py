@@ -1,36 +1,10 @@
 """Joint next moves of congested robot groups as an Ising-chip decision (issue 33, item 3).
 
-The decision class ``joint-moves``: after :class:`~planners.mapf.pibt.turning.PIBTStep` has picked
-every robot's next cell (its *claim*), groups of up to ``max_robots`` robots in congested regions
-re-choose their claims jointly; everyone else keeps the host rule's claim.  Actions come from the
-claims as in PIBTStep (ahead -> F, side / behind -> turn, own cell -> W, then the vacate check),
-so the joint action is valid whatever the group decides, as long as claims stay distinct and
-swap-free -- both pairwise conditions.
-
-**Group.** Seeds are robots whose host claim is not their own best cell or whose forward claim the
-vacate check cancels, taken by decreasing priority; a group grows breadth-first over robots within
-two free steps (robots further apart share no candidate cell) while it has at most ``max_robots``
-robots and at most ``max_spins`` candidate options.  Robots within two steps of a group are frozen
-(fixed at their claims) for later groups, so groups of one step are independent and go to the chip
-in one submission.
-
-**Objective** (minimised; the host rule's answer is scored with it too).  Robot ``i`` claiming cell
-``v`` costs ``w_i * (2 * (d(v) - d(p_i)) + turns(o_i -> v))`` (0 for its own cell): ``d`` the BFS
-distance to its goal, turns 0 ahead, 1 to a side, 2 behind -- PIBT's own candidate order (distance,
-then turns) as a number.  A forward claim into the cell of a robot that does not claim forward itself
-(it turns or waits, so the vacate check stops the move) costs ``push / 2`` of that (``push = 2``:
-PIBT's own view, the claim counts in full; 0: it counts as a wait) -- a pairwise term inside the
-group, a fixed one against a frozen robot.  ``w_i`` are priority tiers inside the group: ``levels``
-.. 1 from the highest-priority third down (``levels=1``: every robot weighs 1).
-
-**QUBO** (one binary per robot and allowed cell): the costs, a one-hot penalty ``A (sum_v x_iv - 1)^2``
-and a penalty ``P`` per pair of options claiming one cell or swapping.  Options taken by a frozen
-robot (its claim, or a swap with it) are left out, so the host rule's answer is always feasible.
-Mapping rule: QUBO -> Ising, multiplied by 4 (all integers), scaled so the largest ``|h|`` or ``|J|``
-is 7 and rounded half away from zero.  Decode: a robot without exactly one option set, then any robot
-in a claim or swap conflict (repeated until none is left), takes the host rule's claim (``repaired``
-counts reads that needed it); the read of least objective wins (ties: the first).
+Decision class ``joint-moves``: after :class:`~planners.mapf.pibt.turning.PIBTStep` has picked every robot's next
+cell, groups of up to ``max_robots`` robots in congested regions re-choose them jointly as one QUBO; a decoded
+answer is repaired towards the host rule's claims, so the joint action stays valid.
 The executor that uses these kernels: :mod:`planners.mapf.chip.joint_executor`.
+Design notes (group, objective, QUBO, decoding): docs/design/lifelong_turning.md#joint-moves-on-the-chip.
 """
 
 from __future__ import annotations

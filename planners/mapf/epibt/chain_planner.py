@@ -1,16 +1,9 @@
 """``epibt-chain``: EPIBT by push chains (:mod:`planners.mapf.epibt.chains`) as a planner with turning.
 
-Contract: as :class:`~planners.mapf.epibt.plans.EPIBTStep` (``decide(pos, orient, goals, deadline, rest)``, one valid
-joint action a call, deterministic for a seed without a deadline), with the 2024 winner's plan in place of EPIBT's:
-no inherited operations, a construction and a search of push chains scored by ``power x (value of waiting - value
-of the operation)``, ``power = (R + 1 - rank) ** weight_power`` with rank 0 the robot of least task still to go
-(its way to the goal, plus the task beyond it under ``active_by="task"``), 0 for a robot without a goal.  A
-``portfolio`` of plans from seeds apart, the one of highest score kept (ties: the first).  Without a clock a call
-runs the whole construction and ``lns`` search chains per plan (deterministic); under one both run in pieces (the
-construction by spans of robots, the search in batches given the work the time left allows at the search's pace,
-its chains and their pushes counted) and stop between two at the deadline less twice
-:data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` (robots the construction did not reach wait; the search does not
-start).
+Contract: as :class:`~planners.mapf.epibt.plans.EPIBTStep` (``decide(pos, orient, goals, deadline, rest)``, one
+valid joint action a call, deterministic for a seed without a deadline), with the 2024 winner's plan in place of
+EPIBT's and a ``portfolio`` of plans, the one of highest score kept.
+Design notes (scores, the clock): docs/design/lifelong_turning.md#epibt-chain-the-planner.
 """
 
 from __future__ import annotations

@@ -1,20 +1,9 @@
 """EPIBT by push chains: the 2024 League winner's construction and annealed search (issue 57), compiled.
 
-Contract.  Every robot starts a call on the operation that waits five steps (it holds its cell); robots then
-choose, in order of least task still to go, each its first operation (best first) that is free, or that
-collides with exactly one robot, which is pushed and chooses in turn (a *push chain*).  A chain is kept when
-the plan's score does not fall: the score is the sum over robots of ``power x (value of waiting - value of the
-operation)``, an operation's value 50 x the cost-to-go where it ends (or ``-50 x (6 - s)`` when it visits the
-goal at its step ``s``) plus its idle rank.  The search then starts chains from random robots and keeps one
-when the score does not fall or, annealing, with probability ``exp(-(fall / score) / T)``, ``T`` cooling by
-0.999 a chain; a plan's score never ends below the construction's.  Operations are five actions (129: no turn
-after the last forward move, no R and C between two forward moves, no three equal turns, no cell entered twice,
-equal cells and end orientation once), all reserved for five steps; only the first action runs.  Robots
-without a goal weigh nothing and prefer to stay.
-
-Choices (where the winner's code and this one part): chains are drawn from a seeded SplitMix64 stream, not a
-clock; the search runs a fixed number of chains (scaled under a clock by the planner); a robot left waiting
-turns towards its goal only when that strictly lowers its cost-to-go.
+Robots choose, in order of least task still to go, their first free operation or one that pushes exactly one robot
+(a *push chain*), kept when the plan's score does not fall; a seeded annealed search of chains follows. Operations
+are five actions, of which only the first runs.
+Design notes (the score, the choices): docs/design/lifelong_turning.md#push-chains-the-kernels.
 """
 
 from __future__ import annotations

@@ -1,15 +1,9 @@
 """EPIBT: PIBT over multi-action operations for the action model with turning (MAPF_T), compiled.
 
-Each robot chooses an *operation*: ``op_len`` actions (F, R, C, W; no R next to C, no three equal turns), of
-which only the first runs before the next call re-plans (the 2024 League of Robot Runners winner's core; arXiv
-2511.09193).  Operations rank by the cost-to-go where they end, then the actions that do not move, then a
-seeded tie.  Each robot's *inherited* operation (last call's rest, then W) is reserved first, so every robot
-has a conflict-free fallback; robots in priority order then take the first operation that collides with no
-one or with one lower robot, which is pushed (at most ``revisits`` choices per robot and call); then a
-large-neighbourhood search (:mod:`planners.mapf.epibt.search`) re-chooses small groups while their summed
-(optionally weighted) costs-to-go fall.  A *portfolio* of ``K`` such plans from seeds apart runs side by side
-on threads (the kernels release the GIL), the one of least weighted cost-to-go kept.  Fields: goal fields or
-FlowGuide's guide paths (docs/design/lifelong_turning.md).
+Each robot chooses an *operation* of ``op_len`` actions, of which only the first runs (the 2024 League winner's
+core; arXiv 2511.09193): inherited operations are reserved first, then robots in priority order choose (one push
+each), then a large-neighbourhood search (:mod:`planners.mapf.epibt.search`); a portfolio of ``K`` plans runs on
+threads. Design notes: docs/design/lifelong_turning.md#epibts-operations-and-portfolio.
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
 """EPIBT's records, reservation table and large-neighbourhood search over a joint plan (compiled).
 
-:class:`Fleet` (the robots of a call), :class:`SearchStamp` (a plan's seed and budget) and :class:`PlanState`
-(a joint plan) are the kernels' records, read by name.
-
-The table ``res[t, cell]`` holds the robot on ``cell`` at time ``t`` of the operations (-1 free).
-:func:`lns_search`: ``iters`` times, a robot not on its best operation and the robots in the way of its
-better ones (:func:`blockers`) choose again in a seeded order, each its best operation colliding with no one
-(or its inherited one); kept when their summed (weighted) costs-to-go fall (:mod:`planners.mapf.epibt.plans`), or,
-annealing (``anneal > 0``), also when they rise by ``d`` with probability ``exp(-d / (T x their cost before))``,
-``T`` falling linearly from ``anneal`` to 0 over the iterations; the best joint plan met is the one left.
+:class:`Fleet`, :class:`SearchStamp` and :class:`PlanState` are the kernels' records, read by name; the table
+``res[t, cell]`` holds the robot on ``cell`` at time ``t`` (-1 free); :func:`lns_search` re-chooses small groups
+while their costs-to-go fall (or, annealing, rise with a falling probability).
+Design notes: docs/design/lifelong_turning.md#epibts-records-and-search.
 """
 
 from __future__ import annotations

@@ -1,13 +1,8 @@
 """Goal fields that see the crowd (LoRR, issue 56): the 2024 winner's dynamic heuristic, rebuilt here.
 
-With ``congestion=P`` a move into a cell a robot stands on now costs ``P`` more in the goal fields (on top of
-the lane and corridor costs), so PIBT ranks a way around a crowd above a way through it.  The fields are
-distances under the costs of the call that (re)computed them: new goals get theirs as before, and each call
-recomputes up to ``refresh`` of the fields its robots use, first those with the most robots heading there
-times calls since the field was computed, then the oldest (under a clock: no refresh starts that would end
-past the stop, at the pace of the call's longest so far).  The winner's planner weighs an occupied cell by
-``max(1, 28 x robots per free cell - 2)`` and rebuilds fields until its step's time is spent; here the weight
-is an option and the refresh a work bound, so that a work-bounded run stays deterministic.
+With ``congestion=P`` a move into a cell a robot stands on now costs ``P`` more in the goal fields; each call
+recomputes up to ``refresh`` of the fields its robots use, so a work-bounded run stays deterministic.
+Design notes: docs/design/lifelong_turning.md#goal-fields-that-see-the-crowd.
 """
 
 from __future__ import annotations

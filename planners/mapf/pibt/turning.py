@@ -1,27 +1,10 @@
 """PIBT for the League of Robot Runners' action model with turning (MAPF_T), compiled.
 
-A robot is a flat cell ``row * W + col`` and an orientation (0 east, 1 south,
-2 west, 3 north); actions are 0 F (one cell ahead), 1 R (turn clockwise),
-2 C (turn counter-clockwise), 3 W (wait).  One call of
-:meth:`PIBTStep.decide` (the decider of the planners ``pibt``, ``pibt-flow`` and ``pibt-ising``) returns one
-joint action, valid by construction:
-
-1. PIBT (as :class:`~planners.mapf.pibt.grid.PIBT`: priority = steps since the robot
-   last stood on its goal + a seeded tie-breaker, except that a step ending in a
-   dead end -- a cell with one free neighbour -- off the goal counts 1 +
-   :data:`~planners.mapf.site.DEAD_END_BONUS`, as in the start kit) picks each robot's next cell.
-   Candidates sort by BFS distance to the goal, then by the turns needed to
-   face the cell (0 ahead or staying, 1 to a side, 2 behind), then by
-   ``mix(seed, step, robot, cell)``.
-2. A robot whose next cell is ahead moves F; one whose next cell is to a side
-   or behind turns towards it (R / C; behind turns R) and stays this step.
-3. Vacate check: a forward move is kept only if the cell ahead is empty now
-   or its robot keeps a forward move itself (chains are followed to their end;
-   a closed rotation of three or more robots moves); otherwise the robot waits,
-   and so does everything queued behind it.
-
-The cost-to-go comes from the planner's field source (:mod:`planners.mapf.guides.fields`).  Design and
-measurements: ``docs/design/lifelong_turning.md``.
+A robot is a flat cell ``row * W + col`` and an orientation (0 east, 1 south, 2 west, 3 north); actions are 0 F,
+1 R, 2 C, 3 W. :meth:`PIBTStep.decide` (the decider of ``pibt``, ``pibt-flow`` and ``pibt-ising``) returns one
+joint action, valid by construction: PIBT picks next cells, a robot moves ahead or turns towards its cell, and a
+vacate check keeps a forward move only into a cell that empties.
+Design notes: docs/design/lifelong_turning.md#the-decider-pibtstep.
 """
 
 from __future__ import annotations

@@ -1,23 +1,10 @@
 """Grid worlds for multi-robot multi-target planning (world model, envs, metrics).
 
-Importing the package registers the Gymnasium ids in :data:`GYM_IDS` (grid
-level, ``gymnasium.make("mrmt_env/MRMT-v0")``) and :data:`ASSIGN_IDS` (plan
-level, ``mrmt_env/MRMT-Assign-v0``), each with a native vector env
-(``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``)
-and, when the installed PettingZoo has a registry, the PettingZoo ids
-``mrmt_env/mrmt_v0`` (AEC and parallel) and ``mrmt_env/mrmt_assign_v0`` (AEC).
-
-Grid ids: ``MRMT-v0`` (the paper's 10x10, 20 obstacles, 3 robots, 10
-targets), ``MRMT-Centre-v0`` (robots near the centre), ``MRMT-5x5-v0``, and
-big worlds of the map families (:mod:`mrmt_env.maps`), 10 robots and 100
-targets on 64 x 64: ``MRMT-64x64-v0`` (uniform, 20 % obstacles),
-``MRMT-Warehouse-v0``, ``MRMT-Rooms-v0``, ``MRMT-Maze-v0``; and
-``MRMT-Warehouse-128x128-v0`` (50 robots, 500 targets).  Plan level:
-``MRMT-Assign-v0`` and ``MRMT-Assign-Warehouse-v0``.  Lifelong (:data:`LIFELONG_IDS`: a task
-stream, collisions refused): ``MRMT-Lifelong-v0`` and ``MRMT-Lifelong-Warehouse-v0`` (PettingZoo
-``mrmt_env/mrmt_lifelong_v0``).  Every id and env takes its options (world, episode, lifelong
-stream, League instance) as one frozen :class:`~mrmt_env.config.EnvConfig` (``config=``) or as
-keywords, e.g. ``gymnasium.make("mrmt_env/MRMT-v0", layout="rooms", height=32, width=32)``.
+Importing the package registers the Gymnasium ids (:data:`GYM_IDS` grid level, :data:`ASSIGN_IDS` plan level,
+:data:`LIFELONG_IDS`), each with a native vector env, and the PettingZoo ids when PettingZoo has a registry.
+Every id takes its options as one :class:`~mrmt_env.config.EnvConfig` or as keywords, e.g.
+``gymnasium.make("mrmt_env/MRMT-v0", layout="rooms", height=32, width=32)``.
+Design notes (every id): docs/design/envs.md#the-registered-ids.
 """
 
 from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_distance_fields

@@ -1,28 +1,9 @@
 """The simulator core: the one copy of the dynamics both environments use.
 
-:class:`MRMTCore` holds one episode's state (robot cells, visited targets,
-counters and the observation buffer) and advances it by one joint action.
-The Gymnasium env (:mod:`mrmt_env.grid.env`) and the PettingZoo env
-(:mod:`mrmt_env.grid.pz`) only validate actions, wrap the results in their
-API and handle the step limit.
-
-Dynamics (paper section 3 leaves inter-robot interaction open; it has no
-collision model):
-
-* all robots move at once; action ``0`` stays, ``1..4`` move up, down, left,
-  right (:data:`mrmt_env.distances.MOVES` order);
-* a move into an obstacle or off the grid leaves the robot where it is and
-  counts as an *invalid move*; it is not a move for ``route_cost``;
-* robots may share cells; after each step the core counts *vertex
-  conflicts* (pairs of robots on one cell) and *swap conflicts* (pairs that
-  exchanged cells), so users can see what a collision model would forbid;
-* a target is visited as soon as a robot stands on it, also at reset.
-
-Speed: the state is kept in plain Python ints and lists over flat cell
-indices ``r * W + c`` with a precomputed successor table, because numpy
-calls on 3-element arrays cost more than the whole step.  The observation
-buffer is updated in place (two writes per moving robot) and copied once
-per step.
+:class:`MRMTCore` holds one episode's state and advances it by one joint action; the Gymnasium env
+(:mod:`mrmt_env.grid.env`) and the PettingZoo env (:mod:`mrmt_env.grid.pz`) only validate actions, wrap the
+results in their API and handle the step limit. Robots may share cells: conflicts are counted, not forbidden.
+Design notes (dynamics, speed): docs/design/envs.md#the-simulator-core.
 """
 
 from __future__ import annotations

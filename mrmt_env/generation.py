@@ -1,38 +1,9 @@
 """Random world generation: the paper's experimental setup (section 6.1).
 
-``generate_world(seed, ...)`` is a pure function of its arguments:
-
-* exactly ``round(obstacle_density * (H * W))`` obstacle cells (Python's
-  round, half to even), sampled
-  uniformly without replacement (20 on the paper's 10x10 grid);
-* robots and targets on pairwise distinct free cells;
-* the draw is repeated (from the same random stream) until every robot and
-  target lies in one 4-connected free component.
-
-Two robot placements:
-
-``uniform``
-    robots uniform over the free cells, like the targets.
-``centre``
-    the placement of the first author's public course project: robots drawn
-    from the ``5 * R`` free cells of the largest component nearest the grid
-    centre (Euclidean, ties by row-major order), targets uniform over the
-    remaining cells of that component.  With it, SSA + exact tours gives the
-    paper's median total 28 and makespan 16 on 3 robots x 10 targets.
-
-Map families (``layout=``): ``uniform`` is the draw above; ``warehouse``,
-``rooms`` and ``maze`` build a seeded map (:mod:`mrmt_env.maps`, options in
-``layout_options``) whose free cells are one component, then place robots
-and targets on it without retries: targets uniform over the family's target
-cells (pick cells beside shelves in a warehouse, else every free cell),
-robots by ``placement`` over the free cells (the non-pick cells in a
-warehouse) and distinct from the targets.  The default world and every
-``uniform`` draw are unchanged.
-
-Limits (``ValueError`` naming value and limit): at most :data:`MAX_GRID_CELLS`
-cells, at most :data:`MAX_FIELD_CELLS` BFS distance-field cells
-``(R + N) x H x W`` (the planners' memory), robots and targets within the free
-(target) cells, and a ``uniform`` draw gives up after :func:`draw_budget` tries.
+``generate_world(seed, ...)`` is a pure function of its arguments: obstacles (a uniform draw, or a map family of
+:mod:`mrmt_env.maps` with ``layout=``), then robots (``placement``: ``uniform`` or ``centre``) and targets on
+distinct free cells of one 4-connected component. Sizes beyond :data:`MAX_GRID_CELLS` or :data:`MAX_FIELD_CELLS`
+are a ``ValueError``. Design notes: docs/design/worlds.md#random-worlds.
 """
 
 from __future__ import annotations

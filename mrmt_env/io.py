@@ -1,13 +1,8 @@
 """World files: JSON and JSON Lines (the MovingAI ``.map`` / ``.scen`` formats: :mod:`mrmt_env.movingai`).
 
-The formats, the letters and the size limits are documented in
-``docs/world_format.md``.  In short: a world is
-``{"grid": ["..@.", ...], "robots": [[r, c], ...], "targets": [[r, c], ...]}``
-(passable letters ``.`` ``G`` ``S``, impassable ``@`` ``O`` ``T`` ``W``); a
-world file holds one such object (it may span lines) or JSON Lines of them.
-Files are data only: parsed with :mod:`json` or line by line, never executed
-or unpickled, and refused beyond :data:`MAX_FILE_BYTES`, :data:`MAX_GRID_CELLS`
-and :data:`MAX_FIELD_CELLS`.
+A world is ``{"grid": ["..@.", ...], "robots": [[r, c], ...], "targets": [[r, c], ...]}``; files are data only
+(never executed or unpickled) and refused beyond the size limits. Formats: ``docs/world_format.md``; design
+notes: docs/design/worlds.md#world-files.
 """
 
 from __future__ import annotations

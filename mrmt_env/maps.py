@@ -1,36 +1,9 @@
 """Map families: seeded obstacle layouts beyond uniform random obstacles.
 
-:func:`build_layout` turns ``(family, rng, height, width, options)`` into a
-:class:`Layout`: the obstacle grid and the cells targets may use.
-:func:`~mrmt_env.generation.generate_world` places robots and targets on it
-(``generate_world(seed, layout="warehouse", ...)``).  Every family's free
-cells form one 4-connected component by construction, so no draw is retried.
-The randomness comes only from ``rng`` (numpy's PCG64 integers and doubles,
-the same on every platform): the same seed gives the same map everywhere.
-
-Families and their options (defaults in :data:`LAYOUT_OPTIONS`;
-``docs/maps.md`` has pictures):
-
-``warehouse``
-    Rows of shelf blocks (``shelf_depth`` rows x ``shelf_length`` columns)
-    separated by horizontal aisles ``aisle_width`` rows wide and by cross
-    aisles ``cross_aisle_width`` columns wide, inside a free border
-    ``margin`` cells wide; the block pattern is centred.  Fixed for given
-    sizes (the seed places robots and targets).  Targets go on *pick cells*
-    (free cells beside a shelf), robots on the other free cells.
-``rooms``
-    A grid of rooms, each about ``room_size`` x ``room_size`` free cells,
-    with one-cell walls between them (none on the border: the grid's edge is
-    the outer wall).  Doors ``door_width`` cells wide at seeded positions: a
-    seeded spanning tree of the rooms gets doors (so every room is
-    reachable), and each other shared wall gets one with probability
-    ``extra_doors``.
-``maze``
-    A perfect maze: corridors one cell wide on the even rows and columns,
-    carved by a seeded depth-first search (recursive backtracker), so the
-    free cells form a tree.  ``loops`` (in [0, 1]) then opens that share of
-    the remaining inner walls, each adding one cycle.  An even side leaves
-    its last row or column as wall.
+:func:`build_layout` turns ``(family, rng, height, width, options)`` into a :class:`Layout` (the obstacle grid and
+the cells targets may use) for ``warehouse``, ``rooms`` or ``maze`` (options and defaults in
+:data:`LAYOUT_OPTIONS`); the free cells are one 4-connected component, and a seed gives the same map everywhere.
+Design notes: docs/design/worlds.md#map-families; pictures: docs/maps.md.
 """
 
 from __future__ import annotations

@@ -1,21 +1,9 @@
 """Observation encoding shared by the Gymnasium and PettingZoo environments.
 
-The observation is a channel-first binary image of the whole world,
-``Box(0, 1, (2 + R, H, W), uint8)``:
-
-* channel ``0``: obstacles (1 = obstacle);
-* channel ``1``: targets not yet visited;
-* channel ``2 + k``: robot ``k``'s current cell (exactly one 1 per channel).
-
-It holds everything a planner needs, so :func:`world_from_observation`
-rebuilds a :class:`~mrmt_env.world.World` from an observation alone: its
-robots are the robots' *current* cells and its targets are the unvisited
-targets in row-major order (the original target order is not encoded).
-
-A PettingZoo agent observes the same ``2 + R`` channels plus one more, last
-channel marking its own cell: ``(3 + R, H, W)``.  ``obs[:-1]`` of an agent
-observation is the global observation, and :func:`agent_index_from_observation`
-recovers which robot the agent is.
+A channel-first binary image ``Box(0, 1, (2 + R, H, W), uint8)``: obstacles, unvisited targets, one channel per
+robot (a PettingZoo agent's observation adds a channel for its own cell). :func:`world_from_observation` rebuilds a world from it;
+:func:`agent_index_from_observation` recovers an agent's robot.
+Design notes: docs/design/envs.md#observations.
 """
 
 from __future__ import annotations

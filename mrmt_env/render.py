@@ -1,17 +1,8 @@
 """Text and image renderers (pure numpy: no display, no pygame).
 
-``ansi`` legend (one character per cell, rows top to bottom):
-
-* ``@`` obstacle, ``.`` free cell,
-* ``o`` unvisited target, ``x`` visited target,
-* ``0``-``9`` then ``a``-``z`` robot ``k`` (``#`` beyond 36 robots),
-* ``+`` two or more robots on one cell.
-
-``rgb_array``: ``(H * cell, W * cell, 3)`` uint8; obstacles dark grey, free
-cells white with a light grid line, unvisited targets as dark gold rings,
-visited targets as pale green cells, robots as filled squares (tab10 colours
-by robot index; a cell shared by robots shows the lowest index with a black
-centre dot).
+``ansi``: one character per cell (``@`` obstacle, ``.`` free, ``o`` / ``x`` target unvisited / visited, robots by
+index, ``+`` shared); ``rgb_array``: ``(H * cell, W * cell, 3)`` uint8.
+Design notes (the legend and colours): docs/design/envs.md#renderers.
 """
 
 from __future__ import annotations

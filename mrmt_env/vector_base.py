@@ -1,25 +1,9 @@
 """Shared machinery of the native (batched) vector envs: seeding, autoreset, infos.
 
-A subclass holds ``B`` episodes in arrays and implements ``_load(i, rng)``
-(start env ``i`` on a world drawn from its generator), ``_step(actions)``
-(advance every env; returns rewards and terminations), ``_observe()`` and
-``_info_arrays()`` (per-key arrays over the batch).
-
-Semantics are those of ``gymnasium.vector.SyncVectorEnv`` over the registered
-single env (``gymnasium.make(id)``, with its ``TimeLimit``), so the two give
-identical batches for the same seeds and actions:
-
-* ``reset(seed=s)`` seeds env ``i`` with ``s + i`` (a list gives one seed per
-  env); later resets continue each env's own generator;
-* autoreset mode ``NEXT_STEP`` (gymnasium's default): the step after an
-  episode ends resets that env, ignores its action, and returns reward 0 and
-  ``terminated = truncated = False``; ``SAME_STEP`` resets at once and puts
-  ``final_obs`` / ``final_info`` in the infos; ``DISABLED`` leaves resets to
-  ``reset(options={"reset_mask": mask})``;
-* truncation when an episode's steps reach ``max_episode_steps`` (as
-  ``TimeLimit``: it may coincide with termination);
-* infos: every key of the single env's info as an array over the batch,
-  with the ``_key`` mask.
+A subclass holds ``B`` episodes in arrays and implements ``_load(i, rng)``, ``_step(actions)``, ``_observe()`` and
+``_info_arrays()``; its batches are those of ``gymnasium.vector.SyncVectorEnv`` over the registered single env
+for the same seeds and actions. Design notes: docs/design/envs.md#native-vector-envs,
+docs/design/learned-agents.md#3-native-vector-envs.
 """
 
 from __future__ import annotations

@@ -1,36 +1,10 @@
 """Online controllers of the lifelong envs: task assignment on events, moves from a MAPF executor.
 
-A controller reads only the observation (obstacles, open tasks, robot
-cells), keeps a queue of tasks per robot, and each step
-
-1. drops tasks that are no longer open (served by any robot) from the queues;
-2. on an event -- a robot without tasks while tasks are unclaimed -- assigns
-   the unclaimed tasks to the idle robots (:class:`GreedyAssigner` or
-   :class:`PipelineAssigner`);
-3. moves every robot one step towards its queue's head (its own cell when
-   idle) through the executor (:class:`planners.mapf.PIBT` by default, or
-   the windowed planner), so the joint move is conflict-free.
-
-``greedy``: each idle robot (index order) takes the nearest unclaimed task
-(BFS distance).  A pipeline spec (``strong``, ``ising``, ``fast``, or a
-``sharing+tour`` pair) runs the package's sharing and tour layers on the
-sub-world of idle robots and unclaimed tasks: the sharing layer decides which
-robot serves which tasks and the tour layer their order (on the chip for
-``ising``).  Only the first task of each queue guides motion, so the path
-layer is BFS (its paths are not used; a chip would only confirm them).  Each
-idle robot brings its ``candidates`` nearest unclaimed tasks; more idle robots
-than ``group_size`` are split into groups of neighbouring robots (Z-order of
-their cells), each task going to the group of its nearest idle robot, and
-each group is one planning call.  Robots take the first ``commit`` tasks of their route
-(default 1; the rest stays unclaimed, so the next idle robot may take it).
-A robot the plan leaves without a task waits for the next event, or with
-``fill=True`` takes the nearest task still unclaimed (greedy completion).
-Defaults (4 robots, 1 candidate: at most 4 tasks per call; the plan decides
-which robot serves a task several robots have nearest) were chosen on the
-100-robot warehouse for the throughput of both pipelines alike (seeds 0-1,
-checked on seeds 10-13; docs/lifelong.md).  Every call's :class:`~planners.compute.ComputeReport`
-is summed into :attr:`LifelongController.last_compute`, so a decision's chip
-calls are charged to it.
+A controller reads only the observation, keeps a task queue per robot and each step drops served tasks, gives
+unclaimed tasks to idle robots on an event (:class:`GreedyAssigner`, or :class:`PipelineAssigner`: the package's
+sharing and tour layers on the sub-world of idle robots) and moves every robot through the executor (PIBT by
+default); every call's compute is summed into :attr:`LifelongController.last_compute`.
+Design notes (groups, defaults and how they were chosen): docs/design/lifelong.md#online-controllers.
 """
 
 from __future__ import annotations

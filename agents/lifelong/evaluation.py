@@ -1,17 +1,9 @@
 """Lifelong evaluation: controllers x episodes on a lifelong id, with decision latency and energy per task.
 
-:func:`run_lifelong_episode` steps one episode of ``steps`` steps and times
-every decision outside the env: ``decision latency = host seconds + chip
-seconds`` of one ``act`` (host seconds = wall seconds minus the time spent
-emulating the chip, chip seconds = its 8-core parallel time, as
-:class:`planners.compute.ComputeReport`), so env ``info`` stays free of
-wall-clock values.  Energies per task completed, both conventions (paper
-section 6.1): ``paper_energy_per_task_j`` (accelerator energy for a
-controller with Ising layers, host CPU x 15 W otherwise) and
-``total_energy_per_task_j`` (host + accelerator).  :func:`evaluate_lifelong`
-repeats it over controllers and seeds; :func:`summarize` pools them per
-controller (latency percentiles over all decisions).  ``mrmt compare
---env-id mrmt_env/MRMT-Lifelong-Warehouse-v0`` runs it (:func:`run_compare`).
+:func:`run_lifelong_episode` times every decision outside the env (host seconds + the chip's parallel time);
+:func:`evaluate_lifelong` repeats it over controllers and seeds, :func:`summarize` pools per controller.
+``mrmt compare --env-id mrmt_env/MRMT-Lifelong-Warehouse-v0`` runs it (:func:`run_compare`).
+Design notes: docs/design/lifelong.md#lifelong-evaluation.
 """
 
 from __future__ import annotations

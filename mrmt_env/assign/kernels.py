@@ -1,19 +1,8 @@
 """Compiled dynamics of the plan-level (Assign) env, batched over envs.
 
-One copy of the dynamics: the single env runs these kernels on a batch of
-one, the native vector env on a batch of ``B``.  State arrays (``b`` = env):
-
-* ``dist[b]``: ``(R+N, R+N)`` int32 BFS distances, robots then targets
-  (-1 = different free components);
-* ``cell[b, k]``: node where robot ``k`` is (or will be when free): ``k`` at
-  reset, ``R + j`` after it took target ``j``;
-* ``free_at[b, k]``: moves robot ``k`` has committed (the time it is free),
-  which is also its route length so far;
-* ``active[b, k]``: robot ``k`` still takes targets; ``open_[b, j]``: target
-  ``j`` not yet taken;
-* ``decider[b]``: the idle robot choosing now (-1 when the episode is over).
-
-Action ``a < N`` sends the decider to target ``a``; action ``N`` retires it.
+One copy of the dynamics: the single env runs these kernels on a batch of one, the native vector env on a batch of
+``B``. Action ``a < N`` sends the deciding robot to target ``a``; action ``N`` retires it.
+Design notes (the state arrays): docs/design/envs.md#plan-level-dynamics.
 """
 
 from __future__ import annotations

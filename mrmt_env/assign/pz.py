@@ -1,20 +1,9 @@
 """The PettingZoo form of the plan-level env: an AEC env where the idle robot is the agent to act.
 
-``assign_aec_env(**kwargs)`` takes the arguments of
-:class:`mrmt_env.assign.env.MRMTAssignEnv` plus ``max_cycles`` (decisions
-before truncation, default 200).  Turn-based by nature (one robot decides at
-a time), so it is an AEC env (``agent_selection`` = the deciding robot),
-with PettingZoo's classic-games convention for masks:
-
-* agents ``robot_0 .. robot_{R-1}``; action ``Discrete(N + 1)`` (targets,
-  then stop);
-* observation ``{"observation": the Gymnasium env's (N + R, 8 + N) tokens,
-  "action_mask": (N + 1,) int8}``; the mask is all zero for an agent that
-  is not deciding;
-* reward: the team reward (minus the moves committed) to every agent;
-* a robot that stops terminates; every agent terminates when all targets are
-  visited and truncates after ``max_cycles`` decisions;
-* ``info``: the flat metrics of the Gymnasium env (no wall-clock values).
+``assign_aec_env(**kwargs)`` takes the arguments of :class:`mrmt_env.assign.env.MRMTAssignEnv` plus ``max_cycles``
+(decisions before truncation, default 200); ``agent_selection`` is the deciding robot, action masks come in the
+observation as in PettingZoo's classic games.
+Design notes (spaces, reward, episode end): docs/design/envs.md#the-pettingzoo-plan-level-env.
 """
 
 from __future__ import annotations

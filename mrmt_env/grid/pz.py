@@ -1,22 +1,9 @@
 """The PettingZoo environments: one agent per robot, team reward.
 
-``parallel_env(**kwargs)`` returns a :class:`MRMTParallelEnv`; ``env(**kwargs)``
-the AEC form (``parallel_to_aec``).  Both run the same
-:class:`~mrmt_env.core.MRMTCore` as the Gymnasium env, so the dynamics,
-reward and ``info`` keys are those documented in
-:class:`mrmt_env.grid.env.MRMTEnv`.
-
-* Agents ``robot_0 .. robot_{R-1}``; action space ``Discrete(5)`` each
-  (0 stay, 1 up, 2 down, 3 left, 4 right); all robots move at once.
-* Observation of agent ``robot_k``: ``Box(0, 1, (3 + R, H, W), uint8)``, the
-  global channels (obstacles, unvisited targets, one channel per robot;
-  see :mod:`mrmt_env.observation`) plus a last channel marking its own cell.
-* ``state()``: the global observation ``(2 + R, H, W)`` (``state_space``).
-* Reward: the team reward (the Gymnasium env's step reward) to every agent.
-* Every agent terminates when all targets are visited; every agent truncates
-  after ``max_cycles`` steps (default 200; ``max_episode_steps`` is an alias).
-  Then ``agents`` becomes empty.
-* ``info`` of every agent: the flat metrics dict of the Gymnasium env.
+``parallel_env(**kwargs)`` returns a :class:`MRMTParallelEnv`, ``env(**kwargs)`` the AEC form; both run the same
+:class:`~mrmt_env.core.MRMTCore` as the Gymnasium env (dynamics, reward and ``info`` of
+:class:`mrmt_env.grid.env.MRMTEnv`). Agents ``robot_0 .. robot_{R-1}``, ``Discrete(5)`` each.
+Design notes (spaces, episode end): docs/design/envs.md#the-pettingzoo-grid-envs.
 """
 
 from __future__ import annotations

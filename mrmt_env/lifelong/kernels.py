@@ -1,27 +1,8 @@
 """Compiled dynamics of the lifelong envs (``mrmt_env/MRMT-Lifelong-v0`` ...), batched over ``B`` episodes.
 
-One step of env ``b`` (flat cells ``r * W + c``):
-
-1. every robot proposes the cell its action leads to (an obstacle or the
-   grid's edge: it stays, an *invalid move*);
-2. ``collisions="block"``: conflicting proposals are refused and the robot
-   stays (a *blocked move*), resolved by :func:`resolve_block`; ``"allow"``:
-   every proposal is made and vertex / swap conflicts are counted as in the
-   one-shot envs;
-3. a robot standing on an open task's cell serves it (service time = step
-   of service - step of arrival);
-4. new tasks arrive (``refill``: one per served task; ``poisson``: a
-   Poisson count per step) uniformly on cells of the task pool that hold no
-   open task and no robot (a task never appears under a robot, so serving
-   always takes a move).  An arrival with no such cell is dropped and counted.
-
-Randomness of the task stream: a per-episode 64-bit key drawn at reset from
-the env's generator and a counter, mixed by SplitMix64 (Steele et al. 2014),
-so the single env and the vector env give the same stream without buffers.
-
-Counters per env (:data:`COUNTERS`): steps, route_cost, tasks_completed,
-invalid_moves, vertex_conflicts, swap_conflicts, blocked_moves, service
-steps summed, tasks_arrived, tasks_dropped, open_tasks.
+A step: robots propose moves, conflicts are refused (``collisions="block"``) or counted (``"allow"``), a robot on
+an open task serves it, new tasks arrive (``refill`` or ``poisson``) from a SplitMix64 stream keyed per episode;
+counters per env in :data:`COUNTERS`. Design notes: docs/design/lifelong.md#lifelong-dynamics.
 """
 
 from __future__ import annotations

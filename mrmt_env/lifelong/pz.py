@@ -1,17 +1,8 @@
 """The lifelong env in PettingZoo form: one agent per robot, team reward.
 
-``lifelong_parallel_env(**kwargs)`` returns a :class:`MRMTLifelongParallelEnv`;
-``lifelong_env(**kwargs)`` the AEC form (``parallel_to_aec``, each move checked
-when given).  Both run the same :class:`~mrmt_env.lifelong.state.LifelongBatch`
-as the Gymnasium env (:class:`mrmt_env.lifelong.env.MRMTLifelongEnv`: task
-stream, collision model, reward and ``info`` keys).
-
-* Agents ``robot_0 .. robot_{R-1}``; ``Discrete(5)`` each; all move at once.
-* Observation of ``robot_k``: ``(3 + R, H, W)`` uint8, the global channels
-  (obstacles, open tasks, one channel per robot) plus its own cell.
-* ``state()``: the global observation ``(2 + R, H, W)``.
-* No termination (the stream does not end); every agent truncates after
-  ``max_cycles`` steps (default 500; ``max_episode_steps`` is an alias).
+``lifelong_parallel_env(**kwargs)`` returns a :class:`MRMTLifelongParallelEnv`, ``lifelong_env(**kwargs)`` the AEC
+form; both run the Gymnasium env's :class:`~mrmt_env.lifelong.state.LifelongBatch`. No termination; truncation
+after ``max_cycles`` steps. Design notes (spaces): docs/design/lifelong.md#the-pettingzoo-lifelong-env.
 """
 
 from __future__ import annotations

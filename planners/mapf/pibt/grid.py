@@ -1,20 +1,9 @@
 """PIBT: priority inheritance with backtracking (Okumura, Machida, Defago, Tamura, IJCAI 2019), compiled.
 
-One call plans one conflict-free joint move: robots in decreasing priority
-pick the free neighbouring cell (or their own) nearest to their goal; a robot
-whose chosen cell is occupied by a robot that has not moved yet lends it its
-priority (that robot must move away, but not into the lender's cell), and a
-robot that cannot move anywhere makes its lender try its next cell
-(backtracking).  No two robots end in one cell and no two exchange cells.
-
-Contract: :meth:`PIBT.step` ``(pos, goals) -> next cells`` (flat cells
-``r * W + c``), :meth:`PIBT.actions` the same as env actions 0..4.
-Priority = steps since the robot last stood on its goal (``elapsed``, reset to
-0 there) plus a seeded tie-breaker in [0, 1), as in the authors' lifelong
-(MAPD) code; candidate cells sort by BFS distance to the goal, ties by a
-seeded hash of ``(seed, step, robot, cell)``.  The recursion runs on an
-explicit stack (numba compiles no recursive closures); the Python oracle in
-``tests/test_mapf.py`` is the recursive form and must give the same moves.
+One call plans one conflict-free joint move (no two robots in one cell, no two exchange cells):
+:meth:`PIBT.step` ``(pos, goals) -> next cells`` (flat cells ``r * W + c``), :meth:`PIBT.actions` the same as env
+actions 0..4. The Python oracle in ``tests/test_mapf.py`` is the recursive form and must give the same moves.
+Design notes (priorities, ties): docs/design/lifelong.md#pibt-on-the-grid.
 """
 
 from __future__ import annotations

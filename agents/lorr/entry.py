@@ -1,16 +1,9 @@
 """A League entry: one named configuration (scheduler, planner, their options) for every instance of a round.
 
-Contract: :func:`load_entry` ``(name or path) -> Entry``; :meth:`Entry.choose` ``(instance) -> Choice``.  An entry
-file (TOML, or JSON of the same shape) holds ``name``, an optional ``description`` and a list ``rule``; the
-first rule whose conditions hold for the instance decides, as a submitted entry chooses by what it sees at
-preprocessing.  Conditions (all optional): ``min_<measure>`` / ``max_<measure>`` bounds on what the instance shows
-(:class:`mrmt_env.lorr.shape.Shape`): ``robots`` (team size), ``cells`` (the map's cells, blocked ones too), ``fill``
-(robots per free cell), ``corridors`` (the share of free cells in corridors one cell wide) and ``narrow`` (the share
-of free cells with at most two free 4-neighbours), the last two shares in [0, 1].  Never the map's name.  Decisions: ``scheduler`` (as
-``mrmt lorr run --scheduler``) and its ``scheduler_options`` (``replan``, ``keep`` and its own), ``planner``
-(``--planner``) and its ``planner_options`` (``guidance`` and its own), read once into the specs of
-:mod:`agents.lorr.spec` that the run receives as they are.  The last rule must have no condition, so every
-instance gets a choice.  ``--entry default`` is the package's own (``agents/lorr/entries/default.toml``).
+Contract: :func:`load_entry` ``(name or path) -> Entry``; :meth:`Entry.choose` ``(instance) -> Choice``: the first
+rule whose conditions (bounds on :class:`mrmt_env.lorr.shape.Shape`, never the map's name) hold decides.
+``--entry default`` is the package's own (``agents/lorr/entries/default.toml``).
+Design notes (the file's shape): docs/design/lorr_runs.md#entries.
 """
 
 from __future__ import annotations

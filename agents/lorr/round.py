@@ -1,16 +1,9 @@
 """A League round: every instance of a round folder run by one entry under the clock, scored as the competition scores.
 
-Contract: :func:`round_instances` ``(folder) -> [paths]`` (the 2023 and 2024 archive layouts: ``<domain>/<NAME>.json``
-or instance files at the top); :func:`best_known_table` ``(file=None) -> {name: BestKnown}`` (the package's table of
-the archive's published scores, or a file in its format); :func:`run_round` runs the instances one by one, each in
-a fresh process (so its peak memory is its own) or as Ray tasks, writes ``OUT/<NAME>/output.json`` (the start kit's
-file) and ``OUT/<NAME>/run.json``, and returns the :class:`RoundSummary` (also ``OUT/summary.json`` and
-``OUT/summary.md``).  The score is the sum over instances of tasks / best-known; a run of the first ``steps`` steps
-(a prefix) is scored against the best-known pro rata and marked so.  ``resume`` keeps an instance whose
-``run.json`` was made by the same entry, steps, clock, seed and commit of the package (a round resumed at another
-commit runs its instances again: a round's score is one commit's) and whose output file is the one it wrote (its
-sha1) or absent (a committed round keeps its rows, not its output files); the summary names the commit and the
-machine.
+:func:`round_instances`, :func:`best_known_table` and :func:`run_round` (each instance in a fresh process or a Ray
+task, writing ``OUT/<NAME>/output.json`` and ``run.json``; a :class:`RoundSummary`, also ``OUT/summary.json`` and
+``.md``). The score is the sum of tasks / best-known; ``resume`` keeps what the same entry made at the same commit.
+Design notes: docs/design/lorr_runs.md#a-round.
 """
 
 from __future__ import annotations

@@ -1,16 +1,9 @@
 """One LoRR run: an instance, a scheduler and an executor, stepped as the start kit steps them.
 
-Per step: the scheduler proposes (2024 instances), the executor turns the proposed tasks' next
-errands into a joint MAPF_T move, the simulator moves and applies the proposal.  The step time is
-the decision's latency as the start kit would see it: host seconds of scheduler + executor (wall
-seconds minus the time spent emulating the chip) plus the chip's own time (8-core parallel
-dispatch).  Energies per finished task in both conventions (paper section 6.1): the paper's
-(accelerator only for a scheduler with Ising layers, else host x 15 W) and the total; the host's seconds
-for energy are CPU seconds of every thread (``host_cpu_s``: an executor's portfolio on several threads), at
-least the wall seconds (``host_s``).  Under a step limit (:mod:`mrmt_env.lorr.clock`) the scheduler and the
-executor get the step's deadline and a late decision costs its timeouts; without one a run is work-bounded
-and deterministic, and its record says which (``clock``).  Kernels are compiled before the first timed step,
-on the shipped example instance (the entry's build, not its preprocessing).
+Per step the scheduler proposes, the executor moves, the simulator applies; a step's time is the decision's
+latency (host seconds plus the chip's own time), energies are per finished task in both conventions. Under a step
+limit (:mod:`mrmt_env.lorr.clock`) a late decision costs its timeouts; without one a run is deterministic.
+Design notes: docs/design/lorr_runs.md#one-run.
 """
 
 from __future__ import annotations

@@ -1,30 +1,10 @@
 """LoRR schedulers: which robot takes which task, proposed once per step.
 
-* ``lorr-greedy``: the start kit's default (:class:`mrmt_env.lorr.greedy.GreedyScheduler`).
-* ``lorr-weighted``: the 2024 winner's measure at scale (:class:`agents.lorr.weighted.WeightedScheduler`).
-* ``lorr-ising``: the same, the chip deciding who takes which task in contested groups
-  (:class:`agents.lorr.task_groups.IsingWeightedScheduler`).
-* a pipeline spec (``strong``, ``ising``, ``fast``, ``ising-paper`` or ``sharing+tour``): the
-  package's sharing and tour layers decide, through the lifelong assigner
-  (:class:`agents.lifelong.controllers.PipelineAssigner`: idle robots in Z-order groups, each call a
-  sub-world of the group's robots and their nearest free tasks, every robot taking the first
-  task of its route).
-* ``ppo:MODEL.zip``: a model trained with ``mrmt train`` on a lifelong id
-  (:class:`agents.lifelong.choice.LearnedAssigner`).
-
-A task enters those decisions as the cell of its next errand (where a robot must go to open it).
-Before a decision each free robot shortlists its ``shortlist`` free tasks of least makespan (the
-way to the first errand, then through every errand: the start kit's measure), and only the
-shortlisted tasks enter the decision, one per cell (the shortest there; the others wait); robots the
-decision leaves without a task take the nearest shortlisted one still free (``fill``).  Both
-defaults (6, on) were chosen on RANDOM-01..05, seeds 0-2, for ising and strong alike (shortlists of
-1, 3, 6 tried; docs/lorr.md).  Free robots are the robots without a task; with
-``replan=True`` robots whose task is not opened yet are free again (their tasks back in the
-pool) whenever a task finishes, so the decision may re-plan them, as the rules allow; with ``keep``
-(default, with ``replan``) a re-planned robot keeps its task unless the decision gives that task to another
-robot or gives it one of smaller makespan (a robot turning back towards a new errand of the same worth
-loses steps: docs/lorr.md measures it).  Every scheduler leaves its step's
-:class:`~planners.compute.ComputeReport` in ``last_compute``.
+``lorr-greedy`` (the start kit's), ``lorr-weighted`` (the 2024 winner's measure), ``lorr-ising`` (the chip in
+contested groups), a pipeline spec (the package's sharing and tour layers) or ``ppo:MODEL.zip``. Free robots
+shortlist their ``shortlist`` tasks of least makespan; ``replan`` and ``keep`` re-plan robots whose task is not
+opened yet. Every scheduler leaves its step's compute in ``last_compute``.
+Design notes: docs/design/lorr_runs.md#schedulers.
 """
 
 from __future__ import annotations

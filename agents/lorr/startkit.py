@@ -1,14 +1,8 @@
 """The package's scheduler and planner inside the League's own simulator (the 2024 start kit's Python track).
 
-Contract: :class:`KitScheduler` and :class:`KitPlanner` are the start kit's ``pyTaskScheduler`` and
-``pyMAPFPlanner``: built with the kit's ``SharedEnvironment`` (``env``), ``initialize(preprocess_time_limit)``
-once, ``plan(time_limit)`` each step, the time limit in milliseconds from ``env.plan_start_time`` on the kit's
-clock (``env.plan_current_time()``).  They read only the kit's fields and return plain ints: a task id or -1 per
-robot, and an action per robot (0 forward, 1 clockwise, 2 counter-clockwise, 3 wait; the kit's ``Action``).
-Which scheduler and planner run is the entry's choice on what the kit shows (team size, map name, cells), as
-``mrmt lorr run --entry`` chooses: ``MRMT_LORR_ENTRY`` (an entry name or file, default ``default``) and
-``MRMT_LORR_SEED`` (default 0).  The modules the kit imports are in :data:`TRACK_DIR`.  Steps to build the kit
-and run it: docs/lorr.md ("Inside the start kit").
+:class:`KitScheduler` and :class:`KitPlanner` are the start kit's ``pyTaskScheduler`` and ``pyMAPFPlanner``; the
+entry (``MRMT_LORR_ENTRY``, default ``default``; seed ``MRMT_LORR_SEED``) chooses what runs. Steps to build the kit
+and run it: docs/lorr.md ("Inside the start kit"); design notes: docs/design/lorr_runs.md#inside-the-start-kit.
 """
 
 from __future__ import annotations

@@ -1,18 +1,9 @@
 """``lorr-ising``: the winner's measure at scale, with the chip deciding who takes which task in contested groups.
 
-Paper: the sharing decision (which robot serves which target) on the chip, in groups the size of a chip program,
-at ten thousand robots.  Each step :class:`~agents.lorr.weighted.WeightedScheduler`'s greedy matching assigns the
-free robots; then up to ``groups`` decisions of class ``task_groups``: a robot with cheaper tasks than its own
-that other robots took, and those robots (up to ``max_robots``; a robot and a task in one group at most), each
-with its task now (option 0) and its cheapest tasks of the group's pool (the group's tasks, the free task at the
-head of each of their cells and of each member's cheapest free cell; up to ``max_options`` per robot, the
-machine's spins in all).  The program: each option's cost (``weight x way + legs + jam x robots bound for its
-block from outside the group``) as linear terms, ``jam`` on each pair of two robots' options in one block, a
-penalty on two robots taking one task and, reduced to the task now (:mod:`planners.mapf.chip.choice_qubo`), on two
-spins of one robot.  The chip's answer is its cheapest read that gives no task twice (a robot with two spins up
-keeps its task); a group takes it when it lowers the group's cost by at least ``min_gain``.  The host rule in the
-chip's place (``--host-rule task_groups``): the greedy matching's answer, kept; the groups are posed alike.
-Measurements: docs/lorr.md ("The chip at ten thousand robots").
+Each step :class:`~agents.lorr.weighted.WeightedScheduler`'s greedy matching assigns the free robots; then up to
+``groups`` decisions of class ``task_groups`` let contested groups re-choose their tasks on the chip, a group
+taking the chip's answer when its cost falls by at least ``min_gain``. Measurements: docs/lorr.md.
+Design notes: docs/design/lorr_runs.md#lorr-ising-task-groups-on-the-chip.
 """
 
 from __future__ import annotations

@@ -1,16 +1,9 @@
 """``mrmt_env/LoRR-v0``: a League of Robot Runners instance as a Gymnasium env.
 
-Contract: ``gym.make("mrmt_env/LoRR-v0", instance=PATH)`` (default: the small instance shipped
-with the package).  One step = one LoRR timestep: the action is the joint MAPF_T move
-(``MultiDiscrete([4] * R)``: 0 forward, 1 turn clockwise, 2 turn counter-clockwise, 3 wait),
-the schedule of the step is the scheduler's proposal (``scheduler="greedy"``, the start kit's
-default; ``None``: only what :meth:`LoRREnv.propose` is given; or any object with
-``schedule(sim) -> (R,) task ids``), made *before* the move so the observation's goals are the
-ones the move should serve, applied after it as the start kit applies it.  2023 instances assign
-tasks by their rule.  ``action_model="MAPF"``: the package's four-direction moves instead
-(``MultiDiscrete([5] * R)``: stay, up, down, left, right; orientation stays east).  Reward: tasks finished in the step.  Never terminates; truncates after
-``steps`` (the instance's simulation time, else 1000).  The map is static:
-``env.unwrapped.instance.grid``; the full state is ``env.unwrapped.sim``.
+Contract: ``gym.make("mrmt_env/LoRR-v0", instance=PATH)`` (default: the small instance shipped with the package).
+One step = one LoRR timestep: the action is the joint MAPF_T move (``MultiDiscrete([4] * R)``), the step's schedule
+the scheduler's proposal (``scheduler="greedy"`` by default); reward: tasks finished in the step.
+Design notes (scheduling, action models, truncation): docs/design/lorr_simulator.md#the-gymnasium-env.
 """
 
 from __future__ import annotations

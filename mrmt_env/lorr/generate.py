@@ -1,16 +1,8 @@
 """Write League of Robot Runners 2024 instances: the instance JSON, its map, agents and task files.
 
 Contract: :func:`generate_instance` ``(source, agents, out, seed=0, tasks=None, reveal=1.5, errands=(2, 5))
--> InstanceFiles``; every bad input is one :class:`GenerateError` (a ``ValueError``) naming the value and the limit.
-``source`` is a MovingAI or LoRR ``.map`` file, a family spec ``family:NAME:HxW[:KEY=VALUE,...]`` (:func:`family_grid`)
-or an ``(H, W)`` bool grid (True = blocked).  The draw follows the 2024 generator of the League's archive
-(``Problem Generator/script/problem_generator.py``): robots on distinct free cells of the map's largest
-4-connected component, each task a number of errands uniform in ``errands`` (the main round's RANDOM and CITY task
-files hold 2 to 5; the archive's script defaults to 1 to 4), each errand uniform over that component (repeats
-allowed, as there).  Randomness: numpy's PCG64 from ``seed`` -- the family's map first, then the starts, the
-errand counts, the errands.  ``tasks`` defaults to :func:`default_tasks`.  Files: ``FILE``, ``maps/<stem>.map``
-(rewritten ``.`` / ``@``, so the start kit and this package read the same cells), ``agents/<stem>.agents``,
-``tasks/<stem>.tasks`` beside it (``<stem>`` the JSON's), paths in the JSON relative to it, as the archive's.
+-> InstanceFiles``; every bad input is one :class:`GenerateError` (a ``ValueError``). The draw follows the 2024
+generator of the League's archive. Design notes: docs/design/lorr_simulator.md#generated-instances.
 """
 
 from __future__ import annotations

@@ -1,16 +1,8 @@
 """The start kit's default scheduler (``default_planner/scheduler.cpp``), the LoRR envs' default.
 
-Each free robot (ascending index; the start kit walks a hash set) takes the free task of least
-makespan -- the shortest way to its first errand, then through every errand in order (BFS, no
-turning) -- ties to the lowest task id (option ``way``: the way weighs that many times the errand legs, as in the
-2024 winner's measure; 1, the start kit's, by default); a robot with no free task left waits for the next step.  Like the
-start kit, which stops assigning when its time is up, a step's search work is bounded
-(:data:`DEFAULT_WORK_BUDGET` cells, deterministic), or under a clock the time (half the step, as the start
-kit's); robots beyond it wait for the next step.
-Free robots and free tasks are remembered across steps as the start kit does.  Distances: one
-compiled BFS per free robot that stops once no unseen task can beat the best found (so a near
-task costs a small search), and each task's errand-to-errand length once per task line
-(compiled early-exit BFS).
+Each free robot takes the free task of least makespan (ties to the lowest task id), within a bounded search work
+(:data:`DEFAULT_WORK_BUDGET`) or, under a clock, half the step, as the start kit does.
+Design notes: docs/design/lorr_simulator.md#the-start-kits-greedy-scheduler.
 """
 
 from __future__ import annotations

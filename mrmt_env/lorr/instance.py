@@ -1,13 +1,8 @@
 """League of Robot Runners instances (2023 and 2024): the JSON, the map, the agents and the task file.
 
 Contract: :func:`read_instance` ``(path) -> LoRRInstance``; every problem in the data is one
-:class:`LoRRFormatError` (a ``ValueError``) naming the file and line.  Data only: nothing in a
-file is executed, paths are read relative to the JSON's folder.  Rules as the start kit reads
-them: map letters ``@`` and ``T`` are blocked, every other letter is free; the agents file holds
-at least ``teamSize`` starts (the first ``teamSize`` are used); a task line is its errands in
-order (2024) or one location (2023); ``#`` lines before a count or a row are comments.
-Beyond the start kit (which would run them): a start or errand off the map or on a blocked
-cell, two robots on one start, counts that do not match the lines are refused.
+:class:`LoRRFormatError` (a ``ValueError``) naming the file and line. Data only: nothing in a file is executed.
+Design notes (the rules as the start kit reads them): docs/design/lorr_simulator.md#instances.
 """
 
 from __future__ import annotations

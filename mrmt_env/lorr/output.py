@@ -1,18 +1,8 @@
 """The start kit's output file: written from a run, read back and re-simulated (``mrmt lorr check``).
 
-:func:`write_output` writes the keys the competition's tools read (PlanViz, the start kit's
-evaluation): ``actionModel``, ``version``, ``teamSize``, ``start`` (``[row, col, "E"]``),
-``numTaskFinished``, ``sumOfCost``, ``makespan``, ``numPlannerErrors``, ``numScheduleErrors``,
-``numEntryTimeouts``, ``actualPaths`` / ``plannerPaths`` (``F,R,C,W`` per robot), ``plannerTimes``
-(each step's decision seconds), ``errors`` (``[robot, robot, step, message]``), ``actualSchedule`` /
-``plannerSchedule`` (``step:task`` per robot), ``scheduleErrors``, ``events`` (``[step, robot, task,
-errands done]``, one per errand reached) and ``tasks`` (``[id, revealed, [row, col, ...]]``).
-
-:func:`check_output` re-simulates any such file on its instance: the proposed actions
-(``plannerPaths``, else ``actualPaths``) through the rules, the accepted schedule
-(``actualSchedule``) through the task rules, a step of ``T`` only as a timeout; 2023 instances assign by
-their rule.  A 2024 file
-without a schedule cannot tell its tasks (``tasks_finished`` is then ``None``).
+:func:`write_output` writes the keys the competition's tools read (PlanViz, the start kit's evaluation);
+:func:`check_output` re-simulates any such file on its instance.
+Design notes (the keys, what is checked): docs/design/lorr_simulator.md#output-files.
 """
 
 from __future__ import annotations

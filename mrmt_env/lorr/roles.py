@@ -1,20 +1,9 @@
 """The start kit's two roles as Protocols: the scheduler (``TaskScheduler::plan``) and the one-step planner
 (``MAPFPlanner::plan``), each called once a step with the step's deadline (the kit's ``time_limit``).
 
-The step loop (:mod:`mrmt_env.lorr.loop`), ``agents.lorr.run.run_lorr``, ``mrmt lorr run --planner
-package.module:Class`` and an entry file take any object that meets them: the package's own schedulers and planners
-and a user's alike, under the same clock and score.  The required members are the methods below; the optional ones
-a role may have are read where present:
-
-* ``reset(sim)`` (scheduler): called once before the first step;
-* ``last_compute`` (both): the last call's ``planners.compute.ComputeReport`` (a role without one is charged its
-  measured host seconds only);
-* ``accelerated`` (scheduler): an Ising machine decides (energy counted the paper's way);
-* ``takes_rest`` (planner): ``actions`` is also given ``rest=`` (each robot's task beyond its goal,
-  :func:`mrmt_env.lorr.tasks.rest_under`);
-* ``guidance`` (planner): reported in the run's record.
-
-``examples/lorr_own_planner.py`` shows a planner of a user's own.
+The step loop, ``agents.lorr.run.run_lorr``, ``mrmt lorr run --planner package.module:Class`` and entry files take
+any object that meets them, the package's and a user's alike (``examples/lorr_own_planner.py``).
+Design notes (the optional members): docs/design/lorr_simulator.md#the-two-roles.
 """
 
 from __future__ import annotations

@@ -1,14 +1,8 @@
 """The LoRR simulator: one instance's robots, tasks and record, stepped as the start kit steps it.
 
-Contract: ``LoRRSimulator(instance)``; :meth:`LoRRSimulator.step` ``(actions, proposal=None) -> tasks
-finished``.  Per step (start kit ``BaseSystem::simulate``): the joint action is checked
-(:mod:`mrmt_env.lorr.rules`); an invalid one is replaced by every robot waiting and counted in
-:attr:`errors`; robots move; then the task rules (:mod:`mrmt_env.lorr.tasks`) take the proposed
-schedule (2024), mark errands reached and reveal tasks.  :meth:`LoRRSimulator.time_out` is a step the
-entry's decision was late for (start kit ``BaseSystem::simulate``): every robot's action is ``NA``
-(written ``T``), nobody moves, no task is updated, and it counts in :attr:`timeouts`.  The record (proposed and executed actions,
-events, schedules) is what :mod:`mrmt_env.lorr.output` writes; ``makespan`` is, as in the start
-kit, the most steps any robot spent holding a task.
+Contract: ``LoRRSimulator(instance)``; :meth:`LoRRSimulator.step` ``(actions, proposal=None) -> tasks finished``;
+:meth:`LoRRSimulator.time_out` is a step the entry's decision was late for. The record is what
+:mod:`mrmt_env.lorr.output` writes. Design notes: docs/design/lorr_simulator.md#the-simulator.
 """
 
 from __future__ import annotations

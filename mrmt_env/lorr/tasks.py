@@ -1,15 +1,9 @@
 """LoRR task rules: the 2024 task pool with schedules (start kit ``src/TaskManager.cpp``) and the
 2023 system assignment ``roundrobin`` (2023 start kit ``InfAssignSystem``).
 
-Both keep, per robot, its current task and that task's next errand (:attr:`goal`, -1 without
-one) and, after every move, mark errands reached in order (``events``: ``(step, robot, task,
-errands done)``), finish tasks and reveal new ones.  2024: ``numTasksReveal x teamSize`` (truncated)
-tasks are open; task ``k`` (revealed in order, ids from 0) is line ``k mod T`` of the file; a
-proposed schedule (task id or -1 per robot) is checked as the start kit checks it -- every id an
-open task, no id twice, a robot whose task is opened (first errand reached) keeps it -- and a
-rejected one leaves the previous schedule (one schedule error).  2023 ``roundrobin``: robot ``i``'s
-``n``-th task is line ``(n x teamSize + i) mod T``, ``numTasksReveal`` tasks known per robot, ids
-in order of revealing.
+Both keep, per robot, its current task and that task's next errand (:attr:`goal`, -1 without one), mark errands
+reached in order after every move, finish tasks and reveal new ones.
+Design notes (reveals, schedule checks): docs/design/lorr_simulator.md#task-rules.
 """
 
 from __future__ import annotations

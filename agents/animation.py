@@ -1,17 +1,8 @@
 """Episodes people can watch: frames of robots, targets and routes, written as a GIF.
 
-:func:`episode_frames` runs one episode of a controller (any spec
-``mrmt compare`` takes, or a controller object) and draws a frame per time
-step on the env's ``rgb_array`` image, with each robot's route as a line in
-its colour: solid where it has driven, faint where it is still to go.
-
-* Grid env: the route to go is the planner's current plan (a learned grid
-  agent has no plan: only the driven trail is drawn).
-* Plan-level env: the robots move along BFS shortest paths between
-  decisions, so the episode is replayed move by move; the route to go of a
-  robot is the part it has committed to (decisions made up to that time).
-
-:func:`write_gif` needs ``imageio`` (the ``viz`` extra).
+:func:`episode_frames` runs one episode of a controller and draws a frame per step with each robot's route (solid
+where driven, faint where still to go); :func:`write_gif` needs ``imageio`` (the ``viz`` extra).
+Design notes: docs/design/evaluation.md#episodes-as-gifs.
 """
 
 from __future__ import annotations

@@ -1,53 +1,10 @@
 """The evaluation runner: episodes x controllers x seeds on the same worlds.
 
-Paper section 6: "episode metrics record cost, latency and energy".  Every
-episode gives one row: the env's deterministic route metrics (``route_cost``,
-``makespan``, ``steps``, ``targets_visited``, ``n_targets``, ``is_success``,
-``invalid_moves``, ``conflicts``) joined with the controller's compute for that
-episode (:func:`compute_record`):
-
-``cpu_s``
-    measured host wall seconds of the controller (planning calls, or a
-    learned agent's inference over the whole episode);
-``emulation_s`` / ``host_cpu_s``
-    of ``cpu_s``, the seconds spent emulating the accelerator (chip kernel,
-    logical solver) and the rest, the host's own work (``cpu_s`` minus
-    ``emulation_s``; see :mod:`planners.compute`);
-``chip_calls``, ``chip_batches``, ``logical_calls``
-    physical chip calls, chip submissions, projected logical Ising calls;
-``chip_time_s`` / ``chip_time_parallel_s``
-    accelerator latency with calls run one after another (the paper's
-    figure) / with parallel dispatch over the chip's 8 cores;
-``latency_s`` / ``latency_parallel_s``
-    ``host_cpu_s`` plus the sequential / parallel chip time (the system
-    latency with the emulator replaced by the chip's own time);
-``accelerator_energy_j``
-    (physical + projected) chip calls x 0.45 uJ (the paper's Ising energy);
-``host_energy_j``
-    ``host_cpu_s`` x 15 W per core (the paper's classical energy, and the
-    host glue of the Ising pipeline); ``total_energy_j`` is their sum;
-``retries``, ``fallbacks``
-    chip calls re-dispatched after a fault, and layer calls handed to the
-    classical layer (a faulty chip; see :mod:`ising_backend.faults.health`).
-
-Worlds: episode ``i`` of every controller and seed resets the env with
-``seed=world_seed + i``, so all controllers see the same worlds.  Seeds:
-``seeds`` are the controllers' own seeds (a planner's plan seed); each
-(world, seed) pair is one episode.  Route metrics and chip counts are
-deterministic given the seeds; ``cpu_s`` and what derives from it are
-measured wall-clock time and vary from run to run.
-
-Controllers are named by a spec string (:func:`make_controller`): a pipeline
-preset (``fast``, ``strong``, ``ising``), a layer triple
-``sharing+tour+path`` (e.g. ``ssa+brute+astar``), ``ppo:PATH`` for a model
-saved by ``mrmt train`` (PPO or MaskablePPO, :mod:`agents.learned.training`), or
-``ppo-ms:PATH`` for a plan-level model decoded from every legal first
-decision, the cheapest kept (:mod:`agents.assign.search`).
-
-Episodes run on the task runner (``run``, an :class:`agents.runner.RunConfig`: a process
-pool of two workers by default, inline, or Ray) with a tqdm progress bar on stderr; each
-worker builds each controller and env once.  Note that ``cpu_s`` measured by parallel workers
-includes contention with other processes on the machine.
+Every episode gives one row: the env's deterministic route metrics joined with the controller's compute for that
+episode (:func:`compute_record`: CPU, chip calls and time, latency, energy, retries, fallbacks). Episode ``i`` of
+every controller and seed runs world ``world_seed + i``; controllers are spec strings (:func:`make_controller`);
+episodes run on the task runner (:mod:`agents.runner`).
+Design notes (every column, every spec): docs/design/evaluation.md#the-evaluation-runner.
 """
 
 from __future__ import annotations

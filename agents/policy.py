@@ -1,49 +1,11 @@
 """A planner as a policy: plan once, then emit one joint move per step.
 
-:class:`PlannerPolicy` wraps any pipeline (a preset name such as ``"fast"``,
-``"strong"``, ``"ising"``, or a :class:`planners.pipeline.Pipeline` object)
-behind the stable-baselines3 policy interface::
+:class:`PlannerPolicy` wraps any pipeline (a preset name or a :class:`planners.pipeline.Pipeline`) behind the
+stable-baselines3 policy interface, so ``evaluate_policy`` scores a planner as it scores a PPO model::
 
     action, state = policy.predict(observation, state=None, episode_start=None, deterministic=True)
 
-so :func:`stable_baselines3.common.evaluation.evaluate_policy` scores a planner
-exactly as it scores a PPO model, and a plain ``env.step`` loop works with
-either.
-
-How it acts (per environment index, so SB3's batched ``VecEnv`` observations
-``(n_envs, C, H, W)`` work; one plan is kept per index):
-
-1. It rebuilds the world from the observation alone
-   (:func:`mrmt_env.observation.world_from_observation`: current robot cells,
-   unvisited targets in row-major order; the plan's target indices refer to
-   that rebuilt world).
-2. It plans when an episode starts (``episode_start`` true, or the first call
-   for that index) or when the observed world no longer matches its plan (a
-   robot is not where the plan says it should be at this step, e.g. the env
-   was reset without telling the policy, or another controller moved it).
-3. It then emits the plan's next move for every robot (MultiDiscrete joint
-   action; 0 stay, 1 up, 2 down, 3 left, 4 right); a robot whose route is
-   finished stays.
-4. If a plan runs out while targets remain (a failed plan, e.g. an Ising path
-   layer that gave up), it replans from the current observation with the next
-   seed, at most ``max_replans`` times per episode; after that it stays in
-   place and lets the env's step limit end the episode.  Nothing is repaired
-   with another planner.
-
-Randomness: the ``n``-th plan of an episode uses seed ``seed + n``; the same
-seed and observations give the same actions.
-
-Compute: every plan's :class:`~planners.compute.ComputeReport` is added to the
-current episode's report (:meth:`PlannerPolicy.episode_compute`), to the
-policy's running total (:attr:`PlannerPolicy.total_compute`), and kept as
-:attr:`PlannerPolicy.last_compute`.  The pipeline's one-off warm-up (kernel compile) before
-its first plan is that plan's ``warmup_s``, apart from its ``cpu_s`` and energy
-(:meth:`planners.pipeline.Pipeline.warmup`).
-
-PettingZoo: :meth:`PlannerPolicy.predict_parallel` maps a dict of per-agent
-observations (``(3 + R, H, W)``: the global channels plus the agent's own
-cell) to a dict of ``Discrete(5)`` actions from one shared plan, and
-:meth:`PlannerPolicy.predict_agent` serves the AEC form one agent at a time.
+Design notes (replanning, seeds, compute, PettingZoo): docs/design/evaluation.md#a-planner-as-a-policy.
 """
 
 from __future__ import annotations

@@ -1,23 +1,9 @@
 """One task runner for ``mrmt compare``, ``reproduce`` and ``sweep``.
 
-Contract: :func:`run_tasks` calls ``fn(*args)`` for every ``args`` in ``tasks``
-and returns the results **in task order**, whatever the backend:
-
-``inline``   in this process, one after another;
-``process``  a :class:`concurrent.futures.ProcessPoolExecutor` of ``jobs``
-             workers on this machine;
-``ray``      Ray tasks: a local instance of ``jobs`` CPUs listening on 127.0.0.1
-             only (started and stopped here; :data:`LOOPBACK_ENV`), or an
-             existing cluster at ``address`` (``ray start --head`` /
-             ``ray start --address=...``).
-
-``fn`` must be a module-level function and the arguments picklable.  Tasks
-travel in chunks of consecutive tasks (``chunk_size``; default about eight
-chunks per worker, at most 64 tasks), so the per-task cost of a pool or of Ray
-is paid once per chunk and a worker reuses what it cached for the previous
-task (controllers, envs, warm numba code).  A tqdm bar on stderr counts tasks.
-Results do not depend on the backend, the number of workers or the chunking:
-every task is seeded by its own arguments.  Design notes: docs/design/runner.md.
+:func:`run_tasks` calls ``fn(*args)`` for every ``args`` in ``tasks`` and returns the results **in task order**,
+on the backend ``inline``, ``process`` (a local process pool) or ``ray`` (a local instance on 127.0.0.1, or a
+cluster at ``address``); ``fn`` must be a module-level function and the arguments picklable. Results do not depend
+on the backend, the workers or the chunking. Design notes: docs/design/runner.md#the-backends-and-the-contract.
 """
 
 from __future__ import annotations

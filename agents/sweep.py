@@ -1,18 +1,9 @@
 """Chip design-space sweeps: every chip spec of a grid x worlds x controllers x seeds.
 
-``mrmt sweep --chip n_spins=32,45,64 --chip j_range=3,7,15 --worlds 100 --controllers ising,strong``
-
-Contract: :func:`chip_grid` turns ``KEY=V1,V2,...`` axes (any :class:`ising_backend.ChipSpec`
-field, plus ``n_cores`` meaning ``n_cores`` single-core chips and ``coef_range`` m meaning
-``h_range = j_range = (-m, m)``) into the product of specs;
-:func:`run_sweep` runs every controller that uses a chip once per spec and every other
-controller once (its rows carry no chip fields: it does not depend on the chip), all on the
-same worlds and on one task runner (:mod:`agents.runner`), so the process and Ray backends
-give the same rows.  One row per (spec, world, controller, seed): the spec's fields as
-columns (a symmetric range as its ``m``) and the evaluation's metrics.  A spec on which a
-controller cannot even be built (e.g. a tour layer wider than the chip) gives rows with
-``is_success`` false and the reason in ``error``: a finding, not a crash.
-Reports and figures: :mod:`agents.sweep_report`; design notes: docs/design/sweep.md.
+:func:`chip_grid` turns ``KEY=V1,V2,...`` axes into the product of chip specs; :func:`run_sweep` runs every
+controller that uses a chip once per spec (the others once) on the same worlds and one task runner, one row per
+(spec, world, controller, seed). Reports and figures: :mod:`agents.sweep_report`.
+Design notes: docs/design/sweep.md#chip_grid-and-run_sweep.
 """
 
 from __future__ import annotations

@@ -1,26 +1,9 @@
 """Cold start: compile the planners' numba kernels up front, in parallel, and say so once.
 
-Every kernel is compiled with ``cache=True``: the first run after an install (or after a kernel's
-source changed) compiles it and writes numba's on-disk cache; later processes load it in well
-under a second.  That first compile takes minutes on two cores, most of it in the Ising layers'
-kernels, so a command that is about to pay it prints one line first
-(what, why, roughly how long, once per install) and then compiles the *parts* it needs -- the
-sharing layer apart from the tour and path layers, each preset apart -- on ``jobs`` worker
-processes, longest part first, with a progress bar per part counting the kernels numba compiles in it (numba's
-``numba:compile`` events, :func:`count_compiles`; the totals are :data:`PART_KERNELS`), so the bars move while
-a part compiles for minutes.  Each part is a pipeline warm-up
-(:meth:`planners.pipeline.Pipeline.warmup`) in a worker, so the parent process then only loads
-the cache (``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch`` call :func:`warm`).
-A cold compile of a few seconds (the classical presets, :data:`LONG_S`) is left to
-first use, unannounced.  ``mrmt warmup`` compiles every preset.  The notice's seconds are the reference
-machine's (:data:`PART_SECONDS`) scaled by this machine's pace at compiling: :func:`probe_seconds` (a fresh
-interpreter importing numba and compiling one small kernel, about 1.5 s) against :data:`PROBE_REF_S`, and by the
-cores other work kept busy meanwhile (:func:`pace_factor`; Linux's ``/proc/stat``).
-
-Which parts are warm is kept in a small stamp file (``$XDG_CACHE_HOME/mrmt-ising/warm.json``,
-else ``~/.cache/...``), keyed by the package, numba and Python versions and the newest source
-file of the compiled packages, as numba's cache is; nothing there is needed for correctness
-(without it a command only compiles in its own process, silently).
+:func:`warm` (called by ``mrmt plan``, ``compare``, ``sweep``, ``reproduce`` and ``watch``) announces a long first
+compile in one line, then compiles the parts the command needs as pipeline warm-ups on ``jobs`` worker processes,
+a progress bar per part; a stamp file remembers which parts are warm. ``mrmt warmup`` compiles every preset.
+Design notes: docs/design/cold_start.md#warm-up-parts-bars-notice-and-stamp.
 """
 
 from __future__ import annotations

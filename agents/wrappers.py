@@ -1,24 +1,9 @@
 """Opt-in Gymnasium wrapper putting compute, latency and energy into ``info`` at episode end.
 
-The base env stays deterministic (no wall-clock value ever enters its
-``info``); users who run their own loop and want the evaluation runner's
-compute columns wrap the env with :class:`ComputeInfoWrapper`.  On the step
-that ends an episode (``terminated or truncated``) ``info`` gains the
-:data:`agents.evaluation.COMPUTE_KEYS` (``cpu_s``, ``chip_calls``,
-``chip_batches``, ``logical_calls``, ``chip_time_s``, ``chip_time_parallel_s``,
-``latency_s``, ``latency_parallel_s``, ``accelerator_energy_j``,
-``host_energy_j``, ``total_energy_j``, ``retries``, ``fallbacks``, ``warmup_s`` -- the one-off
-kernel warm-up before a pipeline's first plan, apart from ``cpu_s``); on every other step ``info`` is the
-base env's, unchanged.
-
-Where the numbers come from:
-
-* with ``controller=`` an object that has ``episode_compute(index)`` (a
-  :class:`agents.policy.PlannerPolicy` or :class:`agents.learned.training.LearnedPolicy`),
-  its report for the episode (planning compute, chip counts, inference time);
-* without one, the wrapper measures the host time the caller spends between
-  one ``reset``/``step`` returning and the next ``step`` call -- the time the
-  user's controller took to choose its actions -- as ``cpu_s`` (no chip).
+:class:`ComputeInfoWrapper` adds :data:`agents.evaluation.COMPUTE_KEYS` to the ``info`` of the step that ends an
+episode: the report of ``controller=`` (``episode_compute(index)``) when given one, else the host time the caller
+spends choosing actions. The base env stays deterministic.
+Design notes: docs/design/evaluation.md#compute-in-info.
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
-"""The emulated CMOS Ising chip, the logical Ising solver and the mapping toolkit.
-
-Knows Ising models and hardware, not robots: imports no other project package.  Energy convention
-everywhere (paper eq. 2): ``E(s) = sum_i h_i s_i + sum_{i<j} J_ij s_i s_j + offset``, ``J`` strictly
-upper triangular.  Module map: ARCHITECTURE.md, "ising_backend: the chip and its toolkit"; design
-notes: docs/design/emulated_chip.md and the notes it links.  Example::
+"""The emulated CMOS Ising chip, the logical Ising solver and the mapping toolkit (Ising models, not robots).
+Design notes: docs/design/emulated_chip.md#the-package-and-its-energy-convention. Example::
 
     >>> from ising_backend import EmulatedChip, IsingModel, merge_portfolio, run_portfolio
     >>> model = IsingModel([12.0, -3.0, 1.0], [[0, -9.0, 2.0], [0, 0, 4.0], [0, 0, 0]])

@@ -1,20 +1,9 @@
 """A set-suited policy for ``MRMT-Assign-v0``: a distance-biased attention encoder and a pointer head.
 
-The observation is a set of tokens (one per target, one per robot; see
-:class:`mrmt_env.assign.env.MRMTAssignEnv`).  Choices (measured in
-``benchmarks/learned_vs_planners.py``; notes in docs/design/learned-agents.md):
-
-* encoder: a small transformer whose attention logits get a learned
-  per-head multiple of minus the BFS distance between the two tokens, so a
-  target attends mostly to targets and robots near it on the grid;
-* pointer head: the logit of target ``j`` is the scaled dot product of the
-  deciding robot's context (its token and the mean token) with token ``j``
-  (tanh-clipped, as in attention routing models); stop has its own logit;
-  the mask is applied by sb3-contrib's ``MaskableCategorical``;
-* critic: an MLP on the same context.
-
-torch and sb3-contrib are needed (the ``rl`` extra); this module is only
-imported when a model is built or loaded.
+Tokens are the env's targets and robots; attention logits get a learned multiple of minus their BFS distance, the
+pointer head scores each target against the deciding robot's context, stop has its own logit, a critic MLP reads
+the same context. Needs torch and sb3-contrib (the ``rl`` extra); imported only to build or load a model.
+Design notes: docs/design/learned-agents.md#the-pointer-policy.
 """
 
 from __future__ import annotations

@@ -1,18 +1,9 @@
 """A planner acting in the plan-level env ``MRMT-Assign-v0``: its plan's target orders become actions.
 
-:class:`AssignPlannerPolicy` plans once per episode on the env's world (the
-evaluator hands it over with :meth:`~AssignPlannerPolicy.begin_episode`;
-the observation holds distances, not the grid), then answers each decision
-with the deciding robot's next planned target, and ``stop`` once that
-robot's order is done.  Motion in the Assign env is BFS-shortest, so a
-planner is scored on its allocation and visiting orders; the path layer's
-own paths (for example the Ising path layer's detours) do not count there,
-only its compute.
-
-A failed plan (``plan.success`` false, e.g. a layer gave up) leaves some
-targets out of every order: the policy then sends the deciding robot to the
-nearest legal target (counted in :attr:`fallbacks`), so the episode still
-ends; the grid env is where such a failure shows as lost targets.
+:class:`AssignPlannerPolicy` plans once per episode (:meth:`~AssignPlannerPolicy.begin_episode`), then answers each
+decision with the deciding robot's next planned target and ``stop`` once its order is done; where a failed plan
+left targets out, the deciding robot goes to the nearest legal target (counted in :attr:`fallbacks`).
+Design notes: docs/design/learned-agents.md#a-planner-in-the-plan-level-env.
 """
 
 from __future__ import annotations

@@ -1,16 +1,9 @@
 """Multi-start decoding of a learned allocator in the plan-level env (POMO-style).
 
-:class:`MultiStartPolicy` wraps a MaskablePPO model trained on
-``MRMT-Assign-v0``.  At the start of an episode it replays the episode's
-world in a private batch of the env's own dynamics
-(:class:`~mrmt_env.assign.state.AssignBatch`): one rollout per legal first
-decision, each continued greedily by the model (all rollouts in one batched
-forward pass per decision), and keeps the cheapest (lowest route cost, first
-on ties).  It then acts that rollout's decisions in the real env; the
-dynamics are deterministic, so the env follows the chosen rollout exactly.
-
-The search is charged honestly: every forward pass is measured inference
-time in :meth:`episode_compute`.  Controller spec: ``ppo-ms:model.zip``.
+:class:`MultiStartPolicy` wraps a MaskablePPO model of ``MRMT-Assign-v0``: one greedy rollout per legal first
+decision in a private batch of the env's dynamics, the cheapest kept and then acted; every forward pass is charged
+as inference time. Controller spec: ``ppo-ms:model.zip``.
+Design notes: docs/design/learned-agents.md#multi-start-decoding.
 """
 
 from __future__ import annotations

@@ -5,11 +5,7 @@
     mrmt audit runs/audit --json                                   # the rows as JSON objects
     mrmt audit runs/audit --export qubo-set                        # the problems as a QUBO benchmark set
 
-Each row: decisions, the share where the chip's best energy is strictly below the host rule's
-(``chip_better``) and strictly above (``chip_worse``), the mean gap to the optimum of each (fractions of
-``max(|optimum|, 1)``), the chip's seconds per decision (paper rule, 50 us a call) and the host rule's
-(measured).  The optimum is exact up to ``--exact-max`` active spins, else the best of a long tabu run
-(:mod:`ising_backend.audit.judge`).  docs/audit.md.
+The columns: docs/design/cli.md#mrmt-audit; docs/audit.md.
 """
 
 from __future__ import annotations

@@ -2,12 +2,8 @@
 
     mrmt compare --worlds 20 --robots 3 --targets 10 --controllers fast,strong,ising,ppo:model.zip
 
-Runs the evaluation (:mod:`agents.evaluation`) on the task runner
-(``--backend process|ray|inline``): every controller on worlds
-``seed .. seed + N - 1`` of the Gymnasium env, prints the summary table
-(medians), and with ``--out DIR`` writes ``DIR/episodes.csv`` and
-``DIR/episodes.json`` (one row per episode).  A bad controller name or model
-path is a one-line error and exit code 2.
+Runs the evaluation (:mod:`agents.evaluation`) on the task runner and prints the summary table (medians);
+``--out DIR`` writes one row per episode. Design notes: docs/design/cli.md#mrmt-compare.
 """
 
 from __future__ import annotations

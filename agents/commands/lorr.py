@@ -1,24 +1,11 @@
 """``mrmt lorr``: League of Robot Runners instances -- run a scheduler and an executor, a whole round, or check a file.
 
     mrmt lorr run RANDOM-01.json --scheduler ising --planner pibt [--steps N] --out DIR
-    mrmt lorr run A.json B.json --scheduler lorr-greedy,strong --seeds 2 --backend ray --out DIR
-    mrmt lorr run RANDOM-01.json --entry default [--step-limit rules] --out DIR
     mrmt lorr round ROUND_DIR --entry default --out DIR [--steps N] [--resume]
-    mrmt lorr sweep RANDOM-04.json --planner epibt-ising --chip n_spins=16,32,45,64 --out DIR
     mrmt lorr generate family:warehouse:64x64 --agents 100 --seed 0 --out DIR/WH-01.json
     mrmt lorr check RANDOM-01.json OUTPUT.json [--json]
 
-``run`` and ``round`` run an instance for ``--steps`` or its full simulation time (``simulation_time.json``, else
-its best-known row; neither: exit 2), and report alike (:mod:`agents.commands.lorr_args`): a shorter run is a
-prefix (``30 of 40`` steps), its share of the best-known pro rata.  ``run`` prints, per instance x scheduler x seed,
-the tasks finished, the best-known and the share, timeouts, step-time p50/p99 (scheduler + executor, host + chip) and
-errors, the clock above; with ``--out`` it
-writes ``DIR/output.json`` (one run; ``DIR/<instance>-<scheduler>-<seed>.json`` for several) in
-the start kit's output format and ``DIR/runs.json``.  Several runs go through the task runner
-(``--backend inline|process|ray``, results identical to inline).  ``check`` re-simulates an
-output file as the start kit's evaluation does.  ``--entry`` takes the scheduler, the planner and their options
-from an entry (:mod:`agents.lorr.entry`) and runs under the rules' clock unless ``--step-limit`` says otherwise;
-``round`` runs an entry on every instance of a round folder (:mod:`agents.lorr.round`).  Bad input: one line, exit 2.
+More forms, what each reports and writes: docs/design/cli.md#mrmt-lorr.
 """
 
 from __future__ import annotations

@@ -5,38 +5,7 @@
     mrmt plan WORLDS --pipeline fast --out plans.jsonl --keep-going
     mrmt plan WORLDS --pipeline strong --option tour.moves=7
 
-``WORLDS`` is a world JSON file (one object, may span lines) or a JSON Lines
-file of worlds (:mod:`mrmt_env.io` format: ``grid`` strings, ``robots`` and
-``targets`` as ``[row, col]``; docs/world_format.md).  Output: one JSON object per world, in input
-order, on stdout or ``--out`` -- :meth:`planners.plan.Plan.to_dict`
-(``robots``, ``route_cost``, ``makespan``, ``imbalance``, ``success``,
-``compute`` and, for a failed plan, ``failure``).  Each line is written as
-soon as its world is planned.
-
-Layers: ``--pipeline`` picks a preset (default ``strong``); ``--sharing``,
-``--tour``, ``--path`` override its layers; ``--option LAYER.KEY=VALUE``
-(repeatable; VALUE parsed as JSON, else taken as a string) passes a factory
-option to a layer.  An unknown name or option is a one-line error listing
-the valid ones, exit code 2, before any world is read.
-
-Bad input is a one-line error on stderr per bad world, naming the file, the
-line and the problem, and exit code 2.  Every world is read and checked
-before any is planned: with an unreadable file, a line that is not JSON or an
-invalid world nothing is planned (a last line says how many worlds are
-invalid and points to ``--keep-going``).  A world the chosen planners refuse
-(e.g. ``brute`` with more than 13 targets on one robot) is found while
-planning: the plans of earlier worlds are already written, and the error says
-how many worlds after it were not planned.  With ``--keep-going`` planning
-goes on past every bad world; each gets, in its place in the output, an error
-object ``{"error": MESSAGE, "line": N}`` (so output line *i* still belongs to
-input world *i*), and the exit code is still 2 at the end.  A plan that fails (``"success": false``, e.g. a target no
-robot can reach) is written like any other plan, with its ``failure``; after the last
-world a one-line summary goes to stderr and the exit code is 1 (input errors, 2, take
-precedence).
-
-Seeds: world on input line ``N`` is planned with ``seed=[--seed, N]``, so a
-plan does not depend on the other lines of the file.  A progress bar (tqdm,
-stderr) is shown for files with 20 or more worlds (``--no-progress`` hides it).
+Exit code 1 when a plan fails, 2 on bad input. Design notes: docs/design/cli.md#mrmt-plan.
 """
 
 from __future__ import annotations

@@ -3,11 +3,7 @@
     mrmt reproduce --out results/            # paper sizes: 1000 path queries, 100 tour/sharing/end-to-end
     mrmt reproduce --quick --out results/quick  # a small version for CI (under a minute)
 
-Writes, into ``--out``: ``path|tour|sharing|endtoend.csv`` and ``.json`` (one
-row per instance and method), ``fig_path|tour|sharing|endtoend.png``
-(boxplots of cost, time and energy per method), ``mapping.csv``/``.json``
-(paper Table 5), ``summary.json`` and ``summary.md`` (each measured statistic
-beside the paper's number).  See :mod:`agents.experiments`.
+The files it writes: docs/design/experiments.md#mrmt-reproduce. See :mod:`agents.experiments`.
 """
 
 from __future__ import annotations

@@ -4,10 +4,7 @@
     mrmt sweep ... --backend ray                       # a local Ray instance (127.0.0.1 only)
     mrmt sweep ... --address 10.0.0.5:6379             # an existing Ray cluster
 
-``--chip KEY=V1,V2,...`` is repeatable; the grid is the product of the axes (any ChipSpec field,
-a range as ``m`` or ``lo..hi``, ``n_cores`` single-core chips, ``coef_range`` m for both ranges).  ``--base-chip KEY=VALUE|FILE.json`` sets the
-fields that do not vary.  Writes ``sweep.csv`` (one row per spec, world, controller and seed),
-``sweep.json``, ``specs.csv``, ``pareto.png`` and ``summary.md`` into ``--out``.
+Axes and files: docs/design/sweep.md#the-command-line.
 """
 
 from __future__ import annotations

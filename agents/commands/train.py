@@ -4,13 +4,8 @@
     mrmt train --env-id mrmt_env/MRMT-Lifelong-v0 --out ll.zip            # MaskablePPO: an idle robot's next task
     mrmt train --timesteps 100000 --out model.zip [--env-id mrmt_env/MRMT-5x5-v0] [--algo maskable_ppo]
 
-Writes the model ``.zip``, a ``.json`` sidecar (algorithm, policy, env id and
-kwargs, seed, timesteps, training wall time) and the training curve
-(``.curve.csv``, ``.curve.png``); shows a progress bar.  Evaluate it with
-``mrmt compare --env-id <same id> --controllers strong,ppo:model.zip`` (the
-``ppo:`` prefix loads PPO and MaskablePPO models alike: the algorithm is
-read from the sidecar or the model file; ``ppo-ms:`` decodes a plan-level
-model from every legal first decision and keeps the cheapest rollout).
+Writes the model, a ``.json`` sidecar and the training curve; evaluate it with ``mrmt compare --controllers
+strong,ppo:model.zip``. Design notes: docs/design/cli.md#mrmt-train.
 """
 
 from __future__ import annotations

@@ -1,29 +1,9 @@
 """Learned agents: training (stable-baselines3 / sb3-contrib) on the MRMT envs, and loading.
 
-torch, stable-baselines3 and sb3-contrib are imported lazily (only when
-training or loading); install them with the ``rl`` extra.
-
-Two set-ups (choices and measurements: docs/design/learned-agents.md):
-
-* plan level, ``mrmt_env/MRMT-Assign-v0`` (the default for a learned
-  allocator): sb3-contrib ``MaskablePPO`` with
-  :class:`agents.assign.net.AssignPointerPolicy` (distance-biased attention
-  encoder, pointer head), ``gamma = 1`` (the return is minus the route
-  cost), rewards scaled by ``1 / (H + W)``, the native vector env;
-* grid level, ``mrmt_env/MRMT-v0``: SB3 ``PPO`` (``MlpPolicy``, SB3 defaults)
-  or ``MaskablePPO`` with masks for blocked moves; ``CnnPolicy`` when the
-  env's ``observation="image"``.
-
-Every saved model has a ``.json`` sidecar (algorithm, policy, env id and
-kwargs, seed, timesteps, training wall time) and, unless disabled, a training
-curve (``.curve.csv`` and ``.curve.png``: mean return, success and route
-cost of the episodes finished in each rollout).  :func:`load_policy` reads the
-algorithm from the sidecar (or from the model file), so ``ppo:model.zip`` in
-``mrmt compare`` loads a PPO or a MaskablePPO model alike (``ppo-ms:`` adds
-multi-start decoding on the plan-level env: :mod:`agents.assign.search`); it
-unpickles nothing from the file (docs/untrusted_files.md).
-
-Loading and the policy object live in :mod:`agents.learned.policy` (re-exported here).
+torch, stable-baselines3 and sb3-contrib are imported lazily (the ``rl`` extra). Plan level (``MRMT-Assign-v0``):
+MaskablePPO with :class:`agents.assign.net.AssignPointerPolicy`; grid level (``MRMT-v0``): PPO or MaskablePPO.
+A saved model has a ``.json`` sidecar and a training curve; :func:`load_policy` (from :mod:`agents.learned.policy`,
+re-exported here) unpickles nothing. Design notes: docs/design/learned-agents.md#training-and-loading.
 """
 
 from __future__ import annotations

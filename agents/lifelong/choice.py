@@ -1,32 +1,9 @@
 """The learned lifelong controller's decision: its candidates, features and the assigner that asks a policy.
 
-The decision (issue 25): when a robot has no task, it picks one of its
-:data:`N_CANDIDATES` nearest unclaimed open tasks (BFS distance, ties
-row-major; fewer when fewer are reachable and unclaimed).  Robots decide in
-index order within a step, each seeing the earlier ones' choices, and move
-through the MAPF executor (PIBT), exactly as ``greedy``, which is the policy
-"always candidate 0".  The observation is ``N_CANDIDATES x N_FEATURES``
-numbers per decision (:func:`TaskChooser.observation`), normalised by
-``H + W`` and the fleet size, so one model applies to any world size and
-robot count (a pointer-style choice over a fixed number of candidates).
-
-Per candidate task ``t`` (row ``j``, nearest first):
-
-| col | meaning                                                                        |
-|-----|--------------------------------------------------------------------------------|
-| 0   | 1 (present; absent rows are 0 and masked)                                      |
-| 1   | BFS distance from the deciding robot to ``t``                                  |
-| 2   | the earliest another robot could reach ``t`` (idle: its distance; busy: the    |
-|     | rest of its way to its task, then from there)                                  |
-| 3   | column 1 minus column 2 (how much nearer the deciding robot is)                |
-| 4   | distance from ``t`` to the nearest other unclaimed task (the next one after)   |
-| 5   | robots within 3 moves of ``t``, / 4 (congestion)                               |
-| 6   | idle robots still to decide this step, / robots                                |
-| 7   | unclaimed tasks, / robots                                                      |
-
-Distances are divided by ``H + W``.  The training env is
-:mod:`agents.lifelong.learned`; :class:`LearnedAssigner` is the controller's assigner
-(``ppo:model.zip`` in ``mrmt compare``).
+An idle robot picks one of its :data:`N_CANDIDATES` nearest unclaimed open tasks; the observation is
+``N_CANDIDATES x N_FEATURES`` normalised numbers per decision (:func:`TaskChooser.observation`), so one model fits
+any world size. :class:`LearnedAssigner` is the controller's assigner (``ppo:model.zip`` in ``mrmt compare``).
+Design notes (the features): docs/design/learned-agents.md#lifelong-an-idle-robots-next-task.
 """
 
 from __future__ import annotations

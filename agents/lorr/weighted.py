@@ -29,6 +29,7 @@ import numba
 import numpy as np
 
 from mrmt_env.lorr.greedy import STOP_TOLERANCE_S
+from planners.heap import pop, push
 from planners.compute import ComputeReport
 from planners.options import Options, option
 
@@ -44,38 +45,6 @@ CHUNK = 32
 #: Side of the square blocks the jam term counts robots in.
 DEFAULT_BLOCK = 16
 OptionsRecord = Options  # within a scheduler class the name ``Options`` is its record
-
-
-@numba.njit(cache=True, nogil=True)
-def _push(heap, size, key):
-    i = size
-    heap[i] = key
-    while i > 0:
-        up = (i - 1) >> 1
-        if heap[up] <= heap[i]:
-            break
-        heap[up], heap[i] = heap[i], heap[up]
-        i = up
-    return size + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _pop(heap, size):
-    top = heap[0]
-    size -= 1
-    heap[0] = heap[size]
-    i = 0
-    while True:
-        lo = 2 * i + 1
-        if lo >= size:
-            break
-        if lo + 1 < size and heap[lo + 1] < heap[lo]:
-            lo += 1
-        if heap[i] <= heap[lo]:
-            break
-        heap[i], heap[lo] = heap[lo], heap[i]
-        i = lo
-    return top, size
 
 
 class Crowd(NamedTuple):
@@ -110,7 +79,7 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
     seen = np.empty(n, dtype=np.int64)   # the head of its cell when the robot's cost was taken
     seen_load = np.empty(n, dtype=np.int64)  # and its block's load
     cell = np.empty(n, dtype=np.int64)
-    heap = np.empty(n, dtype=np.int64)
+    heap = np.empty((n, 1), dtype=np.int64)  # cost * n + robot
     size = 0
     for i in range(n):
         out[i] = -1
@@ -118,11 +87,11 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
         cell[i] = c
         if c >= 0:
             seen[i], seen_load[i] = head[c], crowd.load[crowd.block[c]]
-            size = _push(heap, size, cost * n + i)
+            size = push(heap, size, (cost * n + i,), 1)
     made = 0
     while size > 0:
-        key, size = _pop(heap, size)
-        i = key % n
+        size = pop(heap, size, 1, 1)
+        i = heap[size, 0] % n
         c = cell[i]
         if head[c] != seen[i] or (crowd.weight and crowd.load[crowd.block[c]] != seen_load[i]):
             # its cell's best task went to another robot, or more robots were sent to its block: cost again
@@ -130,7 +99,7 @@ def weighted_matching(way, cell_start, length, weight, out, crowd) -> int:
             cell[i] = c
             if c >= 0:
                 seen[i], seen_load[i] = head[c], crowd.load[crowd.block[c]]
-                size = _push(heap, size, cost * n + i)
+                size = push(heap, size, (cost * n + i,), 1)
             continue
         out[i] = head[c]
         head[c] += 1

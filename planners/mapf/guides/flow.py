@@ -30,6 +30,7 @@ import time
 import numba
 import numpy as np
 
+from planners.heap import pop, push
 from planners.mapf.guides.guidance import distance_bound, spread
 from planners.mapf.common import move_grid
 from planners.mapf.pibt.turning import _distance
@@ -64,7 +65,7 @@ class AStarScratch(NamedTuple):
     seen: np.ndarray  # the call that reached the cell
     closed: np.ndarray  # the call that closed it
     stamp: np.ndarray  # (1,) the calls so far
-    heap: np.ndarray  # (4n + 1, 5) an entry a row: the key's three parts, the push order, the cell
+    heap: np.ndarray  # (4n + 1, 5) planners.heap rows: flow cost + f, f, -2g + turned, push order (4 keys), cell
     expanded: np.ndarray  # (1,) the cells closed so far, over all calls
     path: np.ndarray  # (n,) the path found by the latest call
 
@@ -79,53 +80,6 @@ class GuideState(NamedTuple):
     fields: np.ndarray  # each robot's PIBT field along its path
     far: np.ndarray  # the fields' value off the paths
     room: int  # the most moves a path's field may count along it (its dtype's room above the map's distances)
-
-
-@numba.njit(cache=True, nogil=True)
-def _before(heap, i, j) -> bool:
-    """Heap entry ``i`` pops before ``j``: keys compared in order (flow cost + f, f, -2g + turned, push order)."""
-    for c in range(4):
-        if heap[i, c] != heap[j, c]:
-            return heap[i, c] < heap[j, c]
-    return False
-
-
-@numba.njit(cache=True, nogil=True)
-def _swap(heap, i, j):
-    for c in range(5):
-        heap[i, c], heap[j, c] = heap[j, c], heap[i, c]
-
-
-@numba.njit(cache=True, nogil=True)
-def _heap_push(heap, size, key, seq, v) -> int:
-    heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3], heap[size, 4] = key[0], key[1], key[2], seq, v
-    i = size
-    while i > 0:
-        q = (i - 1) >> 1
-        if not _before(heap, i, q):
-            break
-        _swap(heap, i, q)
-        i = q
-    return size + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _heap_pop(heap, size) -> int:
-    """Remove the first entry (moved to index ``size - 1``); returns the new size."""
-    size -= 1
-    _swap(heap, 0, size)
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and _before(heap, c + 1, c):
-            c += 1
-        if not _before(heap, c, i):
-            break
-        _swap(heap, i, c)
-        i = c
-    return size
 
 
 @numba.njit(cache=True, nogil=True)
@@ -148,11 +102,11 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
     call = stamp[0]
     g[start], fc[start], parent[start], pdir[start], seen[start] = 0, 0, -1, -1, call
     h = _distance(fields, row, goal, start, cell_of, width)
-    size = _heap_push(heap, 0, (h, h, 0), 0, start)
+    size = push(heap, 0, (h, h, 0, 0, start), 4)
     pushes = 1
     found = False
     while size > 0:
-        size = _heap_pop(heap, size)
+        size = pop(heap, size, 4, 5)
         u = heap[size, 4]
         if closed[u] == call:
             continue
@@ -172,7 +126,7 @@ def flow_astar(grid, flow, heuristic, start, goal, scratch, out) -> int:
             g[v], fc[v], parent[v], pdir[v], seen[v] = ng, nf, u, d, call
             h = _distance(fields, row, goal, v, cell_of, width)
             turned = 1 if (pdir[u] >= 0 and pdir[u] != d) else 0
-            size = _heap_push(heap, size, (nf + ng + h, ng + h, turned - 2 * ng), pushes, v)
+            size = push(heap, size, (nf + ng + h, ng + h, turned - 2 * ng, pushes, v), 4)
             pushes += 1
     if not found:
         out[0] = start

@@ -21,14 +21,13 @@ A* order (larger g, then insertion).
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numba
 import numpy as np
 
+from planners.heap import pop, push
 from planners.mapf.common import GoalFields, moves_to_actions, successor_table
 
-__all__ = ["WindowedPlanner", "windowed_kernel", "SearchHeap", "new_heap", "DEFAULT_WINDOW", "MAX_WINDOW"]
+__all__ = ["WindowedPlanner", "windowed_kernel", "DEFAULT_WINDOW", "MAX_WINDOW"]
 
 DEFAULT_WINDOW = 8
 MAX_WINDOW = 64
@@ -37,75 +36,16 @@ _FAR = 1 << 30
 _SOFT = 1024
 
 
-class SearchHeap(NamedTuple):
-    """The windowed A*'s binary heap, one column per entry field (:func:`_push`, :func:`_pop`)."""
-
-    f: np.ndarray  # the key: cost * _SOFT + cells of others crossed
-    g: np.ndarray  # cost so far
-    state: np.ndarray  # t * cells + cell (or the turning planner's state)
-    parent: np.ndarray  # the state it came from
-
-
-def new_heap(cap: int) -> SearchHeap:
-    """An empty heap of ``cap`` entries."""
-    return SearchHeap(*(np.empty(cap, dtype=np.int64) for _ in range(4)))
-
-
-@numba.njit(cache=True, nogil=True)
-def _better(heap_f, heap_g, i, j) -> bool:
-    """Entry ``i`` pops before entry ``j``: smaller key (cost, then cells of others crossed), then larger g."""
-    return heap_f[i] < heap_f[j] or (heap_f[i] == heap_f[j] and heap_g[i] > heap_g[j])
-
-
-@numba.njit(cache=True, nogil=True)
-def _swap(heap, i, j):
-    for a in heap:
-        a[i], a[j] = a[j], a[i]
-
-
-@numba.njit(cache=True, nogil=True)
-def _push(heap, size, f, g, s, p):
-    i = size
-    heap.f[i], heap.g[i], heap.state[i], heap.parent[i] = f, g, s, p
-    while i > 0:
-        q = (i - 1) // 2
-        if not _better(heap.f, heap.g, i, q):
-            break
-        _swap(heap, i, q)
-        i = q
-    return size + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _pop(heap, size):
-    """Remove the first entry of the :class:`SearchHeap` (moved to index ``size - 1``); returns the new size."""
-    heap_f, heap_g = heap.f, heap.g
-    size -= 1
-    _swap(heap, 0, size)
-    i = 0
-    while True:
-        l, r, m = 2 * i + 1, 2 * i + 2, i
-        if l < size and _better(heap_f, heap_g, l, m):
-            m = l
-        if r < size and _better(heap_f, heap_g, r, m):
-            m = r
-        if m == i:
-            break
-        _swap(heap, i, m)
-        i = m
-    return size
-
-
 @numba.njit(cache=True, nogil=True)
 def _pop_unseen(heap, size, seen, stamp, parent) -> int:
     """Pop until an entry whose state this search (``stamp``) has not seen: it is marked seen, its parent
     recorded, and left at the returned index (the heap's new size); -1 when the heap runs out first."""
     while size > 0:
-        size = _pop(heap, size)
-        s = heap.state[size]
+        size = pop(heap, size, 2, 4)
+        s = heap[size, 2]
         if seen[s] != stamp:
             seen[s] = stamp
-            parent[s] = heap.parent[size]
+            parent[s] = heap[size, 3]
             return size
     return -1
 
@@ -119,8 +59,7 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
     hw = succ.shape[0]
     w = window
     cap = 5 * (w + 1) * hw + 1
-    heap = SearchHeap(np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
-                      np.empty(cap, dtype=np.int64))
+    heap = np.empty((cap, 4), dtype=np.int64)  # planners.heap rows: f, -g (the key); state, parent
     soft = np.zeros((w + 1) * hw, dtype=np.int64)
     hold = np.full(hw, -1, dtype=np.int64)  # robots not planned yet keep their cell at time 1
     start = np.full(hw, -1, dtype=np.int64)  # every robot's cell now: crossing it is a soft cost
@@ -135,13 +74,13 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
         stamp += 1
         s0 = pos[k]  # state = t * hw + cell
         h0 = field[pos[k]]
-        size = _push(heap, 0, (_FAR if h0 < 0 else h0) * _SOFT, 0, s0, -1)
+        size = push(heap, 0, ((_FAR if h0 < 0 else h0) * _SOFT, 0, s0, -1), 2)
         best = -1
         while size > 0:
             size = _pop_unseen(heap, size, seen, stamp, parent)
             if size < 0:
                 break
-            f, s = heap.f[size], heap.state[size]
+            f, s = heap[size, 0], heap[size, 2]
             soft[s] = f % _SOFT
             t, cell = s // hw, s % hw
             if t == w:  # every plan spans the window: a robot at its goal moves aside if a reservation needs it
@@ -162,7 +101,7 @@ def windowed_kernel(succ, pos, goals, fields, rows, order, window, nxt, occ, see
                 sv = soft[s] + (1 if start[v] != -1 and start[v] != k and v != cell else 0)
                 hv = field[v]
                 f2 = (t + 1 + (_FAR if hv < 0 else hv)) * _SOFT + min(sv, _SOFT - 1)
-                size = _push(heap, size, f2, t + 1, s2, s)
+                size = push(heap, size, (f2, -(t + 1), s2, s), 2)
         if best == -1:  # no path: stay, keep the cell where it is free
             for t in range(1, w + 1):
                 if occ[t * hw + pos[k]] == -1:

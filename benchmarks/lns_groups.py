@@ -85,25 +85,26 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
     gaps = []  # per decision: host cost, chip cost, optimum, the group's plan now
     fill = [0]
     judged = [0.0]  # seconds spent judging (exact solve, plan cost): not the executor's, taken off its times
-    if exact:  # wrap the decoder: each decision's host rule, chip and exact costs on the same problem
-        greedy, decode = E.greedy_choice, E.decode_choice
+    if exact:  # wrap the rounds' host rule and decoder: each decision's host rule, chip and exact costs
+        greedy, decode = E.host_choices, E.decode_choices
 
-        def greedy_rec(state, members, a, b, ostart, opt, stamp, choice):
-            c = greedy(state, members, a, b, ostart, opt, stamp, choice)
+        def greedy_rec(state, batch, stamp, choice, cost):
+            greedy(state, batch, stamp, choice, cost)
             t0 = time.perf_counter()
-            src = state.src  # each robot's operation now
-            gaps.append([c, None, exact_cost(state, members, a, b, ostart, opt),
-                         sum(int(_cost(state, q, src[q])) for q in members[a:b])])
+            src, members, gstart, ostart, opt = state.src, batch.members, batch.gstart, batch.ostart, batch.opt
+            for g in range(batch.ng):
+                a, b = gstart[g], gstart[g + 1]
+                gaps.append([int(cost[g]), None, exact_cost(state, members, a, b, ostart, opt),
+                             sum(int(_cost(state, q, src[q])) for q in members[a:b])])
             judged[0] += time.perf_counter() - t0
-            return c
 
-        def decode_rec(state, members, a, b, ostart, opt, spins, choice):
-            c = decode(state, members, a, b, ostart, opt, spins, choice)
-            gaps[fill[0]][1] = c  # groups are decoded in the order the host rule took them
-            fill[0] += 1
-            return c
+        def decode_rec(state, batch, spins, choice, cost):
+            decode(state, batch, spins, choice, cost)
+            for g in range(batch.ng):  # groups are decoded in the order the host rule took them
+                gaps[fill[0]][1] = int(cost[g])
+                fill[0] += 1
 
-        E.greedy_choice, E.decode_choice = greedy_rec, decode_rec
+        E.host_choices, E.decode_choices = greedy_rec, decode_rec
     step_s = np.zeros(steps)
     try:
         for t in range(steps):
@@ -115,7 +116,7 @@ def run(instance: str, steps: int, executor: str, options: dict, exact: bool, se
             loop.advance(act)
     finally:
         if exact:
-            E.greedy_choice, E.decode_choice = greedy, decode
+            E.host_choices, E.decode_choices = greedy, decode
     stats = dict(getattr(ex.machine_step, "stats", {}))  # the group decisions' counts (epibt-ising)
     if "host_s" in stats:
         stats["host_s"] -= judged[0]

@@ -11,7 +11,9 @@ import pytest
 from ising_backend import CallLedger, EmulatedChip
 from planners.mapf import make_turning_planner
 from planners.mapf.common import GroupBatch, mix
-from planners.mapf.chip.group_kernels import GroupShape, decode_choice, greedy_choice, group_qubo, select_groups
+from ising_backend import integer_program
+from planners.mapf.chip.group_kernels import (GroupShape, decode_choices, group_programs, group_qubo, host_choices,
+                                              select_groups)
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
 
@@ -109,6 +111,9 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
     checked = 0
     for t, (state, res) in enumerate(captured_states(seed, steps=5)):
         ng, members, gstart, ostart, opt = groups_of(state, res, seed, t, limits=(4, 4, 3, 45))
+        batch = GroupBatch(ng, gstart, members, ostart, opt)
+        host_choice, host_cost = np.zeros(gstart[ng], np.int64), np.empty(ng, np.int64)
+        host_choices(state, batch, (seed, t), host_choice, host_cost)
         for g in range(ng):
             a, b = gstart[g], gstart[g + 1]
             n = ostart[b] - ostart[a] - (b - a)  # a spin per option besides the operation now
@@ -157,8 +162,9 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
                 x = min(ok, key=lambda x: (cost(state, q_, opt[x]), x))
                 placed[i] = x - ostart[a + i]
                 total += cost(state, q_, opt[x])
-            choice = np.zeros(b - a, np.int64)
-            assert greedy_choice(state, members, a, b, ostart, opt, (seed, t, g), choice) == total
+            assert host_cost[g] == total
+            if total >= 0:
+                assert all(host_choice[a + i] == c for i, c in placed.items())
             # decoding: the cheapest collision-free read, a robot with no spin up or more than one on its plan now
             rng = np.random.default_rng(g)
             spins = np.where(rng.random((6, n)) < 0.3, 1, -1).astype(np.int8)
@@ -173,15 +179,33 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
 
             reads = [read_choice(s) for s in spins]
             want = min(costs.get(r, 1 << 62) for r in reads)
-            chosen = np.zeros(b - a, np.int64)
-            got = decode_choice(state, members, a, b, ostart, opt, spins, chosen)
-            assert got == want and costs[tuple(chosen.tolist())] == want
-            none_up = np.zeros(b - a, np.int64) - 1  # a read with no spin up decodes to the plan now
+            one = GroupBatch(1, gstart[g:g + 2], members, ostart, opt)  # group g alone
+            chosen, got = np.zeros(b, np.int64), np.empty(1, np.int64)
+            decode_choices(state, one, spins[None], chosen, got)
+            assert got[0] == want and costs[tuple(chosen[a:b].tolist())] == want
+            none_up = np.zeros(b, np.int64) - 1  # a read with no spin up decodes to the plan now
             plan_now = sum(cost(state, members[i], opt[ostart[i]]) for i in range(a, b))
-            assert decode_choice(state, members, a, b, ostart, opt, np.full((1, n), -1, np.int8), none_up) == plan_now
-            assert (none_up == 0).all()
+            decode_choices(state, one, np.full((1, 1, n), -1, np.int8), none_up, got)
+            assert got[0] == plan_now and (none_up[a:b] == 0).all()
             checked += 1
     assert checked > 0
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_rounds_programs_in_one_call_are_each_groups_program(seed):
+    for t, (state, res) in enumerate(captured_states(seed, steps=4)):
+        ng, members, gstart, ostart, opt = groups_of(state, res, seed, t)
+        if ng == 0:
+            continue
+        n = int(max(ostart[gstart[g + 1]] - ostart[gstart[g]] - (gstart[g + 1] - gstart[g]) for g in range(ng)))
+        H, J = np.full((ng, n), 99, np.int64), np.full((ng, n, n), 99, np.int64)
+        group_programs(state, GroupBatch(ng, gstart, members, ostart, opt), 2, (7, 7), H, J)
+        for g in range(ng):
+            a, b = gstart[g], gstart[g + 1]
+            q, h1, J1 = np.empty((n, n), np.int64), np.zeros(n, np.int64), np.zeros((n, n), np.int64)
+            k = group_qubo(state, members, a, b, ostart, opt, q, 2)
+            integer_program(q, k, h1[:k], J1[:k, :k], (7, 7))
+            assert np.array_equal(H[g], h1) and np.array_equal(J[g], J1)  # zero past the group's spins
 
 
 @pytest.mark.parametrize("decider", ["chip", "host"])

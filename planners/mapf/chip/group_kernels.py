@@ -23,12 +23,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ising_backend import integer_program
 from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
 from planners.mapf.common import mix
 from planners.mapf.epibt.search import blockers, conflict, more_blockers, reserve
 
-__all__ = ["GroupShape", "select_groups", "group_qubo", "greedy_choice", "decode_choice", "apply_choices", "collide", "path_of",
-           "cost_of"]
+__all__ = ["GroupShape", "select_groups", "group_qubo", "group_programs", "host_choices", "decode_choices",
+           "apply_choices", "collide", "path_of", "cost_of"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -152,63 +153,93 @@ def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def _feasible_cost(state, members, a, b, ostart, opt, choice) -> int:
-    """Cost of ``choice`` (an option per robot of the group), or -1 when two chosen options collide."""
-    total = 0
-    for i in range(a, b):
-        p = path_of(state, members[i], opt[ostart[i] + choice[i - a]])
-        for i2 in range(i + 1, b):
-            if collide(p, path_of(state, members[i2], opt[ostart[i2] + choice[i2 - a]])):
-                return -1
-        total += cost_of(state, members[i], opt[ostart[i] + choice[i - a]])
-    return total
+def group_programs(state, batch, penalty, limits, H, J) -> None:
+    """Every group's chip program (:func:`group_qubo`, then :func:`~ising_backend.integer_program` scaled to the
+    machine's ``limits``) into ``H[g]``, ``J[g]`` (zeroed past its spins) for the groups of ``batch`` (a
+    :class:`~planners.mapf.common.GroupBatch`): a round's programs in one call."""
+    q = np.empty((H.shape[1], H.shape[1]), dtype=np.int64)
+    for g in range(batch.ng):
+        k = group_qubo(state, batch.members, batch.gstart[g], batch.gstart[g + 1], batch.ostart, batch.opt, q, penalty)
+        integer_program(q, k, H[g, :k], J[g, :k, :k], limits)
+        H[g, k:] = 0
+        J[g, k:, :] = 0
+        J[g, :k, k:] = 0
 
 
 @numba.njit(cache=True, nogil=True)
-def greedy_choice(state, members, a, b, ostart, opt, stamp, choice) -> int:
-    """The host rule: robots in the order of ``mix(seed, t, g, robot)``, each its cheapest option colliding with
-    none placed before; returns the cost (-1 when a robot is left without one: the group keeps its plan)."""
-    seed, t, g = stamp
-    size = b - a
-    keys = np.empty(size, dtype=np.uint64)
-    for i in range(size):
-        keys[i] = mix(seed, t, g, members[a + i])
-    order = np.argsort(keys)
-    placed = np.zeros(size, dtype=np.int8)
-    total = 0
-    for i in order:
-        q = members[a + i]
+def host_choices(state, batch, stamp, choice, cost) -> None:
+    """The host rule for every group of ``batch``: robots in the order of ``mix(seed, t, g, robot)``, each its
+    cheapest option colliding with none placed before, into ``choice[m]`` (robot slot ``m``'s option); ``cost[g]``
+    the group's cost (-1 when a robot is left without one: the group keeps its plan).  ``stamp = (seed, t)``."""
+    seed, t = stamp
+    members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
+    for g in range(batch.ng):
+        a, b = gstart[g], gstart[g + 1]
+        size = b - a
+        keys = np.empty(size, dtype=np.uint64)
+        for i in range(size):
+            keys[i] = mix(seed, t, g, members[a + i])
+        order = np.argsort(keys)
+        placed = np.zeros(size, dtype=np.int8)
+        total = 0
+        for i in order:
+            q = members[a + i]
+            best = -1
+            for x in range(ostart[a + i], ostart[a + i + 1]):
+                p = path_of(state, q, opt[x])
+                ok = True
+                for j in range(size):
+                    if placed[j] and collide(p, path_of(state, members[a + j], opt[ostart[a + j] + choice[a + j]])):
+                        ok = False
+                        break
+                if ok and (best < 0 or cost_of(state, q, opt[x]) < cost_of(state, q, opt[best])):
+                    best = x
+            if best < 0:
+                total = -1
+                break
+            choice[a + i] = best - ostart[a + i]
+            placed[i] = 1
+            total += cost_of(state, q, opt[best])
+        cost[g] = total
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_choices(state, batch, spins, choice, cost) -> None:
+    """The chip's answers for every group of ``batch`` (``spins[g]`` its reads, as :func:`group_qubo`'s spins):
+    the cheapest collision-free read into ``choice[m]`` (robot slot ``m``'s option); a robot with no spin up, or
+    more than one, keeps its operation now (option 0) in that read.  ``cost[g]``: its cost (-1 when no read is
+    collision-free).  Whether two options collide is computed once per group, when a read first needs it."""
+    members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
+    width = 0
+    for g in range(batch.ng):
+        width = max(width, ostart[gstart[g + 1]] - ostart[gstart[g]])
+    clash = np.empty((width, width), dtype=np.int8)  # -1 not known yet, else whether the two options collide
+    for g in range(batch.ng):
+        a, b = gstart[g], gstart[g + 1]
+        base = ostart[a]
+        clash[:, :] = -1
+        reads = read_choices(spins[g], ostart[a:b + 1] - base)
         best = -1
-        for x in range(ostart[a + i], ostart[a + i + 1]):
-            p = path_of(state, q, opt[x])
-            ok = True
-            for j in range(size):
-                if placed[j] and collide(p, path_of(state, members[a + j], opt[ostart[a + j] + choice[j]])):
-                    ok = False
+        for rd in range(reads.shape[0]):
+            total = 0
+            free = True
+            for i in range(a, b):
+                x = ostart[i] + reads[rd, i - a]
+                for i2 in range(i + 1, b):
+                    y = ostart[i2] + reads[rd, i2 - a]
+                    if clash[x - base, y - base] < 0:
+                        clash[x - base, y - base] = collide(path_of(state, members[i], opt[x]),
+                                                            path_of(state, members[i2], opt[y]))
+                    if clash[x - base, y - base]:
+                        free = False
+                        break
+                if not free:
                     break
-            if ok and (best < 0 or cost_of(state, q, opt[x]) < cost_of(state, q, opt[best])):
-                best = x
-        if best < 0:
-            return -1
-        choice[i] = best - ostart[a + i]
-        placed[i] = 1
-        total += cost_of(state, q, opt[best])
-    return total
-
-
-@numba.njit(cache=True, nogil=True)
-def decode_choice(state, members, a, b, ostart, opt, spins, choice) -> int:
-    """The chip's answer (spins as :func:`group_qubo`): the cheapest collision-free read, into ``choice``; a robot
-    with no spin up, or more than one, keeps its operation now (option 0) in that read.  Its cost (-1 when no
-    read is collision-free)."""
-    reads = read_choices(spins, ostart[a:b + 1] - ostart[a])
-    best = -1
-    for rd in range(reads.shape[0]):
-        e = _feasible_cost(state, members, a, b, ostart, opt, reads[rd])
-        if e >= 0 and (best < 0 or e < best):
-            best = e
-            choice[:b - a] = reads[rd]
-    return best
+                total += cost_of(state, members[i], opt[x])
+            if free and total >= 0 and (best < 0 or total < best):
+                best = total
+                choice[a:b] = reads[rd]
+        cost[g] = best
 
 
 @numba.njit(cache=True, nogil=True)

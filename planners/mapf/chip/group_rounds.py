@@ -19,10 +19,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ising_backend import CallLedger, integer_program
+from ising_backend import CallLedger
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.chip.group_kernels import (GroupShape, apply_choices, decode_choice, greedy_choice, group_qubo,
+from planners.mapf.chip.group_kernels import (GroupShape, apply_choices, decode_choices, group_programs, host_choices,
                                               select_groups)
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S
@@ -160,9 +160,7 @@ class GroupRounds:
         host = np.zeros(m, dtype=np.int64)
         host_cost = np.empty(ng, dtype=np.int64)
         th = time.perf_counter()
-        for g in range(ng):
-            host_cost[g] = greedy_choice(state, members, gstart[g], gstart[g + 1], ostart, opt, (seed, t, g),
-                                         host[gstart[g]:])
+        host_choices(state, batch, (seed, t), host, host_cost)
         host_s = time.perf_counter() - th
         choice, cost, call = host, host_cost, None
         if self.machine is not None and "lns_groups" not in host_rule_classes():
@@ -176,16 +174,12 @@ class GroupRounds:
     def _ask(self, state, batch, stamp, greedy):
         """The machine's choices for ``batch`` (one program per group, in one call) and their costs, and the call's
         charges; the chip's answers counted against the host rule's ``greedy = (choice, cost, seconds)``."""
-        ng, gstart, members, ostart, opt = batch.ng, batch.gstart, batch.members, batch.ostart, batch.opt
+        ng, gstart, ostart = batch.ng, batch.gstart, batch.ostart
         seed, t = stamp
-        host, host_cost, _ = greedy
-        m = gstart[ng]
+        host_cost = greedy[1]
         n = int((ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]] - np.diff(gstart[:ng + 1])).max())
-        q, H, J = np.empty((n, n), np.int64), np.zeros((ng, n), np.int64), np.zeros((ng, n, n), np.int64)
-        limits = self.machine.spec.coefficient_limits
-        for g in range(ng):
-            k = group_qubo(state, members, gstart[g], gstart[g + 1], ostart, opt, q, self.limits.penalty)
-            integer_program(q, k, H[g, :k], J[g, :k, :k], limits)
+        H, J = np.zeros((ng, n), np.int64), np.zeros((ng, n, n), np.int64)
+        group_programs(state, batch, self.limits.penalty, self.machine.spec.coefficient_limits, H, J)
         chip_seed = int(mix(seed, t, 0x1A5, 0)) & ((1 << 63) - 1)
         call = None
         if n == 0:  # no robot of any group has an option besides its operation now: nothing to ask
@@ -196,10 +190,9 @@ class GroupRounds:
                 host_rule = None if link.audit is None else self._host_rule(H, J, batch, greedy)
                 spins, _ = link.anneal(H, J, num_reads=self.limits.num_reads, seed=chip_seed, host=host_rule)
             self.ledger = self.ledger + call
-        choice = np.zeros(m, dtype=np.int64)
+        choice = np.zeros(gstart[ng], dtype=np.int64)
         cost = np.empty(ng, dtype=np.int64)
-        for g in range(ng):
-            cost[g] = decode_choice(state, members, gstart[g], gstart[g + 1], ostart, opt, spins[g], choice[gstart[g]:])
+        decode_choices(state, batch, spins, choice, cost)
         better = (cost >= 0) & ((host_cost < 0) | (cost < host_cost))
         worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
         self.stats["chip_better"] += int(better.sum())

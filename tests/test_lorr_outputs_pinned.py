@@ -22,7 +22,8 @@ CASES = [  # scheduler, planner, options, sha1[:12] of the output file without i
     ("lorr-weighted", "epibt", {"planner_options": {"active": 0.3, "active_by": "task", "congestion": 2,
                                                     "flow": False, "weight_power": 2}}, "1a2bffbfafc4", 12, 0),
     ("lorr-greedy", "epibt-ising", {}, "0f3a41e18087", 21, 576),
-    ("lorr-greedy", "epibt-chain-ising", {}, "c458ab876dfd", 22, 95488),
+    # moved at the chip rounds' fix (a group's cost below zero, as the push chains' are, no longer read as "none")
+    ("lorr-greedy", "epibt-chain-ising", {}, "37314c36b20e", 22, 73920),
     ("lorr-greedy", "pibt-ising", {}, "64820c8d5d00", 22, 256),
     ("lorr-ising", "pibt", {}, "94ab9633c754", 22, 1120),
 ]

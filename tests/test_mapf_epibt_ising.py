@@ -12,7 +12,7 @@ from ising_backend import CallLedger, EmulatedChip
 from planners.mapf import make_turning_planner
 from planners.mapf.common import GroupBatch, mix
 from ising_backend import integer_program
-from planners.mapf.chip.group_kernels import (GroupShape, decode_choices, group_programs, group_qubo, host_choices,
+from planners.mapf.chip.group_kernels import (NO_CHOICE, GroupShape, decode_choices, group_programs, group_qubo, host_choices,
                                               select_groups)
 from test_mapf_epibt import plan_conflicts
 from test_mapf_turning import apply, random_instance, retarget
@@ -106,10 +106,12 @@ def brute(state, members, a, b, ostart, opt):
     return best
 
 
+@pytest.mark.parametrize("sign", [1, -1])  # -1: costs below zero, as the push chains' are (their gains' negatives)
 @pytest.mark.parametrize("seed", range(3))
-def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
+def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed, sign):
     checked = 0
     for t, (state, res) in enumerate(captured_states(seed, steps=5)):
+        state = state._replace(costs=sign * state.costs, inh_cost=sign * state.inh_cost)
         ng, members, gstart, ostart, opt = groups_of(state, res, seed, t, limits=(4, 4, 3, 45))
         batch = GroupBatch(ng, gstart, members, ostart, opt)
         host_choice, host_cost = np.zeros(gstart[ng], np.int64), np.empty(ng, np.int64)
@@ -157,13 +159,13 @@ def test_qubo_ranks_choices_by_cost_host_rule_and_decoding_match_python(seed):
                       if not any(collide(path(state, q_, opt[x]), path(state, members[a + j], opt[ostart[a + j] + c]))
                                  for j, c in placed.items())]
                 if not ok:
-                    total = -1
+                    total = NO_CHOICE
                     break
                 x = min(ok, key=lambda x: (cost(state, q_, opt[x]), x))
                 placed[i] = x - ostart[a + i]
                 total += cost(state, q_, opt[x])
             assert host_cost[g] == total
-            if total >= 0:
+            if total != NO_CHOICE:
                 assert all(host_choice[a + i] == c for i, c in placed.items())
             # decoding: the cheapest collision-free read, a robot with no spin up or more than one on its plan now
             rng = np.random.default_rng(g)

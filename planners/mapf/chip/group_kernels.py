@@ -29,7 +29,7 @@ from planners.mapf.common import mix
 from planners.mapf.epibt.search import blockers, conflict, more_blockers, reserve
 
 __all__ = ["GroupShape", "select_groups", "group_qubo", "group_programs", "host_choices", "decode_choices",
-           "apply_choices", "collide", "path_of", "cost_of"]
+           "apply_choices", "collide", "path_of", "cost_of", "NO_CHOICE"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -39,6 +39,10 @@ def collide(p, q) -> bool:
         if p[t] == q[t] or (p[t] != p[t - 1] and p[t] == q[t - 1] and q[t] == p[t - 1]):
             return True
     return False
+
+
+#: A group's cost when it has no choice (no collision-free read, a robot left without an option): above any cost.
+NO_CHOICE = 1 << 62
 
 
 class GroupShape(NamedTuple):
@@ -170,7 +174,8 @@ def group_programs(state, batch, penalty, limits, H, J) -> None:
 def host_choices(state, batch, stamp, choice, cost) -> None:
     """The host rule for every group of ``batch``: robots in the order of ``mix(seed, t, g, robot)``, each its
     cheapest option colliding with none placed before, into ``choice[m]`` (robot slot ``m``'s option); ``cost[g]``
-    the group's cost (-1 when a robot is left without one: the group keeps its plan).  ``stamp = (seed, t)``."""
+    the group's cost (:data:`NO_CHOICE` when a robot is left without one: the group keeps its plan; a cost may be
+    negative, as the push chains' are).  ``stamp = (seed, t)``."""
     seed, t = stamp
     members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
     for g in range(batch.ng):
@@ -195,7 +200,7 @@ def host_choices(state, batch, stamp, choice, cost) -> None:
                 if ok and (best < 0 or cost_of(state, q, opt[x]) < cost_of(state, q, opt[best])):
                     best = x
             if best < 0:
-                total = -1
+                total = NO_CHOICE
                 break
             choice[a + i] = best - ostart[a + i]
             placed[i] = 1
@@ -207,8 +212,8 @@ def host_choices(state, batch, stamp, choice, cost) -> None:
 def decode_choices(state, batch, spins, choice, cost) -> None:
     """The chip's answers for every group of ``batch`` (``spins[g]`` its reads, as :func:`group_qubo`'s spins):
     the cheapest collision-free read into ``choice[m]`` (robot slot ``m``'s option); a robot with no spin up, or
-    more than one, keeps its operation now (option 0) in that read.  ``cost[g]``: its cost (-1 when no read is
-    collision-free).  Whether two options collide is computed once per group, when a read first needs it."""
+    more than one, keeps its operation now (option 0) in that read.  ``cost[g]``: its cost (:data:`NO_CHOICE` when
+    no read is collision-free).  Whether two options collide is computed once per group, when a read first needs it."""
     members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
     width = 0
     for g in range(batch.ng):
@@ -219,7 +224,7 @@ def decode_choices(state, batch, spins, choice, cost) -> None:
         base = ostart[a]
         clash[:, :] = -1
         reads = read_choices(spins[g], ostart[a:b + 1] - base)
-        best = -1
+        best = NO_CHOICE
         for rd in range(reads.shape[0]):
             total = 0
             free = True
@@ -236,7 +241,7 @@ def decode_choices(state, batch, spins, choice, cost) -> None:
                 if not free:
                     break
                 total += cost_of(state, members[i], opt[x])
-            if free and total >= 0 and (best < 0 or total < best):
+            if free and total < best:
                 best = total
                 choice[a:b] = reads[rd]
         cost[g] = best
@@ -244,7 +249,8 @@ def decode_choices(state, batch, spins, choice, cost) -> None:
 
 @numba.njit(cache=True, nogil=True)
 def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
-    """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]`` -1: none)
+    """Groups in turn take their choice (``choices[m]`` robot slot ``m``'s option; ``costs_now[g]``
+    :data:`NO_CHOICE`: none)
     when it costs at least ``min_gain`` less than their plan now and collides with nothing left in the plan;
     returns how many did (``groups`` a :class:`~planners.mapf.common.GroupBatch`)."""
     cur, src = state.cur, state.src
@@ -252,7 +258,7 @@ def apply_choices(state, res, groups, choices, costs_now, min_gain=1) -> int:
     applied = 0
     for g in range(groups.ng):
         a, b = gstart[g], gstart[g + 1]
-        if costs_now[g] < 0:
+        if costs_now[g] == NO_CHOICE:
             continue
         before = 0
         for i in range(a, b):

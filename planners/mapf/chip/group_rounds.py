@@ -22,8 +22,8 @@ import numpy as np
 from ising_backend import CallLedger
 from ising_backend.audit.host_rule import host_rule_classes
 from planners.compute import ComputeReport
-from planners.mapf.chip.group_kernels import (GroupShape, apply_choices, decode_choices, group_programs, host_choices,
-                                              select_groups)
+from planners.mapf.chip.group_kernels import (NO_CHOICE, GroupShape, apply_choices, decode_choices, group_programs,
+                                              host_choices, select_groups)
 from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.mapf.epibt.plans import DEADLINE_MARGIN_S
 from planners.options import Options, option
@@ -193,8 +193,7 @@ class GroupRounds:
         choice = np.zeros(gstart[ng], dtype=np.int64)
         cost = np.empty(ng, dtype=np.int64)
         decode_choices(state, batch, spins, choice, cost)
-        better = (cost >= 0) & ((host_cost < 0) | (cost < host_cost))
-        worse = (host_cost >= 0) & ((cost < 0) | (cost > host_cost))
+        better, worse = cost < host_cost, cost > host_cost  # NO_CHOICE above every cost
         self.stats["chip_better"] += int(better.sum())
         self.stats["chip_worse"] += int(worse.sum())
         return choice, cost, call
@@ -211,7 +210,7 @@ class GroupRounds:
         hs = -np.ones(H.shape, dtype=np.int8)
         for g in range(ng):
             for i in range(gstart[g], gstart[g + 1]):
-                c = host[i] if host_cost[g] >= 0 else 0
+                c = host[i] if host_cost[g] != NO_CHOICE else 0
                 if c > 0:
                     hs[g, ostart[i] - ostart[gstart[g]] - (i - gstart[g]) + c - 1] = 1
         e_host = program_energy(H.astype(np.float64), J.astype(np.float64), hs)

@@ -21,9 +21,20 @@ def add_parser(sub) -> None:
     p = sub.add_parser("sweep", help="run a scheduler and planner over a grid of Ising machines, each beside its "
                                      "host-rule twin")
     add_plan_arguments(p)
-    p.add_argument("--chip", action="append", default=[], metavar="KEY=V1,V2,...", required=True,
+    p.add_argument("--chip", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a sweep axis: a ChipSpec field (or n_cores, coef_range) and its values, e.g. "
-                        "n_spins=16,32,45,64; repeatable, the grid is the product")
+                        "n_spins=16,32,45,64; repeatable, the grid is the product (with --budget: default the "
+                        "paper's chip alone)")
+    p.add_argument("--budget", default=None, metavar="S1,S2,...",
+                   help="the host's front: step budgets in seconds (the clock per step, e.g. 0.05,0.2,1); each "
+                        "--host-planner at each, the --planner on every --chip spec at the largest and on the first "
+                        "spec at each, beside its host-rule twin; writes front.csv, front.json, front.md, front.png")
+    p.add_argument("--host-planner", default=None, metavar="NAME[,NAME]",
+                   help="with --budget: the host planners of the front (default epibt,epibt-chain), with --guidance "
+                        "if given, else their own options")
+    p.add_argument("--resume", action="store_true",
+                   help="with --budget: keep the runs already in OUT/front.csv (same instance, kind, planner, spec, "
+                        "budget, seed, steps)")
     p.add_argument("--base-chip", action="append", default=[], metavar="KEY=VALUE|FILE.json",
                    help="fixed ChipSpec fields under the grid; repeatable")
     add_chip_argument(p, "every machine of the grid", chip=False)
@@ -35,6 +46,10 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    if args.budget is not None or args.host_planner is not None or args.resume:
+        from agents.commands.lorr_front import run_front
+
+        return run_front(args)
     from agents.commands.lorr_args import bad_counts, best_row, fail, plans_from_args, steps_for, warm_parts
     from agents.commands.options import chip_from_args, runner_from_args
     from agents.lorr.sweep import DECIDERS, sweep_rows, sweep_task, write_sweep
@@ -45,6 +60,9 @@ def run(args) -> int:
     bad = bad_counts(args, "--steps", "--seeds")
     if bad:
         return fail(bad)
+    if not args.chip:
+        return fail("--chip: give at least one sweep axis (e.g. --chip n_spins=16,45,64), or --budget for the host's "
+                    "front")
     if args.scheduler and "," in args.scheduler:
         return fail(f"--scheduler {args.scheduler}: a sweep runs one scheduler (its axes are the machines); give one")
     try:

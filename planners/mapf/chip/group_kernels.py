@@ -1,19 +1,7 @@
-"""Neighbourhood groups of a joint plan choosing their operations jointly: the programs of decision class ``lns_groups``
-and their host rule (compiled), shared by ``epibt-ising`` and ``epibt-chain-ising``.
-
-Contract, on a :class:`~planners.mapf.epibt.search.PlanState` (``src[k]`` robot ``k``'s candidate, -1 its
-inherited operation; ``costs`` lower better) and its table ``res``: :func:`select_groups` poses a robot not on its
-best operation and the robots in the way of its better ones (up to ``max_robots``; robots of one group in no other),
-each with its operation now (option 0) and its best others that collide with no robot outside the group (up to
-``max_options``; a spin per option besides the operation now, at most the machine's usable spins in all).  The
-program (:func:`group_qubo`): a robot's operation now is all its spins down, another option one spin up; the
-options' costs above the operation now as linear terms; penalties for two spins of one robot up and for each pair
-of options of two robots that collide (vertex or swap at any time).  The host rule (:func:`greedy_choice`): the
-robots in a seeded order, each its cheapest option that collides with no one placed before.  The chip's answer
-(:func:`decode_choice`): its cheapest collision-free read, where a robot with more than one spin up keeps its
-operation now.  :func:`apply_choices`: a group takes the decided choice when it collides with no one and costs at
-least ``min_gain`` less than the group's plan now; groups apply in turn, each checked against the plan as the ones
-before it left it.
+"""Neighbourhood groups of a joint plan choosing their operations jointly (decision class ``lns_groups``, shared by
+``epibt-ising`` and ``epibt-chain-ising``), compiled: :func:`select_groups`, a round's programs
+(:func:`group_programs`), the host rule (:func:`host_choices`), the chip's answers (:func:`decode_choices`) and
+:func:`apply_choices`.  Design notes: docs/design/lifelong_turning.md#the-group-kernels.
 """
 
 from __future__ import annotations

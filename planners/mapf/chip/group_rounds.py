@@ -1,15 +1,6 @@
 """Rounds of neighbourhood-group decisions (class ``lns_groups``) on a joint plan, decided on an Ising machine or by
-the host rule: the component ``epibt-ising`` and ``epibt-chain-ising`` share.
-
-Contract: :class:`GroupRounds` ``(machine, limits, seed)`` (``machine`` ``None``: the host rule decides, no machine
-call); :meth:`GroupRounds.improve` ``(state, res, t, deadline, seeds)`` changes the plan ``state`` (a
-:class:`~planners.mapf.epibt.search.PlanState`, kept conflict-free in ``res``) by up to ``limits.rounds`` rounds, each
-on fresh groups (:mod:`planners.mapf.chip.group_kernels`) of the plan the rounds before it left.  Under a clock the
-rounds stop when the next, as long as the longest so far, would end past ``deadline`` less
-:data:`~planners.mapf.epibt.plans.DEADLINE_MARGIN_S` on the step's charged time (host seconds, not the emulation's,
-plus the machine's own).  An open :class:`~ising_backend.audit.host_rule.HostRule` naming ``lns_groups`` puts the
-host rule in the chip's place; an open decision audit records every program with the host rule's answer as spins of
-the same program.  Charges: :attr:`ledger` (all calls), :attr:`last_compute` (the last :meth:`improve`).
+the host rule: the component ``epibt-ising`` and ``epibt-chain-ising`` share.  Design notes:
+docs/design/lifelong_turning.md#the-group-rounds.
 """
 
 from __future__ import annotations

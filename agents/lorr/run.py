@@ -129,7 +129,7 @@ def _loop(inst, scheduler, planner, steps, seed, chip, bar, limit=None):
 def _as_roles(scheduler, planner, options):
     """``(scheduler, planner)`` as specs (names with the dict ``options``, or specs) or role objects; ``ValueError``
     for an object that does not meet its role."""
-    from agents.lorr.spec import _check_role
+    from agents.lorr.spec import check_role
 
     if isinstance(scheduler, str) and isinstance(planner, str):
         return specs_from_options(scheduler, planner, options)
@@ -141,9 +141,9 @@ def _as_roles(scheduler, planner, options):
     if isinstance(planner, str):
         planner = PlannerSpec.of(planner)
     if not isinstance(scheduler, SchedulerSpec):
-        _check_role(scheduler, Scheduler, f"scheduler {type(scheduler).__name__}")
+        check_role(scheduler, Scheduler, f"scheduler {type(scheduler).__name__}")
     if not isinstance(planner, PlannerSpec):
-        _check_role(planner, Planner, f"planner {type(planner).__name__}")
+        check_role(planner, Planner, f"planner {type(planner).__name__}")
     return scheduler, planner
 
 

@@ -21,7 +21,7 @@ from agents.lorr.roles import Planner, Scheduler
 if TYPE_CHECKING:
     from planners.options import Options
 
-__all__ = ["PlannerSpec", "SchedulerSpec", "user_class", "is_class_path", "specs_from_options"]
+__all__ = ["PlannerSpec", "SchedulerSpec", "user_class", "is_class_path", "specs_from_options", "check_role"]
 
 
 _CLASS_PATH = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_]\w*")
@@ -46,7 +46,7 @@ def user_class(path: str) -> type:
     return cls
 
 
-def _check_role(obj, role: type, what: str):
+def check_role(obj, role: type, what: str):
     """``obj`` when it meets ``role`` (a runtime-checkable Protocol), else ``ValueError`` naming what it lacks."""
     if not isinstance(obj, role):
         need = sorted(k for k, v in vars(role).items() if callable(v) and not k.startswith("_"))
@@ -100,7 +100,7 @@ class PlannerSpec:
     def build(self, grid, seed: int = 0, machine=None):
         """The planner on ``grid``."""
         if isinstance(self.options, dict):
-            return _check_role(user_class(self.name)(grid, seed=seed, **self.options), Planner, self.name)
+            return check_role(user_class(self.name)(grid, seed=seed, **self.options), Planner, self.name)
         from planners.mapf import TURNING_PLANNERS, TurningPlanner
 
         return TurningPlanner(TURNING_PLANNERS[self.name], grid, seed, self.options, machine)
@@ -132,7 +132,7 @@ class SchedulerSpec:
     def build(self, seed: int = 0, chip=None):
         """The scheduler (``chip``: the machine recipe of a chip scheduler)."""
         if is_class_path(self.name):
-            return _check_role(user_class(self.name)(seed=seed, **self.options), Scheduler, self.name)
+            return check_role(user_class(self.name)(seed=seed, **self.options), Scheduler, self.name)
         from agents.lorr.schedulers import make_scheduler
 
         try:

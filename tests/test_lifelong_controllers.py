@@ -62,8 +62,10 @@ def test_pipeline_assigner_commits_the_first_task_of_each_route_and_names_bad_op
     assert whole == [[0, 1], [2, 3]]
     with pytest.raises(ValueError, match="unknown lifelong controller 'ssa'"):
         PipelineAssigner("ssa")
-    with pytest.raises(ValueError, match="group_size must be an integer >= 1, got 0"):
+    with pytest.raises(ValueError, match=r"group_size = 0 must be an integer in \[1, 1048576\]"):
         PipelineAssigner("strong", group_size=0)
+    with pytest.raises(ValueError, match="strong takes no option 'groups'; its options: group_size, commit"):
+        PipelineAssigner("strong", groups=2)
     with pytest.raises(ValueError, match="unknown executor 'cbs'"):
         make_lifelong_controller("greedy", executor="cbs")
 

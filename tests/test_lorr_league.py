@@ -412,7 +412,7 @@ def test_the_greedy_scheduler_under_a_clock_stops_where_the_start_kits_would():
 def test_a_bad_scheduler_option_is_named_not_called_an_unknown_scheduler():
     from agents.lorr.schedulers import make_scheduler
 
-    with pytest.raises(ValueError, match="^group_size must be an integer >= 1, got 0$"):
+    with pytest.raises(ValueError, match=r"^group_size = 0 must be an integer in \[1, 1048576\]$"):
         make_scheduler("strong", group_size=0)
     with pytest.raises(ValueError, match="^unknown scheduler 'warp'; known: lorr-greedy"):
         make_scheduler("warp")

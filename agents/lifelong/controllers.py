@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import dataclass
+
 from planners.compute import ComputeReport
+from planners.options import Options, option
 
 __all__ = ["LifelongController", "Round", "GreedyAssigner", "PipelineAssigner", "make_lifelong_controller",
            "LIFELONG_CONTROLLERS", "PIPELINE_LAYERS"]
@@ -24,6 +27,18 @@ LIFELONG_CONTROLLERS = ("greedy",) + tuple(PIPELINE_LAYERS)
 DEFAULT_GROUP_SIZE = 4
 #: Unclaimed tasks a pipeline assigner considers per idle robot (its nearest ones).
 DEFAULT_CANDIDATES = 1
+
+
+@dataclass(frozen=True)
+class PipelineOptions(Options):
+    """A pipeline assigner's options."""
+
+    group_size: int = option(DEFAULT_GROUP_SIZE, int, 1, 1 << 20, meaning="free robots per decision (Z-order groups)")
+    commit: int | None = option(1, int, 1, 1 << 20, none=True, meaning="tasks of each route committed (null: the "
+                                "whole route)")
+    candidates: int | None = option(DEFAULT_CANDIDATES, int, 1, 1 << 20, none=True, meaning="free tasks per decision "
+                                    "per free robot, its nearest (null: every one)")
+    fill: bool = option(False, bool, meaning="robots the decision leaves without a task take the nearest free one")
 
 
 def _spread(v: np.ndarray) -> np.ndarray:
@@ -65,8 +80,7 @@ class PipelineAssigner:
     """The sharing and tour layers of a pipeline on the sub-world of idle robots and unclaimed tasks
     (see the module docstring).  ``chip``: an :class:`ising_backend.ChipSpec` for Ising layers."""
 
-    def __init__(self, spec: str, chip=None, group_size: int = DEFAULT_GROUP_SIZE, commit: int | None = 1,
-                 candidates: int | None = DEFAULT_CANDIDATES, fill: bool = False) -> None:
+    def __init__(self, spec: str, chip=None, **options) -> None:
         from planners.pipeline import make_pipeline
 
         if spec in PIPELINE_LAYERS:
@@ -76,17 +90,10 @@ class PipelineAssigner:
         else:
             raise ValueError(f"unknown lifelong controller {spec!r}; expected one of {', '.join(LIFELONG_CONTROLLERS)} "
                              "or a sharing+tour pair (e.g. ssa+3opt)")
-        if isinstance(group_size, bool) or int(group_size) != group_size or group_size < 1:
-            raise ValueError(f"group_size must be an integer >= 1, got {group_size!r}")
-        if commit is not None and (isinstance(commit, bool) or int(commit) != commit or commit < 1):
-            raise ValueError(f"commit must be an integer >= 1 or None (the whole route), got {commit!r}")
+        opts = PipelineOptions.from_dict(options, spec)
         self.name = spec
-        self.group_size = int(group_size)
-        if candidates is not None and (isinstance(candidates, bool) or int(candidates) != candidates or candidates < 1):
-            raise ValueError(f"candidates must be an integer >= 1 or None (every unclaimed task), got {candidates!r}")
-        self.commit = commit
-        self.candidates = candidates
-        self.fill = bool(fill)
+        self.group_size, self.commit, self.candidates, self.fill = opts.group_size, opts.commit, opts.candidates, \
+            opts.fill
         shared = {}
         if "ising" in (sharing, tour):
             from ising_backend import ChipSpec, build_machine

@@ -164,13 +164,10 @@ def scheduler_options(name: str) -> list[tuple[str, object, str, str]]:
 
         rows = TaskGroupOptions.describe()
     elif name in SCHEDULERS:
-        from agents.lifelong.controllers import DEFAULT_CANDIDATES, DEFAULT_GROUP_SIZE
+        from agents.lifelong.controllers import PipelineOptions
 
-        rows = AssignerOptions.describe() + [
-            ("group_size", DEFAULT_GROUP_SIZE, "an integer >= 1", "free robots per decision (Z-order groups)"),
-            ("commit", 1, "an integer >= 1 or null", "tasks of each route committed (null: the whole route)"),
-            ("candidates", DEFAULT_CANDIDATES, "an integer >= 1 or null", "free tasks per decision (null: every one)"),
-            ("fill", True, "true or false", "robots the decision leaves without a task take the nearest free one")]
+        rows = AssignerOptions.describe() + [(n, True if n == "fill" else d, a, m)  # the League fills by default
+                                             for n, d, a, m in PipelineOptions.describe()]
     else:
         raise ValueError(f"unknown scheduler {name!r}; known: {', '.join(SCHEDULERS)}")
     return rows

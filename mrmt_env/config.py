@@ -48,8 +48,8 @@ class WorldConfig:
 
     @classmethod
     def of(cls, config: WorldConfig | None = None, **overrides) -> WorldConfig:
-        """``config`` (default: all defaults) with ``overrides`` given as keywords; ``TypeError``
-        naming an unknown keyword or a ``config`` that is not a :class:`WorldConfig`."""
+        """``config`` (default: all defaults) with ``overrides`` given as keywords; ``ValueError`` naming an unknown
+        keyword (as every option of the library), ``TypeError`` a ``config`` that is not a :class:`WorldConfig`."""
         if config is None:
             config = cls()
         elif not isinstance(config, cls):
@@ -57,7 +57,7 @@ class WorldConfig:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(overrides) - names)
         if unknown:
-            raise TypeError(f"unknown env argument(s) {unknown}; world arguments: {sorted(names)}")
+            raise ValueError(f"unknown env argument(s) {unknown}; world arguments: {sorted(names)}")
         given = {k: v for k, v in overrides.items() if v is not None}
         return replace(config, **given) if given else config
 
@@ -120,9 +120,9 @@ class EnvConfig(WorldConfig):
     def of(cls, config: EnvConfig | WorldConfig | None = None, *, takes: tuple[str, ...] = WORLD_OPTIONS,
            env: str = "this env", **options) -> EnvConfig:
         """``config`` (an :class:`EnvConfig`, a :class:`WorldConfig` or ``None``) with the keyword ``options``
-        put in (``None`` for a field whose default is ``None`` changes nothing); ``TypeError`` naming an unknown
-        option, a ``config`` of another type, or an option set away from its default that ``env`` (a name for
-        the message) does not take (``takes``)."""
+        put in (``None`` for a field whose default is ``None`` changes nothing); ``ValueError`` naming an unknown
+        option or an option set away from its default that ``env`` (a name for the message) does not take
+        (``takes``), as every option of the library; ``TypeError`` a ``config`` of another type."""
         if config is None:
             config = cls()
         elif type(config) is WorldConfig:
@@ -132,7 +132,7 @@ class EnvConfig(WorldConfig):
         names = [f.name for f in fields(cls)]
         unknown = sorted(set(options) - set(names))
         if unknown:
-            raise TypeError(f"unknown env option(s) {unknown}; {env} takes {list(takes)}")
+            raise ValueError(f"unknown env option(s) {unknown}; {env} takes {list(takes)}")
         # None leaves a field whose default is None as the config has it (what gym.make's unset keywords pass)
         defaults = {f.name: f.default for f in fields(cls)}
         given = {k: v for k, v in options.items() if v is not None or defaults[k] is not None}
@@ -140,7 +140,7 @@ class EnvConfig(WorldConfig):
         foreign = [f"{f.name}={getattr(config, f.name)!r}" for f in fields(cls)
                    if f.name not in takes and not _at_default(getattr(config, f.name), f.default)]
         if foreign:
-            raise TypeError(f"{env} does not take {', '.join(foreign)}; it takes {list(takes)}")
+            raise ValueError(f"{env} does not take {', '.join(foreign)}; it takes {list(takes)}")
         return config
 
     def world_config(self) -> WorldConfig:

@@ -364,7 +364,7 @@ class WorldSource:
         given = {k: v for k, v in params.items() if v is not None}
         unknown = sorted(set(given) - set(self.DEFAULTS))
         if unknown:
-            raise TypeError(f"unknown world argument(s) {unknown}; allowed: {sorted(self.DEFAULTS)}")
+            raise ValueError(f"unknown world argument(s) {unknown}; allowed: {sorted(self.DEFAULTS)}")
         if world is not None:
             if not isinstance(world, World):
                 worlds = read_worlds(world)

@@ -72,7 +72,7 @@ def test_gym_make_takes_a_config():
 
 @pytest.mark.parametrize("cls", EVERY)
 def test_bad_arguments_name_the_value(cls):
-    with pytest.raises(TypeError, match=rf"unknown env option\(s\) \['robots'\]; {cls.__name__} takes \[.*'n_robots'"):
+    with pytest.raises(ValueError, match=rf"unknown env option\(s\) \['robots'\]; {cls.__name__} takes \[.*'n_robots'"):
         _new(cls, robots=3)
     with pytest.raises(TypeError, match="config must be an EnvConfig or a WorldConfig, got dict"):
         _new(cls, {"n_robots": 3})
@@ -142,7 +142,7 @@ def test_the_league_env_takes_the_config():
     (LoRRParallelEnv, EnvConfig(max_episode_steps=10), "LoRRParallelEnv does not take max_episode_steps=10"),
 ])
 def test_an_option_the_env_does_not_take_is_refused_by_name(cls, config, named):
-    with pytest.raises(TypeError, match=named + r"; it takes \["):
+    with pytest.raises(ValueError, match=named + r"; it takes \["):
         cls(config)
 
 

@@ -109,3 +109,10 @@ def test_the_front_command_writes_its_table_and_figure_and_resumes(tmp_path, cap
     before = (out / "front.csv").read_text()
     assert main(argv + ["--resume"]) == 0  # nothing left to run: the rows stay as they were
     assert (out / "front.csv").read_text() == before
+    lines = before.splitlines()  # a row of another commit runs again, the rest stay
+    (out / "front.csv").write_text("\n".join(lines[:2] + [lines[2].rsplit(",", 1)[0] + ",0ther"] + lines[3:]) + "\n")
+    capsys.readouterr()
+    assert main(argv + ["--resume"]) == 0
+    assert "1 row(s) of front.csv ran at another commit" in capsys.readouterr().err
+    again = (out / "front.csv").read_text().splitlines()
+    assert len(again) == len(lines) and "0ther" not in "".join(again) and again[1] == lines[1]

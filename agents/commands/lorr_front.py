@@ -5,7 +5,8 @@
         --steps 200 --seeds 2 --out DIR [--resume]
 
 Every run in a fresh process, one at a time (each under its clock wants the cores); ``DIR/front.csv`` is written
-after each, so ``--resume`` picks a stopped sweep up (:mod:`agents.lorr.front`).  Bad input: one line, exit 2.
+after each, so ``--resume`` picks a stopped sweep up at the same commit (a row of another commit runs again;
+:mod:`agents.lorr.front`).  Bad input: one line, exit 2.
 """
 
 from __future__ import annotations
@@ -99,6 +100,11 @@ def run_front(args) -> int:
     out = Path(args.out)
     code = code_version()
     rows = read_rows(out / "front.csv") if args.resume else []
+    stale = [r for r in rows if r["code"] != code]  # a front is one commit's: another's rows run again
+    if stale:
+        print(f"mrmt lorr sweep: {len(stale)} row(s) of front.csv ran at another commit than {code}: run again",
+              file=sys.stderr)
+        rows = [r for r in rows if r["code"] == code]
     done = {row_key(r) for r in rows}
     todo = []
     for path, sched, chip_planner in plans:

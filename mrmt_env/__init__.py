@@ -11,37 +11,11 @@ from mrmt_env.distances import MOVES, UNREACHABLE, bfs_distance_field, bfs_dista
 from mrmt_env.generation import generate_world
 from mrmt_env.world import World, WorldError
 
-__all__ = [
-    "World",
-    "WorldError",
-    "generate_world",
-    "bfs_distance_field",
-    "bfs_distance_fields",
-    "UNREACHABLE",
-    "MOVES",
-    "WorldConfig",
-    "EnvConfig",
-    "MRMTEnv",
-    "MRMTParallelEnv",
-    "parallel_env",
-    "env",
-    "world_from_observation",
-    "action_between",
-    "actions_from_path",
-    "ACTION_NAMES",
-    "GYM_IDS",
-    "ASSIGN_IDS",
-    "MRMTAssignEnv",
-    "assign_aec_env",
-    "MRMTAssignAECEnv",
-    "LIFELONG_IDS",
-    "MRMTLifelongEnv",
-    "lifelong_parallel_env",
-    "lifelong_env",
-    "LORR_IDS",
-    "LoRREnv",
-    "lorr_parallel_env",
-]
+__all__ = ["World", "WorldError", "generate_world", "bfs_distance_field", "bfs_distance_fields", "UNREACHABLE",
+           "MOVES", "WorldConfig", "EnvConfig", "MRMTEnv", "MRMTParallelEnv", "parallel_env", "env",
+           "world_from_observation", "action_between", "actions_from_path", "ACTION_NAMES", "GYM_IDS", "ASSIGN_IDS",
+           "MRMTAssignEnv", "assign_aec_env", "MRMTAssignAECEnv", "LIFELONG_IDS", "MRMTLifelongEnv",
+           "lifelong_parallel_env", "lifelong_env", "LORR_IDS", "LoRREnv", "lorr_parallel_env"]
 
 #: Registered Gymnasium ids -> (kwargs, max_episode_steps).
 GYM_IDS = {

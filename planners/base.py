@@ -16,14 +16,7 @@ import numpy as np
 from mrmt_env.world import World
 from planners.compute import ComputeReport
 
-__all__ = [
-    "PathResult",
-    "TourResult",
-    "SharingResult",
-    "PathPlanner",
-    "TourSolver",
-    "SharingPlanner",
-]
+__all__ = ["PathResult", "TourResult", "SharingResult", "PathPlanner", "TourSolver", "SharingPlanner"]
 
 
 @dataclass(frozen=True)

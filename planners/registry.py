@@ -12,21 +12,8 @@ import importlib
 import inspect
 from collections.abc import Callable
 
-__all__ = [
-    "LAYERS",
-    "UnknownPlannerError",
-    "register",
-    "register_path",
-    "register_tour",
-    "register_sharing",
-    "names",
-    "path_names",
-    "tour_names",
-    "sharing_names",
-    "get_factory",
-    "create",
-    "accepts",
-]
+__all__ = ["LAYERS", "UnknownPlannerError", "register", "register_path", "register_tour", "register_sharing",
+           "names", "path_names", "tour_names", "sharing_names", "get_factory", "create", "accepts"]
 
 LAYERS = ("sharing", "tour", "path")
 

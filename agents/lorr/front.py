@@ -218,12 +218,10 @@ def _figure(summary: dict, path: Path) -> None:
 
 def write_front(rows: list[dict], out, title: str) -> dict:
     """``front.csv``, ``front.json``, ``front.md`` and ``front.png`` into ``out``; returns the summary."""
+    from agents.lorr.sweep import write_rows
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "front.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=FRONT_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(out / "front.csv", rows, FRONT_COLUMNS)
     summary = summarise_front(rows)
     (out / "front.json").write_text(json.dumps(summary, indent=1, default=str))
     (out / "front.md").write_text(_markdown(summary, title))

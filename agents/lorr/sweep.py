@@ -14,7 +14,7 @@ import json
 from contextlib import nullcontext
 from pathlib import Path
 
-__all__ = ["DECIDERS", "sweep_task", "sweep_rows", "summarise", "write_sweep", "COLUMNS"]
+__all__ = ["DECIDERS", "sweep_task", "sweep_rows", "summarise", "write_sweep", "write_rows", "COLUMNS"]
 
 #: Who decides in a sweep's run: the machine, or the host rule in its place.
 DECIDERS = ("machine", "host rule")
@@ -106,14 +106,19 @@ def _figure(summary: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+def write_rows(path: Path, rows: list[dict], columns) -> None:
+    """``rows`` as a CSV file at ``path`` (its folder made), one column per name of ``columns``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
 def write_sweep(rows: list[dict], out, title: str) -> list[dict]:
     """``sweep.csv``, ``sweep.json``, ``summary.md`` and ``sweep.png`` into ``out``; returns the summary."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "sweep.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_rows(out / "sweep.csv", rows, COLUMNS)
     summary = summarise(rows)
     (out / "sweep.json").write_text(json.dumps({"rows": rows, "summary": summary}, indent=1))
     (out / "summary.md").write_text(_markdown(summary, title))

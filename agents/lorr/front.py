@@ -192,6 +192,7 @@ def _figure(summary: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
 
     fig, axes = plt.subplots(1, len(summary), figsize=(5.5 * len(summary), 4.2), squeeze=False)
     for ax, (inst, s) in zip(axes[0], summary.items()):
@@ -207,6 +208,9 @@ def _figure(summary: dict, path: Path) -> None:
             if c["twin_tasks"] is not None:
                 ax.plot([c["twin_j_per_task"]], [c["twin_tasks"]], "x", color="grey")
         ax.set_xscale("log")
+        ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("joules per finished task (host CPU x 15 W + machine)")
         ax.set_ylabel("tasks finished (seed mean)")
         ax.set_title(f"{inst} (x: host-rule twins)")

@@ -11,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agents.lorr.schedulers import make_scheduler
-from agents.lorr.task_groups import GroupLimits, decode_tasks, group_cost, select_task_groups, task_qubo
+from agents.lorr.task_groups import (GroupLimits, decode_task_groups, group_cost, select_task_groups, task_programs,
+                                    task_qubo)
+from ising_backend import integer_program
 from agents.lorr.weighted import Crowd, Matched, weighted_matching
 from ising_backend.audit.host_rule import HostRule
 from mrmt_env.lorr.instance import example_instance_path, read_instance
@@ -189,14 +191,32 @@ def test_decode_takes_the_cheapest_read_and_keeps_a_robot_with_two_spins_up():
     reads = -np.ones((3, k), np.int8)
     reads[1, :] = 1  # every spin up: each robot keeps its task
     reads[2, 0] = 1  # robot 0 on its second option
-    choice = np.zeros(b - a, np.int64)
-    cost = decode_tasks(m, cell_of, batch.members, a, b, batch.ostart, batch.opt, reads, choice)
+    choice, cost, now_ = np.zeros(b, np.int64), np.empty(1, np.int64), np.empty(1, np.int64)
+    decode_task_groups(m, cell_of, batch._replace(ng=1), reads[None], choice, cost, now_)  # the first group alone
     now = group_cost(m, cell_of, batch.members, a, b, batch.ostart, batch.opt, np.zeros(b - a, np.int64))
     moved = np.zeros(b - a, np.int64)
     moved[0] = 1
     other = group_cost(m, cell_of, batch.members, a, b, batch.ostart, batch.opt, moved)
-    assert cost == min(now, other if other >= 0 else now)
-    assert choice.tolist() == (moved.tolist() if 0 <= other < now else [0] * (b - a))
+    assert now_[0] == now and cost[0] == min(now, other if other >= 0 else now)
+    assert choice[a:b].tolist() == (moved.tolist() if 0 <= other < now else [0] * (b - a))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_steps_programs_in_one_call_are_each_groups_program(seed):
+    m = _matching(seed, jam=3)
+    cell_of, batch, ng = _select(m, GroupLimits(4, 3, 3, 45, 64), seed)
+    if ng == 0:
+        return
+    batch = batch._replace(ng=ng)
+    n = int(max(batch.ostart[batch.gstart[g + 1]] - batch.ostart[batch.gstart[g]]
+                - (batch.gstart[g + 1] - batch.gstart[g]) for g in range(ng)))
+    H, J = np.full((ng, n), 99, np.int64), np.full((ng, n, n), 99, np.int64)
+    task_programs(m, cell_of, batch, 2, (7, 7), H, J)
+    for g in range(ng):
+        q, h1, J1 = np.empty((n, n), np.int64), np.zeros(n, np.int64), np.zeros((n, n), np.int64)
+        k = task_qubo(m, cell_of, batch.members, batch.gstart[g], batch.gstart[g + 1], batch.ostart, batch.opt, q, 2)
+        integer_program(q, k, h1[:k], J1[:k, :k], (7, 7))
+        assert np.array_equal(H[g], h1) and np.array_equal(J[g], J1)
 
 
 def _steps(scheduler, steps: int = 40):

@@ -24,7 +24,7 @@ from planners.mapf.common import GroupBatch, machine_for, mix
 from planners.options import Options, option, record
 
 __all__ = ["IsingWeightedScheduler", "TaskGroupOptions", "GroupLimits", "select_task_groups", "task_qubo",
-           "group_cost", "decode_tasks"]
+           "group_cost", "task_programs", "decode_task_groups"]
 
 # cost of a cut-off option; an np.int64 for the kernels, typed int (cast: no change) as numba's int64 is their int
 _NONE = cast(int, np.int64(1) << 50)
@@ -156,7 +156,12 @@ def _outside(m, cell_of, members, a, b) -> np.ndarray:
 def group_cost(m, cell_of, members, a, b, ostart, opt, choice) -> int:
     """The group's cost under ``choice`` (an option per robot): each robot's cost with the loads from outside the
     group, ``jam`` per pair of robots in one block; -1 when two robots take one slot."""
-    load = _outside(m, cell_of, members, a, b)
+    return _cost_with(m, cell_of, _outside(m, cell_of, members, a, b), members, a, b, ostart, opt, choice)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cost_with(m, cell_of, load, members, a, b, ostart, opt, choice) -> int:
+    """:func:`group_cost` with the loads from outside the group given (``load``)."""
     total = 0
     for i in range(a, b):
         s = opt[ostart[i] + choice[i - a]]
@@ -202,18 +207,39 @@ def task_qubo(m, cell_of, members, a, b, ostart, opt, q, penalty=2) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
-def decode_tasks(m, cell_of, members, a, b, ostart, opt, spins, choice) -> int:
-    """The chip's answer to group ``members[a:b]`` (spins as :func:`task_qubo`): its cheapest read that gives no
-    slot twice, into ``choice``; a robot with no spin up, or more than one, keeps its task now in that read.
-    Returns its cost (-1 when every read gives a slot twice)."""
-    reads = read_choices(spins, ostart[a:b + 1] - ostart[a])
-    best = -1
-    for rd in range(reads.shape[0]):
-        e = group_cost(m, cell_of, members, a, b, ostart, opt, reads[rd])
-        if e >= 0 and (best < 0 or e < best):
-            best = e
-            choice[:b - a] = reads[rd]
-    return best
+def task_programs(m, cell_of, batch, penalty, limits, H, J) -> None:
+    """Every group's chip program (:func:`task_qubo`, then :func:`~ising_backend.integer_program` scaled to the
+    machine's ``limits``) into ``H[g]``, ``J[g]`` (zeroed past its spins): a step's programs in one call."""
+    q = np.empty((H.shape[1], H.shape[1]), dtype=np.int64)
+    for g in range(batch.ng):
+        k = task_qubo(m, cell_of, batch.members, batch.gstart[g], batch.gstart[g + 1], batch.ostart, batch.opt, q,
+                      penalty)
+        integer_program(q, k, H[g, :k], J[g, :k, :k], limits)
+        H[g, k:] = 0
+        J[g, k:, :] = 0
+        J[g, :k, k:] = 0
+
+
+@numba.njit(cache=True, nogil=True)
+def decode_task_groups(m, cell_of, batch, spins, choice, cost, now) -> None:
+    """The chip's answers for every group of ``batch`` (``spins[g]`` its reads, as :func:`task_qubo`'s): its
+    cheapest read that gives no slot twice into ``choice[a:b]`` (a robot with no spin up, or more than one, keeps its
+    task now in that read), its cost into ``cost[g]`` (-1 when every read gives a slot twice; a cost is a sum of
+    distances, never below zero) and the group's cost now into ``now[g]``."""
+    members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
+    zero = np.zeros(ostart.shape[0], dtype=np.int64)
+    for g in range(batch.ng):
+        a, b = gstart[g], gstart[g + 1]
+        load = _outside(m, cell_of, members, a, b)
+        now[g] = _cost_with(m, cell_of, load, members, a, b, ostart, opt, zero)
+        reads = read_choices(spins[g], ostart[a:b + 1] - ostart[a])
+        best = -1
+        for rd in range(reads.shape[0]):
+            e = _cost_with(m, cell_of, load, members, a, b, ostart, opt, reads[rd])
+            if e >= 0 and (best < 0 or e < best):
+                best = e
+                choice[a:b] = reads[rd]
+        cost[g] = best
 
 
 @dataclass(frozen=True)
@@ -308,13 +334,11 @@ class IsingWeightedScheduler(WeightedScheduler):
         if ng == 0 or "task_groups" in host_rule_classes():
             self.stats["host_s"] += time.perf_counter() - t0
             return None
+        batch = batch._replace(ng=ng)
         gstart, members, ostart, opt = batch.gstart, batch.members, batch.ostart, batch.opt
         width = int((ostart[gstart[1:ng + 1]] - ostart[gstart[:ng]] - np.diff(gstart[:ng + 1])).max())
-        q = np.empty((width, width), np.int64)
         H, J = np.zeros((ng, width), np.int64), np.zeros((ng, width, width), np.int64)
-        for g in range(ng):
-            k = task_qubo(m, cell_of, members, gstart[g], gstart[g + 1], ostart, opt, q, self.options.penalty)
-            integer_program(q, k, H[g, :k], J[g, :k, :k], self.machine.spec.coefficient_limits)
+        task_programs(m, cell_of, batch, self.options.penalty, self.machine.spec.coefficient_limits, H, J)
         call = CallLedger()
         with self.machine.session(call, decision="task_groups") as link:
             host = None if link.audit is None else self._host_rule(H, J, ng, time.perf_counter() - t0)
@@ -322,19 +346,17 @@ class IsingWeightedScheduler(WeightedScheduler):
                                    seed=int(mix(self.seed, t, 0x7A5, 1)) & ((1 << 63) - 1), host=host)
         self.ledger = self.ledger + call
         choice = np.zeros(gstart[ng], dtype=np.int64)
-        zero = np.zeros(lim.max_robots, dtype=np.int64)
-        for g in range(ng):
+        costs, nows = np.empty(ng, np.int64), np.empty(ng, np.int64)
+        decode_task_groups(m, cell_of, batch, spins, choice, costs, nows)
+        for g in np.flatnonzero((costs >= 0) & (costs <= nows - self.options.min_gain)).tolist():
             a, b = gstart[g], gstart[g + 1]
-            now = group_cost(m, cell_of, members, a, b, ostart, opt, zero)
-            cost = decode_tasks(m, cell_of, members, a, b, ostart, opt, spins[g], choice[a:])
-            if 0 <= cost <= now - self.options.min_gain:
-                new = opt[ostart[a:b] + choice[a:b]]
-                for r, s in zip(members[a:b].tolist(), new.tolist()):
-                    if s != m.out[r]:
-                        self._pinned[int(m.robots[r])] = int(m.ids[s])
-                m.out[members[a:b]] = new
-                self.stats["applied"] += 1
-                self.stats["gain"] += int(now - cost)
+            new = opt[ostart[a:b] + choice[a:b]]
+            for r, s in zip(members[a:b].tolist(), new.tolist()):
+                if s != m.out[r]:
+                    self._pinned[int(m.robots[r])] = int(m.ids[s])
+            m.out[members[a:b]] = new
+            self.stats["applied"] += 1
+            self.stats["gain"] += int(nows[g] - costs[g])
         self.stats["host_s"] += time.perf_counter() - t0 - call.emulation_s
         return call
 

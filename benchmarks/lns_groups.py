@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish  # noqa: E402
-from planners.mapf.chip.group_kernels import collide as _collide, cost_of as _cost, path_of as _path  # noqa: E402
+from planners.mapf.chip.group_kernels import collide as _collide, cost_of as _cost  # noqa: E402
 
 SECTION = "## Neighbourhood groups of EPIBT on the chip (`epibt-ising`, issue 33)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
@@ -48,10 +48,9 @@ def exact_cost(state, members, a, b, ostart, opt) -> int:
         c = _cost(state, q, opt[ostart[a + d] + cur[d]])
         if acc[d] + c >= best:
             continue
-        p = _path(state, q, opt[ostart[a + d] + cur[d]])
         ok = True
         for e in range(d):
-            if _collide(p, _path(state, members[a + e], opt[ostart[a + e] + cur[e]])):
+            if _collide(state, q, opt[ostart[a + d] + cur[d]], members[a + e], opt[ostart[a + e] + cur[e]]):
                 ok = False
                 break
         if not ok:

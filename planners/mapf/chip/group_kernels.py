@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from ising_backend import integer_program
-from planners.mapf.chip.choice_qubo import read_choices, reduce_to_reference
+from planners.mapf.chip.choice_qubo import reduce_to_reference
 from planners.mapf.common import mix
 from planners.mapf.epibt.search import blockers, conflict, more_blockers, reserve
 
@@ -21,10 +21,17 @@ __all__ = ["GroupShape", "select_groups", "group_qubo", "group_programs", "host_
 
 
 @numba.njit(cache=True, nogil=True)
-def collide(p, q) -> bool:
-    """Cell sequences ``p`` and ``q`` (same times) meet in a cell or swap cells at some time."""
-    for t in range(1, p.shape[0]):
-        if p[t] == q[t] or (p[t] != p[t - 1] and p[t] == q[t - 1] and q[t] == p[t - 1]):
+def collide(state, q1, c1, q2, c2) -> bool:
+    """Robot ``q1``'s candidate ``c1`` and robot ``q2``'s ``c2`` (-1: a robot's inherited operation; cells as
+    :func:`path_of`'s) meet in a cell or swap cells at some time.  Reads the cells in place (no array views: the
+    rounds test thousands of option pairs a round)."""
+    cells, inh = state.cells, state.inh
+    for t in range(1, cells.shape[2]):
+        p0 = cells[q1, c1, t - 1] if c1 >= 0 else inh[q1, t - 1]
+        p1 = cells[q1, c1, t] if c1 >= 0 else inh[q1, t]
+        r0 = cells[q2, c2, t - 1] if c2 >= 0 else inh[q2, t - 1]
+        r1 = cells[q2, c2, t] if c2 >= 0 else inh[q2, t]
+        if p1 == r1 or (p1 != p0 and p1 == r0 and r1 == p0):
             return True
     return False
 
@@ -136,10 +143,9 @@ def group_qubo(state, members, a, b, ostart, opt, q, penalty=2) -> int:
     for i in range(a, b):
         for x in range(ostart[i], ostart[i + 1]):
             full[x - base, x - base] = cost_of(state, members[i], opt[x])
-            px = path_of(state, members[i], opt[x])
             for i2 in range(i + 1, b):
                 for y in range(ostart[i2], ostart[i2 + 1]):
-                    if collide(px, path_of(state, members[i2], opt[y])):
+                    if collide(state, members[i], opt[x], members[i2], opt[y]):
                         full[x - base, y - base] = pen
     return reduce_to_reference(full, ostart[a:b + 1] - base, np.zeros(b - a, dtype=np.int64), amo, q)
 
@@ -179,10 +185,9 @@ def host_choices(state, batch, stamp, choice, cost) -> None:
             q = members[a + i]
             best = -1
             for x in range(ostart[a + i], ostart[a + i + 1]):
-                p = path_of(state, q, opt[x])
                 ok = True
                 for j in range(size):
-                    if placed[j] and collide(p, path_of(state, members[a + j], opt[ostart[a + j] + choice[a + j]])):
+                    if placed[j] and collide(state, q, opt[x], members[a + j], opt[ostart[a + j] + choice[a + j]]):
                         ok = False
                         break
                 if ok and (best < 0 or cost_of(state, q, opt[x]) < cost_of(state, q, opt[best])):
@@ -201,28 +206,43 @@ def decode_choices(state, batch, spins, choice, cost) -> None:
     """The chip's answers for every group of ``batch`` (``spins[g]`` its reads, as :func:`group_qubo`'s spins):
     the cheapest collision-free read into ``choice[m]`` (robot slot ``m``'s option); a robot with no spin up, or
     more than one, keeps its operation now (option 0) in that read.  ``cost[g]``: its cost (:data:`NO_CHOICE` when
-    no read is collision-free).  Whether two options collide is computed once per group, when a read first needs it."""
+    no read is collision-free).  Whether two options collide is computed once per group, when a read first needs
+    it; a read equal to the one before it is not weighed again."""
     members, gstart, ostart, opt = batch.members, batch.gstart, batch.ostart, batch.opt
-    width = 0
+    width, size = 0, 0
     for g in range(batch.ng):
         width = max(width, ostart[gstart[g + 1]] - ostart[gstart[g]])
+        size = max(size, gstart[g + 1] - gstart[g])
     clash = np.empty((width, width), dtype=np.int8)  # -1 not known yet, else whether the two options collide
+    cur = np.zeros(size, dtype=np.int64)
     for g in range(batch.ng):
         a, b = gstart[g], gstart[g + 1]
         base = ostart[a]
         clash[:, :] = -1
-        reads = read_choices(spins[g], ostart[a:b + 1] - base)
         best = NO_CHOICE
-        for rd in range(reads.shape[0]):
+        for rd in range(spins.shape[1]):
+            same = rd > 0
+            for i in range(a, b):  # robot i's spins: its options but the first, after the spins of those before it
+                s0 = ostart[i] - base - (i - a)
+                pick, up = 0, 0
+                for j in range(ostart[i + 1] - ostart[i] - 1):
+                    if spins[g, rd, s0 + j] > 0:
+                        up += 1
+                        pick = j + 1
+                if up != 1:
+                    pick = 0
+                same = same and pick == cur[i - a]
+                cur[i - a] = pick
+            if same:
+                continue
             total = 0
             free = True
             for i in range(a, b):
-                x = ostart[i] + reads[rd, i - a]
+                x = ostart[i] + cur[i - a]
                 for i2 in range(i + 1, b):
-                    y = ostart[i2] + reads[rd, i2 - a]
+                    y = ostart[i2] + cur[i2 - a]
                     if clash[x - base, y - base] < 0:
-                        clash[x - base, y - base] = collide(path_of(state, members[i], opt[x]),
-                                                            path_of(state, members[i2], opt[y]))
+                        clash[x - base, y - base] = collide(state, members[i], opt[x], members[i2], opt[y])
                     if clash[x - base, y - base]:
                         free = False
                         break
@@ -231,7 +251,7 @@ def decode_choices(state, batch, spins, choice, cost) -> None:
                 total += cost_of(state, members[i], opt[x])
             if free and total < best:
                 best = total
-                choice[a:b] = reads[rd]
+                choice[a:b] = cur[:b - a]
         cost[g] = best
 
 

@@ -102,19 +102,22 @@ def generate(out: Path, families=None, densities=DENSITIES) -> None:
 
 
 def _config(name: str, entry, inst):
+    """``(scheduler spec, planner spec, rule)`` of configuration ``name`` on ``inst``."""
+    from agents.lorr.spec import specs_from_options
+
     if name == "entry":
         c = entry.choose(inst)
-        return c.scheduler, c.planner, dict(c.options), c.rule
+        return c.scheduler, c.planner, c.rule
     if name == "default":
-        return "lorr-greedy", "pibt-flow", {}, None
+        return (*specs_from_options("lorr-greedy", "pibt-flow", None), None)
     if name.startswith("rule:"):
         from agents.lorr.entry import load_entry
         path, _, n = name[5:].partition("#")
         c = load_entry(path).rules[int(n) - 1].choice
-        return c.scheduler, c.planner, dict(c.options), int(n)
+        return c.scheduler, c.planner, int(n)
     if name.startswith("cand:"):
         scheduler, planner, options = CANDIDATES[name[5:]]
-        return scheduler, planner, json.loads(json.dumps(options)), None
+        return (*specs_from_options(scheduler, planner, json.loads(json.dumps(options))), None)
     raise SystemExit(f"unknown configuration {name!r}")
 
 
@@ -123,6 +126,7 @@ def run(out: Path, entry_spec: str, steps: int, only, configs, clock: str = "") 
 
     from agents.lorr.entry import load_entry
     from agents.lorr.run import run_lorr
+    from agents.lorr.spec import PlannerSpec
     from mrmt_env.lorr.clock import step_limit
 
     limit = step_limit(clock) if clock else None
@@ -141,15 +145,15 @@ def run(out: Path, entry_spec: str, steps: int, only, configs, clock: str = "") 
         for cfg in configs:
             if (inst.name, cfg, steps, label) in done:
                 continue
-            scheduler, planner, options, rule = _config(cfg, entry, inst)
-            if planner.startswith("epibt"):
-                options["executor_options"] = {**options.get("executor_options", {}), "threads": 1}
+            scheduler, planner, rule = _config(cfg, entry, inst)
+            if planner.name.startswith("epibt"):
+                planner = PlannerSpec.of(planner.name, {**planner.given, "threads": 1})
             load = os.getloadavg()[0]
             t = time.perf_counter()
-            rec, _, _ = run_lorr(inst, scheduler, planner, steps=steps, seed=0, options=options, limit=limit)
+            rec, _, _ = run_lorr(inst, scheduler, planner, steps=steps, seed=0, limit=limit)
             row = {"instance": inst.name, "config": cfg, "entry": entry_spec if cfg == "entry" else None,
-                   "rule": rule, "scheduler": scheduler, "planner": planner,
-                   "options": {k: v for k, v in options.items()}, "steps": steps, "robots": inst.team_size,
+                   "rule": rule, "scheduler": scheduler.name, "planner": planner.name,
+                   "options": {"scheduler": scheduler.options, "planner": planner.given}, "steps": steps, "robots": inst.team_size,
                    "fill": inst.team_size / int((~inst.grid).sum()), "corridors": corridor_share(inst.grid),
                    "narrow": narrow_share(inst.grid), "tasks": rec["tasks_finished"], "errors": rec["errors"],
                    "clock": rec["clock"], "timeouts": rec["timeouts"], "load": load,

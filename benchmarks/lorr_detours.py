@@ -1,0 +1,154 @@
+"""The routes of League runs against the shortest ways, leg by leg: forward moves, turns and waits (issue 80, item 4).
+
+A leg is a robot's way from one errand reached (or the start) to the next one it reaches; its lower bound is the
+least number of actions from the robot's cell and orientation at the leg's start to the errand's cell, turns
+counted (a BFS over (cell, orientation), scipy's csgraph).  For each output file (the package's, ``mrmt lorr run
+--out``, or an archive's record run, 2023 or 2024 format, ``.zip`` read too) the actions are replayed from the
+start states and every leg is set against its bound: the forward moves against the cells' distance, the turns
+against the turns the bound needs, and the waits.  Under the 2023 rules (tasks given round robin) the legs are the
+planner's alone; under the 2024 rules a leg also holds the scheduler's choice.
+
+    python benchmarks/lorr_detours.py ../shared/lorr/2023-main/random.domain/MR23-I-04.json \\
+        record=../shared/lorr/2023-main/best_solutions/MR23-I-04.json.zip entry=runs/mr23/output.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))  # east, south, west, north: the rules' orientations
+
+
+def state_graph(grid: np.ndarray):
+    """The reversed action graph over (cell, orientation) states ``4 * cell + o``: an edge from each state to
+    every state one action before it (forward, clockwise, counter-clockwise), weight 1."""
+    from scipy.sparse import csr_matrix
+
+    h, w = grid.shape
+    src, dst = [], []
+    for r in range(h):
+        for c in range(w):
+            if grid[r, c]:
+                continue
+            p = r * w + c
+            for o, (dr, dc) in enumerate(DIRS):
+                s = 4 * p + o
+                for t in ((o + 1) % 4, (o + 3) % 4):  # a turn from (p, o) reaches (p, t)
+                    src.append(4 * p + t)
+                    dst.append(s)
+                rr, cc = r + dr, c + dc
+                if 0 <= rr < h and 0 <= cc < w and not grid[rr, cc]:
+                    src.append(4 * (rr * w + cc) + o)  # forward from (p, o) reaches (q, o)
+                    dst.append(s)
+    n = 4 * h * w
+    return csr_matrix((np.ones(len(src)), (src, dst)), shape=(n, n))
+
+
+class Bounds:
+    """Least actions to a goal cell from every (cell, orientation), and the cells' distance, cached per goal."""
+
+    def __init__(self, grid: np.ndarray) -> None:
+        self.grid, self.width = grid, grid.shape[1]
+        self.graph = state_graph(grid)
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, goal: int) -> tuple[np.ndarray, np.ndarray]:
+        if goal not in self._cache:
+            from scipy.sparse.csgraph import dijkstra
+
+            from mrmt_env.distances import bfs_distance_field
+
+            d = dijkstra(self.graph, indices=[4 * goal + o for o in range(4)], min_only=True, unweighted=True)
+            cells = bfs_distance_field(self.grid, divmod(goal, self.width)).reshape(-1)
+            self._cache[goal] = (d.reshape(-1, 4), cells)
+        return self._cache[goal]
+
+
+def legs(data: dict, width: int) -> list[tuple[int, int, int, int]]:
+    """``(robot, start step, end step, goal cell)`` of every errand reached in output ``data`` (both formats)."""
+    tasks = data["tasks"]
+    cells: dict[int, list[int]] = {}
+    for t in tasks:
+        if isinstance(t[2], list):  # 2024: [id, revealed, [row, col, row, col, ...]]
+            cells[t[0]] = [t[2][i] * width + t[2][i + 1] for i in range(0, len(t[2]), 2)]
+        else:  # 2023: [id, row, col]
+            cells[t[0]] = [t[1] * width + t[2]]
+    reached = []  # (t, robot, goal)
+    events = data["events"]
+    if events and isinstance(events[0], list) and events and events[0] and isinstance(events[0][0], list):
+        for r, evs in enumerate(events):  # 2023 record: per robot [task, t, "assigned" | "finished"]
+            reached += [(t, r, cells[task][0]) for task, t, kind in evs if kind == "finished"]
+    else:  # the package's: (t, robot, task, errands of the task reached so far)
+        reached = [(t, r, cells[task][idx - 1]) for t, r, task, idx in events]
+    last: dict[int, int] = defaultdict(int)
+    out = []
+    for t, r, goal in sorted(reached):
+        out.append((r, last[r], t, goal))
+        last[r] = t
+    return out
+
+
+def measure(instance, data: dict, bounds: Bounds) -> dict:
+    """Legs, steps, lower bound, forward moves against the cells' distance, turns, waits of one output."""
+    from mrmt_env.lorr.rules import CLOCKWISE, COUNTER, FORWARD, TIMEOUT, WAIT, next_states, parse_actions
+
+    w = instance.width
+    rows = np.array([parse_actions(p, f"robot {k}") for k, p in enumerate(data["actualPaths"])])
+    pos = np.array([s[0] * w + s[1] for s in data["start"]], dtype=np.int64)
+    ori = np.array(["ESWN".index(s[2]) for s in data["start"]], dtype=np.int64)
+    states = [(pos, ori)]
+    for t in range(rows.shape[1]):
+        a = rows[:, t].astype(np.int64)
+        pos, ori = next_states(pos, ori, np.where(a == TIMEOUT, WAIT, a), w)
+        states.append((pos, ori))
+    m = defaultdict(int)
+    for r, t0, t1, goal in legs(data, w):
+        oriented, cells = bounds(goal)
+        p, o = states[t0][0][r], states[t0][1][r]
+        acts = rows[r, t0:t1]
+        m["legs"] += 1
+        m["steps"] += t1 - t0
+        m["bound"] += int(oriented[p, o])
+        m["distance"] += int(cells[p])
+        m["forward"] += int((acts == FORWARD).sum())
+        m["turns"] += int(((acts == CLOCKWISE) | (acts == COUNTER)).sum())
+        m["waits"] += int(((acts == WAIT) | (acts == TIMEOUT)).sum())
+    return dict(m)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("instance", type=Path)
+    ap.add_argument("outputs", nargs="+", help="LABEL=PATH of an output file")
+    args = ap.parse_args(argv)
+
+    from mrmt_env.lorr.instance import read_instance
+    from mrmt_env.lorr.output import read_output
+
+    inst = read_instance(args.instance)
+    bounds = Bounds(inst.grid)
+    print(f"{inst.name}: legs from errand to errand against the least actions (turns counted)\n")
+    print("| run | tasks | legs | steps in legs | lower bound | steps / bound | forward / cells' distance | "
+          "turns / turns needed | waits |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for spec in args.outputs:
+        label, _, path = spec.rpartition("=")
+        data = read_output(path)
+        m = measure(inst, data, bounds)
+        needed = m["bound"] - m["distance"]
+        print(f"| {label or path} | {data.get('numTaskFinished', '')} | {m['legs']:,} | {m['steps']:,} | "
+              f"{m['bound']:,} | {m['steps'] / m['bound']:.3f} | {m['forward'] / m['distance']:.3f} | "
+              f"{m['turns'] / max(needed, 1):.3f} | {m['waits']:,} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -5,7 +5,7 @@
     python benchmarks/entry_rules.py generate --out DIR --families maze,maze32 --densities 20,45,75
     python benchmarks/entry_rules.py run --out DIR [--entry E] [--steps 200] [--only NAME,...] [--config C,...]
                                          [--clock rules]
-    python benchmarks/entry_rules.py table --out DIR [--entry E]
+    python benchmarks/entry_rules.py table --out DIR [--entry E] [--png FILE]
 
 ``--only`` runs the instances named, in that order.  ``run`` appends one JSON line per (instance, configuration) to ``DIR/runs.jsonl`` and skips those already there.
 Configurations: ``entry`` (``--entry``, default: the package's ``default``), ``default`` (the start kit's default
@@ -163,18 +163,49 @@ def run(out: Path, entry_spec: str, steps: int, only, configs, clock: str = "") 
             print(json.dumps(row), flush=True)
 
 
-def table(out: Path, config: str) -> None:
+def table(out: Path, config: str, png: Path | None = None) -> None:
+    """The entry's (``config``'s) tasks beside the default's per instance, the ratios at the two densest densities
+    and, with ``png``, the figure (tasks per instance, both configurations, log scale)."""
     rows = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
     by = {(r["instance"], r["config"]): r for r in rows}
-    print(f"| instance | family | robots | fill | corridors | rule ({config}) | {config} tasks | default tasks | ratio |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-    for name in sorted({r["instance"] for r in rows}):
+    print(f"| instance | family | robots | fill | corridors | rule ({config}) | {config} tasks | default tasks | ratio | clock |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---|")
+    pairs = []
+    for name in sorted({r["instance"] for r in rows}, key=lambda n: (n.split("-")[1], n)):
         e, d = by.get((name, config)), by.get((name, "default"))
         if not e or not d:
             continue
+        pairs.append((name, e, d))
         ratio = e["tasks"] / d["tasks"] if d["tasks"] else float("inf")
-        print(f"| {name} | {name.split('-')[1]} | {e['robots']} | {e['fill']:.2f} | {e['corridors']:.3f} | "
-              f"{e['rule']} | {e['tasks']} | {d['tasks']} | {ratio:.2f} |")
+        print(f"| {name} | {name.split('-')[1]} | {e['robots']:,} | {e['fill']:.2f} | {e['corridors']:.3f} | "
+              f"{e['rule']} | {e['tasks']:,} | {d['tasks']:,} | {ratio:.2f} | {e['clock']}, {e['timeouts']} / "
+              f"{d['timeouts']} timeouts |")
+    pct = sorted({int(n.rsplit("-", 1)[1]) for n, _, _ in pairs})
+    dense = [(e, d) for n, e, d in pairs if int(n.rsplit("-", 1)[1]) in pct[-2:]]
+    if dense:
+        ratios = [e["tasks"] / d["tasks"] for e, d in dense if d["tasks"]]
+        print(f"\nDensest two densities ({', '.join(f'{p} %' for p in pct[-2:])}): {config} "
+              f"{sum(e['tasks'] for e, _ in dense):,} tasks against the default's {sum(d['tasks'] for _, d in dense):,} "
+              f"({sum(e['tasks'] for e, _ in dense) / max(sum(d['tasks'] for _, d in dense), 1):.2f}x; mean of the "
+              f"ratios {sum(ratios) / max(len(ratios), 1):.2f}x over {len(ratios)} with a default task); below the "
+              f"default: {', '.join(n for n, e, d in pairs if e['tasks'] < d['tasks']) or 'none'}")
+    if png and pairs:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        x = np.arange(len(pairs))
+        fig, ax = plt.subplots(figsize=(max(6, 0.55 * len(pairs)), 4))
+        ax.bar(x - 0.2, [e["tasks"] + 1 for _, e, _ in pairs], 0.4, label=f"{config} (the package's rules)")
+        ax.bar(x + 0.2, [d["tasks"] + 1 for _, _, d in pairs], 0.4, label="the start kit's default")
+        ax.set_yscale("log")
+        ax.set_xticks(x, [n[2:] for n, _, _ in pairs], rotation=60, ha="right", fontsize=8)
+        ax.set_ylabel("tasks finished + 1")
+        ax.set_title(f"Generated instances: {pairs[0][1]['steps']} steps, {pairs[0][1]['clock']}", fontsize=9)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(png, dpi=110)
+        print(f"wrote {png}")
 
 
 def main(argv=None) -> None:
@@ -188,6 +219,7 @@ def main(argv=None) -> None:
     ap.add_argument("--clock", default="", help="'rules' (the start kit's 1 s a step); default: work-bounded")
     ap.add_argument("--families", default="", help="generate: families of FAMILIES (default: the four at 64x64)")
     ap.add_argument("--densities", default="", help="generate: per cent of the free cells (default: 5,20,45,75)")
+    ap.add_argument("--png", type=Path, default=None, help="table: the figure")
     a = ap.parse_args(argv)
     if a.what == "shapes":
         shapes()
@@ -197,7 +229,7 @@ def main(argv=None) -> None:
     elif a.what == "run":
         run(a.out, a.entry, a.steps, list(filter(None, a.only.split(","))), a.config.split(","), a.clock)
     else:
-        table(a.out, a.config.split(",")[0])
+        table(a.out, a.config.split(",")[0], a.png)
 
 
 if __name__ == "__main__":

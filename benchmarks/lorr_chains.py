@@ -30,14 +30,12 @@ Run nothing else beside it.
 from __future__ import annotations
 
 import argparse
-import json
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import cpu_name, finish, lorr_run_json  # noqa: E402
+from record_holder import play  # noqa: E402
 
 SECTION = "## EPIBT by push chains at density: the entry, the host annealer, the chip annealer (issue 57)"
 ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "random.domain"
@@ -45,14 +43,8 @@ ROOT = Path(__file__).resolve().parents[2] / "shared" / "lorr" / "2024-main" / "
 
 def record_holder(binary: str, instance: Path, steps: int) -> dict:
     """Tasks and timeouts of the start kit binary ``binary`` on ``instance`` for ``steps`` steps (1 s a step)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "output.json"
-        subprocess.run([binary, "-i", str(instance), "-o", str(out), "-s", str(steps), "-t", "1000", "-p", "1800000",
-                        "-c", "3", "-l", str(Path(tmp) / "log")], check=True, capture_output=True,
-                       cwd=Path(binary).resolve().parent.parent)
-        rec = json.loads(out.read_text())
-    return {"tasks_finished": rec["numTaskFinished"], "timeouts": rec["numEntryTimeouts"], "step_p99_s": None,
-            "host_energy_per_task_j": None}
+    r = play(Path(binary), instance, steps)
+    return {"tasks_finished": r["tasks"], "timeouts": r["timeouts"], "step_p99_s": None, "host_energy_per_task_j": None}
 
 
 def scheduler_args(name: str) -> tuple[str, ...]:

@@ -55,9 +55,9 @@ def state_graph(grid: np.ndarray):
 class Bounds:
     """Least actions to a goal cell from every (cell, orientation), and the cells' distance, cached per goal."""
 
-    def __init__(self, grid: np.ndarray) -> None:
+    def __init__(self, grid: np.ndarray, turns: bool = True) -> None:
         self.grid, self.width = grid, grid.shape[1]
-        self.graph = state_graph(grid)
+        self.graph = state_graph(grid) if turns else None  # without: the bound is the cells' distance
         self._cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def __call__(self, goal: int) -> tuple[np.ndarray, np.ndarray]:
@@ -66,9 +66,13 @@ class Bounds:
 
             from mrmt_env.distances import bfs_distance_field
 
-            d = dijkstra(self.graph, indices=[4 * goal + o for o in range(4)], min_only=True, unweighted=True)
             cells = bfs_distance_field(self.grid, divmod(goal, self.width)).reshape(-1)
-            self._cache[goal] = (d.reshape(-1, 4), cells)
+            if self.graph is None:
+                oriented = np.repeat(cells[:, None], 4, axis=1)
+            else:
+                d = dijkstra(self.graph, indices=[4 * goal + o for o in range(4)], min_only=True, unweighted=True)
+                oriented = d.reshape(-1, 4)
+            self._cache[goal] = (oriented, cells)
         return self._cache[goal]
 
 
@@ -96,8 +100,9 @@ def legs(data: dict, width: int) -> list[tuple[int, int, int, int]]:
     return out
 
 
-def measure(instance, data: dict, bounds: Bounds) -> dict:
-    """Legs, steps, lower bound, forward moves against the cells' distance, turns, waits of one output."""
+def measure(instance, data: dict, bounds: Bounds, windows: int = 1) -> list[dict]:
+    """Per window of steps (a leg in the window it ends in): legs, steps, lower bound, forward moves, the cells'
+    distance, turns, waits of one output."""
     from mrmt_env.lorr.rules import CLOCKWISE, COUNTER, FORWARD, TIMEOUT, WAIT, next_states, parse_actions
 
     w = instance.width
@@ -109,8 +114,11 @@ def measure(instance, data: dict, bounds: Bounds) -> dict:
         a = rows[:, t].astype(np.int64)
         pos, ori = next_states(pos, ori, np.where(a == TIMEOUT, WAIT, a), w)
         states.append((pos, ori))
-    m = defaultdict(int)
+    cuts = np.linspace(0, rows.shape[1], windows + 1)
+    ms: list[dict] = [defaultdict(int) for _ in range(windows)]
     for r, t0, t1, goal in legs(data, w):
+        m = ms[min(int(np.searchsorted(cuts, t1, side="left")) - 1, windows - 1)]
+        m["first"], m["last"] = int(cuts[ms.index(m)]) + 1, int(cuts[ms.index(m) + 1])
         oriented, cells = bounds(goal)
         p, o = states[t0][0][r], states[t0][1][r]
         acts = rows[r, t0:t1]
@@ -121,32 +129,37 @@ def measure(instance, data: dict, bounds: Bounds) -> dict:
         m["forward"] += int((acts == FORWARD).sum())
         m["turns"] += int(((acts == CLOCKWISE) | (acts == COUNTER)).sum())
         m["waits"] += int(((acts == WAIT) | (acts == TIMEOUT)).sum())
-    return dict(m)
+    return [dict(m) for m in ms if m]
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("instance", type=Path)
     ap.add_argument("outputs", nargs="+", help="LABEL=PATH of an output file")
+    ap.add_argument("--windows", type=int, default=1, help="the steps cut into this many windows (a leg counts in "
+                    "the window it ends in)")
+    ap.add_argument("--no-turns", action="store_true", help="bound by the cells' distance alone (large maps: a BFS "
+                    "per goal over cells, not over (cell, orientation))")
     args = ap.parse_args(argv)
 
     from mrmt_env.lorr.instance import read_instance
     from mrmt_env.lorr.output import read_output
 
     inst = read_instance(args.instance)
-    bounds = Bounds(inst.grid)
+    bounds = Bounds(inst.grid, turns=not args.no_turns)
     print(f"{inst.name}: legs from errand to errand against the least actions (turns counted)\n")
-    print("| run | tasks | legs | steps in legs | lower bound | steps / bound | forward / cells' distance | "
-          "turns / turns needed | waits |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| run | steps | tasks | legs | steps in legs | lower bound | bound / leg | steps / bound | forward / cells' "
+          "distance | turns / turns needed | waits |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for spec in args.outputs:
         label, _, path = spec.rpartition("=")
         data = read_output(path)
-        m = measure(inst, data, bounds)
-        needed = m["bound"] - m["distance"]
-        print(f"| {label or path} | {data.get('numTaskFinished', '')} | {m['legs']:,} | {m['steps']:,} | "
-              f"{m['bound']:,} | {m['steps'] / m['bound']:.3f} | {m['forward'] / m['distance']:.3f} | "
-              f"{m['turns'] / max(needed, 1):.3f} | {m['waits']:,} |")
+        for m in measure(inst, data, bounds, args.windows):
+            needed = m["bound"] - m["distance"]
+            turns = f"{m['turns'] / needed:.3f}" if needed > 0 else "-"
+            print(f"| {label or path} | {m['first']}-{m['last']} | {data.get('numTaskFinished', '')} | {m['legs']:,} | "
+                  f"{m['steps']:,} | {m['bound']:,} | {m['bound'] / m['legs']:.1f} | {m['steps'] / m['bound']:.3f} | "
+                  f"{m['forward'] / m['distance']:.3f} | {turns} | {m['waits']:,} |")
     return 0
 
 

@@ -65,6 +65,7 @@ def main(argv=None) -> int:
     ap.add_argument("--clock", default="", help="'rules' (1 s a step); default work-bounded")
     ap.add_argument("--windows", type=int, default=5, help="the run cut into this many windows of steps")
     ap.add_argument("--png", type=Path, default=None)
+    ap.add_argument("--out", type=Path, default=None, help="write the run's output file here (benchmarks/lorr_detours.py reads it)")
     args = ap.parse_args(argv)
 
     from agents.lorr.entry import load_entry
@@ -101,6 +102,10 @@ def main(argv=None) -> int:
             errands = int(((done > w[0]) & (done <= w[-1] + 1)).sum())
             print(f"steps {w[0] + 1}-{w[-1] + 1}: robots waiting {per_step[w].mean() / sim.n_robots:.1%}, "
                   f"errands reached {errands:,}")
+    if args.out:
+        from mrmt_env.lorr.output import write_output
+
+        print(f"wrote {write_output(sim, args.out)}")
     if args.png:
         import matplotlib
         matplotlib.use("Agg")
@@ -116,7 +121,7 @@ def main(argv=None) -> int:
         ax.set_xticks([])
         ax.set_yticks([])
         fig.tight_layout()
-        fig.savefig(args.png, dpi=110)
+        fig.savefig(args.png, dpi=110, bbox_inches="tight")
         print(f"wrote {args.png}")
     return 0
 

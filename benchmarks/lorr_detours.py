@@ -53,31 +53,28 @@ def state_graph(grid: np.ndarray):
 
 
 class Bounds:
-    """Least actions to a goal cell from every (cell, orientation), and the cells' distance, cached per goal."""
+    """Least actions to a goal cell from every (cell, orientation), and the cells' distance (per goal, not kept:
+    a large map's fields for every goal would not fit in memory)."""
 
     def __init__(self, grid: np.ndarray, turns: bool = True) -> None:
         self.grid, self.width = grid, grid.shape[1]
         self.graph = state_graph(grid) if turns else None  # without: the bound is the cells' distance
-        self._cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def __call__(self, goal: int) -> tuple[np.ndarray, np.ndarray]:
-        if goal not in self._cache:
-            from scipy.sparse.csgraph import dijkstra
+        from scipy.sparse.csgraph import dijkstra
 
-            from mrmt_env.distances import bfs_distance_field
+        from mrmt_env.distances import bfs_distance_field
 
-            cells = bfs_distance_field(self.grid, divmod(goal, self.width)).reshape(-1)
-            if self.graph is None:
-                oriented = np.repeat(cells[:, None], 4, axis=1)
-            else:
-                d = dijkstra(self.graph, indices=[4 * goal + o for o in range(4)], min_only=True, unweighted=True)
-                oriented = d.reshape(-1, 4)
-            self._cache[goal] = (oriented, cells)
-        return self._cache[goal]
+        cells = bfs_distance_field(self.grid, divmod(goal, self.width)).reshape(-1)
+        if self.graph is None:
+            return cells[:, None], cells
+        d = dijkstra(self.graph, indices=[4 * goal + o for o in range(4)], min_only=True, unweighted=True)
+        return d.reshape(-1, 4), cells
 
 
-def legs(data: dict, width: int) -> list[tuple[int, int, int, int]]:
-    """``(robot, start step, end step, goal cell)`` of every errand reached in output ``data`` (both formats)."""
+def legs(data: dict, width: int) -> list[tuple[int, int, int, int, bool]]:
+    """``(robot, start step, end step, goal cell, first)`` of every errand reached in output ``data`` (both formats;
+    ``first``: the task's first errand, the leg the scheduler's choice sets)."""
     tasks = data["tasks"]
     cells: dict[int, list[int]] = {}
     for t in tasks:
@@ -89,13 +86,13 @@ def legs(data: dict, width: int) -> list[tuple[int, int, int, int]]:
     events = data["events"]
     if events and isinstance(events[0], list) and events and events[0] and isinstance(events[0][0], list):
         for r, evs in enumerate(events):  # 2023 record: per robot [task, t, "assigned" | "finished"]
-            reached += [(t, r, cells[task][0]) for task, t, kind in evs if kind == "finished"]
+            reached += [(t, r, cells[task][0], True) for task, t, kind in evs if kind == "finished"]
     else:  # the package's: (t, robot, task, errands of the task reached so far)
-        reached = [(t, r, cells[task][idx - 1]) for t, r, task, idx in events]
+        reached = [(t, r, cells[task][idx - 1], idx == 1) for t, r, task, idx in events]
     last: dict[int, int] = defaultdict(int)
     out = []
-    for t, r, goal in sorted(reached):
-        out.append((r, last[r], t, goal))
+    for t, r, goal, first in sorted(reached):
+        out.append((r, last[r], t, goal, first))
         last[r] = t
     return out
 
@@ -103,7 +100,7 @@ def legs(data: dict, width: int) -> list[tuple[int, int, int, int]]:
 def measure(instance, data: dict, bounds: Bounds, windows: int = 1) -> list[dict]:
     """Per window of steps (a leg in the window it ends in): legs, steps, lower bound, forward moves, the cells'
     distance, turns, waits of one output."""
-    from mrmt_env.lorr.rules import CLOCKWISE, COUNTER, FORWARD, TIMEOUT, WAIT, next_states, parse_actions
+    from mrmt_env.lorr.rules import TIMEOUT, WAIT, next_states, parse_actions
 
     w = instance.width
     rows = np.array([parse_actions(p, f"robot {k}") for k, p in enumerate(data["actualPaths"])])
@@ -116,20 +113,36 @@ def measure(instance, data: dict, bounds: Bounds, windows: int = 1) -> list[dict
         states.append((pos, ori))
     cuts = np.linspace(0, rows.shape[1], windows + 1)
     ms: list[dict] = [defaultdict(int) for _ in range(windows)]
-    for r, t0, t1, goal in legs(data, w):
-        m = ms[min(int(np.searchsorted(cuts, t1, side="left")) - 1, windows - 1)]
-        m["first"], m["last"] = int(cuts[ms.index(m)]) + 1, int(cuts[ms.index(m) + 1])
+    by_goal = defaultdict(list)
+    for leg in legs(data, w):
+        by_goal[leg[3]].append(leg)
+    for goal, goal_legs in by_goal.items():
         oriented, cells = bounds(goal)
-        p, o = states[t0][0][r], states[t0][1][r]
-        acts = rows[r, t0:t1]
-        m["legs"] += 1
-        m["steps"] += t1 - t0
-        m["bound"] += int(oriented[p, o])
-        m["distance"] += int(cells[p])
-        m["forward"] += int((acts == FORWARD).sum())
-        m["turns"] += int(((acts == CLOCKWISE) | (acts == COUNTER)).sum())
-        m["waits"] += int(((acts == WAIT) | (acts == TIMEOUT)).sum())
+        for r, t0, t1, _, first in goal_legs:
+            k = min(int(np.searchsorted(cuts, t1, side="left")) - 1, windows - 1)
+            leg_into(ms[k], (int(cuts[k]) + 1, int(cuts[k + 1])), rows[r, t0:t1], (oriented, cells),
+                     (states[t0][0][r], states[t0][1][r] if oriented.shape[1] == 4 else 0), t1 - t0)
+            if first:
+                ms[k]["first_legs"] += 1
+                ms[k]["first_bound"] += int(oriented[states[t0][0][r], states[t0][1][r] if oriented.shape[1] == 4
+                                                     else 0])
     return [dict(m) for m in ms if m]
+
+
+def leg_into(m: dict, window: tuple, acts: np.ndarray, bound: tuple, start: tuple, steps: int) -> None:
+    """One leg's counts added to window ``m``."""
+    from mrmt_env.lorr.rules import CLOCKWISE, COUNTER, FORWARD, TIMEOUT, WAIT
+
+    oriented, cells = bound
+    p, o = start
+    m["first"], m["last"] = window
+    m["legs"] += 1
+    m["steps"] += steps
+    m["bound"] += int(oriented[p, o])
+    m["distance"] += int(cells[p])
+    m["forward"] += int((acts == FORWARD).sum())
+    m["turns"] += int(((acts == CLOCKWISE) | (acts == COUNTER)).sum())
+    m["waits"] += int(((acts == WAIT) | (acts == TIMEOUT)).sum())
 
 
 def main(argv=None) -> int:
@@ -148,9 +161,9 @@ def main(argv=None) -> int:
     inst = read_instance(args.instance)
     bounds = Bounds(inst.grid, turns=not args.no_turns)
     print(f"{inst.name}: legs from errand to errand against the least actions (turns counted)\n")
-    print("| run | steps | tasks | legs | steps in legs | lower bound | bound / leg | steps / bound | forward / cells' "
-          "distance | turns / turns needed | waits |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| run | steps | tasks | legs | steps in legs | lower bound | bound / leg | to a first errand / leg | "
+          "steps / bound | forward / cells' distance | turns / turns needed | waits |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for spec in args.outputs:
         label, _, path = spec.rpartition("=")
         data = read_output(path)
@@ -158,7 +171,8 @@ def main(argv=None) -> int:
             needed = m["bound"] - m["distance"]
             turns = f"{m['turns'] / needed:.3f}" if needed > 0 else "-"
             print(f"| {label or path} | {m['first']}-{m['last']} | {data.get('numTaskFinished', '')} | {m['legs']:,} | "
-                  f"{m['steps']:,} | {m['bound']:,} | {m['bound'] / m['legs']:.1f} | {m['steps'] / m['bound']:.3f} | "
+                  f"{m['steps']:,} | {m['bound']:,} | {m['bound'] / m['legs']:.1f} | "
+                  f"{m.get('first_bound', 0) / max(m.get('first_legs', 0), 1):.1f} | {m['steps'] / m['bound']:.3f} | "
                   f"{m['forward'] / m['distance']:.3f} | {turns} | {m['waits']:,} |")
     return 0
 

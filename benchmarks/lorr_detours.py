@@ -84,7 +84,7 @@ def legs(data: dict, width: int) -> list[tuple[int, int, int, int, bool]]:
             cells[t[0]] = [t[1] * width + t[2]]
     reached = []  # (t, robot, goal)
     events = data["events"]
-    if events and isinstance(events[0], list) and events and events[0] and isinstance(events[0][0], list):
+    if events and isinstance(events[0], list) and events[0] and isinstance(events[0][0], list):
         for r, evs in enumerate(events):  # 2023 record: per robot [task, t, "assigned" | "finished"]
             reached += [(t, r, cells[task][0], True) for task, t, kind in evs if kind == "finished"]
     else:  # the package's: (t, robot, task, errands of the task reached so far)
@@ -120,17 +120,14 @@ def measure(instance, data: dict, bounds: Bounds, windows: int = 1) -> list[dict
         oriented, cells = bounds(goal)
         for r, t0, t1, _, first in goal_legs:
             k = min(int(np.searchsorted(cuts, t1, side="left")) - 1, windows - 1)
+            o = states[t0][1][r] if oriented.shape[1] == 4 else 0  # the cells' distance: one column
             leg_into(ms[k], (int(cuts[k]) + 1, int(cuts[k + 1])), rows[r, t0:t1], (oriented, cells),
-                     (states[t0][0][r], states[t0][1][r] if oriented.shape[1] == 4 else 0), t1 - t0)
-            if first:
-                ms[k]["first_legs"] += 1
-                ms[k]["first_bound"] += int(oriented[states[t0][0][r], states[t0][1][r] if oriented.shape[1] == 4
-                                                     else 0])
+                     (states[t0][0][r], o), t1 - t0, first)
     return [dict(m) for m in ms if m]
 
 
-def leg_into(m: dict, window: tuple, acts: np.ndarray, bound: tuple, start: tuple, steps: int) -> None:
-    """One leg's counts added to window ``m``."""
+def leg_into(m: dict, window: tuple, acts: np.ndarray, bound: tuple, start: tuple, steps: int, first: bool) -> None:
+    """One leg's counts added to window ``m`` (``first``: a leg to a task's first errand, counted apart too)."""
     from mrmt_env.lorr.rules import CLOCKWISE, COUNTER, FORWARD, TIMEOUT, WAIT
 
     oriented, cells = bound
@@ -143,6 +140,9 @@ def leg_into(m: dict, window: tuple, acts: np.ndarray, bound: tuple, start: tupl
     m["forward"] += int((acts == FORWARD).sum())
     m["turns"] += int(((acts == CLOCKWISE) | (acts == COUNTER)).sum())
     m["waits"] += int(((acts == WAIT) | (acts == TIMEOUT)).sum())
+    if first:
+        m["first_legs"] += 1
+        m["first_bound"] += int(oriented[p, o])
 
 
 def main(argv=None) -> int:
